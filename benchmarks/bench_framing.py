@@ -1,0 +1,112 @@
+"""Framing throughput on a synthetic exact capture; prints a table.
+
+    python benchmarks/bench_framing.py [--frames N]
+
+Stages measured side by side on the same capture in one process:
+the vectorised timing pass alone, the whole framer (timing + frame assembly +
+CRC), the framer plus role classification (what `analyze` does before output),
+and reading the native MCAP capture back.
+"""
+
+from __future__ import annotations
+
+import argparse
+import random
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from decoders.byte_times import byte_times
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.crc import crc_bytes
+from decoders.framer import TimingFramer
+from decoders.line import LineSettings
+from decoders.pipeline import Decoder
+from decoders.synthesis import Transmission, exact_chunks
+from sniffer.io.registry import open_reader, open_writer
+
+LINE = LineSettings.parse("115200 8N1")
+BATCH_CHUNKS = 8192
+
+
+def polling_capture(frames: int, seed: int = 1) -> list[ChunkBatch]:
+    """FC3 request/response pairs to 32 slaves, 1-8 register reads, 1 % gap_1_5."""
+    rng = random.Random(seed)
+    transmissions = []
+    for i in range(frames // 2):
+        slave, count = rng.randint(1, 32), rng.randint(1, 8)
+        start = rng.randrange(0, 10_000)
+        request = bytes([slave, 3]) + start.to_bytes(2, "big") + count.to_bytes(2, "big")
+        response = bytes([slave, 3, 2 * count]) + rng.randbytes(2 * count)
+        gaps = {5: 1_000_000} if i % 100 == 0 else {}
+        transmissions.append(Transmission(request + crc_bytes(request), rng.randint(2_000_000, 4_000_000)))
+        transmissions.append(Transmission(response + crc_bytes(response), rng.randint(1_800_000, 3_000_000), gaps))
+    chunks = list(exact_chunks(transmissions, LINE, 1_700_000_000_000_000_000))
+    return [ChunkBatch.from_chunks(chunks[i : i + BATCH_CHUNKS]) for i in range(0, len(chunks), BATCH_CHUNKS)]
+
+
+def timing_pass(batches: list[ChunkBatch]) -> int:
+    found = 0
+    for batch in batches:
+        starts, ends = byte_times(batch, LINE.char_time_ns)
+        silence = starts[1:] - ends[:-1]
+        found += int(np.count_nonzero(silence >= LINE.t3_5_ns))
+    return found
+
+
+def framer(batches: list[ChunkBatch]) -> int:
+    timing = TimingFramer(LINE)
+    count = sum(len(timing.feed(b)) for b in batches)
+    return count + len(timing.flush())
+
+
+def decoder(batches: list[ChunkBatch]) -> int:
+    decode = Decoder(LINE)
+    count = sum(len(decode.feed(b)) for b in batches)
+    return count + len(decode.flush())
+
+
+def mcap_read(path: Path) -> Callable[[list[ChunkBatch]], int]:
+    def read(_: list[ChunkBatch]) -> int:
+        reader = open_reader(str(path))
+        count = sum(len(b) for b in reader.batches())
+        reader.close()
+        return count
+
+    return read
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--frames", type=int, default=500_000)
+    args = parser.parse_args()
+    started = time.perf_counter()
+    batches = polling_capture(args.frames)
+    total_bytes = sum(len(b.data) for b in batches)
+    print(f"capture: {args.frames:,} frames, {total_bytes / 1e6:.1f} MB, {LINE.format()} "
+          f"(generated in {time.perf_counter() - started:.1f} s)")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "bench.mcap"
+        writer = open_writer(str(path), CaptureInfo(LINE, TimingQuality.EXACT))
+        for batch in batches:
+            writer.write_batch(batch)
+        writer.close()
+        stages: list[tuple[str, Callable[[list[ChunkBatch]], int]]] = [
+            ("timing pass (numpy)", timing_pass),
+            ("framer (timing+assembly+CRC)", framer),
+            ("framer + role guess", decoder),
+            ("MCAP capture read", mcap_read(path)),
+        ]
+        print(f"{'stage':<30} {'seconds':>8} {'frames/s':>12} {'MB/s':>8}")
+        for name, stage in stages:
+            start = time.perf_counter()
+            stage(batches)
+            seconds = time.perf_counter() - start
+            print(f"{name:<30} {seconds:>8.3f} {args.frames / seconds:>12,.0f} {total_bytes / seconds / 1e6:>8.1f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,106 @@
+"""Frames: the framer's output, one per run of bytes it decided belongs together.
+
+Frames travel in columns (:class:`FrameBatch`) so that statistics and exports can
+stay in numpy; :class:`Frame` is the one-at-a-time view for decoders and views.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from enum import IntFlag
+
+import numpy as np
+import numpy.typing as npt
+
+
+class FrameFlag(IntFlag):
+    """Conditions found on a frame; names are the JSONL flag names."""
+
+    NONE = 0
+    #: A silence longer than t1.5 inside the frame.
+    GAP_1_5 = 1
+    #: The silence before the frame was shorter than t3.5; content decided the boundary.
+    SHORT_IDLE = 2
+    #: The capture or the frame stops before the frame's expected length.
+    TRUNCATED = 4
+    #: The frame's length does not fit its function code.
+    BAD_LENGTH = 8
+    #: On a request: no response came in time.
+    TIMEOUT = 16
+    #: On a request: repeats the previous unanswered request.
+    RETRY = 32
+    #: On a response: no open request matches it.
+    UNEXPECTED = 64
+
+    @property
+    def names(self) -> list[str]:
+        """The set flags' JSONL names, in a fixed order."""
+        return [_FLAG_NAMES[flag] for flag in _FLAG_ORDER if flag & self]
+
+
+_FLAG_ORDER = [f for f in FrameFlag if f is not FrameFlag.NONE]
+_FLAG_NAMES = {flag: str(flag.name).lower() for flag in _FLAG_ORDER}
+#: Every combination of flags, looked up instead of constructed (enum calls are slow).
+_FLAGS_BY_VALUE = [FrameFlag(value) for value in range(1 << len(_FLAG_ORDER))]
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """One frame (or one run of noise bytes) with its wire times.
+
+    ``t_start_ns`` is the start of the first byte's start bit, ``t_end_ns`` the end
+    of the last byte's stop bit. ``idle_before_ns`` is the silence since the end of
+    the previous frame (``None`` for the first frame of a capture).
+    """
+
+    index: int
+    t_start_ns: int
+    t_end_ns: int
+    data: bytes
+    crc_ok: bool
+    flags: FrameFlag
+    is_noise: bool = False
+    idle_before_ns: int | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class FrameBatch:
+    """Consecutive frames in columns; frame *i* is ``data[offsets[i]:offsets[i+1]]``."""
+
+    first_index: int
+    data: bytes
+    offsets: npt.NDArray[np.int64]
+    t_start_ns: npt.NDArray[np.int64]
+    t_end_ns: npt.NDArray[np.int64]
+    crc_ok: npt.NDArray[np.bool_]
+    flags: npt.NDArray[np.uint16]
+    is_noise: npt.NDArray[np.bool_]
+    #: Silence before each frame; -1 where there is no previous frame.
+    idle_before_ns: npt.NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.t_start_ns)
+
+    def __iter__(self) -> Iterator[Frame]:
+        bounds = self.offsets.tolist()
+        columns = zip(
+            self.t_start_ns.tolist(),
+            self.t_end_ns.tolist(),
+            self.crc_ok.tolist(),
+            self.flags.tolist(),
+            self.is_noise.tolist(),
+            self.idle_before_ns.tolist(),
+            strict=True,
+        )
+        for i, (start, end, ok, flags, noise, idle) in enumerate(columns):
+            yield Frame(
+                index=self.first_index + i,
+                t_start_ns=start,
+                t_end_ns=end,
+                data=self.data[bounds[i] : bounds[i + 1]],
+                crc_ok=ok,
+                flags=_FLAGS_BY_VALUE[flags],
+                is_noise=noise,
+                idle_before_ns=None if idle < 0 else idle,
+            )

@@ -1,0 +1,55 @@
+"""``rtusniff``: the command line. ``main(argv) -> exit code``.
+
+Data goes to standard output, errors to standard error as one ``error: …`` line
+(the traceback only with ``--debug``); exit codes are listed in :mod:`sniffer.errors`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from importlib.metadata import version
+
+from sniffer.commands import analyze, convert
+from sniffer.errors import ErrorKind, RtuSniffError
+
+COMMANDS = [analyze, convert]
+INTERRUPTED_EXIT = 130
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="rtusniff",
+        description="Modbus RTU protocol analyzer and passive RS485 bus sniffer.",
+    )
+    parser.add_argument("--version", action="version", version=f"rtusniff {version('rtusniff')}")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of errors")
+    subparsers = parser.add_subparsers(title="commands", metavar="COMMAND", required=True)
+    for command in COMMANDS:
+        command.add_parser(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        result: int = args.run(args)
+        return result
+    except RtuSniffError as exc:
+        if args.debug:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return ErrorKind.USAGE.exit_code if exc.kind is ErrorKind.USAGE else exc.kind.exit_code
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return INTERRUPTED_EXIT
+    except BrokenPipeError:
+        # The reader of our output (e.g. `head`) has gone; that is not an error.
+        sys.stderr.close()
+        return 0
+
+
+def entry_point() -> None:
+    sys.exit(main())

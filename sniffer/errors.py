@@ -1,0 +1,41 @@
+"""Errors that end a command with one line and a distinct exit code."""
+
+from __future__ import annotations
+
+from enum import Enum
+
+
+class ErrorKind(Enum):
+    """What went wrong, and the process exit code that says so."""
+
+    RUNTIME = 1
+    USAGE = 2
+    FILE_NOT_FOUND = 3
+    FILE_UNREADABLE = 4
+    UNKNOWN_FORMAT = 5
+    BAD_HEADER = 6
+    BAD_DATA = 7
+    DECREASING_TIME = 8
+    BAD_MCAP = 9
+    NO_LINE_SETTINGS = 10
+    OUTPUT_FAILED = 11
+
+    @property
+    def exit_code(self) -> int:
+        return self.value
+
+
+class RtuSniffError(Exception):
+    """An error in a file or an option, reported as ``error: WHERE: WHAT``."""
+
+    def __init__(self, kind: ErrorKind, message: str, *, path: str | None = None,
+                 location: str | None = None) -> None:
+        self.kind = kind
+        self.path = path
+        self.location = location
+        where = ":".join(part for part in (path, location) if part)
+        super().__init__(f"{where}: {message}" if where else message)
+
+
+class CaptureFormatError(RtuSniffError):
+    """A capture file that cannot be read as its format says."""

@@ -1,0 +1,1 @@
+"""Capture readers and writers, chosen by file suffix through :mod:`sniffer.io.registry`."""

@@ -1,0 +1,232 @@
+"""The rtu-capture text format v1 (docs/capture-text-format.md), read and write.
+
+```
+# rtu-capture v1
+# line: 19200 8E1
+# timing: exact
+1700000000.011173964 02 03 0C 1E 00 04 27 6C
+```
+The reader stops at the first error and names the file, the line and the fault.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+from collections.abc import Iterator
+from typing import BinaryIO, TextIO
+
+import numpy as np
+
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.line import LineSettings
+from sniffer.errors import CaptureFormatError, ErrorKind
+from sniffer.io.base import CaptureFormat
+from sniffer.io.registry import STDIO
+
+MAGIC = "# rtu-capture v1"
+_MAGIC_ANY_VERSION = re.compile(r"#\s*rtu-capture\s+v(\S+)")
+_TIME = re.compile(r"\d+(?:\.\d{1,9})?")
+_HEADER_KEY = re.compile(r"#\s*(line|timing)\s*:\s*(.*)$", re.IGNORECASE)
+NS_PER_S = 1_000_000_000
+#: Chunks per batch handed to the framer.
+BATCH_CHUNKS = 8192
+
+
+def format_time_ns(t_ns: int) -> str:
+    """Seconds since the epoch with all nine fractional digits."""
+    seconds, nanos = divmod(t_ns, NS_PER_S)
+    return f"{seconds}.{nanos:09d}"
+
+
+def parse_time_ns(text: str) -> int | None:
+    """Integer nanoseconds from ``SECONDS[.FRACTION]``; ``None`` if malformed."""
+    if _TIME.fullmatch(text) is None:
+        return None
+    seconds, _, fraction = text.partition(".")
+    return int(seconds) * NS_PER_S + int(fraction.ljust(9, "0") or 0)
+
+
+class TextCaptureReader:
+    """Reads the header at once; :meth:`batches` streams the data lines."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self._stream: BinaryIO = sys.stdin.buffer if path == STDIO else open(path, "rb")  # noqa: SIM115
+        self._line_number = 0
+        self._first_data: tuple[int, str] | None = None
+        #: Comment lines found among the data lines, known once :meth:`batches` is done.
+        self.late_notes: list[str] = []
+        self.info = self._read_header()
+
+    def close(self) -> None:
+        if self._stream is not sys.stdin.buffer:
+            self._stream.close()
+
+    def _error(self, kind: ErrorKind, message: str, line_number: int | None = None) -> CaptureFormatError:
+        number = self._line_number if line_number is None else line_number
+        return CaptureFormatError(kind, message, path=self.path, location=f"line {number}")
+
+    def _lines(self) -> Iterator[str]:
+        for raw in self._stream:
+            self._line_number += 1
+            try:
+                yield raw.decode("ascii").strip()
+            except UnicodeDecodeError as exc:
+                raise self._error(
+                    ErrorKind.BAD_DATA, f"not text: byte 0x{raw[exc.start]:02X} at column {exc.start + 1}"
+                ) from None
+
+    def _read_header(self) -> CaptureInfo:
+        lines = self._lines()
+        first = next(lines, None)
+        if first is None:
+            raise self._error(ErrorKind.BAD_HEADER, f"empty file; a capture starts with {MAGIC!r}", 1)
+        if first != MAGIC:
+            version = _MAGIC_ANY_VERSION.fullmatch(first)
+            if version:
+                raise self._error(ErrorKind.UNKNOWN_FORMAT, f"unknown format version v{version.group(1)}")
+            raise self._error(ErrorKind.BAD_HEADER, f"missing header: the first line must be {MAGIC!r}")
+        line: LineSettings | None = None
+        timing: TimingQuality | None = None
+        notes: list[str] = []
+        self._lines_iter = lines
+        for text in lines:
+            if not text:
+                continue
+            if not text.startswith("#"):
+                self._first_data = (self._line_number, text)
+                break
+            key = _HEADER_KEY.match(text)
+            if key is None:
+                notes.append(text[1:].strip())
+            elif key.group(1).lower() == "line":
+                line = self._header_line(line, key.group(2))
+            else:
+                timing = self._header_timing(timing, key.group(2))
+        return CaptureInfo(line=line, timing=timing or TimingQuality.HOST, notes=tuple(notes))
+
+    def _header_line(self, previous: LineSettings | None, value: str) -> LineSettings:
+        if previous is not None:
+            raise self._error(ErrorKind.BAD_HEADER, "second '# line:' header")
+        try:
+            return LineSettings.parse(value)
+        except ValueError as exc:
+            raise self._error(ErrorKind.BAD_HEADER, str(exc)) from None
+
+    def _header_timing(self, previous: TimingQuality | None, value: str) -> TimingQuality:
+        if previous is not None:
+            raise self._error(ErrorKind.BAD_HEADER, "second '# timing:' header")
+        try:
+            return TimingQuality(value.strip().lower())
+        except ValueError:
+            raise self._error(
+                ErrorKind.BAD_HEADER, f"timing {value.strip()!r} is neither 'exact' nor 'host'"
+            ) from None
+
+    def batches(self) -> Iterator[ChunkBatch]:
+        times: list[int] = []
+        lengths: list[int] = []
+        parts: list[bytes] = []
+        previous_time = -1
+        for line_number, text in self._data_lines():
+            t_ns, data = self._parse_data_line(line_number, text)
+            if t_ns < previous_time:
+                raise self._error(
+                    ErrorKind.DECREASING_TIME,
+                    f"time {format_time_ns(t_ns)} is before the previous line's {format_time_ns(previous_time)}",
+                    line_number,
+                )
+            previous_time = t_ns
+            times.append(t_ns)
+            lengths.append(len(data))
+            parts.append(data)
+            if len(times) >= BATCH_CHUNKS:
+                yield _batch(times, lengths, parts)
+                times, lengths, parts = [], [], []
+        if times:
+            yield _batch(times, lengths, parts)
+
+    def _data_lines(self) -> Iterator[tuple[int, str]]:
+        if self._first_data is not None:
+            yield self._first_data
+        for text in self._lines_iter:
+            if text.startswith("#"):
+                self.late_notes.append(text[1:].strip())
+            elif text:
+                yield self._line_number, text
+
+    def _parse_data_line(self, line_number: int, text: str) -> tuple[int, bytes]:
+        time_text, _, hex_text = text.partition(" ")
+        t_ns = parse_time_ns(time_text)
+        if t_ns is None:
+            raise self._error(
+                ErrorKind.BAD_DATA, f"bad time {time_text!r}: expected seconds with up to 9 decimals", line_number
+            )
+        try:
+            data = bytes.fromhex(hex_text)
+        except ValueError:
+            raise self._error(ErrorKind.BAD_DATA, _describe_bad_hex(hex_text), line_number) from None
+        if not data:
+            raise self._error(ErrorKind.BAD_DATA, "a data line needs at least one byte after the time", line_number)
+        return t_ns, data
+
+
+def _describe_bad_hex(hex_text: str) -> str:
+    digits = "".join(hex_text.split())
+    for char in digits:
+        if char not in "0123456789abcdefABCDEF":
+            return f"bad hex digit {char!r}"
+    if len(digits) % 2:
+        return f"odd number of hex digits ({len(digits)})"
+    return "hex bytes must be two digits each, separated by spaces or not at all"
+
+
+def _batch(times: list[int], lengths: list[int], parts: list[bytes]) -> ChunkBatch:
+    return ChunkBatch(
+        b"".join(parts),
+        np.cumsum(np.array(lengths, dtype=np.int64)),
+        np.array(times, dtype=np.int64),
+    )
+
+
+class TextCaptureWriter:
+    """Writes the header at once, then one line per chunk."""
+
+    def __init__(self, path: str, info: CaptureInfo) -> None:
+        self._stream: TextIO = sys.stdout if path == STDIO else open(path, "w", encoding="ascii")  # noqa: SIM115
+        header = [MAGIC]
+        if info.line is not None:
+            header.append(f"# line: {info.line.format()}")
+        header.append(f"# timing: {info.timing.value}")
+        header.extend(f"# {note}" if note else "#" for note in info.notes)
+        self._stream.write("\n".join(header) + "\n")
+
+    def write_batch(self, batch: ChunkBatch) -> None:
+        lines = []
+        for chunk in batch.chunks():
+            if not chunk.data:
+                raise ValueError("the text format cannot hold a chunk without bytes")
+            lines.append(f"{format_time_ns(chunk.t_end_ns)} {chunk.data.hex(' ').upper()}\n")
+        self._stream.write("".join(lines))
+
+    def add_notes(self, notes: list[str]) -> None:
+        self._stream.write("".join(f"# {note}\n" for note in notes))
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+    def close(self) -> None:
+        self.flush()
+        if self._stream is not sys.stdout:
+            self._stream.close()
+
+
+FORMAT = CaptureFormat(
+    name="text",
+    suffixes=(".log", ".txt", ".rtu"),
+    description="rtu-capture v1 text: one line per chunk, 'SECONDS.NANOS HEX...'",
+    magic=b"# rtu-capture",
+    open_reader=TextCaptureReader,
+    open_writer=TextCaptureWriter,
+)

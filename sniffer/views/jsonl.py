@@ -1,0 +1,32 @@
+"""The ``--format jsonl`` view: one JSON object per line."""
+
+from __future__ import annotations
+
+import json
+from typing import Any, TextIO
+
+from decoders.capture import CaptureInfo
+from decoders.line import LineSettings
+from decoders.message import Message
+from sniffer.views.records import capture_record, frame_record
+
+
+class JsonlView:
+    """Writes a ``capture`` record, then one ``frame`` record per message."""
+
+    def __init__(self, out: TextIO) -> None:
+        self._out = out
+        self._dumps = json.JSONEncoder(ensure_ascii=False, separators=(",", ":")).encode
+
+    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        self._write(capture_record(source, info, line))
+
+    def messages(self, messages: list[Message]) -> None:
+        dumps = self._dumps
+        self._out.write("".join(dumps(frame_record(m)) + "\n" for m in messages))
+
+    def finish(self) -> None:
+        self._out.flush()
+
+    def _write(self, record: dict[str, Any]) -> None:
+        self._out.write(self._dumps(record) + "\n")

@@ -1,0 +1,88 @@
+"""Hypothesis: how an exact capture is cut into chunks and batches never changes its frames."""
+
+from __future__ import annotations
+
+from itertools import pairwise
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from decoders.capture import Chunk, ChunkBatch
+from decoders.crc import crc_bytes
+from decoders.framer import TimingFramer
+from decoders.line import LineSettings
+from decoders.synthesis import Transmission, exact_chunks
+
+T0 = 1_600_000_000_000_000_000
+LINES = st.sampled_from([LineSettings.parse(t) for t in ("9600 8E1", "19200 8E1", "115200 8N1")])
+
+
+def silences(line: LineSettings) -> st.SearchStrategy[int]:
+    """Silences up to 3 x t3.5, but not within 3 ns of a threshold: 1 ns rounding of a
+    re-chunked capture's times may legitimately move a decision made at the threshold."""
+    thresholds = (line.t1_5_ns, line.t3_5_ns)
+    return st.integers(0, int(3 * line.t3_5_ns)).filter(lambda s: all(abs(s - t) > 3 for t in thresholds))
+
+
+def close(a: list[tuple[object, ...]], b: list[tuple[object, ...]]) -> bool:
+    """Equal frames; times equal to within the 1 ns rounding of re-chunked times."""
+    if len(a) != len(b):
+        return False
+    for x, y in zip(a, b, strict=True):
+        if (x[0], x[3], x[4]) != (y[0], y[3], y[4]):
+            return False
+        for i in (1, 2, 5):
+            if (x[i] is None) != (y[i] is None) or (x[i] is not None and abs(int(x[i]) - int(y[i])) > 1):  # type: ignore[call-overload]
+                return False
+    return True
+
+
+@st.composite
+def captures(draw: st.DrawFn) -> tuple[LineSettings, list[Chunk]]:
+    line = draw(LINES)
+    transmissions = []
+    for _ in range(draw(st.integers(1, 12))):
+        body = draw(st.binary(min_size=1, max_size=40))
+        data = body + crc_bytes(body)
+        gaps = draw(st.dictionaries(st.integers(1, len(data) - 1), silences(line), max_size=2))
+        idle = draw(silences(line))
+        transmissions.append(Transmission(data, idle, gaps))
+    return line, list(exact_chunks(transmissions, line, T0))
+
+
+def split_chunk(chunk: Chunk, cuts: list[int], char_time_ns: float) -> list[Chunk]:
+    """The same bytes as several chunks, each stamped with the end of its own last byte."""
+    positions = sorted({c for c in cuts if 0 < c < len(chunk.data)})
+    bounds = [0, *positions, len(chunk.data)]
+    pieces = []
+    for begin, end in pairwise(bounds):
+        chars_after = len(chunk.data) - end
+        pieces.append(Chunk(chunk.t_end_ns - round(chars_after * char_time_ns), chunk.data[begin:end]))
+    return pieces
+
+
+def frames_of(chunks: list[Chunk], line: LineSettings, batch_sizes: list[int]) -> list[tuple[object, ...]]:
+    framer = TimingFramer(line)
+    out = []
+    position, turn = 0, 0
+    while position < len(chunks):
+        size = batch_sizes[turn % len(batch_sizes)]
+        out.extend(framer.feed(ChunkBatch.from_chunks(chunks[position : position + size])))
+        position += size
+        turn += 1
+    out.extend(framer.flush())
+    return [(f.data, f.t_start_ns, f.t_end_ns, f.flags, f.crc_ok, f.idle_before_ns) for f in out]
+
+
+@settings(max_examples=200, deadline=None)
+@given(captures(), st.data())
+def test_rechunking_does_not_change_frames(capture: tuple[LineSettings, list[Chunk]], data: st.DataObject) -> None:
+    line, chunks = capture
+    reference = frames_of(chunks, line, [len(chunks)])
+    rechunked = []
+    for chunk in chunks:
+        cuts = data.draw(st.lists(st.integers(1, max(1, len(chunk.data) - 1)), max_size=4))
+        rechunked.extend(split_chunk(chunk, cuts, line.char_time_ns))
+    batch_sizes = data.draw(st.lists(st.integers(1, 5), min_size=1, max_size=4))
+    result = frames_of(rechunked, line, batch_sizes)
+    assert close(result, reference), (result, reference)

@@ -1,0 +1,43 @@
+"""The README is the user's manual: its commands run in CI, and it documents every command."""
+
+from __future__ import annotations
+
+import re
+
+from sniffer.cli import COMMANDS
+from sniffer.errors import ErrorKind
+from tests.conftest import ROOT
+
+
+def setup_commands() -> list[str]:
+    readme = (ROOT / "README.md").read_text()
+    block = re.search(r"<!-- setup-commands.*?-->\n```sh\n(.*?)```", readme, re.S)
+    assert block, "README.md lost its setup-commands block"
+    return block.group(1).strip().splitlines()
+
+
+def test_two_setup_commands_run_a_shipped_capture_and_the_tests() -> None:
+    analyze, tests = setup_commands()
+    capture = re.search(r"rtusniff analyze (\S+)", analyze)
+    assert capture and (ROOT / capture.group(1)).is_file()
+    assert ".[test]" in tests and "pytest" in tests
+
+
+def test_ci_runs_the_readme_block() -> None:
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert "setup-commands" in ci
+    for tool in ("ruff check", "mypy", "lint-imports"):
+        assert tool in ci
+
+
+def test_every_command_has_a_usage_section() -> None:
+    readme = (ROOT / "README.md").read_text()
+    for command in COMMANDS:
+        name = command.__name__.rsplit(".", 1)[-1]
+        assert f"### `rtusniff {name}" in readme, name
+
+
+def test_exit_codes_are_documented() -> None:
+    readme = (ROOT / "README.md").read_text()
+    for kind in ErrorKind:
+        assert re.search(rf"^\| {kind.exit_code} \|", readme, re.M), kind

@@ -1,0 +1,112 @@
+"""The timing framer on hand-made timings, at and around t1.5 and t3.5."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from decoders.capture import Chunk, ChunkBatch
+from decoders.crc import crc_bytes
+from decoders.frame import Frame, FrameFlag
+from decoders.framer import TimingFramer
+from decoders.line import LineSettings
+from decoders.synthesis import Transmission, exact_chunks
+
+LINES = [LineSettings.parse(t) for t in ("9600 8E1", "19200 8E1", "115200 8N1")]
+T0 = 1_700_000_000_000_000_000
+REQUEST = bytes.fromhex("02030C1E0004276C")
+RESPONSE = bytes.fromhex("0203080028025801F4000052B0")
+
+
+def frame_all(chunks: list[Chunk], line: LineSettings, batch_size: int = 1000) -> list[Frame]:
+    framer = TimingFramer(line)
+    frames: list[Frame] = []
+    for start in range(0, len(chunks), batch_size):
+        frames.extend(framer.feed(ChunkBatch.from_chunks(chunks[start : start + batch_size])))
+    frames.extend(framer.flush())
+    return frames
+
+
+def two_frames(line: LineSettings, silence_ns: int) -> list[Frame]:
+    chunks = list(exact_chunks([Transmission(REQUEST, 0), Transmission(RESPONSE, silence_ns)], line, T0))
+    return frame_all(chunks, line)
+
+
+def one_frame_with_gap(line: LineSettings, gap_ns: int) -> list[Frame]:
+    chunks = list(exact_chunks([Transmission(RESPONSE, 0, {5: gap_ns})], line, T0))
+    return frame_all(chunks, line)
+
+
+@pytest.mark.parametrize("line", LINES, ids=lambda line: line.format())
+class TestThresholds:
+    def test_silence_exactly_t3_5_splits(self, line: LineSettings) -> None:
+        frames = two_frames(line, round(line.t3_5_ns))
+        assert [f.data for f in frames] == [REQUEST, RESPONSE]
+        assert all(f.crc_ok and f.flags == FrameFlag.NONE for f in frames)
+
+    def test_silence_just_above_t3_5_splits(self, line: LineSettings) -> None:
+        assert len(two_frames(line, round(line.t3_5_ns) + 1_000)) == 2
+
+    def test_silence_just_below_t3_5_merges_with_gap_flag(self, line: LineSettings) -> None:
+        frames = two_frames(line, round(line.t3_5_ns) - 1_000)
+        assert [f.data for f in frames] == [REQUEST + RESPONSE]
+        assert frames[0].flags == FrameFlag.GAP_1_5
+        assert not frames[0].crc_ok
+
+    def test_gap_exactly_t1_5_is_not_flagged(self, line: LineSettings) -> None:
+        frames = one_frame_with_gap(line, round(line.t1_5_ns))
+        assert [(f.data, f.flags) for f in frames] == [(RESPONSE, FrameFlag.NONE)]
+
+    def test_gap_just_below_t1_5_is_not_flagged(self, line: LineSettings) -> None:
+        frames = one_frame_with_gap(line, round(line.t1_5_ns) - 1_000)
+        assert [(f.data, f.flags) for f in frames] == [(RESPONSE, FrameFlag.NONE)]
+
+    def test_gap_just_above_t1_5_is_flagged(self, line: LineSettings) -> None:
+        frames = one_frame_with_gap(line, round(line.t1_5_ns) + 1_000)
+        assert [(f.data, f.flags, f.crc_ok) for f in frames] == [(RESPONSE, FrameFlag.GAP_1_5, True)]
+
+    def test_gap_just_below_t3_5_is_flagged_not_split(self, line: LineSettings) -> None:
+        frames = one_frame_with_gap(line, round(line.t3_5_ns) - 1_000)
+        assert [(f.data, f.flags) for f in frames] == [(RESPONSE, FrameFlag.GAP_1_5)]
+
+
+def test_times_and_idle() -> None:
+    line = LineSettings.parse("19200 8E1")
+    idle = 5_000_000
+    frames = two_frames(line, idle)
+    request, response = frames
+    assert request.t_start_ns == T0
+    assert request.t_end_ns == T0 + round(8 * line.char_time_ns)
+    assert request.idle_before_ns is None
+    assert response.idle_before_ns == pytest.approx(idle, abs=1)
+    assert response.t_end_ns - response.t_start_ns == pytest.approx(13 * line.char_time_ns, abs=1)
+    assert [f.index for f in frames] == [0, 1]
+
+
+def test_frame_spanning_batches_is_held_until_its_end_is_known() -> None:
+    line = LineSettings.parse("19200 8E1")
+    chunks = list(exact_chunks([Transmission(REQUEST, 0), Transmission(RESPONSE, 10_000_000)], line, T0))
+    framer = TimingFramer(line)
+    assert len(framer.feed(ChunkBatch.from_chunks(chunks[:1]))) == 0
+    first = list(framer.feed(ChunkBatch.from_chunks(chunks[1:])))
+    assert [f.data for f in first] == [REQUEST]
+    assert [f.data for f in framer.flush()] == [RESPONSE]
+    assert len(framer.flush()) == 0
+
+
+def test_empty_input() -> None:
+    framer = TimingFramer(LineSettings.parse("9600 8N1"))
+    assert len(framer.feed(ChunkBatch.empty())) == 0
+    assert len(framer.flush()) == 0
+
+
+def test_every_byte_in_exactly_one_frame() -> None:
+    line = LineSettings.parse("9600 8N1")
+    rng = np.random.default_rng(3)
+    transmissions = []
+    for _ in range(200):
+        body = bytes(rng.integers(0, 256, int(rng.integers(1, 40)), dtype=np.uint8))
+        transmissions.append(Transmission(body + crc_bytes(body), int(rng.integers(0, 8_000_000))))
+    chunks = list(exact_chunks(transmissions, line, T0))
+    frames = frame_all(chunks, line, batch_size=7)
+    assert b"".join(f.data for f in frames) == b"".join(c.data for c in chunks)

@@ -1,0 +1,126 @@
+"""The rtu-capture v1 text format: what it reads, and the one-line errors for what it refuses."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.line import LineSettings
+from sniffer.errors import CaptureFormatError, ErrorKind
+from sniffer.io.formats.text import TextCaptureReader, format_time_ns, parse_time_ns
+
+GOOD = """# rtu-capture v1
+# line: 19200 8E1
+# timing: exact
+# any other comment line
+1700000000.011173964 02 03 0C 1E 00 04 27 6C
+1700000000.022376060 02 03 08 00 28 02 58 01 F4 00 00 52 B0
+"""
+
+
+def read(tmp_path: Path, text: str | bytes) -> tuple[CaptureInfo, list[ChunkBatch]]:
+    path = tmp_path / "capture.log"
+    if isinstance(text, str):
+        path.write_text(text)
+    else:
+        path.write_bytes(text)
+    reader = TextCaptureReader(str(path))
+    try:
+        return reader.info, list(reader.batches())
+    finally:
+        reader.close()
+
+
+def test_reads_the_specification_example(tmp_path: Path) -> None:
+    info, batches = read(tmp_path, GOOD)
+    assert info == CaptureInfo(LineSettings.parse("19200 8E1"), TimingQuality.EXACT, ("any other comment line",))
+    chunks = [c for b in batches for c in b.chunks()]
+    assert [c.t_end_ns for c in chunks] == [1700000000011173964, 1700000000022376060]
+    assert chunks[0].data == bytes.fromhex("02030C1E0004276C")
+
+
+@pytest.mark.parametrize("hex_text", ["02 03 0c 1e", "02030C1E", "02030c1E", "02 030C 1e", "02\t03 0C\t1E"])
+def test_hex_case_and_spacing(tmp_path: Path, hex_text: str) -> None:
+    _, batches = read(tmp_path, f"# rtu-capture v1\n# line: 9600 8N1\n1.5 {hex_text}\n")
+    assert batches[0].data == bytes.fromhex("02030C1E")
+
+
+def test_times_keep_nanoseconds_exactly() -> None:
+    assert parse_time_ns("1700000000.000000001") == 1_700_000_000_000_000_001
+    assert parse_time_ns("1700000000.5") == 1_700_000_000_500_000_000
+    assert parse_time_ns("12") == 12_000_000_000
+    assert format_time_ns(1_700_000_000_000_000_001) == "1700000000.000000001"
+    for bad in ("1.0000000001", "-1.0", "1e9", "1.", ".5", "abc"):
+        assert parse_time_ns(bad) is None
+
+
+def test_equal_times_are_allowed(tmp_path: Path) -> None:
+    _, batches = read(tmp_path, "# rtu-capture v1\n1.0 01\n1.0 02\n")
+    assert batches[0].t_end_ns.tolist() == [1_000_000_000, 1_000_000_000]
+
+
+def test_missing_line_and_timing_headers(tmp_path: Path) -> None:
+    info, _ = read(tmp_path, "# rtu-capture v1\n1.0 01\n")
+    assert info.line is None
+    assert info.timing is TimingQuality.HOST
+
+
+def test_blank_lines_and_late_comments(tmp_path: Path) -> None:
+    path = tmp_path / "c.log"
+    path.write_text("# rtu-capture v1\n\n# first\n1.0 01\n\n# later\n2.0 02\n")
+    reader = TextCaptureReader(str(path))
+    chunks = [c for b in reader.batches() for c in b.chunks()]
+    assert len(chunks) == 2
+    assert reader.info.notes == ("first",)
+    assert reader.late_notes == ["later"]
+
+
+ERRORS = [
+    ("", ErrorKind.BAD_HEADER, 1, "empty file"),
+    ("1.0 01 02\n", ErrorKind.BAD_HEADER, 1, "missing header"),
+    ("# rtu-capture v2\n1.0 01\n", ErrorKind.UNKNOWN_FORMAT, 1, "unknown format version v2"),
+    ("# rtu-capture v1\n# line: 19200 8X1\n", ErrorKind.BAD_HEADER, 2, "'19200 8X1'"),
+    ("# rtu-capture v1\n# line: 19200 8E1\n# line: 9600 8E1\n", ErrorKind.BAD_HEADER, 3, "second '# line:'"),
+    ("# rtu-capture v1\n# timing: roughly\n", ErrorKind.BAD_HEADER, 2, "neither 'exact' nor 'host'"),
+    ("# rtu-capture v1\n1.0 01 0G\n", ErrorKind.BAD_DATA, 2, "bad hex digit 'G'"),
+    ("# rtu-capture v1\n1.0 01 0\n", ErrorKind.BAD_DATA, 2, "odd number of hex digits (3)"),
+    ("# rtu-capture v1\n1.0 010 2\n", ErrorKind.BAD_DATA, 2, "two digits each"),
+    ("# rtu-capture v1\n1.0\n", ErrorKind.BAD_DATA, 2, "at least one byte"),
+    ("# rtu-capture v1\n1,5 01\n", ErrorKind.BAD_DATA, 2, "bad time '1,5'"),
+    (
+        "# rtu-capture v1\n2.0 01\n\n1.999999999 02\n",
+        ErrorKind.DECREASING_TIME,
+        4,
+        "before the previous line's 2.000000000",
+    ),
+]
+
+
+@pytest.mark.parametrize(("text", "kind", "line_number", "words"), ERRORS)
+def test_errors_name_file_line_and_fault(
+    tmp_path: Path, text: str, kind: ErrorKind, line_number: int, words: str
+) -> None:
+    with pytest.raises(CaptureFormatError) as caught:
+        read(tmp_path, text)
+    message = str(caught.value)
+    assert caught.value.kind is kind
+    assert message.startswith(f"{tmp_path / 'capture.log'}:line {line_number}: ")
+    assert words in message
+    assert "\n" not in message
+
+
+def test_binary_garbage(tmp_path: Path) -> None:
+    with pytest.raises(CaptureFormatError) as caught:
+        read(tmp_path, b"# rtu-capture v1\n1.0 01\n\x89PNG\x00\xff\n")
+    assert caught.value.kind is ErrorKind.BAD_DATA
+    assert "line 3: not text: byte 0x89" in str(caught.value)
+
+
+def test_reads_nothing_after_an_error(tmp_path: Path) -> None:
+    path = tmp_path / "c.log"
+    path.write_text("# rtu-capture v1\n" + "1.0 01\n" * 10 + "x\n" + "2.0 02\n")
+    reader = TextCaptureReader(str(path))
+    with pytest.raises(CaptureFormatError):
+        list(reader.batches())
