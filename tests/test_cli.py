@@ -155,3 +155,11 @@ def test_format_recognised_by_content_when_suffix_is_unknown(cli: Cli, tmp_path:
         result = cli("analyze", str(copy), "--format", "jsonl")
         assert result.code == 0, result.err
         assert len(result.jsonl()) == 48
+
+
+def test_convert_removes_its_output_when_the_input_breaks(cli: Cli, tmp_path: Path) -> None:
+    source = tmp_path / "broken.log"
+    source.write_text("# rtu-capture v1\n# line: 9600 8N1\n1.0 01 02\n0.5 03\n")
+    result = cli("convert", str(source), str(tmp_path / "out.mcap"))
+    assert result.code == 8 and "line 4" in result.err
+    assert not (tmp_path / "out.mcap").exists()

@@ -43,8 +43,13 @@ def run(args: argparse.Namespace) -> int:
             for batch in reader.batches():
                 writer.write_batch(batch)
             writer.add_notes(reader.late_notes)
-        finally:
+        except BaseException:
             writer.close()
+            if args.output != "-":
+                # A copy that stops where the input broke would pass for a whole capture.
+                os.remove(args.output)
+            raise
+        writer.close()
     finally:
         reader.close()
     return 0
