@@ -22,7 +22,7 @@ import numpy as np
 from decoders.byte_times import byte_times
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
-from decoders.framer import TimingFramer
+from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.pipeline import Decoder
 from decoders.synthesis import Transmission, exact_chunks
@@ -58,13 +58,13 @@ def timing_pass(batches: list[ChunkBatch]) -> int:
 
 
 def framer(batches: list[ChunkBatch]) -> int:
-    timing = TimingFramer(LINE)
+    timing = Framer(LINE)
     count = sum(len(timing.feed(b)) for b in batches)
     return count + len(timing.flush())
 
 
 def decoder(batches: list[ChunkBatch]) -> int:
-    decode = Decoder(LINE)
+    decode = Decoder(LINE, TimingQuality.EXACT)
     count = sum(len(decode.feed(b)) for b in batches)
     return count + len(decode.flush())
 

@@ -14,6 +14,10 @@ import numpy as np
 import numpy.typing as npt
 
 
+#: ``idle_before_ns`` of the first frame of a capture, which has no frame before it.
+NO_IDLE = int(np.iinfo(np.int64).min)
+
+
 class FrameFlag(IntFlag):
     """Conditions found on a frame; names are the JSONL flag names."""
 
@@ -76,7 +80,7 @@ class FrameBatch:
     crc_ok: npt.NDArray[np.bool_]
     flags: npt.NDArray[np.uint16]
     is_noise: npt.NDArray[np.bool_]
-    #: Silence before each frame; -1 where there is no previous frame.
+    #: Silence before each frame; ``NO_IDLE`` where there is no previous frame.
     idle_before_ns: npt.NDArray[np.int64]
 
     def __len__(self) -> int:
@@ -102,5 +106,5 @@ class FrameBatch:
                 crc_ok=ok,
                 flags=_FLAGS_BY_VALUE[flags],
                 is_noise=noise,
-                idle_before_ns=None if idle < 0 else idle,
+                idle_before_ns=None if idle == NO_IDLE else idle,
             )

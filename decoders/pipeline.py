@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 
-from decoders.capture import ChunkBatch
+from decoders.capture import ChunkBatch, TimingQuality
 from decoders.frame import FrameBatch
-from decoders.framer import TimingFramer
+from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.message import Message
 from decoders.modbus.roles import RoleGuesser
@@ -15,8 +15,8 @@ from decoders.modbus.roles import RoleGuesser
 class Decoder:
     """Frames and classifies a capture; ``feed`` batches in order, then ``flush``."""
 
-    def __init__(self, line: LineSettings) -> None:
-        self.framer = TimingFramer(line)
+    def __init__(self, line: LineSettings, timing: TimingQuality) -> None:
+        self.framer = Framer(line, timing)
         self.roles = RoleGuesser()
 
     def feed(self, batch: ChunkBatch) -> list[Message]:
@@ -29,9 +29,9 @@ class Decoder:
         return [self.roles.classify(frame) for frame in frames]
 
 
-def decode(batches: Iterable[ChunkBatch], line: LineSettings) -> Iterator[Message]:
+def decode(batches: Iterable[ChunkBatch], line: LineSettings, timing: TimingQuality) -> Iterator[Message]:
     """All messages of a capture, streaming."""
-    decoder = Decoder(line)
+    decoder = Decoder(line, timing)
     for batch in batches:
         yield from decoder.feed(batch)
     yield from decoder.flush()

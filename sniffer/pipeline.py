@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from decoders.capture import CaptureInfo
+from dataclasses import replace
+
+from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
 from decoders.message import Message
 from decoders.pipeline import Decoder
@@ -35,10 +37,10 @@ def effective_line(info: CaptureInfo, override: LineSettings | None, path: str) 
     return info.line
 
 
-def analyze(reader: CaptureReader, source: str, line: LineSettings, view: MessageView) -> None:
+def analyze(reader: CaptureReader, source: str, line: LineSettings, timing: TimingQuality, view: MessageView) -> None:
     """Decode every batch of ``reader`` into ``view``, streaming."""
-    decoder = Decoder(line)
-    view.start(source, reader.info, line)
+    decoder = Decoder(line, timing)
+    view.start(source, replace(reader.info, timing=timing), line)
     for batch in reader.batches():
         view.messages(decoder.feed(batch))
     view.messages(decoder.flush())

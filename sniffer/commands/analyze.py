@@ -13,7 +13,9 @@ from rich.console import Console
 from sniffer.commands.common import (
     add_input_format_option,
     add_line_options,
+    add_timing_option,
     apply_char_timing,
+    effective_timing,
     line_override,
 )
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -37,6 +39,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("--format", choices=["table", "jsonl"], default="table", help="output format (default: table)")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
     add_line_options(parser)
+    add_timing_option(parser)
     add_input_format_option(parser)
     parser.set_defaults(run=run)
 
@@ -53,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             width = None if out.isatty() or "COLUMNS" in os.environ else FILE_TABLE_WIDTH
             view = TableView(Console(file=out, width=width, highlight=False))
-        analyze(reader, args.capture, line, view)
+        analyze(reader, args.capture, line, effective_timing(reader.info, args), view)
     return 0
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
+from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.registry import all_formats
@@ -23,6 +24,20 @@ def add_line_options(parser: argparse.ArgumentParser) -> None:
         help="use 1.5/3.5 character times at every baud rate instead of the fixed "
         "750/1750 µs the Modbus specification sets above 19200 Bd",
     )
+
+
+def add_timing_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--timing",
+        choices=[t.value for t in TimingQuality],
+        help="how far the capture's times can be trusted: exact (frame boundaries from silences, "
+        "checked by content) or host (boundaries from content; times are host read times); "
+        "default: what the capture says",
+    )
+
+
+def effective_timing(info: CaptureInfo, args: argparse.Namespace) -> TimingQuality:
+    return TimingQuality(args.timing) if args.timing else info.timing
 
 
 def add_input_format_option(parser: argparse.ArgumentParser) -> None:

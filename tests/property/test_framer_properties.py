@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from decoders.capture import Chunk, ChunkBatch
 from decoders.crc import crc_bytes
-from decoders.framer import TimingFramer
+from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.synthesis import Transmission, exact_chunks
 
@@ -62,7 +62,7 @@ def split_chunk(chunk: Chunk, cuts: list[int], char_time_ns: float) -> list[Chun
 
 
 def frames_of(chunks: list[Chunk], line: LineSettings, batch_sizes: list[int]) -> list[tuple[object, ...]]:
-    framer = TimingFramer(line)
+    framer = Framer(line)
     out = []
     position, turn = 0, 0
     while position < len(chunks):

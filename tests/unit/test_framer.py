@@ -8,7 +8,7 @@ import pytest
 from decoders.capture import Chunk, ChunkBatch
 from decoders.crc import crc_bytes
 from decoders.frame import Frame, FrameFlag
-from decoders.framer import TimingFramer
+from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.synthesis import Transmission, exact_chunks
 
@@ -19,7 +19,7 @@ RESPONSE = bytes.fromhex("0203080028025801F4000052B0")
 
 
 def frame_all(chunks: list[Chunk], line: LineSettings, batch_size: int = 1000) -> list[Frame]:
-    framer = TimingFramer(line)
+    framer = Framer(line)
     frames: list[Frame] = []
     for start in range(0, len(chunks), batch_size):
         frames.extend(framer.feed(ChunkBatch.from_chunks(chunks[start : start + batch_size])))
@@ -47,11 +47,12 @@ class TestThresholds:
     def test_silence_just_above_t3_5_splits(self, line: LineSettings) -> None:
         assert len(two_frames(line, round(line.t3_5_ns) + 1_000)) == 2
 
-    def test_silence_just_below_t3_5_merges_with_gap_flag(self, line: LineSettings) -> None:
+    def test_silence_just_below_t3_5_is_split_by_content(self, line: LineSettings) -> None:
         frames = two_frames(line, round(line.t3_5_ns) - 1_000)
-        assert [f.data for f in frames] == [REQUEST + RESPONSE]
-        assert frames[0].flags == FrameFlag.GAP_1_5
-        assert not frames[0].crc_ok
+        assert [(f.data, f.flags, f.crc_ok) for f in frames] == [
+            (REQUEST, FrameFlag.NONE, True),
+            (RESPONSE, FrameFlag.SHORT_IDLE, True),
+        ]
 
     def test_gap_exactly_t1_5_is_not_flagged(self, line: LineSettings) -> None:
         frames = one_frame_with_gap(line, round(line.t1_5_ns))
@@ -86,7 +87,7 @@ def test_times_and_idle() -> None:
 def test_frame_spanning_batches_is_held_until_its_end_is_known() -> None:
     line = LineSettings.parse("19200 8E1")
     chunks = list(exact_chunks([Transmission(REQUEST, 0), Transmission(RESPONSE, 10_000_000)], line, T0))
-    framer = TimingFramer(line)
+    framer = Framer(line)
     assert len(framer.feed(ChunkBatch.from_chunks(chunks[:1]))) == 0
     first = list(framer.feed(ChunkBatch.from_chunks(chunks[1:])))
     assert [f.data for f in first] == [REQUEST]
@@ -95,7 +96,7 @@ def test_frame_spanning_batches_is_held_until_its_end_is_known() -> None:
 
 
 def test_empty_input() -> None:
-    framer = TimingFramer(LineSettings.parse("9600 8N1"))
+    framer = Framer(LineSettings.parse("9600 8N1"))
     assert len(framer.feed(ChunkBatch.empty())) == 0
     assert len(framer.flush()) == 0
 

@@ -1,0 +1,334 @@
+"""Captures with known ground truth, for the framer's tests and quality figures.
+
+Frames come from pymodbus (its PDU classes and RTU framer), an implementation
+independent of ours. A :class:`Scenario` turns a random polling conversation into
+wire transmissions with one of the faults real lines show; :func:`usb_adapter`
+turns an exact capture into the host-timed one a USB-RS485 adapter would give.
+Every byte is labelled: which frame (or noise) it belongs to, and what the framer
+should say about it.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from pymodbus.framer import FramerRTU
+from pymodbus.pdu import DecodePDU, ModbusPDU
+from pymodbus.pdu import bit_message as bits
+from pymodbus.pdu import diag_message as diag
+from pymodbus.pdu import mei_message as mei
+from pymodbus.pdu import register_message as regs
+from pymodbus.pdu.exceptionresponse import ExceptionResponse
+
+from decoders.capture import Chunk, TimingQuality
+from decoders.line import LineSettings
+from decoders.synthesis import Transmission, exact_chunks
+
+T0_NS = 1_650_000_000_000_000_000
+MS = 1_000_000
+_FRAMER = FramerRTU(DecodePDU(False))
+
+
+def adu(pdu: ModbusPDU) -> bytes:
+    """The RTU frame pymodbus builds for ``pdu``."""
+    return bytes(_FRAMER.buildFrame(pdu))
+
+
+def _words(rng: random.Random, count: int) -> list[int]:
+    return [rng.randrange(65536) for _ in range(count)]
+
+
+def _bools(rng: random.Random, count: int) -> list[bool]:
+    return [rng.random() < 0.5 for _ in range(count)]
+
+
+def exchange(rng: random.Random, slave: int) -> tuple[bytes, bytes]:
+    """A request and its response (sometimes an exception), both from pymodbus."""
+    kind = rng.choice(["fc1", "fc2", "fc3", "fc4", "fc5", "fc6", "fc8", "fc15", "fc16", "fc22", "fc23", "fc43", "exc"])
+    address = rng.randrange(0, 60000)
+    count = rng.randint(1, 40)
+    if kind in ("fc1", "fc2"):
+        cls_req, cls_resp = (
+            (bits.ReadCoilsRequest, bits.ReadCoilsResponse)
+            if kind == "fc1"
+            else (bits.ReadDiscreteInputsRequest, bits.ReadDiscreteInputsResponse)
+        )
+        return adu(cls_req(dev_id=slave, address=address, count=count)), adu(
+            cls_resp(dev_id=slave, bits=_bools(rng, count))
+        )
+    if kind in ("fc3", "fc4"):
+        cls_req, cls_resp = (
+            (regs.ReadHoldingRegistersRequest, regs.ReadHoldingRegistersResponse)
+            if kind == "fc3"
+            else (regs.ReadInputRegistersRequest, regs.ReadInputRegistersResponse)
+        )
+        return adu(cls_req(dev_id=slave, address=address, count=count)), adu(
+            cls_resp(dev_id=slave, registers=_words(rng, count))
+        )
+    if kind == "fc5":
+        frame = adu(bits.WriteSingleCoilRequest(dev_id=slave, address=address, bits=[rng.random() < 0.5]))
+        return frame, frame
+    if kind == "fc6":
+        frame = adu(regs.WriteSingleRegisterRequest(dev_id=slave, address=address, registers=_words(rng, 1)))
+        return frame, frame
+    if kind == "fc8":
+        frame = adu(diag.ReturnQueryDataRequest(dev_id=slave, message=rng.randrange(65536)))
+        return frame, frame
+    if kind == "fc15":
+        values = _bools(rng, count)
+        return adu(bits.WriteMultipleCoilsRequest(dev_id=slave, address=address, bits=values)), adu(
+            bits.WriteMultipleCoilsResponse(dev_id=slave, address=address, count=count)
+        )
+    if kind == "fc16":
+        values = _words(rng, min(count, 30))
+        return adu(regs.WriteMultipleRegistersRequest(dev_id=slave, address=address, registers=values)), adu(
+            regs.WriteMultipleRegistersResponse(dev_id=slave, address=address, count=len(values))
+        )
+    if kind == "fc22":
+        frame = adu(regs.MaskWriteRegisterRequest(dev_id=slave, address=address, and_mask=0xF0F0, or_mask=0x0101))
+        return frame, frame
+    if kind == "fc23":
+        reads, writes = rng.randint(1, 20), _words(rng, rng.randint(1, 20))
+        request = regs.ReadWriteMultipleRegistersRequest(
+            dev_id=slave, read_address=address, read_count=reads, write_address=address + 100, write_registers=writes
+        )
+        return adu(request), adu(regs.ReadWriteMultipleRegistersResponse(dev_id=slave, registers=_words(rng, reads)))
+    if kind == "fc43":
+        info = {0: b"Schneider Electric", 1: b"ATV71HU15M3", 2: b"0201"}
+        return adu(mei.ReadDeviceInformationRequest(dev_id=slave, read_code=1, object_id=0)), adu(
+            mei.ReadDeviceInformationResponse(dev_id=slave, read_code=1, information=info)
+        )
+    function = rng.choice([3, 6, 16])
+    request = adu(regs.ReadHoldingRegistersRequest(dev_id=slave, address=address, count=count)) if function == 3 else (
+        adu(regs.WriteSingleRegisterRequest(dev_id=slave, address=address, registers=_words(rng, 1)))
+    )
+    if function == 16:
+        request = adu(regs.WriteMultipleRegistersRequest(dev_id=slave, address=address, registers=_words(rng, 3)))
+    return request, adu(ExceptionResponse(function, rng.choice([1, 2, 3, 4, 6]), device_id=slave))
+
+
+@dataclass(frozen=True)
+class Expected:
+    """What the framer should report for one transmission."""
+
+    data: bytes
+    is_noise: bool = False
+    crc_ok: bool = True
+    flags: frozenset[str] = frozenset()
+
+
+@dataclass
+class Corpus:
+    """A capture with its ground truth, in wire order."""
+
+    name: str
+    line: LineSettings
+    timing: TimingQuality
+    chunks: list[Chunk]
+    expected: list[Expected]
+    transmissions: list[Transmission] = field(repr=False, default_factory=list)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One of the conditions of real lines, applied to a polling conversation."""
+
+    name: str
+    #: Silence before a response, as a fraction of t3.5 (below 1: a too-fast slave).
+    turnaround: tuple[float, float] = (1.5, 6.0)
+    gap_1_5_rate: float = 0.0
+    glitch_rate: float = 0.0
+    garbage_rate: float = 0.0
+    corrupt_rate: float = 0.0
+    start_mid_frame: bool = False
+    truncate_end: bool = False
+
+
+SCENARIOS = [
+    Scenario("clean", gap_1_5_rate=0.05),
+    Scenario("fast-slave", turnaround=(0.0, 0.95)),
+    Scenario("turn-off-glitch", glitch_rate=0.5),
+    Scenario("garbage", garbage_rate=0.1, start_mid_frame=True),
+    Scenario("bit-errors", corrupt_rate=0.05),
+    Scenario("truncated", truncate_end=True),
+    Scenario("everything", turnaround=(0.3, 4.0), gap_1_5_rate=0.03, glitch_rate=0.2, garbage_rate=0.03,
+             corrupt_rate=0.03, start_mid_frame=True, truncate_end=True),
+]
+LINES = [LineSettings.parse(t) for t in ("9600 8E1", "19200 8E1", "115200 8N1")]
+
+
+def build(scenario: Scenario, line: LineSettings, exchanges: int = 300, seed: int = 0) -> Corpus:
+    """An exact capture of ``exchanges`` request/response pairs under ``scenario``."""
+    rng = random.Random(f"{scenario.name}/{line.format()}/{seed}")
+    t3_5 = line.t3_5_ns
+    t1_5 = line.t1_5_ns
+    out: list[tuple[Transmission, Expected]] = []
+
+    def idle(low: float, high: float) -> int:
+        return int(rng.uniform(low, high) * t3_5) + 2
+
+    def send(data: bytes, silence: int, expected: Expected) -> None:
+        gaps: dict[int, int] = {}
+        if not expected.is_noise and len(data) > 2 and rng.random() < scenario.gap_1_5_rate:
+            gaps[rng.randrange(1, len(data))] = int(rng.uniform(t1_5 * 1.1, t3_5 * 0.9))
+            expected = Expected(expected.data, expected.is_noise, expected.crc_ok, expected.flags | {"gap_1_5"})
+        out.append((Transmission(data, silence, gaps), expected))
+
+    if scenario.start_mid_frame:
+        request, _ = exchange(rng, 1)
+        send(request[3:], 0, Expected(request[3:], is_noise=True, crc_ok=False))
+    for _ in range(exchanges):
+        request, response = exchange(rng, rng.randint(1, 32))
+        send(request, idle(1.2, 8.0), Expected(request))
+        if len(response) > 6 and rng.random() < scenario.corrupt_rate:
+            # A bit error in the data: address, function, byte count and CRC stay readable.
+            position = rng.randrange(3, len(response) - 2)
+            damaged = bytearray(response)
+            damaged[position] ^= 1 << rng.randrange(8)
+            response = bytes(damaged)
+            expected = Expected(response, crc_ok=False)
+        else:
+            expected = Expected(response)
+        silence = idle(*scenario.turnaround)
+        if silence < t3_5:
+            expected = Expected(expected.data, expected.is_noise, expected.crc_ok, expected.flags | {"short_idle"})
+        send(response, silence, expected)
+        if rng.random() < scenario.glitch_rate:
+            stray = bytes([rng.choice([0x00, 0xFF])])
+            send(stray, int(rng.uniform(0, 0.9) * line.char_time_ns), Expected(stray, is_noise=True, crc_ok=False))
+        if rng.random() < scenario.garbage_rate:
+            junk = bytes([0xFF]) + rng.randbytes(rng.randint(1, 12))  # 0xFF: no slave has that address
+            send(junk, idle(1.2, 3.0), Expected(junk, is_noise=True, crc_ok=False))
+    if scenario.truncate_end:
+        request, _ = exchange(rng, 7)
+        cut = request[: rng.randint(4, len(request) - 1)]
+        send(cut, idle(1.2, 3.0), Expected(cut, crc_ok=False, flags=frozenset({"truncated"})))
+    transmissions = [t for t, _ in out]
+    return Corpus(
+        name=scenario.name,
+        line=line,
+        timing=TimingQuality.EXACT,
+        chunks=list(exact_chunks(transmissions, line, T0_NS)),
+        expected=[e for _, e in out],
+        transmissions=transmissions,
+    )
+
+
+def usb_adapter(
+    corpus: Corpus,
+    latency_ms: float = 16.0,
+    buffer_bytes: int = 62,
+    host_jitter_ms: float = 0.3,
+    seed: int = 0,
+) -> Corpus:
+    """What a USB-serial adapter delivers: bytes in packets when its buffer holds
+    ``buffer_bytes`` or its latency timer expires, read by the host a little later."""
+    rng = random.Random(seed)
+    latency = int(latency_ms * MS)
+    byte_ends: list[int] = []
+    data = bytearray()
+    char = corpus.line.char_time_ns
+    for chunk in corpus.chunks:
+        for i in range(len(chunk.data)):
+            byte_ends.append(chunk.t_end_ns - round((len(chunk.data) - 1 - i) * char))
+        data += chunk.data
+    chunks: list[Chunk] = []
+    pending_from = 0
+    timer_phase = rng.randrange(latency)
+    last_read = 0
+
+    def deliver(until: int, at: int) -> None:
+        nonlocal pending_from, last_read
+        read_at = max(at + int(rng.uniform(0, host_jitter_ms) * MS), last_read)
+        chunks.append(Chunk(read_at, bytes(data[pending_from:until])))
+        pending_from, last_read = until, read_at
+
+    for index, end in enumerate(byte_ends):
+        if pending_from < index:
+            tick = _next_tick(byte_ends[pending_from], latency, timer_phase)
+            if tick < end:
+                deliver(index, tick)
+        if index + 1 - pending_from >= buffer_bytes:
+            deliver(index + 1, end)
+    if pending_from < len(data):
+        deliver(len(data), _next_tick(byte_ends[pending_from], latency, timer_phase))
+    return Corpus(corpus.name + "/host", corpus.line, TimingQuality.HOST, chunks, corpus.expected, corpus.transmissions)
+
+
+def _next_tick(after: int, period: int, phase: int) -> int:
+    return after + (phase - after) % period or after + period
+
+
+def host_expected(expected: list[Expected]) -> list[Expected]:
+    """Host timing cannot see silences: no gap_1_5 or short_idle is expected."""
+    return [Expected(e.data, e.is_noise, e.crc_ok, e.flags - {"gap_1_5", "short_idle"}) for e in expected]
+
+
+Builder = Callable[[Scenario, LineSettings], Corpus]
+
+
+@dataclass
+class Score:
+    """How the framer's pieces compare with the ground truth, by byte position."""
+
+    frames: int = 0
+    frames_found: int = 0
+    pieces: int = 0
+    pieces_exact: int = 0
+    emitted_frames: int = 0
+    spurious_valid: int = 0
+    false_flags: dict[str, int] = field(default_factory=dict)
+    missed_flags: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def recall(self) -> float:
+        return self.frames_found / self.frames if self.frames else 1.0
+
+    @property
+    def precision(self) -> float:
+        valid_emitted = self.emitted_frames
+        return self.frames_found / valid_emitted if valid_emitted else 1.0
+
+    def add(self, other: Score) -> None:
+        for name in ("frames", "frames_found", "pieces", "pieces_exact", "emitted_frames", "spurious_valid"):
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+        for mine, theirs in ((self.false_flags, other.false_flags), (self.missed_flags, other.missed_flags)):
+            for flag, count in theirs.items():
+                mine[flag] = mine.get(flag, 0) + count
+
+
+FLAGS_SCORED = ("gap_1_5", "short_idle", "truncated")
+
+
+def score(expected: list[Expected], emitted: list[tuple[bytes, bool, bool, frozenset[str]]]) -> Score:
+    """Compare emitted (data, is_noise, crc_ok, flags) pieces with the ground truth."""
+    truth: dict[tuple[int, int], Expected] = {}
+    offset = 0
+    for item in expected:
+        truth[(offset, len(item.data))] = item
+        offset += len(item.data)
+    result = Score()
+    result.frames = sum(1 for e in expected if not e.is_noise and e.crc_ok)
+    result.pieces = len(expected)
+    offset = 0
+    for data, is_noise, crc_ok, flags in emitted:
+        item = truth.get((offset, len(data)))
+        offset += len(data)
+        if not is_noise and crc_ok:
+            result.emitted_frames += 1
+            if item is None or item.is_noise or not item.crc_ok:
+                result.spurious_valid += 1
+            else:
+                result.frames_found += 1
+        if item is None:
+            continue
+        if (item.is_noise, item.crc_ok) == (is_noise, crc_ok):
+            result.pieces_exact += 1
+        for flag in FLAGS_SCORED:
+            if flag in flags and flag not in item.flags:
+                result.false_flags[flag] = result.false_flags.get(flag, 0) + 1
+            if flag in item.flags and flag not in flags:
+                result.missed_flags[flag] = result.missed_flags.get(flag, 0) + 1
+    return result
