@@ -3,9 +3,11 @@
     python benchmarks/bench_framing.py [--frames N]
 
 Stages measured side by side on the same capture in one process:
-the vectorised timing pass alone, the whole framer (timing + frame assembly +
-CRC), the framer plus role classification (what `analyze` does before output),
-and reading the native MCAP capture back.
+the vectorised timing pass alone, the whole framer (timing, content pass, CRC,
+frame assembly) on the exact capture and on the same traffic through a USB
+adapter model (host timing: every frame found by content), the framer plus role
+classification (what `analyze` does before output), and reading the native MCAP
+capture back.
 """
 
 from __future__ import annotations
@@ -20,19 +22,19 @@ from pathlib import Path
 import numpy as np
 
 from decoders.byte_times import byte_times
-from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.pipeline import Decoder
-from decoders.synthesis import Transmission, exact_chunks
+from decoders.synthesis import Transmission, exact_chunks, usb_adapter_chunks
 from sniffer.io.registry import open_reader, open_writer
 
 LINE = LineSettings.parse("115200 8N1")
 BATCH_CHUNKS = 8192
 
 
-def polling_capture(frames: int, seed: int = 1) -> list[ChunkBatch]:
+def polling_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
     """FC3 request/response pairs to 32 slaves, 1-8 register reads, 1 % gap_1_5."""
     rng = random.Random(seed)
     transmissions = []
@@ -44,8 +46,22 @@ def polling_capture(frames: int, seed: int = 1) -> list[ChunkBatch]:
         gaps = {5: 1_000_000} if i % 100 == 0 else {}
         transmissions.append(Transmission(request + crc_bytes(request), rng.randint(2_000_000, 4_000_000)))
         transmissions.append(Transmission(response + crc_bytes(response), rng.randint(1_800_000, 3_000_000), gaps))
-    chunks = list(exact_chunks(transmissions, LINE, 1_700_000_000_000_000_000))
+    return transmissions
+
+
+def batched(chunks: list[Chunk]) -> list[ChunkBatch]:
     return [ChunkBatch.from_chunks(chunks[i : i + BATCH_CHUNKS]) for i in range(0, len(chunks), BATCH_CHUNKS)]
+
+
+def polling_capture(frames: int, seed: int = 1) -> list[ChunkBatch]:
+    """The polling traffic as an exact capture."""
+    return batched(list(exact_chunks(polling_transmissions(frames, seed), LINE, 1_700_000_000_000_000_000)))
+
+
+def host_capture(exact: list[ChunkBatch]) -> list[ChunkBatch]:
+    """The same traffic through a USB adapter with a 16 ms latency timer."""
+    chunks = [c for b in exact for c in b.chunks()]
+    return batched(usb_adapter_chunks(chunks, LINE, latency_ns=16_000_000))
 
 
 def timing_pass(batches: list[ChunkBatch]) -> int:
@@ -57,10 +73,10 @@ def timing_pass(batches: list[ChunkBatch]) -> int:
     return found
 
 
-def framer(batches: list[ChunkBatch]) -> int:
-    timing = Framer(LINE)
-    count = sum(len(timing.feed(b)) for b in batches)
-    return count + len(timing.flush())
+def framer(batches: list[ChunkBatch], timing: TimingQuality = TimingQuality.EXACT) -> int:
+    framing = Framer(LINE, timing)
+    count = sum(len(framing.feed(b)) for b in batches)
+    return count + len(framing.flush())
 
 
 def decoder(batches: list[ChunkBatch]) -> int:
@@ -94,16 +110,19 @@ def main() -> None:
         for batch in batches:
             writer.write_batch(batch)
         writer.close()
-        stages: list[tuple[str, Callable[[list[ChunkBatch]], int]]] = [
-            ("timing pass (numpy)", timing_pass),
-            ("framer (timing+assembly+CRC)", framer),
-            ("framer + role guess", decoder),
-            ("MCAP capture read", mcap_read(path)),
+        host = host_capture(batches)
+        stages: list[tuple[str, Callable[[list[ChunkBatch]], int], list[ChunkBatch]]] = [
+            ("timing pass (numpy)", timing_pass, batches),
+            ("framer, exact timing", framer, batches),
+            ("framer, host timing (16 ms)", lambda b: framer(b, TimingQuality.HOST), host),
+            ("framer + role guess, exact", decoder, batches),
+            ("MCAP capture read", mcap_read(path), batches),
         ]
         print(f"{'stage':<30} {'seconds':>8} {'frames/s':>12} {'MB/s':>8}")
-        for name, stage in stages:
+        for name, stage, data in stages:
             start = time.perf_counter()
-            stage(batches)
+            found = stage(data)
+            assert name.startswith(("timing", "MCAP")) or found == args.frames, (name, found)
             seconds = time.perf_counter() - start
             print(f"{name:<30} {seconds:>8.3f} {args.frames / seconds:>12,.0f} {total_bytes / seconds / 1e6:>8.1f}")
 

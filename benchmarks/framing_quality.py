@@ -16,6 +16,7 @@ pieces: frames, damaged frames and noise runs reported exactly as sent.
 from __future__ import annotations
 
 import argparse
+from itertools import pairwise
 
 import numpy as np
 
@@ -41,7 +42,7 @@ def timing_only(corpus: Corpus) -> Emitted:
     batch = ChunkBatch.from_chunks(corpus.chunks)
     starts, ends = byte_times(batch, corpus.line.char_time_ns)
     cuts = [0, *(np.flatnonzero(starts[1:] - ends[:-1] >= corpus.line.t3_5_ns) + 1).tolist(), len(batch.data)]
-    pieces = [batch.data[a:b] for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+    pieces = [batch.data[a:b] for a, b in pairwise(cuts)]
     return [(p, False, crc_ok(p), frozenset()) for p in pieces]
 
 
@@ -50,7 +51,10 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--exchanges", type=int, default=300)
     args = parser.parse_args()
-    header = f"{'case':<17} {'timing':<10} {'framer':<12} {'frames':>7} {'recall':>8} {'precision':>9} {'spurious':>8} {'pieces':>8}"
+    header = (
+        f"{'case':<17} {'timing':<10} {'framer':<12} {'frames':>7} {'recall':>8} "
+        f"{'precision':>9} {'spurious':>8} {'pieces':>8}"
+    )
     print(header)
     print("-" * len(header))
     totals: dict[tuple[str, str], Score] = {}

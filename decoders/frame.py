@@ -13,7 +13,6 @@ from enum import IntFlag
 import numpy as np
 import numpy.typing as npt
 
-
 #: ``idle_before_ns`` of the first frame of a capture, which has no frame before it.
 NO_IDLE = int(np.iinfo(np.int64).min)
 

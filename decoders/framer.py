@@ -17,13 +17,17 @@ are compared with 1 ns of allowance.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import numpy.typing as npt
 
 from decoders.byte_times import byte_times
 from decoders.capture import ChunkBatch, Int64Array, TimingQuality
+from decoders.crc import crc_ok_many
 from decoders.frame import NO_IDLE, FrameBatch, FrameFlag
-from decoders.framing.content import OPEN_LOOKAHEAD, OpenRequest, Piece, parse_segment
+from decoders.framing.content import OPEN_LOOKAHEAD, OpenRequest, Piece, after_frame, parse_segment
+from decoders.framing.fast import single_frame_segments
 from decoders.line import LineSettings
 from decoders.modbus.layouts import MAX_ADU
 
@@ -34,6 +38,38 @@ TOLERANCE_NS = 1.0
 DEFAULT_HOST_GAP_NS = 100_000_000
 #: An open segment longer than this is parsed before its end is known.
 OPEN_PARSE_BYTES = OPEN_LOOKAHEAD + MAX_ADU
+
+
+@dataclass
+class _Pieces:
+    """Pieces in columns, in wire order; offsets index the framer's byte buffer."""
+
+    first: Int64Array
+    last: Int64Array
+    is_noise: npt.NDArray[np.bool_]
+    crc_ok: npt.NDArray[np.bool_]
+    flags: npt.NDArray[np.uint16]
+
+    @classmethod
+    def of(cls, pieces: list[Piece]) -> _Pieces:
+        count = len(pieces)
+        return cls(
+            np.fromiter((p.start for p in pieces), np.int64, count),
+            np.fromiter((p.end for p in pieces), np.int64, count),
+            np.fromiter((p.is_noise for p in pieces), np.bool_, count),
+            np.fromiter((p.crc_ok for p in pieces), np.bool_, count),
+            np.fromiter((p.flags for p in pieces), np.uint16, count),
+        )
+
+    @classmethod
+    def join(cls, parts: list[_Pieces]) -> _Pieces:
+        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in _PIECE_COLUMNS))
+
+
+_PIECE_COLUMNS = ("first", "last", "is_noise", "crc_ok", "flags")
+#: How many frames back the open request is replayed from before a segment that the
+#: content parser handles (only a run of echo frames longer than this could mislead it).
+REPLAY_FRAMES = 16
 
 
 class Framer:
@@ -67,25 +103,66 @@ class Framer:
         starts = np.concatenate([self._starts, new_starts])
         ends = np.concatenate([self._ends, new_ends])
         cuts = np.flatnonzero(starts[1:] - ends[:-1] >= self._boundary_ns) + 1
-        bounds = [0, *cuts.tolist()]
-        pieces: list[Piece] = []
-        for begin, stop in zip(bounds[:-1], bounds[1:], strict=True):
-            pieces.extend(self._parse(data, begin, stop, closed=True))
-        open_start = bounds[-1]
+        bounds = np.concatenate([np.zeros(1, np.int64), cuts])
+        parts = [self._closed_segments(data, bounds)]
+        open_start = int(bounds[-1])
         kept_from = open_start
         if len(data) - open_start > OPEN_PARSE_BYTES:
             open_pieces = self._parse(data, open_start, len(data), closed=False)
-            pieces.extend(open_pieces)
+            parts.append(_Pieces.of(open_pieces))
             kept_from = open_pieces[-1].end if open_pieces else open_start
         self._data, self._starts, self._ends = data[kept_from:], starts[kept_from:], ends[kept_from:]
-        return self._assemble(data, starts, ends, pieces)
+        return self._assemble(data, starts, ends, _Pieces.join(parts))
 
     def flush(self) -> FrameBatch:
         """Everything still held, at the end of the capture."""
         data, starts, ends = self._data, self._starts, self._ends
         self._data, self._starts, self._ends = b"", np.zeros(0, np.int64), np.zeros(0, np.int64)
         pieces = self._parse(data, 0, len(data), closed=True, at_end=True) if data else []
-        return self._assemble(data, starts, ends, pieces)
+        return self._assemble(data, starts, ends, _Pieces.of(pieces))
+
+    def _closed_segments(self, data: bytes, bounds: Int64Array) -> _Pieces:
+        """Pieces of the segments ``data[bounds[i]:bounds[i+1]]``: whole frames in bulk,
+        the rest through the content parser."""
+        seg_starts, seg_ends = bounds[:-1], bounds[1:]
+        count = len(seg_starts)
+        single = single_frame_segments(data, seg_starts, seg_ends, crc_ok_many(data, bounds))
+        slow = np.flatnonzero(~single).tolist()
+        parsed: list[list[Piece]] = []
+        done = 0
+        for index in slow:
+            if index > 0:
+                self._at_capture_start = False  # whole frames came before it
+            self._open_request = self._replay(data, seg_starts, seg_ends, done, index)
+            parsed.append(self._parse(data, int(seg_starts[index]), int(seg_ends[index]), closed=True))
+            done = index + 1
+        self._open_request = self._replay(data, seg_starts, seg_ends, done, count)
+        if count:
+            self._at_capture_start = False
+        per_segment = np.ones(count, np.int64)
+        per_segment[slow] = [len(p) for p in parsed]
+        position = np.cumsum(per_segment) - per_segment
+        total = int(per_segment.sum())
+        columns = _Pieces(
+            np.empty(total, np.int64), np.empty(total, np.int64), np.zeros(total, np.bool_),
+            np.ones(total, np.bool_), np.zeros(total, np.uint16),
+        )
+        columns.first[position[single]] = seg_starts[single]
+        columns.last[position[single]] = seg_ends[single]
+        if parsed:
+            slow_pieces = _Pieces.of([p for pieces in parsed for p in pieces])
+            slots = np.concatenate([position[i] + np.arange(len(p)) for i, p in zip(slow, parsed, strict=True)])
+            for name in _PIECE_COLUMNS:
+                getattr(columns, name)[slots] = getattr(slow_pieces, name)
+        return columns
+
+    def _replay(self, data: bytes, seg_starts: Int64Array, seg_ends: Int64Array, begin: int, stop: int) -> OpenRequest:
+        """The open request after the whole-frame segments ``begin..stop-1``."""
+        first = max(begin, stop - REPLAY_FRAMES)
+        state = self._open_request if first == begin else None
+        for k in range(first, stop):
+            state = after_frame(data[int(seg_starts[k]) : int(seg_ends[k])], state)
+        return state
 
     def _parse(self, data: bytes, begin: int, stop: int, *, closed: bool, at_end: bool = False) -> list[Piece]:
         parse = parse_segment(
@@ -100,12 +177,9 @@ class Framer:
             self._open_request = parse.open_request
         return [Piece(p.start + begin, p.end + begin, p.is_noise, p.crc_ok, p.flags) for p in parse.pieces]
 
-    def _assemble(self, data: bytes, starts: Int64Array, ends: Int64Array, pieces: list[Piece]) -> FrameBatch:
-        count = len(pieces)
-        first = np.fromiter((p.start for p in pieces), np.int64, count)
-        last = np.fromiter((p.end for p in pieces), np.int64, count)
-        is_noise = np.fromiter((p.is_noise for p in pieces), np.bool_, count)
-        flags = np.fromiter((p.flags for p in pieces), np.uint16, count)
+    def _assemble(self, data: bytes, starts: Int64Array, ends: Int64Array, pieces: _Pieces) -> FrameBatch:
+        first, last, is_noise, flags = pieces.first, pieces.last, pieces.is_noise, pieces.flags.copy()
+        count = len(first)
         t_start = starts[first] if count else np.zeros(0, np.int64)
         t_end = ends[last - 1] if count else np.zeros(0, np.int64)
         idle = np.empty(count, np.int64)
@@ -114,7 +188,7 @@ class Framer:
             idle[0] = NO_IDLE if self._last_end_ns is None else t_start[0] - self._last_end_ns
             self._last_end_ns = int(t_end[-1])
         if self.timing is TimingQuality.EXACT:
-            flags |= self._timing_flags(starts, ends, first, last, idle, is_noise)
+            flags |= self._timing_flags(starts, ends, first=first, last=last, idle=idle, is_noise=is_noise)
         else:
             # Host times are estimates; a negative silence is an artefact of them.
             idle[(idle < 0) & (idle != NO_IDLE)] = 0
@@ -127,7 +201,7 @@ class Framer:
             offsets=offsets,
             t_start_ns=t_start,
             t_end_ns=t_end,
-            crc_ok=np.fromiter((p.crc_ok for p in pieces), np.bool_, count),
+            crc_ok=pieces.crc_ok,
             flags=flags,
             is_noise=is_noise,
             idle_before_ns=idle,
@@ -139,6 +213,7 @@ class Framer:
         self,
         starts: Int64Array,
         ends: Int64Array,
+        *,
         first: Int64Array,
         last: Int64Array,
         idle: Int64Array,

@@ -7,6 +7,7 @@ what an ``exact`` capture records.
 
 from __future__ import annotations
 
+import random
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from itertools import pairwise
@@ -42,3 +43,50 @@ def exact_chunks(transmissions: Iterable[Transmission], line: LineSettings, t0_n
             yield Chunk(run_end_ns, transmission.data[begin:end])
             run_start_ns = run_end_ns
         wire_free_ns = run_start_ns
+
+
+def usb_adapter_chunks(
+    chunks: Iterable[Chunk],
+    line: LineSettings,
+    *,
+    latency_ns: int = 16_000_000,
+    buffer_bytes: int = 62,
+    host_jitter_ns: int = 300_000,
+    seed: int = 0,
+) -> list[Chunk]:
+    """What a host reading a USB-serial adapter records of an exact capture.
+
+    The adapter (modelled on FTDI chips) sends a packet when its buffer holds
+    ``buffer_bytes`` or when its latency timer, which ticks every ``latency_ns``,
+    expires with data waiting; the host's read returns up to ``host_jitter_ns``
+    later and is stamped then.
+    """
+    rng = random.Random(seed)
+    byte_ends: list[int] = []
+    data = bytearray()
+    for chunk in chunks:
+        last = len(chunk.data) - 1
+        byte_ends.extend(chunk.t_end_ns - round((last - i) * line.char_time_ns) for i in range(len(chunk.data)))
+        data += chunk.data
+    phase = rng.randrange(latency_ns)
+    delivered: list[Chunk] = []
+    pending_from = 0
+    last_read = 0
+
+    def next_tick(after: int) -> int:
+        return after + ((phase - after) % latency_ns or latency_ns)
+
+    def deliver(until: int, at: int) -> None:
+        nonlocal pending_from, last_read
+        last_read = max(at + rng.randrange(host_jitter_ns + 1), last_read)
+        delivered.append(Chunk(last_read, bytes(data[pending_from:until])))
+        pending_from = until
+
+    for index, end in enumerate(byte_ends):
+        if pending_from < index and (tick := next_tick(byte_ends[pending_from])) < end:
+            deliver(index, tick)
+        if index + 1 - pending_from >= buffer_bytes:
+            deliver(index + 1, end)
+    if pending_from < len(data):
+        deliver(len(data), next_tick(byte_ends[pending_from]))
+    return delivered

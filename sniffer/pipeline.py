@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Protocol
-
 from dataclasses import replace
+from typing import Protocol
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings

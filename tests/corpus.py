@@ -24,7 +24,7 @@ from pymodbus.pdu.exceptionresponse import ExceptionResponse
 
 from decoders.capture import Chunk, TimingQuality
 from decoders.line import LineSettings
-from decoders.synthesis import Transmission, exact_chunks
+from decoders.synthesis import Transmission, exact_chunks, usb_adapter_chunks
 
 T0_NS = 1_650_000_000_000_000_000
 MS = 1_000_000
@@ -216,49 +216,10 @@ def build(scenario: Scenario, line: LineSettings, exchanges: int = 300, seed: in
     )
 
 
-def usb_adapter(
-    corpus: Corpus,
-    latency_ms: float = 16.0,
-    buffer_bytes: int = 62,
-    host_jitter_ms: float = 0.3,
-    seed: int = 0,
-) -> Corpus:
-    """What a USB-serial adapter delivers: bytes in packets when its buffer holds
-    ``buffer_bytes`` or its latency timer expires, read by the host a little later."""
-    rng = random.Random(seed)
-    latency = int(latency_ms * MS)
-    byte_ends: list[int] = []
-    data = bytearray()
-    char = corpus.line.char_time_ns
-    for chunk in corpus.chunks:
-        for i in range(len(chunk.data)):
-            byte_ends.append(chunk.t_end_ns - round((len(chunk.data) - 1 - i) * char))
-        data += chunk.data
-    chunks: list[Chunk] = []
-    pending_from = 0
-    timer_phase = rng.randrange(latency)
-    last_read = 0
-
-    def deliver(until: int, at: int) -> None:
-        nonlocal pending_from, last_read
-        read_at = max(at + int(rng.uniform(0, host_jitter_ms) * MS), last_read)
-        chunks.append(Chunk(read_at, bytes(data[pending_from:until])))
-        pending_from, last_read = until, read_at
-
-    for index, end in enumerate(byte_ends):
-        if pending_from < index:
-            tick = _next_tick(byte_ends[pending_from], latency, timer_phase)
-            if tick < end:
-                deliver(index, tick)
-        if index + 1 - pending_from >= buffer_bytes:
-            deliver(index + 1, end)
-    if pending_from < len(data):
-        deliver(len(data), _next_tick(byte_ends[pending_from], latency, timer_phase))
+def usb_adapter(corpus: Corpus, latency_ms: float = 16.0, seed: int = 0) -> Corpus:
+    """The corpus as a host reading a USB-serial adapter records it (62-byte buffer)."""
+    chunks = usb_adapter_chunks(corpus.chunks, corpus.line, latency_ns=int(latency_ms * MS), seed=seed)
     return Corpus(corpus.name + "/host", corpus.line, TimingQuality.HOST, chunks, corpus.expected, corpus.transmissions)
-
-
-def _next_tick(after: int, period: int, phase: int) -> int:
-    return after + (phase - after) % period or after + period
 
 
 def host_expected(expected: list[Expected]) -> list[Expected]:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import SAMPLE_LOG, SAMPLE_MCAP, CliResult
+from tests.conftest import CAPTURES, SAMPLE_LOG, SAMPLE_MCAP, CliResult
 
 Cli = Callable[..., CliResult]
 FRAME_FIELDS = {
@@ -27,7 +27,7 @@ def test_analyze_table_shows_every_frame(cli: Cli) -> None:
     assert "02 03 08 00 28 02 50 01 f4 00 00 52 b0" in result.out  # the damaged response
     assert "gap_1_5" in result.out
     assert result.out.rstrip().endswith(
-        "47 frames, 26 request, 19 response, 2 exception, 1 CRC errors, 1 gap_1_5"
+        "48 frames, 26 request, 19 response, 2 exception, 1 noise, 1 CRC errors, 1 gap_1_5, 1 short_idle"
     )
 
 
@@ -46,11 +46,13 @@ def test_analyze_jsonl_follows_the_contract(cli: Cli) -> None:
     capture_bytes = bytes.fromhex("".join(line.split(" ", 1)[1] for line in SAMPLE_LOG.read_text().splitlines()
                                           if not line.startswith("#")))
     assert bytes.fromhex("".join(f["hex"] for f in frames)) == capture_bytes
-    bad = [f for f in frames if not f["crc_ok"]]
-    assert [f["hex"] for f in bad] == ["020308002802500 1f4000052b0".replace(" ", "")]
+    bad = [f for f in frames if not f["crc_ok"] and f["role"] != "noise"]
+    assert [f["hex"] for f in bad] == ["0203080028025001f4000052b0"]
     exceptions = [(f["slave"], f["function"], f["exception_code"]) for f in frames if f["role"] == "exception"]
     assert exceptions == [(12, 3, 2), (4, 16, 4)]
-    assert [f["flags"] for f in frames if f["flags"]] == [["gap_1_5"]]
+    assert [f["flags"] for f in frames if f["flags"]] == [["gap_1_5"], ["short_idle"]]
+    [noise] = [f for f in frames if f["role"] == "noise"]
+    assert (noise["hex"], noise["crc_ok"], noise["slave"], noise["function"]) == ("00", False, None, None)
     assert all(f["request_index"] is None and f["latency_s"] is None and f["params"] == [] for f in frames)
 
 
@@ -154,7 +156,7 @@ def test_format_recognised_by_content_when_suffix_is_unknown(cli: Cli, tmp_path:
         copy.write_bytes(source.read_bytes())
         result = cli("analyze", str(copy), "--format", "jsonl")
         assert result.code == 0, result.err
-        assert len(result.jsonl()) == 48
+        assert len(result.jsonl()) == 49
 
 
 def test_convert_removes_its_output_when_the_input_breaks(cli: Cli, tmp_path: Path) -> None:
@@ -163,3 +165,28 @@ def test_convert_removes_its_output_when_the_input_breaks(cli: Cli, tmp_path: Pa
     result = cli("convert", str(source), str(tmp_path / "out.mcap"))
     assert result.code == 8 and "line 4" in result.err
     assert not (tmp_path / "out.mcap").exists()
+
+
+def test_host_timed_sample_gives_the_same_frames(cli: Cli) -> None:
+    exact = [f for f in cli("analyze", str(SAMPLE_LOG), "--format", "jsonl").jsonl() if f["kind"] == "frame"]
+    host_records = cli("analyze", str(CAPTURES / "atv71-plc-poll-usb.log"), "--format", "jsonl").jsonl()
+    assert host_records[0]["timing"] == "host"
+    host = [f for f in host_records if f["kind"] == "frame"]
+    key = ("hex", "role", "crc_ok", "slave", "function", "exception_code")
+    assert [tuple(f[k] for k in key) for f in host] == [tuple(f[k] for k in key) for f in exact]
+    assert all(f["flags"] == [] for f in host)
+    for h, e in zip(host, exact, strict=True):
+        # Host times are read times: later than the wire, by at most the latency timer and jitter.
+        assert e["t_end_ns"] <= h["t_end_ns"] <= e["t_end_ns"] + 17_000_000
+
+
+def test_host_timing_is_said_in_the_table(cli: Cli) -> None:
+    out = cli("analyze", str(CAPTURES / "atv71-plc-poll-usb.log")).out
+    assert "timing host" in out and "times are when the PC read the bytes" in out
+
+
+def test_timing_override(cli: Cli) -> None:
+    records = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--timing", "host").jsonl()
+    assert records[0]["timing"] == "host"
+    frames = [f for f in records if f["kind"] == "frame"]
+    assert len(frames) == 48 and not any(f["flags"] for f in frames)

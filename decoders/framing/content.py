@@ -146,7 +146,7 @@ def _confirmed(data: bytes, after: int, end: int, closed: bool, *, by_damaged: b
         return closed
     if frame_at(data, after, end, confirm=False, closed=closed) is not None:
         return True
-    return by_damaged and _damaged_frame_length(data, after, end, closed, at_capture_end=False) is not None
+    return by_damaged and _damaged_frame_length(data, after, end, closed=closed, at_capture_end=False) is not None
 
 
 def classify_leftover(adu: bytes, *, at_capture_start: bool) -> Piece:
@@ -167,7 +167,7 @@ def classify_leftover(adu: bytes, *, at_capture_start: bool) -> Piece:
 
 
 def _damaged_frame_length(
-    data: bytes, pos: int, end: int, closed: bool, at_capture_end: bool, open_request: OpenRequest = None
+    data: bytes, pos: int, end: int, *, closed: bool, at_capture_end: bool, open_request: OpenRequest = None
 ) -> int | None:
     """A header whose rule length ends where timing or the next valid frame says, or
     leaves only a few stray bytes (too few for a frame) before a closed segment's end.
@@ -280,7 +280,9 @@ def _sequential(ctx: _Context, limit: int) -> SegmentParse:
         length = frame_at(data, pos, end, confirm=unmatched is not None, closed=closed, open_request=open_request)
         damaged = False
         if length is None and unmatched is None:
-            length = _damaged_frame_length(data, pos, end, closed, ctx.at_end, open_request)
+            length = _damaged_frame_length(
+                data, pos, end, closed=closed, at_capture_end=ctx.at_end, open_request=open_request
+            )
             damaged = length is not None
         if length is None:
             unmatched = pos if unmatched is None else unmatched

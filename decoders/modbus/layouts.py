@@ -24,20 +24,37 @@ MEI_READ_DEVICE_ID = 0x0E
 LengthFn = Callable[[bytes], int | None]
 
 
-def fixed(length: int) -> LengthFn:
+@dataclass(frozen=True, slots=True)
+class LengthRule:
+    """How long a frame is: ``fixed`` bytes, or ``base`` plus a byte count of ``size``
+    bytes (big-endian) read at ``position``, or what ``special`` computes."""
+
+    fixed: int | None = None
+    position: int | None = None
+    base: int = 0
+    size: int = 1
+    special: LengthFn | None = None
+
+    def __call__(self, adu: bytes) -> int | None:
+        """The whole ADU length, or ``None`` while too few bytes are known."""
+        if self.fixed is not None:
+            return self.fixed
+        if self.position is not None:
+            if len(adu) < self.position + self.size:
+                return None
+            return self.base + int.from_bytes(adu[self.position : self.position + self.size], "big")
+        assert self.special is not None
+        return self.special(adu)
+
+
+def fixed(length: int) -> LengthRule:
     """A frame of always ``length`` bytes."""
-    return lambda adu: length
+    return LengthRule(fixed=length)
 
 
-def counted(position: int, base: int, size: int = 1) -> LengthFn:
+def counted(position: int, base: int, size: int = 1) -> LengthRule:
     """A frame whose byte count (``size`` bytes, big-endian) sits at ``position``."""
-
-    def length(adu: bytes) -> int | None:
-        if len(adu) < position + size:
-            return None
-        return base + int.from_bytes(adu[position : position + size], "big")
-
-    return length
+    return LengthRule(position=position, base=base, size=size)
 
 
 def device_id_response(adu: bytes) -> int | None:
@@ -54,14 +71,14 @@ def device_id_response(adu: bytes) -> int | None:
     return position + 2
 
 
-def mei_request(adu: bytes) -> int | None:
+def _mei_request(adu: bytes) -> int | None:
     """FC 43 request: MEI 14 (read device identification) is 7 bytes; others unknown."""
     if len(adu) < 3:
         return None
     return 7 if adu[2] == MEI_READ_DEVICE_ID else None
 
 
-def mei_response(adu: bytes) -> int | None:
+def _mei_response(adu: bytes) -> int | None:
     if len(adu) < 3:
         return None
     return device_id_response(adu) if adu[2] == MEI_READ_DEVICE_ID else None
@@ -71,8 +88,8 @@ def mei_response(adu: bytes) -> int | None:
 class Layout:
     """The length rules of one function code, per direction."""
 
-    request: LengthFn
-    response: LengthFn
+    request: LengthRule
+    response: LengthRule
 
 
 _READ_BITS_OR_REGISTERS = Layout(fixed(8), counted(2, 5))
@@ -99,7 +116,7 @@ LAYOUTS: dict[int, Layout] = {
     22: Layout(fixed(10), fixed(10)),
     23: Layout(counted(10, 13), counted(2, 5)),
     24: Layout(fixed(6), counted(2, 6, size=2)),
-    43: Layout(mei_request, mei_response),
+    43: Layout(LengthRule(special=_mei_request), LengthRule(special=_mei_response)),
 }
 
 

@@ -14,7 +14,7 @@ from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
-from decoders.capture import CaptureInfo
+from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
 from decoders.message import Message, Role
 from decoders.modbus.codes import function_name
@@ -63,6 +63,13 @@ class TableView:
             f"  t1.5 {line.t1_5_ns / 1e3:.0f} µs  t3.5 {line.t3_5_ns / 1e3:.0f} µs",
             highlight=False,
         )
+        if info.timing is TimingQuality.HOST:
+            self._console.print(
+                "[yellow]host timing[/]: times are when the PC read the bytes (USB adapters deliver "
+                "them in bursts, up to their latency timer late); frames are found from their content, "
+                "and silences inside or between them are not measured (no gap_1_5 / short_idle).",
+                highlight=False,
+            )
         self._date_shown = False
 
     def messages(self, messages: list[Message]) -> None:

@@ -1,0 +1,97 @@
+"""Vectorised recognition of segments that are one whole, valid frame.
+
+On a healthy exact capture nearly every timing segment is exactly one frame: its
+CRC holds and its length is what its function code's length rule says. Those are
+recognised here for all segments of a batch at once with numpy lookup tables
+derived from :data:`decoders.modbus.layouts.LAYOUTS`; only the others go through
+the sequential content parser.
+
+A segment whose last byte is 0x00 is always left to the parser: zero bytes after a
+frame keep its CRC valid, so only the parser's rules can tell a frame padded by a
+glitch from a frame that ends in 0x00.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from decoders.capture import Int64Array
+from decoders.framing.content import MAX_ADDRESS, MIN_ADU
+from decoders.modbus.codes import EXCEPTION_BIT
+from decoders.modbus.layouts import EXCEPTION_LENGTH, LAYOUTS, MAX_ADU, LengthRule
+
+#: Bytes read past a segment's start to find byte counts (FC 23's sits at 10).
+_PAD = 16
+_NONE = -1
+
+
+@dataclass(frozen=True)
+class _RuleTable:
+    """A length rule per function code as arrays: fixed length, or base + byte at position."""
+
+    fixed: npt.NDArray[np.int64]
+    position: npt.NDArray[np.int64]
+    base: npt.NDArray[np.int64]
+
+    @classmethod
+    def build(cls, direction: str) -> _RuleTable:
+        fixed = np.full(256, _NONE, np.int64)
+        position = np.full(256, _NONE, np.int64)
+        base = np.zeros(256, np.int64)
+        for function, layout in LAYOUTS.items():
+            rule: LengthRule = getattr(layout, direction)
+            if rule.fixed is not None:
+                fixed[function] = rule.fixed
+            elif rule.position is not None and rule.size == 1:
+                position[function], base[function] = rule.position, rule.base
+        return cls(fixed, position, base)
+
+    def lengths(self, padded: npt.NDArray[np.uint8], starts: Int64Array, functions: npt.NDArray[np.intp],
+                seg_lengths: Int64Array) -> Int64Array:
+        """The rule length of every segment, or -1 where this table cannot say."""
+        position = self.position[functions]
+        counted_ok = (position >= 0) & (position < seg_lengths)
+        count = padded[starts + np.where(counted_ok, position, 0)].astype(np.int64)
+        counted = np.where(counted_ok, self.base[functions] + count, _NONE)
+        return np.where(self.fixed[functions] >= 0, self.fixed[functions], counted)
+
+
+_REQUEST = _RuleTable.build("request")
+_RESPONSE = _RuleTable.build("response")
+_HAS_LAYOUT = np.zeros(256, np.bool_)
+_HAS_LAYOUT[list(LAYOUTS)] = True
+#: The Altivar's FC 43 negative answer is 6 bytes, not 5; the parser handles it.
+_PLAIN_EXCEPTION = _HAS_LAYOUT.copy()
+_PLAIN_EXCEPTION[43] = False
+
+
+def single_frame_segments(
+    data: bytes, starts: Int64Array, ends: Int64Array, crc_ok: npt.NDArray[np.bool_]
+) -> npt.NDArray[np.bool_]:
+    """Which segments ``data[starts[i]:ends[i]]`` are one valid frame that fits its rule."""
+    if len(starts) == 0:
+        return np.zeros(0, np.bool_)
+    padded = np.frombuffer(data + bytes(_PAD), np.uint8)
+    seg_lengths = ends - starts
+    addresses = padded[starts]
+    raw_functions = padded[starts + 1].astype(np.intp)
+    functions = raw_functions & ~EXCEPTION_BIT
+    is_exception = (raw_functions & EXCEPTION_BIT) != 0
+    fits = np.where(
+        is_exception,
+        _PLAIN_EXCEPTION[functions] & (seg_lengths == EXCEPTION_LENGTH),
+        (seg_lengths == _REQUEST.lengths(padded, starts, raw_functions, seg_lengths))
+        | (seg_lengths == _RESPONSE.lengths(padded, starts, raw_functions, seg_lengths)),
+    )
+    whole: npt.NDArray[np.bool_] = (
+        fits
+        & crc_ok
+        & (seg_lengths >= MIN_ADU)
+        & (seg_lengths <= MAX_ADU)
+        & (addresses <= MAX_ADDRESS)
+        & (padded[np.maximum(ends - 1, 0)] != 0)
+    )
+    return whole
