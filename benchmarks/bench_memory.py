@@ -1,0 +1,61 @@
+"""Peak memory of `rtusniff analyze --format jsonl` as the capture grows; prints a table.
+
+    python benchmarks/bench_memory.py [--frames 100000 400000 1600000]
+
+Each size is written as a native MCAP capture (generated in pieces, so the
+generator's own memory stays small) and analysed in a fresh process, which
+reports its own peak RSS. Streaming means the peak does not grow with the capture.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from benchmarks.bench_framing import LINE, polling_transmissions
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.synthesis import exact_chunks
+from sniffer.io.registry import open_writer
+
+CHILD = """
+import resource, sys, time
+from sniffer.cli import main
+start = time.perf_counter()
+code = main(["analyze", sys.argv[1], "--format", "jsonl", "-o", "/dev/null"])
+print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+sys.exit(code)
+"""
+PIECE_FRAMES = 100_000
+
+
+def write_capture(path: Path, frames: int) -> None:
+    writer = open_writer(str(path), CaptureInfo(LINE, TimingQuality.EXACT))
+    t0 = 1_700_000_000_000_000_000
+    for piece in range(0, frames, PIECE_FRAMES):
+        chunks = list(exact_chunks(polling_transmissions(min(PIECE_FRAMES, frames - piece), seed=piece), LINE, t0))
+        writer.write_batch(ChunkBatch.from_chunks(chunks))
+        t0 = chunks[-1].t_end_ns + 10_000_000
+    writer.close()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--frames", type=int, nargs="+", default=[100_000, 400_000, 1_600_000])
+    args = parser.parse_args()
+    print(f"{'frames':>10} {'MB':>7} {'analyze s':>10} {'frames/s':>10} {'peak RSS MB':>12}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for frames in args.frames:
+            path = Path(tmp) / f"{frames}.mcap"
+            write_capture(path, frames)
+            result = subprocess.run([sys.executable, "-c", CHILD, str(path)], capture_output=True, text=True, check=True)
+            seconds, rss_kb = result.stdout.split()
+            size_mb = path.stat().st_size / 1e6
+            print(f"{frames:>10,} {size_mb:>7.1f} {float(seconds):>10.2f} {frames / float(seconds):>10,.0f} "
+                  f"{int(rss_kb) / 1024:>12.1f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,113 @@
+"""The content parser's rules, one by one, on hand-made segments."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from decoders.capture import ChunkBatch, TimingQuality
+from decoders.crc import crc_bytes
+from decoders.frame import FrameFlag
+from decoders.framer import OPEN_PARSE_BYTES, Framer
+from decoders.framing.content import Piece, parse_segment, rule_lengths
+from decoders.line import LineSettings
+from decoders.synthesis import Transmission, exact_chunks
+
+REQUEST = bytes.fromhex("02030C1E0004276C")
+RESPONSE = bytes.fromhex("0203080028025801F4000052B0")
+
+
+def with_crc(body: bytes) -> bytes:
+    return body + crc_bytes(body)
+
+
+def pieces(data: bytes, **kwargs: object) -> list[tuple[bytes, bool, bool, FrameFlag]]:
+    options: dict[str, object] = {"closed": True, "at_capture_start": False} | kwargs
+    parse = parse_segment(data, **options)  # type: ignore[arg-type]
+    return [(data[p.start : p.end], p.is_noise, p.crc_ok, p.flags) for p in parse.pieces]
+
+
+def test_rule_lengths_both_directions() -> None:
+    assert rule_lengths(REQUEST) == [8, 17]  # as a response, byte 2 (0x0C) would be its byte count
+    assert rule_lengths(RESPONSE) == [8, 13]
+    assert rule_lengths(bytes.fromhex("02062329000D9270")) == [8]  # echo: one length
+    assert rule_lengths(bytes.fromhex("0490045DC2")) == [5]
+    assert rule_lengths(bytes.fromhex("0241")) == []  # FC 65: user-defined, no rule
+
+
+def test_crc_valid_frame_of_wrong_length_is_bad_length() -> None:
+    odd = with_crc(bytes.fromhex("0203000A0001FF"))  # FC3 request with a byte too many
+    assert pieces(odd) == [(odd, False, True, FrameFlag.BAD_LENGTH)]
+
+
+def test_user_defined_function_found_by_crc_search() -> None:
+    custom = with_crc(bytes.fromhex("0541DEADBEEF01"))
+    assert pieces(REQUEST + custom) == [(REQUEST, False, True, FrameFlag.NONE), (custom, False, True, FrameFlag.NONE)]
+    assert pieces(custom + REQUEST) == [(custom, False, True, FrameFlag.NONE), (REQUEST, False, True, FrameFlag.NONE)]
+
+
+def test_altivar_fc43_negative_answer() -> None:
+    negative = with_crc(bytes([2, 0xAB, 0x0E, 0x01]))
+    request = bytes.fromhex("022B0E01003477")
+    assert pieces(request + negative) == [
+        (request, False, True, FrameFlag.NONE),
+        (negative, False, True, FrameFlag.NONE),
+    ]
+
+
+def test_mei_13_has_no_length_rule_and_is_searched() -> None:
+    canopen = with_crc(bytes.fromhex("072B0D0001020304"))
+    assert pieces(canopen + REQUEST) == [(canopen, False, True, FrameFlag.NONE), (REQUEST, False, True, FrameFlag.NONE)]
+
+
+def test_stray_byte_before_a_frame() -> None:
+    assert pieces(b"\xff" + REQUEST) == [(b"\xff", True, False, FrameFlag.NONE), (REQUEST, False, True, FrameFlag.NONE)]
+
+
+def test_zero_glitch_after_a_frame_is_not_part_of_it() -> None:
+    assert pieces(RESPONSE + b"\x00\x00") == [
+        (RESPONSE, False, True, FrameFlag.NONE),
+        (b"\x00\x00", True, False, FrameFlag.NONE),
+    ]
+
+
+def test_damaged_frame_between_valid_ones() -> None:
+    damaged = bytearray(RESPONSE)
+    damaged[5] ^= 0x10
+    result = pieces(REQUEST + bytes(damaged) + REQUEST)
+    assert [(p[0], p[2]) for p in result] == [(REQUEST, True), (bytes(damaged), False), (REQUEST, True)]
+
+
+def test_truncated_at_capture_end_and_mid_frame_start() -> None:
+    assert pieces(RESPONSE[:9], at_capture_end=True) == [(RESPONSE[:9], False, False, FrameFlag.TRUNCATED)]
+    assert pieces(RESPONSE[4:] + REQUEST, at_capture_start=True) == [
+        (RESPONSE[4:], True, False, FrameFlag.NONE),
+        (REQUEST, False, True, FrameFlag.NONE),
+    ]
+
+
+def test_garbage_without_a_plausible_header_is_noise() -> None:
+    junk = bytes.fromhex("FFFE112233")
+    assert pieces(junk) == [(junk, True, False, FrameFlag.NONE)]
+
+
+def test_open_segment_is_parsed_only_behind_the_lookahead() -> None:
+    data = REQUEST * 200
+    parse = parse_segment(data, closed=False, at_capture_start=False)
+    assert parse.consumed <= len(data) - 256
+    assert all(isinstance(p, Piece) and p.end <= parse.consumed for p in parse.pieces)
+    assert parse.consumed >= len(data) - 2 * 256 - len(REQUEST)
+
+
+def test_framer_memory_stays_bounded_without_any_silence() -> None:
+    """A host capture of a busy bus may never show a 100 ms gap: what the framer holds stays bounded."""
+    line = LineSettings.parse("115200 8N1")
+    framer = Framer(line, TimingQuality.HOST)
+    rng = np.random.default_rng(1)
+    held = []
+    t = 0
+    for _ in range(200):
+        frames = b"".join(REQUEST + RESPONSE for _ in range(20)) + bytes(rng.integers(0, 256, 5, dtype=np.uint8))
+        t += 1_000_000
+        framer.feed(ChunkBatch.from_chunks(list(exact_chunks([Transmission(frames, 0)], line, t))))
+        held.append(len(framer._data))
+    assert max(held) <= OPEN_PARSE_BYTES + 20 * (len(REQUEST) + len(RESPONSE)) + 5
