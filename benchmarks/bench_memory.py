@@ -50,7 +50,8 @@ def main() -> None:
         for frames in args.frames:
             path = Path(tmp) / f"{frames}.mcap"
             write_capture(path, frames)
-            result = subprocess.run([sys.executable, "-c", CHILD, str(path)], capture_output=True, text=True, check=True)
+            command = [sys.executable, "-c", CHILD, str(path)]
+            result = subprocess.run(command, capture_output=True, text=True, check=True)
             seconds, rss_kb = result.stdout.split()
             size_mb = path.stat().st_size / 1e6
             print(f"{frames:>10,} {size_mb:>7.1f} {float(seconds):>10.2f} {frames / float(seconds):>10,.0f} "
