@@ -180,8 +180,14 @@ class Framer:
     def _assemble(self, data: bytes, starts: Int64Array, ends: Int64Array, pieces: _Pieces) -> FrameBatch:
         first, last, is_noise, flags = pieces.first, pieces.last, pieces.is_noise, pieces.flags.copy()
         count = len(first)
-        t_start = starts[first] if count else np.zeros(0, np.int64)
-        t_end = ends[last - 1] if count else np.zeros(0, np.int64)
+        if count:
+            # Earliest start and latest end of the bytes: the same as first and last on a
+            # consistent capture, and still ordered on one whose times overlap.
+            span = slice(int(first[0]), int(last[-1]))
+            t_start = np.minimum.reduceat(starts[span], first - first[0])
+            t_end = np.maximum.reduceat(ends[span], first - first[0])
+        else:
+            t_start = t_end = np.zeros(0, np.int64)
         idle = np.empty(count, np.int64)
         if count:
             idle[1:] = t_start[1:] - t_end[:-1]

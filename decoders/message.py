@@ -4,8 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
+from typing import TYPE_CHECKING
 
 from decoders.frame import Frame, FrameFlag
+
+if TYPE_CHECKING:
+    from decoders.modbus.pdu import Pdu
 
 
 class Role(Enum):
@@ -38,8 +42,8 @@ class Message:
     """A frame with its role and decoded meaning.
 
     ``flags`` holds the framer's flags plus those of later stages (timeouts, retries).
-    ``request_index`` and ``latency_ns`` stay ``None`` until requests and responses
-    are paired.
+    ``request_index`` and ``latency_ns`` are set on responses and exceptions paired
+    with their request; ``pdu``, ``params`` and ``summary`` by the annotator.
     """
 
     frame: Frame
@@ -52,3 +56,4 @@ class Message:
     request_index: int | None = None
     latency_ns: int | None = None
     params: tuple[ParamValue, ...] = ()
+    pdu: Pdu | None = None

@@ -5,33 +5,50 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 
 from decoders.capture import ChunkBatch, TimingQuality
-from decoders.frame import FrameBatch
 from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.message import Message
-from decoders.modbus.roles import RoleGuesser
+from decoders.modbus.annotate import Annotator
+from decoders.modbus.matcher import Matcher
 
 
 class Decoder:
-    """Frames and classifies a capture; ``feed`` batches in order, then ``flush``."""
+    """Frames, pairs and (with ``annotate``) decodes a capture; ``feed`` batches in order, then ``flush``.
 
-    def __init__(self, line: LineSettings, timing: TimingQuality) -> None:
+    Without ``annotate`` messages carry roles, pairing and flags but no PDU, which is
+    all that statistics need.
+    """
+
+    def __init__(
+        self,
+        line: LineSettings,
+        timing: TimingQuality,
+        *,
+        response_timeout_ns: int | None = None,
+        annotate: bool = True,
+    ) -> None:
         self.framer = Framer(line, timing)
-        self.roles = RoleGuesser()
+        self.matcher = Matcher(response_timeout_ns)
+        self.annotator = Annotator() if annotate else None
 
     def feed(self, batch: ChunkBatch) -> list[Message]:
-        return self._classify(self.framer.feed(batch))
+        return self._finish(self.matcher.feed(self.framer.feed(batch)))
 
     def flush(self) -> list[Message]:
-        return self._classify(self.framer.flush())
+        messages = self.matcher.feed(self.framer.flush())
+        return self._finish(messages + self.matcher.flush())
 
-    def _classify(self, frames: FrameBatch) -> list[Message]:
-        return [self.roles.classify(frame) for frame in frames]
+    def _finish(self, messages: list[Message]) -> list[Message]:
+        if self.annotator is None:
+            return messages
+        return [self.annotator.annotate(m) for m in messages]
 
 
-def decode(batches: Iterable[ChunkBatch], line: LineSettings, timing: TimingQuality) -> Iterator[Message]:
+def decode(
+    batches: Iterable[ChunkBatch], line: LineSettings, timing: TimingQuality, *, annotate: bool = True
+) -> Iterator[Message]:
     """All messages of a capture, streaming."""
-    decoder = Decoder(line, timing)
+    decoder = Decoder(line, timing, annotate=annotate)
     for batch in batches:
         yield from decoder.feed(batch)
     yield from decoder.flush()

@@ -11,10 +11,10 @@ import sys
 from collections.abc import Sequence
 from importlib.metadata import version
 
-from sniffer.commands import analyze, convert
+from sniffer.commands import analyze, convert, stats
 from sniffer.errors import ErrorKind, RtuSniffError
 
-COMMANDS = [analyze, convert]
+COMMANDS = [analyze, stats, convert]
 INTERRUPTED_EXIT = 130
 
 

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
 from decoders.message import Message
 from decoders.pipeline import Decoder
+from decoders.stats import Statistics
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.base import CaptureReader
 
@@ -20,7 +22,7 @@ class MessageView(Protocol):
 
     def messages(self, messages: list[Message]) -> None: ...
 
-    def finish(self) -> None: ...
+    def finish(self, statistics: Statistics) -> None: ...
 
 
 def effective_line(info: CaptureInfo, override: LineSettings | None, path: str) -> LineSettings:
@@ -36,11 +38,33 @@ def effective_line(info: CaptureInfo, override: LineSettings | None, path: str) 
     return info.line
 
 
-def analyze(reader: CaptureReader, source: str, line: LineSettings, timing: TimingQuality, view: MessageView) -> None:
-    """Decode every batch of ``reader`` into ``view``, streaming."""
-    decoder = Decoder(line, timing)
-    view.start(source, replace(reader.info, timing=timing), line)
+@dataclass(frozen=True)
+class Analysis:
+    """How to decode: line, timing, response timeout, and which messages the view gets."""
+
+    line: LineSettings
+    timing: TimingQuality
+    response_timeout_ns: int | None = None
+    keep: Callable[[Message], bool] | None = None
+    annotate: bool = True
+
+
+def analyze(reader: CaptureReader, source: str, analysis: Analysis, view: MessageView) -> Statistics:
+    """Decode every batch of ``reader`` into ``view``, streaming; statistics cover all frames."""
+    decoder = Decoder(
+        analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns, annotate=analysis.annotate
+    )
+    statistics = Statistics()
+    view.start(source, replace(reader.info, timing=analysis.timing), analysis.line)
     for batch in reader.batches():
-        view.messages(decoder.feed(batch))
-    view.messages(decoder.flush())
-    view.finish()
+        _deliver(decoder.feed(batch), statistics, analysis.keep, view)
+    _deliver(decoder.flush(), statistics, analysis.keep, view)
+    view.finish(statistics)
+    return statistics
+
+
+def _deliver(
+    messages: list[Message], statistics: Statistics, keep: Callable[[Message], bool] | None, view: MessageView
+) -> None:
+    statistics.add_all(messages)
+    view.messages(messages if keep is None else [m for m in messages if keep(m)])

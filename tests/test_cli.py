@@ -27,7 +27,8 @@ def test_analyze_table_shows_every_frame(cli: Cli) -> None:
     assert "02 03 08 00 28 02 50 01 f4 00 00 52 b0" in result.out  # the damaged response
     assert "gap_1_5" in result.out
     assert result.out.rstrip().endswith(
-        "48 frames, 26 request, 19 response, 2 exception, 1 noise, 1 CRC errors, 1 gap_1_5, 1 short_idle"
+        "48 frames, 26 request, 19 response, 2 exception, 1 noise, 1 CRC errors, 1 gap_1_5, 5 retry, "
+        "1 short_idle, 4 timeout"
     )
 
 
@@ -36,6 +37,7 @@ def test_analyze_jsonl_follows_the_contract(cli: Cli) -> None:
     assert result.code == 0, result.err
     records = result.jsonl()
     assert records[0]["kind"] == "capture" and records[0]["timing"] == "exact"
+    assert records[-1]["kind"] == "summary" and records[-1]["frames"] == 48
     frames = [r for r in records if r["kind"] == "frame"]
     assert [f["index"] for f in frames] == list(range(len(frames)))
     for frame in frames:
@@ -50,10 +52,26 @@ def test_analyze_jsonl_follows_the_contract(cli: Cli) -> None:
     assert [f["hex"] for f in bad] == ["0203080028025001f4000052b0"]
     exceptions = [(f["slave"], f["function"], f["exception_code"]) for f in frames if f["role"] == "exception"]
     assert exceptions == [(12, 3, 2), (4, 16, 4)]
-    assert [f["flags"] for f in frames if f["flags"]] == [["gap_1_5"], ["short_idle"]]
+    flagged = {f["index"]: f["flags"] for f in frames if f["flags"]}
+    assert flagged == {
+        8: ["timeout"], 15: ["timeout", "retry"], 22: ["retry"], 28: ["timeout", "retry"], 32: ["gap_1_5"],
+        35: ["timeout", "retry"], 43: ["short_idle"], 47: ["retry"],
+    }
     [noise] = [f for f in frames if f["role"] == "noise"]
     assert (noise["hex"], noise["crc_ok"], noise["slave"], noise["function"]) == ("00", False, None, None)
-    assert all(f["request_index"] is None and f["latency_s"] is None and f["params"] == [] for f in frames)
+    for frame in frames:
+        if frame["role"] in ("response", "exception"):
+            request = frames[frame["request_index"]]
+            asked = (request["role"], request["slave"], request["function"])
+            assert asked == ("request", frame["slave"], frame["function"])
+            assert frame["latency_s"] == pytest.approx(frame["t"] - request["t_end"], abs=1e-6)
+        else:
+            assert frame["request_index"] is None and frame["latency_s"] is None
+    first_answer = frames[3]
+    assert first_answer["summary"] == "HR = 0028 0258 01F4 0000 (4 registers)"
+    assert [(p["address"], p["raw"], p["value"]) for p in first_answer["params"]] == [
+        (3102, 40, 40), (3103, 600, 600), (3104, 500, 500), (3105, 0, 0)
+    ]
 
 
 def test_analyze_mcap_equals_text(cli: Cli) -> None:
@@ -156,7 +174,7 @@ def test_format_recognised_by_content_when_suffix_is_unknown(cli: Cli, tmp_path:
         copy.write_bytes(source.read_bytes())
         result = cli("analyze", str(copy), "--format", "jsonl")
         assert result.code == 0, result.err
-        assert len(result.jsonl()) == 49
+        assert len(result.jsonl()) == 50
 
 
 def test_convert_removes_its_output_when_the_input_breaks(cli: Cli, tmp_path: Path) -> None:
@@ -174,7 +192,8 @@ def test_host_timed_sample_gives_the_same_frames(cli: Cli) -> None:
     host = [f for f in host_records if f["kind"] == "frame"]
     key = ("hex", "role", "crc_ok", "slave", "function", "exception_code")
     assert [tuple(f[k] for k in key) for f in host] == [tuple(f[k] for k in key) for f in exact]
-    assert all(f["flags"] == [] for f in host)
+    timing_flags = {"gap_1_5", "short_idle"}
+    assert [f["flags"] for f in host] == [[x for x in f["flags"] if x not in timing_flags] for f in exact]
     for h, e in zip(host, exact, strict=True):
         # Host times are read times: later than the wire, by at most the latency timer and jitter.
         assert e["t_end_ns"] <= h["t_end_ns"] <= e["t_end_ns"] + 17_000_000
@@ -189,4 +208,55 @@ def test_timing_override(cli: Cli) -> None:
     records = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--timing", "host").jsonl()
     assert records[0]["timing"] == "host"
     frames = [f for f in records if f["kind"] == "frame"]
-    assert len(frames) == 48 and not any(f["flags"] for f in frames)
+    assert len(frames) == 48 and not any({"gap_1_5", "short_idle"} & set(f["flags"]) for f in frames)
+
+
+def test_filters(cli: Cli) -> None:
+    def indices(*filters: str) -> list[int]:
+        args = [x for f in filters for x in ("--filter", f)]
+        records = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", *args).jsonl()
+        assert records[-1]["kind"] == "summary" and records[-1]["frames"] == 48  # the summary covers all frames
+        return [r["index"] for r in records if r["kind"] == "frame"]
+
+    assert indices("slave=3") == [8, 15, 28, 35, 47]
+    assert indices("slave=3", "flag=timeout") == [8, 15, 28, 35]
+    assert indices("role=exception") == [27, 37]
+    assert indices("slave=4", "slave=12", "role=exception") == [27, 37]
+    assert indices("function=8") == [38, 39]
+    assert indices("flag=gap_1_5", "flag=short_idle") == [32, 43]
+
+
+@pytest.mark.parametrize(
+    ("spec", "words"),
+    [("slave=300", "slave must be a number from 0 to 247"), ("role=master", "role is one of request, response"),
+     ("flag=late", "flag is one of gap_1_5"), ("colour=red", "KEY one of slave, function, role, flag")],
+)
+def test_bad_filters_say_what_is_allowed(cli: Cli, spec: str, words: str) -> None:
+    result = cli("analyze", str(SAMPLE_LOG), "--filter", spec)
+    assert result.code == 2 and words in result.err
+
+
+def test_stats_json(cli: Cli) -> None:
+    result = cli("stats", str(SAMPLE_LOG), "--format", "json")
+    assert result.code == 0, result.err
+    import json
+
+    stats = json.loads(result.out)
+    assert (stats["frames"], stats["crc_errors"], stats["noise_bytes"]) == (48, 1, 1)
+    assert stats["roles"] == {"exception": 2, "noise": 1, "request": 26, "response": 19}
+    rows = {(r["slave"], r["function"]): r for r in stats["per_slave_function"]}
+    absent = rows[(3, 3)]
+    assert (absent["requests"], absent["responses"], absent["timeouts"], absent["retries"]) == (5, 0, 4, 4)
+    assert rows[(12, 3)]["exceptions"] == {"2": 1}
+    assert rows[(4, 16)]["exceptions"] == {"4": 1}
+    drive2 = rows[(2, 3)]
+    assert (drive2["requests"], drive2["responses"], drive2["crc_errors"], drive2["retries"]) == (6, 6, 1, 1)
+    assert 0.002 < drive2["latency_s"]["min"] <= drive2["latency_s"]["p50"] <= drive2["latency_s"]["max"] < 0.006
+    assert drive2["poll_period_s"]["p50"] == pytest.approx(0.093, abs=0.005)
+    assert rows[(20, 23)]["short_idle"] == 1 and rows[(20, 23)]["gap_1_5"] == 1
+    assert 0.05 < stats["bus_load"] < 0.3
+
+
+def test_stats_table(cli: Cli) -> None:
+    out = cli("stats", str(SAMPLE_LOG)).out
+    assert "bus load" in out and "23 Read/Write Multiple Registers" in out and "02×1" in out

@@ -55,3 +55,57 @@ def function_name(code: int) -> str:
 def exception_name(code: int) -> str:
     """Standard name of an exception code."""
     return EXCEPTION_NAMES.get(code, f"Unknown exception {code}")
+
+
+#: FC 8 sub-functions (Modbus application protocol V1.1b3, 6.8).
+DIAGNOSTIC_NAMES: dict[int, str] = {
+    0x00: "Return Query Data (echo)",
+    0x01: "Restart Communications Option",
+    0x02: "Return Diagnostic Register",
+    0x03: "Change ASCII Input Delimiter",
+    0x04: "Force Listen Only Mode",
+    0x0A: "Clear Counters and Diagnostic Register",
+    0x0B: "Return Bus Message Count",
+    0x0C: "Return Bus Communication Error Count",
+    0x0D: "Return Bus Exception Error Count",
+    0x0E: "Return Server Message Count",
+    0x0F: "Return Server No Response Count",
+    0x10: "Return Server NAK Count",
+    0x11: "Return Server Busy Count",
+    0x12: "Return Bus Character Overrun Count",
+    0x14: "Clear Overrun Counter and Flag",
+}
+
+#: FC 43 MEI types.
+MEI_NAMES: dict[int, str] = {13: "CANopen General Reference", 14: "Read Device Identification"}
+
+#: FC 43 / MEI 14 read device ID codes.
+READ_DEVICE_ID_CODES: dict[int, str] = {1: "basic", 2: "regular", 3: "extended", 4: "specific object"}
+
+#: FC 43 / MEI 14 standard object names (objects 0x07..0x7F are reserved, 0x80.. private).
+DEVICE_ID_OBJECTS: dict[int, str] = {
+    0x00: "VendorName",
+    0x01: "ProductCode",
+    0x02: "MajorMinorRevision",
+    0x03: "VendorUrl",
+    0x04: "ProductName",
+    0x05: "ModelName",
+    0x06: "UserApplicationName",
+}
+
+#: The Altivar's non-standard FC 43 negative answer codes (ATV71 manual, FC 43 section).
+ALTIVAR_MEI_ERRORS: dict[int, str] = {
+    0: "no error",
+    1: "function code, MEI type or read device ID code incorrect",
+    2: "object ID incorrect",
+}
+
+
+def diagnostic_name(sub_function: int) -> str:
+    return DIAGNOSTIC_NAMES.get(sub_function, f"Sub-function 0x{sub_function:04X}")
+
+
+def device_id_object_name(object_id: int) -> str:
+    if object_id in DEVICE_ID_OBJECTS:
+        return DEVICE_ID_OBJECTS[object_id]
+    return f"Private object 0x{object_id:02X}" if object_id >= 0x80 else f"Reserved object 0x{object_id:02X}"

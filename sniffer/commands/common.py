@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from contextlib import ExitStack
 from dataclasses import replace
+from typing import TextIO
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.io.registry import all_formats
+from sniffer.io.base import CaptureReader
+from sniffer.io.registry import all_formats, open_reader
+from sniffer.pipeline import Analysis, effective_line
 
 
 def add_line_options(parser: argparse.ArgumentParser) -> None:
@@ -38,6 +43,52 @@ def add_timing_option(parser: argparse.ArgumentParser) -> None:
 
 def effective_timing(info: CaptureInfo, args: argparse.Namespace) -> TimingQuality:
     return TimingQuality(args.timing) if args.timing else info.timing
+
+
+def add_response_timeout_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--response-timeout",
+        type=float,
+        metavar="MS",
+        help="a request not answered within MS milliseconds is a timeout (default: derived from the traffic, "
+        "ten times the longest recent latency, 100 ms to 1 s)",
+    )
+
+
+def response_timeout_ns(args: argparse.Namespace) -> int | None:
+    if args.response_timeout is None:
+        return None
+    if not 0 < args.response_timeout <= 600_000:
+        raise RtuSniffError(ErrorKind.USAGE, "--response-timeout: give milliseconds from 0 to 600000")
+    timeout_ns: int = round(args.response_timeout * 1e6)
+    return timeout_ns
+
+
+def add_decoding_options(parser: argparse.ArgumentParser) -> None:
+    """Everything that says how to read and decode a capture."""
+    add_line_options(parser)
+    add_timing_option(parser)
+    add_response_timeout_option(parser)
+    add_input_format_option(parser)
+
+
+def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureReader, Analysis]:
+    """Open ``args.capture`` and settle how to decode it."""
+    reader = open_reader(args.capture, args.input_format)
+    stack.callback(reader.close)
+    line = apply_char_timing(effective_line(reader.info, line_override(args), args.capture), args)
+    analysis = Analysis(line, effective_timing(reader.info, args), response_timeout_ns(args))
+    return reader, analysis
+
+
+def open_output(path: str | None, stack: ExitStack) -> TextIO:
+    """Standard output, or the file ``-o`` names."""
+    if path is None or path == "-":
+        return sys.stdout
+    try:
+        return stack.enter_context(open(path, "w", encoding="utf-8"))
+    except OSError as exc:
+        raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot write: {exc.strerror}", path=path) from None
 
 
 def add_input_format_option(parser: argparse.ArgumentParser) -> None:

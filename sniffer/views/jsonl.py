@@ -8,6 +8,7 @@ from typing import Any, TextIO
 from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import Message
+from decoders.stats import Statistics
 from sniffer.views.records import capture_record, frame_record
 
 
@@ -25,7 +26,9 @@ class JsonlView:
         dumps = self._dumps
         self._out.write("".join(dumps(frame_record(m)) + "\n" for m in messages))
 
-    def finish(self) -> None:
+    def finish(self, statistics: Statistics) -> None:
+        """The closing ``summary`` record: statistics of every frame, filtered or not."""
+        self._write({"kind": "summary", **statistics.to_dict()})
         self._out.flush()
 
     def _write(self, record: dict[str, Any]) -> None:

@@ -7,7 +7,6 @@ output reads as one table.
 
 from __future__ import annotations
 
-from collections import Counter
 from datetime import UTC, datetime
 
 from rich.console import Console
@@ -17,7 +16,7 @@ from rich.text import Text
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
 from decoders.message import Message, Role
-from decoders.modbus.codes import function_name
+from decoders.stats import Statistics
 
 ROWS_PER_BLOCK = 200
 #: (header, width, justify); the hex column takes the rest of the width.
@@ -26,8 +25,9 @@ COLUMNS: list[tuple[str, int, str]] = [
     ("time (UTC)", 15, "left"),
     ("Δt ms", 9, "right"),
     ("slave", 5, "right"),
-    ("function", 33, "left"),
+    ("fc", 3, "right"),
     ("role", 9, "left"),
+    ("req", 6, "right"),
     ("len", 4, "right"),
     ("CRC", 4, "left"),
     ("flags", 12, "left"),
@@ -55,7 +55,6 @@ class TableView:
     def __init__(self, console: Console) -> None:
         self._console = console
         self._header_shown = False
-        self._counts: Counter[str] = Counter()
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._console.print(
@@ -85,18 +84,17 @@ class TableView:
             self._date_shown = True
         table = Table(show_header=not self._header_shown, box=None, pad_edge=False, expand=True)
         for header, width, justify in COLUMNS:
-            table.add_column(header, width=width, no_wrap=True, justify=justify)  # type: ignore[arg-type]
-        table.add_column("hex", ratio=1, overflow="fold")
+            table.add_column(header, width=width, no_wrap=header != "flags", justify=justify)  # type: ignore[arg-type]
+        table.add_column("summary", ratio=3, overflow="fold")
+        table.add_column("hex", ratio=2, overflow="fold")
         for message in messages:
             table.add_row(*self._cells(message))
-            self._count(message)
         self._header_shown = True
         self._console.print(table)
 
     def _cells(self, message: Message) -> list[Text | str]:
         frame = message.frame
         idle = "" if frame.idle_before_ns is None else f"{frame.idle_before_ns / 1e6:.3f}"
-        function = "" if message.function is None else f"{message.function:>3} {function_name(message.function)}"
         crc = Text("ok", "green") if frame.crc_ok else Text("BAD", "bold red")
         if message.role is Role.NOISE:
             crc = Text("")
@@ -105,25 +103,21 @@ class TableView:
             format_clock(frame.t_start_ns),
             idle,
             "" if message.slave is None else str(message.slave),
-            function,
+            "" if message.function is None else str(message.function),
             Text(message.role.value, ROLE_STYLES[message.role]),
+            "" if message.request_index is None else f"#{message.request_index}",
             str(len(frame.data)),
             crc,
             Text(" ".join(message.flags.names), "yellow"),
+            message.summary,
             frame.data.hex(" "),
         ]
 
-    def _count(self, message: Message) -> None:
-        self._counts["frames"] += 1
-        self._counts[message.role.value] += 1
-        if not message.frame.crc_ok and message.role is not Role.NOISE:
-            self._counts["CRC errors"] += 1
-        for flag in message.flags.names:
-            self._counts[flag] += 1
-
-    def finish(self) -> None:
-        counts = self._counts
-        order = ["frames", "request", "response", "exception", "broadcast", "unknown", "noise", "CRC errors"]
-        parts = [f"{counts[key]} {key}" for key in order if counts[key] or key == "frames"]
-        parts += [f"{n} {flag}" for flag, n in sorted(counts.items()) if flag not in order]
+    def finish(self, statistics: Statistics) -> None:
+        roles, flags = statistics.roles, statistics.flags
+        order = ["request", "response", "exception", "broadcast", "unknown", "noise"]
+        parts = [f"{statistics.frames} frames"] + [f"{roles[r]} {r}" for r in order if roles[r]]
+        if statistics.crc_errors:
+            parts.append(f"{statistics.crc_errors} CRC errors")
+        parts += [f"{n} {flag}" for flag, n in sorted(flags.items())]
         self._console.print(", ".join(parts), highlight=False)

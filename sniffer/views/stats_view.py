@@ -1,0 +1,93 @@
+"""The ``stats`` command's output: rich tables, or one JSON document."""
+
+from __future__ import annotations
+
+import json
+from typing import TextIO
+
+from rich.console import Console
+from rich.table import Table
+
+from decoders.capture import CaptureInfo
+from decoders.line import LineSettings
+from decoders.message import Message
+from decoders.modbus.codes import function_name
+from decoders.stats import FunctionStats, Histogram, Statistics
+
+
+def _ms(value_ns: float | None) -> str:
+    return "" if value_ns is None else f"{value_ns / 1e6:.2f}"
+
+
+def _latency_cells(histogram: Histogram) -> list[str]:
+    return [
+        _ms(histogram.minimum),
+        _ms(histogram.percentile(50)),
+        _ms(histogram.percentile(95)),
+        _ms(histogram.percentile(99)),
+        _ms(histogram.maximum),
+    ]
+
+
+def _count(value: int, style: str = "red") -> str:
+    return f"[{style}]{value}[/]" if value else "0"
+
+
+class StatsView:
+    """Keeps nothing per message; prints the statistics at the end."""
+
+    def __init__(self, out: TextIO, console: Console, as_json: bool) -> None:
+        self._out = out
+        self._console = console
+        self._as_json = as_json
+        self._header: dict[str, object] = {}
+
+    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
+
+    def messages(self, messages: list[Message]) -> None:
+        pass
+
+    def finish(self, statistics: Statistics) -> None:
+        if self._as_json:
+            self._out.write(json.dumps({**self._header, **statistics.to_dict()}, indent=2) + "\n")
+            return
+        header = self._header
+        self._console.print(f"[bold]{header['source']}[/]  line {header['line']}  timing {header['timing']}")
+        self._console.print(self._bus_table(statistics))
+        self._console.print(self._function_table(statistics))
+
+    def _bus_table(self, s: Statistics) -> Table:
+        table = Table(show_header=False)
+        table.add_column("what")
+        table.add_column("value", justify="right")
+        load = "" if s.bus_load is None else f"{100 * s.bus_load:.1f} %"
+        rows = [
+            ("frames", str(s.frames)), ("bytes", str(s.total_bytes)), ("duration", f"{s.duration_ns / 1e9:.3f} s"),
+            ("bus load", load), ("CRC errors", _count(s.crc_errors)), ("noise bytes", _count(s.noise_bytes)),
+        ]
+        rows += [(f"role {role}", str(n)) for role, n in sorted(s.roles.items())]
+        rows += [(f"flag {flag}", _count(n, "yellow")) for flag, n in sorted(s.flags.items())]
+        for row in rows:
+            table.add_row(*row)
+        return table
+
+    def _function_table(self, s: Statistics) -> Table:
+        table = Table(title="per slave and function (latency and poll period in ms)", title_justify="left")
+        headers = ["slave", "function", "req", "resp", "exc", "CRC", "timeout", "retry", "unexp", "gap1.5",
+                   "short", "lat min", "p50", "p95", "p99", "max", "poll p50"]
+        for header in headers:
+            table.add_column(header, justify="left" if header == "function" else "right")
+        for (slave, function), stats in sorted(s.per_function.items()):
+            table.add_row(str(slave), f"{function} {function_name(function)}", *self._cells(stats))
+        return table
+
+    @staticmethod
+    def _cells(f: FunctionStats) -> list[str]:
+        exceptions = " ".join(f"{code:02X}×{n}" for code, n in sorted(f.exceptions.items()))
+        return [
+            str(f.requests + f.broadcasts), str(f.responses), f"[red]{exceptions}[/]" if exceptions else "",
+            _count(f.crc_errors), _count(f.timeouts), _count(f.retries, "yellow"), _count(f.unexpected, "yellow"),
+            _count(f.gap_1_5, "yellow"), _count(f.short_idle, "yellow"),
+            *_latency_cells(f.latency), _ms(f.poll_period.percentile(50)),
+        ]

@@ -1,0 +1,142 @@
+"""Serial lines without hardware: socat pseudo-terminal pairs, a copying relay, a pymodbus slave.
+
+Topology of an end-to-end test::
+
+    pymodbus master ⇄ [pty pair A] ⇄ relay ⇄ [pty pair B] ⇄ pymodbus slave (subprocess)
+                                      │
+                                      └─ every byte, as it passes, with its read time
+
+Pseudo-terminals on this kernel refuse even and odd parity and ignore the baud rate,
+so the lines run 8N1 and the times are host read times.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import serial
+
+SOCAT = shutil.which("socat")
+
+SLAVE_SCRIPT = """
+import sys
+from pymodbus import FramerType, ModbusDeviceIdentification
+from pymodbus.datastore import ModbusDeviceContext, ModbusSequentialDataBlock, ModbusServerContext
+from pymodbus.server import StartSerialServer
+
+def device():
+    return ModbusDeviceContext(
+        co=ModbusSequentialDataBlock(1, [i % 3 == 0 for i in range(100)]),
+        di=ModbusSequentialDataBlock(1, [i % 2 == 0 for i in range(100)]),
+        hr=ModbusSequentialDataBlock(1, list(range(100, 200))),
+        ir=ModbusSequentialDataBlock(1, list(range(1000, 1100))),
+    )
+
+context = ModbusServerContext(devices={1: device(), 17: device()}, single=False)
+identity = ModbusDeviceIdentification(
+    info_name={"VendorName": "rtusniff tests", "ProductCode": "PTY-1", "MajorMinorRevision": "1.0"}
+)
+StartSerialServer(context=context, identity=identity, framer=FramerType.RTU, port=sys.argv[1],
+                  baudrate=19200, parity="N", timeout=1)
+"""
+
+
+@dataclass
+class PtyPair:
+    """Two connected pseudo-terminals, as symlinks ``a`` and ``b``."""
+
+    a: Path
+    b: Path
+    process: subprocess.Popen[bytes]
+
+
+@contextmanager
+def pty_pair(directory: Path, name: str) -> Iterator[PtyPair]:
+    if SOCAT is None:
+        raise RuntimeError("socat is not installed")
+    a, b = directory / f"{name}-a", directory / f"{name}-b"
+    process = subprocess.Popen(
+        [SOCAT, f"PTY,raw,echo=0,link={a}", f"PTY,raw,echo=0,link={b}"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 5
+        while not (a.exists() and b.exists()):
+            if time.monotonic() > deadline:
+                raise RuntimeError("socat did not create its pseudo-terminals")
+            time.sleep(0.01)
+        yield PtyPair(a, b, process)
+    finally:
+        process.terminate()
+        process.wait(timeout=5)
+
+
+@dataclass
+class Relay:
+    """Copies bytes between two ports and keeps a copy of each read with its time.
+
+    Reads from the master side that start with an address in ``absent`` are recorded
+    but not passed on: a drive missing from the bus.
+    """
+
+    master_side: Path
+    slave_side: Path
+    absent: frozenset[int] = frozenset()
+    tap: list[tuple[int, bytes]] = field(default_factory=list)
+    _stop: threading.Event = field(default_factory=threading.Event)
+    _thread: threading.Thread | None = None
+
+    def __enter__(self) -> Relay:
+        self._ports = [serial.Serial(str(p), 19200, timeout=0) for p in (self.master_side, self.slave_side)]
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self._stop.set()
+        assert self._thread is not None
+        self._thread.join(timeout=5)
+        for port in self._ports:
+            port.close()
+
+    def _run(self) -> None:
+        fds = {port.fileno(): (port, other) for port, other in zip(self._ports, reversed(self._ports), strict=True)}
+        while not self._stop.is_set():
+            ready, _, _ = select.select(list(fds), [], [], 0.05)
+            for fd in ready:
+                port, other = fds[fd]
+                data = os.read(fd, 4096)
+                if data:
+                    self.tap.append((time.time_ns(), data))
+                    if not (port is self._ports[0] and data[0] in self.absent):
+                        other.write(data)
+
+
+@contextmanager
+def pymodbus_slave(port: Path) -> Iterator[subprocess.Popen[bytes]]:
+    process = subprocess.Popen([sys.executable, "-c", SLAVE_SCRIPT, str(port)],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        time.sleep(1.0)  # the server opens its port
+        if process.poll() is not None:
+            raise RuntimeError(f"pymodbus slave died: {process.stderr.read().decode() if process.stderr else ''}")
+        yield process
+    finally:
+        process.terminate()
+        process.wait(timeout=5)
+
+
+def write_text_capture(path: Path, tap: list[tuple[int, bytes]], note: str) -> None:
+    lines = ["# rtu-capture v1", "# line: 19200 8N1", "# timing: host", f"# {note}"]
+    lines += [f"{t // 1_000_000_000}.{t % 1_000_000_000:09d} {data.hex(' ').upper()}" for t, data in tap]
+    path.write_text("\n".join(lines) + "\n")

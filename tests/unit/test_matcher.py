@@ -1,0 +1,126 @@
+"""Roles and pairing on one wire."""
+
+from __future__ import annotations
+
+from decoders.crc import crc_bytes, crc_ok
+from decoders.frame import Frame, FrameFlag
+from decoders.message import Message, Role
+from decoders.modbus.matcher import MAX_TIMEOUT_NS, MIN_TIMEOUT_NS, Matcher
+
+MS = 1_000_000
+
+
+def adu(hex_body: str) -> bytes:
+    body = bytes.fromhex(hex_body.replace(" ", ""))
+    return body + crc_bytes(body)
+
+
+READ_2 = adu("02 03 0C1E 0004")
+ANSWER_2 = adu("02 03 08 0028 0258 01F4 0000")
+READ_5 = adu("05 03 0000 0002")
+ANSWER_5 = adu("05 03 04 0001 0002")
+WRITE_2 = adu("02 06 2329 000D")
+
+
+def run(*frames: tuple[float, bytes], timeout_ms: float | None = None) -> list[Message]:
+    """Frames at the given start times (ms); each lasts 1 ms per 10 bytes."""
+    matcher = Matcher(None if timeout_ms is None else int(timeout_ms * MS))
+    out = []
+    for index, (start_ms, data) in enumerate(frames):
+        start = int(start_ms * MS)
+        frame = Frame(index, start, start + len(data) * MS // 10, data, crc_ok(data), FrameFlag.NONE)
+        out.extend(matcher.feed([frame]))
+    return out + matcher.flush()
+
+
+def roles(messages: list[Message]) -> list[tuple[str, int | None, list[str]]]:
+    return [(m.role.value, m.request_index, m.flags.names) for m in messages]
+
+
+def test_request_and_response_pair_with_latency() -> None:
+    request, response = run((0, READ_2), (5, ANSWER_2))
+    assert (request.role, response.role) == (Role.REQUEST, Role.RESPONSE)
+    assert response.request_index == 0
+    assert response.latency_ns == 5 * MS - len(READ_2) * MS // 10
+
+
+def test_echoes_by_order() -> None:
+    assert roles(run((0, WRITE_2), (5, WRITE_2), (50, WRITE_2), (55, WRITE_2))) == [
+        ("request", None, []), ("response", 0, []), ("request", None, []), ("response", 2, []),
+    ]
+
+
+def test_unanswered_request_times_out_when_the_same_slave_is_asked_again() -> None:
+    assert roles(run((0, READ_2), (30, READ_2), (35, ANSWER_2))) == [
+        ("request", None, ["timeout"]), ("request", None, ["retry"]), ("response", 1, []),
+    ]
+
+
+def test_timeout_by_time() -> None:
+    result = run((0, READ_2), (50, READ_5), (55, ANSWER_5), (300, READ_5), timeout_ms=100)
+    assert roles(result)[0] == ("request", None, ["timeout"])
+
+
+def test_no_verdict_for_a_request_open_at_the_end() -> None:
+    assert roles(run((0, READ_2))) == [("request", None, [])]
+
+
+def test_requests_to_other_slaves_interleave() -> None:
+    """Two masters: requests to slaves 2 and 5 overlap; each answer finds its own request."""
+    assert roles(run((0, READ_2), (2, READ_5), (6, ANSWER_2), (9, ANSWER_5))) == [
+        ("request", None, []), ("request", None, []), ("response", 0, []), ("response", 1, []),
+    ]
+
+
+def test_unexpected_answers() -> None:
+    wrong_function = adu("02 04 08 0028 0258 01F4 0000")
+    wrong_count = adu("02 03 02 0028")
+    result = run((0, ANSWER_2), (10, READ_2), (15, wrong_function), (20, wrong_count), (25, ANSWER_5))
+    # The request is still open when the capture ends: no verdict.
+    assert [m.flags.names for m in result] == [["unexpected"], [], ["unexpected"], ["unexpected"], ["unexpected"]]
+    assert [m.role for m in result] == [Role.RESPONSE, Role.REQUEST, Role.RESPONSE, Role.RESPONSE, Role.RESPONSE]
+
+
+def test_exception_pairs_with_its_request() -> None:
+    _, exception = run((0, READ_2), (4, adu("02 83 02")))
+    assert exception.role is Role.EXCEPTION
+    assert (exception.exception_code, exception.request_index) == (2, 0)
+    assert not exception.flags
+
+
+def test_broadcast_gets_no_answer_and_a_reply_is_unexpected() -> None:
+    broadcast = adu("00 06 2329 000D")
+    result = run((0, broadcast), (5, broadcast), (50, READ_2), (55, ANSWER_2))
+    assert roles(result) == [("broadcast", None, []), ("response", None, ["unexpected"]),
+                             ("request", None, []), ("response", 2, [])]
+
+
+def test_crc_error_answer_makes_the_repeat_a_retry() -> None:
+    damaged = bytearray(ANSWER_2)
+    damaged[5] ^= 1
+    result = run((0, READ_2), (5, bytes(damaged)), (40, READ_2), (45, ANSWER_2))
+    assert roles(result) == [("request", None, []), ("response", 0, []), ("request", None, ["retry"]),
+                             ("response", 2, [])]
+
+
+def test_late_answer_after_the_timeout_is_unexpected() -> None:
+    assert roles(run((0, READ_2), (150, ANSWER_2), timeout_ms=100)) == [
+        ("request", None, ["timeout"]), ("response", None, ["unexpected"]),
+    ]
+
+
+def test_adaptive_timeout_follows_the_traffic() -> None:
+    matcher = Matcher()
+    assert matcher.timeout_ns == MAX_TIMEOUT_NS
+    frames = []
+    for i in range(40):
+        start = i * 50 * MS
+        frames += [Frame(2 * i, start, start + MS, READ_2, True, FrameFlag.NONE),
+                   Frame(2 * i + 1, start + 4 * MS, start + 5 * MS, ANSWER_2, True, FrameFlag.NONE)]
+    matcher.feed(frames)
+    assert matcher.timeout_ns == MIN_TIMEOUT_NS  # 10 x 3 ms latency is below the 100 ms floor
+
+
+def test_messages_leave_in_capture_order() -> None:
+    result = run((0, READ_2), (2, READ_5), (3, b"\x00\x01"), (6, ANSWER_2), (9, ANSWER_5))
+    assert [m.frame.index for m in result] == [0, 1, 2, 3, 4]
