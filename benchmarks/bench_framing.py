@@ -81,8 +81,8 @@ def framer(batches: list[ChunkBatch], timing: TimingQuality = TimingQuality.EXAC
 
 def decoder(batches: list[ChunkBatch]) -> int:
     decode = Decoder(LINE, TimingQuality.EXACT)
-    count = sum(len(decode.feed(b)) for b in batches)
-    return count + len(decode.flush())
+    count = sum(len(m) for b in batches for m in decode.feed(b))
+    return count + sum(len(m) for m in decode.flush())
 
 
 def mcap_read(path: Path) -> Callable[[list[ChunkBatch]], int]:
@@ -115,7 +115,7 @@ def main() -> None:
             ("timing pass (numpy)", timing_pass, batches),
             ("framer, exact timing", framer, batches),
             ("framer, host timing (16 ms)", lambda b: framer(b, TimingQuality.HOST), host),
-            ("framer + role guess, exact", decoder, batches),
+            ("framer + matcher, exact", decoder, batches),
             ("MCAP capture read", mcap_read(path), batches),
         ]
         print(f"{'stage':<30} {'seconds':>8} {'frames/s':>12} {'MB/s':>8}")

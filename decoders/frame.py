@@ -48,6 +48,11 @@ _FLAG_NAMES = {flag: str(flag.name).lower() for flag in _FLAG_ORDER}
 _FLAGS_BY_VALUE = [FrameFlag(value) for value in range(1 << len(_FLAG_ORDER))]
 
 
+def flag_set(value: int) -> FrameFlag:
+    """The :class:`FrameFlag` of an integer, without the cost of an enum call."""
+    return _FLAGS_BY_VALUE[value]
+
+
 @dataclass(frozen=True, slots=True)
 class Frame:
     """One frame (or one run of noise bytes) with its wire times.
@@ -107,3 +112,54 @@ class FrameBatch:
                 is_noise=noise,
                 idle_before_ns=None if idle == NO_IDLE else idle,
             )
+
+
+_COLUMNS = ("t_start_ns", "t_end_ns", "crc_ok", "flags", "is_noise", "idle_before_ns")
+
+
+def slice_frames(batch: FrameBatch, start: int, stop: int) -> FrameBatch:
+    """Frames ``start..stop-1`` of ``batch`` (positions within the batch)."""
+    begin, end = int(batch.offsets[start]), int(batch.offsets[stop])
+    return FrameBatch(
+        batch.first_index + start,
+        batch.data[begin:end],
+        batch.offsets[start : stop + 1] - begin,
+        *(getattr(batch, name)[start:stop] for name in _COLUMNS),
+    )
+
+
+def concat_frames(batches: list[FrameBatch]) -> FrameBatch:
+    """Consecutive batches as one."""
+    batches = [b for b in batches if len(b)] or batches[:1]
+    if len(batches) == 1:
+        return batches[0]
+    offsets = [batches[0].offsets]
+    base = int(batches[0].offsets[-1])
+    for batch in batches[1:]:
+        offsets.append(batch.offsets[1:] + base)
+        base += int(batch.offsets[-1])
+    return FrameBatch(
+        batches[0].first_index,
+        b"".join(b.data for b in batches),
+        np.concatenate(offsets),
+        *(np.concatenate([getattr(b, name) for b in batches]) for name in _COLUMNS),
+    )
+
+
+def frames_to_batch(frames: list[Frame]) -> FrameBatch:
+    """Frame objects (consecutive indices) as a batch."""
+    count = len(frames)
+    lengths = np.fromiter((len(f.data) for f in frames), np.int64, count)
+    offsets = np.zeros(count + 1, np.int64)
+    offsets[1:] = np.cumsum(lengths)
+    return FrameBatch(
+        frames[0].index if frames else 0,
+        b"".join(f.data for f in frames),
+        offsets,
+        np.fromiter((f.t_start_ns for f in frames), np.int64, count),
+        np.fromiter((f.t_end_ns for f in frames), np.int64, count),
+        np.fromiter((f.crc_ok for f in frames), np.bool_, count),
+        np.fromiter((int(f.flags) for f in frames), np.uint16, count),
+        np.fromiter((f.is_noise for f in frames), np.bool_, count),
+        np.fromiter((NO_IDLE if f.idle_before_ns is None else f.idle_before_ns for f in frames), np.int64, count),
+    )

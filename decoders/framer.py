@@ -69,7 +69,7 @@ class _Pieces:
 _PIECE_COLUMNS = ("first", "last", "is_noise", "crc_ok", "flags")
 #: How many frames back the open request is replayed from before a segment that the
 #: content parser handles (only a run of echo frames longer than this could mislead it).
-REPLAY_FRAMES = 16
+REPLAY_FRAMES = 4
 
 
 class Framer:

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from enum import Enum
 from typing import TYPE_CHECKING
 
-from decoders.frame import Frame, FrameFlag
+import numpy as np
+import numpy.typing as npt
+
+from decoders.frame import Frame, FrameBatch, FrameFlag, flag_set
 
 if TYPE_CHECKING:
     from decoders.modbus.pdu import Pdu
@@ -57,3 +61,54 @@ class Message:
     latency_ns: int | None = None
     params: tuple[ParamValue, ...] = ()
     pdu: Pdu | None = None
+
+
+#: Roles by their code in :class:`MessageBatch`.
+ROLE_ORDER = [Role.REQUEST, Role.RESPONSE, Role.EXCEPTION, Role.BROADCAST, Role.NOISE, Role.UNKNOWN]
+ROLE_CODE = {role: code for code, role in enumerate(ROLE_ORDER)}
+NONE = -1
+
+
+@dataclass(frozen=True, slots=True)
+class MessageBatch:
+    """Messages in columns over a :class:`FrameBatch`; ``NONE`` (-1) where a field is empty.
+
+    ``flags`` already holds the frame's flags too.
+    """
+
+    frames: FrameBatch
+    role: npt.NDArray[np.uint8]
+    slave: npt.NDArray[np.int16]
+    function: npt.NDArray[np.int16]
+    exception_code: npt.NDArray[np.int16]
+    flags: npt.NDArray[np.uint16]
+    request_index: npt.NDArray[np.int64]
+    latency_ns: npt.NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.role)
+
+    def __iter__(self) -> Iterator[Message]:
+        columns = zip(
+            self.frames,
+            self.role.tolist(),
+            self.slave.tolist(),
+            self.function.tolist(),
+            self.exception_code.tolist(),
+            self.flags.tolist(),
+            self.request_index.tolist(),
+            self.latency_ns.tolist(),
+            strict=True,
+        )
+        for frame, role, slave, function, code, flags, request, latency in columns:
+            yield Message(
+                frame=frame,
+                role=ROLE_ORDER[role],
+                slave=None if slave == NONE else slave,
+                function=None if function == NONE else function,
+                exception_code=None if code == NONE else code,
+                summary="",
+                flags=flag_set(flags),
+                request_index=None if request == NONE else request,
+                latency_ns=None if latency == NONE else latency,
+            )

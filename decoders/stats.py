@@ -8,22 +8,21 @@ maximum are exact.
 from __future__ import annotations
 
 import math
-from collections import Counter, OrderedDict
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from decoders.frame import FrameFlag
-from decoders.message import Message, Role
+from decoders.frame import FrameBatch, FrameFlag
+from decoders.framing.fast import padded_bytes
+from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
 
 _LOWEST_NS = 1_000.0
 _RATIO = 1.01
 _BINS = int(math.log(1e12 / _LOWEST_NS) / math.log(_RATIO)) + 2
 _LOG_RATIO = math.log(_RATIO)
-#: Request signatures remembered for poll periods (least recently seen forgotten first).
-MAX_SIGNATURES = 4096
 PERCENTILES = (50, 95, 99)
 
 
@@ -37,10 +36,23 @@ class Histogram:
     maximum: int | None = None
 
     def add(self, value_ns: int) -> None:
-        self.count += 1
-        self.minimum = value_ns if self.minimum is None else min(self.minimum, value_ns)
-        self.maximum = value_ns if self.maximum is None else max(self.maximum, value_ns)
-        self.counts[_bin(value_ns)] += 1
+        self.add_many(np.array([value_ns], np.int64))
+
+    def add_many(self, values_ns: npt.NDArray[np.int64]) -> None:
+        if not len(values_ns):
+            return
+        self.count += len(values_ns)
+        low, high = int(values_ns.min()), int(values_ns.max())
+        self.minimum = low if self.minimum is None else min(self.minimum, low)
+        self.maximum = high if self.maximum is None else max(self.maximum, high)
+        self.counts += np.bincount(_bins(values_ns), minlength=_BINS)
+
+    def merge(self, counts: npt.NDArray[np.int64], count: int, low: int, high: int) -> None:
+        """Add binned counts whose exact minimum and maximum are known."""
+        self.counts += counts
+        self.count += count
+        self.minimum = low if self.minimum is None else min(self.minimum, low)
+        self.maximum = high if self.maximum is None else max(self.maximum, high)
 
     def percentile(self, q: float) -> float | None:
         """The ``q``-th percentile in nanoseconds (bin centre, clamped to min/max)."""
@@ -57,10 +69,10 @@ class Histogram:
         return {"count": self.count, "min": _seconds(self.minimum), **seconds, "max": _seconds(self.maximum)}
 
 
-def _bin(value_ns: int) -> int:
-    if value_ns < _LOWEST_NS:
-        return 0
-    return min(_BINS - 1, 1 + int(math.log(value_ns / _LOWEST_NS) / _LOG_RATIO))
+def _bins(values_ns: npt.NDArray[np.int64]) -> npt.NDArray[np.intp]:
+    scaled = np.maximum(values_ns, 1).astype(np.float64) / _LOWEST_NS
+    bins = np.where(scaled < 1.0, 0, 1 + np.floor(np.log(np.maximum(scaled, 1.0)) / _LOG_RATIO))
+    return np.minimum(bins, _BINS - 1).astype(np.intp)
 
 
 def _seconds(value_ns: float | None) -> float | None:
@@ -101,9 +113,33 @@ class FunctionStats:
         }
 
 
+class LastSeen:
+    """When each request signature was last seen, in a fixed-size direct-mapped table.
+
+    Memory stays fixed however many different requests a capture holds; a signature
+    whose slot another one took since is simply not found (its next interval is lost).
+    """
+
+    SLOTS = 1 << 16
+
+    def __init__(self) -> None:
+        self._signature = np.zeros(self.SLOTS, np.int64)
+        self._time = np.full(self.SLOTS, NONE, np.int64)
+
+    def lookup(self, signatures: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+        slots = signatures & (self.SLOTS - 1)
+        found: npt.NDArray[np.int64] = np.where(self._signature[slots] == signatures, self._time[slots], NONE)
+        return found
+
+    def store(self, signatures: npt.NDArray[np.int64], times: npt.NDArray[np.int64]) -> None:
+        slots = signatures & (self.SLOTS - 1)
+        self._signature[slots] = signatures
+        self._time[slots] = times
+
+
 @dataclass
 class Statistics:
-    """Accumulates messages; ``to_dict`` is the JSON form of ``stats`` and of the JSONL summary."""
+    """Accumulates message batches; ``to_dict`` is the JSON form of ``stats`` and of the JSONL summary."""
 
     per_function: dict[tuple[int, int], FunctionStats] = field(default_factory=dict)
     roles: Counter[str] = field(default_factory=Counter)
@@ -115,30 +151,77 @@ class Statistics:
     wire_ns: int = 0
     first_ns: int | None = None
     last_ns: int | None = None
-    _last_request_at: OrderedDict[bytes, int] = field(default_factory=OrderedDict)
+    _last_seen: LastSeen = field(default_factory=LastSeen)
 
-    def add(self, message: Message) -> None:
-        frame = message.frame
-        self.frames += 1
-        self.total_bytes += len(frame.data)
-        self.wire_ns += frame.t_end_ns - frame.t_start_ns
-        self.first_ns = frame.t_start_ns if self.first_ns is None else self.first_ns
-        self.last_ns = frame.t_end_ns
-        self.roles[message.role.value] += 1
-        for name in message.flags.names:
-            self.flags[name] += 1
-        if message.role is Role.NOISE:
-            self.noise_bytes += len(frame.data)
+    def add_batch(self, batch: MessageBatch) -> None:
+        if not len(batch):
             return
-        if not frame.crc_ok:
-            self.crc_errors += 1
-        if message.slave is None or message.function is None:
-            return
-        self._add_to(self._function(message.slave, message.function), message)
+        frames = batch.frames
+        lengths = np.diff(frames.offsets)
+        noise = batch.role == ROLE_CODE[Role.NOISE]
+        self.frames += len(batch)
+        self.total_bytes += int(lengths.sum())
+        self.noise_bytes += int(lengths[noise].sum())
+        self.crc_errors += int(np.count_nonzero(~frames.crc_ok & ~noise))
+        self.wire_ns += int((frames.t_end_ns - frames.t_start_ns).sum())
+        self.first_ns = int(frames.t_start_ns[0]) if self.first_ns is None else self.first_ns
+        self.last_ns = int(frames.t_end_ns[-1])
+        for code, count in enumerate(np.bincount(batch.role, minlength=len(ROLE_ORDER)).tolist()):
+            if count:
+                self.roles[ROLE_ORDER[code].value] += count
+        for flag in _FLAGS:
+            count = int(np.count_nonzero(batch.flags & flag))
+            if count:
+                self.flags[_FLAG_NAMES[flag]] += count
+        self._per_function(batch, ~noise & (batch.slave >= 0) & (batch.function >= 0))
 
-    def add_all(self, messages: list[Message]) -> None:
-        for message in messages:
-            self.add(message)
+    def _per_function(self, batch: MessageBatch, mask: npt.NDArray[np.bool_]) -> None:
+        rows = np.flatnonzero(mask)
+        keys = batch.slave[rows].astype(np.int64) * 256 + batch.function[rows]
+        unique, group = np.unique(keys, return_inverse=True)
+        targets = [self._function(int(k) // 256, int(k) % 256) for k in unique.tolist()]
+        role, flags = batch.role[rows], batch.flags[rows]
+        crc_ok = batch.frames.crc_ok[rows]
+        counts = {
+            "requests": role == ROLE_CODE[Role.REQUEST],
+            "responses": role == ROLE_CODE[Role.RESPONSE],
+            "broadcasts": role == ROLE_CODE[Role.BROADCAST],
+            "crc_errors": ~crc_ok,
+            **{name: (flags & flag) != 0 for name, flag in _FLAG_FIELDS.items()},
+        }
+        for name, selected in counts.items():
+            totals = np.bincount(group[selected], minlength=len(unique)).tolist()
+            for target, total in zip(targets, totals, strict=True):
+                setattr(target, name, getattr(target, name) + total)
+        exception = role == ROLE_CODE[Role.EXCEPTION]
+        for g, code in zip(group[exception].tolist(), batch.exception_code[rows][exception].tolist(), strict=True):
+            targets[g].exceptions[code] += 1
+        latency = batch.latency_ns[rows]
+        answered = (latency >= 0) & crc_ok
+        _add_grouped(targets, group[answered], latency[answered], "latency")
+        asked = role == ROLE_CODE[Role.REQUEST]
+        self._poll_periods(batch, rows[asked], targets, group[asked])
+
+    def _poll_periods(
+        self, batch: MessageBatch, rows: npt.NDArray[np.intp], targets: list[FunctionStats], group: npt.NDArray[np.intp]
+    ) -> None:
+        """Interval since the same request (same bytes) was last sent: the poll period."""
+        if not len(rows):
+            return
+        frames = batch.frames
+        signatures = request_signatures(frames, rows)
+        times = frames.t_start_ns[rows]
+        order = np.lexsort((times, signatures))
+        signatures, times, group = signatures[order], times[order], group[order]
+        first_of_run = np.ones(len(order), np.bool_)
+        first_of_run[1:] = signatures[1:] != signatures[:-1]
+        previous = np.empty(len(order), np.int64)
+        previous[1:] = times[:-1]
+        previous[first_of_run] = self._last_seen.lookup(signatures[first_of_run])
+        last_of_run = np.append(first_of_run[1:], True)
+        self._last_seen.store(signatures[last_of_run], times[last_of_run])
+        known = previous != NONE
+        _add_grouped(targets, group[known], (times - previous)[known], "poll_period")
 
     def _function(self, slave: int, function: int) -> FunctionStats:
         key = (slave, function)
@@ -146,37 +229,6 @@ class Statistics:
         if stats is None:
             stats = self.per_function[key] = FunctionStats()
         return stats
-
-    def _add_to(self, stats: FunctionStats, message: Message) -> None:
-        flags, role = message.flags, message.role
-        if role is Role.REQUEST:
-            stats.requests += 1
-            self._poll(stats, message)
-        elif role is Role.RESPONSE:
-            stats.responses += 1
-        elif role is Role.EXCEPTION and message.exception_code is not None:
-            stats.exceptions[message.exception_code] += 1
-        elif role is Role.BROADCAST:
-            stats.broadcasts += 1
-        if message.latency_ns is not None and message.frame.crc_ok:
-            stats.latency.add(message.latency_ns)
-        stats.crc_errors += not message.frame.crc_ok
-        stats.timeouts += bool(flags & FrameFlag.TIMEOUT)
-        stats.retries += bool(flags & FrameFlag.RETRY)
-        stats.unexpected += bool(flags & FrameFlag.UNEXPECTED)
-        stats.gap_1_5 += bool(flags & FrameFlag.GAP_1_5)
-        stats.short_idle += bool(flags & FrameFlag.SHORT_IDLE)
-
-    def _poll(self, stats: FunctionStats, message: Message) -> None:
-        """Interval since the same request (same bytes) was last sent: the poll period."""
-        signature = message.frame.data
-        now = message.frame.t_start_ns
-        previous = self._last_request_at.pop(signature, None)
-        if previous is not None:
-            stats.poll_period.add(now - previous)
-        self._last_request_at[signature] = now
-        if len(self._last_request_at) > MAX_SIGNATURES:
-            self._last_request_at.popitem(last=False)
 
     @property
     def duration_ns(self) -> int:
@@ -202,3 +254,44 @@ class Statistics:
                 for (slave, function), stats in sorted(self.per_function.items())
             ],
         }
+
+
+_FLAGS = [int(f) for f in FrameFlag if f]
+_FLAG_NAMES = {int(f): f.names[0] for f in FrameFlag if f}
+_FLAG_FIELDS = {
+    "timeouts": int(FrameFlag.TIMEOUT), "retries": int(FrameFlag.RETRY), "unexpected": int(FrameFlag.UNEXPECTED),
+    "gap_1_5": int(FrameFlag.GAP_1_5), "short_idle": int(FrameFlag.SHORT_IDLE),
+}  # fmt: skip
+
+
+def request_signatures(frames: FrameBatch, rows: npt.NDArray[np.intp]) -> npt.NDArray[np.int64]:
+    """A 64-bit signature per request: address, function, the next four bytes, length and CRC.
+
+    Two different requests share one only if they agree in all of these, CRC included
+    (1 in 65 536 for requests longer than 8 bytes that differ only after byte 6).
+    """
+    starts, ends = frames.offsets[rows], frames.offsets[rows + 1]
+    padded = padded_bytes(frames.data)
+    head = np.zeros(len(rows), np.int64)
+    for k in range(6):
+        head = (head << 8) | padded[starts + k]
+    tail = padded[ends - 2].astype(np.int64) << 8 | padded[ends - 1]
+    return (head << 16 | tail) ^ ((ends - starts) << 56)
+
+
+def _add_grouped(
+    targets: list[FunctionStats], group: npt.NDArray[np.intp], values: npt.NDArray[np.int64], histogram: str
+) -> None:
+    """Add ``values`` to the named histogram of the target each belongs to."""
+    if not len(values):
+        return
+    order = np.argsort(group, kind="stable")
+    group, values = group[order], values[order]
+    starts = np.flatnonzero(np.diff(group, prepend=-1))
+    groups = group[starts].tolist()
+    counts = np.bincount(group * _BINS + _bins(values), minlength=(max(groups) + 1) * _BINS).reshape(-1, _BINS)
+    sizes = np.diff(np.append(starts, len(group))).tolist()
+    lows, highs = np.minimum.reduceat(values, starts).tolist(), np.maximum.reduceat(values, starts).tolist()
+    for g, size, low, high in zip(groups, sizes, lows, highs, strict=True):
+        target: Histogram = getattr(targets[g], histogram)
+        target.merge(counts[g], size, low, high)

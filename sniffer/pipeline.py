@@ -8,7 +8,8 @@ from typing import Protocol
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
-from decoders.message import Message
+from decoders.message import Message, MessageBatch
+from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from decoders.stats import Statistics
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -16,7 +17,9 @@ from sniffer.io.base import CaptureReader
 
 
 class MessageView(Protocol):
-    """A sink for decoded messages."""
+    """A sink for decoded messages; one that does not ``wants_messages`` gets only the statistics."""
+
+    wants_messages: bool
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None: ...
 
@@ -46,25 +49,24 @@ class Analysis:
     timing: TimingQuality
     response_timeout_ns: int | None = None
     keep: Callable[[Message], bool] | None = None
-    annotate: bool = True
 
 
 def analyze(reader: CaptureReader, source: str, analysis: Analysis, view: MessageView) -> Statistics:
     """Decode every batch of ``reader`` into ``view``, streaming; statistics cover all frames."""
-    decoder = Decoder(
-        analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns, annotate=analysis.annotate
-    )
+    decoder = Decoder(analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns)
+    annotator = Annotator() if view.wants_messages else None
     statistics = Statistics()
     view.start(source, replace(reader.info, timing=analysis.timing), analysis.line)
-    for batch in reader.batches():
-        _deliver(decoder.feed(batch), statistics, analysis.keep, view)
-    _deliver(decoder.flush(), statistics, analysis.keep, view)
+
+    def deliver(batches: list[MessageBatch]) -> None:
+        for batch in batches:
+            statistics.add_batch(batch)
+            if annotator is not None:
+                messages = annotator.annotate_all(batch)
+                view.messages(messages if analysis.keep is None else [m for m in messages if analysis.keep(m)])
+
+    for chunks in reader.batches():
+        deliver(decoder.feed(chunks))
+    deliver(decoder.flush())
     view.finish(statistics)
     return statistics
-
-
-def _deliver(
-    messages: list[Message], statistics: Statistics, keep: Callable[[Message], bool] | None, view: MessageView
-) -> None:
-    statistics.add_all(messages)
-    view.messages(messages if keep is None else [m for m in messages if keep(m)])

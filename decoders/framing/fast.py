@@ -59,13 +59,18 @@ class _RuleTable:
         return np.where(self.fixed[functions] >= 0, self.fixed[functions], counted)
 
 
-_REQUEST = _RuleTable.build("request")
-_RESPONSE = _RuleTable.build("response")
+REQUEST_RULES = _RuleTable.build("request")
+RESPONSE_RULES = _RuleTable.build("response")
 _HAS_LAYOUT = np.zeros(256, np.bool_)
 _HAS_LAYOUT[list(LAYOUTS)] = True
 #: The Altivar's FC 43 negative answer is 6 bytes, not 5; the parser handles it.
 _PLAIN_EXCEPTION = _HAS_LAYOUT.copy()
 _PLAIN_EXCEPTION[43] = False
+
+
+def padded_bytes(data: bytes) -> npt.NDArray[np.uint8]:
+    """``data`` as a byte array with room to read a few bytes past any frame start."""
+    return np.frombuffer(data + bytes(_PAD), np.uint8)
 
 
 def single_frame_segments(
@@ -74,7 +79,7 @@ def single_frame_segments(
     """Which segments ``data[starts[i]:ends[i]]`` are one valid frame that fits its rule."""
     if len(starts) == 0:
         return np.zeros(0, np.bool_)
-    padded = np.frombuffer(data + bytes(_PAD), np.uint8)
+    padded = padded_bytes(data)
     seg_lengths = ends - starts
     addresses = padded[starts]
     raw_functions = padded[starts + 1].astype(np.intp)
@@ -83,8 +88,8 @@ def single_frame_segments(
     fits = np.where(
         is_exception,
         _PLAIN_EXCEPTION[functions] & (seg_lengths == EXCEPTION_LENGTH),
-        (seg_lengths == _REQUEST.lengths(padded, starts, raw_functions, seg_lengths))
-        | (seg_lengths == _RESPONSE.lengths(padded, starts, raw_functions, seg_lengths)),
+        (seg_lengths == REQUEST_RULES.lengths(padded, starts, raw_functions, seg_lengths))
+        | (seg_lengths == RESPONSE_RULES.lengths(padded, starts, raw_functions, seg_lengths)),
     )
     whole: npt.NDArray[np.bool_] = (
         fits

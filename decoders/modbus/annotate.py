@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from dataclasses import replace
 
-from decoders.message import Message, ParamValue, Role
+from decoders.message import Message, MessageBatch, ParamValue, Role
 from decoders.modbus.codes import function_name
 from decoders.modbus.layouts import fits_request
 from decoders.modbus.pdu import (
@@ -39,6 +39,9 @@ class Annotator:
 
     def __init__(self) -> None:
         self._requests: OrderedDict[int, Pdu] = OrderedDict()
+
+    def annotate_all(self, messages: MessageBatch) -> list[Message]:
+        return [self.annotate(m) for m in messages]
 
     def annotate(self, message: Message) -> Message:
         frame = message.frame

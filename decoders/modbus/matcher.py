@@ -23,195 +23,345 @@ requests still open, pairs every response and exception with its request, and fl
 
 A request is held back until its outcome is known, and frames behind it with it,
 so that messages leave in capture order with their flags final.
+
+Speed: on a healthy bus no request is open between exchanges and nothing has
+failed. From such a state, a run of consecutive request/answer pairs (same slave
+and function, fitting content, valid answer CRC, answered well within the shortest
+timeout) has one possible outcome, which numpy assigns in bulk; the loop handles
+the frames outside such runs one by one.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from decoders.frame import Frame, FrameFlag
-from decoders.framing.content import MIN_ADU
-from decoders.message import Message, Role
+import numpy as np
+import numpy.typing as npt
+
+from decoders.frame import FrameBatch, FrameFlag, concat_frames, slice_frames
+from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from decoders.modbus.codes import EXCEPTION_BIT
-from decoders.modbus.layouts import MEI_EXCEPTION_LENGTH, fits_request, fits_response
+from decoders.modbus.layouts import MEI_EXCEPTION_LENGTH
+from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, IS_EXCEPTION, MIN_ADU, Shapes, frame_shapes
 
 BROADCAST_ADDRESS = 0
 MIN_TIMEOUT_NS = 100_000_000
 MAX_TIMEOUT_NS = 1_000_000_000
 TIMEOUT_PER_LATENCY = 10
 LATENCY_WINDOW = 256
+LEARN_EVERY = 32
+ADDRESSES = 256
+
+REQUEST = ROLE_CODE[Role.REQUEST]
+RESPONSE = ROLE_CODE[Role.RESPONSE]
+EXCEPTION = ROLE_CODE[Role.EXCEPTION]
+BROADCAST = ROLE_CODE[Role.BROADCAST]
+NOISE = ROLE_CODE[Role.NOISE]
+UNKNOWN = ROLE_CODE[Role.UNKNOWN]
+TIMEOUT = int(FrameFlag.TIMEOUT)
+RETRY = int(FrameFlag.RETRY)
+UNEXPECTED = int(FrameFlag.UNEXPECTED)
+_COLUMNS = {
+    "role": np.uint8, "slave": np.int16, "function": np.int16, "exception_code": np.int16,
+    "flags": np.uint16, "request_index": np.int64, "latency_ns": np.int64,
+}  # fmt: skip
 
 
-@dataclass(slots=True)
-class Draft:
-    """A message whose flags may still change."""
+@dataclass
+class _OpenRequests:
+    """The request awaiting its answer, per slave address, in lists indexed by address
+    (the matcher's inner loop reads them for every frame)."""
 
-    frame: Frame
-    role: Role
-    slave: int | None
-    function: int | None
-    exception_code: int | None = None
-    flags: FrameFlag = FrameFlag.NONE
-    request_index: int | None = None
-    latency_ns: int | None = None
-    open: bool = False
+    position: list[int] = field(default_factory=lambda: [NONE] * ADDRESSES)
+    index: list[int] = field(default_factory=lambda: [NONE] * ADDRESSES)
+    function: list[int] = field(default_factory=lambda: [NONE] * ADDRESSES)
+    key: list[int] = field(default_factory=lambda: [NONE] * ADDRESSES)
+    t_end_ns: list[int] = field(default_factory=lambda: [NONE] * ADDRESSES)
+    data: list[bytes] = field(default_factory=lambda: [b""] * ADDRESSES)
+    slaves: set[int] = field(default_factory=set)
 
-    def message(self) -> Message:
-        return Message(
-            frame=self.frame,
-            role=self.role,
-            slave=self.slave,
-            function=self.function,
-            exception_code=self.exception_code,
-            summary="",
-            flags=self.flags | self.frame.flags,
-            request_index=self.request_index,
-            latency_ns=self.latency_ns,
-        )
+    def close(self, slave: int) -> None:
+        self.position[slave] = NONE
+        self.slaves.discard(slave)
+
+
+@dataclass
+class _Held:
+    """Messages classified but not yet released, as int64 columns over ``frames``."""
+
+    frames: FrameBatch | None = None
+    columns: dict[str, npt.NDArray[np.int64]] = field(
+        default_factory=lambda: {name: np.zeros(0, np.int64) for name in _COLUMNS}
+    )
+
+    def __len__(self) -> int:
+        return len(self.columns["role"])
+
+    def extend(self, frames: FrameBatch, new: dict[str, npt.NDArray[np.int64]]) -> None:
+        self.frames = frames if self.frames is None else concat_frames([self.frames, frames])
+        self.columns = {name: np.concatenate([self.columns[name], new[name]]) for name in _COLUMNS}
+
+    def take(self, count: int) -> MessageBatch:
+        """The first ``count`` messages, removed from the held ones."""
+        assert self.frames is not None
+        frames = slice_frames(self.frames, 0, count)
+        self.frames = slice_frames(self.frames, count, len(self.frames))
+        taken = {name: self.columns[name][:count].astype(dtype) for name, dtype in _COLUMNS.items()}
+        self.columns = {name: values[count:] for name, values in self.columns.items()}
+        taken["flags"] |= frames.flags
+        return MessageBatch(frames, **taken)
 
 
 @dataclass
 class Matcher:
-    """Feeds frames in capture order; returns messages whose flags are final."""
+    """Feeds frame batches in capture order; returns message batches whose flags are final."""
 
     response_timeout_ns: int | None = None
-    _held: deque[Draft] = field(default_factory=deque)
-    _open: dict[int, Draft] = field(default_factory=dict)
+    _held: _Held = field(default_factory=_Held)
+    _open: _OpenRequests = field(default_factory=_OpenRequests)
     _failed: dict[int, bytes] = field(default_factory=dict)
-    _last_broadcast: bytes | None = None
+    _last_broadcast: tuple[int, int] | None = None
     _latencies: deque[int] = field(default_factory=lambda: deque(maxlen=LATENCY_WINDOW))
+    _learned: int = 0
     _adaptive_timeout_ns: int = MAX_TIMEOUT_NS
+    #: Settle clean request/answer runs in bulk (off only to prove the shortcut changes nothing).
+    _bulk: bool = True
 
     @property
     def timeout_ns(self) -> int:
         """The response timeout in force."""
         return self.response_timeout_ns if self.response_timeout_ns is not None else self._adaptive_timeout_ns
 
-    def feed(self, frames: Iterable[Frame]) -> list[Message]:
-        for frame in frames:
-            self._expire(frame.t_start_ns)
-            self._held.append(self._classify(frame))
-        return self._release()
+    def feed(self, frames: FrameBatch) -> MessageBatch:
+        held = self._held
+        first = len(held)
+        shapes = frame_shapes(frames)
+        held.extend(frames, _defaults(frames, shapes))
+        self._classify(frames, shapes, first)
+        positions = self._open.position
+        earliest = min((positions[s] for s in self._open.slaves), default=len(held))
+        for slave in self._open.slaves:
+            positions[slave] -= earliest
+        return held.take(earliest)
 
-    def flush(self) -> list[Message]:
+    def flush(self) -> MessageBatch:
         """At the end of the capture: requests still open stay without a verdict."""
-        for draft in self._open.values():
-            draft.open = False
-        self._open.clear()
-        return self._release()
+        self._open = _OpenRequests()
+        if self._held.frames is None:
+            self._held.extend(_no_frames(), {name: np.zeros(0, np.int64) for name in _COLUMNS})
+        return self._held.take(len(self._held))
 
-    def _release(self) -> list[Message]:
-        released = []
-        while self._held and not self._held[0].open:
-            released.append(self._held.popleft().message())
-        return released
+    def _classify(self, frames: FrameBatch, shapes: Shapes, first: int) -> None:
+        lengths = np.diff(frames.offsets)
+        active = np.flatnonzero(~frames.is_noise & (lengths >= MIN_ADU))
+        runs = _pair_runs(frames, shapes, active)
+        self._visit(frames, shapes, active, runs, first)
+        if len(frames):
+            last_start = int(frames.t_start_ns[-1])
+            if last_start > self._deadline():
+                self._expire(last_start)
+
+    def _visit(  # noqa: PLR0915
+        self, frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], runs: list[int], first: int
+    ) -> None:
+        """The frames of ``active`` in order; from a clean state, ``runs[k]`` pairs starting
+        at active frame k are settled in bulk."""
+        columns = self._held.columns
+        role, flags = columns["role"], columns["flags"]
+        requests, failed = self._open, self._failed
+        open_position, open_function, open_key = requests.position, requests.function, requests.key
+        open_end, open_index, open_data, open_slaves = requests.t_end_ns, requests.index, requests.data, requests.slaves
+        offsets, data = frames.offsets.tolist(), frames.data
+        slaves, functions, shape_of = shapes.slave.tolist(), shapes.function.tolist(), shapes.shape.tolist()
+        request_keys, response_keys = shapes.request_key.tolist(), shapes.response_key.tolist()
+        crc_oks, t_starts, t_ends = frames.crc_ok.tolist(), frames.t_start_ns.tolist(), frames.t_end_ns.tolist()
+        first_index = frames.first_index
+        active_list = active.tolist()
+        deadline = self._deadline()
+        timeout = self.timeout_ns
+        k = 0
+        while k < len(active_list):
+            if runs[k] and self._bulk and not open_slaves and not failed:
+                self._settle_pairs(frames, active[k : k + 2 * runs[k]], first)
+                k += 2 * runs[k]
+                timeout = self.timeout_ns
+                continue
+            i = active_list[k]
+            k += 1
+            t_start = t_starts[i]
+            if t_start > deadline:
+                self._expire(t_start)
+                deadline = self._deadline()
+            slave, raw, shape, position = slaves[i], functions[i], shape_of[i], first + i
+            if raw & EXCEPTION_BIT:
+                code = data[offsets[i] + (3 if offsets[i + 1] - offsets[i] == MEI_EXCEPTION_LENGTH else 2)]
+                self._exception(position, slave, raw & ~EXCEPTION_BIT, shape, code=code, crc_ok=crc_oks[i],
+                                t_start=t_start)
+                deadline, timeout = self._deadline(), self.timeout_ns
+                continue
+            if slave == BROADCAST_ADDRESS:
+                self._broadcast(position, raw, shape, request_keys[i], response_keys[i])
+                continue
+            pending = open_position[slave]
+            if (
+                shape & FITS_RESPONSE
+                and pending != NONE
+                and open_function[slave] == raw
+                and open_key[slave] == response_keys[i]
+            ):
+                role[position] = RESPONSE
+                self._answer(position, slave, crc_oks[i], t_start)
+                timeout = self.timeout_ns
+                # The deadline stays as it is: at worst too early, which costs one needless check.
+            elif shape & FITS_REQUEST:
+                adu = data[offsets[i] : offsets[i + 1]]
+                if pending != NONE:
+                    self._fail(slave)
+                role[position] = REQUEST
+                if failed and failed.get(slave) == adu:
+                    flags[position] = RETRY
+                open_position[slave], open_index[slave] = position, first_index + i
+                open_function[slave], open_key[slave] = raw, request_keys[i]
+                open_end[slave], open_data[slave] = t_ends[i], adu
+                open_slaves.add(slave)
+                deadline = min(deadline, t_ends[i] + timeout)
+            elif shape & FITS_RESPONSE:
+                role[position] = RESPONSE
+                flags[position] = UNEXPECTED
+
+    def _settle_pairs(self, frames: FrameBatch, pair_frames: npt.NDArray[np.intp], first: int) -> None:
+        """Requests and their answers, alternating, from a state with nothing open."""
+        columns = self._held.columns
+        asks, answers = pair_frames[0::2], pair_frames[1::2]
+        columns["role"][first + asks] = REQUEST
+        columns["role"][first + answers] = RESPONSE
+        columns["request_index"][first + answers] = frames.first_index + asks
+        latencies = np.maximum(frames.t_start_ns[answers] - frames.t_end_ns[asks], 0)
+        columns["latency_ns"][first + answers] = latencies
+        self._learn_many(latencies.tolist())
+
+    def _deadline(self) -> float:
+        if not self._open.slaves:
+            return float("inf")
+        return min(self._open.t_end_ns[s] for s in self._open.slaves) + self.timeout_ns
 
     def _expire(self, now_ns: int) -> None:
         deadline = now_ns - self.timeout_ns
-        for slave, draft in list(self._open.items()):
-            if draft.frame.t_end_ns < deadline:
-                self._fail(slave, draft)
+        for slave in list(self._open.slaves):
+            if self._open.t_end_ns[slave] < deadline:
+                self._fail(slave)
 
-    def _fail(self, slave: int, draft: Draft) -> None:
-        draft.flags |= FrameFlag.TIMEOUT
-        draft.open = False
-        self._failed[slave] = draft.frame.data
-        del self._open[slave]
+    def _fail(self, slave: int) -> None:
+        self._held.columns["flags"][self._open.position[slave]] |= TIMEOUT
+        self._failed[slave] = self._open.data[slave]
+        self._open.close(slave)
 
-    def _classify(self, frame: Frame) -> Draft:
-        data = frame.data
-        if frame.is_noise:
-            return Draft(frame, Role.NOISE, None, None)
-        if len(data) < MIN_ADU:
-            return Draft(frame, Role.UNKNOWN, data[0], data[1] & ~EXCEPTION_BIT if len(data) > 1 else None)
-        slave, raw_function = data[0], data[1]
-        if raw_function & EXCEPTION_BIT:
-            return self._exception(frame, slave, raw_function & ~EXCEPTION_BIT)
-        as_request, as_response = fits_request(data), fits_response(data)
-        if slave == BROADCAST_ADDRESS:
-            return self._broadcast(frame, as_request, as_response)
-        pending = self._open.get(slave)
-        if as_response and pending is not None and _answers(pending.frame.data, data):
-            return self._answer(frame, pending, Draft(frame, Role.RESPONSE, slave, raw_function))
-        if as_request:
-            return self._request(frame, slave, raw_function)
-        draft = Draft(frame, Role.RESPONSE if as_response else Role.UNKNOWN, slave, raw_function)
-        if as_response:
-            draft.flags |= FrameFlag.UNEXPECTED
-        return draft
+    def _exception(
+        self, position: int, slave: int, function: int, shape: int, *, code: int, crc_ok: bool, t_start: int
+    ) -> None:
+        columns = self._held.columns
+        if not shape & FITS_RESPONSE:
+            return
+        columns["role"][position] = EXCEPTION
+        columns["exception_code"][position] = code
+        requests = self._open
+        if slave != BROADCAST_ADDRESS and requests.position[slave] != NONE and requests.function[slave] == function:
+            self._answer(position, slave, crc_ok, t_start)
+        else:
+            columns["flags"][position] = UNEXPECTED
 
-    def _exception(self, frame: Frame, slave: int, function: int) -> Draft:
-        data = frame.data
-        if not fits_response(data):
-            return Draft(frame, Role.UNKNOWN, slave, function)
-        code = data[3] if len(data) == MEI_EXCEPTION_LENGTH else data[2]
-        draft = Draft(frame, Role.EXCEPTION, slave, function, exception_code=code)
-        pending = self._open.get(slave)
-        if slave != BROADCAST_ADDRESS and pending is not None and pending.function == function:
-            return self._answer(frame, pending, draft)
-        draft.flags |= FrameFlag.UNEXPECTED
-        return draft
+    def _broadcast(self, position: int, raw: int, shape: int, request_key: int, response_key: int) -> None:
+        columns = self._held.columns
+        last = self._last_broadcast
+        replies = bool(shape & FITS_RESPONSE) and last is not None and last == (raw, response_key)
+        if shape & FITS_REQUEST and not replies:
+            self._last_broadcast = (raw, request_key)
+            columns["role"][position] = BROADCAST
+        elif shape & FITS_RESPONSE:
+            columns["role"][position] = RESPONSE
+            columns["flags"][position] = UNEXPECTED
 
-    def _broadcast(self, frame: Frame, as_request: bool, as_response: bool) -> Draft:
-        data = frame.data
-        replies = as_response and self._last_broadcast is not None and _answers(self._last_broadcast, data)
-        if as_request and not replies:
-            self._last_broadcast = data
-            return Draft(frame, Role.BROADCAST, BROADCAST_ADDRESS, data[1])
-        draft = Draft(frame, Role.RESPONSE if as_response else Role.UNKNOWN, BROADCAST_ADDRESS, data[1])
-        if as_response:
-            draft.flags |= FrameFlag.UNEXPECTED
-        return draft
-
-    def _request(self, frame: Frame, slave: int, function: int) -> Draft:
-        superseded = self._open.get(slave)
-        if superseded is not None:
-            self._fail(slave, superseded)
-        draft = Draft(frame, Role.REQUEST, slave, function, open=True)
-        if self._failed.get(slave) == frame.data:
-            draft.flags |= FrameFlag.RETRY
-        self._open[slave] = draft
-        return draft
-
-    def _answer(self, frame: Frame, request: Draft, draft: Draft) -> Draft:
-        draft.request_index = request.frame.index
-        draft.latency_ns = max(0, frame.t_start_ns - request.frame.t_end_ns)
-        request.open = False
-        assert request.slave is not None
-        del self._open[request.slave]
-        if frame.crc_ok:
-            self._failed.pop(request.slave, None)
-            self._learn(draft.latency_ns)
+    def _answer(self, position: int, slave: int, crc_ok: bool, t_start: int) -> None:
+        columns, requests = self._held.columns, self._open
+        latency = max(0, t_start - requests.t_end_ns[slave])
+        columns["request_index"][position] = requests.index[slave]
+        columns["latency_ns"][position] = latency
+        data = requests.data[slave]
+        requests.close(slave)
+        if crc_ok:
+            self._failed.pop(slave, None)
+            self._learn_many([latency])
         else:
             # The master saw no valid answer: its repeat is a retry.
-            self._failed[request.slave] = request.frame.data
-        return draft
+            self._failed[slave] = data
 
-    def _learn(self, latency_ns: int) -> None:
-        self._latencies.append(latency_ns)
-        if len(self._latencies) % 32 == 0 or len(self._latencies) < 32:
-            longest = max(self._latencies)
+    def _learn_many(self, latencies: list[int]) -> None:
+        """Derive the timeout from the longest recent latency: after every answer at first,
+        then every ``LEARN_EVERY`` answers, as the window stood then."""
+        before = self._learned
+        self._learned += len(latencies)
+        checkpoints = [n for n in range(before + 1, min(self._learned, LEARN_EVERY - 1) + 1)]
+        last_multiple = self._learned - self._learned % LEARN_EVERY
+        if last_multiple > before:
+            checkpoints.append(last_multiple)
+        if checkpoints:
+            # The window as it stood after the last checkpoint's answer.
+            upto = max(checkpoints) - before
+            recent = [*self._latencies, *latencies[:upto]][-LATENCY_WINDOW:]
+            longest = max(recent)
             self._adaptive_timeout_ns = min(MAX_TIMEOUT_NS, max(MIN_TIMEOUT_NS, TIMEOUT_PER_LATENCY * longest))
+        self._latencies.extend(latencies)
 
 
-def _answers(request: bytes, response: bytes) -> bool:
-    """Whether ``response`` (response-shaped, same slave) fits ``request``'s content."""
-    if request[1] != response[1] or len(request) < MIN_ADU:
-        return False
-    function = request[1]
-    if function in (1, 2) and len(request) == 8:
-        count = request[4] << 8 | request[5]
-        return response[2] == (count + 7) // 8
-    if function in (3, 4) and len(request) == 8:
-        return response[2] == 2 * (request[4] << 8 | request[5])
-    if function == 23 and len(request) > 6:
-        return response[2] == 2 * (request[4] << 8 | request[5])
-    if function in (5, 6, 22, 15, 16):
-        return response[2:6] == request[2:6]
-    if function == 8:
-        return response[2:4] == request[2:4]
-    if function == 43:
-        return response[2:3] == request[2:3]
-    return True
+def _defaults(frames: FrameBatch, shapes: Shapes) -> dict[str, npt.NDArray[np.int64]]:
+    """Columns before any decision: noise is noise, everything else unknown."""
+    count = len(frames)
+    lengths = np.diff(frames.offsets)
+    noise = frames.is_noise
+    raw = shapes.function
+    return {
+        "role": np.where(noise, NOISE, UNKNOWN).astype(np.int64),
+        "slave": np.where(noise, NONE, shapes.slave).astype(np.int64),
+        "function": np.where(noise | (lengths < 2), NONE, raw & ~EXCEPTION_BIT).astype(np.int64),
+        "exception_code": np.full(count, NONE, np.int64),
+        "flags": np.zeros(count, np.int64),
+        "request_index": np.full(count, NONE, np.int64),
+        "latency_ns": np.full(count, NONE, np.int64),
+    }
+
+
+def _pair_runs(frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp]) -> list[int]:
+    """For each active frame k: how many request/answer pairs start there, one after the
+    other, whose outcome is certain from a state with nothing open (0 if none)."""
+    if len(active) < 2:
+        return [0] * len(active)
+    slave, raw, shape = shapes.slave[active], shapes.function[active], shapes.shape[active]
+    request_key, response_key = shapes.request_key[active], shapes.response_key[active]
+    ask, answer = slice(0, -1), slice(1, None)
+    latency = frames.t_start_ns[active][answer] - frames.t_end_ns[active][ask]
+    pair = np.zeros(len(active), np.bool_)
+    pair[:-1] = (
+        ((shape[ask] & (FITS_REQUEST | IS_EXCEPTION)) == FITS_REQUEST)
+        & (slave[ask] != BROADCAST_ADDRESS)
+        & ((shape[answer] & (FITS_RESPONSE | IS_EXCEPTION)) == FITS_RESPONSE)
+        & (slave[answer] == slave[ask])
+        & (raw[answer] == raw[ask])
+        & (response_key[answer] == request_key[ask])
+        & frames.crc_ok[active][answer]
+        & (latency < MIN_TIMEOUT_NS)
+    )
+    runs = np.zeros(len(active), np.int64)
+    for parity in (0, 1):
+        starts = pair[parity::2]
+        breaks = np.where(starts, len(starts), np.arange(len(starts)))
+        next_break = np.minimum.accumulate(breaks[::-1])[::-1]
+        runs[parity::2] = next_break - np.arange(len(starts))
+    return runs.tolist()
+
+
+def _no_frames() -> FrameBatch:
+    return FrameBatch(
+        0, b"", np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.bool_),
+        np.zeros(0, np.uint16), np.zeros(0, np.bool_), np.zeros(0, np.int64),
+    )

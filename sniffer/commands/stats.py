@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import os
 from contextlib import ExitStack
-from dataclasses import replace
 
 from rich.console import Console
 
@@ -36,5 +35,5 @@ def run(args: argparse.Namespace) -> int:
         reader, analysis = open_analysis(args, stack)
         width = None if out.isatty() or "COLUMNS" in os.environ else FILE_TABLE_WIDTH
         view = StatsView(out, Console(file=out, width=width, highlight=False), as_json=args.format == "json")
-        analyze(reader, args.capture, replace(analysis, annotate=False), view)
+        analyze(reader, args.capture, analysis, view)
     return 0

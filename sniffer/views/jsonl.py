@@ -19,6 +19,8 @@ class JsonlView:
         self._out = out
         self._dumps = json.JSONEncoder(ensure_ascii=False, separators=(",", ":")).encode
 
+    wants_messages = True
+
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._write(capture_record(source, info, line))
 

@@ -42,6 +42,8 @@ class StatsView:
         self._as_json = as_json
         self._header: dict[str, object] = {}
 
+    wants_messages = False
+
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
 

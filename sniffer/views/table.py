@@ -56,6 +56,8 @@ class TableView:
         self._console = console
         self._header_shown = False
 
+    wants_messages = True
+
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._console.print(
             f"[bold]{source}[/]  line {line.format()}  timing [bold]{info.timing.value}[/]"

@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from decoders.crc import crc_bytes, crc_ok
-from decoders.frame import Frame, FrameFlag
+from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.modbus.pdu import parse_pdu
@@ -35,7 +35,7 @@ def test_matcher_and_annotator_never_raise(items: list[tuple[bytes, int, bool]])
     for index, (data, gap, noise) in enumerate(items):
         t += gap
         frames.append(Frame(index, t, t + 1000 * len(data), data, crc_ok(data) and not noise, FrameFlag.NONE, noise))
-    messages = matcher.feed(frames) + matcher.flush()
+    messages = list(matcher.feed(frames_to_batch(frames))) + list(matcher.flush()) if frames else []
     assert [m.frame.index for m in messages] == list(range(len(frames)))
     for message in messages:
         annotated = annotator.annotate(message)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from decoders.crc import crc_bytes, crc_ok
-from decoders.frame import Frame, FrameFlag
+from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import Message, Role
 from decoders.modbus.matcher import MAX_TIMEOUT_NS, MIN_TIMEOUT_NS, Matcher
 
@@ -25,12 +25,12 @@ WRITE_2 = adu("02 06 2329 000D")
 def run(*frames: tuple[float, bytes], timeout_ms: float | None = None) -> list[Message]:
     """Frames at the given start times (ms); each lasts 1 ms per 10 bytes."""
     matcher = Matcher(None if timeout_ms is None else int(timeout_ms * MS))
-    out = []
+    out: list[Message] = []
     for index, (start_ms, data) in enumerate(frames):
         start = int(start_ms * MS)
         frame = Frame(index, start, start + len(data) * MS // 10, data, crc_ok(data), FrameFlag.NONE)
-        out.extend(matcher.feed([frame]))
-    return out + matcher.flush()
+        out.extend(matcher.feed(frames_to_batch([frame])))
+    return out + list(matcher.flush())
 
 
 def roles(messages: list[Message]) -> list[tuple[str, int | None, list[str]]]:
@@ -117,10 +117,83 @@ def test_adaptive_timeout_follows_the_traffic() -> None:
         start = i * 50 * MS
         frames += [Frame(2 * i, start, start + MS, READ_2, True, FrameFlag.NONE),
                    Frame(2 * i + 1, start + 4 * MS, start + 5 * MS, ANSWER_2, True, FrameFlag.NONE)]
-    matcher.feed(frames)
+    matcher.feed(frames_to_batch(frames))
     assert matcher.timeout_ns == MIN_TIMEOUT_NS  # 10 x 3 ms latency is below the 100 ms floor
 
 
 def test_messages_leave_in_capture_order() -> None:
     result = run((0, READ_2), (2, READ_5), (3, b"\x00\x01"), (6, ANSWER_2), (9, ANSWER_5))
     assert [m.frame.index for m in result] == [0, 1, 2, 3, 4]
+
+
+def test_same_result_whatever_the_batches() -> None:
+    from decoders.frame import slice_frames
+
+    sequence = [(0, READ_2), (2, READ_5), (6, ANSWER_2), (9, ANSWER_5), (30, WRITE_2), (33, WRITE_2),
+                (60, READ_2), (200, READ_2), (205, ANSWER_2)]
+    frames = []
+    for index, (start_ms, data) in enumerate(sequence):
+        start = int(start_ms * MS)
+        frames.append(Frame(index, start, start + len(data) * MS // 10, data, crc_ok(data), FrameFlag.NONE))
+    whole = frames_to_batch(frames)
+    single = Matcher()
+    reference = roles(list(single.feed(whole)) + list(single.flush()))
+    assert reference[-1] == ("response", 7, [])
+    for cut in range(1, len(frames)):
+        matcher = Matcher()
+        parts = [slice_frames(whole, 0, cut), slice_frames(whole, cut, len(frames))]
+        result = [m for part in parts for m in matcher.feed(part)] + list(matcher.flush())
+        assert roles(result) == reference, cut
+
+
+def test_damaged_exception_answer_makes_the_repeat_a_retry() -> None:
+    damaged = bytearray(adu("02 83 02"))
+    damaged[-1] ^= 0xFF
+    result = run((0, READ_2), (4, bytes(damaged)), (40, READ_2), (44, ANSWER_2))
+    assert roles(result) == [("request", None, []), ("exception", 0, []), ("request", None, ["retry"]),
+                             ("response", 2, [])]
+
+
+def test_bulk_settling_changes_nothing() -> None:
+    """On traffic with every fault the corpus knows, bulk runs and the frame-by-frame loop agree."""
+    from decoders.capture import ChunkBatch
+    from decoders.framer import Framer
+    from tests.corpus import LINES, SCENARIOS, build
+
+    for scenario in SCENARIOS:
+        corpus = build(scenario, LINES[1], exchanges=200)
+        framer = Framer(corpus.line)
+        pieces = range(0, len(corpus.chunks), 50)
+        batches = [framer.feed(ChunkBatch.from_chunks(corpus.chunks[i : i + 50])) for i in pieces]
+        batches.append(framer.flush())
+        results = []
+        for bulk in (True, False):
+            matcher = Matcher()
+            matcher._bulk = bulk
+            messages = [m for batch in batches for m in matcher.feed(batch)] + list(matcher.flush())
+            results.append([(m.role, m.flags, m.request_index, m.latency_ns, m.exception_code) for m in messages])
+            timeouts = matcher.timeout_ns
+        assert results[0] == results[1], scenario.name
+        assert timeouts >= MIN_TIMEOUT_NS
+
+
+def test_latency_window_learned_in_bulk_as_one_by_one() -> None:
+    import random
+
+    from decoders.modbus.matcher import LATENCY_WINDOW, LEARN_EVERY, TIMEOUT_PER_LATENCY
+
+    rng = random.Random(4)
+    latencies = [rng.randrange(1, 30_000_000) for _ in range(1000)]
+    window: list[int] = []
+    expected = []
+    timeout = MAX_TIMEOUT_NS
+    for learned, latency in enumerate(latencies, 1):
+        window = [*window, latency][-LATENCY_WINDOW:]
+        if learned < LEARN_EVERY or learned % LEARN_EVERY == 0:
+            timeout = min(MAX_TIMEOUT_NS, max(MIN_TIMEOUT_NS, TIMEOUT_PER_LATENCY * max(window)))
+        expected.append(timeout)
+    matcher, position = Matcher(), 0
+    for size in [1, 5, 40, 3, 64, 100, 7, 300, 480]:
+        matcher._learn_many(latencies[position : position + size])
+        position += size
+        assert matcher.timeout_ns == expected[position - 1], position

@@ -1,0 +1,99 @@
+"""Per-frame facts the matcher needs, computed for a whole batch with numpy.
+
+For every frame: address, function code, whether its length fits a request or a
+response of that code (from the same :data:`LAYOUTS` rule tables the framer's fast
+path uses), and the *keys* that decide whether a response answers a request: a
+request's key is what its answer must show (the byte count for the registers or
+coils asked, the echoed address and value or count, the sub-function, the MEI
+type), a response's key is what it shows. A response answers a request when their
+function codes and keys are equal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from decoders.frame import FrameBatch
+from decoders.framing.fast import REQUEST_RULES, RESPONSE_RULES, padded_bytes
+from decoders.modbus.codes import EXCEPTION_BIT
+from decoders.modbus.layouts import EXCEPTION_LENGTH, MEI_EXCEPTION_LENGTH, fits_request, fits_response
+
+FITS_REQUEST = 1
+FITS_RESPONSE = 2
+IS_EXCEPTION = 4
+MIN_ADU = 4
+_SPECIAL = np.zeros(256, np.bool_)
+_SPECIAL[[24, 43, 43 | EXCEPTION_BIT]] = True  # rules numpy cannot evaluate
+
+
+@dataclass(frozen=True, slots=True)
+class Shapes:
+    """Columns of per-frame facts."""
+
+    slave: npt.NDArray[np.int64]
+    function: npt.NDArray[np.int64]
+    shape: npt.NDArray[np.int64]
+    request_key: npt.NDArray[np.int64]
+    response_key: npt.NDArray[np.int64]
+
+
+def frame_shapes(frames: FrameBatch) -> Shapes:
+    starts, ends = frames.offsets[:-1], frames.offsets[1:]
+    lengths = ends - starts
+    padded = padded_bytes(frames.data)
+    raw = padded[starts + 1].astype(np.intp)
+    b2, b3, b4, b5 = (padded[starts + k].astype(np.int64) for k in (2, 3, 4, 5))
+    long_enough = lengths >= MIN_ADU
+    exception = (raw & EXCEPTION_BIT) != 0
+    fits_req = long_enough & ~exception & (lengths == REQUEST_RULES.lengths(padded, starts, raw, lengths))
+    fits_resp = long_enough & ~exception & (lengths == RESPONSE_RULES.lengths(padded, starts, raw, lengths))
+    exception_fit = long_enough & exception & (
+        (lengths == EXCEPTION_LENGTH) | ((raw == (43 | EXCEPTION_BIT)) & (lengths == MEI_EXCEPTION_LENGTH))
+    )
+    shape = fits_req * FITS_REQUEST | fits_resp * FITS_RESPONSE | exception_fit * (FITS_RESPONSE | IS_EXCEPTION)
+    shape = shape.astype(np.int64)
+    _special_shapes(frames, shape, np.flatnonzero(_SPECIAL[raw] & long_enough))
+    return Shapes(
+        slave=padded[starts].astype(np.int64),
+        function=raw.astype(np.int64),
+        shape=shape,
+        request_key=_request_keys(raw, b2, b3, b4, b5),
+        response_key=_response_keys(raw, b2, b3, b4, b5),
+    )
+
+
+def _special_shapes(frames: FrameBatch, shape: npt.NDArray[np.int64], positions: npt.NDArray[np.intp]) -> None:
+    for position in positions.tolist():
+        adu = frames.data[int(frames.offsets[position]) : int(frames.offsets[position + 1])]
+        exception = bool(adu[1] & EXCEPTION_BIT)
+        value = FITS_REQUEST if not exception and fits_request(adu) else 0
+        if fits_response(adu):
+            value |= FITS_RESPONSE | (IS_EXCEPTION if exception else 0)
+        shape[position] = value
+
+
+Column = npt.NDArray[np.int64]
+
+
+def _request_keys(raw: npt.NDArray[np.intp], b2: Column, b3: Column, b4: Column, b5: Column) -> Column:
+    count = b4 << 8 | b5
+    echo = (b2 << 24) | (b3 << 16) | (b4 << 8) | b5
+    keys: Column = np.select(
+        [np.isin(raw, (1, 2)), np.isin(raw, (3, 4, 23)), np.isin(raw, (5, 6, 15, 16, 22)), raw == 8, raw == 43],
+        [(count + 7) // 8, 2 * count, echo, b2 << 8 | b3, b2],
+        0,
+    ).astype(np.int64)
+    return keys
+
+
+def _response_keys(raw: npt.NDArray[np.intp], b2: Column, b3: Column, b4: Column, b5: Column) -> Column:
+    echo = (b2 << 24) | (b3 << 16) | (b4 << 8) | b5
+    keys: Column = np.select(
+        [np.isin(raw, (1, 2, 3, 4, 23)), np.isin(raw, (5, 6, 15, 16, 22)), raw == 8, raw == 43],
+        [b2, echo, b2 << 8 | b3, b2],
+        0,
+    ).astype(np.int64)
+    return keys
