@@ -39,13 +39,18 @@ class FrameFlag(IntFlag):
     @property
     def names(self) -> list[str]:
         """The set flags' JSONL names, in a fixed order."""
-        return [_FLAG_NAMES[flag] for flag in _FLAG_ORDER if flag & self]
+        return list(_NAMES_BY_VALUE[self.value])
 
 
 _FLAG_ORDER = [f for f in FrameFlag if f is not FrameFlag.NONE]
 _FLAG_NAMES = {flag: str(flag.name).lower() for flag in _FLAG_ORDER}
 #: Every combination of flags, looked up instead of constructed (enum calls are slow).
 _FLAGS_BY_VALUE = [FrameFlag(value) for value in range(1 << len(_FLAG_ORDER))]
+
+
+_NAMES_BY_VALUE = [
+    tuple(_FLAG_NAMES[flag] for flag in _FLAG_ORDER if flag.value & value) for value in range(1 << len(_FLAG_ORDER))
+]
 
 
 def flag_set(value: int) -> FrameFlag:

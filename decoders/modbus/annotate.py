@@ -61,7 +61,19 @@ class Annotator:
             summary += f" ({function_name(pdu.function)})"
         if not frame.crc_ok:
             summary = f"CRC error: {summary}"
-        return replace(message, pdu=pdu, params=named_registers(pdu, request), summary=summary)
+        return Message(
+            frame=frame,
+            role=message.role,
+            slave=message.slave,
+            function=message.function,
+            exception_code=message.exception_code,
+            summary=summary,
+            flags=message.flags,
+            request_index=message.request_index,
+            latency_ns=message.latency_ns,
+            params=named_registers(pdu, request),
+            pdu=pdu,
+        )
 
 
 def named_registers(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:
