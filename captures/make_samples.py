@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import random
+import struct
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -41,6 +42,16 @@ def manual_frames() -> dict[str, bytes]:
     return {f["id"]: bytes.fromhex(f["hex"]) for f in doc["frames"]}
 
 
+#: NMA1-8 and NCA1-6 of the manual's scanner example: ETA, RFRD, LCR, OTR, ULN, THD, THR, LFT
+#: are read into NM1-8; NC1-6 are written to CMD, LFRD, HSP, LSP, ACC, DEC.
+SCANNER_INPUTS = (3201, 8604, 3204, 3205, 3207, 3209, 9630, 7121)
+SCANNER_OUTPUTS = (8501, 8602, 3104, 3105, 9001, 9002)
+
+
+def with_crc(body: bytes) -> bytes:
+    return body + crc_bytes(body)
+
+
 def flip_bit(frame: bytes, position: int, bit: int) -> bytes:
     damaged = bytearray(frame)
     damaged[position] ^= 1 << bit
@@ -51,8 +62,7 @@ def atv71_plc_poll() -> list[Transmission]:
     """Five PLC cycles of about 100 ms; drive turnaround 2-6 ms."""
     frames = manual_frames()
     rng = random.Random(SEED)
-    absent_drive = bytes.fromhex("03030C1E0004")
-    absent_drive += crc_bytes(absent_drive)
+    absent_drive = with_crc(bytes.fromhex("03030C1E0004"))
     out: list[Transmission] = []
 
     def master(frame: bytes, pause_ms: float | None = None, gaps: dict[int, int] | None = None) -> None:
@@ -69,6 +79,10 @@ def atv71_plc_poll() -> list[Transmission]:
 
     master(frames["A11"], pause_ms=0)  # identify drive 2 once at start
     drive(frames["A12"])
+    # Read drive 20's communication scanner set-up (the manual's example, ATV71:1393-1459).
+    for address, values in ((12701, SCANNER_INPUTS), (12721, SCANNER_OUTPUTS)):
+        master(with_crc(struct.pack(">BBHH", 20, 3, address, len(values))))
+        drive(with_crc(struct.pack(f">BBB{len(values)}H", 20, 3, 2 * len(values), *values)))
     for cycle in range(5):
         master(frames["A1"], pause_ms=None if cycle else 20)
         if cycle == 2:

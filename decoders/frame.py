@@ -13,6 +13,10 @@ from enum import IntFlag
 import numpy as np
 import numpy.typing as npt
 
+MODBUS = 0
+USS = 1
+PROTOCOL_NAMES = {MODBUS: "modbus", USS: "uss"}
+
 #: ``idle_before_ns`` of the first frame of a capture, which has no frame before it.
 NO_IDLE = int(np.iinfo(np.int64).min)
 
@@ -75,6 +79,8 @@ class Frame:
     flags: FrameFlag
     is_noise: bool = False
     idle_before_ns: int | None = None
+    #: ``MODBUS`` or ``USS``.
+    protocol: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,6 +97,8 @@ class FrameBatch:
     is_noise: npt.NDArray[np.bool_]
     #: Silence before each frame; ``NO_IDLE`` where there is no previous frame.
     idle_before_ns: npt.NDArray[np.int64]
+    #: ``MODBUS`` or ``USS`` per frame; ``None`` when every frame is Modbus.
+    protocol: npt.NDArray[np.uint8] | None = None
 
     def __len__(self) -> int:
         return len(self.t_start_ns)
@@ -104,9 +112,10 @@ class FrameBatch:
             self.flags.tolist(),
             self.is_noise.tolist(),
             self.idle_before_ns.tolist(),
+            self.protocols().tolist(),
             strict=True,
         )
-        for i, (start, end, ok, flags, noise, idle) in enumerate(columns):
+        for i, (start, end, ok, flags, noise, idle, protocol) in enumerate(columns):
             yield Frame(
                 index=self.first_index + i,
                 t_start_ns=start,
@@ -116,7 +125,12 @@ class FrameBatch:
                 flags=_FLAGS_BY_VALUE[flags],
                 is_noise=noise,
                 idle_before_ns=None if idle == NO_IDLE else idle,
+                protocol=protocol,
             )
+
+    def protocols(self) -> npt.NDArray[np.uint8]:
+        """The protocol of every frame."""
+        return self.protocol if self.protocol is not None else np.zeros(len(self), np.uint8)
 
 
 _COLUMNS = ("t_start_ns", "t_end_ns", "crc_ok", "flags", "is_noise", "idle_before_ns")
@@ -129,7 +143,8 @@ def slice_frames(batch: FrameBatch, start: int, stop: int) -> FrameBatch:
         batch.first_index + start,
         batch.data[begin:end],
         batch.offsets[start : stop + 1] - begin,
-        *(getattr(batch, name)[start:stop] for name in _COLUMNS),
+        protocol=None if batch.protocol is None else batch.protocol[start:stop],
+        **{name: getattr(batch, name)[start:stop] for name in _COLUMNS},
     )
 
 
@@ -143,11 +158,13 @@ def concat_frames(batches: list[FrameBatch]) -> FrameBatch:
     for batch in batches[1:]:
         offsets.append(batch.offsets[1:] + base)
         base += int(batch.offsets[-1])
+    mixed = any(b.protocol is not None for b in batches)
     return FrameBatch(
         batches[0].first_index,
         b"".join(b.data for b in batches),
         np.concatenate(offsets),
-        *(np.concatenate([getattr(b, name) for b in batches]) for name in _COLUMNS),
+        protocol=np.concatenate([b.protocols() for b in batches]) if mixed else None,
+        **{name: np.concatenate([getattr(b, name) for b in batches]) for name in _COLUMNS},
     )
 
 
@@ -167,4 +184,5 @@ def frames_to_batch(frames: list[Frame]) -> FrameBatch:
         np.fromiter((int(f.flags) for f in frames), np.uint16, count),
         np.fromiter((f.is_noise for f in frames), np.bool_, count),
         np.fromiter((NO_IDLE if f.idle_before_ns is None else f.idle_before_ns for f in frames), np.int64, count),
+        protocol=np.fromiter((f.protocol for f in frames), np.uint8, count),
     )

@@ -49,6 +49,7 @@ class _Pieces:
     is_noise: npt.NDArray[np.bool_]
     crc_ok: npt.NDArray[np.bool_]
     flags: npt.NDArray[np.uint16]
+    protocol: npt.NDArray[np.uint8]
 
     @classmethod
     def of(cls, pieces: list[Piece]) -> _Pieces:
@@ -59,6 +60,7 @@ class _Pieces:
             np.fromiter((p.is_noise for p in pieces), np.bool_, count),
             np.fromiter((p.crc_ok for p in pieces), np.bool_, count),
             np.fromiter((p.flags for p in pieces), np.uint16, count),
+            np.fromiter((p.protocol for p in pieces), np.uint8, count),
         )
 
     @classmethod
@@ -66,7 +68,7 @@ class _Pieces:
         return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in _PIECE_COLUMNS))
 
 
-_PIECE_COLUMNS = ("first", "last", "is_noise", "crc_ok", "flags")
+_PIECE_COLUMNS = ("first", "last", "is_noise", "crc_ok", "flags", "protocol")
 #: How many frames back the open request is replayed from before a segment that the
 #: content parser handles (only a run of echo frames longer than this could mislead it).
 REPLAY_FRAMES = 4
@@ -145,7 +147,7 @@ class Framer:
         total = int(per_segment.sum())
         columns = _Pieces(
             np.empty(total, np.int64), np.empty(total, np.int64), np.zeros(total, np.bool_),
-            np.ones(total, np.bool_), np.zeros(total, np.uint16),
+            np.ones(total, np.bool_), np.zeros(total, np.uint16), np.zeros(total, np.uint8),
         )
         columns.first[position[single]] = seg_starts[single]
         columns.last[position[single]] = seg_ends[single]
@@ -175,7 +177,7 @@ class Framer:
         if parse.pieces:
             self._at_capture_start = False
             self._open_request = parse.open_request
-        return [Piece(p.start + begin, p.end + begin, p.is_noise, p.crc_ok, p.flags) for p in parse.pieces]
+        return [Piece(p.start + begin, p.end + begin, p.is_noise, p.crc_ok, p.flags, p.protocol) for p in parse.pieces]
 
     def _assemble(self, data: bytes, starts: Int64Array, ends: Int64Array, pieces: _Pieces) -> FrameBatch:
         first, last, is_noise, flags = pieces.first, pieces.last, pieces.is_noise, pieces.flags.copy()
@@ -211,6 +213,7 @@ class Framer:
             flags=flags,
             is_noise=is_noise,
             idle_before_ns=idle,
+            protocol=pieces.protocol if pieces.protocol.any() else None,
         )
         self._next_index += count
         return batch

@@ -14,6 +14,7 @@ from decoders.frame import Frame, FrameBatch, FrameFlag, flag_set
 
 if TYPE_CHECKING:
     from decoders.modbus.pdu import Pdu
+    from decoders.uss import UssTelegram
 
 
 class Role(Enum):
@@ -42,6 +43,19 @@ class ParamValue:
 
 
 @dataclass(frozen=True, slots=True)
+class DeviceIdentity:
+    """What a slave said about itself (FC 43 / MEI 14), and the profile that matches it."""
+
+    slave: int
+    vendor: str | None
+    product_code: str
+    revision: str | None
+    profile: str | None
+    #: Whether the matching profile now decodes this slave (not when the user chose one).
+    applied: bool
+
+
+@dataclass(frozen=True, slots=True)
 class Message:
     """A frame with its role and decoded meaning.
 
@@ -61,6 +75,11 @@ class Message:
     latency_ns: int | None = None
     params: tuple[ParamValue, ...] = ()
     pdu: Pdu | None = None
+    #: What the device profile has to say: limits exceeded, exceptions explained.
+    remarks: tuple[str, ...] = ()
+    device: DeviceIdentity | None = None
+    #: The decoded telegram, for frames that are USS rather than Modbus.
+    uss: UssTelegram | None = None
 
 
 #: Roles by their code in :class:`MessageBatch`.

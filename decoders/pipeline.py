@@ -10,6 +10,7 @@ from decoders.line import LineSettings
 from decoders.message import Message, MessageBatch
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
+from decoders.profiles.apply import ProfileApplier, ProfileBook
 
 
 class Decoder:
@@ -30,10 +31,12 @@ class Decoder:
         return [self.matcher.feed(self.framer.flush()), self.matcher.flush()]
 
 
-def decode(batches: Iterable[ChunkBatch], line: LineSettings, timing: TimingQuality) -> Iterator[Message]:
-    """All decoded messages of a capture, streaming."""
+def decode(
+    batches: Iterable[ChunkBatch], line: LineSettings, timing: TimingQuality, profiles: ProfileBook | None = None
+) -> Iterator[Message]:
+    """All decoded messages of a capture, streaming; ``profiles`` name the registers."""
     decoder = Decoder(line, timing)
-    annotator = Annotator()
+    annotator = Annotator(ProfileApplier(profiles) if profiles is not None else None)
     for batch in batches:
         for messages in decoder.feed(batch):
             yield from annotator.annotate_all(messages)

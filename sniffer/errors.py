@@ -19,6 +19,7 @@ class ErrorKind(Enum):
     BAD_MCAP = 9
     NO_LINE_SETTINGS = 10
     OUTPUT_FAILED = 11
+    BAD_PROFILE = 12
 
     @property
     def exit_code(self) -> int:

@@ -11,6 +11,7 @@ from decoders.line import LineSettings
 from decoders.message import Message, MessageBatch
 from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
+from decoders.profiles.apply import ProfileApplier, ProfileBook
 from decoders.stats import Statistics
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.base import CaptureReader
@@ -49,12 +50,14 @@ class Analysis:
     timing: TimingQuality
     response_timeout_ns: int | None = None
     keep: Callable[[Message], bool] | None = None
+    profiles: ProfileBook | None = None
 
 
 def analyze(reader: CaptureReader, source: str, analysis: Analysis, view: MessageView) -> Statistics:
     """Decode every batch of ``reader`` into ``view``, streaming; statistics cover all frames."""
     decoder = Decoder(analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns)
-    annotator = Annotator() if view.wants_messages else None
+    applier = ProfileApplier(analysis.profiles) if analysis.profiles is not None else None
+    annotator = Annotator(applier) if view.wants_messages else None
     statistics = Statistics()
     view.start(source, replace(reader.info, timing=analysis.timing), analysis.line)
 

@@ -27,7 +27,7 @@ def test_analyze_table_shows_every_frame(cli: Cli) -> None:
     assert "02 03 08 00 28 02 50 01 f4 00 00 52 b0" in result.out  # the damaged response
     assert "gap_1_5" in result.out
     assert result.out.rstrip().endswith(
-        "48 frames, 26 request, 19 response, 2 exception, 1 noise, 1 CRC errors, 1 gap_1_5, 5 retry, "
+        "52 frames, 28 request, 21 response, 2 exception, 1 noise, 1 CRC errors, 1 gap_1_5, 5 retry, "
         "1 short_idle, 4 timeout"
     )
 
@@ -37,7 +37,7 @@ def test_analyze_jsonl_follows_the_contract(cli: Cli) -> None:
     assert result.code == 0, result.err
     records = result.jsonl()
     assert records[0]["kind"] == "capture" and records[0]["timing"] == "exact"
-    assert records[-1]["kind"] == "summary" and records[-1]["frames"] == 48
+    assert records[-1]["kind"] == "summary" and records[-1]["frames"] == 52
     frames = [r for r in records if r["kind"] == "frame"]
     assert [f["index"] for f in frames] == list(range(len(frames)))
     for frame in frames:
@@ -54,8 +54,8 @@ def test_analyze_jsonl_follows_the_contract(cli: Cli) -> None:
     assert exceptions == [(12, 3, 2), (4, 16, 4)]
     flagged = {f["index"]: f["flags"] for f in frames if f["flags"]}
     assert flagged == {
-        8: ["timeout"], 15: ["timeout", "retry"], 22: ["retry"], 28: ["timeout", "retry"], 32: ["gap_1_5"],
-        35: ["timeout", "retry"], 43: ["short_idle"], 47: ["retry"],
+        12: ["timeout"], 19: ["timeout", "retry"], 26: ["retry"], 32: ["timeout", "retry"], 36: ["gap_1_5"],
+        39: ["timeout", "retry"], 47: ["short_idle"], 51: ["retry"],
     }
     [noise] = [f for f in frames if f["role"] == "noise"]
     assert (noise["hex"], noise["crc_ok"], noise["slave"], noise["function"]) == ("00", False, None, None)
@@ -67,11 +67,20 @@ def test_analyze_jsonl_follows_the_contract(cli: Cli) -> None:
             assert frame["latency_s"] == pytest.approx(frame["t"] - request["t_end"], abs=1e-6)
         else:
             assert frame["request_index"] is None and frame["latency_s"] is None
-    first_answer = frames[3]
-    assert first_answer["summary"] == "HR = 0028 0258 01F4 0000 (4 registers)"
-    assert [(p["address"], p["raw"], p["value"]) for p in first_answer["params"]] == [
-        (3102, 40, 40), (3103, 600, 600), (3104, 500, 500), (3105, 0, 0)
+    # Slave 2 identified itself as an ATV71 (frame 1), so the atv71 profile names its registers.
+    first_answer = frames[7]
+    assert first_answer["summary"] == (
+        "HR = 0028 0258 01F4 0000 (4 registers): SFr = 4.0 kHz, tFr = 60.0 Hz, HSP = 50.0 Hz, LSP = 0.0 Hz"
+    )
+    assert [(p["address"], p["code"], p["raw"], p["value"], p["unit"]) for p in first_answer["params"]] == [
+        (3102, "SFr", 40, 4.0, "kHz"), (3103, "tFr", 600, 60.0, "Hz"), (3104, "HSP", 500, 50.0, "Hz"),
+        (3105, "LSP", 0, 0.0, "Hz"),
     ]
+    [device] = [r for r in records if r["kind"] == "device"]
+    assert device == {"kind": "device", "index": 1, "slave": 2, "vendor": "Telemecanique",
+                      "product_code": "ATV71HU15M3", "revision": "0201", "profile": "atv71", "applied": True}
+    # Drive 12 never identified itself: its registers stay unnamed without --profile.
+    assert all(p["code"] is None for p in frames[11]["params"])
 
 
 def test_analyze_mcap_equals_text(cli: Cli) -> None:
@@ -174,7 +183,7 @@ def test_format_recognised_by_content_when_suffix_is_unknown(cli: Cli, tmp_path:
         copy.write_bytes(source.read_bytes())
         result = cli("analyze", str(copy), "--format", "jsonl")
         assert result.code == 0, result.err
-        assert len(result.jsonl()) == 50
+        assert len(result.jsonl()) == 55  # capture, 52 frames, device, summary
 
 
 def test_convert_removes_its_output_when_the_input_breaks(cli: Cli, tmp_path: Path) -> None:
@@ -208,22 +217,22 @@ def test_timing_override(cli: Cli) -> None:
     records = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--timing", "host").jsonl()
     assert records[0]["timing"] == "host"
     frames = [f for f in records if f["kind"] == "frame"]
-    assert len(frames) == 48 and not any({"gap_1_5", "short_idle"} & set(f["flags"]) for f in frames)
+    assert len(frames) == 52 and not any({"gap_1_5", "short_idle"} & set(f["flags"]) for f in frames)
 
 
 def test_filters(cli: Cli) -> None:
     def indices(*filters: str) -> list[int]:
         args = [x for f in filters for x in ("--filter", f)]
         records = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", *args).jsonl()
-        assert records[-1]["kind"] == "summary" and records[-1]["frames"] == 48  # the summary covers all frames
+        assert records[-1]["kind"] == "summary" and records[-1]["frames"] == 52  # the summary covers all frames
         return [r["index"] for r in records if r["kind"] == "frame"]
 
-    assert indices("slave=3") == [8, 15, 28, 35, 47]
-    assert indices("slave=3", "flag=timeout") == [8, 15, 28, 35]
-    assert indices("role=exception") == [27, 37]
-    assert indices("slave=4", "slave=12", "role=exception") == [27, 37]
-    assert indices("function=8") == [38, 39]
-    assert indices("flag=gap_1_5", "flag=short_idle") == [32, 43]
+    assert indices("slave=3") == [12, 19, 32, 39, 51]
+    assert indices("slave=3", "flag=timeout") == [12, 19, 32, 39]
+    assert indices("role=exception") == [31, 41]
+    assert indices("slave=4", "slave=12", "role=exception") == [31, 41]
+    assert indices("function=8") == [42, 43]
+    assert indices("flag=gap_1_5", "flag=short_idle") == [36, 47]
 
 
 @pytest.mark.parametrize(
@@ -242,8 +251,8 @@ def test_stats_json(cli: Cli) -> None:
     import json
 
     stats = json.loads(result.out)
-    assert (stats["frames"], stats["crc_errors"], stats["noise_bytes"]) == (48, 1, 1)
-    assert stats["roles"] == {"exception": 2, "noise": 1, "request": 26, "response": 19}
+    assert (stats["frames"], stats["crc_errors"], stats["noise_bytes"]) == (52, 1, 1)
+    assert stats["roles"] == {"exception": 2, "noise": 1, "request": 28, "response": 21}
     rows = {(r["slave"], r["function"]): r for r in stats["per_slave_function"]}
     absent = rows[(3, 3)]
     assert (absent["requests"], absent["responses"], absent["timeouts"], absent["retries"]) == (5, 0, 4, 4)

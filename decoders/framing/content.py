@@ -29,12 +29,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from decoders.crc import crc_ok
-from decoders.frame import FrameFlag
+from decoders.frame import MODBUS, USS, FrameFlag
 from decoders.modbus.codes import EXCEPTION_BIT, FUNCTION_NAMES, USER_DEFINED_FUNCTIONS
 from decoders.modbus.layouts import LAYOUTS, MAX_ADU, exception_length
+from decoders.uss import uss_length
 
 MIN_ADU = 4
 MAX_ADDRESS = 247
+USS_STX = 0x02
 BROADCAST_ADDRESS = 0
 
 #: (slave, function) of the request that awaits its response, if any.
@@ -50,6 +52,7 @@ class Piece:
     is_noise: bool = False
     crc_ok: bool = True
     flags: FrameFlag = FrameFlag.NONE
+    protocol: int = MODBUS
 
 
 def rule_lengths(adu: bytes) -> list[int | None]:
@@ -139,12 +142,22 @@ def _rule_frame_inside(data: bytes, start: int, stop: int) -> bool:
     return False
 
 
+def uss_at(data: bytes, pos: int, end: int, *, confirm: bool, closed: bool) -> int | None:
+    """Length of a USS telegram starting at ``pos``, confirmed like a resync candidate."""
+    length = uss_length(data[pos : min(end, pos + MAX_ADU)])
+    if length is None or (confirm and not _confirmed(data, pos + length, end, closed)):
+        return None
+    return length
+
+
 def _confirmed(data: bytes, after: int, end: int, closed: bool, *, by_damaged: bool = True) -> bool:
     """Whether a frame may end at ``after``: the segment ends there (timing), or a valid
-    frame follows, or (``by_damaged``) a damaged frame whose own end is confirmed."""
+    frame or USS telegram follows, or (``by_damaged``) a damaged frame whose own end is confirmed."""
     if after == end:
         return closed
     if frame_at(data, after, end, confirm=False, closed=closed) is not None:
+        return True
+    if uss_length(data[after : min(end, after + MAX_ADU)]) is not None:
         return True
     return by_damaged and _damaged_frame_length(data, after, end, closed=closed, at_capture_end=False) is not None
 
@@ -279,6 +292,15 @@ def _sequential(ctx: _Context, limit: int) -> SegmentParse:
     while pos < limit:
         length = frame_at(data, pos, end, confirm=unmatched is not None, closed=closed, open_request=open_request)
         damaged = False
+        if length is None and data[pos] == USS_STX:
+            uss = uss_at(data, pos, end, confirm=unmatched is not None, closed=closed)
+            if uss is not None:
+                if unmatched is not None:
+                    pieces.append(_leftover(data, unmatched, pos, ctx.at_start and not pieces))
+                    unmatched = None
+                pieces.append(Piece(pos, pos + uss, protocol=USS))
+                pos += uss
+                continue
         if length is None and unmatched is None:
             length = _damaged_frame_length(
                 data, pos, end, closed=closed, at_capture_end=ctx.at_end, open_request=open_request
@@ -310,3 +332,4 @@ def _sequential(ctx: _Context, limit: int) -> SegmentParse:
 def _leftover(data: bytes, start: int, end: int, at_capture_start: bool) -> Piece:
     piece = classify_leftover(data[start:end], at_capture_start=at_capture_start)
     return Piece(start, end, piece.is_noise, piece.crc_ok, piece.flags)
+

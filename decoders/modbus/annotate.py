@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from dataclasses import replace
 
+from decoders.frame import USS
 from decoders.message import Message, MessageBatch, ParamValue, Role
 from decoders.modbus.codes import function_name
 from decoders.modbus.layouts import fits_request
@@ -28,6 +29,8 @@ from decoders.modbus.pdu import (
     WriteSingle,
     parse_pdu,
 )
+from decoders.profiles.apply import ProfileApplier
+from decoders.uss import parse_uss
 
 #: Decoded requests kept for their responses; older ones are answered or lost.
 KEPT_REQUESTS = 1024
@@ -37,8 +40,9 @@ _AS_REQUEST = {Role.REQUEST, Role.BROADCAST}
 class Annotator:
     """Adds ``pdu``, ``params`` and ``summary`` to messages, in capture order."""
 
-    def __init__(self) -> None:
+    def __init__(self, profiles: ProfileApplier | None = None) -> None:
         self._requests: OrderedDict[int, Pdu] = OrderedDict()
+        self._profiles = profiles
 
     def annotate_all(self, messages: MessageBatch) -> list[Message]:
         return [self.annotate(m) for m in messages]
@@ -47,6 +51,8 @@ class Annotator:
         frame = message.frame
         if message.role is Role.NOISE:
             return replace(message, summary=f"noise, {len(frame.data)} byte{'s' if len(frame.data) != 1 else ''}")
+        if frame.protocol == USS:
+            return self._uss(message)
         is_request = message.role in _AS_REQUEST or (message.role is Role.UNKNOWN and fits_request(frame.data))
         pdu = parse_pdu(frame.data, is_request=is_request)
         request = None
@@ -61,7 +67,7 @@ class Annotator:
             summary += f" ({function_name(pdu.function)})"
         if not frame.crc_ok:
             summary = f"CRC error: {summary}"
-        return Message(
+        annotated = Message(
             frame=frame,
             role=message.role,
             slave=message.slave,
@@ -74,6 +80,13 @@ class Annotator:
             params=named_registers(pdu, request),
             pdu=pdu,
         )
+        return annotated if self._profiles is None else self._profiles.apply(annotated, request)
+
+
+    def _uss(self, message: Message) -> Message:
+        telegram = parse_uss(message.frame.data)
+        annotated = replace(message, summary=telegram.summary(), uss=telegram)
+        return annotated if self._profiles is None else self._profiles.apply(annotated, None)
 
 
 def named_registers(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from decoders.frame import FrameBatch, FrameFlag, concat_frames, slice_frames
+from decoders.frame import USS, FrameBatch, FrameFlag, concat_frames, slice_frames
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from decoders.modbus.codes import EXCEPTION_BIT
 from decoders.modbus.layouts import MEI_EXCEPTION_LENGTH
@@ -127,6 +127,7 @@ class Matcher:
     _adaptive_timeout_ns: int = MAX_TIMEOUT_NS
     #: Settle clean request/answer runs in bulk (off only to prove the shortcut changes nothing).
     _bulk: bool = True
+    _uss_open: dict[int, tuple[int, int]] = field(default_factory=dict)
 
     @property
     def timeout_ns(self) -> int:
@@ -154,9 +155,12 @@ class Matcher:
 
     def _classify(self, frames: FrameBatch, shapes: Shapes, first: int) -> None:
         lengths = np.diff(frames.offsets)
-        active = np.flatnonzero(~frames.is_noise & (lengths >= MIN_ADU))
+        uss = frames.protocols() == USS
+        active = np.flatnonzero(~frames.is_noise & (lengths >= MIN_ADU) & ~uss)
         runs = _pair_runs(frames, shapes, active)
         self._visit(frames, shapes, active, runs, first)
+        if uss.any():
+            self._uss(frames, np.flatnonzero(uss), first)
         if len(frames):
             last_start = int(frames.t_start_ns[-1])
             if last_start > self._deadline():
@@ -229,6 +233,27 @@ class Matcher:
             elif shape & FITS_RESPONSE:
                 role[position] = RESPONSE
                 flags[position] = UNEXPECTED
+
+    def _uss(self, frames: FrameBatch, telegrams: npt.NDArray[np.intp], first: int) -> None:
+        """USS telegrams: a master's telegram and the answer from the same address alternate."""
+        columns = self._held.columns
+        offsets = frames.offsets.tolist()
+        for i in telegrams.tolist():
+            adr = frames.data[offsets[i] + 2]
+            address, position = adr & 0x1F, first + i
+            columns["slave"][position] = address
+            columns["function"][position] = NONE
+            if adr & 0x20:
+                columns["role"][position] = BROADCAST
+                continue
+            asked = self._uss_open.pop(address, None)
+            if asked is None:
+                columns["role"][position] = REQUEST
+                self._uss_open[address] = (frames.first_index + i, int(frames.t_end_ns[i]))
+            else:
+                columns["role"][position] = RESPONSE
+                columns["request_index"][position] = asked[0]
+                columns["latency_ns"][position] = max(0, int(frames.t_start_ns[i]) - asked[1])
 
     def _settle_pairs(self, frames: FrameBatch, pair_frames: npt.NDArray[np.intp], first: int) -> None:
         """Requests and their answers, alternating, from a state with nothing open."""

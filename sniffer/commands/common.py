@@ -14,6 +14,7 @@ from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.base import CaptureReader
 from sniffer.io.registry import all_formats, open_reader
 from sniffer.pipeline import Analysis, effective_line
+from sniffer.profiles_io import profile_book
 
 
 def add_line_options(parser: argparse.ArgumentParser) -> None:
@@ -64,20 +65,40 @@ def response_timeout_ns(args: argparse.Namespace) -> int | None:
     return timeout_ns
 
 
+def add_profile_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--profile",
+        action="append",
+        default=[],
+        metavar="[SLAVE=]NAME",
+        help="device profile for every slave (NAME) or for one (SLAVE=NAME), repeatable; "
+        "see 'rtusniff profiles'. Without it, slaves that identify themselves (FC 43) get theirs",
+    )
+    parser.add_argument(
+        "--profile-file",
+        action="append",
+        default=[],
+        metavar="PATH",
+        help="load a profile of your own (TOML, see docs/profiles.md); then name it with --profile",
+    )
+
+
 def add_decoding_options(parser: argparse.ArgumentParser) -> None:
     """Everything that says how to read and decode a capture."""
     add_line_options(parser)
     add_timing_option(parser)
     add_response_timeout_option(parser)
+    add_profile_options(parser)
     add_input_format_option(parser)
 
 
 def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureReader, Analysis]:
     """Open ``args.capture`` and settle how to decode it."""
+    book = profile_book(args.profile, args.profile_file)
     reader = open_reader(args.capture, args.input_format)
     stack.callback(reader.close)
     line = apply_char_timing(effective_line(reader.info, line_override(args), args.capture), args)
-    analysis = Analysis(line, effective_timing(reader.info, args), response_timeout_ns(args))
+    analysis = Analysis(line, effective_timing(reader.info, args), response_timeout_ns(args), profiles=book)
     return reader, analysis
 
 

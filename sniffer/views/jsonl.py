@@ -9,7 +9,7 @@ from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import Message
 from decoders.stats import Statistics
-from sniffer.views.records import capture_record, frame_record
+from sniffer.views.records import capture_record, device_record, frame_record
 
 
 class JsonlView:
@@ -26,7 +26,12 @@ class JsonlView:
 
     def messages(self, messages: list[Message]) -> None:
         dumps = self._dumps
-        self._out.write("".join(dumps(frame_record(m)) + "\n" for m in messages))
+        lines = []
+        for message in messages:
+            lines.append(dumps(frame_record(message)))
+            if message.device is not None:
+                lines.append(dumps(device_record(message)))
+        self._out.write("".join(line + "\n" for line in lines))
 
     def finish(self, statistics: Statistics) -> None:
         """The closing ``summary`` record: statistics of every frame, filtered or not."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from decoders.capture import CaptureInfo
+from decoders.frame import PROTOCOL_NAMES
 from decoders.line import LineSettings
 from decoders.message import Message, ParamValue
 
@@ -46,6 +47,24 @@ def frame_record(message: Message) -> dict[str, Any]:
         "latency_s": None if message.latency_ns is None else message.latency_ns / NS_PER_S,
         "params": [param_record(p) for p in message.params],
         "summary": message.summary,
+        "protocol": PROTOCOL_NAMES[frame.protocol],
+        "remarks": list(message.remarks),
+    }
+
+
+def device_record(message: Message) -> dict[str, Any]:
+    """A slave said what it is (FC 43): the ``device`` record that follows its frame."""
+    device = message.device
+    assert device is not None
+    return {
+        "kind": "device",
+        "index": message.frame.index,
+        "slave": device.slave,
+        "vendor": device.vendor,
+        "product_code": device.product_code,
+        "revision": device.revision,
+        "profile": device.profile,
+        "applied": device.applied,
     }
 
 

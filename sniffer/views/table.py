@@ -111,7 +111,7 @@ class TableView:
             str(len(frame.data)),
             crc,
             Text(" ".join(message.flags.names), "yellow"),
-            message.summary,
+            _summary_cell(message),
             frame.data.hex(" "),
         ]
 
@@ -123,3 +123,10 @@ class TableView:
             parts.append(f"{statistics.crc_errors} CRC errors")
         parts += [f"{n} {flag}" for flag, n in sorted(flags.items())]
         self._console.print(", ".join(parts), highlight=False)
+
+
+def _summary_cell(message: Message) -> Text:
+    text = Text(message.summary)
+    for remark in message.remarks:
+        text.append(f" ⚠ {remark}", "yellow")
+    return text

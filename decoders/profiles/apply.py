@@ -1,0 +1,272 @@
+"""Applies device profiles to decoded messages: names, units, scaled values, states, remarks.
+
+One generic applier serves every profile; what differs between drives is data.
+:class:`ProfileBook` says which profile speaks for which slave: one for all, one
+per slave, and, when a slave identifies itself (FC 43 / MEI 14 product code), the
+profile whose product codes match, from then on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from decoders.message import DeviceIdentity, Message, ParamValue, Role
+from decoders.modbus.pdu import (
+    DeviceIdResponse,
+    ExceptionPdu,
+    Pdu,
+    ReadRequest,
+    ReadWriteRequest,
+    WriteCoilsRequest,
+    WriteRegistersRequest,
+)
+from decoders.profiles.model import Indirection, Parameter, Profile
+
+BROADCAST_ADDRESS = 0
+PRODUCT_CODE_OBJECT = 1
+
+
+@dataclass
+class ProfileBook:
+    """Which profile applies to which slave."""
+
+    default: Profile
+    known: dict[str, Profile]
+    per_slave: dict[int, Profile] = field(default_factory=dict)
+    automatic: bool = True
+    _identified: dict[int, Profile] = field(default_factory=dict)
+
+    def profile_for(self, slave: int | None) -> Profile:
+        if slave is None:
+            return self.default
+        return self.per_slave.get(slave) or self._identified.get(slave) or self.default
+
+    def identify(self, slave: int, product_code: str) -> Profile | None:
+        """The profile a product code names; it applies to ``slave`` from now on unless
+        the user chose one for that slave."""
+        for profile in self.known.values():
+            if any(product_code.upper().startswith(code.upper()) for code in profile.product_codes):
+                if self.automatic and slave not in self.per_slave:
+                    self._identified[slave] = profile
+                return profile
+        return None
+
+
+@dataclass
+class _Indirections:
+    """Per slave and table: which parameter address each value register carries."""
+
+    tables: dict[tuple[int, str], list[int]] = field(default_factory=dict)
+
+    def mapping(self, slave: int, table: Indirection) -> list[int]:
+        key = (slave, table.prefix)
+        if key not in self.tables:
+            self.tables[key] = list(table.defaults)
+        return self.tables[key]
+
+
+class ProfileApplier:
+    """Adds profile knowledge to messages in capture order (it learns scanner tables)."""
+
+    def __init__(self, book: ProfileBook) -> None:
+        self.book = book
+        self._indirections = _Indirections()
+
+    def apply(self, message: Message, request: Pdu | None) -> Message:
+        """``message`` with named params, remarks and, for identifications, the device."""
+        if message.uss is not None:
+            return _uss_words(self.book.profile_for(message.slave), message)
+        slave = message.slave
+        device = self._identify(message) if isinstance(message.pdu, DeviceIdResponse) else None
+        profile = self.book.profile_for(slave)
+        reported = message.role is Role.RESPONSE
+        params = tuple(self._param(profile, slave, p, reported) for p in message.params)
+        self._learn(profile, slave, message.params)
+        remarks = list(message.remarks)
+        if message.role in (Role.REQUEST, Role.BROADCAST) and message.pdu is not None:
+            remarks += _limit_remarks(profile, message, message.pdu)
+        if isinstance(message.pdu, ExceptionPdu):
+            remarks += _exception_remarks(profile, message.pdu, request)
+        if device is not None:
+            remarks.append(_device_remark(device))
+        summary = _summary(message.summary, params)
+        return _with(message, params=params, remarks=tuple(remarks), summary=summary, device=device)
+
+    def _identify(self, message: Message) -> DeviceIdentity | None:
+        pdu = message.pdu
+        assert isinstance(pdu, DeviceIdResponse)
+        if message.slave is None or not message.frame.crc_ok:
+            return None
+        objects = {o.object_id: o.text for o in pdu.objects}
+        product = objects.get(PRODUCT_CODE_OBJECT)
+        if product is None:
+            return None
+        profile = self.book.identify(message.slave, product)
+        return DeviceIdentity(
+            slave=message.slave,
+            vendor=objects.get(0),
+            product_code=product,
+            revision=objects.get(2),
+            profile=profile.id if profile is not None else None,
+            applied=profile is not None and self.book.profile_for(message.slave) is profile,
+        )
+
+    def _param(self, profile: Profile, slave: int | None, param: ParamValue, reported: bool) -> ParamValue:
+        """``reported``: the value comes from the device (a response), where special values apply."""
+        for table in profile.indirections:
+            slot = param.address - table.value_registers
+            if slave is not None and 0 <= slot < table.count:
+                target = self._indirections.mapping(slave, table)[slot]
+                return self._indirect(profile, table, target, slot, param, reported=reported)
+        parameter = profile.parameters.get(param.address)
+        if parameter is None:
+            return _plain(profile, param, reported)
+        return _named(profile, parameter, param, parameter.code, parameter.name, reported=reported)
+
+    def _indirect(
+        self, profile: Profile, table: Indirection, target: int, slot: int, param: ParamValue, *, reported: bool
+    ) -> ParamValue:
+        code = f"{table.prefix}{slot + 1}"
+        parameter = profile.parameters.get(target) if target else None
+        if parameter is None:
+            what = "unassigned" if not target else f"copy of register {target}"
+            plain = _plain(profile, param, reported)
+            return ParamValue(param.address, param.raw, code, f"{code} ({what})", plain.value, None)
+        label = f"{code} → {parameter.name}"
+        return _named(profile, parameter, param, f"{code}→{parameter.code}", label, reported=reported)
+
+    def _learn(self, profile: Profile, slave: int | None, params: tuple[ParamValue, ...]) -> None:
+        """Scanner address registers seen being read or written change the table."""
+        if slave is None:
+            return
+        for table in profile.indirections:
+            for param in params:
+                slot = param.address - table.address_registers
+                if 0 <= slot < table.count and param.raw is not None:
+                    self._indirections.mapping(slave, table)[slot] = param.raw
+
+
+def _uss_words(profile: Profile, message: Message) -> Message:
+    """The first process-data word read as the control word (master) or status word (drive)."""
+    telegram = message.uss
+    assert telegram is not None
+    name = profile.uss_control_word if message.role is Role.REQUEST else profile.uss_status_word
+    if name is None or not telegram.pzd:
+        return message
+    word = telegram.pzd[0]
+    label = "STW" if message.role is Role.REQUEST else "ZSW"
+    described = profile.bitfields[name].describe(word)
+    return _with(message, summary=f"{message.summary}: {label} = 16#{word:04X} {described}")
+
+
+def _named(
+    profile: Profile, parameter: Parameter, param: ParamValue, code: str, name: str, *, reported: bool
+) -> ParamValue:
+    return ParamValue(param.address, param.raw, code, name, *_value(profile, parameter, param.raw, reported))
+
+
+def _special(profile: Profile, raw: int | None, reported: bool) -> str | None:
+    if raw is None or not reported:
+        return None
+    return next((special.meaning for special in profile.specials if special.raw == raw), None)
+
+
+def _value(
+    profile: Profile, parameter: Parameter, raw: int | None, reported: bool
+) -> tuple[float | int | str | None, str | None]:
+    """The value as the device means it, and its unit."""
+    if raw is None:
+        return None, parameter.unit
+    special = _special(profile, raw, reported)
+    if special is not None:
+        return special, None
+    if parameter.bitfield is not None:
+        return profile.bitfields[parameter.bitfield].describe(raw) or f"16#{raw:04X}", None
+    if raw in parameter.enum:
+        return parameter.enum[raw], None
+    number = raw - 0x10000 if parameter.signed and raw & 0x8000 else raw
+    if parameter.scale == 1.0:
+        return number, parameter.unit
+    return round(number * parameter.scale, 6), parameter.unit
+
+
+def _plain(profile: Profile, param: ParamValue, reported: bool) -> ParamValue:
+    special = _special(profile, param.raw, reported)
+    value = param.raw if special is None else special
+    if profile.address_style == "xbt":
+        # XBT addressing: %MWi is Modbus register 40001+i, PDU address i.
+        return ParamValue(param.address, param.raw, f"%MW{param.address}", f"4{param.address + 1:05d}", value, None)
+    return ParamValue(param.address, param.raw, None, None, value, None)
+
+
+def _limit_remarks(profile: Profile, message: Message, pdu: Pdu) -> list[str]:
+    limits, name, function = profile.limits, profile.name, message.function
+    remarks = []
+    if limits.functions and function not in limits.functions:
+        remarks.append(f"{name} does not support function {function} (expect exception 01)")
+    if message.role is Role.BROADCAST and limits.broadcast_functions and function not in limits.broadcast_functions:
+        allowed = ", ".join(str(f) for f in limits.broadcast_functions)
+        remarks.append(f"{name} takes broadcasts only for functions {allowed}")
+    checks: list[tuple[int, int, str]] = []
+    if isinstance(pdu, ReadRequest) and pdu.function in (3, 4):
+        checks.append((pdu.count, limits.read_registers, "reads"))
+    if isinstance(pdu, WriteRegistersRequest | WriteCoilsRequest):
+        checks.append((pdu.count, limits.write_registers, "writes"))
+    if isinstance(pdu, ReadWriteRequest):
+        checks += [(pdu.read_count, limits.read_write_read, "reads (FC 23)"),
+                   (pdu.write_count, limits.read_write_write, "writes (FC 23)")]
+    for count, limit, verb in checks:
+        if limit and count > limit:
+            remarks.append(f"{verb} {count} words; {name} {verb.split()[0]} at most {limit}")
+    return remarks
+
+
+def _exception_remarks(profile: Profile, pdu: ExceptionPdu, request: Pdu | None) -> list[str]:
+    asked = set(_addresses(request))
+    return [
+        note.explanation
+        for note in profile.exceptions
+        if note.code == pdu.code
+        and note.function in (0, pdu.function)
+        and (not note.addresses or asked & set(note.addresses))
+    ]
+
+
+def _addresses(pdu: Pdu | None) -> list[int]:
+    if isinstance(pdu, ReadRequest | WriteRegistersRequest | WriteCoilsRequest):
+        return list(range(pdu.address, pdu.address + pdu.count))
+    if isinstance(pdu, ReadWriteRequest):
+        return [*range(pdu.read_address, pdu.read_address + pdu.read_count),
+                *range(pdu.write_address, pdu.write_address + pdu.write_count)]
+    address = getattr(pdu, "address", None)
+    return [address] if isinstance(address, int) else []
+
+
+def _device_remark(device: DeviceIdentity) -> str:
+    if device.profile is None:
+        return f"slave {device.slave} is {device.product_code}: no shipped profile matches"
+    verb = "now decoded with" if device.applied else "matches"
+    return f"slave {device.slave} is {device.product_code}: {verb} profile {device.profile}"
+
+
+def _summary(summary: str, params: tuple[ParamValue, ...]) -> str:
+    named = [p for p in params if p.code is not None or isinstance(p.value, str)]
+    if not named:
+        return summary
+    return f"{summary}: {', '.join(_show(p) for p in named[:12])}" + (" …" if len(named) > 12 else "")
+
+
+def _show(param: ParamValue) -> str:
+    label = param.code if param.code is not None else str(param.address)
+    if param.raw is None:
+        return label
+    if isinstance(param.value, str):
+        return f"{label} = 16#{param.raw:04X} {param.value}"
+    unit = f" {param.unit}" if param.unit else ""
+    return f"{label} = {param.value}{unit}"
+
+
+def _with(message: Message, **changes: object) -> Message:
+    fields = {name: getattr(message, name) for name in Message.__dataclass_fields__}
+    fields.update(changes)
+    return Message(**fields)

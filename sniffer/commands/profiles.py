@@ -1,0 +1,99 @@
+"""``rtusniff profiles``: the device profiles, listed, shown, or a user's file checked."""
+
+from __future__ import annotations
+
+import argparse
+
+from rich.console import Console
+from rich.table import Table
+
+from decoders.profiles.model import Profile
+from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.profiles_io import load_profile_file, shipped_profiles
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = subparsers.add_parser(
+        "profiles",
+        help="list the device profiles, show one, or check a profile file of your own",
+        description="Device profiles name and scale the registers of drives rtusniff knows. "
+        "'profiles' lists them, 'profiles show NAME' prints one, 'profiles check FILE' validates yours.",
+    )
+    parser.add_argument("action", nargs="?", choices=["list", "show", "check"], default="list")
+    parser.add_argument("target", nargs="?", help="profile name (show) or TOML file (check)")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    console = Console(highlight=False)
+    if args.action == "list":
+        console.print(_list_table(shipped_profiles()))
+        return 0
+    if args.target is None:
+        wanted = "profile name" if args.action == "show" else "TOML file"
+        raise RtuSniffError(ErrorKind.USAGE, f"profiles {args.action}: give a {wanted}")
+    if args.action == "check":
+        profile = load_profile_file(args.target)
+        console.print(f"{args.target}: profile {profile.id!r} is valid: {len(profile.parameters)} parameters, "
+                      f"{len(profile.bitfields)} bit fields, {len(profile.exceptions)} exception notes")
+        return 0
+    known = shipped_profiles()
+    if args.target not in known:
+        raise RtuSniffError(ErrorKind.USAGE, f"unknown profile {args.target!r}; known: {', '.join(sorted(known))}")
+    _show(console, known[args.target])
+    return 0
+
+
+def _list_table(profiles: dict[str, Profile]) -> Table:
+    table = Table(title="device profiles (use with --profile NAME or --profile SLAVE=NAME)", title_justify="left")
+    for header in ("name", "device", "role", "parameters", "identified by product code"):
+        table.add_column(header)
+    for profile in profiles.values():
+        table.add_row(profile.id, profile.name, profile.role, str(len(profile.parameters)),
+                      ", ".join(profile.product_codes))
+    return table
+
+
+def _show(console: Console, profile: Profile) -> None:
+    console.print(f"[bold]{profile.id}[/]: {profile.name} ({profile.role})")
+    for source in profile.sources:
+        console.print(f"  source: {source}")
+    for note in profile.notes:
+        console.print(f"  note: {note}")
+    limits = profile.limits
+    if limits.functions:
+        console.print(f"  functions: {', '.join(map(str, limits.functions))}; broadcast: "
+                      f"{', '.join(map(str, limits.broadcast_functions)) or 'none'}")
+        counts = {"read": limits.read_registers, "write": limits.write_registers,
+                  "FC 23 read": limits.read_write_read, "FC 23 write": limits.read_write_write}
+        shown = ", ".join(f"{k} {v}" for k, v in counts.items() if v)
+        if shown:
+            console.print(f"  at most (registers): {shown}")
+    for special in profile.specials:
+        console.print(f"  16#{special.raw:04X} in a read: {special.meaning}")
+    if profile.parameters:
+        console.print(_parameter_table(profile))
+    for table in profile.indirections:
+        console.print(f"  {table.prefix}1-{table.count}: registers {table.value_registers}.. carry the parameters "
+                      f"whose addresses registers {table.address_registers}.. hold; defaults {list(table.defaults)}")
+    for exception in profile.exceptions:
+        scope = f" on FC {exception.function}" if exception.function else ""
+        console.print(f"  exception {exception.code:02X}{scope}: {exception.explanation}")
+    for bitfield in profile.bitfields.values():
+        states = "; ".join(f"{s.name} (&16#{s.mask:04X} = 16#{s.value:04X})" for s in bitfield.states)
+        console.print(f"  bit field {bitfield.id}: " + ", ".join(f"{b.bit}: {b.name}" for b in bitfield.bits))
+        if states:
+            console.print(f"    states: {states}")
+
+
+def _parameter_table(profile: Profile) -> Table:
+    table = Table(title="parameters", title_justify="left")
+    for header in ("address", "hex", "code", "name", "unit", "scale", "access", "source", "note"):
+        table.add_column(header, overflow="fold")
+    for address, parameter in sorted(profile.parameters.items()):
+        scale = "" if parameter.scale == 1.0 else f"{parameter.scale:g}"
+        kind = f" [{parameter.bitfield}]" if parameter.bitfield else ""
+        table.add_row(str(address), f"16#{address:04X}", parameter.code, parameter.name + kind, parameter.unit or "",
+                      scale + (" signed" if parameter.signed else ""), parameter.access, parameter.source,
+                      parameter.note or "")
+    return table
