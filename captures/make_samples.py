@@ -22,6 +22,8 @@ import random
 import struct
 import sys
 from collections.abc import Callable
+from functools import reduce
+from operator import xor
 from pathlib import Path
 
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
@@ -115,8 +117,74 @@ def atv71_plc_poll() -> list[Transmission]:
     return out
 
 
-def exact(transmissions: list[Transmission]) -> list[Chunk]:
-    return list(exact_chunks(transmissions, LINE, T0_NS))
+def atv312_setup() -> list[Transmission]:
+    """A commissioning PC sets up an Altivar 312 (slave 2) with the ATV312 manual's frames."""
+    frames = manual_frames()
+    rng = random.Random(SEED + 312)
+    out: list[Transmission] = []
+
+    def pair(ask: bytes, answer: bytes | None) -> None:
+        out.append(Transmission(ask, int(rng.uniform(8, 20) * MS)))
+        if answer is not None:
+            out.append(Transmission(answer, int(rng.uniform(2, 6) * MS)))
+
+    pair(frames["B4"], frames["B5"])  # identification: the drive says it is an ATV31...
+    pair(frames["B1"], frames["B2"])  # SFr, tFr, HSP, LSP
+    pair(frames["B3"], frames["B3"])  # ACC = 13 s
+    pair(frames["B6"], frames["B7"])  # the manual's FC 16 pair, with its wrong CRCs
+    pair(with_crc(struct.pack(">BBHH", 2, 3, 3102, 40)), with_crc(bytes.fromhex("028302")))  # 40 > 29 words
+    pair(with_crc(struct.pack(">BBHH", 2, 4, 3102, 2)), with_crc(bytes.fromhex("028401")))  # FC 4 unsupported
+    pair(frames["B1"], frames["B2"])
+    return out
+
+
+def nord_uss() -> list[Transmission]:
+    """A PLC runs a NORD SK drive (address 5) over USS, PPO 1, while a tool writes process data
+    over Modbus RTU to a NORD SK 54xE (slave 8) on the same line (NORD BU 0050)."""
+    rng = random.Random(SEED + 50)
+    out: list[Transmission] = []
+    # STW steps: ready to switch on (047E), switch on (047F), operation (047F + enable); ZSW answers.
+    steps = [(0x047E, 0x0B31), (0x047F, 0x0B33), (0x047F, 0x0B37), (0x047F, 0x0B37)]
+    for cycle, (control, status) in enumerate(steps * 2):
+        setpoint = 0x2000 if cycle > 1 else 0
+        out.append(Transmission(uss_telegram(5, [0x1066, 0, 0, 0, control, setpoint]), int(rng.uniform(30, 40) * MS)))
+        out.append(Transmission(uss_telegram(5, [0x1066, 0, 0, 300, status, setpoint]), int(rng.uniform(2, 8) * MS)))
+        if cycle == 3:
+            frames = manual_frames()
+            out.append(Transmission(frames["N3req"], int(30 * MS)))
+            out.append(Transmission(frames["N3res"], int(4 * MS)))
+    return out
+
+
+def uss_telegram(adr: int, words: list[int]) -> bytes:
+    """STX, LGE, ADR, the words, BCC (XOR of all bytes before it)."""
+    body = bytes([0x02, 2 * len(words) + 2, adr]) + struct.pack(f">{len(words)}H", *words)
+    return body + bytes([reduce(xor, body, 0)])
+
+
+def xbt_hmi() -> list[Transmission]:
+    """A Magelis XBT polls %MW20-24 of the Controller Inside card of an ATV71 (slave 54, the manual's
+    frames), writes %MW100, and retries a terminal (slave 7) that does not answer. 19200 8N1, which
+    the XBT allows 'contrary to the standard'."""
+    frames = manual_frames()
+    rng = random.Random(SEED + 3986)
+    out: list[Transmission] = []
+    write = with_crc(struct.pack(">BBHHB2H", 54, 16, 100, 2, 4, 1234, 0))
+    absent = with_crc(struct.pack(">BBHH", 7, 3, 0, 10))
+    for cycle in range(4):
+        out.append(Transmission(frames["A3"], int(rng.uniform(90, 110) * MS)))
+        out.append(Transmission(frames["A4"], int(rng.uniform(2, 5) * MS)))
+        if cycle == 1:
+            out.append(Transmission(write, int(10 * MS)))
+            out.append(Transmission(with_crc(struct.pack(">BBHH", 54, 16, 100, 2)), int(3 * MS)))
+        if cycle == 2:
+            out.append(Transmission(absent, int(10 * MS)))
+            out.append(Transmission(absent, int(3000 * MS)))  # XBT timeout 30 x 100 ms, then its retry
+    return out
+
+
+def exact(transmissions: list[Transmission], line: LineSettings = LINE) -> list[Chunk]:
+    return list(exact_chunks(transmissions, line, T0_NS))
 
 
 def through_usb_adapter(transmissions: list[Transmission]) -> list[Chunk]:
@@ -124,20 +192,34 @@ def through_usb_adapter(transmissions: list[Transmission]) -> list[Chunk]:
 
 
 POLL_NOTE = "Sample: PLC polling Altivar 71 drives 2, 20, 4, 12 (manual example frames), 19200 8E1, synthetic"
-SAMPLES: dict[str, tuple[Callable[[], list[Chunk]], TimingQuality, str]] = {
-    "atv71-plc-poll": (lambda: exact(atv71_plc_poll()), TimingQuality.EXACT, POLL_NOTE),
+XBT_LINE = LineSettings.parse("19200 8N1")
+SAMPLES: dict[str, tuple[Callable[[], list[Chunk]], TimingQuality, LineSettings, str]] = {
+    "atv71-plc-poll": (lambda: exact(atv71_plc_poll()), TimingQuality.EXACT, LINE, POLL_NOTE),
     "atv71-plc-poll-usb": (
         lambda: through_usb_adapter(atv71_plc_poll()),
         TimingQuality.HOST,
+        LINE,
         POLL_NOTE + ", recorded through a USB adapter (16 ms latency timer, model)",
+    ),
+    "atv312-setup": (
+        lambda: exact(atv312_setup()), TimingQuality.EXACT, LINE,
+        "Sample: a PC sets up an Altivar 312 (slave 2) with the ATV312 manual's frames, 19200 8E1, synthetic",
+    ),
+    "nord-uss": (
+        lambda: exact(nord_uss()), TimingQuality.EXACT, LINE,
+        "Sample: USS (NORD SK, address 5, PPO 1) and Modbus RTU (slave 8) on one line, 19200 8E1, synthetic",
+    ),
+    "xbt-hmi": (
+        lambda: exact(xbt_hmi(), XBT_LINE), TimingQuality.EXACT, XBT_LINE,
+        "Sample: a Magelis XBT polls %MW20-24 on slave 54 and retries an absent slave 7, 19200 8N1, synthetic",
     ),
 }
 
 
 def write_samples(directory: Path) -> list[Path]:
     written = []
-    for name, (build, timing, note) in SAMPLES.items():
-        info = CaptureInfo(LINE, timing, (note, f"generated by captures/make_samples.py, seed {SEED}"))
+    for name, (build, timing, line, note) in SAMPLES.items():
+        info = CaptureInfo(line, timing, (note, f"generated by captures/make_samples.py, seed {SEED}"))
         batch = ChunkBatch.from_chunks(build())
         for suffix in (".log", ".mcap"):
             path = directory / f"{name}{suffix}"

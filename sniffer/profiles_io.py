@@ -56,7 +56,9 @@ def profile_book(choices: list[str], files_: list[str]) -> ProfileBook:
         if not slave_text.isdigit() or not 0 <= int(slave_text) <= 247:
             raise RtuSniffError(ErrorKind.USAGE, f"--profile {choice}: the slave must be a number from 0 to 247")
         per_slave[int(slave_text)] = profile
-    return ProfileBook(default=default, known=known, per_slave=per_slave)
+    # A profile chosen for every slave is the user's word: identification does not override it.
+    chosen_for_all = any("=" not in choice for choice in choices)
+    return ProfileBook(default=default, known=known, per_slave=per_slave, automatic=not chosen_for_all)
 
 
 def _known(known: dict[str, Profile], name: str) -> Profile:

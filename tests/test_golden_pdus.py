@@ -43,6 +43,52 @@ def decoded() -> dict[str, Any]:
     return out
 
 
+PROFILED = ROOT / "tests" / "golden" / "manual-exchanges.profiled.json"
+#: The manuals' exchanges (request, answer), decoded with the profile of their device.
+EXCHANGES = {
+    "atv71": [("A11", "A12"), ("A1", "A2"), ("A3", "A4"), ("A5", "A6"), ("A7", "A7"), ("A8", "A8"), ("A9", "A10"),
+              ("A13", "A14"), ("A15", "A16"), ("A17", "A18"), ("A17", "A19"), ("A17", "A20")],
+    "atv312": [("B4", "B5"), ("B1", "B2"), ("B3", "B3"), ("B6", "B7")],
+    "nord-sk": [("N1r", "N1r"), ("N3req", "N3res")],
+}
+
+
+def profiled() -> dict[str, Any]:
+    from decoders.capture import ChunkBatch, TimingQuality
+    from decoders.line import LineSettings
+    from decoders.pipeline import decode
+    from decoders.synthesis import Transmission, exact_chunks
+    from sniffer.profiles_io import profile_book
+
+    frames = {f["id"]: bytes.fromhex(f["hex"]) for f in load_manual_frames()}
+    line = LineSettings.parse("19200 8E1")
+    out: dict[str, Any] = {}
+    for profile, exchanges in EXCHANGES.items():
+        sequence = [frames[i] for pair in exchanges for i in pair]
+        chunks = list(exact_chunks([Transmission(f, 50_000_000) for f in sequence], line, 0))
+        book = profile_book([profile], [])
+        messages = list(decode([ChunkBatch.from_chunks(chunks)], line, TimingQuality.EXACT, book))
+        ids = [i for pair in exchanges for i in pair]
+        for position, (frame_id, message) in enumerate(zip(ids, messages, strict=True)):
+            out[f"{profile} {position:02d} {frame_id}"] = {
+                "role": message.role.value,
+                "summary": message.summary,
+                "params": [[p.address, p.code, p.raw, p.value, p.unit] for p in message.params],
+                "remarks": list(message.remarks),
+            }
+    return out
+
+
+def test_manual_exchanges_with_profiles_as_golden() -> None:
+    current = profiled()
+    if os.environ.get("RTUSNIFF_REGENERATE_GOLDEN"):
+        PROFILED.write_text(json.dumps(current, indent=1, ensure_ascii=False) + "\n")
+    expected = json.loads(PROFILED.read_text())
+    assert current.keys() == expected.keys()
+    for key in expected:
+        assert current[key] == expected[key], key
+
+
 def test_manual_frames_decode_as_golden() -> None:
     current = decoded()
     if os.environ.get("RTUSNIFF_REGENERATE_GOLDEN"):

@@ -28,7 +28,11 @@ PRODUCT_CODE_OBJECT = 1
 
 @dataclass
 class ProfileBook:
-    """Which profile applies to which slave."""
+    """Which profile applies to which slave.
+
+    ``automatic``: a slave that identifies itself gets the profile its product code
+    names, unless one was chosen for it; off when the user chose one profile for all.
+    """
 
     default: Profile
     known: dict[str, Profile]
@@ -244,9 +248,10 @@ def _addresses(pdu: Pdu | None) -> list[int]:
 
 def _device_remark(device: DeviceIdentity) -> str:
     if device.profile is None:
-        return f"slave {device.slave} is {device.product_code}: no shipped profile matches"
-    verb = "now decoded with" if device.applied else "matches"
-    return f"slave {device.slave} is {device.product_code}: {verb} profile {device.profile}"
+        return f"slave {device.slave} is {device.product_code}: no known profile matches"
+    if device.applied:
+        return f"slave {device.slave} is {device.product_code}: decoded with profile {device.profile}"
+    return f"slave {device.slave} is {device.product_code}: matches profile {device.profile} (another was chosen)"
 
 
 def _summary(summary: str, params: tuple[ParamValue, ...]) -> str:
