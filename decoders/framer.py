@@ -116,6 +116,15 @@ class Framer:
         self._data, self._starts, self._ends = data[kept_from:], starts[kept_from:], ends[kept_from:]
         return self._assemble(data, starts, ends, _Pieces.join(parts))
 
+    def close_idle(self, now_ns: int) -> FrameBatch:
+        """Live capture: the open segment is closed once the line has been quiet for as
+        long as a boundary needs (t3.5, or the host gap), without waiting for a next byte."""
+        if not self._data or now_ns - int(self._ends[-1]) < self._boundary_ns:
+            return self._assemble(b"", self._starts[:0], self._ends[:0], _Pieces.of([]))
+        data, starts, ends = self._data, self._starts, self._ends
+        self._data, self._starts, self._ends = b"", np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return self._assemble(data, starts, ends, _Pieces.of(self._parse(data, 0, len(data), closed=True)))
+
     def flush(self) -> FrameBatch:
         """Everything still held, at the end of the capture."""
         data, starts, ends = self._data, self._starts, self._ends

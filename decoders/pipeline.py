@@ -27,6 +27,10 @@ class Decoder:
     def feed(self, batch: ChunkBatch) -> list[MessageBatch]:
         return [self.matcher.feed(self.framer.feed(batch))]
 
+    def tick(self, now_ns: int) -> list[MessageBatch]:
+        """Live capture: what the passing of time alone completes (idle line, timeouts)."""
+        return [self.matcher.feed(self.framer.close_idle(now_ns)), self.matcher.tick(now_ns)]
+
     def flush(self) -> list[MessageBatch]:
         return [self.matcher.feed(self.framer.flush()), self.matcher.flush()]
 

@@ -20,6 +20,7 @@ class ErrorKind(Enum):
     NO_LINE_SETTINGS = 10
     OUTPUT_FAILED = 11
     BAD_PROFILE = 12
+    PORT_GONE = 13
 
     @property
     def exit_code(self) -> int:

@@ -140,17 +140,30 @@ class Matcher:
         shapes = frame_shapes(frames)
         held.extend(frames, _defaults(frames, shapes))
         self._classify(frames, shapes, first)
+        return self._release()
+
+    def tick(self, now_ns: int) -> MessageBatch:
+        """Live capture: requests whose response timeout has passed by ``now_ns`` are
+        timeouts, and the messages they held back are released."""
+        if self._open.slaves and now_ns > self._deadline():
+            self._expire(now_ns)
+        if self._held.frames is None:
+            return _empty_batch()
+        return self._release()
+
+    def _release(self) -> MessageBatch:
+        """The held messages before the earliest open request."""
         positions = self._open.position
-        earliest = min((positions[s] for s in self._open.slaves), default=len(held))
+        earliest = min((positions[s] for s in self._open.slaves), default=len(self._held))
         for slave in self._open.slaves:
             positions[slave] -= earliest
-        return held.take(earliest)
+        return self._held.take(earliest)
 
     def flush(self) -> MessageBatch:
         """At the end of the capture: requests still open stay without a verdict."""
         self._open = _OpenRequests()
         if self._held.frames is None:
-            self._held.extend(_no_frames(), {name: np.zeros(0, np.int64) for name in _COLUMNS})
+            return _empty_batch()
         return self._held.take(len(self._held))
 
     def _classify(self, frames: FrameBatch, shapes: Shapes, first: int) -> None:
@@ -383,6 +396,12 @@ def _pair_runs(frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp])
         next_break = np.minimum.accumulate(breaks[::-1])[::-1]
         runs[parity::2] = next_break - np.arange(len(starts))
     return runs.tolist()
+
+
+def _empty_batch() -> MessageBatch:
+    held = _Held()
+    held.extend(_no_frames(), {name: np.zeros(0, np.int64) for name in _COLUMNS})
+    return held.take(0)
 
 
 def _no_frames() -> FrameBatch:

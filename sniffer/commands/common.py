@@ -96,10 +96,17 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
     """Open ``args.capture`` and settle how to decode it."""
     book = profile_book(args.profile, args.profile_file)
     reader = open_reader(args.capture, args.input_format)
-    stack.callback(reader.close)
+    stack.callback(close_reader, reader)
     line = apply_char_timing(effective_line(reader.info, line_override(args), args.capture), args)
     analysis = Analysis(line, effective_timing(reader.info, args), response_timeout_ns(args), profiles=book)
     return reader, analysis
+
+
+def close_reader(reader: CaptureReader) -> None:
+    """Close ``reader`` and tell what it found worth a warning (on standard error)."""
+    reader.close()
+    for warning in reader.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
 
 
 def open_output(path: str | None, stack: ExitStack) -> TextIO:

@@ -6,7 +6,7 @@ import argparse
 import os
 from dataclasses import replace
 
-from sniffer.commands.common import add_input_format_option, add_line_options, line_override
+from sniffer.commands.common import add_input_format_option, add_line_options, close_reader, line_override
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.registry import all_formats, open_reader, open_writer
 
@@ -51,5 +51,5 @@ def run(args: argparse.Namespace) -> int:
             raise
         writer.close()
     finally:
-        reader.close()
+        close_reader(reader)
     return 0

@@ -15,6 +15,8 @@ class CaptureReader(Protocol):
     info: CaptureInfo
     #: Notes found after the header; complete once ``batches`` is exhausted.
     late_notes: list[str]
+    #: Things to tell the user once reading is done (e.g. a recording cut short).
+    warnings: list[str]
 
     def batches(self) -> Iterator[ChunkBatch]: ...
 
@@ -28,9 +30,18 @@ class CaptureWriter(Protocol):
 
     def add_notes(self, notes: list[str]) -> None: ...
 
-    def flush(self) -> None: ...
+    def flush(self) -> None:
+        """Make everything written so far durable (on disk)."""
+
+    @property
+    def size(self) -> int:
+        """Bytes written so far."""
+        ...
 
     def close(self) -> None: ...
+
+    def abandon(self) -> None:
+        """Close the file as it is, without closing records (after a failed write)."""
 
 
 @dataclass(frozen=True)

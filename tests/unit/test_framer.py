@@ -111,3 +111,14 @@ def test_every_byte_in_exactly_one_frame() -> None:
     chunks = list(exact_chunks(transmissions, line, T0))
     frames = frame_all(chunks, line, batch_size=7)
     assert b"".join(f.data for f in frames) == b"".join(c.data for c in chunks)
+
+
+def test_close_idle_emits_the_last_frame_once_the_line_is_quiet() -> None:
+    line = LineSettings.parse("19200 8E1")
+    framer = Framer(line)
+    chunks = list(exact_chunks([Transmission(REQUEST, 0)], line, T0))
+    assert len(framer.feed(ChunkBatch.from_chunks(chunks))) == 0
+    end = chunks[-1].t_end_ns
+    assert len(framer.close_idle(end + round(line.t3_5_ns) - 10)) == 0
+    assert [f.data for f in framer.close_idle(end + round(line.t3_5_ns) + 10)] == [REQUEST]
+    assert len(framer.flush()) == 0

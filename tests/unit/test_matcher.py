@@ -197,3 +197,12 @@ def test_latency_window_learned_in_bulk_as_one_by_one() -> None:
         matcher._learn_many(latencies[position : position + size])
         position += size
         assert matcher.timeout_ns == expected[position - 1], position
+
+
+def test_tick_times_out_and_releases_by_the_clock() -> None:
+    matcher = Matcher(response_timeout_ns=100 * MS)
+    frame = Frame(0, 0, MS, READ_2, True, FrameFlag.NONE)
+    assert len(matcher.feed(frames_to_batch([frame]))) == 0  # held: outcome unknown
+    assert len(matcher.tick(50 * MS)) == 0
+    [released] = list(matcher.tick(200 * MS))
+    assert released.flags.names == ["timeout"]

@@ -15,6 +15,7 @@ files whose summary section was never written.
 from __future__ import annotations
 
 import json
+import os
 import struct
 from collections.abc import Iterator
 from importlib.metadata import version
@@ -81,11 +82,16 @@ def _info_metadata(info: CaptureInfo) -> dict[str, str]:
 
 
 class McapCaptureWriter:
-    """Streams blocks of chunks into a zstd-compressed, indexed MCAP file."""
+    """Streams blocks of chunks into a zstd-compressed, indexed MCAP file.
+
+    Every block is its own MCAP chunk, written out at once, so that :meth:`flush`
+    makes everything written so far durable: a recording killed after a flush reads
+    back up to it.
+    """
 
     def __init__(self, path: str, info: CaptureInfo) -> None:
         self._file: BinaryIO = open(path, "wb")  # noqa: SIM115
-        self._writer = Writer(self._file, compression=CompressionType.ZSTD)
+        self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=1)
         self._writer.start(profile=PROFILE, library=f"rtusniff {version('rtusniff')}")
         self._writer.add_metadata(METADATA_NAME, _info_metadata(info))
         self._channel = self._writer.register_channel(
@@ -114,10 +120,22 @@ class McapCaptureWriter:
 
     def flush(self) -> None:
         self._file.flush()
+        os.fsync(self._file.fileno())
+
+    @property
+    def size(self) -> int:
+        """Bytes written so far."""
+        return self._file.tell()
 
     def close(self) -> None:
         self._writer.finish()  # type: ignore[no-untyped-call]
         self._file.close()
+
+    def abandon(self) -> None:
+        try:
+            self._file.close()
+        except OSError:
+            pass
 
 
 def _slice(batch: ChunkBatch, start: int, stop: int) -> ChunkBatch:
@@ -136,8 +154,11 @@ class McapCaptureReader:
         self._file: BinaryIO = open(path, "rb")  # noqa: SIM115
         self._records = StreamReader(self._file).records
         self._channel_ids: set[int] = set()
-        self._pending: Message | None = None
+        self._size = os.fstat(self._file.fileno()).st_size
+        self._good = 0
         self.late_notes: list[str] = []
+        #: Said once reading is done: e.g. a recording that was cut short.
+        self.warnings: list[str] = []
         self.info = self._read_info()
 
     def close(self) -> None:
@@ -150,9 +171,22 @@ class McapCaptureReader:
 
     def _next_records(self) -> Iterator[object]:
         try:
-            yield from self._records
+            for record in self._records:
+                yield record
+                self._good = self._file.tell()
         except (McapError, ValueError, struct.error, EOFError) as exc:
-            raise self._error(f"damaged MCAP: {exc or type(exc).__name__}") from None
+            if self._good == self._size and self._good > 0:
+                # Complete records up to the end, but no summary: a recording that was
+                # killed or lost its disk after its last flush. Everything in it is read.
+                self.warnings.append(
+                    f"{self.path}: recording cut short at byte {self._size} (no closing summary); "
+                    "everything up to its last flush was read"
+                )
+                return
+            raise CaptureFormatError(
+                ErrorKind.BAD_MCAP, f"damaged MCAP: {exc or type(exc).__name__}", path=self.path,
+                location=f"byte {self._good}",
+            ) from None
 
     def _read_info(self) -> CaptureInfo:
         self._iter = self._next_records()

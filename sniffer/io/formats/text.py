@@ -11,6 +11,7 @@ The reader stops at the first error and names the file, the line and the fault.
 
 from __future__ import annotations
 
+import os
 import re
 import sys
 from collections.abc import Iterator
@@ -57,6 +58,7 @@ class TextCaptureReader:
         self._first_data: tuple[int, str] | None = None
         #: Comment lines found among the data lines, known once :meth:`batches` is done.
         self.late_notes: list[str] = []
+        self.warnings: list[str] = []
         self.info = self._read_header()
 
     def close(self) -> None:
@@ -215,11 +217,24 @@ class TextCaptureWriter:
 
     def flush(self) -> None:
         self._stream.flush()
+        if self._stream is not sys.stdout:
+            os.fsync(self._stream.fileno())
+
+    @property
+    def size(self) -> int:
+        """Bytes written so far."""
+        return self._stream.tell() if self._stream is not sys.stdout else 0
 
     def close(self) -> None:
         self.flush()
         if self._stream is not sys.stdout:
             self._stream.close()
+
+    def abandon(self) -> None:
+        try:
+            self._stream.close()
+        except OSError:
+            pass
 
 
 FORMAT = CaptureFormat(

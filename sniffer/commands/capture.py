@@ -1,0 +1,78 @@
+"""``rtusniff capture PORT``: record, decode and view a live RS485 line, passively."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from rich.console import Console
+
+from decoders.line import LineSettings
+from sniffer.commands.common import add_profile_options, add_response_timeout_option, response_timeout_ns
+from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.io.registry import find_format
+from sniffer.line_probe import probe_line
+from sniffer.live_capture import CaptureOptions, run_capture
+from sniffer.profiles_io import profile_book
+from sniffer.recorder import Rotation
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = subparsers.add_parser(
+        "capture",
+        help="record and decode a live serial port (a passive tap: never writes to it)",
+        description="Read a serial port passively (RTS and DTR off, nothing written), record every byte with "
+        "its time, and show the decoded traffic as it happens.",
+    )
+    parser.add_argument("port", help="serial port, e.g. /dev/ttyUSB0 (see 'rtusniff ports')")
+    parser.add_argument("--line", nargs="+", required=True, metavar="SETTING",
+                        help="'BAUD FORMAT' (e.g. --line 19200 8E1), or 'auto' to find them by listening")
+    parser.add_argument("--probe-seconds", type=float, default=1.5,
+                        help="with --line auto: how long to listen per setting (default 1.5)")
+    parser.add_argument("--char-timing", action="store_true", help="as for analyze")
+    parser.add_argument("-o", "--output", help="record to FILE.mcap (native) or FILE.log (text), flushed every second")
+    parser.add_argument("--rotate", help="start a new file after a size (100MB) or a duration (1h): FILE-0001.mcap, …")
+    parser.add_argument("--quiet", action="store_true", help="only record: no decoding, no view")
+    parser.add_argument("--format", choices=["view", "jsonl"], default="view",
+                        help="view: live terminal view (default); jsonl: stream JSON Lines records to stdout")
+    parser.add_argument("--duration", type=float, metavar="SECONDS", help="stop after SECONDS")
+    add_response_timeout_option(parser)
+    add_profile_options(parser)
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    err = Console(stderr=True, highlight=False)
+    if args.output is None and args.quiet:
+        raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: give a file with -o")
+    if args.output is not None:
+        find_format(args.output)
+        if Path(args.output).exists():
+            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; capture never overwrites a recording",
+                                path=args.output)
+    book = profile_book(args.profile, args.profile_file)
+    line = _line(args, err)
+    options = CaptureOptions(
+        port=args.port,
+        line=line,
+        output=args.output,
+        rotation=Rotation.parse(args.rotate) if args.rotate else None,
+        mode="quiet" if args.quiet else args.format,
+        duration_s=args.duration,
+        response_timeout_ns=response_timeout_ns(args),
+        profiles=book,
+    )
+    return run_capture(options, sys.stdout, err)
+
+
+def _line(args: argparse.Namespace, err: Console) -> LineSettings:
+    text = " ".join(args.line)
+    if text.strip().lower() == "auto":
+        line, report = probe_line(args.port, args.probe_seconds)
+        err.print(report)
+        return LineSettings(line.baud, line.data_bits, line.parity, line.stop_bits, args.char_timing)
+    try:
+        return LineSettings.parse(text, char_timing=args.char_timing)
+    except ValueError as exc:
+        raise RtuSniffError(ErrorKind.USAGE, f"--line: {exc}, or 'auto'") from None

@@ -1,0 +1,245 @@
+"""A live capture: reader thread → recorder (every byte) and → decoder and view (when they keep up).
+
+The reader thread only reads, stamps and hands over: to the recorder, which never
+makes it wait, and to a bounded queue for decoding and display. When the view
+falls behind, the queue drops reads for the view only and says how many; the
+recording has every byte.
+"""
+
+from __future__ import annotations
+
+import queue
+import signal
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib.metadata import version
+from types import FrameType
+from typing import TextIO
+
+from rich.console import Console
+from rich.live import Live
+
+from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
+from decoders.line import LineSettings
+from decoders.message import MessageBatch
+from decoders.modbus.annotate import Annotator
+from decoders.pipeline import Decoder
+from decoders.profiles.apply import ProfileApplier, ProfileBook
+from decoders.stats import Statistics
+from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.recorder import Recorder, Rotation
+from sniffer.serial_source import ICOUNT_FIELDS, PortGone, PortStatus, SerialSource
+from sniffer.views.jsonl import JsonlView
+from sniffer.views.live import LiveState, LiveView
+
+VIEW_QUEUE_READS = 1024
+REFRESH_S = 0.25
+READ_TIMEOUT_S = 0.1
+COUNTERS_EVERY_S = 1.0
+INTERRUPTED = 130
+TERMINATED = 143
+
+
+class Terminated(Exception):
+    """SIGTERM arrived."""
+
+
+@dataclass(frozen=True)
+class CaptureOptions:
+    port: str
+    line: LineSettings
+    output: str | None
+    rotation: Rotation | None
+    mode: str  # "view", "jsonl" or "quiet"
+    duration_s: float | None
+    response_timeout_ns: int | None
+    profiles: ProfileBook | None
+
+
+@dataclass
+class _Shared:
+    """What the reader thread tells the main thread."""
+
+    stop: threading.Event
+    reads: queue.Queue[Chunk]
+    behind_reads: int = 0
+    gone: str | None = None
+    failure: BaseException | None = None
+
+
+def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
+    """Capture until Ctrl-C, SIGTERM, the end of ``duration_s`` or the loss of the port."""
+    source = SerialSource(options.port, options.line)
+    status = source.open()
+    recorder = _recorder(options, status)
+    shared = _Shared(threading.Event(), queue.Queue(VIEW_QUEUE_READS))
+    reader = threading.Thread(target=_read, args=(source, recorder, shared, options.mode != "quiet"),
+                              name="rtusniff-reader", daemon=True)
+    previous_term = signal.signal(signal.SIGTERM, _raise_terminated)
+    code = 0
+    session = _Session(options, status, recorder, shared, out)
+    try:
+        if recorder is not None:
+            recorder.start()
+        reader.start()
+        session.run(source)
+    except KeyboardInterrupt:
+        code = INTERRUPTED
+    except Terminated:
+        code = TERMINATED
+    finally:
+        signal.signal(signal.SIGTERM, previous_term)
+        shared.stop.set()
+        reader.join(timeout=2)
+        source.close()
+        if recorder is not None:
+            recorder.stop()
+        session.finish()
+    return _report(code, options, recorder, shared, err)
+
+
+def _recorder(options: CaptureOptions, status: PortStatus) -> Recorder | None:
+    if options.output is None:
+        return None
+    notes = [
+        f"captured from {options.port} by rtusniff {version('rtusniff')} (passive: nothing written to the port)",
+        f"low latency mode: {'on' if status.low_latency else 'not available'}; "
+        f"latency timer: {status.latency_timer_ms if status.latency_timer_ms is not None else 'unknown'} ms",
+    ]
+    return Recorder(options.output, CaptureInfo(options.line, TimingQuality.HOST, tuple(notes)), options.rotation)
+
+
+def _read(source: SerialSource, recorder: Recorder | None, shared: _Shared, decode: bool) -> None:
+    try:
+        while not shared.stop.is_set():
+            chunk = source.read(READ_TIMEOUT_S)
+            if chunk is None:
+                continue
+            if recorder is not None:
+                recorder.add(chunk)
+            if decode:
+                try:
+                    shared.reads.put_nowait(chunk)
+                except queue.Full:
+                    shared.behind_reads += 1
+    except PortGone as exc:
+        shared.gone = str(exc)
+    except BaseException as exc:
+        shared.failure = exc
+    finally:
+        shared.stop.set()
+
+
+def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    raise Terminated
+
+
+class _Session:
+    """The main thread's side: decoding, statistics, the view, the stop conditions."""
+
+    def __init__(self, options: CaptureOptions, status: PortStatus, recorder: Recorder | None,
+                 shared: _Shared, out: TextIO) -> None:
+        self.options, self.recorder, self.shared = options, recorder, shared
+        self.decoder = Decoder(options.line, TimingQuality.HOST, response_timeout_ns=options.response_timeout_ns)
+        applier = ProfileApplier(options.profiles) if options.profiles is not None else None
+        self.annotator = Annotator(applier)
+        self.statistics = Statistics()
+        self.jsonl = JsonlView(out) if options.mode == "jsonl" else None
+        self.state = LiveState(options.port, options.line.format(), options.output,
+                               "timing host (times are when the PC read the bytes)", advice=status.advice())
+        self.view = LiveView(self.state) if options.mode == "view" else None
+        self.out = out
+        self._counters: dict[str, int] | None = None
+
+    def run(self, source: SerialSource) -> None:
+        if self.jsonl is not None:
+            self.jsonl.start(self.options.port, CaptureInfo(self.options.line, TimingQuality.HOST), self.options.line)
+        deadline = None if self.options.duration_s is None else time.monotonic() + self.options.duration_s
+        next_counters = 0.0
+        render: Callable[[], None] = lambda: None  # noqa: E731
+        live = None
+        if self.view is not None:
+            live = Live(self.view.render(self.statistics), console=Console(file=self.out), refresh_per_second=4,
+                        transient=False)
+            live.start()
+            view = self.view
+            render = lambda: live.update(view.render(self.statistics))  # noqa: E731
+        try:
+            while not self.shared.stop.is_set():
+                self._drain(source)
+                if time.monotonic() >= next_counters:
+                    self._check_counters(source)
+                    next_counters = time.monotonic() + COUNTERS_EVERY_S
+                if self.recorder is not None and self.recorder.error is not None:
+                    raise self.recorder.error
+                if deadline is not None and time.monotonic() >= deadline:
+                    break
+                render()
+            self._drain(source)
+        finally:
+            if live is not None:
+                render()
+                live.stop()
+
+    def _drain(self, source: SerialSource) -> None:
+        chunks = []
+        try:
+            chunks.append(self.shared.reads.get(timeout=REFRESH_S))
+            while True:
+                chunks.append(self.shared.reads.get_nowait())
+        except queue.Empty:
+            pass
+        if self.options.mode == "quiet":
+            return
+        if chunks:
+            self._deliver(self.decoder.feed(ChunkBatch.from_chunks(chunks)))
+        self._deliver(self.decoder.tick(source.now_ns()))
+        self.state.behind_reads = self.shared.behind_reads
+        self.state.recorded_bytes = self.recorder.bytes_recorded if self.recorder is not None else 0
+
+    def _deliver(self, batches: list[MessageBatch]) -> None:
+        for batch in batches:
+            self.statistics.add_batch(batch)
+            messages = self.annotator.annotate_all(batch)
+            if self.jsonl is not None:
+                self.jsonl.messages(messages)
+                self.out.flush()
+            if self.view is not None:
+                self.view.add(messages)
+
+    def _check_counters(self, source: SerialSource) -> None:
+        counters = source.counters()
+        if counters is None:
+            return
+        errors: dict[str, int] = {
+            k: counters[k] for k in ("frame", "parity", "overrun", "buf_overrun", "brk") if k in ICOUNT_FIELDS
+        }
+        if self._counters is not None and errors != self._counters:
+            note = "UART error counters: " + ", ".join(f"{k} {v}" for k, v in errors.items())
+            self.state.uart_errors = note.split(": ", 1)[1]
+            if self.recorder is not None:
+                self.recorder.add_note(note)
+        self._counters = errors
+
+    def finish(self) -> None:
+        if self.options.mode == "quiet":
+            return
+        self._deliver(self.decoder.flush())
+        if self.jsonl is not None:
+            self.jsonl.finish(self.statistics)
+
+
+def _report(code: int, options: CaptureOptions, recorder: Recorder | None, shared: _Shared, err: Console) -> int:
+    if recorder is not None:
+        files = ", ".join(recorder.files)
+        err.print(f"recorded {recorder.bytes_recorded:,} bytes to {files}", highlight=False)
+        if recorder.error is not None:
+            raise recorder.error
+    if shared.failure is not None:
+        raise shared.failure
+    if shared.gone is not None:
+        raise RtuSniffError(ErrorKind.PORT_GONE, f"the port went away ({shared.gone}); the recording is closed",
+                            path=options.port)
+    return code

@@ -1,0 +1,146 @@
+"""A passive serial tap: reads a port, never writes to it.
+
+Some RS485 adapters switch their driver on with RTS (or DTR): both are set off
+*before* the port is opened, so that opening it never drives the line. Reads are
+stamped with a monotonic clock mapped once to wall time, in nanoseconds, when the
+read returns: ``host`` timing.
+
+What the driver offers is reported, not required: low-latency mode
+(ASYNC_LOW_LATENCY), the FTDI latency timer (sysfs), and the UART error counters
+(TIOCGICOUNT: framing, parity, overrun).
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import select
+import struct
+import termios
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import serial
+from serial.tools import list_ports
+
+from decoders.capture import Chunk
+from decoders.line import LineSettings, Parity
+from sniffer.errors import ErrorKind, RtuSniffError
+
+READ_SIZE = 65536
+#: Linux TIOCGICOUNT: struct serial_icounter_struct (cts dsr rng dcd rx tx frame overrun parity brk buf_overrun).
+TIOCGICOUNT = getattr(termios, "TIOCGICOUNT", 0x545D)
+_ICOUNT = struct.Struct("11i9i")
+ICOUNT_FIELDS = ("cts", "dsr", "rng", "dcd", "rx", "tx", "frame", "overrun", "parity", "brk", "buf_overrun")
+SLOW_LATENCY_TIMER_MS = 4
+
+_PARITY = {Parity.NONE: serial.PARITY_NONE, Parity.EVEN: serial.PARITY_EVEN, Parity.ODD: serial.PARITY_ODD,
+           Parity.MARK: serial.PARITY_MARK, Parity.SPACE: serial.PARITY_SPACE}  # fmt: skip
+
+
+class PortGone(Exception):
+    """The port vanished (adapter unplugged, pty closed)."""
+
+
+@dataclass(frozen=True)
+class PortStatus:
+    """What the driver let us do and know; ``None`` where it offers nothing."""
+
+    low_latency: bool | None
+    latency_timer_ms: int | None
+    counters_available: bool
+
+    def advice(self) -> str | None:
+        if self.latency_timer_ms is not None and self.latency_timer_ms > SLOW_LATENCY_TIMER_MS:
+            return (f"the adapter's latency timer is {self.latency_timer_ms} ms: bytes reach the PC in bursts; "
+                    "for better times: echo 1 | sudo tee /sys/bus/usb-serial/devices/<tty>/latency_timer")
+        return None
+
+
+class SerialSource:
+    """One port, opened passively; :meth:`read` returns timestamped chunks."""
+
+    def __init__(self, port: str, line: LineSettings) -> None:
+        self.port = port
+        self.line = line
+        self._serial = serial.Serial()
+        self._serial.port = port
+        self._serial.baudrate = line.baud
+        self._serial.bytesize = line.data_bits
+        self._serial.parity = _PARITY[line.parity]
+        self._serial.stopbits = serial.STOPBITS_TWO if line.stop_bits == 2 else serial.STOPBITS_ONE
+        self._serial.timeout = 0
+        # Off before opening: an RS485 adapter that keys its driver on RTS/DTR stays silent.
+        self._serial.rts = False
+        self._serial.dtr = False
+        self._offset_ns = time.time_ns() - time.monotonic_ns()
+
+    def open(self) -> PortStatus:
+        try:
+            self._serial.open()
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise RtuSniffError(ErrorKind.FILE_UNREADABLE, f"cannot open the port: {exc}", path=self.port) from None
+        return PortStatus(self._low_latency(), _latency_timer_ms(self.port), self.counters() is not None)
+
+    @property
+    def rts(self) -> bool:
+        return bool(self._serial.rts)
+
+    @property
+    def dtr(self) -> bool:
+        return bool(self._serial.dtr)
+
+    def _low_latency(self) -> bool | None:
+        try:
+            self._serial.set_low_latency_mode(True)
+        except (OSError, ValueError, AttributeError):
+            return None
+        return True
+
+    def counters(self) -> dict[str, int] | None:
+        """The UART's error counters, where the driver has them."""
+        try:
+            raw = fcntl.ioctl(self._serial.fileno(), TIOCGICOUNT, bytes(_ICOUNT.size))
+        except OSError:
+            return None
+        return dict(zip(ICOUNT_FIELDS, _ICOUNT.unpack(raw)[:11], strict=True))
+
+    def read(self, timeout_s: float) -> Chunk | None:
+        """The bytes that arrived, stamped when the read returned; ``None`` after ``timeout_s``."""
+        fd = self._serial.fileno()
+        try:
+            ready, _, _ = select.select([fd], [], [], timeout_s)
+            if not ready:
+                return None
+            data = os.read(fd, READ_SIZE)
+        except OSError as exc:
+            if exc.errno in (errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF):
+                raise PortGone(f"{exc.strerror}") from None
+            raise
+        stamp = time.monotonic_ns() + self._offset_ns
+        if not data:
+            raise PortGone("end of file")
+        return Chunk(stamp, data)
+
+    def now_ns(self) -> int:
+        """The same clock the chunks are stamped with."""
+        return time.monotonic_ns() + self._offset_ns
+
+    def close(self) -> None:
+        self._serial.close()
+
+
+def _latency_timer_ms(port: str) -> int | None:
+    name = Path(os.path.realpath(port)).name
+    timer = Path("/sys/bus/usb-serial/devices") / name / "latency_timer"
+    try:
+        return int(timer.read_text().strip())
+    except (OSError, ValueError):
+        return None
+
+
+def serial_ports() -> list[tuple[str, str, str]]:
+    """(device, description, hardware id) of every serial port pyserial finds."""
+    return [(p.device, p.description, p.hwid) for p in sorted(list_ports.comports(), key=lambda p: p.device)]
