@@ -30,7 +30,7 @@ from decoders.profiles.apply import ProfileApplier, ProfileBook
 from decoders.stats import Statistics
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.recorder import Recorder, Rotation
-from sniffer.serial_source import ICOUNT_FIELDS, PortGone, PortStatus, SerialSource
+from sniffer.serial_source import ICOUNT_FIELDS, PortGoneError, PortStatus, SerialSource
 from sniffer.views.jsonl import JsonlView
 from sniffer.views.live import LiveState, LiveView
 
@@ -42,7 +42,7 @@ INTERRUPTED = 130
 TERMINATED = 143
 
 
-class Terminated(Exception):
+class TerminatedError(Exception):
     """SIGTERM arrived."""
 
 
@@ -87,7 +87,7 @@ def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
         session.run(source)
     except KeyboardInterrupt:
         code = INTERRUPTED
-    except Terminated:
+    except TerminatedError:
         code = TERMINATED
     finally:
         signal.signal(signal.SIGTERM, previous_term)
@@ -124,7 +124,7 @@ def _read(source: SerialSource, recorder: Recorder | None, shared: _Shared, deco
                     shared.reads.put_nowait(chunk)
                 except queue.Full:
                     shared.behind_reads += 1
-    except PortGone as exc:
+    except PortGoneError as exc:
         shared.gone = str(exc)
     except BaseException as exc:
         shared.failure = exc
@@ -133,7 +133,7 @@ def _read(source: SerialSource, recorder: Recorder | None, shared: _Shared, deco
 
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
-    raise Terminated
+    raise TerminatedError
 
 
 class _Session:

@@ -10,6 +10,7 @@ readable, and stops the recording.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import threading
@@ -137,8 +138,9 @@ class Recorder:
     def _rotation_due(self, writer: CaptureWriter) -> bool:
         if self.rotation is None:
             return False
-        too_big = self.rotation.max_bytes is not None and writer.size >= self.rotation.max_bytes
-        too_old = self.rotation.max_seconds is not None and time.monotonic() - self._opened_at >= self.rotation.max_seconds
+        limits = self.rotation
+        too_big = limits.max_bytes is not None and writer.size >= limits.max_bytes
+        too_old = limits.max_seconds is not None and time.monotonic() - self._opened_at >= limits.max_seconds
         return too_big or too_old
 
     def _fail(self, exc: OSError) -> None:
@@ -150,7 +152,5 @@ class Recorder:
         writer, self._writer = self._writer, None
         if writer is not None:
             writer.abandon()
-        try:
+        with contextlib.suppress(OSError):
             os.truncate(path, self._durable_size)
-        except OSError:
-            pass

@@ -40,7 +40,7 @@ _PARITY = {Parity.NONE: serial.PARITY_NONE, Parity.EVEN: serial.PARITY_EVEN, Par
            Parity.MARK: serial.PARITY_MARK, Parity.SPACE: serial.PARITY_SPACE}  # fmt: skip
 
 
-class PortGone(Exception):
+class PortGoneError(Exception):
     """The port vanished (adapter unplugged, pty closed)."""
 
 
@@ -117,11 +117,11 @@ class SerialSource:
             data = os.read(fd, READ_SIZE)
         except OSError as exc:
             if exc.errno in (errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF):
-                raise PortGone(f"{exc.strerror}") from None
+                raise PortGoneError(f"{exc.strerror}") from None
             raise
         stamp = time.monotonic_ns() + self._offset_ns
         if not data:
-            raise PortGone("end of file")
+            raise PortGoneError("end of file")
         return Chunk(stamp, data)
 
     def now_ns(self) -> int:

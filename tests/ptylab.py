@@ -92,12 +92,15 @@ class Relay:
     master_side: Path
     slave_side: Path
     absent: frozenset[int] = frozenset()
+    #: A third port that gets a copy of every byte, as a passive tap on the line would.
+    copy_to: Path | None = None
     tap: list[tuple[int, bytes]] = field(default_factory=list)
     _stop: threading.Event = field(default_factory=threading.Event)
     _thread: threading.Thread | None = None
 
     def __enter__(self) -> Relay:
         self._ports = [serial.Serial(str(p), 19200, timeout=0) for p in (self.master_side, self.slave_side)]
+        self._copy = serial.Serial(str(self.copy_to), 19200, timeout=0) if self.copy_to else None
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
         return self
@@ -108,6 +111,13 @@ class Relay:
         self._thread.join(timeout=5)
         for port in self._ports:
             port.close()
+        if self._copy is not None:
+            self._copy.close()
+
+    def written_back(self) -> bytes:
+        """Whatever arrived from the tap's side: a passive tap sends nothing."""
+        assert self._copy is not None
+        return bytes(self._copy.read(4096))
 
     def _run(self) -> None:
         fds = {port.fileno(): (port, other) for port, other in zip(self._ports, reversed(self._ports), strict=True)}
@@ -118,6 +128,8 @@ class Relay:
                 data = os.read(fd, 4096)
                 if data:
                     self.tap.append((time.time_ns(), data))
+                    if self._copy is not None:
+                        self._copy.write(data)
                     if not (port is self._ports[0] and data[0] in self.absent):
                         other.write(data)
 

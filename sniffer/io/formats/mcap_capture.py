@@ -14,6 +14,7 @@ files whose summary section was never written.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import struct
@@ -132,10 +133,8 @@ class McapCaptureWriter:
         self._file.close()
 
     def abandon(self) -> None:
-        try:
+        with contextlib.suppress(OSError):
             self._file.close()
-        except OSError:
-            pass
 
 
 def _slice(batch: ChunkBatch, start: int, stop: int) -> ChunkBatch:

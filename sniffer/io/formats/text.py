@@ -11,6 +11,7 @@ The reader stops at the first error and names the file, the line and the fault.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import sys
@@ -231,10 +232,8 @@ class TextCaptureWriter:
             self._stream.close()
 
     def abandon(self) -> None:
-        try:
+        with contextlib.suppress(OSError):
             self._stream.close()
-        except OSError:
-            pass
 
 
 FORMAT = CaptureFormat(

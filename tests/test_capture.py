@@ -1,0 +1,261 @@
+"""``rtusniff capture`` on pseudo-terminals: a real master and slave, signals, crashes, a vanishing port."""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import serial
+
+from decoders.line import LineSettings
+from sniffer.serial_source import SerialSource
+from tests.ptylab import SOCAT, Relay, pty_pair, pymodbus_slave
+
+pytestmark = pytest.mark.skipif(SOCAT is None, reason="needs socat (apt-get install socat; .ci/run installs it)")
+REQUEST = bytes.fromhex("02030C1E0004276C")
+RESPONSE = bytes.fromhex("0203080028025801F4000052B0")
+
+
+def start_capture(port: Path, *args: str, **kwargs: Any) -> subprocess.Popen[str]:
+    process = subprocess.Popen(
+        [sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1", *args],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs,
+    )
+    time.sleep(1.0)  # the interpreter starts and opens the port
+    assert process.poll() is None, process.stderr.read() if process.stderr else ""
+    return process
+
+
+def analyze(path: Path) -> tuple[int, list[dict[str, Any]], str]:
+    result = subprocess.run([sys.executable, "-m", "sniffer", "analyze", str(path), "--format", "jsonl"],
+                            capture_output=True, text=True, check=False)
+    return result.returncode, [json.loads(line) for line in result.stdout.splitlines()], result.stderr
+
+
+def frames_of(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [r for r in records if r["kind"] == "frame"]
+
+
+@pytest.fixture
+def line_tap(tmp_path: Path) -> Iterator[tuple[Path, Path, subprocess.Popen[bytes]]]:
+    """A pty pair: write frames at ``a`` as the line; capture reads ``b``."""
+    with pty_pair(tmp_path, "line") as pair:
+        yield pair.a, pair.b, pair.process
+
+
+def send_exchanges(port: Path, count: int, pause_s: float = 0.05, stop: Any = None) -> None:
+    with serial.Serial(str(port), 19200, timeout=0) as line:
+        for _ in range(count):
+            if stop is not None and stop.is_set():
+                return
+            line.write(REQUEST)
+            time.sleep(0.004)
+            line.write(RESPONSE)
+            time.sleep(pause_s)
+
+
+def test_real_master_and_slave_decoded_live_and_recorded(tmp_path: Path) -> None:
+    from pymodbus import FramerType
+    from pymodbus.client import ModbusSerialClient
+
+    from tests.test_pty_pymodbus import check_answer, check_request, run_operations
+
+    recording = tmp_path / "live.mcap"
+    with pty_pair(tmp_path, "master") as to_master, pty_pair(tmp_path, "slave") as to_slave, \
+            pty_pair(tmp_path, "tap") as tap:
+        capture = start_capture(tap.b, "-o", str(recording), "--format", "jsonl")
+        with pymodbus_slave(to_slave.b), Relay(to_master.b, to_slave.a, absent=frozenset({9}),
+                                               copy_to=tap.a) as relay:
+            client = ModbusSerialClient(str(to_master.a), framer=FramerType.RTU, baudrate=19200, parity="N",
+                                        timeout=0.3, retries=0)
+            assert client.connect()
+            operations = run_operations(client)
+            client.close()
+            time.sleep(1.5)
+            capture.send_signal(signal.SIGINT)
+            out, err = capture.communicate(timeout=15)
+            assert relay.written_back() == b""  # passive: nothing came back from the capture's port
+    assert capture.returncode == 130, err
+    assert "recorded" in err and str(recording) in err
+    live = [json.loads(line) for line in out.splitlines()]
+    code, recorded, warnings = analyze(recording)
+    assert code == 0 and not warnings
+    for records in (live, recorded):
+        frames = frames_of(records)
+        requests = [f for f in frames if f["role"] == "request"]
+        assert [(r["slave"], r["function"]) for r in requests] == [(op["slave"], op["function"]) for op in operations]
+        answers = {f["request_index"]: f for f in frames if f["request_index"] is not None}
+        for op, request in zip(operations, requests, strict=True):
+            check_request(op, request)
+            if op.get("no_response"):
+                assert "timeout" in request["flags"]
+            elif "exception" in op:
+                assert answers[request["index"]]["exception_code"] == op["exception"]
+            else:
+                check_answer(op, answers[request["index"]])
+    assert live[-1]["kind"] == "summary"
+
+
+def test_passive_open_keeps_rts_and_dtr_off(line_tap: tuple[Path, Path, Any]) -> None:
+    _, port, _ = line_tap
+    source = SerialSource(str(port), LineSettings.parse("19200 8N1"))
+    source.open()
+    try:
+        assert (source.rts, source.dtr) == (False, False)
+    finally:
+        source.close()
+
+
+def test_sigterm_closes_the_recording(tmp_path: Path, line_tap: tuple[Path, Path, Any]) -> None:
+    line, port, _ = line_tap
+    recording = tmp_path / "term.log"
+    capture = start_capture(port, "-o", str(recording), "--quiet")
+    send_exchanges(line, 10)
+    time.sleep(0.5)
+    capture.send_signal(signal.SIGTERM)
+    _, err = capture.communicate(timeout=15)
+    assert capture.returncode == 143, err
+    code, records, _ = analyze(recording)
+    assert code == 0
+    assert len([f for f in frames_of(records) if f["crc_ok"]]) == 20
+
+
+def test_kill_9_keeps_everything_before_the_last_flush(tmp_path: Path, line_tap: tuple[Path, Path, Any]) -> None:
+    line, port, _ = line_tap
+    recording = tmp_path / "crash.mcap"
+    capture = start_capture(port, "-o", str(recording), "--quiet")
+    send_exchanges(line, 10)
+    time.sleep(2.5)  # at least two flushes after the last byte
+    capture.kill()
+    capture.wait(timeout=10)
+    code, records, warnings = analyze(recording)
+    assert code == 0, warnings
+    assert "recording cut short" in warnings
+    assert len([f for f in frames_of(records) if f["crc_ok"]]) == 20
+
+
+def test_port_vanishing_ends_the_capture_cleanly(tmp_path: Path) -> None:
+    recording = tmp_path / "gone.mcap"
+    with pty_pair(tmp_path, "usb") as pair:
+        capture = start_capture(pair.b, "-o", str(recording), "--quiet")
+        send_exchanges(pair.a, 5)
+        time.sleep(0.5)
+        pair.process.kill()  # the adapter is unplugged
+        _, err = capture.communicate(timeout=15)
+    assert capture.returncode == 13, err
+    assert "the port went away" in err and err.count("error:") == 1 and "Traceback" not in err
+    code, records, warnings = analyze(recording)
+    assert code == 0 and not warnings  # closed properly
+    assert len([f for f in frames_of(records) if f["crc_ok"]]) == 10
+
+
+def test_full_disk_keeps_a_readable_recording(tmp_path: Path, line_tap: tuple[Path, Path, Any]) -> None:
+    line, port, _ = line_tap
+    recording = tmp_path / "full.mcap"
+
+    def small_disk() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (3000, 3000))
+
+    capture = start_capture(port, "-o", str(recording), "--quiet", "--duration", "20", preexec_fn=small_disk)
+    send_exchanges(line, 5)
+    time.sleep(1.5)  # a flush with valid frames in it
+    with serial.Serial(str(line), 19200, timeout=0) as writer:
+        for _ in range(30):
+            writer.write(os.urandom(200))  # bytes that do not compress: the "disk" fills up
+            time.sleep(0.1)
+    _, err = capture.communicate(timeout=30)
+    assert capture.returncode == 11, err
+    assert "writing failed" in err and "kept up to its last flush" in err
+    code, records, warnings = analyze(recording)
+    assert code == 0 and "recording cut short" in warnings
+    assert len([f for f in frames_of(records) if f["crc_ok"]]) >= 10
+    assert recording.stat().st_size <= 3000
+
+
+def test_rotation_by_duration(tmp_path: Path, line_tap: tuple[Path, Path, Any]) -> None:
+    line, port, _ = line_tap
+    capture = start_capture(port, "-o", str(tmp_path / "rot.log"), "--quiet", "--rotate", "1s")
+    for _ in range(4):
+        send_exchanges(line, 5)
+        time.sleep(0.6)
+    capture.send_signal(signal.SIGINT)
+    _, err = capture.communicate(timeout=15)
+    files = sorted(tmp_path.glob("rot-*.log"))
+    assert len(files) >= 2, err
+    total = 0
+    for path in files:
+        code, records, _ = analyze(path)
+        assert code == 0
+        total += sum(len(f["hex"]) // 2 for f in frames_of(records))
+    assert total == 20 * (len(REQUEST) + len(RESPONSE))
+
+
+def test_line_auto_finds_the_settings(tmp_path: Path, line_tap: tuple[Path, Path, Any]) -> None:
+    line, port, _ = line_tap
+    import threading
+
+    stop = threading.Event()
+    sender = threading.Thread(target=send_exchanges, args=(line, 400, 0.02, stop), daemon=True)
+    sender.start()
+    try:
+        result = subprocess.run(
+            [sys.executable, "-m", "sniffer", "capture", str(port), "--line", "auto", "--probe-seconds", "0.4",
+             "--duration", "1", "-o", str(tmp_path / "auto.log"), "--quiet"],
+            capture_output=True, text=True, check=False, timeout=60,
+        )
+    finally:
+        stop.set()
+        sender.join(timeout=5)
+    assert result.returncode == 0, result.stderr
+    # Pseudo-terminals ignore baud rate and parity: every setting hears valid frames, and the
+    # most common one wins the tie.
+    assert "line 19200 8E1 chosen (sure): 100% of" in result.stderr
+    code, records, _ = analyze(tmp_path / "auto.log")
+    assert code == 0 and frames_of(records)
+
+
+def test_capture_refuses_to_overwrite(tmp_path: Path, line_tap: tuple[Path, Path, Any]) -> None:
+    _, port, _ = line_tap
+    existing = tmp_path / "old.mcap"
+    existing.write_bytes(b"precious")
+    result = subprocess.run([sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1",
+                             "-o", str(existing)], capture_output=True, text=True, check=False)
+    assert result.returncode == 11 and "never overwrites" in result.stderr
+    assert existing.read_bytes() == b"precious"
+    missing = subprocess.run([sys.executable, "-m", "sniffer", "capture", "/dev/ttyNOPE", "--line", "19200", "8N1"],
+                             capture_output=True, text=True, check=False)
+    assert missing.returncode == 4 and "cannot open the port" in missing.stderr
+    assert os.path.exists(port)
+
+
+def test_live_view_shows_slaves_and_frames(tmp_path: Path, line_tap: tuple[Path, Path, Any]) -> None:
+    line, port, _ = line_tap
+    capture = start_capture(port, "--duration", "3", "--profile", "atv71", env={**os.environ, "COLUMNS": "160"})
+    send_exchanges(line, 10)
+    out, err = capture.communicate(timeout=20)
+    assert capture.returncode == 0, err
+    assert "per slave" in out and "recent frames" in out
+    assert "SFr = 4.0 kHz, tFr = 60.0 Hz" in out
+    assert "timing host" in out
+
+
+def test_rotation_and_port_listing_options(cli: Any) -> None:
+    from sniffer.recorder import Rotation, rotated_path
+
+    assert Rotation.parse("100MB") == Rotation(max_bytes=100_000_000)
+    assert Rotation.parse("1.5h") == Rotation(max_seconds=5400.0)
+    assert rotated_path("/x/cap.mcap", 3) == "/x/cap-0003.mcap"
+    bad = cli("capture", "/dev/null", "--line", "19200", "8N1", "-o", "/tmp/x.mcap", "--rotate", "soon")
+    assert bad.code == 2 and "give a size (100MB, 1GB) or a duration" in bad.err
+    listed = cli("ports")
+    assert listed.code == 0
