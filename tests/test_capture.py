@@ -64,10 +64,7 @@ def send_exchanges(port: Path, count: int, pause_s: float = 0.05, stop: Any = No
 
 
 def test_real_master_and_slave_decoded_live_and_recorded(tmp_path: Path) -> None:
-    from pymodbus import FramerType
-    from pymodbus.client import ModbusSerialClient
-
-    from tests.test_pty_pymodbus import check_answer, check_request, run_operations
+    from tests.test_pty_pymodbus import assert_session_decoded, run_master
 
     recording = tmp_path / "live.mcap"
     with pty_pair(tmp_path, "master") as to_master, pty_pair(tmp_path, "slave") as to_slave, \
@@ -75,11 +72,7 @@ def test_real_master_and_slave_decoded_live_and_recorded(tmp_path: Path) -> None
         capture = start_capture(tap.b, "-o", str(recording), "--format", "jsonl")
         with pymodbus_slave(to_slave.b), Relay(to_master.b, to_slave.a, absent=frozenset({9}),
                                                copy_to=tap.a) as relay:
-            client = ModbusSerialClient(str(to_master.a), framer=FramerType.RTU, baudrate=19200, parity="N",
-                                        timeout=0.3, retries=0)
-            assert client.connect()
-            operations = run_operations(client)
-            client.close()
+            operations = run_master(to_master.a)
             time.sleep(1.5)
             capture.send_signal(signal.SIGINT)
             out, err = capture.communicate(timeout=15)
@@ -90,18 +83,7 @@ def test_real_master_and_slave_decoded_live_and_recorded(tmp_path: Path) -> None
     code, recorded, warnings = analyze(recording)
     assert code == 0 and not warnings
     for records in (live, recorded):
-        frames = frames_of(records)
-        requests = [f for f in frames if f["role"] == "request"]
-        assert [(r["slave"], r["function"]) for r in requests] == [(op["slave"], op["function"]) for op in operations]
-        answers = {f["request_index"]: f for f in frames if f["request_index"] is not None}
-        for op, request in zip(operations, requests, strict=True):
-            check_request(op, request)
-            if op.get("no_response"):
-                assert "timeout" in request["flags"]
-            elif "exception" in op:
-                assert answers[request["index"]]["exception_code"] == op["exception"]
-            else:
-                check_answer(op, answers[request["index"]])
+        assert_session_decoded(operations, records)
     assert live[-1]["kind"] == "summary"
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -79,24 +80,22 @@ def profiled() -> dict[str, Any]:
     return out
 
 
-def test_manual_exchanges_with_profiles_as_golden() -> None:
-    current = profiled()
+def check_golden(path: Path, current: dict[str, Any]) -> None:
+    """``current`` equals the golden file, entry by entry (regenerated on request)."""
     if os.environ.get("RTUSNIFF_REGENERATE_GOLDEN"):
-        PROFILED.write_text(json.dumps(current, indent=1, ensure_ascii=False) + "\n")
-    expected = json.loads(PROFILED.read_text())
+        path.write_text(json.dumps(current, indent=1, ensure_ascii=False) + "\n")
+    expected = json.loads(path.read_text())
     assert current.keys() == expected.keys()
     for key in expected:
         assert current[key] == expected[key], key
+
+
+def test_manual_exchanges_with_profiles_as_golden() -> None:
+    check_golden(PROFILED, profiled())
 
 
 def test_manual_frames_decode_as_golden() -> None:
-    current = decoded()
-    if os.environ.get("RTUSNIFF_REGENERATE_GOLDEN"):
-        GOLDEN.write_text(json.dumps(current, indent=1, ensure_ascii=False) + "\n")
-    expected = json.loads(GOLDEN.read_text())
-    assert current.keys() == expected.keys()
-    for key in expected:
-        assert current[key] == expected[key], key
+    check_golden(GOLDEN, decoded())
 
 
 @pytest.mark.parametrize(

@@ -18,17 +18,10 @@ pytestmark = pytest.mark.skipif(SOCAT is None, reason="needs socat (apt-get inst
 @pytest.fixture(scope="module")
 def session(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Run a master session through the relay; return what was asked/answered and the decoded records."""
-    from pymodbus import FramerType
-    from pymodbus.client import ModbusSerialClient
-
     directory = tmp_path_factory.mktemp("pty")
     with pty_pair(directory, "master") as to_master, pty_pair(directory, "slave") as to_slave:
         with pymodbus_slave(to_slave.b), Relay(to_master.b, to_slave.a, absent=frozenset({9})) as relay:
-            client = ModbusSerialClient(str(to_master.a), framer=FramerType.RTU, baudrate=19200, parity="N",
-                                        timeout=0.3, retries=0)
-            assert client.connect()
-            operations = run_operations(client)
-            client.close()
+            operations = run_master(to_master.a)
             time.sleep(0.2)
         capture = directory / "session.log"
         write_text_capture(capture, relay.tap, "pymodbus master and slave over ptys, copied by a relay")
@@ -42,6 +35,20 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[dict[str, An
         assert main(["analyze", str(capture), "--format", "jsonl"]) == 0
     records = [json.loads(line) for line in out.getvalue().splitlines()]
     return operations, records
+
+
+def run_master(port: Path) -> list[dict[str, Any]]:
+    """A pymodbus master runs its session on ``port``; returns what it asked and got."""
+    from pymodbus import FramerType
+    from pymodbus.client import ModbusSerialClient
+
+    client = ModbusSerialClient(str(port), framer=FramerType.RTU, baudrate=19200, parity="N", timeout=0.3,
+                                retries=0)
+    assert client.connect()
+    try:
+        return run_operations(client)
+    finally:
+        client.close()
 
 
 def run_operations(client: Any) -> list[dict[str, Any]]:
@@ -88,6 +95,11 @@ def run_operations(client: Any) -> list[dict[str, Any]]:
 
 def test_every_exchange_is_decoded_and_paired(session: tuple[list[dict[str, Any]], list[dict[str, Any]]]) -> None:
     operations, records = session
+    assert_session_decoded(operations, records)
+
+
+def assert_session_decoded(operations: list[dict[str, Any]], records: list[dict[str, Any]]) -> None:
+    """Every request of the master's session decoded, paired and with the values pymodbus saw."""
     frames = [r for r in records if r["kind"] == "frame"]
     assert all(f["crc_ok"] and f["role"] != "noise" for f in frames), [f for f in frames if not f["crc_ok"]]
     requests = [f for f in frames if f["role"] == "request"]
