@@ -184,9 +184,10 @@ class _Session:
                 live.stop()
 
     def _drain(self, source: SerialSource) -> None:
+        """Once per refresh interval: decode everything read since, in one batch."""
+        self.shared.stop.wait(REFRESH_S)
         chunks = []
         try:
-            chunks.append(self.shared.reads.get(timeout=REFRESH_S))
             while True:
                 chunks.append(self.shared.reads.get_nowait())
         except queue.Empty:

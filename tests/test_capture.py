@@ -241,3 +241,12 @@ def test_rotation_and_port_listing_options(cli: Any) -> None:
     assert bad.code == 2 and "give a size (100MB, 1GB) or a duration" in bad.err
     listed = cli("ports")
     assert listed.code == 0
+
+
+def test_latency_timer_advice() -> None:
+    from sniffer.serial_source import PortStatus
+
+    assert PortStatus(True, 16, False).advice() is not None
+    assert "latency timer is 16 ms" in (PortStatus(True, 16, False).advice() or "")
+    assert PortStatus(True, 1, False).advice() is None
+    assert PortStatus(None, None, False).advice() is None
