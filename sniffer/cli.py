@@ -11,10 +11,10 @@ import sys
 from collections.abc import Sequence
 from importlib.metadata import version
 
-from sniffer.commands import analyze, capture, convert, ports, profiles, stats
+from sniffer.commands import analyze, capture, convert, export, ports, profiles, stats
 from sniffer.errors import ErrorKind, RtuSniffError
 
-COMMANDS = [analyze, stats, capture, ports, convert, profiles]
+COMMANDS = [analyze, stats, export, capture, ports, convert, profiles]
 INTERRUPTED_EXIT = 130
 
 

@@ -6,7 +6,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Protocol
 
-from decoders.capture import CaptureInfo, TimingQuality
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from decoders.message import Message, MessageBatch
 from decoders.modbus.annotate import Annotator
@@ -53,8 +53,15 @@ class Analysis:
     profiles: ProfileBook | None = None
 
 
-def analyze(reader: CaptureReader, source: str, analysis: Analysis, view: MessageView) -> Statistics:
-    """Decode every batch of ``reader`` into ``view``, streaming; statistics cover all frames."""
+def analyze(
+    reader: CaptureReader,
+    source: str,
+    analysis: Analysis,
+    view: MessageView,
+    raw: Callable[[ChunkBatch], None] | None = None,
+) -> Statistics:
+    """Decode every batch of ``reader`` into ``view``, streaming; statistics cover all frames.
+    ``raw`` gets the chunks as they are read (exports keep them)."""
     decoder = Decoder(analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns)
     applier = ProfileApplier(analysis.profiles) if analysis.profiles is not None else None
     annotator = Annotator(applier) if view.wants_messages else None
@@ -69,6 +76,8 @@ def analyze(reader: CaptureReader, source: str, analysis: Analysis, view: Messag
                 view.messages(messages if analysis.keep is None else [m for m in messages if analysis.keep(m)])
 
     for chunks in reader.batches():
+        if raw is not None:
+            raw(chunks)
         deliver(decoder.feed(chunks))
     deliver(decoder.flush())
     view.finish(statistics)

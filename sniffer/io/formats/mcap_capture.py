@@ -100,6 +100,11 @@ class McapCaptureWriter:
         )
         self._sequence = 0
 
+    @property
+    def writer(self) -> Writer:
+        """The MCAP writer, for exports that add channels beside the raw chunks."""
+        return self._writer
+
     def write_batch(self, batch: ChunkBatch) -> None:
         for start in range(0, len(batch), BLOCK_CHUNKS):
             self._write_block(_slice(batch, start, start + BLOCK_CHUNKS))

@@ -1,0 +1,132 @@
+"""Exports read back with the real libraries: the mcap reader, the rerun CLI and Rerun's reader."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+from collections import Counter
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mcap.reader import make_reader
+
+from tests.conftest import SAMPLE_LOG, CliResult
+
+Cli = Callable[..., CliResult]
+RERUN = shutil.which("rerun") or str(Path(os.sys.executable).with_name("rerun"))  # type: ignore[attr-defined]
+QUIET_RERUN = {**os.environ, "CI": "1"}  # the rerun CLI writes no analytics files with CI set
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    from sniffer.cli import main
+
+    folder = tmp_path_factory.mktemp("export")
+    mcap, rrd = folder / "poll.mcap", folder / "poll.rrd"
+    os.environ.setdefault("CI", "1")
+    assert main(["export", str(SAMPLE_LOG), "--mcap", str(mcap), "--rrd", str(rrd), "--profile", "atv71"]) == 0
+    return mcap, rrd
+
+
+def messages(path: Path, topic: str) -> list[dict[str, Any]]:
+    with path.open("rb") as f:
+        return [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(topics=[topic])]
+
+
+def test_mcap_channels_schemas_and_metadata(exported: tuple[Path, Path]) -> None:
+    mcap, _ = exported
+    with mcap.open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None and summary.statistics is not None
+        topics = {c.topic: c for c in summary.channels.values()}
+        counts = {topics_id.topic: summary.statistics.channel_message_counts[cid]
+                  for cid, topics_id in summary.channels.items()}
+        schemas = {s.id: s for s in summary.schemas.values()}
+        assert schemas[topics["/modbus/log"].schema_id].name == "foxglove.Log"
+        assert schemas[topics["/modbus/log"].schema_id].encoding == "jsonschema"
+        assert summary.chunk_indexes and all(c.compression == "zstd" for c in summary.chunk_indexes)
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert counts["/modbus/frames"] == counts["/modbus/log"] == 52
+    assert {"/slave/2/params", "/slave/12/params", "/slave/20/params", "/rtusniff/raw_chunks"} <= set(topics)
+    export = metadata["rtusniff.export"]
+    assert export["source_sha256"] == hashlib.sha256(SAMPLE_LOG.read_bytes()).hexdigest()
+    assert (export["line"], export["timing"], export["profiles"]) == ("19200 8E1", "exact", "default atv71")
+    assert export["tool"].startswith("rtusniff ") and "export" in export["command"]
+    assert metadata["rtusniff.capture"]["line"] == "19200 8E1"
+
+
+def test_mcap_values_transactions_and_log_levels(exported: tuple[Path, Path]) -> None:
+    mcap, _ = exported
+    params = messages(mcap, "/slave/2/params")
+    assert {"SFr": 4.0, "tFr": 60.0, "HSP": 50.0, "LSP": 0.0}.items() <= params[0].items()
+    scanner = messages(mcap, "/slave/20/params")
+    assert any(p.get("NM2→RFRD") == 5000 for p in scanner)
+    outcomes = Counter(t["outcome"] for t in messages(mcap, "/modbus/transactions"))
+    # 21 responses, one with a CRC error; drive 3's 4 unanswered requests; 2 exceptions.
+    assert outcomes == {"answered": 20, "crc_error": 1, "timeout": 4, "exception": 2}
+    answered = [t for t in messages(mcap, "/modbus/transactions") if t["outcome"] == "answered"]
+    assert all(t["latency_ms"] > 0 and t["answer"] for t in answered)
+    levels = Counter(entry["level"] for entry in messages(mcap, "/modbus/log"))
+    assert levels[4] == 1 + 4 + 2  # CRC error, timeouts, exceptions
+    assert levels[3] >= 1 + 1 + 1  # gap_1_5, short_idle, noise
+    frames = messages(mcap, "/modbus/frames")
+    assert frames[7]["summary"].endswith("HSP = 50.0 Hz, LSP = 0.0 Hz")
+
+
+def test_rerun_checks_the_mcap(exported: tuple[Path, Path]) -> None:
+    mcap, _ = exported
+    result = subprocess.run([RERUN, "mcap", "check", str(mcap)], capture_output=True, text=True,
+                            env=QUIET_RERUN, check=False, timeout=120)
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_analyze_of_the_export_equals_analyze_of_the_capture(exported: tuple[Path, Path], cli: Cli) -> None:
+    mcap, _ = exported
+    original = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl").jsonl()
+    again = cli("analyze", str(mcap), "--format", "jsonl").jsonl()
+    assert again[1:] == original[1:]  # all but the capture record, which names the file
+
+
+def test_rerun_recording_read_back(exported: tuple[Path, Path], cli: Cli) -> None:
+    import rerun as rr
+
+    _, rrd = exported
+    frames = [r for r in cli("analyze", str(SAMPLE_LOG), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
+    rows: Counter[str] = Counter()
+    values: dict[str, list[float]] = {}
+    timelines: set[str] = set()
+    for chunk in rr.chunk.RrdReader(str(rrd)).stream().to_chunks():
+        if not chunk.timeline_names:
+            continue  # static: the series' name and style
+        rows[chunk.entity_path] += chunk.num_rows
+        timelines.update(chunk.timeline_names)
+        batch = chunk.to_record_batch()
+        if "Scalars:scalars" in batch.schema.names:
+            values.setdefault(chunk.entity_path, []).extend(
+                v[0] for v in batch.column("Scalars:scalars").to_pylist() if v)
+    assert {"capture_time", "frame"} <= timelines
+    assert values["/slaves/2/params/HSP"][0] == 50.0
+    assert values["/slaves/20/params/NM2_RFRD"][0] == 5000.0
+    assert rows["/slaves/2/log"] == sum(1 for f in frames if f["slave"] == 2)
+    assert rows["/slaves/3/errors/timeout"] == 4
+    assert rows["/slaves/12/errors/exception"] == 1
+    assert any(path.startswith("/slaves/20/state/") for path in rows)
+    assert rows["/bus/load_percent"] >= 1
+    verify = subprocess.run([RERUN, "rrd", "verify", str(rrd)], capture_output=True, text=True,
+                            env=QUIET_RERUN, check=False, timeout=120)
+    assert verify.returncode == 0, verify.stdout + verify.stderr
+
+
+def test_export_options(cli: Cli, tmp_path: Path) -> None:
+    nothing = cli("export", str(SAMPLE_LOG))
+    assert nothing.code == 2 and "give --mcap OUT.mcap, --rrd OUT.rrd or --spawn" in nothing.err
+    existing = tmp_path / "x.mcap"
+    existing.write_bytes(b"keep")
+    refused = cli("export", str(SAMPLE_LOG), "--mcap", str(existing))
+    assert refused.code == 11 and existing.read_bytes() == b"keep"
