@@ -33,6 +33,7 @@ from sniffer.io.formats.mcap_capture import McapCaptureWriter
 from sniffer.views.records import frame_record
 
 KEPT_REQUESTS = 4096
+CHUNK_SIZE = 1 << 20
 LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "error": 4}
 ERROR_FLAGS = FrameFlag.TIMEOUT
 WARNING_FLAGS = FrameFlag.GAP_1_5 | FrameFlag.SHORT_IDLE | FrameFlag.RETRY | FrameFlag.UNEXPECTED
@@ -117,7 +118,7 @@ class McapExporter:
     """Writes the decoded channels next to the raw chunks of the native capture format."""
 
     def __init__(self, path: str, info: CaptureInfo, line: LineSettings, metadata: dict[str, str]) -> None:
-        self._capture = McapCaptureWriter(path, info)
+        self._capture = McapCaptureWriter(path, info, chunk_size=CHUNK_SIZE)
         self._writer = self._capture.writer
         self._writer.add_metadata("rtusniff.export", {
             **metadata, "line": line.format(), "timing": info.timing.value, "tool": f"rtusniff {version('rtusniff')}",

@@ -27,6 +27,7 @@ from sniffer.exports.mcap_export import log_level
 
 APPLICATION = "rtusniff"
 FLUSH_ROWS = 200_000
+MAX_UNNAMED_SERIES = 64
 SECOND_NS = 1_000_000_000
 _LEVEL_NAMES = {1: "DEBUG", 2: "INFO", 3: "WARN", 4: "ERROR"}
 
@@ -58,6 +59,7 @@ class RerunExporter:
         self._series: dict[str, str] = {}
         self._states: dict[str, str] = {}
         self._slaves: set[int] = set()
+        self._unnamed: dict[int, set[int]] = {}
         self._second: int | None = None
         self._wire_ns = 0
         self._errors = 0
@@ -86,6 +88,8 @@ class RerunExporter:
             if param.raw is None:
                 continue
             code = param.code or str(param.address)
+            if param.code is None and not self._may_plot(message.slave, param.address):
+                continue
             if isinstance(param.value, int | float):
                 self._scalar(f"{base}/params/{_path(code)}", t, index, float(param.value),
                              f"{code} ({param.unit})" if param.unit else code)
@@ -98,6 +102,17 @@ class RerunExporter:
                                ("exception", message.role is Role.EXCEPTION)):
             if happened:
                 self._scalar(f"{base}/errors/{kind}", t, index, 1.0, f"{kind} errors", points=True)
+
+    def _may_plot(self, slave: int, address: int) -> bool:
+        """Registers without a name are plotted for the first ``MAX_UNNAMED_SERIES`` addresses
+        of a slave: a capture that reads thousands of addresses would drown the viewer."""
+        seen = self._unnamed.setdefault(slave, set())
+        if address in seen:
+            return True
+        if len(seen) >= MAX_UNNAMED_SERIES:
+            return False
+        seen.add(address)
+        return True
 
     def _bus(self, message: Message) -> None:
         frame = message.frame

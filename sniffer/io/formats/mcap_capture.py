@@ -90,9 +90,11 @@ class McapCaptureWriter:
     back up to it.
     """
 
-    def __init__(self, path: str, info: CaptureInfo) -> None:
+    def __init__(self, path: str, info: CaptureInfo, *, chunk_size: int = 1) -> None:
+        """``chunk_size``: 1 makes every block its own chunk (durable recordings); exports that
+        write many small messages pass the usual 1 MiB."""
         self._file: BinaryIO = open(path, "wb")  # noqa: SIM115
-        self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=1)
+        self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=chunk_size)
         self._writer.start(profile=PROFILE, library=f"rtusniff {version('rtusniff')}")
         self._writer.add_metadata(METADATA_NAME, _info_metadata(info))
         self._channel = self._writer.register_channel(
