@@ -34,6 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.command_line = ["rtusniff", *(sys.argv[1:] if argv is None else argv)]
     try:
         result: int = args.run(args)
         return result

@@ -83,6 +83,8 @@ class ProfileApplier:
         slave = message.slave
         device = self._identify(message) if isinstance(message.pdu, DeviceIdResponse) else None
         profile = self.book.profile_for(slave)
+        if device is None and _knows_nothing(profile):
+            return message
         reported = message.role is Role.RESPONSE
         params = tuple(self._param(profile, slave, p, reported) for p in message.params)
         self._learn(profile, slave, message.params)
@@ -194,8 +196,16 @@ def _value(
     return round(number * parameter.scale, 6), parameter.unit
 
 
+def _knows_nothing(profile: Profile) -> bool:
+    """A profile with nothing to add (generic): messages pass unchanged."""
+    return not (profile.parameters or profile.specials or profile.indirections or profile.exceptions
+                or profile.limits.functions or profile.address_style != "plain" or profile.uss_control_word)
+
+
 def _plain(profile: Profile, param: ParamValue, reported: bool) -> ParamValue:
     special = _special(profile, param.raw, reported)
+    if special is None and profile.address_style == "plain":
+        return param
     value = param.raw if special is None else special
     if profile.address_style == "xbt":
         # XBT addressing: %MWi is Modbus register 40001+i, PDU address i.
@@ -271,7 +281,27 @@ def _show(param: ParamValue) -> str:
     return f"{label} = {param.value}{unit}"
 
 
-def _with(message: Message, **changes: object) -> Message:
-    fields = {name: getattr(message, name) for name in Message.__dataclass_fields__}
-    fields.update(changes)
-    return Message(**fields)
+def _with(
+    message: Message,
+    *,
+    summary: str,
+    params: tuple[ParamValue, ...] | None = None,
+    remarks: tuple[str, ...] | None = None,
+    device: DeviceIdentity | None = None,
+) -> Message:
+    return Message(
+        frame=message.frame,
+        role=message.role,
+        slave=message.slave,
+        function=message.function,
+        exception_code=message.exception_code,
+        summary=summary,
+        flags=message.flags,
+        request_index=message.request_index,
+        latency_ns=message.latency_ns,
+        params=message.params if params is None else params,
+        pdu=message.pdu,
+        remarks=message.remarks if remarks is None else remarks,
+        device=message.device if device is None else device,
+        uss=message.uss,
+    )

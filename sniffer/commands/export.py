@@ -6,7 +6,6 @@ import argparse
 import hashlib
 import os
 import shlex
-import sys
 from contextlib import ExitStack
 
 from decoders.capture import CaptureInfo
@@ -99,7 +98,7 @@ def _metadata(args: argparse.Namespace, analysis: Analysis) -> dict[str, str]:
     return {
         "source": args.capture,
         "source_sha256": _sha256(args.capture),
-        "command": shlex.join(["rtusniff", *sys.argv[1:]]),
+        "command": shlex.join(args.command_line),
         "profiles": profiles,
     }
 
