@@ -1,0 +1,52 @@
+"""Export throughput: `rtusniff export --mcap` and `--rrd` on a large capture; prints a table.
+
+    python -m benchmarks.bench_exports [--frames 1000000] [--keep DIR]
+
+The capture is FC 3 polling at 115200 8N1 (benchmarks/bench_stats.py); each export runs in a
+fresh process that reports its own time and peak RSS.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from benchmarks.bench_memory import write_capture
+
+CHILD = """
+import resource, sys, time
+from sniffer.cli import main
+start = time.perf_counter()
+code = main(["export", sys.argv[1], sys.argv[2], sys.argv[3], "--force"])
+print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+sys.exit(code)
+"""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--frames", type=int, default=1_000_000)
+    parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated capture in this folder")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = args.keep or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        capture = folder / f"polling-{args.frames}.mcap"
+        if not capture.exists():
+            write_capture(capture, args.frames)
+        print(f"{'export':<8} {'frames':>10} {'seconds':>8} {'frames/s':>10} {'output MB':>10} {'peak RSS MB':>12}")
+        for option, suffix in (("--mcap", ".mcap"), ("--rrd", ".rrd")):
+            output = Path(tmp) / f"export{suffix}"
+            result = subprocess.run([sys.executable, "-c", CHILD, str(capture), option, str(output)],
+                                    capture_output=True, text=True, check=True, env={**os.environ, "CI": "1"})
+            seconds, rss_kb = result.stdout.split()
+            print(f"{option[2:]:<8} {args.frames:>10,} {float(seconds):>8.1f} {args.frames / float(seconds):>10,.0f} "
+                  f"{output.stat().st_size / 1e6:>10.1f} {int(rss_kb) / 1024:>12.1f}")
+
+
+if __name__ == "__main__":
+    main()
