@@ -81,6 +81,35 @@ class Message:
     #: The decoded telegram, for frames that are USS rather than Modbus.
     uss: UssTelegram | None = None
 
+    def decoded(
+        self,
+        *,
+        summary: str,
+        params: tuple[ParamValue, ...] | None = None,
+        pdu: Pdu | None = None,
+        remarks: tuple[str, ...] | None = None,
+        device: DeviceIdentity | None = None,
+        uss: UssTelegram | None = None,
+    ) -> Message:
+        """This message with what a decoding stage found; fields not given stay as they are.
+        (Spelled out rather than ``dataclasses.replace``: this runs for every frame.)"""
+        return Message(
+            frame=self.frame,
+            role=self.role,
+            slave=self.slave,
+            function=self.function,
+            exception_code=self.exception_code,
+            summary=summary,
+            flags=self.flags,
+            request_index=self.request_index,
+            latency_ns=self.latency_ns,
+            params=self.params if params is None else params,
+            pdu=self.pdu if pdu is None else pdu,
+            remarks=self.remarks if remarks is None else remarks,
+            device=self.device if device is None else device,
+            uss=self.uss if uss is None else uss,
+        )
+
 
 #: Roles by their code in :class:`MessageBatch`.
 ROLE_ORDER = [Role.REQUEST, Role.RESPONSE, Role.EXCEPTION, Role.BROADCAST, Role.NOISE, Role.UNKNOWN]

@@ -8,7 +8,6 @@ await an answer.
 from __future__ import annotations
 
 from collections import OrderedDict
-from dataclasses import replace
 
 from decoders.frame import USS
 from decoders.message import Message, MessageBatch, ParamValue, Role
@@ -50,7 +49,7 @@ class Annotator:
     def annotate(self, message: Message) -> Message:
         frame = message.frame
         if message.role is Role.NOISE:
-            return replace(message, summary=f"noise, {len(frame.data)} byte{'s' if len(frame.data) != 1 else ''}")
+            return message.decoded(summary=f"noise, {len(frame.data)} byte{'s' if len(frame.data) != 1 else ''}")
         if frame.protocol == USS:
             return self._uss(message)
         is_request = message.role in _AS_REQUEST or (message.role is Role.UNKNOWN and fits_request(frame.data))
@@ -67,25 +66,13 @@ class Annotator:
             summary += f" ({function_name(pdu.function)})"
         if not frame.crc_ok:
             summary = f"CRC error: {summary}"
-        annotated = Message(
-            frame=frame,
-            role=message.role,
-            slave=message.slave,
-            function=message.function,
-            exception_code=message.exception_code,
-            summary=summary,
-            flags=message.flags,
-            request_index=message.request_index,
-            latency_ns=message.latency_ns,
-            params=named_registers(pdu, request),
-            pdu=pdu,
-        )
+        annotated = message.decoded(summary=summary, params=named_registers(pdu, request), pdu=pdu)
         return annotated if self._profiles is None else self._profiles.apply(annotated, request)
 
 
     def _uss(self, message: Message) -> Message:
         telegram = parse_uss(message.frame.data)
-        annotated = replace(message, summary=telegram.summary(), uss=telegram)
+        annotated = message.decoded(summary=telegram.summary(), uss=telegram)
         return annotated if self._profiles is None else self._profiles.apply(annotated, None)
 
 

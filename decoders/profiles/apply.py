@@ -96,7 +96,7 @@ class ProfileApplier:
         if device is not None:
             remarks.append(_device_remark(device))
         summary = _summary(message.summary, params)
-        return _with(message, params=params, remarks=tuple(remarks), summary=summary, device=device)
+        return message.decoded(params=params, remarks=tuple(remarks), summary=summary, device=device)
 
     def _identify(self, message: Message) -> DeviceIdentity | None:
         pdu = message.pdu
@@ -162,7 +162,7 @@ def _uss_words(profile: Profile, message: Message) -> Message:
     word = telegram.pzd[0]
     label = "STW" if message.role is Role.REQUEST else "ZSW"
     described = profile.bitfields[name].describe(word)
-    return _with(message, summary=f"{message.summary}: {label} = 16#{word:04X} {described}")
+    return message.decoded(summary=f"{message.summary}: {label} = 16#{word:04X} {described}")
 
 
 def _named(
@@ -279,29 +279,3 @@ def _show(param: ParamValue) -> str:
         return f"{label} = 16#{param.raw:04X} {param.value}"
     unit = f" {param.unit}" if param.unit else ""
     return f"{label} = {param.value}{unit}"
-
-
-def _with(
-    message: Message,
-    *,
-    summary: str,
-    params: tuple[ParamValue, ...] | None = None,
-    remarks: tuple[str, ...] | None = None,
-    device: DeviceIdentity | None = None,
-) -> Message:
-    return Message(
-        frame=message.frame,
-        role=message.role,
-        slave=message.slave,
-        function=message.function,
-        exception_code=message.exception_code,
-        summary=summary,
-        flags=message.flags,
-        request_index=message.request_index,
-        latency_ns=message.latency_ns,
-        params=message.params if params is None else params,
-        pdu=message.pdu,
-        remarks=message.remarks if remarks is None else remarks,
-        device=message.device if device is None else device,
-        uss=message.uss,
-    )
