@@ -49,7 +49,8 @@ def test_mcap_channels_schemas_and_metadata(exported: tuple[Path, Path]) -> None
                   for cid, topics_id in summary.channels.items()}
         schemas = {s.id: s for s in summary.schemas.values()}
         assert schemas[topics["/modbus/log"].schema_id].name == "foxglove.Log"
-        assert schemas[topics["/modbus/log"].schema_id].encoding == "jsonschema"
+        assert schemas[topics["/modbus/log"].schema_id].encoding == "protobuf"
+        assert schemas[topics["/modbus/frames"].schema_id].encoding == "jsonschema"
         assert summary.chunk_indexes and all(c.compression == "zstd" for c in summary.chunk_indexes)
         metadata = {m.name: m.metadata for m in reader.iter_metadata()}
     assert counts["/modbus/frames"] == counts["/modbus/log"] == 52
@@ -72,9 +73,6 @@ def test_mcap_values_transactions_and_log_levels(exported: tuple[Path, Path]) ->
     assert outcomes == {"answered": 20, "crc_error": 1, "timeout": 4, "exception": 2}
     answered = [t for t in messages(mcap, "/modbus/transactions") if t["outcome"] == "answered"]
     assert all(t["latency_ms"] > 0 and t["answer"] for t in answered)
-    levels = Counter(entry["level"] for entry in messages(mcap, "/modbus/log"))
-    assert levels[4] == 1 + 4 + 2  # CRC error, timeouts, exceptions
-    assert levels[3] >= 1 + 1 + 1  # gap_1_5, short_idle, noise
     frames = messages(mcap, "/modbus/frames")
     assert frames[7]["summary"].endswith("HSP = 50.0 Hz, LSP = 0.0 Hz")
 
@@ -84,6 +82,28 @@ def test_rerun_checks_the_mcap(exported: tuple[Path, Path]) -> None:
     result = subprocess.run([RERUN, "mcap", "check", str(mcap)], capture_output=True, text=True,
                             env=QUIET_RERUN, check=False, timeout=120)
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_rerun_renders_the_mcap_log(exported: tuple[Path, Path], tmp_path: Path) -> None:
+    """Rerun turns the protobuf foxglove.Log channel into a text log with levels."""
+    import rerun as rr
+
+    mcap, _ = exported
+    converted = tmp_path / "converted.rrd"
+    result = subprocess.run([RERUN, "mcap", "convert", str(mcap), "-o", str(converted)], capture_output=True,
+                            text=True, env=QUIET_RERUN, check=False, timeout=120)
+    assert result.returncode == 0, result.stderr
+    levels: Counter[str] = Counter()
+    texts: list[str] = []
+    for chunk in rr.chunk.RrdReader(str(converted)).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if chunk.entity_path == "/modbus/log" and "TextLog:text" in batch.schema.names:
+            levels.update(v[0] for v in batch.column("TextLog:level").to_pylist())
+            texts += [v[0] for v in batch.column("TextLog:text").to_pylist()]
+    assert sum(levels.values()) == 52
+    assert levels["ERROR"] == 1 + 4 + 2  # a CRC error, drive 3's timeouts, two exceptions
+    assert levels["WARN"] >= 3  # gap_1_5, short_idle, noise, retries
+    assert texts[7].startswith("#7 response: HR = 0028 0258 01F4 0000")
 
 
 def test_analyze_of_the_export_equals_analyze_of_the_capture(exported: tuple[Path, Path], cli: Cli) -> None:

@@ -9,8 +9,9 @@ Channels (JSON Schema, JSON messages; the schemas are below and in the README):
   crc_error, timeout, broadcast).
 * ``/slave/N/params``: one message per answer or write, the numeric values by code
   (``RFRD``, ``HSP``) or address: Foxglove's Plot panel charts ``/slave/2/params.RFRD``.
-* ``/modbus/log``: ``foxglove.Log`` (JSON) per frame, level ERROR for CRC errors, timeouts,
-  exceptions, WARNING for gap_1_5, short_idle, retries, unexpected answers, noise.
+* ``/modbus/log``: ``foxglove.Log`` in protobuf (which Foxglove's Log panel and Rerun both
+  render) per frame, level ERROR for CRC errors, timeouts, exceptions, WARNING for gap_1_5,
+  short_idle, retries, unexpected answers, noise.
 
 Metadata ``rtusniff.export``: line, timing, source file and SHA-256, tool version, command
 line, profiles. zstd chunks and the summary section with its indexes come from the mcap writer.
@@ -29,6 +30,7 @@ from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.frame import FrameFlag
 from decoders.line import LineSettings
 from decoders.message import Message, Role
+from sniffer.exports import foxglove_log
 from sniffer.io.formats.mcap_capture import McapCaptureWriter
 from sniffer.views.records import frame_record
 
@@ -77,19 +79,6 @@ PARAMS_SCHEMA: dict[str, Any] = {
     "properties": {"index": {"type": "integer"}},
     "additionalProperties": {"type": "number"},
 }
-LOG_SCHEMA: dict[str, Any] = {
-    "title": "foxglove.Log",
-    "type": "object",
-    "description": "A log message (Foxglove well-known schema)",
-    "properties": {
-        "timestamp": {"type": "object", "properties": {"sec": {"type": "integer", "minimum": 0},
-                                                       "nsec": {"type": "integer", "minimum": 0}}},
-        "level": {"type": "integer", "description": "0 unknown, 1 debug, 2 info, 3 warning, 4 error, 5 fatal"},
-        "message": {"type": "string"}, "name": {"type": "string"}, "file": {"type": "string"},
-        "line": {"type": "integer", "minimum": 0},
-    },
-    "required": ["timestamp", "level", "message", "name", "file", "line"],
-}  # fmt: skip
 
 
 def log_level(message: Message) -> int:
@@ -125,7 +114,10 @@ class McapExporter:
         })
         self._frames = self._channel("/modbus/frames", FRAME_SCHEMA)
         self._transactions = self._channel("/modbus/transactions", TRANSACTION_SCHEMA)
-        self._log = self._channel("/modbus/log", LOG_SCHEMA)
+        log_schema = self._writer.register_schema(name=foxglove_log.SCHEMA_NAME, encoding=foxglove_log.ENCODING,
+                                                  data=foxglove_log.FILE_DESCRIPTOR_SET)
+        self._log = self._writer.register_channel(topic="/modbus/log", message_encoding=foxglove_log.ENCODING,
+                                                  schema_id=log_schema)
         self._params_schema = self._schema(PARAMS_SCHEMA)
         self._param_channels: dict[int, int] = {}
         self._requests: OrderedDict[int, tuple[str, int, int | None, int]] = OrderedDict()
@@ -162,9 +154,9 @@ class McapExporter:
         text = f"#{frame.index} {message.role.value}: {message.summary}"
         if message.flags:
             text += f" [{' '.join(message.flags.names)}]"
-        self._put(self._log, "/modbus/log", t_ns, {"timestamp": {"sec": seconds, "nsec": nanos},
-                                                   "level": log_level(message), "message": text, "name": name,
-                                                   "file": "", "line": 0})
+        self._writer.add_message(channel_id=self._log, log_time=t_ns, publish_time=t_ns,
+                                 data=foxglove_log.encode_log(seconds, nanos, log_level(message), text, name))
+        self.counts["/modbus/log"] = self.counts.get("/modbus/log", 0) + 1
         self._transaction(message)
         # Answers and writes carry values; read requests carry only addresses.
         values = numeric_params(message)
