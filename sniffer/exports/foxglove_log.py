@@ -56,9 +56,10 @@ def _field(name: str, number: int, kind: int, type_name: str = "") -> bytes:
 
 
 def _file_descriptor_set() -> bytes:
+    seconds_and_nanos = _bytes(2, _field("seconds", 1, _INT64)) + _bytes(2, _field("nanos", 2, _INT32))
     timestamp = (
         _text(1, "google/protobuf/timestamp.proto") + _text(2, "google.protobuf")
-        + _bytes(4, _text(1, "Timestamp") + _bytes(2, _field("seconds", 1, _INT64)) + _bytes(2, _field("nanos", 2, _INT32)))
+        + _bytes(4, _text(1, "Timestamp") + seconds_and_nanos)
         + _text(12, "proto3")
     )
     levels = b"".join(_bytes(2, _text(1, name) + _number(2, number)) for number, name in
