@@ -231,13 +231,13 @@ def test_live_view_shows_slaves_and_frames(tmp_path: Path, line_tap: tuple[Path,
     assert "timing host" in out
 
 
-def test_rotation_and_port_listing_options(cli: Any) -> None:
+def test_rotation_and_port_listing_options(cli: Any, tmp_path: Path) -> None:
     from sniffer.recorder import Rotation, rotated_path
 
     assert Rotation.parse("100MB") == Rotation(max_bytes=100_000_000)
     assert Rotation.parse("1.5h") == Rotation(max_seconds=5400.0)
     assert rotated_path("/x/cap.mcap", 3) == "/x/cap-0003.mcap"
-    bad = cli("capture", "/dev/null", "--line", "19200", "8N1", "-o", "/tmp/x.mcap", "--rotate", "soon")
+    bad = cli("capture", "/dev/null", "--line", "19200", "8N1", "-o", str(tmp_path / "x.mcap"), "--rotate", "soon")
     assert bad.code == 2 and "give a size (100MB, 1GB) or a duration" in bad.err
     listed = cli("ports")
     assert listed.code == 0
