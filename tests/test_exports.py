@@ -145,8 +145,39 @@ def test_rerun_recording_read_back(exported: tuple[Path, Path], cli: Cli) -> Non
 
 def test_export_options(cli: Cli, tmp_path: Path) -> None:
     nothing = cli("export", str(SAMPLE_LOG))
-    assert nothing.code == 2 and "give --mcap OUT.mcap, --rrd OUT.rrd or --spawn" in nothing.err
+    assert nothing.code == 2 and "give --mcap OUT.mcap, --rrd OUT.rrd, --pcap OUT.pcap or --spawn" in nothing.err
     existing = tmp_path / "x.mcap"
     existing.write_bytes(b"keep")
     refused = cli("export", str(SAMPLE_LOG), "--mcap", str(existing))
     assert refused.code == 11 and existing.read_bytes() == b"keep"
+
+
+TSHARK = shutil.which("tshark")
+
+
+@pytest.mark.skipif(TSHARK is None, reason="tshark (Wireshark) not installed")
+def test_pcap_decoded_by_tshark(cli: Cli, tmp_path: Path) -> None:
+    from sniffer.exports.pcap_export import WIRESHARK_USER_DLT
+
+    pcap = tmp_path / "poll.pcap"
+    assert cli("export", str(SAMPLE_LOG), "--pcap", str(pcap)).code == 0
+    fields = ["frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "modbus.exception_code",
+              "mbrtu.crc16.status"]
+    shown = subprocess.run(
+        [str(TSHARK), "-n", "-o", f"uat:user_dlts:{WIRESHARK_USER_DLT}", "-o", "mbrtu.crc_verification:TRUE",
+         "-r", str(pcap), "-T", "fields", "-E", "separator=;", *[a for f in fields for a in ("-e", f)]],
+        capture_output=True, text=True, check=True, timeout=120).stdout.splitlines()
+    analyzed = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl")
+    frames = [r for r in map(json.loads, analyzed.out.splitlines()) if r["kind"] == "frame"]
+    assert len(shown) == len(frames) > 40
+    for row, frame in zip(shown, frames, strict=True):
+        time, unit, function, exception, crc = row.split(";")
+        assert abs(float(time) - frame["t"]) < 1e-6
+        if frame["protocol"] != "modbus" or frame["slave"] is None:
+            assert unit == ""  # noise: shown as malformed, but there
+            continue
+        assert int(unit) == frame["slave"]
+        assert crc == ("1" if frame["crc_ok"] else "0")
+        if frame["crc_ok"]:
+            assert int(function) == frame["function"] & 0x7F
+            assert (int(exception) if exception else None) == frame["exception_code"]

@@ -15,6 +15,7 @@ from decoders.stats import Statistics
 from sniffer.commands.common import add_decoding_options, open_analysis
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.mcap_export import McapExporter
+from sniffer.exports.pcap_export import PcapExporter
 from sniffer.pipeline import Analysis, analyze
 
 
@@ -28,6 +29,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("capture", help="capture file (.log/.txt text, .mcap native), or - for text on stdin")
     parser.add_argument("--mcap", metavar="OUT.mcap", help="write decoded MCAP (also a capture analyze can read)")
     parser.add_argument("--rrd", metavar="OUT.rrd", help="write a Rerun recording")
+    parser.add_argument("--pcap", metavar="OUT.pcap", help="write a pcap for Wireshark: one packet per frame")
     parser.add_argument("--spawn", action="store_true", help="also open the Rerun viewer (needs a display)")
     parser.add_argument("--force", action="store_true", help="overwrite existing output files")
     add_decoding_options(parser)
@@ -35,9 +37,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run(args: argparse.Namespace) -> int:
-    if not (args.mcap or args.rrd or args.spawn):
-        raise RtuSniffError(ErrorKind.USAGE, "export: give --mcap OUT.mcap, --rrd OUT.rrd or --spawn")
-    for path in filter(None, (args.mcap, args.rrd)):
+    if not (args.mcap or args.rrd or args.pcap or args.spawn):
+        raise RtuSniffError(ErrorKind.USAGE, "export: give --mcap OUT.mcap, --rrd OUT.rrd, --pcap OUT.pcap or --spawn")
+    for path in filter(None, (args.mcap, args.rrd, args.pcap)):
         if os.path.exists(path) and not args.force:
             raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; add --force to overwrite it", path=path)
     with ExitStack() as stack:
@@ -57,6 +59,7 @@ class ExportView:
         self.args = args
         self.analysis = analysis
         self.mcap: McapExporter | None = None
+        self.pcap = PcapExporter(args.pcap) if args.pcap else None
         self.rerun = None
         if args.rrd or args.spawn:
             # Rerun takes a third of a second to import: only when asked for.
@@ -75,6 +78,8 @@ class ExportView:
     def messages(self, messages: list[Message]) -> None:
         if self.mcap is not None:
             self.mcap.messages(messages)
+        if self.pcap is not None:
+            self.pcap.messages(messages)
         if self.rerun is not None:
             self.rerun.messages(messages)
 
@@ -85,6 +90,9 @@ class ExportView:
         if self.mcap is not None:
             self.mcap.close()
             self.mcap = None
+        if self.pcap is not None:
+            self.pcap.close()
+            self.pcap = None
         if self.rerun is not None:
             self.rerun.close()
             self.rerun = None
