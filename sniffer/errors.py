@@ -21,6 +21,7 @@ class ErrorKind(Enum):
     OUTPUT_FAILED = 11
     BAD_PROFILE = 12
     PORT_GONE = 13
+    NO_DATA = 14
 
     @property
     def exit_code(self) -> int:

@@ -81,4 +81,7 @@ def analyze(
         deliver(decoder.feed(chunks))
     deliver(decoder.flush())
     view.finish(statistics)
+    if statistics.total_bytes == 0:
+        # Scripts must not take an empty recording (a quiet line, a wrong port) for a healthy bus.
+        raise RtuSniffError(ErrorKind.NO_DATA, "the capture holds no bytes, only its header", path=source)
     return statistics

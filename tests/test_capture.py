@@ -176,9 +176,11 @@ def test_rotation_by_duration(tmp_path: Path, line_tap: tuple[Path, Path, Any]) 
     assert len(files) >= 2, err
     total = 0
     for path in files:
-        code, records, _ = analyze(path)
-        assert code == 0
-        total += sum(len(f["hex"]) // 2 for f in frames_of(records))
+        code, records, err = analyze(path)
+        frame_bytes = sum(len(f["hex"]) // 2 for f in frames_of(records))
+        # A second in which the line was quiet is a valid, empty segment: exit 14 says so.
+        assert (code, frame_bytes > 0) in {(0, True), (14, False)}, err
+        total += frame_bytes
     assert total == 20 * (len(REQUEST) + len(RESPONSE))
 
 

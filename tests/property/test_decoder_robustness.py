@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -11,6 +13,8 @@ from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.modbus.pdu import parse_pdu
 
+#: RTUSNIFF_EXAMPLES raises the number of examples for a long run.
+EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 FUNCTIONS = st.sampled_from([*range(1, 25), 43, 65, 100, 0x83, 0x90, 0xAB, 0, 127, 255])
 
 
@@ -20,14 +24,14 @@ def adus(draw: st.DrawFn) -> bytes:
     return body + crc_bytes(body) if draw(st.booleans()) else body
 
 
-@settings(max_examples=2000, deadline=None)
+@settings(max_examples=max(2000, EXAMPLES), deadline=None)
 @given(adus(), st.booleans())
 def test_parse_pdu_never_raises(adu: bytes, is_request: bool) -> None:
     pdu = parse_pdu(adu, is_request=is_request)
     assert isinstance(pdu.summary(), str)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=max(300, EXAMPLES), deadline=None)
 @given(st.lists(st.tuples(adus(), st.integers(0, 200_000_000), st.booleans()), max_size=40))
 def test_matcher_and_annotator_never_raise(items: list[tuple[bytes, int, bool]]) -> None:
     matcher, annotator, t = Matcher(), Annotator(), 0

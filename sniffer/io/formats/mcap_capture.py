@@ -23,10 +23,11 @@ from importlib.metadata import version
 from typing import BinaryIO
 
 import numpy as np
-from mcap.exceptions import McapError
+from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
 from mcap.records import Channel, Message, Metadata
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
+from zstandard import ZstdError
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
@@ -158,9 +159,11 @@ class McapCaptureReader:
     def __init__(self, path: str) -> None:
         self.path = path
         self._file: BinaryIO = open(path, "rb")  # noqa: SIM115
-        self._records = StreamReader(self._file).records
-        self._channel_ids: set[int] = set()
         self._size = os.fstat(self._file.fileno()).st_size
+        # A damaged length field must not make the reader allocate gigabytes: no record is
+        # longer than the file.
+        self._records = StreamReader(self._file, record_size_limit=max(self._size, 1)).records
+        self._channel_ids: set[int] = set()
         self._good = 0
         self.late_notes: list[str] = []
         #: Said once reading is done: e.g. a recording that was cut short.
@@ -180,7 +183,7 @@ class McapCaptureReader:
             for record in self._records:
                 yield record
                 self._good = self._file.tell()
-        except (McapError, ValueError, struct.error, EOFError) as exc:
+        except (McapError, ValueError, struct.error, EOFError, OverflowError, MemoryError, ZstdError) as exc:
             if self._good == self._size and self._good > 0:
                 # Complete records up to the end, but no summary: a recording that was
                 # killed or lost its disk after its last flush. Everything in it is read.
@@ -189,9 +192,9 @@ class McapCaptureReader:
                     "everything up to its last flush was read"
                 )
                 return
+            damage = _damage(exc, at_end=self._file.tell() >= self._size)
             raise CaptureFormatError(
-                ErrorKind.BAD_MCAP, f"damaged MCAP: {exc or type(exc).__name__}", path=self.path,
-                location=f"byte {self._good}",
+                ErrorKind.BAD_MCAP, f"damaged MCAP: {damage}", path=self.path, location=f"byte {self._good}"
             ) from None
 
     def _read_info(self) -> CaptureInfo:
@@ -246,3 +249,9 @@ FORMAT = CaptureFormat(
     open_reader=McapCaptureReader,
     open_writer=McapCaptureWriter,
 )
+
+
+def _damage(exc: Exception, *, at_end: bool) -> str:
+    if at_end or isinstance(exc, (EndOfFile, EOFError, RecordLengthLimitExceeded)):
+        return "a record runs past the end of the file (truncated, or its length is damaged)"
+    return str(exc) or type(exc).__name__

@@ -1,0 +1,84 @@
+"""rtusniff against Wireshark's tshark on the same frames, side by side in one run; prints a table.
+
+    python -m benchmarks.bench_tshark [--frames 1000000] [--keep DIR]
+
+The capture is FC 3 polling at 115200 8N1 (benchmarks/bench_memory.py). rtusniff writes it as
+pcap (`export --pcap`, frames already split), and tshark decodes that pcap with its Modbus RTU
+dissector (DLT 147 mapped to mbrtu on its command line, CRC check on) into ``-T fields``: the
+fairest like-for-like, since tshark cannot split a raw byte stream into RTU frames itself.
+Every command runs in its own process; times are wall clock, RSS the process's peak.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from benchmarks.bench_memory import write_capture
+from sniffer.exports.pcap_export import WIRESHARK_USER_DLT
+
+TSHARK_FIELDS = ["frame.number", "frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "mbrtu.crc16.status",
+                 "modbus.regval_uint16"]
+
+
+def run(argv: list[str], output: Path) -> tuple[float, float]:
+    """Seconds and peak RSS (MB) of one command, its stdout going to ``output``."""
+    with output.open("wb") as sink:
+        start = time.perf_counter()
+        process = subprocess.Popen(argv, stdout=sink, stderr=subprocess.PIPE, env={**os.environ, "CI": "1"})
+        _, status, usage = os.wait4(process.pid, 0)
+        seconds = time.perf_counter() - start
+    process.returncode = os.waitstatus_to_exitcode(status)
+    if process.returncode != 0:
+        sys.exit(f"bench_tshark: {argv[0]} failed: {process.stderr.read().decode() if process.stderr else ''}")
+    return seconds, usage.ru_maxrss / 1024
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--frames", type=int, default=1_000_000)
+    parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated capture in this folder")
+    args = parser.parse_args()
+    tshark = shutil.which("tshark")
+    if tshark is None:
+        sys.exit("bench_tshark: tshark is not installed (apt-get install tshark)")
+    rtusniff = [sys.executable, "-m", "sniffer"]
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = args.keep or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        capture = folder / f"polling-{args.frames}.mcap"
+        if not capture.exists():
+            write_capture(capture, args.frames)
+        pcap = Path(tmp) / "capture.pcap"
+        fields = [a for f in TSHARK_FIELDS for a in ("-e", f)]
+        jobs = [
+            ("rtusniff stats --format json", [*rtusniff, "stats", str(capture), "--format", "json"]),
+            ("rtusniff analyze --format jsonl", [*rtusniff, "analyze", str(capture), "--format", "jsonl"]),
+            ("rtusniff export --pcap", [*rtusniff, "export", str(capture), "--pcap", str(pcap), "--force"]),
+            ("tshark -T fields (mbrtu, on that pcap)",
+             [tshark, "-n", "-o", f"uat:user_dlts:{WIRESHARK_USER_DLT}", "-o", "mbrtu.crc_verification:TRUE",
+              "-r", str(pcap), "-T", "fields", *fields]),
+        ]
+        print(f"{args.frames:,} frames, {capture.stat().st_size / 1e6:.1f} MB capture")
+        print(f"{'command':<40} {'seconds':>8} {'frames/s':>10} {'peak RSS MB':>12} {'output lines':>13}")
+        seconds_by_job = {}
+        for name, argv in jobs:
+            output = Path(tmp) / "out.txt"
+            seconds, rss = run(argv, output)
+            with output.open("rb") as f:
+                lines = sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(1 << 20), b""))
+            seconds_by_job[name] = seconds
+            print(f"{name:<40} {seconds:>8.1f} {args.frames / seconds:>10,.0f} {rss:>12.1f} {lines:>13,}")
+        tshark_seconds = seconds_by_job[jobs[-1][0]]
+        for name in ("rtusniff stats --format json", "rtusniff analyze --format jsonl"):
+            print(f"tshark time / {name} time: {tshark_seconds / seconds_by_job[name]:.2f}")
+
+
+if __name__ == "__main__":
+    main()

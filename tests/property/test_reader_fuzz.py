@@ -1,0 +1,96 @@
+"""Fuzzing: damaged capture files end in a CaptureFormatError or read cleanly, never anything else.
+
+Inputs are mutations of the shipped samples (bytes flipped, inserted, deleted, the file cut)
+and arbitrary bytes. ``RTUSNIFF_EXAMPLES`` scales the run (see README, "Fuzzing").
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+from contextlib import redirect_stderr, redirect_stdout
+from pathlib import Path
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sniffer.cli import main
+from sniffer.errors import CaptureFormatError, ErrorKind, RtuSniffError
+from sniffer.io.registry import open_reader
+from tests.conftest import SAMPLE_LOG, SAMPLE_MCAP
+
+EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "150"))
+FUZZ = settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SCRATCH = Path(tempfile.mkdtemp(prefix="rtusniff-fuzz-"))
+FILE_EXIT_CODES = {kind.exit_code for kind in ErrorKind} - {ErrorKind.USAGE.exit_code, ErrorKind.RUNTIME.exit_code}
+
+
+@st.composite
+def mutated(draw: st.DrawFn, original: bytes) -> bytes:
+    data = bytearray(original)
+    for _ in range(draw(st.integers(1, 8))):
+        if not data:
+            break
+        at = draw(st.integers(0, len(data) - 1))
+        action = draw(st.sampled_from(["flip", "insert", "delete", "cut"]))
+        if action == "flip":
+            data[at] ^= draw(st.integers(1, 255))
+        elif action == "insert":
+            data[at:at] = draw(st.binary(min_size=1, max_size=16))
+        elif action == "delete":
+            del data[at : at + draw(st.integers(1, 16))]
+        else:
+            del data[at:]
+    return bytes(data)
+
+
+def read_all(data: bytes, suffix: str) -> int:
+    """Chunks read, or -1 for a clean one-line error naming the file."""
+    path = SCRATCH / f"fuzz{suffix}"
+    path.write_bytes(data)
+    try:
+        reader = open_reader(str(path))
+        try:
+            return sum(len(batch) for batch in reader.batches())
+        finally:
+            reader.close()
+    except (CaptureFormatError, RtuSniffError) as error:
+        assert "\n" not in str(error) and str(path) in str(error)
+        return -1
+
+
+@FUZZ
+@given(mutated(SAMPLE_LOG.read_bytes()))
+def test_text_reader_on_damaged_captures(data: bytes) -> None:
+    read_all(data, ".log")
+
+
+@FUZZ
+@given(mutated(SAMPLE_MCAP.read_bytes()))
+def test_mcap_reader_on_damaged_captures(data: bytes) -> None:
+    read_all(data, ".mcap")
+
+
+@FUZZ
+@given(st.binary(max_size=512), st.sampled_from([".log", ".mcap", ".bin"]))
+def test_readers_on_arbitrary_bytes(data: bytes, suffix: str) -> None:
+    read_all(data, suffix)
+
+
+@FUZZ
+@given(st.one_of(mutated(SAMPLE_LOG.read_bytes()), mutated(SAMPLE_MCAP.read_bytes())),
+       st.sampled_from([".log", ".mcap"]))
+def test_whole_command_on_damaged_captures(data: bytes, suffix: str) -> None:
+    """Reading, framing, decoding and profiles together: success or one known exit code."""
+    path = SCRATCH / f"whole{suffix}"
+    path.write_bytes(data)
+    out, err = io.StringIO(), io.StringIO()
+    with redirect_stdout(out), redirect_stderr(err):
+        try:
+            code = main(["analyze", str(path), "--format", "jsonl", "--line", "19200", "8E1"])
+        except RtuSniffError as error:  # pragma: no cover - main turns these into exit codes
+            raise AssertionError(error) from None
+    assert code == 0 or code in FILE_EXIT_CODES, err.getvalue()
+    if code != 0:
+        assert err.getvalue().startswith("error: ") and err.getvalue().count("\n") == 1

@@ -1,0 +1,89 @@
+"""Every kind of bad capture file the field sends us: one line naming file and place, its own exit code."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from mcap.writer import Writer
+
+from tests.conftest import SAMPLE_MCAP, CliResult
+
+Cli = Callable[..., CliResult]
+HEADER = "# rtu-capture v1\n# line: 19200 8E1\n# timing: exact\n"
+
+
+def other_tools_mcap(path: Path) -> None:
+    with path.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="", library="someone else")
+        channel = writer.register_channel(topic="/imu", message_encoding="json", schema_id=0)
+        writer.add_message(channel_id=channel, log_time=1, publish_time=1, data=b"{}")
+        writer.finish()
+
+
+def corrupted_mcap(path: Path) -> None:
+    damaged = bytearray(SAMPLE_MCAP.read_bytes())
+    for offset in range(300, len(damaged) - 100, 37):
+        damaged[offset] ^= 0x5A
+    path.write_bytes(damaged)
+
+
+Content = bytes | Callable[[Path], None]
+BAD_FILES: list[tuple[str, str, Content, int, str]] = [
+    ("empty", "c.log", b"", 6, "c.log:line 1: empty file"),
+    ("header only", "c.log", HEADER.encode(), 14, "c.log: the capture holds no bytes"),
+    ("missing header", "c.log", b"1.0 01 02\n", 6, "c.log:line 1: missing header"),
+    ("wrong header", "c.log", b"# rtu-capture v7\n1.0 01\n", 5, "c.log:line 1: unknown format version v7"),
+    ("bad hex", "c.log", (HEADER + "1.0 01 ZZ\n").encode(), 7, "c.log:line 4: bad hex digit 'Z'"),
+    ("odd hex digits", "c.log", (HEADER + "1.0 01 0\n").encode(), 7, "c.log:line 4: odd number of hex digits"),
+    ("decreasing times", "c.log", (HEADER + "2.0 01\n1.0 02\n").encode(), 8, "c.log:line 5: time 1.000000000"),
+    ("binary garbage", "c.log", HEADER.encode() + b"\x89PNG\r\n\x1a\n\x00\xff", 7, "c.log:line 4: not text"),
+    ("truncated MCAP", "c.mcap", SAMPLE_MCAP.read_bytes()[:800], 9,
+     "c.mcap:byte 334: damaged MCAP: a record runs past"),
+    ("corrupted MCAP", "c.mcap", corrupted_mcap, 9, "c.mcap:byte 334: damaged MCAP"),
+    ("not an MCAP", "c.mcap", HEADER.encode(), 9, "c.mcap:byte 0"),
+    ("MCAP from another tool", "c.mcap", other_tools_mcap, 9, "c.mcap:byte 138: not an rtusniff capture"),
+    ("unknown format", "c.pcapng", b"\x0a\x0d\x0d\x0a\x1c\x00\x00\x00", 5, "c.pcapng: cannot tell the capture format"),
+]
+
+
+@pytest.mark.parametrize("bad", BAD_FILES, ids=[b[0] for b in BAD_FILES])
+def test_bad_file(cli: Cli, tmp_path: Path, bad: tuple[str, str, Content, int, str]) -> None:
+    name, file_name, content, code, words = bad
+    path = tmp_path / file_name
+    if callable(content):
+        content(path)
+    else:
+        path.write_bytes(content)
+    for command in ("analyze", "stats"):
+        result = cli(command, str(path))
+        assert result.code == code, f"{name}: {result.err}"
+        error_lines = [line for line in result.err.splitlines() if line.startswith("error: ")]
+        assert len(error_lines) == 1 and words in error_lines[0], result.err
+        assert str(tmp_path) in error_lines[0]
+        assert "Traceback" not in result.err
+
+
+def test_missing_directory_and_unreadable(cli: Cli, tmp_path: Path) -> None:
+    assert cli("analyze", str(tmp_path / "absent.log")).code == 3
+    assert cli("analyze", str(tmp_path)).code == 4
+    locked = tmp_path / "locked.log"
+    locked.write_text(HEADER)
+    locked.chmod(0)
+    if os.geteuid() != 0:  # root reads any file; test_cli covers root with /proc/self/mem
+        assert cli("analyze", str(locked)).code == 4
+
+
+def test_huge_gap_is_analysed_not_refused(cli: Cli, tmp_path: Path) -> None:
+    path = tmp_path / "gap.log"
+    # A request, then its answer a year later (a capture left running across a site shutdown).
+    path.write_text(HEADER + "1.0 02 03 0C 81 00 01 D7 41\n31536001.0 02 03 02 00 05 3C 47\n")
+    records = cli("analyze", str(path), "--format", "jsonl").jsonl()
+    frames = [r for r in records if r["kind"] == "frame"]
+    assert [f["role"] for f in frames] == ["request", "response"]
+    assert "timeout" in frames[0]["flags"] and "unexpected" in frames[1]["flags"]
+    assert records[-1]["duration_s"] == pytest.approx(31536000, abs=1)
+
