@@ -15,7 +15,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.bench_memory import write_capture
+from benchmarks.bench_memory import polling_capture
 
 CHILD = """
 import resource, sys, time
@@ -33,11 +33,7 @@ def main() -> None:
     parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated capture in this folder")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        folder = args.keep or Path(tmp)
-        folder.mkdir(parents=True, exist_ok=True)
-        capture = folder / f"polling-{args.frames}.mcap"
-        if not capture.exists():
-            write_capture(capture, args.frames)
+        capture = polling_capture(args.keep or Path(tmp), args.frames)
         print(f"{'export':<8} {'frames':>10} {'seconds':>8} {'frames/s':>10} {'output MB':>10} {'peak RSS MB':>12}")
         for option, suffix in (("--mcap", ".mcap"), ("--rrd", ".rrd")):
             output = Path(tmp) / f"export{suffix}"

@@ -31,6 +31,15 @@ sys.exit(code)
 PIECE_FRAMES = 100_000
 
 
+def polling_capture(folder: Path, frames: int) -> Path:
+    """The benchmark capture of ``frames`` frames in ``folder``, written unless it is there."""
+    folder.mkdir(parents=True, exist_ok=True)
+    capture = folder / f"polling-{frames}.mcap"
+    if not capture.exists():
+        write_capture(capture, frames)
+    return capture
+
+
 def write_capture(path: Path, frames: int) -> None:
     writer = open_writer(str(path), CaptureInfo(LINE, TimingQuality.EXACT))
     t0 = 1_700_000_000_000_000_000

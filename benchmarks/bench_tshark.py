@@ -20,7 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks.bench_memory import write_capture
+from benchmarks.bench_memory import polling_capture
 from sniffer.exports.pcap_export import WIRESHARK_USER_DLT
 
 TSHARK_FIELDS = ["frame.number", "frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "mbrtu.crc16.status",
@@ -50,11 +50,7 @@ def main() -> None:
         sys.exit("bench_tshark: tshark is not installed (apt-get install tshark)")
     rtusniff = [sys.executable, "-m", "sniffer"]
     with tempfile.TemporaryDirectory() as tmp:
-        folder = args.keep or Path(tmp)
-        folder.mkdir(parents=True, exist_ok=True)
-        capture = folder / f"polling-{args.frames}.mcap"
-        if not capture.exists():
-            write_capture(capture, args.frames)
+        capture = polling_capture(args.keep or Path(tmp), args.frames)
         pcap = Path(tmp) / "capture.pcap"
         fields = [a for f in TSHARK_FIELDS for a in ("-e", f)]
         jobs = [

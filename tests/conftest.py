@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from mcap.writer import Writer
 
 from sniffer.cli import main
 
@@ -18,6 +19,16 @@ ROOT = Path(__file__).resolve().parent.parent
 CAPTURES = ROOT / "captures"
 SAMPLE_LOG = CAPTURES / "atv71-plc-poll.log"
 SAMPLE_MCAP = CAPTURES / "atv71-plc-poll.mcap"
+
+
+def write_foreign_mcap(path: Path) -> None:
+    """A valid MCAP that another tool wrote: no rtusniff capture in it."""
+    with path.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="", library="someone else")
+        channel = writer.register_channel(topic="/imu", message_encoding="json", schema_id=0)
+        writer.add_message(channel_id=channel, log_time=1, publish_time=1, data=b"{}")
+        writer.finish()
 
 
 def load_manual_frames() -> list[dict[str, Any]]:

@@ -7,21 +7,11 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from mcap.writer import Writer
 
-from tests.conftest import SAMPLE_MCAP, CliResult
+from tests.conftest import SAMPLE_MCAP, CliResult, write_foreign_mcap
 
 Cli = Callable[..., CliResult]
 HEADER = "# rtu-capture v1\n# line: 19200 8E1\n# timing: exact\n"
-
-
-def other_tools_mcap(path: Path) -> None:
-    with path.open("wb") as f:
-        writer = Writer(f)
-        writer.start(profile="", library="someone else")
-        channel = writer.register_channel(topic="/imu", message_encoding="json", schema_id=0)
-        writer.add_message(channel_id=channel, log_time=1, publish_time=1, data=b"{}")
-        writer.finish()
 
 
 def corrupted_mcap(path: Path) -> None:
@@ -45,7 +35,7 @@ BAD_FILES: list[tuple[str, str, Content, int, str]] = [
      "c.mcap:byte 334: damaged MCAP: a record runs past"),
     ("corrupted MCAP", "c.mcap", corrupted_mcap, 9, "c.mcap:byte 334: damaged MCAP"),
     ("not an MCAP", "c.mcap", HEADER.encode(), 9, "c.mcap:byte 0"),
-    ("MCAP from another tool", "c.mcap", other_tools_mcap, 9, "c.mcap:byte 138: not an rtusniff capture"),
+    ("MCAP from another tool", "c.mcap", write_foreign_mcap, 9, "c.mcap:byte 138: not an rtusniff capture"),
     ("unknown format", "c.pcapng", b"\x0a\x0d\x0d\x0a\x1c\x00\x00\x00", 5, "c.pcapng: cannot tell the capture format"),
 ]
 

@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.reader import make_reader
-from mcap.writer import Writer
 
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.formats import mcap_capture
 from sniffer.io.formats.mcap_capture import McapCaptureReader, McapCaptureWriter, decode_block, encode_block
+from tests.conftest import write_foreign_mcap
 
 INFO = CaptureInfo(LineSettings.parse("19200 8E1"), TimingQuality.EXACT, ("site: pump house", "tap on port 1"))
 
@@ -82,12 +82,7 @@ def test_reader_round_trip(tmp_path: Path) -> None:
 
 def test_mcap_from_another_tool(tmp_path: Path) -> None:
     path = tmp_path / "other.mcap"
-    with path.open("wb") as f:
-        writer = Writer(f)
-        writer.start(profile="", library="someone else")
-        channel = writer.register_channel(topic="/imu", message_encoding="json", schema_id=0)
-        writer.add_message(channel_id=channel, log_time=1, publish_time=1, data=b"{}")
-        writer.finish()
+    write_foreign_mcap(path)
     with pytest.raises(CaptureFormatError) as caught:
         McapCaptureReader(str(path))
     assert caught.value.kind is ErrorKind.BAD_MCAP
