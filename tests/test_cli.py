@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -269,3 +270,12 @@ def test_stats_json(cli: Cli) -> None:
 def test_stats_table(cli: Cli) -> None:
     out = cli("stats", str(SAMPLE_LOG)).out
     assert "bus load" in out and "23 Read/Write Multiple Registers" in out and "02×1" in out
+
+
+def test_jsonl_is_what_the_standard_json_module_writes(cli: Cli) -> None:
+    """orjson encodes the records; its output must stay byte for byte the stdlib's compact JSON."""
+    for sample in sorted(CAPTURES.glob("*.log")):
+        lines = cli("analyze", str(sample), "--format", "jsonl").out.splitlines()
+        assert lines
+        for line in lines:
+            assert line == json.dumps(json.loads(line), ensure_ascii=False, separators=(",", ":"))

@@ -32,7 +32,7 @@ from decoders.line import LineSettings
 from decoders.message import Message, Role
 from sniffer.exports import foxglove_log
 from sniffer.io.formats.mcap_capture import McapCaptureWriter
-from sniffer.views.records import frame_record
+from sniffer.views.records import encode_record, frame_record
 
 KEPT_REQUESTS = 4096
 CHUNK_SIZE = 1 << 20
@@ -121,7 +121,6 @@ class McapExporter:
         self._params_schema = self._schema(PARAMS_SCHEMA)
         self._param_channels: dict[int, int] = {}
         self._requests: OrderedDict[int, tuple[str, int, int | None, int]] = OrderedDict()
-        self._encode = json.JSONEncoder(ensure_ascii=False, separators=(",", ":")).encode
         self.counts: dict[str, int] = {}
 
     def _schema(self, schema: dict[str, Any]) -> int:
@@ -142,7 +141,7 @@ class McapExporter:
 
     def _put(self, channel: int, topic: str, t_ns: int, record: dict[str, Any]) -> None:
         self._writer.add_message(channel_id=channel, log_time=t_ns, publish_time=t_ns,
-                                 data=self._encode(record).encode())
+                                 data=encode_record(record))
         self.counts[topic] = self.counts.get(topic, 0) + 1
 
     def _message(self, message: Message) -> None:

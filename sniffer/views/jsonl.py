@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from typing import Any, TextIO
 
 from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import Message
 from decoders.stats import Statistics
-from sniffer.views.records import capture_record, device_record, frame_record
+from sniffer.views.records import capture_record, device_record, encode_record, frame_record
 
 
 class JsonlView:
@@ -17,7 +16,6 @@ class JsonlView:
 
     def __init__(self, out: TextIO) -> None:
         self._out = out
-        self._dumps = json.JSONEncoder(ensure_ascii=False, separators=(",", ":")).encode
 
     wants_messages = True
 
@@ -25,13 +23,13 @@ class JsonlView:
         self._write(capture_record(source, info, line))
 
     def messages(self, messages: list[Message]) -> None:
-        dumps = self._dumps
         lines = []
         for message in messages:
-            lines.append(dumps(frame_record(message)))
+            lines.append(encode_record(frame_record(message)))
             if message.device is not None:
-                lines.append(dumps(device_record(message)))
-        self._out.write("".join(line + "\n" for line in lines))
+                lines.append(encode_record(device_record(message)))
+        lines.append(b"")
+        self._out.write(b"\n".join(lines).decode())
 
     def finish(self, statistics: Statistics) -> None:
         """The closing ``summary`` record: statistics of every frame, filtered or not."""
@@ -39,4 +37,4 @@ class JsonlView:
         self._out.flush()
 
     def _write(self, record: dict[str, Any]) -> None:
-        self._out.write(self._dumps(record) + "\n")
+        self._out.write(encode_record(record).decode() + "\n")

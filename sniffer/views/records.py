@@ -4,12 +4,20 @@ from __future__ import annotations
 
 from typing import Any
 
+import orjson
+
 from decoders.capture import CaptureInfo
 from decoders.frame import PROTOCOL_NAMES
 from decoders.line import LineSettings
 from decoders.message import Message, ParamValue
 
 NS_PER_S = 1e9
+
+
+def encode_record(record: dict[str, Any]) -> bytes:
+    """One record as compact UTF-8 JSON (what ``json.dumps`` with ``separators=(",", ":")`` and
+    ``ensure_ascii=False`` writes, a third of the time: every frame passes through here)."""
+    return orjson.dumps(record)
 
 
 def capture_record(source: str, info: CaptureInfo, line: LineSettings) -> dict[str, Any]:
