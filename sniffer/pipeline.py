@@ -58,10 +58,13 @@ def analyze(
     source: str,
     analysis: Analysis,
     view: MessageView,
+    *,
     raw: Callable[[ChunkBatch], None] | None = None,
+    framed: Callable[[MessageBatch], None] | None = None,
 ) -> Statistics:
     """Decode every batch of ``reader`` into ``view``, streaming; statistics cover all frames.
-    ``raw`` gets the chunks as they are read (exports keep them)."""
+    ``raw`` gets the chunks as they are read (exports keep them); ``framed`` the framed and
+    paired messages in columns, before annotation (exports that need only the frames)."""
     decoder = Decoder(analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns)
     applier = ProfileApplier(analysis.profiles) if analysis.profiles is not None else None
     annotator = Annotator(applier) if view.wants_messages else None
@@ -71,6 +74,8 @@ def analyze(
     def deliver(batches: list[MessageBatch]) -> None:
         for batch in batches:
             statistics.add_batch(batch)
+            if framed is not None:
+                framed(batch)
             if annotator is not None:
                 messages = annotator.annotate_all(batch)
                 view.messages(messages if analysis.keep is None else [m for m in messages if analysis.keep(m)])

@@ -46,16 +46,17 @@ def run(args: argparse.Namespace) -> int:
         reader, analysis = open_analysis(args, stack)
         view = ExportView(args, analysis)
         stack.callback(view.close)
-        analyze(reader, args.capture, analysis, view, raw=view.raw)
+        analyze(reader, args.capture, analysis, view, raw=view.raw,
+                framed=view.pcap.batch if view.pcap is not None else None)
     return 0
 
 
 class ExportView:
     """Hands messages and raw chunks to the exporters asked for."""
 
-    wants_messages = True
-
     def __init__(self, args: argparse.Namespace, analysis: Analysis) -> None:
+        # pcap alone needs no decoding: it is fed whole batches, and annotation is skipped.
+        self.wants_messages = bool(args.mcap or args.rrd or args.spawn)
         self.args = args
         self.analysis = analysis
         self.mcap: McapExporter | None = None
@@ -78,8 +79,6 @@ class ExportView:
     def messages(self, messages: list[Message]) -> None:
         if self.mcap is not None:
             self.mcap.messages(messages)
-        if self.pcap is not None:
-            self.pcap.messages(messages)
         if self.rerun is not None:
             self.rerun.messages(messages)
 
