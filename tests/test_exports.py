@@ -181,3 +181,31 @@ def test_pcap_decoded_by_tshark(cli: Cli, tmp_path: Path) -> None:
         if frame["crc_ok"]:
             assert int(function) == frame["function"] & 0x7F
             assert (int(exception) if exception else None) == frame["exception_code"]
+
+
+def read_pcap(path: Path) -> tuple[int, list[tuple[int, str]]]:
+    """Link type and (time ns, hex) per packet, read with struct as any pcap reader would."""
+    import struct
+
+    data = path.read_bytes()
+    magic, major, minor, _, _, _, linktype = struct.unpack_from("<IHHiIII", data)
+    assert (magic, major, minor) == (0xA1B23C4D, 2, 4)
+    packets, at = [], 24
+    while at < len(data):
+        seconds, nanos, captured, length = struct.unpack_from("<IIII", data, at)
+        assert captured == length
+        packets.append((seconds * 1_000_000_000 + nanos, data[at + 16 : at + 16 + captured].hex()))
+        at += 16 + captured
+    assert at == len(data)
+    return linktype, packets
+
+
+@pytest.mark.parametrize("sample", ["atv71-plc-poll-usb.log", "nord-uss.log", "xbt-hmi.log", "atv312-setup.log"])
+def test_pcap_holds_every_frame_with_its_time(cli: Cli, tmp_path: Path, sample: str) -> None:
+    source = SAMPLE_LOG.parent / sample
+    pcap = tmp_path / "out.pcap"
+    assert cli("export", str(source), "--pcap", str(pcap)).code == 0
+    frames = [r for r in cli("analyze", str(source), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
+    linktype, packets = read_pcap(pcap)
+    assert linktype == 147
+    assert packets == [(f["t_ns"], f["hex"]) for f in frames]
