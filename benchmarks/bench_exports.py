@@ -15,7 +15,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.bench_memory import polling_capture
+from benchmarks.bench_memory import benchmark_capture
 
 CHILD = """
 import resource, sys, time
@@ -31,9 +31,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=1_000_000)
     parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated capture in this folder")
+    parser.add_argument("--traffic", choices=["polling", "mixed"], default="polling",
+                        help="FC 3 polling, or mixed ATV traffic with faults (benchmarks/generate_capture.py)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        capture = polling_capture(args.keep or Path(tmp), args.frames)
+        capture = benchmark_capture(args.keep or Path(tmp), args.frames, args.traffic)
         print(f"{'export':<8} {'frames':>10} {'seconds':>8} {'frames/s':>10} {'output MB':>10} {'peak RSS MB':>12}")
         for option, suffix in (("--mcap", ".mcap"), ("--rrd", ".rrd")):
             output = Path(tmp) / f"export{suffix}"

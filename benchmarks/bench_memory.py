@@ -31,12 +31,18 @@ sys.exit(code)
 PIECE_FRAMES = 100_000
 
 
-def polling_capture(folder: Path, frames: int) -> Path:
-    """The benchmark capture of ``frames`` frames in ``folder``, written unless it is there."""
+def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Path:
+    """The benchmark capture of ``frames`` frames in ``folder``, written unless it is there:
+    ``polling`` (FC 3 only) or ``mixed`` (benchmarks/generate_capture.py, seed 1)."""
     folder.mkdir(parents=True, exist_ok=True)
-    capture = folder / f"polling-{frames}.mcap"
+    capture = folder / f"{traffic}-{frames}.mcap"
     if not capture.exists():
-        write_capture(capture, frames)
+        if traffic == "mixed":
+            from benchmarks.generate_capture import write
+
+            write(capture, frames, 1, LINE, TimingQuality.EXACT)
+        else:
+            write_capture(capture, frames)
     return capture
 
 
