@@ -1,6 +1,6 @@
 """`rtusniff stats` end to end on large captures: frames/s and peak RSS; prints a table.
 
-    python -m benchmarks.bench_stats [--frames 1000000 5000000] [--keep DIR]
+    python -m benchmarks.bench_stats [--frames 1000000 5000000] [--keep DIR] [--traffic polling|mixed]
 
 Captures are FC 3 polling at 115200 8N1 (32 slaves, 1 % of frames with a pause
 inside), written as native MCAP captures in pieces; each size is analysed in a
@@ -11,18 +11,19 @@ threaded.
 from __future__ import annotations
 
 import argparse
+import json
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.bench_memory import write_capture
+from benchmarks.bench_memory import benchmark_capture
 
 CHILD = """
 import resource, sys, time
 from sniffer.cli import main
 start = time.perf_counter()
-code = main(["stats", sys.argv[1], "--format", "json", "-o", "/dev/null"])
+code = main(["stats", sys.argv[1], "--format", "json", "-o", sys.argv[2]])
 print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 sys.exit(code)
 """
@@ -32,18 +33,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, nargs="+", default=[1_000_000, 5_000_000])
     parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated captures in this folder")
+    parser.add_argument("--traffic", choices=["polling", "mixed"], default="polling",
+                        help="FC 3 polling, or mixed ATV traffic with faults (benchmarks/generate_capture.py)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
-        folder.mkdir(parents=True, exist_ok=True)
+        report = Path(tmp) / "stats.json"
         print(f"{'frames':>10} {'MB':>7} {'stats s':>8} {'frames/s':>10} {'MB/s':>6} {'peak RSS MB':>12}")
         for frames in args.frames:
-            path = folder / f"polling-{frames}.mcap"
-            if not path.exists():
-                write_capture(path, frames)
-            command = [sys.executable, "-c", CHILD, str(path)]
+            path = benchmark_capture(folder, frames, args.traffic)
+            command = [sys.executable, "-c", CHILD, str(path), str(report)]
             seconds, rss_kb = subprocess.run(command, capture_output=True, text=True, check=True).stdout.split()
-            wire_mb = frames * 10.5 / 1e6  # mean frame length of this traffic
+            wire_mb = json.loads(report.read_text())["bytes"] / 1e6
             print(f"{frames:>10,} {path.stat().st_size / 1e6:>7.1f} {float(seconds):>8.2f} "
                   f"{frames / float(seconds):>10,.0f} {wire_mb / float(seconds):>6.1f} {int(rss_kb) / 1024:>12.1f}")
 
