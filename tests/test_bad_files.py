@@ -30,6 +30,8 @@ BAD_FILES: list[tuple[str, str, Content, int, str]] = [
     ("bad hex", "c.log", (HEADER + "1.0 01 ZZ\n").encode(), 7, "c.log:line 4: bad hex digit 'Z'"),
     ("odd hex digits", "c.log", (HEADER + "1.0 01 0\n").encode(), 7, "c.log:line 4: odd number of hex digits"),
     ("decreasing times", "c.log", (HEADER + "2.0 01\n1.0 02\n").encode(), 8, "c.log:line 5: time 1.000000000"),
+    ("time beyond 2262", "c.log", (HEADER + "17004010417.0 02\n").encode(), 7,
+     "c.log:line 4: time 17004010417.0 is beyond"),
     ("binary garbage", "c.log", HEADER.encode() + b"\x89PNG\r\n\x1a\n\x00\xff", 7, "c.log:line 4: not text"),
     ("truncated MCAP", "c.mcap", SAMPLE_MCAP.read_bytes()[:800], 9,
      "c.mcap:byte 334: damaged MCAP: a record runs past"),

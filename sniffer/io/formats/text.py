@@ -28,6 +28,8 @@ from sniffer.io.registry import STDIO
 
 MAGIC = "# rtu-capture v1"
 _MAGIC_ANY_VERSION = re.compile(r"#\s*rtu-capture\s+v(\S+)")
+#: Times are kept as 64-bit nanoseconds.
+MAX_TIME_NS = 2**63 - 1
 _TIME = re.compile(r"\d+(?:\.\d{1,9})?")
 _HEADER_KEY = re.compile(r"#\s*(line|timing)\s*:\s*(.*)$", re.IGNORECASE)
 NS_PER_S = 1_000_000_000
@@ -166,6 +168,9 @@ class TextCaptureReader:
             raise self._error(
                 ErrorKind.BAD_DATA, f"bad time {time_text!r}: expected seconds with up to 9 decimals", line_number
             )
+        if t_ns > MAX_TIME_NS:
+            limit = f"{MAX_TIME_NS // NS_PER_S} s (the year 2262)"
+            raise self._error(ErrorKind.BAD_DATA, f"time {time_text} is beyond {limit}", line_number)
         try:
             data = bytes.fromhex(hex_text)
         except ValueError:
