@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import random
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -49,6 +50,17 @@ def valid_frames_at(frames: list[Frame]) -> set[tuple[int, bytes]]:
 def test_noise_between_frames_loses_no_valid_frame(
     line: LineSettings, seed: int, noise: list[bytes], host: bool
 ) -> None:
+    check_noise_between_frames(line, seed, noise, host)
+
+
+@pytest.mark.xfail(strict=True, reason="known: host timing, 12 noise bytes in one USB burst hide the next frame")
+def test_host_noise_case_found_by_the_long_fuzz_run() -> None:
+    """Found with RTUSNIFF_EXAMPLES=60000; kept so that the fix, when it comes, is seen."""
+    noise = [b"\x00"] * 5 + [bytes.fromhex("d34ae828963fe708c9807af2")]
+    check_noise_between_frames(LineSettings.parse("9600 8E1"), 66, noise, host=True)
+
+
+def check_noise_between_frames(line: LineSettings, seed: int, noise: list[bytes], host: bool) -> None:
     rng = random.Random(seed)
     transmissions, sent = [], []
     offset = 0
