@@ -15,7 +15,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.bench_memory import benchmark_capture
+from benchmarks.bench_memory import add_capture_options, benchmark_capture
 
 CHILD = """
 import resource, sys, time
@@ -30,9 +30,7 @@ sys.exit(code)
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=1_000_000)
-    parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated capture in this folder")
-    parser.add_argument("--traffic", choices=["polling", "mixed"], default="polling",
-                        help="FC 3 polling, or mixed ATV traffic with faults (benchmarks/generate_capture.py)")
+    add_capture_options(parser)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         capture = benchmark_capture(args.keep or Path(tmp), args.frames, args.traffic)

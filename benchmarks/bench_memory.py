@@ -31,6 +31,13 @@ sys.exit(code)
 PIECE_FRAMES = 100_000
 
 
+def add_capture_options(parser: argparse.ArgumentParser) -> None:
+    """``--keep`` and ``--traffic``, as every end-to-end benchmark takes them."""
+    parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated captures in this folder")
+    parser.add_argument("--traffic", choices=["polling", "mixed"], default="polling",
+                        help="FC 3 polling, or mixed ATV traffic with faults (benchmarks/generate_capture.py)")
+
+
 def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Path:
     """The benchmark capture of ``frames`` frames in ``folder``, written unless it is there:
     ``polling`` (FC 3 only) or ``mixed`` (benchmarks/generate_capture.py, seed 1)."""

@@ -20,7 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks.bench_memory import benchmark_capture
+from benchmarks.bench_memory import add_capture_options, benchmark_capture
 from sniffer.exports.pcap_export import WIRESHARK_USER_DLT
 
 TSHARK_FIELDS = ["frame.number", "frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "mbrtu.crc16.status",
@@ -43,9 +43,7 @@ def run(argv: list[str], output: Path) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=1_000_000)
-    parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated capture in this folder")
-    parser.add_argument("--traffic", choices=["polling", "mixed"], default="polling",
-                        help="FC 3 polling, or mixed ATV traffic with faults (benchmarks/generate_capture.py)")
+    add_capture_options(parser)
     args = parser.parse_args()
     tshark = shutil.which("tshark")
     if tshark is None:
