@@ -15,6 +15,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from benchmarks import generate_capture
 from benchmarks.bench_framing import LINE, polling_transmissions
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.synthesis import exact_chunks
@@ -45,9 +46,7 @@ def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Pa
     capture = folder / f"{traffic}-{frames}.mcap"
     if not capture.exists():
         if traffic == "mixed":
-            from benchmarks.generate_capture import write
-
-            write(capture, frames, 1, LINE, TimingQuality.EXACT)
+            generate_capture.write(capture, frames, 1, LINE, TimingQuality.EXACT)
         else:
             write_capture(capture, frames)
     return capture

@@ -6,6 +6,7 @@ import hashlib
 import json
 import os
 import shutil
+import struct
 import subprocess
 from collections import Counter
 from collections.abc import Callable
@@ -185,8 +186,6 @@ def test_pcap_decoded_by_tshark(cli: Cli, tmp_path: Path) -> None:
 
 def read_pcap(path: Path) -> tuple[int, list[tuple[int, str]]]:
     """Link type and (time ns, hex) per packet, read with struct as any pcap reader would."""
-    import struct
-
     data = path.read_bytes()
     magic, major, minor, _, _, _, linktype = struct.unpack_from("<IHHiIII", data)
     assert (magic, major, minor) == (0xA1B23C4D, 2, 4)

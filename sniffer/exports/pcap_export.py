@@ -33,11 +33,9 @@ class PcapExporter:
     def __init__(self, path: str) -> None:
         self._file: BinaryIO = open(path, "wb")  # noqa: SIM115
         self._file.write(_HEADER.pack(_NANOSECOND_MAGIC, 2, 4, 0, 0, SNAPLEN, LINKTYPE_USER0))
-        self.packets = 0
 
     def batch(self, batch: MessageBatch) -> None:
         self._file.write(pcap_records(batch))
-        self.packets += len(batch)
 
     def close(self) -> None:
         self._file.close()
