@@ -57,24 +57,17 @@ class DeviceIdentity:
     applied: bool
 
 
-@dataclass(frozen=True, slots=True)
-class Message:
-    """A frame with its role and decoded meaning.
+@dataclass(frozen=True, slots=True, eq=False)
+class Decoding:
+    """What a frame says, apart from when it was seen: its summary, decoded PDU, params.
 
-    ``flags`` holds the framer's flags plus those of later stages (timeouts, retries).
-    ``request_index`` and ``latency_ns`` are set on responses and exceptions paired
-    with their request; ``pdu``, ``params`` and ``summary`` by the annotator.
+    The annotator hands the same object to every message with the same bytes, role,
+    protocol and request while the profiles know the same (see
+    :class:`decoders.modbus.annotate.Annotator`), so a sink may cache what it derives
+    from one by identity (``eq=False``: compared and hashed by identity).
     """
 
-    frame: Frame
-    role: Role
-    slave: int | None
-    function: int | None
-    exception_code: int | None
     summary: str
-    flags: FrameFlag
-    request_index: int | None = None
-    latency_ns: int | None = None
     params: tuple[ParamValue, ...] = ()
     pdu: Pdu | None = None
     #: What the device profile has to say: limits exceeded, exceptions explained.
@@ -82,6 +75,56 @@ class Message:
     device: DeviceIdentity | None = None
     #: The decoded telegram, for frames that are USS rather than Modbus.
     uss: UssTelegram | None = None
+
+
+#: The decoding of a message no annotator has seen yet.
+UNDECODED = Decoding("")
+
+
+# Not frozen (treat as immutable; only the annotator sets ``decoding`` on messages it has just
+# built): a frozen dataclass sets each field through object.__setattr__, and every frame is one.
+@dataclass(slots=True)
+class Message:
+    """A frame with its role and decoded meaning.
+
+    ``flags`` holds the framer's flags plus those of later stages (timeouts, retries).
+    ``request_index`` and ``latency_ns`` are set on responses and exceptions paired
+    with their request; ``decoding`` by the annotator.
+    """
+
+    frame: Frame
+    role: Role
+    slave: int | None
+    function: int | None
+    exception_code: int | None
+    flags: FrameFlag
+    request_index: int | None = None
+    latency_ns: int | None = None
+    decoding: Decoding = UNDECODED
+
+    @property
+    def summary(self) -> str:
+        return self.decoding.summary
+
+    @property
+    def params(self) -> tuple[ParamValue, ...]:
+        return self.decoding.params
+
+    @property
+    def pdu(self) -> Pdu | None:
+        return self.decoding.pdu
+
+    @property
+    def remarks(self) -> tuple[str, ...]:
+        return self.decoding.remarks
+
+    @property
+    def device(self) -> DeviceIdentity | None:
+        return self.decoding.device
+
+    @property
+    def uss(self) -> UssTelegram | None:
+        return self.decoding.uss
 
     def decoded(
         self,
@@ -93,24 +136,18 @@ class Message:
         device: DeviceIdentity | None = None,
         uss: UssTelegram | None = None,
     ) -> Message:
-        """This message with what a decoding stage found; fields not given stay as they are.
-        (Spelled out rather than ``dataclasses.replace``: this runs for every frame.)"""
-        return Message(
-            frame=self.frame,
-            role=self.role,
-            slave=self.slave,
-            function=self.function,
-            exception_code=self.exception_code,
+        """This message with what a decoding stage found; fields not given stay as they are."""
+        known = self.decoding
+        decoding = Decoding(
             summary=summary,
-            flags=self.flags,
-            request_index=self.request_index,
-            latency_ns=self.latency_ns,
-            params=self.params if params is None else params,
-            pdu=self.pdu if pdu is None else pdu,
-            remarks=self.remarks if remarks is None else remarks,
-            device=self.device if device is None else device,
-            uss=self.uss if uss is None else uss,
+            params=known.params if params is None else params,
+            pdu=known.pdu if pdu is None else pdu,
+            remarks=known.remarks if remarks is None else remarks,
+            device=known.device if device is None else device,
+            uss=known.uss if uss is None else uss,
         )
+        return Message(self.frame, self.role, self.slave, self.function, self.exception_code, self.flags,
+                       self.request_index, self.latency_ns, decoding)
 
 
 #: Roles by their code in :class:`MessageBatch`.
@@ -157,7 +194,6 @@ class MessageBatch:
                 slave=None if slave == NONE else slave,
                 function=None if function == NONE else function,
                 exception_code=None if code == NONE else code,
-                summary="",
                 flags=flag_set(flags),
                 request_index=None if request == NONE else request,
                 latency_ns=None if latency == NONE else latency,

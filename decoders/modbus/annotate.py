@@ -3,6 +3,14 @@
 Responses are read against their request (a register response carries values, its
 request the addresses), so the annotator keeps the decoded requests that still
 await an answer.
+
+A bus repeats itself: a master polls the same registers over and over and drives
+answer with the same values. What a frame says depends only on its bytes, role and
+protocol, its request's bytes and what the profiles know at that moment, so
+:meth:`Annotator.annotate_all` decodes each such combination once and hands the same
+:class:`Decoding` to every repeat. The profiles' ``version`` is part of the key: a
+frame that taught them something (a scanner table, an identification) is decoded
+again, never answered from before.
 """
 
 from __future__ import annotations
@@ -10,7 +18,7 @@ from __future__ import annotations
 from collections import OrderedDict
 
 from decoders.frame import USS
-from decoders.message import Message, MessageBatch, ParamValue, Role
+from decoders.message import ROLE_CODE, Decoding, Message, MessageBatch, ParamValue, Role
 from decoders.modbus.codes import function_name
 from decoders.modbus.layouts import fits_request
 from decoders.modbus.pdu import (
@@ -33,20 +41,79 @@ from decoders.uss import parse_uss
 
 #: Decoded requests kept for their responses; older ones are answered or lost.
 KEPT_REQUESTS = 1024
+#: Decodings kept for repeats, in two generations: when the young one is full it becomes the
+#: old one, and what is used from the old one moves back, so that what a bus repeats stays
+#: while one-off frames (changing values) pass through (an LRU that costs a dict lookup).
+KEPT_DECODINGS = 16384
 _AS_REQUEST = {Role.REQUEST, Role.BROADCAST}
+#: What of a request decoding its answer reads (see :func:`answer_context`).
+AnswerContext = tuple[object, ...] | None
+_NO_REQUEST: tuple[AnswerContext, Pdu | None] = (None, None)
+
+#: What a message's decoding depends on: role code, protocol, bytes, its request's
+#: :func:`answer_context` and the profiles' version.
+DecodingKey = tuple[int, int, bytes, AnswerContext, int]
 
 
 class Annotator:
     """Adds ``pdu``, ``params`` and ``summary`` to messages, in capture order."""
 
     def __init__(self, profiles: ProfileApplier | None = None) -> None:
-        self._requests: OrderedDict[int, Pdu] = OrderedDict()
+        #: Open requests by frame index: their bytes and decoded PDU.
+        self._requests: OrderedDict[int, tuple[AnswerContext, Pdu]] = OrderedDict()
         self._profiles = profiles
+        self._decodings: dict[DecodingKey, tuple[Decoding, AnswerContext]] = {}
+        self._old_decodings: dict[DecodingKey, tuple[Decoding, AnswerContext]] = {}
 
     def annotate_all(self, messages: MessageBatch) -> list[Message]:
-        return [self.annotate(m) for m in messages]
+        """Every message of the batch, decoded; repeats share one :class:`Decoding`."""
+        decoded = []
+        profiles = self._profiles
+        for message in messages:
+            frame = message.frame
+            context, request = self._open_request(message)
+            version = 0 if profiles is None else profiles.version
+            key = (ROLE_CODE[message.role], frame.protocol, frame.data, context, version)
+            known = self._decodings.get(key)
+            if known is None:
+                known = self._old_decodings.get(key)
+                if known is None:
+                    decoding = self._decode(message, request).decoding
+                    known = decoding, answer_context(decoding.pdu)
+                self._remember(key, known)
+            # Fresh from the batch and not yet handed out: set in place rather than copied.
+            message.decoding = known[0]
+            if message.role is Role.REQUEST:
+                self._keep_request(frame.index, known[1], message.pdu)
+            decoded.append(message)
+        return decoded
 
     def annotate(self, message: Message) -> Message:
+        """One message, decoded without the cache (live views, tests)."""
+        annotated = self._decode(message, self._open_request(message)[1])
+        if annotated.role is Role.REQUEST:
+            self._keep_request(annotated.frame.index, answer_context(annotated.pdu), annotated.pdu)
+        return annotated
+
+    def _remember(self, key: DecodingKey, known: tuple[Decoding, AnswerContext]) -> None:
+        if len(self._decodings) >= KEPT_DECODINGS:
+            self._old_decodings = self._decodings
+            self._decodings = {}
+        self._decodings[key] = known
+
+    def _open_request(self, message: Message) -> tuple[AnswerContext, Pdu | None]:
+        """The context and PDU of the request ``message`` answers, if it is still kept."""
+        if message.request_index is None:
+            return _NO_REQUEST
+        return self._requests.pop(message.request_index, _NO_REQUEST)
+
+    def _keep_request(self, index: int, context: AnswerContext, pdu: Pdu | None) -> None:
+        if pdu is not None:
+            self._requests[index] = (context, pdu)
+            if len(self._requests) > KEPT_REQUESTS:
+                self._requests.popitem(last=False)
+
+    def _decode(self, message: Message, request: Pdu | None) -> Message:
         frame = message.frame
         if message.role is Role.NOISE:
             return message.decoded(summary=f"noise, {len(frame.data)} byte{'s' if len(frame.data) != 1 else ''}")
@@ -54,13 +121,6 @@ class Annotator:
             return self._uss(message)
         is_request = message.role in _AS_REQUEST or (message.role is Role.UNKNOWN and fits_request(frame.data))
         pdu = parse_pdu(frame.data, is_request=is_request)
-        request = None
-        if message.request_index is not None:
-            request = self._requests.pop(message.request_index, None)
-        if message.role is Role.REQUEST:
-            self._requests[frame.index] = pdu
-            if len(self._requests) > KEPT_REQUESTS:
-                self._requests.popitem(last=False)
         summary = pdu.summary()
         if isinstance(pdu, ExceptionPdu):
             summary += f" ({function_name(pdu.function)})"
@@ -74,6 +134,24 @@ class Annotator:
         telegram = parse_uss(message.frame.data)
         annotated = message.decoded(summary=telegram.summary(), uss=telegram)
         return annotated if self._profiles is None else self._profiles.apply(annotated, None)
+
+
+def answer_context(request: Pdu | None) -> AnswerContext:
+    """What decoding an answer reads of its request: the request's kind and address ranges,
+    never the values it writes (:func:`named_registers` and the profiles' exception notes
+    read no more). Answers to requests that differ only in written values decode alike,
+    so they share a cached decoding."""
+    match request:
+        case None:
+            return None
+        case ReadRequest(function=function, address=address, count=count):
+            return (ReadRequest, function, address, count)
+        case ReadWriteRequest():
+            read, write = (request.read_address, request.read_count), (request.write_address, request.write_count)
+            return (ReadWriteRequest, *read, *write)
+        case WriteRegistersRequest(address=address, count=count) | WriteCoilsRequest(address=address, count=count):
+            return (type(request), address, count)
+    return (type(request), getattr(request, "address", None))
 
 
 def named_registers(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:

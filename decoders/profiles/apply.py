@@ -23,6 +23,7 @@ from decoders.modbus.pdu import (
 from decoders.profiles.model import Indirection, Parameter, Profile
 
 BROADCAST_ADDRESS = 0
+KEPT_NAMED_PARAMS = 65536
 PRODUCT_CODE_OBJECT = 1
 
 
@@ -75,6 +76,13 @@ class ProfileApplier:
     def __init__(self, book: ProfileBook) -> None:
         self.book = book
         self._indirections = _Indirections()
+        #: Counts what the applier has learnt (scanner tables, identified slaves): a decoding
+        #: made at one version holds while the version stays.
+        self.version = 0
+        #: Named params by (profile, slave, address, raw, reported), for what they were at
+        #: ``_named_version``: a drive reports the same values again and again.
+        self._named: dict[tuple[str, int | None, int, int | None, bool], ParamValue] = {}
+        self._named_version = 0
 
     def apply(self, message: Message, request: Pdu | None) -> Message:
         """``message`` with named params, remarks and, for identifications, the device."""
@@ -86,7 +94,7 @@ class ProfileApplier:
         if device is None and _knows_nothing(profile):
             return message
         reported = message.role is Role.RESPONSE
-        params = tuple(self._param(profile, slave, p, reported) for p in message.params)
+        params = tuple(self._named_param(profile, slave, p, reported) for p in message.params)
         self._learn(profile, slave, message.params)
         remarks = list(message.remarks)
         if message.role in (Role.REQUEST, Role.BROADCAST) and message.pdu is not None:
@@ -107,7 +115,10 @@ class ProfileApplier:
         product = objects.get(PRODUCT_CODE_OBJECT)
         if product is None:
             return None
+        before = self.book.profile_for(message.slave)
         profile = self.book.identify(message.slave, product)
+        if self.book.profile_for(message.slave) is not before:
+            self.version += 1
         return DeviceIdentity(
             slave=message.slave,
             vendor=objects.get(0),
@@ -116,6 +127,17 @@ class ProfileApplier:
             profile=profile.id if profile is not None else None,
             applied=profile is not None and self.book.profile_for(message.slave) is profile,
         )
+
+    def _named_param(self, profile: Profile, slave: int | None, param: ParamValue, reported: bool) -> ParamValue:
+        """:meth:`_param`, remembered while the applier learns nothing new."""
+        if self._named_version != self.version or len(self._named) >= KEPT_NAMED_PARAMS:
+            self._named.clear()
+            self._named_version = self.version
+        key = (profile.id, slave, param.address, param.raw, reported)
+        named = self._named.get(key)
+        if named is None:
+            named = self._named[key] = self._param(profile, slave, param, reported)
+        return named
 
     def _param(self, profile: Profile, slave: int | None, param: ParamValue, reported: bool) -> ParamValue:
         """``reported``: the value comes from the device (a response), where special values apply."""
@@ -149,7 +171,10 @@ class ProfileApplier:
             for param in params:
                 slot = param.address - table.address_registers
                 if 0 <= slot < table.count and param.raw is not None:
-                    self._indirections.mapping(slave, table)[slot] = param.raw
+                    mapping = self._indirections.mapping(slave, table)
+                    if mapping[slot] != param.raw:
+                        mapping[slot] = param.raw
+                        self.version += 1
 
 
 def _uss_words(profile: Profile, message: Message) -> Message:

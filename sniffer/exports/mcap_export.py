@@ -32,7 +32,7 @@ from decoders.line import LineSettings
 from decoders.message import Message, Role
 from sniffer.exports import foxglove_log
 from sniffer.io.formats.mcap_capture import McapCaptureWriter
-from sniffer.views.records import encode_record, frame_record
+from sniffer.views.records import FrameRecordEncoder, encode_json
 
 KEPT_REQUESTS = 4096
 CHUNK_SIZE = 1 << 20
@@ -113,6 +113,7 @@ class McapExporter:
             **metadata, "line": line.format(), "timing": info.timing.value, "tool": f"rtusniff {version('rtusniff')}",
         })
         self._frames = self._channel("/modbus/frames", FRAME_SCHEMA)
+        self._frame_records = FrameRecordEncoder()
         self._transactions = self._channel("/modbus/transactions", TRANSACTION_SCHEMA)
         log_schema = self._writer.register_schema(name=foxglove_log.SCHEMA_NAME, encoding=foxglove_log.ENCODING,
                                                   data=foxglove_log.FILE_DESCRIPTOR_SET)
@@ -141,13 +142,15 @@ class McapExporter:
 
     def _put(self, channel: int, topic: str, t_ns: int, record: dict[str, Any]) -> None:
         self._writer.add_message(channel_id=channel, log_time=t_ns, publish_time=t_ns,
-                                 data=encode_record(record))
+                                 data=encode_json(record))
         self.counts[topic] = self.counts.get(topic, 0) + 1
 
     def _message(self, message: Message) -> None:
         frame = message.frame
         t_ns = frame.t_start_ns
-        self._put(self._frames, "/modbus/frames", t_ns, frame_record(message))
+        self._writer.add_message(channel_id=self._frames, log_time=t_ns, publish_time=t_ns,
+                                 data=self._frame_records.encode(message).encode())
+        self.counts["/modbus/frames"] = self.counts.get("/modbus/frames", 0) + 1
         seconds, nanos = divmod(t_ns, 1_000_000_000)
         name = "noise" if message.slave is None else f"slave {message.slave}"
         text = f"#{frame.index} {message.role.value}: {message.summary}"

@@ -8,7 +8,7 @@ from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import Message
 from decoders.stats import Statistics
-from sniffer.views.records import capture_record, device_record, encode_record, frame_record
+from sniffer.views.records import FrameRecordEncoder, capture_record, device_record, encode_record
 
 
 class JsonlView:
@@ -16,6 +16,7 @@ class JsonlView:
 
     def __init__(self, out: TextIO) -> None:
         self._out = out
+        self._frames = FrameRecordEncoder()
 
     wants_messages = True
 
@@ -24,12 +25,13 @@ class JsonlView:
 
     def messages(self, messages: list[Message]) -> None:
         lines = []
+        encode = self._frames.encode
         for message in messages:
-            lines.append(encode_record(frame_record(message)))
+            lines.append(encode(message))
             if message.device is not None:
-                lines.append(encode_record(device_record(message)))
-        lines.append(b"")
-        self._out.write(b"\n".join(lines).decode())
+                lines.append(encode_record(device_record(message)).decode())
+        lines.append("")
+        self._out.write("\n".join(lines))
 
     def finish(self, statistics: Statistics) -> None:
         """The closing ``summary`` record: statistics of every frame, filtered or not."""

@@ -1,0 +1,146 @@
+"""Hypothesis: the shortcuts of the hot path say exactly what the plain path says.
+
+The annotator hands repeats a cached decoding and the profiles remember named params;
+the JSONL view writes frame records from pieces. Each is checked against the path it
+shortcuts, on traffic that repeats itself, teaches the profiles (scanner set-up,
+identification) and answers the same addresses with different values.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+from dataclasses import astuple
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from decoders.crc import crc_bytes, crc_ok
+from decoders.frame import Frame, FrameFlag, flag_set, frames_to_batch
+from decoders.message import Decoding, Message, MessageBatch, ParamValue, Role
+from decoders.modbus.annotate import Annotator
+from decoders.modbus.matcher import Matcher
+from decoders.profiles.apply import ProfileApplier
+from sniffer.profiles_io import profile_book
+from sniffer.views.records import FrameRecordEncoder, frame_record
+
+EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
+SLAVES = st.sampled_from([1, 2, 7])
+#: ETA, RFRD, the scanner's address and value registers, HSP, an unknown register.
+ADDRESSES = st.sampled_from([3201, 8604, 12701, 12702, 12741, 12742, 12761, 3104, 5])
+VALUES = st.sampled_from([0, 1, 0x8000, 0x8637, 3201, 8604, 8501, 1500, 0xFFFF])
+PRODUCT = b"\x00\x0dTelemecanique\x01\x0bATV71HU15M3\x02\x040201"
+
+
+def adu(*parts: bytes) -> bytes:
+    body = b"".join(parts)
+    return body + crc_bytes(body)
+
+
+@st.composite
+def exchanges(draw: st.DrawFn) -> list[bytes]:
+    """A request and (mostly) its answer, from a small pool so that frames repeat."""
+    s = bytes([draw(SLAVES)])
+    address, count = draw(ADDRESSES), draw(st.integers(1, 3))
+    values = [draw(VALUES) for _ in range(count)]
+    match draw(st.integers(0, 5)):
+        case 0:
+            request = adu(s, b"\x03", struct.pack(">HH", address, count))
+            answer = adu(s, b"\x03", bytes([2 * count]), struct.pack(f">{count}H", *values))
+        case 1:
+            request = adu(s, b"\x10", struct.pack(">HHB", address, count, 2 * count), struct.pack(f">{count}H", *values))
+            answer = adu(s, b"\x10", struct.pack(">HH", address, count))
+        case 2:
+            request = answer = adu(s, b"\x06", struct.pack(">HH", address, values[0]))
+        case 3:
+            request = adu(s, b"\x03", struct.pack(">HH", address, count))
+            answer = adu(s, b"\x83", bytes([draw(st.sampled_from([2, 4]))]))
+        case 4:
+            request, answer = adu(s, b"\x2b\x0e\x01\x00"), adu(s, b"\x2b\x0e\x01\x02\x00\x00\x03", PRODUCT)
+        case _:
+            request, answer = adu(s, b"\x10", struct.pack(">HHB", address, 1, 2), b"\x00"), b""
+    if draw(st.booleans()) and len(answer) > 3:
+        damaged = bytearray(answer)
+        damaged[draw(st.integers(2, len(answer) - 1))] ^= 1
+        answer = bytes(damaged)
+    return [request, answer] if answer else [request]
+
+
+def matched(adus: list[bytes]) -> list[MessageBatch]:
+    frames, t = [], 0
+    for index, data in enumerate(adus):
+        t += 5_000_000
+        frames.append(Frame(index, t, t + 1000 * len(data), data, crc_ok(data), FrameFlag.NONE))
+    matcher = Matcher()
+    return [matcher.feed(frames_to_batch(frames)), matcher.flush()] if frames else []
+
+
+def said(decoding: Decoding) -> tuple[object, ...]:
+    return (decoding.summary, [astuple(p) for p in decoding.params], decoding.remarks, decoding.device,
+            decoding.pdu, decoding.uss)
+
+
+@settings(max_examples=max(300, EXAMPLES), deadline=None)
+@given(st.lists(exchanges(), max_size=60), st.sampled_from([[], ["atv71"], ["2=atv312"]]))
+def test_cached_decodings_equal_decoding_each_frame(traffic: list[list[bytes]], profiles: list[str]) -> None:
+    batches = matched([data for exchange in traffic for data in exchange])
+    cached = Annotator(ProfileApplier(profile_book(profiles, [])))
+    plain = Annotator(ProfileApplier(profile_book(profiles, [])))
+    for batch in batches:
+        expected = [plain.annotate(message) for message in batch]
+        got = cached.annotate_all(batch)
+        assert [said(m.decoding) for m in got] == [said(m.decoding) for m in expected]
+
+
+def test_repeats_share_one_decoding() -> None:
+    poll = [adu(b"\x02\x03", struct.pack(">HH", 3201, 1)), adu(b"\x02\x03\x02\x86\x37")]
+    batches = matched(poll * 3)
+    annotator = Annotator(ProfileApplier(profile_book(["atv71"], [])))
+    messages = [m for batch in batches for m in annotator.annotate_all(batch)]
+    assert messages[0].decoding is messages[2].decoding is messages[4].decoding
+    assert messages[1].decoding is messages[3].decoding
+    assert messages[1].params[0].code == "ETA" and "operation enabled" in str(messages[1].params[0].value)
+
+
+def test_what_the_profiles_learn_is_not_answered_from_the_cache() -> None:
+    """NM1 means ETA until the master points NMA1 at RFRD; the same answer then says RFRD."""
+    read_nm1 = [adu(b"\x02\x03", struct.pack(">HH", 12741, 1)), adu(b"\x02\x03\x02\x05\xdc")]
+    point_at_rfrd = [adu(b"\x02\x06", struct.pack(">HH", 12701, 8604))] * 2
+    batches = matched(read_nm1 + point_at_rfrd + read_nm1)
+    annotator = Annotator(ProfileApplier(profile_book(["atv71"], [])))
+    messages = [m for batch in batches for m in annotator.annotate_all(batch)]
+    assert messages[1].params[0].code == "NM1→ETA"
+    assert messages[5].params[0].code == "NM1→RFRD" and messages[5].params[0].unit == "rpm"
+
+
+NUMBERS = st.one_of(st.none(), st.integers(-(2**40), 2**40), st.floats(allow_nan=False, allow_infinity=False),
+                    st.text(max_size=8))
+
+
+@st.composite
+def messages(draw: st.DrawFn) -> Message:
+    data = draw(st.binary(max_size=12))
+    t = draw(st.integers(0, 2**62))
+    frame = Frame(draw(st.integers(0, 2**40)), t, t + draw(st.integers(0, 10**9)), data, draw(st.booleans()),
+                  FrameFlag.NONE, protocol=draw(st.sampled_from([0, 1])))
+    params = tuple(
+        ParamValue(draw(st.integers(0, 65535)), draw(st.one_of(st.none(), st.integers(0, 65535))),
+                   draw(st.one_of(st.none(), st.text(max_size=6))), draw(st.one_of(st.none(), st.text(max_size=6))),
+                   draw(NUMBERS), draw(st.one_of(st.none(), st.text(max_size=3))))
+        for _ in range(draw(st.integers(0, 3)))
+    )
+    decoding = Decoding(draw(st.text()), params, remarks=tuple(draw(st.lists(st.text(max_size=10), max_size=2))))
+    optional = st.one_of(st.none(), st.integers(0, 2**40))
+    return Message(frame, draw(st.sampled_from(list(Role))), draw(st.one_of(st.none(), st.integers(0, 247))),
+                   draw(st.one_of(st.none(), st.integers(0, 255))), draw(st.one_of(st.none(), st.integers(0, 255))),
+                   flag_set(draw(st.integers(0, 127))), draw(optional), draw(optional), decoding)
+
+
+@settings(max_examples=max(500, EXAMPLES), deadline=None)
+@given(st.lists(messages(), min_size=1, max_size=4))
+def test_frame_records_are_what_json_dumps_writes(batch: list[Message]) -> None:
+    encoder = FrameRecordEncoder()
+    for message in batch + batch:  # the second time from the encoder's cache
+        expected = json.dumps(frame_record(message), ensure_ascii=False, separators=(",", ":"))
+        assert encoder.encode(message) == expected
