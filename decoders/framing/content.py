@@ -17,7 +17,8 @@ The rules, in order of trust:
    likely, while resynchronising through bytes that form no frame and in CRC
    search: such a candidate is taken only if it ends where timing ends the segment
    or is followed by a frame found by rule 2; a CRC-search candidate must moreover
-   not contain a frame that rule 2 finds inside it.
+   not overlap a frame that rule 2 finds starting inside it (stray bytes before a
+   frame can pass the CRC together with the frame's first bytes).
 4. Bytes where no frame starts: if their header (address, function code) gives a
    length that ends at the segment's end or just before a valid frame, they are
    one damaged frame (``crc_ok`` false); other runs are classified by
@@ -125,16 +126,16 @@ def frame_at(
             if (
                 crc_ok(head[:length])
                 and _confirmed(data, pos + length, end, closed)
-                and not _rule_frame_inside(data, pos, pos + length)
+                and not _rule_frame_starts_inside(data, pos, pos + length, end)
             ):
                 return length
     return None
 
 
-def _rule_frame_inside(data: bytes, start: int, stop: int) -> bool:
-    """Whether a frame found by its length rule starts strictly inside ``[start, stop)``."""
-    for q in range(start + 1, stop - MIN_ADU + 1):
-        head = data[q : min(stop, q + MAX_ADU)]
+def _rule_frame_starts_inside(data: bytes, start: int, stop: int, end: int) -> bool:
+    """Whether a frame found by its length rule (within ``end``) starts strictly inside ``[start, stop)``."""
+    for q in range(start + 1, min(stop, end - MIN_ADU + 1)):
+        head = data[q : min(end, q + MAX_ADU)]
         if head[0] <= MAX_ADDRESS and any(
             n is not None and MIN_ADU <= n <= len(head) and crc_ok(head[:n]) for n in rule_lengths(head)
         ):
