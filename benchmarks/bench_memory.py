@@ -35,18 +35,20 @@ PIECE_FRAMES = 100_000
 def add_capture_options(parser: argparse.ArgumentParser) -> None:
     """``--keep`` and ``--traffic``, as every end-to-end benchmark takes them."""
     parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated captures in this folder")
-    parser.add_argument("--traffic", choices=["polling", "mixed"], default="polling",
-                        help="FC 3 polling, or mixed ATV traffic with faults (benchmarks/generate_capture.py)")
+    parser.add_argument("--traffic", choices=["polling", "mixed", "steady"], default="polling",
+                        help="FC 3 polling of random registers and values; mixed ATV traffic with faults and random "
+                             "values; the same with steady drives (benchmarks/generate_capture.py)")
 
 
 def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Path:
     """The benchmark capture of ``frames`` frames in ``folder``, written unless it is there:
-    ``polling`` (FC 3 only) or ``mixed`` (benchmarks/generate_capture.py, seed 1)."""
+    ``polling`` (FC 3 only), ``mixed`` or ``steady`` (benchmarks/generate_capture.py, seed 1)."""
     folder.mkdir(parents=True, exist_ok=True)
     capture = folder / f"{traffic}-{frames}.mcap"
     if not capture.exists():
-        if traffic == "mixed":
-            generate_capture.write(capture, frames, 1, LINE, TimingQuality.EXACT)
+        if traffic in ("mixed", "steady"):
+            values = "steady" if traffic == "steady" else "random"
+            generate_capture.write(capture, frames, 1, LINE, TimingQuality.EXACT, values=values)
         else:
             write_capture(capture, frames)
     return capture

@@ -175,9 +175,15 @@ class MessageBatch:
     def __len__(self) -> int:
         return len(self.role)
 
+    def message(self, position: int) -> Message:
+        """The message at ``position`` in the batch (one at a time; iterate for all of them)."""
+        columns = (self.role, self.slave, self.function, self.exception_code, self.flags, self.request_index,
+                   self.latency_ns)
+        row = tuple(int(column[position]) for column in columns)
+        return _message(self.frames.frame(position), row)
+
     def __iter__(self) -> Iterator[Message]:
-        columns = zip(
-            self.frames,
+        rows = zip(
             self.role.tolist(),
             self.slave.tolist(),
             self.function.tolist(),
@@ -187,14 +193,58 @@ class MessageBatch:
             self.latency_ns.tolist(),
             strict=True,
         )
-        for frame, role, slave, function, code, flags, request, latency in columns:
-            yield Message(
-                frame=frame,
-                role=ROLE_ORDER[role],
-                slave=None if slave == NONE else slave,
-                function=None if function == NONE else function,
-                exception_code=None if code == NONE else code,
-                flags=flag_set(flags),
-                request_index=None if request == NONE else request,
-                latency_ns=None if latency == NONE else latency,
-            )
+        for frame, row in zip(self.frames, rows, strict=True):
+            yield _message(frame, row)
+
+
+def _message(frame: Frame, row: tuple[int, ...]) -> Message:
+    """A message from one row of :class:`MessageBatch` columns (role … latency, in field order)."""
+    role, slave, function, code, flags, request, latency = row
+    return Message(
+        frame=frame,
+        role=ROLE_ORDER[role],
+        slave=None if slave == NONE else slave,
+        function=None if function == NONE else function,
+        exception_code=None if code == NONE else code,
+        flags=flag_set(flags),
+        request_index=None if request == NONE else request,
+        latency_ns=None if latency == NONE else latency,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class AnnotatedBatch:
+    """Decoded messages in columns: a :class:`MessageBatch` and each message's decoding.
+
+    ``rows``: the positions a filter kept, ``None`` for all. Iterating yields the kept
+    messages as objects; sinks that can stay in columns read ``messages`` and ``decodings``.
+    """
+
+    messages: MessageBatch
+    decodings: list[Decoding]
+    rows: npt.NDArray[np.int64] | None = None
+
+    def __len__(self) -> int:
+        return len(self.decodings) if self.rows is None else len(self.rows)
+
+    def __iter__(self) -> Iterator[Message]:
+        if self.rows is None:
+            for message, decoding in zip(self.messages, self.decodings, strict=True):
+                message.decoding = decoding  # fresh from the batch: set rather than copied
+                yield message
+            return
+        for position in self.rows.tolist():
+            message = self.messages.message(position)
+            message.decoding = self.decodings[position]
+            yield message
+
+    def positions(self) -> list[int]:
+        """The kept positions, in order."""
+        return list(range(len(self.decodings))) if self.rows is None else self.rows.tolist()
+
+    def select(self, keep: npt.NDArray[np.bool_]) -> AnnotatedBatch:
+        """Only the messages where ``keep`` (one flag per message of ``messages``) is true."""
+        rows = np.flatnonzero(keep)
+        if self.rows is not None:
+            rows = np.intersect1d(rows, self.rows)
+        return AnnotatedBatch(self.messages, self.decodings, rows.astype(np.int64))

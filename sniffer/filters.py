@@ -10,8 +10,11 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+import numpy.typing as npt
+
 from decoders.frame import FrameFlag
-from decoders.message import Message, Role
+from decoders.message import ROLE_CODE, MessageBatch, Role
 from sniffer.errors import ErrorKind, RtuSniffError
 
 FLAG_NAMES = {name: flag for flag in FrameFlag if flag for name in flag.names}
@@ -27,13 +30,18 @@ class MessageFilter:
     roles: frozenset[Role] = frozenset()
     flags: FrameFlag = FrameFlag.NONE
 
-    def __call__(self, message: Message) -> bool:
-        return (
-            (not self.slaves or message.slave in self.slaves)
-            and (not self.functions or message.function in self.functions)
-            and (not self.roles or message.role in self.roles)
-            and (not self.flags or bool(message.flags & self.flags))
-        )
+    def __call__(self, batch: MessageBatch) -> npt.NDArray[np.bool_]:
+        """Which messages of ``batch`` pass."""
+        keep = np.ones(len(batch), np.bool_)
+        if self.slaves:
+            keep &= np.isin(batch.slave, list(self.slaves))
+        if self.functions:
+            keep &= np.isin(batch.function, list(self.functions))
+        if self.roles:
+            keep &= np.isin(batch.role, [ROLE_CODE[role] for role in self.roles])
+        if self.flags:
+            keep &= (batch.flags & int(self.flags)) != 0
+        return keep
 
     @property
     def empty(self) -> bool:

@@ -203,12 +203,12 @@ class _Session:
     def _deliver(self, batches: list[MessageBatch]) -> None:
         for batch in batches:
             self.statistics.add_batch(batch)
-            messages = self.annotator.annotate_all(batch)
+            annotated = self.annotator.annotate_batch(batch)
             if self.jsonl is not None:
-                self.jsonl.messages(messages)
+                self.jsonl.messages(annotated)
                 self.out.flush()
             if self.view is not None:
-                self.view.add(messages)
+                self.view.add(list(annotated))
 
     def _check_counters(self, source: SerialSource) -> None:
         counters = source.counters()

@@ -6,9 +6,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Protocol
 
+import numpy as np
+import numpy.typing as npt
+
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
-from decoders.message import Message, MessageBatch
+from decoders.message import AnnotatedBatch, MessageBatch
 from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from decoders.profiles.apply import ProfileApplier, ProfileBook
@@ -24,7 +27,7 @@ class MessageView(Protocol):
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None: ...
 
-    def messages(self, messages: list[Message]) -> None: ...
+    def messages(self, batch: AnnotatedBatch) -> None: ...
 
     def finish(self, statistics: Statistics) -> None: ...
 
@@ -49,7 +52,8 @@ class Analysis:
     line: LineSettings
     timing: TimingQuality
     response_timeout_ns: int | None = None
-    keep: Callable[[Message], bool] | None = None
+    #: Which messages of a batch the view gets (all if ``None``).
+    keep: Callable[[MessageBatch], npt.NDArray[np.bool_]] | None = None
     profiles: ProfileBook | None = None
 
 
@@ -77,8 +81,8 @@ def analyze(
             if framed is not None:
                 framed(batch)
             if annotator is not None:
-                messages = annotator.annotate_all(batch)
-                view.messages(messages if analysis.keep is None else [m for m in messages if analysis.keep(m)])
+                annotated = annotator.annotate_batch(batch)
+                view.messages(annotated if analysis.keep is None else annotated.select(analysis.keep(batch)))
 
     for chunks in reader.batches():
         if raw is not None:

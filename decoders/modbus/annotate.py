@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections import OrderedDict
 
 from decoders.frame import USS
-from decoders.message import ROLE_CODE, Decoding, Message, MessageBatch, ParamValue, Role
+from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, Message, MessageBatch, ParamValue, Role
 from decoders.modbus.codes import function_name
 from decoders.modbus.layouts import fits_request
 from decoders.modbus.pdu import (
@@ -46,6 +46,7 @@ KEPT_REQUESTS = 1024
 #: while one-off frames (changing values) pass through (an LRU that costs a dict lookup).
 KEPT_DECODINGS = 16384
 _AS_REQUEST = {Role.REQUEST, Role.BROADCAST}
+_REQUEST_CODE = ROLE_CODE[Role.REQUEST]
 #: What of a request decoding its answer reads (see :func:`answer_context`).
 AnswerContext = tuple[object, ...] | None
 _NO_REQUEST: tuple[AnswerContext, Pdu | None] = (None, None)
@@ -65,28 +66,32 @@ class Annotator:
         self._decodings: dict[DecodingKey, tuple[Decoding, AnswerContext]] = {}
         self._old_decodings: dict[DecodingKey, tuple[Decoding, AnswerContext]] = {}
 
-    def annotate_all(self, messages: MessageBatch) -> list[Message]:
-        """Every message of the batch, decoded; repeats share one :class:`Decoding`."""
-        decoded = []
-        profiles = self._profiles
-        for message in messages:
-            frame = message.frame
-            context, request = self._open_request(message)
-            version = 0 if profiles is None else profiles.version
-            key = (ROLE_CODE[message.role], frame.protocol, frame.data, context, version)
-            known = self._decodings.get(key)
+    def annotate_batch(self, batch: MessageBatch) -> AnnotatedBatch:
+        """Every message of the batch, decoded; repeats share one :class:`Decoding`.
+        Stays in columns: message objects are built only for frames not seen before."""
+        frames = batch.frames
+        data, offsets, first = frames.data, frames.offsets.tolist(), frames.first_index
+        rows = zip(batch.role.tolist(), frames.protocols().tolist(), batch.request_index.tolist(), strict=True)
+        decodings = []
+        for position, (role, protocol, request_index) in enumerate(rows):
+            context, request = _NO_REQUEST if request_index == NONE else self._requests.pop(request_index, _NO_REQUEST)
+            version = 0 if self._profiles is None else self._profiles.version
+            key = (role, protocol, data[offsets[position] : offsets[position + 1]], context, version)
+            known = self._decodings.get(key) or self._old_decodings.get(key)
             if known is None:
-                known = self._old_decodings.get(key)
-                if known is None:
-                    decoding = self._decode(message, request).decoding
-                    known = decoding, answer_context(decoding.pdu)
-                self._remember(key, known)
-            # Fresh from the batch and not yet handed out: set in place rather than copied.
-            message.decoding = known[0]
-            if message.role is Role.REQUEST:
-                self._keep_request(frame.index, known[1], message.pdu)
-            decoded.append(message)
-        return decoded
+                decoding = self._decode(batch.message(position), request).decoding
+                known = decoding, answer_context(decoding.pdu)
+            if len(self._decodings) >= KEPT_DECODINGS:
+                self._old_decodings, self._decodings = self._decodings, {}
+            self._decodings[key] = known
+            if role == _REQUEST_CODE:
+                self._keep_request(first + position, known[1], known[0].pdu)
+            decodings.append(known[0])
+        return AnnotatedBatch(batch, decodings)
+
+    def annotate_all(self, batch: MessageBatch) -> list[Message]:
+        """:meth:`annotate_batch` as message objects."""
+        return list(self.annotate_batch(batch))
 
     def annotate(self, message: Message) -> Message:
         """One message, decoded without the cache (live views, tests)."""
@@ -94,12 +99,6 @@ class Annotator:
         if annotated.role is Role.REQUEST:
             self._keep_request(annotated.frame.index, answer_context(annotated.pdu), annotated.pdu)
         return annotated
-
-    def _remember(self, key: DecodingKey, known: tuple[Decoding, AnswerContext]) -> None:
-        if len(self._decodings) >= KEPT_DECODINGS:
-            self._old_decodings = self._decodings
-            self._decodings = {}
-        self._decodings[key] = known
 
     def _open_request(self, message: Message) -> tuple[AnswerContext, Pdu | None]:
         """The context and PDU of the request ``message`` answers, if it is still kept."""

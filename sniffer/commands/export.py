@@ -10,7 +10,7 @@ from contextlib import ExitStack
 
 from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
-from decoders.message import Message
+from decoders.message import AnnotatedBatch
 from decoders.stats import Statistics
 from sniffer.commands.common import add_decoding_options, open_analysis
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -76,11 +76,11 @@ class ExportView:
         if self.mcap is not None:
             self.mcap.raw(chunks)  # type: ignore[arg-type]
 
-    def messages(self, messages: list[Message]) -> None:
+    def messages(self, batch: AnnotatedBatch) -> None:
         if self.mcap is not None:
-            self.mcap.messages(messages)
+            self.mcap.messages(batch)
         if self.rerun is not None:
-            self.rerun.messages(messages)
+            self.rerun.messages(batch)
 
     def finish(self, statistics: Statistics) -> None:
         pass

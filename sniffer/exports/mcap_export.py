@@ -29,7 +29,7 @@ from mcap.well_known import MessageEncoding, SchemaEncoding
 from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.frame import FrameFlag
 from decoders.line import LineSettings
-from decoders.message import Message, Role
+from decoders.message import AnnotatedBatch, Message, Role
 from sniffer.exports import foxglove_log
 from sniffer.io.formats.mcap_capture import McapCaptureWriter
 from sniffer.views.records import FrameRecordEncoder, encode_json
@@ -136,20 +136,20 @@ class McapExporter:
     def raw(self, batch: ChunkBatch) -> None:
         self._capture.write_batch(batch)
 
-    def messages(self, messages: list[Message]) -> None:
-        for message in messages:
-            self._message(message)
+    def messages(self, batch: AnnotatedBatch) -> None:
+        for message, record in zip(batch, self._frame_records.encode_batch(batch), strict=True):
+            self._message(message, record.encode())
 
     def _put(self, channel: int, topic: str, t_ns: int, record: dict[str, Any]) -> None:
         self._writer.add_message(channel_id=channel, log_time=t_ns, publish_time=t_ns,
                                  data=encode_json(record))
         self.counts[topic] = self.counts.get(topic, 0) + 1
 
-    def _message(self, message: Message) -> None:
+    def _message(self, message: Message, frame_record: bytes) -> None:
         frame = message.frame
         t_ns = frame.t_start_ns
         self._writer.add_message(channel_id=self._frames, log_time=t_ns, publish_time=t_ns,
-                                 data=self._frame_records.encode(message).encode())
+                                 data=frame_record)
         self.counts["/modbus/frames"] = self.counts.get("/modbus/frames", 0) + 1
         seconds, nanos = divmod(t_ns, 1_000_000_000)
         name = "noise" if message.slave is None else f"slave {message.slave}"

@@ -15,6 +15,7 @@ and the logs below.
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -66,7 +67,7 @@ class RerunExporter:
         self._rows = 0
         self.rows_sent = 0
 
-    def messages(self, messages: list[Message]) -> None:
+    def messages(self, messages: Iterable[Message]) -> None:
         for message in messages:
             self._message(message)
         if self._rows >= FLUSH_ROWS:

@@ -5,12 +5,14 @@ from __future__ import annotations
 import json
 from typing import Any
 
+import numpy as np
+import numpy.typing as npt
 import orjson
 
 from decoders.capture import CaptureInfo
 from decoders.frame import PROTOCOL_NAMES, FrameFlag, flag_set
 from decoders.line import LineSettings
-from decoders.message import Decoding, Message, ParamValue
+from decoders.message import NONE, AnnotatedBatch, Decoding, DeviceIdentity, Message, ParamValue
 
 NS_PER_S = 1e9
 
@@ -82,30 +84,59 @@ _FLAGS_JSON = [encode_json(list(flag_set(value).names)).decode() for value in ra
 class FrameRecordEncoder:
     """Frame records as JSON text, exactly ``encode_record(frame_record(m))``, fast.
 
-    Every frame passes through here. What depends on the decoding (params, summary,
-    remarks) is encoded once per :class:`Decoding` (the annotator shares one between
-    repeats); the rest is formatted directly. Floats are written as ``repr`` writes
-    them, which is what ``json.dumps`` does.
+    Every frame passes through here. What a decoding determines (bytes, role, params,
+    summary, remarks) is encoded once per :class:`Decoding` (the annotator shares one
+    between repeats); times, flags and pairing come from the batch's columns. Floats
+    are written as ``repr`` writes them, which is what ``json.dumps`` does.
     """
 
     def __init__(self) -> None:
         self._tails: dict[Decoding, tuple[str, str]] = {}
+        self._parts: dict[Decoding, tuple[str, str]] = {}
 
-    def encode(self, message: Message) -> str:
-        frame = message.frame
-        params_summary, remarks = self._tail(message.decoding)
-        slave, function, code = message.slave, message.function, message.exception_code
-        request, latency = message.request_index, message.latency_ns
-        return (
-            f'{{"kind":"frame","index":{frame.index},"t":{frame.t_start_ns / NS_PER_S!r},'
-            f'"t_end":{frame.t_end_ns / NS_PER_S!r},"t_ns":{frame.t_start_ns},"t_end_ns":{frame.t_end_ns},'
+    def encode_batch(self, batch: AnnotatedBatch) -> list[str]:
+        """The kept messages' frame records, from the columns: no message objects, and each
+        column formatted by one ``repr``."""
+        messages, frames = batch.messages, batch.messages.frames
+        positions = batch.positions()
+        columns = zip(
+            _texts(frames.t_start_ns[positions] / NS_PER_S),
+            _texts(frames.t_end_ns[positions] / NS_PER_S),
+            _texts(frames.t_start_ns[positions]),
+            _texts(frames.t_end_ns[positions]),
+            messages.flags[positions].tolist(),
+            _or_null(_texts(messages.request_index[positions]), messages.request_index[positions]),
+            _or_null(_texts(messages.latency_ns[positions] / NS_PER_S), messages.latency_ns[positions]),
+            strict=True,
+        )
+        first, decodings, lines = frames.first_index, batch.decodings, []
+        for position, (t, t_end, t_ns, t_end_ns, flags, request, latency) in zip(positions, columns, strict=True):
+            decoding = decodings[position]
+            parts = self._parts.get(decoding) or self._frame_parts(batch, position)
+            lines.append(
+                f'{{"kind":"frame","index":{first + position},"t":{t},"t_end":{t_end},"t_ns":{t_ns},'
+                f'"t_end_ns":{t_end_ns},{parts[0]},"flags":{_FLAGS_JSON[flags]},"request_index":{request},'
+                f'"latency_s":{latency},{parts[1]}}}'
+            )
+        return lines
+
+    def _frame_parts(self, batch: AnnotatedBatch, position: int) -> tuple[str, str]:
+        """A record's parts that a decoding determines: from ``hex`` to ``exception_code``, and
+        from ``params`` to the end (the annotator shares a decoding only between frames with the
+        same bytes, role and protocol)."""
+        message = batch.messages.message(position)
+        frame, slave, function, code = message.frame, message.slave, message.function, message.exception_code
+        params_summary, remarks = self._tail(batch.decodings[position])
+        parts = (
             f'"hex":"{frame.data.hex()}","crc_ok":{"true" if frame.crc_ok else "false"},'
             f'"slave":{"null" if slave is None else slave},"function":{"null" if function is None else function},'
-            f'"role":"{message.role.value}","exception_code":{"null" if code is None else code},'
-            f'"flags":{_FLAGS_JSON[message.flags.value]},"request_index":{"null" if request is None else request},'
-            f'"latency_s":{"null" if latency is None else repr(latency / NS_PER_S)},{params_summary},'
-            f'"protocol":{_PROTOCOL_JSON[frame.protocol]},"remarks":{remarks}}}'
+            f'"role":"{message.role.value}","exception_code":{"null" if code is None else code}',
+            f'{params_summary},"protocol":{_PROTOCOL_JSON[frame.protocol]},"remarks":{remarks}',
         )
+        if len(self._parts) >= KEPT_TAILS:
+            self._parts.clear()
+        self._parts[batch.decodings[position]] = parts
+        return parts
 
     def _tail(self, decoding: Decoding) -> tuple[str, str]:
         tail = self._tails.get(decoding)
@@ -119,13 +150,11 @@ class FrameRecordEncoder:
         return tail
 
 
-def device_record(message: Message) -> dict[str, Any]:
-    """A slave said what it is (FC 43): the ``device`` record that follows its frame."""
-    device = message.device
-    assert device is not None
+def device_record(index: int, device: DeviceIdentity) -> dict[str, Any]:
+    """A slave said what it is (FC 43): the ``device`` record that follows its frame ``index``."""
     return {
         "kind": "device",
-        "index": message.frame.index,
+        "index": index,
         "slave": device.slave,
         "vendor": device.vendor,
         "product_code": device.product_code,
@@ -133,6 +162,19 @@ def device_record(message: Message) -> dict[str, Any]:
         "profile": device.profile,
         "applied": device.applied,
     }
+
+
+def _texts(column: npt.NDArray[Any]) -> list[str]:
+    """Each number of ``column`` as ``repr`` (so ``json.dumps``) writes it. One ``repr`` of the
+    whole list formats in C what a loop would format one by one."""
+    return repr(column.tolist())[1:-1].split(", ") if len(column) else []
+
+
+def _or_null(texts: list[str], column: npt.NDArray[np.int64]) -> list[str]:
+    """``texts`` with null where ``column`` holds ``NONE``."""
+    for position in np.flatnonzero(column == NONE).tolist():
+        texts[position] = "null"
+    return texts
 
 
 def param_record(param: ParamValue) -> dict[str, Any]:

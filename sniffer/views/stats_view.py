@@ -10,7 +10,7 @@ from rich.table import Table
 
 from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
-from decoders.message import Message
+from decoders.message import AnnotatedBatch
 from decoders.modbus.codes import function_name
 from decoders.stats import FunctionStats, Histogram, Statistics
 
@@ -47,7 +47,7 @@ class StatsView:
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
 
-    def messages(self, messages: list[Message]) -> None:
+    def messages(self, batch: AnnotatedBatch) -> None:
         pass
 
     def finish(self, statistics: Statistics) -> None:

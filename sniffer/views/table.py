@@ -15,7 +15,7 @@ from rich.text import Text
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
-from decoders.message import Message, Role
+from decoders.message import AnnotatedBatch, Message, Role
 from decoders.stats import Statistics
 
 ROWS_PER_BLOCK = 200
@@ -73,7 +73,8 @@ class TableView:
             )
         self._date_shown = False
 
-    def messages(self, messages: list[Message]) -> None:
+    def messages(self, batch: AnnotatedBatch) -> None:
+        messages = list(batch)
         for start in range(0, len(messages), ROWS_PER_BLOCK):
             self._print_block(messages[start : start + ROWS_PER_BLOCK])
 

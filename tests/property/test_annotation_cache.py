@@ -13,12 +13,13 @@ import os
 import struct
 from dataclasses import astuple
 
+import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from decoders.crc import crc_bytes, crc_ok
 from decoders.frame import Frame, FrameFlag, flag_set, frames_to_batch
-from decoders.message import Decoding, Message, MessageBatch, ParamValue, Role
+from decoders.message import AnnotatedBatch, Decoding, MessageBatch, ParamValue
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.profiles.apply import ProfileApplier
@@ -49,7 +50,8 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
             request = adu(s, b"\x03", struct.pack(">HH", address, count))
             answer = adu(s, b"\x03", bytes([2 * count]), struct.pack(f">{count}H", *values))
         case 1:
-            request = adu(s, b"\x10", struct.pack(">HHB", address, count, 2 * count), struct.pack(f">{count}H", *values))
+            written = struct.pack(f">{count}H", *values)
+            request = adu(s, b"\x10", struct.pack(">HHB", address, count, 2 * count), written)
             answer = adu(s, b"\x10", struct.pack(">HH", address, count))
         case 2:
             request = answer = adu(s, b"\x06", struct.pack(">HH", address, values[0]))
@@ -119,28 +121,35 @@ NUMBERS = st.one_of(st.none(), st.integers(-(2**40), 2**40), st.floats(allow_nan
 
 
 @st.composite
-def messages(draw: st.DrawFn) -> Message:
-    data = draw(st.binary(max_size=12))
-    t = draw(st.integers(0, 2**62))
-    frame = Frame(draw(st.integers(0, 2**40)), t, t + draw(st.integers(0, 10**9)), data, draw(st.booleans()),
-                  FrameFlag.NONE, protocol=draw(st.sampled_from([0, 1])))
+def decodings(draw: st.DrawFn) -> Decoding:
     params = tuple(
         ParamValue(draw(st.integers(0, 65535)), draw(st.one_of(st.none(), st.integers(0, 65535))),
                    draw(st.one_of(st.none(), st.text(max_size=6))), draw(st.one_of(st.none(), st.text(max_size=6))),
                    draw(NUMBERS), draw(st.one_of(st.none(), st.text(max_size=3))))
         for _ in range(draw(st.integers(0, 3)))
     )
-    decoding = Decoding(draw(st.text()), params, remarks=tuple(draw(st.lists(st.text(max_size=10), max_size=2))))
-    optional = st.one_of(st.none(), st.integers(0, 2**40))
-    return Message(frame, draw(st.sampled_from(list(Role))), draw(st.one_of(st.none(), st.integers(0, 247))),
-                   draw(st.one_of(st.none(), st.integers(0, 255))), draw(st.one_of(st.none(), st.integers(0, 255))),
-                   flag_set(draw(st.integers(0, 127))), draw(optional), draw(optional), decoding)
+    return Decoding(draw(st.text()), params, remarks=tuple(draw(st.lists(st.text(max_size=10), max_size=2))))
+
+
+@st.composite
+def annotated_batches(draw: st.DrawFn) -> AnnotatedBatch:
+    """Real message columns (framed, paired by the matcher) with arbitrary decodings."""
+    frames, t = [], draw(st.integers(0, 2**61))
+    for index in range(draw(st.integers(1, 12))):
+        t += draw(st.integers(0, 10**9))
+        data = draw(st.one_of(st.binary(min_size=1, max_size=12), exchanges().map(lambda pair: pair[0])))
+        uss = len(data) >= 3 and draw(st.integers(0, 3)) == 0  # USS telegrams have STX, LGE, ADR at least
+        frames.append(Frame(index, t, t + 1000 * len(data), data, crc_ok(data), flag_set(draw(st.integers(0, 15))),
+                            protocol=int(uss)))
+    batch = Matcher().feed(frames_to_batch(frames))
+    annotated = AnnotatedBatch(batch, [draw(decodings()) for _ in range(len(batch))])
+    return annotated.select(np.array(draw(st.lists(st.booleans(), min_size=len(batch), max_size=len(batch)))))
 
 
 @settings(max_examples=max(500, EXAMPLES), deadline=None)
-@given(st.lists(messages(), min_size=1, max_size=4))
-def test_frame_records_are_what_json_dumps_writes(batch: list[Message]) -> None:
+@given(annotated_batches())
+def test_frame_records_are_what_json_dumps_writes(batch: AnnotatedBatch) -> None:
     encoder = FrameRecordEncoder()
-    for message in batch + batch:  # the second time from the encoder's cache
-        expected = json.dumps(frame_record(message), ensure_ascii=False, separators=(",", ":"))
-        assert encoder.encode(message) == expected
+    expected = [json.dumps(frame_record(m), ensure_ascii=False, separators=(",", ":")) for m in batch]
+    assert encoder.encode_batch(batch) == expected
+    assert encoder.encode_batch(batch) == expected  # again, from the encoder's cache
