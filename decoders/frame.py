@@ -128,21 +128,6 @@ class FrameBatch:
                 protocol=protocol,
             )
 
-    def frame(self, position: int) -> Frame:
-        """The frame at ``position`` in the batch (one at a time; iterate for all of them)."""
-        idle = int(self.idle_before_ns[position])
-        return Frame(
-            index=self.first_index + position,
-            t_start_ns=int(self.t_start_ns[position]),
-            t_end_ns=int(self.t_end_ns[position]),
-            data=self.data[int(self.offsets[position]) : int(self.offsets[position + 1])],
-            crc_ok=bool(self.crc_ok[position]),
-            flags=_FLAGS_BY_VALUE[int(self.flags[position])],
-            is_noise=bool(self.is_noise[position]),
-            idle_before_ns=None if idle == NO_IDLE else idle,
-            protocol=0 if self.protocol is None else int(self.protocol[position]),
-        )
-
     def protocols(self) -> npt.NDArray[np.uint8]:
         """The protocol of every frame."""
         return self.protocol if self.protocol is not None else np.zeros(len(self), np.uint8)

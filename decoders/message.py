@@ -5,12 +5,12 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from enum import Enum
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from decoders.frame import Frame, FrameBatch, FrameFlag, flag_set
+from decoders.frame import NO_IDLE, Frame, FrameBatch, FrameFlag, flag_set
 
 if TYPE_CHECKING:
     from decoders.modbus.pdu import Pdu
@@ -175,12 +175,9 @@ class MessageBatch:
     def __len__(self) -> int:
         return len(self.role)
 
-    def message(self, position: int) -> Message:
-        """The message at ``position`` in the batch (one at a time; iterate for all of them)."""
-        columns = (self.role, self.slave, self.function, self.exception_code, self.flags, self.request_index,
-                   self.latency_ns)
-        row = tuple(int(column[position]) for column in columns)
-        return _message(self.frames.frame(position), row)
+    def rows(self) -> MessageRows:
+        """Messages built on demand by position, from columns read once."""
+        return MessageRows(self)
 
     def __iter__(self) -> Iterator[Message]:
         rows = zip(
@@ -212,6 +209,43 @@ def _message(frame: Frame, row: tuple[int, ...]) -> Message:
     )
 
 
+class MessageRows:
+    """The messages of a batch by position, each built when asked for: for stages that need
+    objects for a few messages only (the annotator, for frames it has not seen before)."""
+
+    def __init__(self, batch: MessageBatch) -> None:
+        self._frames = batch.frames
+        self._columns: list[list[Any]] | None = None
+        self._batch = batch
+
+    def __getitem__(self, position: int) -> Message:
+        if self._columns is None:
+            batch, frames = self._batch, self._frames
+            self._columns = [
+                column.tolist()
+                for column in (batch.role, batch.slave, batch.function, batch.exception_code, batch.flags,
+                               batch.request_index, batch.latency_ns, frames.offsets, frames.t_start_ns,
+                               frames.t_end_ns, frames.crc_ok, frames.flags, frames.is_noise,
+                               frames.idle_before_ns, frames.protocols())
+            ]
+        (role, slave, function, code, flags, request, latency, offsets, start, end, ok, frame_flags, noise, idle,
+         protocol) = self._columns
+        frame = Frame(
+            index=self._frames.first_index + position,
+            t_start_ns=start[position],
+            t_end_ns=end[position],
+            data=self._frames.data[offsets[position] : offsets[position + 1]],
+            crc_ok=ok[position],
+            flags=flag_set(frame_flags[position]),
+            is_noise=noise[position],
+            idle_before_ns=None if idle[position] == NO_IDLE else idle[position],
+            protocol=protocol[position],
+        )
+        row = (role[position], slave[position], function[position], code[position], flags[position],
+               request[position], latency[position])
+        return _message(frame, row)
+
+
 @dataclass(frozen=True, slots=True)
 class AnnotatedBatch:
     """Decoded messages in columns: a :class:`MessageBatch` and each message's decoding.
@@ -233,8 +267,9 @@ class AnnotatedBatch:
                 message.decoding = decoding  # fresh from the batch: set rather than copied
                 yield message
             return
+        messages = self.messages.rows()
         for position in self.rows.tolist():
-            message = self.messages.message(position)
+            message = messages[position]
             message.decoding = self.decodings[position]
             yield message
 

@@ -72,14 +72,14 @@ class Annotator:
         frames = batch.frames
         data, offsets, first = frames.data, frames.offsets.tolist(), frames.first_index
         rows = zip(batch.role.tolist(), frames.protocols().tolist(), batch.request_index.tolist(), strict=True)
-        decodings = []
+        decodings, messages = [], batch.rows()
         for position, (role, protocol, request_index) in enumerate(rows):
             context, request = _NO_REQUEST if request_index == NONE else self._requests.pop(request_index, _NO_REQUEST)
             version = 0 if self._profiles is None else self._profiles.version
             key = (role, protocol, data[offsets[position] : offsets[position + 1]], context, version)
             known = self._decodings.get(key) or self._old_decodings.get(key)
             if known is None:
-                decoding = self._decode(batch.message(position), request).decoding
+                decoding = self._decode(messages[position], request).decoding
                 known = decoding, answer_context(decoding.pdu)
             if len(self._decodings) >= KEPT_DECODINGS:
                 self._old_decodings, self._decodings = self._decodings, {}
@@ -157,10 +157,12 @@ def named_registers(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:
     """The registers or coils ``pdu`` names, with their raw values where it carries them."""
     match pdu:
         case ReadRequest(address=address, count=count) | WriteMultipleResponse(address=address, count=count):
-            return tuple(ParamValue(address + i, None) for i in range(count))
+            return tuple([ParamValue(a, None) for a in range(address, address + count)])
         case RegistersResponse(values=values):
             start = _read_start(request)
-            return () if start is None else tuple(ParamValue(start + i, v, value=v) for i, v in enumerate(values))
+            if start is None:
+                return ()
+            return tuple([ParamValue(start + i, v, None, None, v) for i, v in enumerate(values)])
         case BitsResponse(bits=bits) if isinstance(request, ReadRequest):
             asked = bits[: request.count]
             return tuple(ParamValue(request.address + i, int(b), value=int(b)) for i, b in enumerate(asked))

@@ -67,7 +67,7 @@ def _range(address: int, count: int) -> str:
 
 
 def _hex_words(values: tuple[int, ...], limit: int = 8) -> str:
-    shown = " ".join(f"{v:04X}" for v in values[:limit])
+    shown = struct.pack(f">{min(len(values), limit)}H", *values[:limit]).hex(" ", 2).upper()
     return shown + (f" … (+{len(values) - limit})" if len(values) > limit else "")
 
 

@@ -109,10 +109,10 @@ class FrameRecordEncoder:
             _or_null(_texts(messages.latency_ns[positions] / NS_PER_S), messages.latency_ns[positions]),
             strict=True,
         )
-        first, decodings, lines = frames.first_index, batch.decodings, []
+        first, decodings, rows, lines = frames.first_index, batch.decodings, messages.rows(), []
         for position, (t, t_end, t_ns, t_end_ns, flags, request, latency) in zip(positions, columns, strict=True):
             decoding = decodings[position]
-            parts = self._parts.get(decoding) or self._frame_parts(batch, position)
+            parts = self._parts.get(decoding) or self._frame_parts(rows[position], decoding)
             lines.append(
                 f'{{"kind":"frame","index":{first + position},"t":{t},"t_end":{t_end},"t_ns":{t_ns},'
                 f'"t_end_ns":{t_end_ns},{parts[0]},"flags":{_FLAGS_JSON[flags]},"request_index":{request},'
@@ -120,13 +120,12 @@ class FrameRecordEncoder:
             )
         return lines
 
-    def _frame_parts(self, batch: AnnotatedBatch, position: int) -> tuple[str, str]:
+    def _frame_parts(self, message: Message, decoding: Decoding) -> tuple[str, str]:
         """A record's parts that a decoding determines: from ``hex`` to ``exception_code``, and
         from ``params`` to the end (the annotator shares a decoding only between frames with the
         same bytes, role and protocol)."""
-        message = batch.messages.message(position)
         frame, slave, function, code = message.frame, message.slave, message.function, message.exception_code
-        params_summary, remarks = self._tail(batch.decodings[position])
+        params_summary, remarks = self._tail(decoding)
         parts = (
             f'"hex":"{frame.data.hex()}","crc_ok":{"true" if frame.crc_ok else "false"},'
             f'"slave":{"null" if slave is None else slave},"function":{"null" if function is None else function},'
@@ -135,7 +134,7 @@ class FrameRecordEncoder:
         )
         if len(self._parts) >= KEPT_TAILS:
             self._parts.clear()
-        self._parts[batch.decodings[position]] = parts
+        self._parts[decoding] = parts
         return parts
 
     def _tail(self, decoding: Decoding) -> tuple[str, str]:
