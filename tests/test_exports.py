@@ -208,3 +208,17 @@ def test_pcap_holds_every_frame_with_its_time(cli: Cli, tmp_path: Path, sample: 
     linktype, packets = read_pcap(pcap)
     assert linktype == 147
     assert packets == [(f["t_ns"], f["hex"]) for f in frames]
+
+
+@pytest.mark.parametrize("option", ["--mcap", "--rrd", "--pcap"])
+@pytest.mark.parametrize("target", ["missing folder", "full disk"])
+def test_an_output_that_cannot_be_written_is_one_error_line(option: str, target: str, tmp_path: Path) -> None:
+    """A missing folder, or a disk that fills up (/dev/full), is said once, naming the file."""
+    if target == "full disk" and not Path("/dev/full").exists():
+        pytest.skip("no /dev/full here")
+    path = str(tmp_path / "no" / "such" / "out") if target == "missing folder" else "/dev/full"
+    command = [os.sys.executable, "-m", "sniffer", "export", str(SAMPLE_LOG), option, path, "--force"]  # type: ignore[attr-defined]
+    result = subprocess.run(command, capture_output=True, text=True, env=QUIET_RERUN, check=False, timeout=120)
+    assert result.returncode == 11, result.stderr
+    assert result.stderr.count("\n") == 1 and result.stderr.startswith(f"error: {path}: cannot write: ")
+    assert "Traceback" not in result.stderr

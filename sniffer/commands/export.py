@@ -6,17 +6,22 @@ import argparse
 import hashlib
 import os
 import shlex
-from contextlib import ExitStack
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
+from typing import TYPE_CHECKING
 
-from decoders.capture import CaptureInfo
+from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch
+from decoders.message import AnnotatedBatch, MessageBatch
 from decoders.stats import Statistics
 from sniffer.commands.common import add_decoding_options, open_analysis
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.mcap_export import McapExporter
 from sniffer.exports.pcap_export import PcapExporter
 from sniffer.pipeline import Analysis, analyze
+
+if TYPE_CHECKING:
+    from sniffer.exports.rerun_export import RerunExporter
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -46,8 +51,7 @@ def run(args: argparse.Namespace) -> int:
         reader, analysis = open_analysis(args, stack)
         view = ExportView(args, analysis)
         stack.callback(view.close)
-        analyze(reader, args.capture, analysis, view, raw=view.raw,
-                framed=view.pcap.batch if view.pcap is not None else None)
+        analyze(reader, args.capture, analysis, view, raw=view.raw, framed=view.framed if args.pcap else None)
     return 0
 
 
@@ -60,41 +64,67 @@ class ExportView:
         self.args = args
         self.analysis = analysis
         self.mcap: McapExporter | None = None
-        self.pcap = PcapExporter(args.pcap) if args.pcap else None
+        self.pcap: PcapExporter | None = None
         self.rerun = None
+        if args.pcap:
+            with _writing(args.pcap):
+                self.pcap = PcapExporter(args.pcap)
         if args.rrd or args.spawn:
             # Rerun takes a third of a second to import: only when asked for.
             from sniffer.exports.rerun_export import RerunExporter  # noqa: PLC0415
 
-            self.rerun = RerunExporter(args.rrd, spawn=args.spawn)
+            with _writing(args.rrd):
+                self.rerun = RerunExporter(args.rrd, spawn=args.spawn)
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         if self.args.mcap:
-            self.mcap = McapExporter(self.args.mcap, info, line, _metadata(self.args, self.analysis))
+            with _writing(self.args.mcap):
+                self.mcap = McapExporter(self.args.mcap, info, line, _metadata(self.args, self.analysis))
 
-    def raw(self, chunks: object) -> None:
+    def raw(self, chunks: ChunkBatch) -> None:
         if self.mcap is not None:
-            self.mcap.raw(chunks)  # type: ignore[arg-type]
+            with _writing(self.args.mcap):
+                self.mcap.raw(chunks)
+
+    def framed(self, batch: MessageBatch) -> None:
+        if self.pcap is not None:
+            with _writing(self.args.pcap):
+                self.pcap.batch(batch)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         if self.mcap is not None:
-            self.mcap.messages(batch)
+            with _writing(self.args.mcap):
+                self.mcap.messages(batch)
         if self.rerun is not None:
-            self.rerun.messages(batch)
+            with _writing(self.args.rrd):
+                self.rerun.messages(batch)
 
     def finish(self, statistics: Statistics) -> None:
         pass
 
     def close(self) -> None:
-        if self.mcap is not None:
-            self.mcap.close()
-            self.mcap = None
-        if self.pcap is not None:
-            self.pcap.close()
-            self.pcap = None
-        if self.rerun is not None:
-            self.rerun.close()
-            self.rerun = None
+        """Closes every output; the first that fails to write is the error."""
+        exporters, self.mcap, self.pcap, self.rerun = (
+            [(self.args.mcap, self.mcap), (self.args.pcap, self.pcap), (self.args.rrd, self.rerun)], None, None, None)
+        with ExitStack() as closing:
+            for path, exporter in exporters:
+                if exporter is not None:
+                    closing.callback(_close, path, exporter)
+
+
+def _close(path: str | None, exporter: McapExporter | PcapExporter | RerunExporter) -> None:
+    with _writing(path):
+        exporter.close()
+
+
+@contextmanager
+def _writing(path: str | None) -> Iterator[None]:
+    """An exporter's write failures (a missing folder, a full disk) as one error naming its file."""
+    try:
+        yield
+    except (OSError, RuntimeError) as exc:  # RuntimeError: how Rerun's SDK reports I/O errors
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot write: {reason}", path=path or "the viewer") from None
 
 
 def _metadata(args: argparse.Namespace, analysis: Analysis) -> dict[str, str]:

@@ -16,9 +16,12 @@ _VARINT, _FIXED64, _LENGTH, _FIXED32 = 0, 1, 2, 5
 # FieldDescriptorProto enums (google/protobuf/descriptor.proto)
 _OPTIONAL = 1
 _INT32, _INT64, _FIXED32_TYPE, _STRING, _MESSAGE, _ENUM = 5, 3, 7, 9, 11, 14
+_SMALL = [bytes([value]) for value in range(0x80)]
 
 
 def _varint(value: int) -> bytes:
+    if 0 <= value < 0x80:  # one byte: lengths and small numbers
+        return _SMALL[value]
     value &= (1 << 64) - 1
     out = bytearray()
     while True:
@@ -44,10 +47,29 @@ def _number(field: int, value: int) -> bytes:
     return _key(field, _VARINT) + _varint(value)
 
 
-def encode_log(seconds: int, nanos: int, level: int, message: str, name: str) -> bytes:
-    """One ``foxglove.Log`` message (file empty, line 0: proto3 leaves them out)."""
-    timestamp = (_number(1, seconds) if seconds else b"") + (_number(2, nanos) if nanos else b"")
-    return _bytes(1, timestamp) + _number(2, level) + _text(3, message) + _text(4, name)
+class LogEncoder:
+    """``foxglove.Log`` messages (file empty, line 0: proto3 leaves them out). One per frame of
+    a capture, so the constant parts are encoded once: the current second, names, levels."""
+
+    def __init__(self) -> None:
+        self._second = 0
+        self._seconds_field = b""
+        self._names: dict[str, bytes] = {}
+
+    def encode(self, t_ns: int, level: int, message: bytes, name: str) -> bytes:
+        seconds, nanos = divmod(t_ns, 1_000_000_000)
+        if seconds != self._second:
+            self._second, self._seconds_field = seconds, _number(1, seconds)
+        name_field = self._names.get(name)
+        if name_field is None:
+            name_field = self._names[name] = _text(4, name)
+        timestamp = self._seconds_field + (_NANOS_KEY + _varint(nanos) if nanos else b"")
+        return b"".join((_TIMESTAMP_KEY, _varint(len(timestamp)), timestamp, _LEVELS[level], _MESSAGE_KEY,
+                         _varint(len(message)), message, name_field))
+
+
+_TIMESTAMP_KEY, _NANOS_KEY, _MESSAGE_KEY = _key(1, _LENGTH), _key(2, _VARINT), _key(3, _LENGTH)
+_LEVELS = [_number(2, level) for level in range(6)]
 
 
 def _field(name: str, number: int, kind: int, type_name: str = "") -> bytes:

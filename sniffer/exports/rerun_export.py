@@ -15,22 +15,45 @@ and the logs below.
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 import rerun as rr
 import rerun.blueprint as rrb
 
 from decoders.frame import FrameFlag
-from decoders.message import Message, Role
-from sniffer.exports.mcap_export import log_level
+from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, Message, MessageBatch, Role
+from sniffer.exports.levels import ERROR, INFO, WARNING, log_levels
 
 APPLICATION = "rtusniff"
 FLUSH_ROWS = 200_000
 MAX_UNNAMED_SERIES = 64
 SECOND_NS = 1_000_000_000
-_LEVEL_NAMES = {1: "DEBUG", 2: "INFO", 3: "WARN", 4: "ERROR"}
+_LEVEL_NAMES = {INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}
+KEPT_PARTS = 8192
+_EXCEPTION = ROLE_CODE[Role.EXCEPTION]
+_FLAG_SUFFIXES = [f" [{' '.join(FrameFlag(v).names)}]" if v else "" for v in range(1 << len(FrameFlag))]
+
+
+def _errors(messages: MessageBatch) -> npt.NDArray[np.bool_]:
+    """CRC errors, timeouts and exceptions: what the bus's error rate counts."""
+    timeout = (messages.flags & int(FrameFlag.TIMEOUT)) != 0
+    errors: npt.NDArray[np.bool_] = ~messages.frames.crc_ok | timeout | (messages.role == _EXCEPTION)
+    return errors
+
+
+@dataclass
+class _Parts:
+    """What one decoding puts on the timeline: its log entity and text (after the frame index),
+    numeric params (entity, value, series name), states (entity, text), its latency series."""
+
+    log_entity: str
+    text: str
+    scalars: list[tuple[str, float, str]] = field(default_factory=list)
+    states: list[tuple[str, str]] = field(default_factory=list)
+    latency_entity: str = ""
+    latency_name: str = ""
 
 
 @dataclass
@@ -60,49 +83,72 @@ class RerunExporter:
         self._series: dict[str, str] = {}
         self._states: dict[str, str] = {}
         self._slaves: set[int] = set()
+        self._parts: dict[Decoding, _Parts] = {}
         self._unnamed: dict[int, set[int]] = {}
         self._second: int | None = None
         self._wire_ns = 0
         self._errors = 0
         self._rows = 0
-        self.rows_sent = 0
 
-    def messages(self, messages: Iterable[Message]) -> None:
-        for message in messages:
-            self._message(message)
+    def messages(self, batch: AnnotatedBatch) -> None:
+        positions = batch.positions()
+        messages, frames = batch.messages, batch.messages.frames
+        t_start = frames.t_start_ns[positions]
+        errors = _errors(messages)[positions]
+        self._bus(t_start, frames.t_end_ns[positions] - t_start, errors, first_index=frames.first_index)
+        columns = zip(
+            t_start.tolist(), log_levels(messages)[positions].tolist(), messages.flags[positions].tolist(),
+            messages.slave[positions].tolist(), messages.latency_ns[positions].tolist(),
+            frames.crc_ok[positions].tolist(), messages.role[positions].tolist(), strict=True,
+        )
+        first, decodings, rows = frames.first_index, batch.decodings, messages.rows()
+        for position, (t, level, flags, slave, latency, crc_ok, role) in zip(positions, columns, strict=True):
+            decoding, index = decodings[position], first + position
+            if slave == NONE:
+                self._log("bus/noise", t, index, decoding.summary, "WARN")
+                continue
+            parts = self._parts.get(decoding) or self._decoding_parts(decoding, rows[position])
+            self._log(parts.log_entity, t, index, f"#{index}{parts.text}{_FLAG_SUFFIXES[flags]}", _LEVEL_NAMES[level])
+            for entity, value, name in parts.scalars:
+                self._scalar(entity, t, index, value, name)
+            for entity, text in parts.states:
+                self._state(entity, t, index, text)
+            if latency != NONE and parts.latency_entity and crc_ok:
+                self._scalar(parts.latency_entity, t, index, latency / 1e6, parts.latency_name)
+            if flags & FrameFlag.TIMEOUT:
+                self._scalar(f"slaves/{slave}/errors/timeout", t, index, 1.0, "timeout errors", points=True)
+            if not crc_ok:
+                self._scalar(f"slaves/{slave}/errors/crc", t, index, 1.0, "crc errors", points=True)
+            if role == _EXCEPTION:
+                self._scalar(f"slaves/{slave}/errors/exception", t, index, 1.0, "exception errors", points=True)
         if self._rows >= FLUSH_ROWS:
             self._flush()
 
-    def _message(self, message: Message) -> None:
-        frame = message.frame
-        t, index = frame.t_start_ns, frame.index
-        self._bus(message)
-        if message.slave is None:
-            self._log("bus/noise", t, index, message.summary, "WARN")
-            return
-        base = f"slaves/{message.slave}"
-        self._slaves.add(message.slave)
-        flags = f" [{' '.join(message.flags.names)}]" if message.flags else ""
-        self._log(f"{base}/log", t, index, f"#{index} {message.role.value}: {message.summary}{flags}",
-                  _LEVEL_NAMES[log_level(message)])
-        for param in message.params:
+    def _decoding_parts(self, decoding: Decoding, message: Message) -> _Parts:
+        """What a decoding puts on the timeline, built once per decoding."""
+        slave = message.slave
+        assert slave is not None
+        base = f"slaves/{slave}"
+        self._slaves.add(slave)
+        parts = _Parts(f"{base}/log", f" {message.role.value}: {decoding.summary}")
+        for param in decoding.params:
             if param.raw is None:
                 continue
             code = param.code or str(param.address)
-            if param.code is None and not self._may_plot(message.slave, param.address):
+            if param.code is None and not self._may_plot(slave, param.address):
                 continue
             if isinstance(param.value, int | float):
-                self._scalar(f"{base}/params/{_path(code)}", t, index, float(param.value),
-                             f"{code} ({param.unit})" if param.unit else code)
+                name = f"{code} ({param.unit})" if param.unit else code
+                parts.scalars.append((f"{base}/params/{_path(code)}", float(param.value), name))
             elif isinstance(param.value, str) and param.code is not None:
-                self._state(f"{base}/state/{_path(code)}", t, index, f"{code}: {param.value}")
-        if message.latency_ns is not None and message.function is not None and message.frame.crc_ok:
-            self._scalar(f"{base}/latency_ms/fc{message.function}", t, index, message.latency_ns / 1e6,
-                         f"latency FC {message.function} (ms)")
-        for kind, happened in (("crc", not frame.crc_ok), ("timeout", bool(message.flags & FrameFlag.TIMEOUT)),
-                               ("exception", message.role is Role.EXCEPTION)):
-            if happened:
-                self._scalar(f"{base}/errors/{kind}", t, index, 1.0, f"{kind} errors", points=True)
+                parts.states.append((f"{base}/state/{_path(code)}", f"{code}: {param.value}"))
+        if message.function is not None:
+            parts.latency_entity = f"{base}/latency_ms/fc{message.function}"
+            parts.latency_name = f"latency FC {message.function} (ms)"
+        if len(self._parts) >= KEPT_PARTS:
+            self._parts.clear()
+        self._parts[decoding] = parts
+        return parts
 
     def _may_plot(self, slave: int, address: int) -> bool:
         """Registers without a name are plotted for the first ``MAX_UNNAMED_SERIES`` addresses
@@ -115,18 +161,25 @@ class RerunExporter:
         seen.add(address)
         return True
 
-    def _bus(self, message: Message) -> None:
-        frame = message.frame
-        second = frame.t_start_ns // SECOND_NS
-        if self._second is not None and second != self._second:
-            t = self._second * SECOND_NS
-            self._scalar("bus/load_percent", t, frame.index, 100 * self._wire_ns / SECOND_NS, "bus load (%)")
-            self._scalar("bus/errors_per_s", t, frame.index, float(self._errors), "errors per second")
-            self._wire_ns = self._errors = 0
-        self._second = second
-        self._wire_ns += frame.t_end_ns - frame.t_start_ns
-        self._errors += int(not frame.crc_ok or bool(message.flags & FrameFlag.TIMEOUT)
-                            or message.role is Role.EXCEPTION)
+    def _bus(self, t_start: npt.NDArray[np.int64], wire_ns: npt.NDArray[np.int64], errors: npt.NDArray[np.bool_],
+             *, first_index: int) -> None:
+        """Bus load and errors per second, a point at the start of each second once it is over."""
+        if not len(t_start):
+            return
+        seconds = t_start // SECOND_NS
+        starts = np.flatnonzero(np.diff(seconds, prepend=seconds[0] - 1))
+        wire = np.add.reduceat(wire_ns, starts).tolist()
+        failed = np.add.reduceat(errors.astype(np.int64), starts).tolist()
+        for second, first, wire_sum, error_count in zip(seconds[starts].tolist(), starts.tolist(), wire, failed,
+                                                         strict=True):
+            if self._second is not None and second != self._second:
+                t, index = self._second * SECOND_NS, first_index + first
+                self._scalar("bus/load_percent", t, index, 100 * self._wire_ns / SECOND_NS, "bus load (%)")
+                self._scalar("bus/errors_per_s", t, index, float(self._errors), "errors per second")
+                self._wire_ns = self._errors = 0
+            self._second = second
+            self._wire_ns += wire_sum
+            self._errors += error_count
 
     def _scalar(self, entity: str, t: int, index: int, value: float, name: str, *, points: bool = False) -> None:
         rows = self._scalars[entity]
@@ -161,7 +214,6 @@ class RerunExporter:
             if rows.times:
                 self._rec.send_columns(entity, indexes=_indexes(rows),
                                        columns=rr.TextLog.columns(text=rows.texts, level=rows.levels))
-        self.rows_sent += self._rows
         self._rows = 0
         self._scalars.clear()
         self._logs.clear()

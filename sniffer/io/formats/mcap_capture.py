@@ -71,7 +71,8 @@ def decode_block(payload: bytes) -> ChunkBatch:
     return ChunkBatch(payload[data_start:], ends, times)
 
 
-def _info_metadata(info: CaptureInfo) -> dict[str, str]:
+def info_metadata(info: CaptureInfo) -> dict[str, str]:
+    """The ``rtusniff.capture`` metadata record's fields."""
     fields = {
         "format_version": FORMAT_VERSION,
         "timing": info.timing.value,
@@ -97,7 +98,7 @@ class McapCaptureWriter:
         self._file: BinaryIO = open(path, "wb")  # noqa: SIM115
         self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=chunk_size)
         self._writer.start(profile=PROFILE, library=f"rtusniff {version('rtusniff')}")
-        self._writer.add_metadata(METADATA_NAME, _info_metadata(info))
+        self._writer.add_metadata(METADATA_NAME, info_metadata(info))
         self._channel = self._writer.register_channel(
             topic=TOPIC, message_encoding=MESSAGE_ENCODING, schema_id=0, metadata={"layout": LAYOUT_DOC}
         )
@@ -109,19 +110,11 @@ class McapCaptureWriter:
         return self._writer
 
     def write_batch(self, batch: ChunkBatch) -> None:
-        for start in range(0, len(batch), BLOCK_CHUNKS):
-            self._write_block(_slice(batch, start, start + BLOCK_CHUNKS))
-
-    def _write_block(self, block: ChunkBatch) -> None:
-        t_first = int(block.t_end_ns[0])
-        self._writer.add_message(
-            channel_id=self._channel,
-            log_time=t_first,
-            publish_time=t_first,
-            data=encode_block(block),
-            sequence=self._sequence,
-        )
-        self._sequence += 1
+        for t_first, payload in encode_blocks(batch):
+            self._writer.add_message(
+                channel_id=self._channel, log_time=t_first, publish_time=t_first, data=payload, sequence=self._sequence
+            )
+            self._sequence += 1
 
     def add_notes(self, notes: list[str]) -> None:
         if notes:
@@ -143,6 +136,13 @@ class McapCaptureWriter:
     def abandon(self) -> None:
         with contextlib.suppress(OSError):
             self._file.close()
+
+
+def encode_blocks(batch: ChunkBatch) -> Iterator[tuple[int, bytes]]:
+    """The message payloads for a batch of chunks, with their time (the first chunk's end)."""
+    for start in range(0, len(batch), BLOCK_CHUNKS):
+        block = _slice(batch, start, start + BLOCK_CHUNKS)
+        yield int(block.t_end_ns[0]), encode_block(block)
 
 
 def _slice(batch: ChunkBatch, start: int, stop: int) -> ChunkBatch:
