@@ -35,6 +35,7 @@ from decoders.modbus.pdu import (
     WriteRegistersRequest,
     WriteSingle,
     parse_pdu,
+    quantity_allowed,
 )
 from decoders.profiles.apply import ProfileApplier
 from decoders.uss import parse_uss
@@ -44,7 +45,7 @@ KEPT_REQUESTS = 1024
 #: Decodings kept for repeats, in two generations: when the young one is full it becomes the
 #: old one, and what is used from the old one moves back, so that what a bus repeats stays
 #: while one-off frames (changing values) pass through (an LRU that costs a dict lookup).
-KEPT_DECODINGS = 16384
+KEPT_DECODINGS = 8192
 _AS_REQUEST = {Role.REQUEST, Role.BROADCAST}
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
 #: What of a request decoding its answer reads (see :func:`answer_context`).
@@ -154,7 +155,10 @@ def answer_context(request: Pdu | None) -> AnswerContext:
 
 
 def named_registers(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:
-    """The registers or coils ``pdu`` names, with their raw values where it carries them."""
+    """The registers or coils ``pdu`` names, with their raw values where it carries them; none
+    for a request for more than Modbus allows (a damaged count would name thousands)."""
+    if not quantity_allowed(pdu):
+        return ()
     match pdu:
         case ReadRequest(address=address, count=count) | WriteMultipleResponse(address=address, count=count):
             return tuple([ParamValue(a, None) for a in range(address, address + count)])

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 #: Bit set in the function code of an exception response.
 EXCEPTION_BIT = 0x80
+#: The most registers or coils one request may name (Modbus Application Protocol V1.1b3); a
+#: request for more is invalid, and a slave answers it with exception 03.
+MAX_QUANTITY: dict[int, int] = {1: 2000, 2: 2000, 3: 125, 4: 125, 15: 1968, 16: 123}
+MAX_READ_WRITE_QUANTITY = (125, 121)  # FC 23: read, write
 
 FUNCTION_NAMES: dict[int, str] = {
     1: "Read Coils",

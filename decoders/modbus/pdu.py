@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from decoders.modbus.codes import (
     ALTIVAR_MEI_ERRORS,
     EXCEPTION_BIT,
+    MAX_QUANTITY,
+    MAX_READ_WRITE_QUANTITY,
     MEI_NAMES,
     READ_DEVICE_ID_CODES,
     USER_DEFINED_FUNCTIONS,
@@ -66,6 +68,22 @@ def _range(address: int, count: int) -> str:
     return f"{address}" if count == 1 else f"{address}..{address + count - 1}"
 
 
+def _quantity(count: int, limit: int) -> str:
+    """The count in a summary; one Modbus does not allow says so (the slave answers exception 03)."""
+    return f"{count}" if 1 <= count <= limit else f"{count}, Modbus allows 1..{limit}"
+
+
+def quantity_allowed(pdu: Pdu) -> bool:
+    """Whether a request (or a write's echo) names no more registers or coils than Modbus allows."""
+    match pdu:
+        case ReadRequest(function=function, count=count) | WriteMultipleResponse(function=function, count=count):
+            return 1 <= count <= MAX_QUANTITY[function]
+        case ReadWriteRequest(read_count=read, write_count=write):
+            read_limit, write_limit = MAX_READ_WRITE_QUANTITY
+            return 1 <= read <= read_limit and 1 <= write <= write_limit
+    return True
+
+
 def _hex_words(values: tuple[int, ...], limit: int = 8) -> str:
     shown = struct.pack(f">{min(len(values), limit)}H", *values[:limit]).hex(" ", 2).upper()
     return shown + (f" … (+{len(values) - limit})" if len(values) > limit else "")
@@ -88,7 +106,8 @@ class ReadRequest:
     count: int
 
     def summary(self) -> str:
-        return f"read {_TABLES[self.function]} {_range(self.address, self.count)} ({self.count})"
+        count = _quantity(self.count, MAX_QUANTITY[self.function])
+        return f"read {_TABLES[self.function]} {_range(self.address, self.count)} ({count})"
 
 
 @dataclass(frozen=True, slots=True)
@@ -226,7 +245,8 @@ class WriteMultipleResponse:
 
     def summary(self) -> str:
         table = "coils" if self.function == 15 else "HR"
-        return f"wrote {table} {_range(self.address, self.count)} ({self.count})"
+        count = _quantity(self.count, MAX_QUANTITY[self.function])
+        return f"wrote {table} {_range(self.address, self.count)} ({count})"
 
 
 @dataclass(frozen=True, slots=True)
@@ -296,7 +316,8 @@ class ReadWriteRequest:
 
     def summary(self) -> str:
         return (
-            f"read HR {_range(self.read_address, self.read_count)} ({self.read_count}), "
+            f"read HR {_range(self.read_address, self.read_count)} "
+            f"({_quantity(self.read_count, MAX_READ_WRITE_QUANTITY[0])}), "
             f"write HR {_range(self.write_address, self.write_count)} = {_hex_words(self.values)}"
         )
 

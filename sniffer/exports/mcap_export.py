@@ -54,11 +54,12 @@ from sniffer.views.records import FrameRecordEncoder, encode_json
 
 KEPT_REQUESTS = 4096
 #: Parts built per decoding, kept for repeats; a full cache starts again empty.
-KEPT_PARTS = 8192
+KEPT_PARTS = 4096
 CHUNK_SIZE = 1 << 20
 #: Frames between flushes, which is where a failed write (a full disk) shows.
 FLUSH_FRAMES = 100_000
 _REQUEST, _BROADCAST, _EXCEPTION = (ROLE_CODE[role] for role in (Role.REQUEST, Role.BROADCAST, Role.EXCEPTION))
+_TIMEOUT = int(FrameFlag.TIMEOUT)  # flags come as ints from the columns: no enum arithmetic
 _FLAG_SUFFIXES = [f" [{' '.join(FrameFlag(v).names)}]".encode() if v else b"" for v in range(1 << len(FrameFlag))]
 
 _NUMBER_OR_NULL = {"type": ["number", "null"]}
@@ -239,7 +240,7 @@ class McapExporter:
         ):
             hex_data = data[offsets[position] : offsets[position + 1]].hex()
             index = first + position
-            if role == _REQUEST and not flags & FrameFlag.TIMEOUT:
+            if role == _REQUEST and not flags & _TIMEOUT:
                 self._requests[index] = hex_data
                 if len(self._requests) > KEPT_REQUESTS:
                     self._requests.popitem(last=False)

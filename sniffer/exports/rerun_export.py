@@ -31,14 +31,15 @@ FLUSH_ROWS = 200_000
 MAX_UNNAMED_SERIES = 64
 SECOND_NS = 1_000_000_000
 _LEVEL_NAMES = {INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}
-KEPT_PARTS = 8192
+KEPT_PARTS = 4096
 _EXCEPTION = ROLE_CODE[Role.EXCEPTION]
+_TIMEOUT = int(FrameFlag.TIMEOUT)  # flags come as ints from the columns: no enum arithmetic
 _FLAG_SUFFIXES = [f" [{' '.join(FrameFlag(v).names)}]" if v else "" for v in range(1 << len(FrameFlag))]
 
 
 def _errors(messages: MessageBatch) -> npt.NDArray[np.bool_]:
     """CRC errors, timeouts and exceptions: what the bus's error rate counts."""
-    timeout = (messages.flags & int(FrameFlag.TIMEOUT)) != 0
+    timeout = (messages.flags & _TIMEOUT) != 0
     errors: npt.NDArray[np.bool_] = ~messages.frames.crc_ok | timeout | (messages.role == _EXCEPTION)
     return errors
 
@@ -115,7 +116,7 @@ class RerunExporter:
                 self._state(entity, t, index, text)
             if latency != NONE and parts.latency_entity and crc_ok:
                 self._scalar(parts.latency_entity, t, index, latency / 1e6, parts.latency_name)
-            if flags & FrameFlag.TIMEOUT:
+            if flags & _TIMEOUT:
                 self._scalar(f"slaves/{slave}/errors/timeout", t, index, 1.0, "timeout errors", points=True)
             if not crc_ok:
                 self._scalar(f"slaves/{slave}/errors/crc", t, index, 1.0, "crc errors", points=True)

@@ -76,7 +76,7 @@ def frame_record(message: Message) -> dict[str, Any]:
 
 
 #: Frame records' encoded tails kept per decoding; a full cache starts again empty.
-KEPT_TAILS = 8192
+KEPT_TAILS = 4096
 _PROTOCOL_JSON = {code: f'"{name}"' for code, name in PROTOCOL_NAMES.items()}
 _FLAGS_JSON = [encode_json(list(flag_set(value).names)).decode() for value in range(1 << len(FrameFlag))]
 
