@@ -1,0 +1,134 @@
+"""Coverage-guided fuzzing with atheris (libFuzzer) of the readers, the framer and the decoders.
+
+    python tests/fuzz/atheris_fuzz.py TARGET [libFuzzer options, e.g. -runs=1000000 -max_len=4096] [CORPUS_DIR]
+
+Targets: ``text`` and ``mcap`` (bytes as a capture file: it reads cleanly or ends in one
+error naming the file), ``framer`` (bytes as timed chunks on a line: every byte comes out in
+exactly one frame, in order), ``decoders`` (bytes as frames: matcher, annotator and JSONL
+records never raise, and the cached decoding equals decoding each frame). A crash is any
+other exception; libFuzzer then writes the input to ``crash-*`` and exits non-zero. Without a
+corpus folder, ``text`` and ``mcap`` start from the shipped sample captures.
+The hypothesis tests in tests/property cover the same ground with shaped inputs; atheris
+finds the inputs that reach new code.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import atheris
+
+with atheris.instrument_imports():
+    import sniffer.io.formats.mcap_capture
+    import sniffer.io.formats.text  # noqa: F401 - found by the registry later: imported here to be instrumented
+    from decoders.capture import Chunk, ChunkBatch, TimingQuality
+    from decoders.crc import crc_ok
+    from decoders.frame import Frame, FrameFlag, frames_to_batch
+    from decoders.framer import Framer
+    from decoders.line import LineSettings
+    from decoders.modbus.annotate import Annotator
+    from decoders.modbus.matcher import Matcher
+    from decoders.profiles.apply import ProfileApplier
+    from sniffer.errors import RtuSniffError
+    from sniffer.io.registry import open_reader
+    from sniffer.profiles_io import profile_book
+    from sniffer.views.records import FrameRecordEncoder, frame_record
+
+SCRATCH = Path(tempfile.mkdtemp(prefix="rtusniff-atheris-"))
+SAMPLES = Path(__file__).resolve().parents[2] / "captures"
+LINES = [LineSettings.parse(text) for text in ("9600 8E1", "19200 8E1", "115200 8N1")]
+PROFILES = [[], ["atv71"], ["atv312"], ["nord-sk"], ["xbt"]]
+
+
+def read_capture(data: bytes, suffix: str) -> None:
+    path = SCRATCH / f"input{suffix}"
+    path.write_bytes(data)
+    try:
+        reader = open_reader(str(path))
+        try:
+            for _ in reader.batches():
+                pass
+        finally:
+            reader.close()
+    except RtuSniffError as error:
+        if "\n" in str(error) or str(path) not in str(error):
+            raise AssertionError(f"not one line naming the file: {error}") from None
+
+
+def chunks_of(provider: atheris.FuzzedDataProvider) -> list[Chunk]:
+    t, chunks = provider.ConsumeIntInRange(0, 2**62), []
+    while provider.remaining_bytes() > 2:
+        t += provider.ConsumeIntInRange(0, 50_000_000)
+        chunks.append(Chunk(t, provider.ConsumeBytes(provider.ConsumeIntInRange(1, 64)) or b"\x00"))
+    return chunks
+
+
+def frame_everything(provider: atheris.FuzzedDataProvider) -> None:
+    line = LINES[provider.ConsumeIntInRange(0, len(LINES) - 1)]
+    timing = TimingQuality.HOST if provider.ConsumeBool() else TimingQuality.EXACT
+    batch_size = provider.ConsumeIntInRange(1, 8)
+    chunks = chunks_of(provider)
+    framer, frames = Framer(line, timing), []
+    for start in range(0, len(chunks), batch_size):
+        frames.extend(framer.feed(ChunkBatch.from_chunks(chunks[start : start + batch_size])))
+    frames.extend(framer.flush())
+    if b"".join(f.data for f in frames) != b"".join(c.data for c in chunks):
+        raise AssertionError("bytes lost, doubled or moved by the framer")
+    if [f.index for f in frames] != list(range(len(frames))):
+        raise AssertionError("frame indices not consecutive")
+
+
+def decode_frames(provider: atheris.FuzzedDataProvider) -> None:
+    choice = PROFILES[provider.ConsumeIntInRange(0, len(PROFILES) - 1)]
+    frames, t = [], 0
+    while provider.remaining_bytes() > 1:
+        t += provider.ConsumeIntInRange(0, 200_000_000)
+        data = provider.ConsumeBytes(provider.ConsumeIntInRange(1, 40))
+        frames.append(Frame(len(frames), t, t + 1000 * len(data), data, crc_ok(data), FrameFlag.NONE))
+    if not frames:
+        return
+    matcher = Matcher()
+    cached, plain = Annotator(ProfileApplier(profile_book(choice, []))), Annotator(
+        ProfileApplier(profile_book(choice, [])))
+    encoder = FrameRecordEncoder()
+    for batch in (matcher.feed(frames_to_batch(frames)), matcher.flush()):
+        expected = [plain.annotate(message) for message in batch]
+        annotated = cached.annotate_batch(batch)
+        records = encoder.encode_batch(annotated)
+        for message, record, reference in zip(annotated, records, expected, strict=True):
+            if message.summary != reference.summary or message.params != reference.params:
+                raise AssertionError(f"cached decoding differs at frame {message.frame.index}")
+            if record != json.dumps(frame_record(message), ensure_ascii=False, separators=(",", ":")):
+                raise AssertionError(f"JSONL record differs from json.dumps at frame {message.frame.index}")
+
+
+def _seed_corpus(suffix: str) -> Path:
+    """A corpus folder holding the shipped sample captures of one format."""
+    corpus = SCRATCH / f"corpus{suffix}"
+    corpus.mkdir()
+    for sample in SAMPLES.glob(f"*{suffix}"):
+        (corpus / sample.name).write_bytes(sample.read_bytes())
+    return corpus
+
+
+def main() -> None:
+    targets = {
+        "text": lambda data: read_capture(data, ".log"),
+        "mcap": lambda data: read_capture(data, ".mcap"),
+        "framer": lambda data: frame_everything(atheris.FuzzedDataProvider(data)),
+        "decoders": lambda data: decode_frames(atheris.FuzzedDataProvider(data)),
+    }
+    if len(sys.argv) < 2 or sys.argv[1] not in targets:
+        sys.exit(f"usage: {sys.argv[0]} {{{','.join(targets)}}} [libFuzzer options]")
+    name = sys.argv.pop(1)
+    if name in ("text", "mcap") and all(arg.startswith("-") for arg in sys.argv[1:]):
+        sys.argv.append(str(_seed_corpus(".log" if name == "text" else ".mcap")))
+    atheris.Setup(sys.argv, targets[name])
+    atheris.Fuzz()
+
+
+if __name__ == "__main__":
+    main()
