@@ -15,7 +15,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.bench_memory import add_capture_options, benchmark_capture
+from benchmarks.bench_memory import add_capture_options, benchmark_capture, wire_megabytes
 
 CHILD = """
 import resource, sys, time
@@ -34,14 +34,16 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         capture = benchmark_capture(args.keep or Path(tmp), args.frames, args.traffic)
-        print(f"{'export':<8} {'frames':>10} {'seconds':>8} {'frames/s':>10} {'output MB':>10} {'peak RSS MB':>12}")
+        wire_mb = wire_megabytes(capture)
+        print(f"{'export':<8} {'frames':>10} {'seconds':>8} {'frames/s':>10} {'wire MB/s':>10} {'output MB':>10} "
+              f"{'peak RSS MB':>12}")
         for option, suffix in (("--mcap", ".mcap"), ("--rrd", ".rrd")):
             output = Path(tmp) / f"export{suffix}"
             result = subprocess.run([sys.executable, "-c", CHILD, str(capture), option, str(output)],
                                     capture_output=True, text=True, check=True, env={**os.environ, "CI": "1"})
             seconds, rss_kb = result.stdout.split()
             print(f"{option[2:]:<8} {args.frames:>10,} {float(seconds):>8.1f} {args.frames / float(seconds):>10,.0f} "
-                  f"{output.stat().st_size / 1e6:>10.1f} {int(rss_kb) / 1024:>12.1f}")
+                  f"{wire_mb / float(seconds):>10.2f} {output.stat().st_size / 1e6:>10.1f} {int(rss_kb) / 1024:>12.1f}")
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ from benchmarks import generate_capture
 from benchmarks.bench_framing import LINE, polling_transmissions
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.synthesis import exact_chunks
-from sniffer.io.registry import open_writer
+from sniffer.io.registry import open_reader, open_writer
 
 CHILD = """
 import resource, sys, time
@@ -52,6 +52,15 @@ def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Pa
         else:
             write_capture(capture, frames)
     return capture
+
+
+def wire_megabytes(capture: Path) -> float:
+    """The bytes on the wire the capture holds, in MB (what a throughput in MB/s counts)."""
+    reader = open_reader(str(capture))
+    try:
+        return sum(len(batch.data) for batch in reader.batches()) / 1e6
+    finally:
+        reader.close()
 
 
 def write_capture(path: Path, frames: int) -> None:
