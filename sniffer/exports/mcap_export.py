@@ -270,5 +270,9 @@ class McapExporter:
             raise OSError(self._failure.cause or str(exc)) from None
 
     def close(self) -> None:
-        self._written(self._writer.close)
-        logging.getLogger("foxglove").removeHandler(self._failure)
+        try:
+            self._written(self._writer.close)
+        finally:
+            sdk_log = logging.getLogger("foxglove")
+            sdk_log.removeHandler(self._failure)
+            sdk_log.propagate = True
