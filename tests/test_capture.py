@@ -25,6 +25,11 @@ REQUEST = bytes.fromhex("02030C1E0004276C")
 RESPONSE = bytes.fromhex("0203080028025801F4000052B0")
 
 
+#: How long a capture may take to stop after its signal before the test calls it hung: generous,
+#: because a loaded CI machine (its disk busy, fsync slow) can take seconds to close a recording.
+HANG_S = 60
+
+
 def start_capture(port: Path, *args: str, **kwargs: Any) -> subprocess.Popen[str]:
     process = subprocess.Popen(
         [sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1", *args],
@@ -75,7 +80,7 @@ def test_real_master_and_slave_decoded_live_and_recorded(tmp_path: Path) -> None
             operations = run_master(to_master.a)
             time.sleep(1.5)
             capture.send_signal(signal.SIGINT)
-            out, err = capture.communicate(timeout=15)
+            out, err = capture.communicate(timeout=HANG_S)
             assert relay.written_back() == b""  # passive: nothing came back from the capture's port
     assert capture.returncode == 130, err
     assert "recorded" in err and str(recording) in err
@@ -104,7 +109,7 @@ def test_sigterm_closes_the_recording(tmp_path: Path, line_tap: tuple[Path, Path
     send_exchanges(line, 10)
     time.sleep(0.5)
     capture.send_signal(signal.SIGTERM)
-    _, err = capture.communicate(timeout=15)
+    _, err = capture.communicate(timeout=HANG_S)
     assert capture.returncode == 143, err
     code, records, _ = analyze(recording)
     assert code == 0
@@ -132,7 +137,7 @@ def test_port_vanishing_ends_the_capture_cleanly(tmp_path: Path) -> None:
         send_exchanges(pair.a, 5)
         time.sleep(0.5)
         pair.process.kill()  # the adapter is unplugged
-        _, err = capture.communicate(timeout=15)
+        _, err = capture.communicate(timeout=HANG_S)
     assert capture.returncode == 13, err
     assert "the port went away" in err and err.count("error:") == 1 and "Traceback" not in err
     code, records, warnings = analyze(recording)
@@ -171,7 +176,7 @@ def test_rotation_by_duration(tmp_path: Path, line_tap: tuple[Path, Path, Any]) 
         send_exchanges(line, 5)
         time.sleep(0.6)
     capture.send_signal(signal.SIGINT)
-    _, err = capture.communicate(timeout=15)
+    _, err = capture.communicate(timeout=HANG_S)
     files = sorted(tmp_path.glob("rot-*.log"))
     assert len(files) >= 2, err
     total = 0

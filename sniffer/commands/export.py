@@ -16,11 +16,11 @@ from decoders.message import AnnotatedBatch, MessageBatch
 from decoders.stats import Statistics
 from sniffer.commands.common import add_decoding_options, open_analysis
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.exports.mcap_export import McapExporter
 from sniffer.exports.pcap_export import PcapExporter
 from sniffer.pipeline import Analysis, analyze
 
 if TYPE_CHECKING:
+    from sniffer.exports.mcap_export import McapExporter
     from sniffer.exports.rerun_export import RerunExporter
 
 
@@ -78,6 +78,9 @@ class ExportView:
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         if self.args.mcap:
+            # foxglove-sdk loads a 54 MB native library: only when an MCAP export is asked for.
+            from sniffer.exports.mcap_export import McapExporter  # noqa: PLC0415
+
             with _writing(self.args.mcap):
                 self.mcap = McapExporter(self.args.mcap, info, line, _metadata(self.args, self.analysis))
 
