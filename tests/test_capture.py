@@ -31,10 +31,17 @@ HANG_S = 60
 
 
 def start_capture(port: Path, *args: str, **kwargs: Any) -> subprocess.Popen[str]:
-    process = subprocess.Popen(
-        [sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1", *args],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs,
-    )
+    # A shell running a job in the background (`bash .ci/run &`) makes it ignore SIGINT, and an
+    # ignored signal stays ignored across exec (a handled one is reset): Ctrl-C is what these
+    # tests send, so SIGINT is handled here while the capture starts.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1", *args],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs,
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
     time.sleep(1.0)  # the interpreter starts and opens the port
     assert process.poll() is None, process.stderr.read() if process.stderr else ""
     return process
