@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from enum import IntFlag
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -104,33 +105,44 @@ class FrameBatch:
         return len(self.t_start_ns)
 
     def __iter__(self) -> Iterator[Frame]:
-        bounds = self.offsets.tolist()
-        columns = zip(
-            self.t_start_ns.tolist(),
-            self.t_end_ns.tolist(),
-            self.crc_ok.tolist(),
-            self.flags.tolist(),
-            self.is_noise.tolist(),
-            self.idle_before_ns.tolist(),
-            self.protocols().tolist(),
-            strict=True,
-        )
-        for i, (start, end, ok, flags, noise, idle, protocol) in enumerate(columns):
-            yield Frame(
-                index=self.first_index + i,
-                t_start_ns=start,
-                t_end_ns=end,
-                data=self.data[bounds[i] : bounds[i + 1]],
-                crc_ok=ok,
-                flags=_FLAGS_BY_VALUE[flags],
-                is_noise=noise,
-                idle_before_ns=None if idle == NO_IDLE else idle,
-                protocol=protocol,
-            )
+        rows = self.rows()
+        return (rows[position] for position in range(len(self)))
+
+    def rows(self) -> FrameRows:
+        """Frames built on demand by position, from columns read once."""
+        return FrameRows(self)
 
     def protocols(self) -> npt.NDArray[np.uint8]:
         """The protocol of every frame."""
         return self.protocol if self.protocol is not None else np.zeros(len(self), np.uint8)
+
+
+class FrameRows:
+    """The frames of a batch by position, each built when asked for (columns are read into
+    lists at the first request): for stages that need objects for some frames only."""
+
+    def __init__(self, batch: FrameBatch) -> None:
+        self._batch = batch
+        self._columns: list[list[Any]] | None = None
+
+    def __getitem__(self, position: int) -> Frame:
+        if self._columns is None:
+            batch = self._batch
+            self._columns = [column.tolist() for column in (batch.offsets, batch.t_start_ns, batch.t_end_ns,
+                                                            batch.crc_ok, batch.flags, batch.is_noise,
+                                                            batch.idle_before_ns, batch.protocols())]
+        offsets, start, end, ok, flags, noise, idle, protocol = self._columns
+        return Frame(
+            index=self._batch.first_index + position,
+            t_start_ns=start[position],
+            t_end_ns=end[position],
+            data=self._batch.data[offsets[position] : offsets[position + 1]],
+            crc_ok=ok[position],
+            flags=_FLAGS_BY_VALUE[flags[position]],
+            is_noise=noise[position],
+            idle_before_ns=None if idle[position] == NO_IDLE else idle[position],
+            protocol=protocol[position],
+        )
 
 
 _COLUMNS = ("t_start_ns", "t_end_ns", "crc_ok", "flags", "is_noise", "idle_before_ns")

@@ -5,12 +5,12 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from enum import Enum
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
-from decoders.frame import NO_IDLE, Frame, FrameBatch, FrameFlag, flag_set
+from decoders.frame import Frame, FrameBatch, FrameFlag, flag_set
 
 if TYPE_CHECKING:
     from decoders.modbus.pdu import Pdu
@@ -180,33 +180,8 @@ class MessageBatch:
         return MessageRows(self)
 
     def __iter__(self) -> Iterator[Message]:
-        rows = zip(
-            self.role.tolist(),
-            self.slave.tolist(),
-            self.function.tolist(),
-            self.exception_code.tolist(),
-            self.flags.tolist(),
-            self.request_index.tolist(),
-            self.latency_ns.tolist(),
-            strict=True,
-        )
-        for frame, row in zip(self.frames, rows, strict=True):
-            yield _message(frame, row)
-
-
-def _message(frame: Frame, row: tuple[int, ...]) -> Message:
-    """A message from one row of :class:`MessageBatch` columns (role … latency, in field order)."""
-    role, slave, function, code, flags, request, latency = row
-    return Message(
-        frame=frame,
-        role=ROLE_ORDER[role],
-        slave=None if slave == NONE else slave,
-        function=None if function == NONE else function,
-        exception_code=None if code == NONE else code,
-        flags=flag_set(flags),
-        request_index=None if request == NONE else request,
-        latency_ns=None if latency == NONE else latency,
-    )
+        rows = self.rows()
+        return (rows[position] for position in range(len(self)))
 
 
 class MessageRows:
@@ -214,36 +189,27 @@ class MessageRows:
     objects for a few messages only (the annotator, for frames it has not seen before)."""
 
     def __init__(self, batch: MessageBatch) -> None:
-        self._frames = batch.frames
-        self._columns: list[list[Any]] | None = None
         self._batch = batch
+        self._frames = batch.frames.rows()
+        self._columns: list[list[int]] | None = None
 
     def __getitem__(self, position: int) -> Message:
         if self._columns is None:
-            batch, frames = self._batch, self._frames
-            self._columns = [
-                column.tolist()
-                for column in (batch.role, batch.slave, batch.function, batch.exception_code, batch.flags,
-                               batch.request_index, batch.latency_ns, frames.offsets, frames.t_start_ns,
-                               frames.t_end_ns, frames.crc_ok, frames.flags, frames.is_noise,
-                               frames.idle_before_ns, frames.protocols())
-            ]
-        (role, slave, function, code, flags, request, latency, offsets, start, end, ok, frame_flags, noise, idle,
-         protocol) = self._columns
-        frame = Frame(
-            index=self._frames.first_index + position,
-            t_start_ns=start[position],
-            t_end_ns=end[position],
-            data=self._frames.data[offsets[position] : offsets[position + 1]],
-            crc_ok=ok[position],
-            flags=flag_set(frame_flags[position]),
-            is_noise=noise[position],
-            idle_before_ns=None if idle[position] == NO_IDLE else idle[position],
-            protocol=protocol[position],
+            batch = self._batch
+            self._columns = [column.tolist() for column in (batch.role, batch.slave, batch.function,
+                                                            batch.exception_code, batch.flags,
+                                                            batch.request_index, batch.latency_ns)]
+        role, slave, function, code, flags, request, latency = (column[position] for column in self._columns)
+        return Message(
+            frame=self._frames[position],
+            role=ROLE_ORDER[role],
+            slave=None if slave == NONE else slave,
+            function=None if function == NONE else function,
+            exception_code=None if code == NONE else code,
+            flags=flag_set(flags),
+            request_index=None if request == NONE else request,
+            latency_ns=None if latency == NONE else latency,
         )
-        row = (role[position], slave[position], function[position], code[position], flags[position],
-               request[position], latency[position])
-        return _message(frame, row)
 
 
 @dataclass(frozen=True, slots=True)
@@ -262,15 +228,10 @@ class AnnotatedBatch:
         return len(self.decodings) if self.rows is None else len(self.rows)
 
     def __iter__(self) -> Iterator[Message]:
-        if self.rows is None:
-            for message, decoding in zip(self.messages, self.decodings, strict=True):
-                message.decoding = decoding  # fresh from the batch: set rather than copied
-                yield message
-            return
         messages = self.messages.rows()
-        for position in self.rows.tolist():
+        for position in self.positions():
             message = messages[position]
-            message.decoding = self.decodings[position]
+            message.decoding = self.decodings[position]  # fresh from the batch: set rather than copied
             yield message
 
     def positions(self) -> list[int]:

@@ -6,8 +6,8 @@ await an answer.
 
 A bus repeats itself: a master polls the same registers over and over and drives
 answer with the same values. What a frame says depends only on its bytes, role and
-protocol, its request's bytes and what the profiles know at that moment, so
-:meth:`Annotator.annotate_all` decodes each such combination once and hands the same
+protocol, what its request asked (:func:`answer_context`) and what the profiles know at
+that moment, so :meth:`Annotator.annotate_batch` decodes each such combination once and hands the same
 :class:`Decoding` to every repeat. The profiles' ``version`` is part of the key: a
 frame that taught them something (a scanner table, an identification) is decoded
 again, never answered from before.
@@ -61,7 +61,7 @@ class Annotator:
     """Adds ``pdu``, ``params`` and ``summary`` to messages, in capture order."""
 
     def __init__(self, profiles: ProfileApplier | None = None) -> None:
-        #: Open requests by frame index: their bytes and decoded PDU.
+        #: Open requests by frame index: their answer context and decoded PDU.
         self._requests: OrderedDict[int, tuple[AnswerContext, Pdu]] = OrderedDict()
         self._profiles = profiles
         self._decodings: dict[DecodingKey, tuple[Decoding, AnswerContext]] = {}
@@ -78,13 +78,15 @@ class Annotator:
             context, request = _NO_REQUEST if request_index == NONE else self._requests.pop(request_index, _NO_REQUEST)
             version = 0 if self._profiles is None else self._profiles.version
             key = (role, protocol, data[offsets[position] : offsets[position + 1]], context, version)
-            known = self._decodings.get(key) or self._old_decodings.get(key)
+            known = self._decodings.get(key)
             if known is None:
-                decoding = self._decode(messages[position], request).decoding
-                known = decoding, answer_context(decoding.pdu)
-            if len(self._decodings) >= KEPT_DECODINGS:
-                self._old_decodings, self._decodings = self._decodings, {}
-            self._decodings[key] = known
+                known = self._old_decodings.get(key)
+                if known is None:
+                    decoding = self._decode(messages[position], request).decoding
+                    known = decoding, answer_context(decoding.pdu)
+                if len(self._decodings) >= KEPT_DECODINGS:
+                    self._old_decodings, self._decodings = self._decodings, {}
+                self._decodings[key] = known
             if role == _REQUEST_CODE:
                 self._keep_request(first + position, known[1], known[0].pdu)
             decodings.append(known[0])
@@ -95,7 +97,7 @@ class Annotator:
         return list(self.annotate_batch(batch))
 
     def annotate(self, message: Message) -> Message:
-        """One message, decoded without the cache (live views, tests)."""
+        """One message, decoded without the cache: the plain path the cache is tested against."""
         annotated = self._decode(message, self._open_request(message)[1])
         if annotated.role is Role.REQUEST:
             self._keep_request(annotated.frame.index, answer_context(annotated.pdu), annotated.pdu)

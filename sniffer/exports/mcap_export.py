@@ -36,11 +36,10 @@ from foxglove import Channel, Context, Schema
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from decoders.capture import CaptureInfo, ChunkBatch
-from decoders.frame import FrameFlag
 from decoders.line import LineSettings
 from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, Role
 from sniffer.exports import foxglove_log
-from sniffer.exports.levels import log_levels
+from sniffer.exports.levels import FLAG_SUFFIXES, TIMEOUT, log_levels
 from sniffer.io.formats.mcap_capture import (
     LAYOUT_DOC,
     MESSAGE_ENCODING,
@@ -59,8 +58,7 @@ CHUNK_SIZE = 1 << 20
 #: Frames between flushes, which is where a failed write (a full disk) shows.
 FLUSH_FRAMES = 100_000
 _REQUEST, _BROADCAST, _EXCEPTION = (ROLE_CODE[role] for role in (Role.REQUEST, Role.BROADCAST, Role.EXCEPTION))
-_TIMEOUT = int(FrameFlag.TIMEOUT)  # flags come as ints from the columns: no enum arithmetic
-_FLAG_SUFFIXES = [f" [{' '.join(FrameFlag(v).names)}]".encode() if v else b"" for v in range(1 << len(FrameFlag))]
+_FLAG_SUFFIXES = [suffix.encode() for suffix in FLAG_SUFFIXES]
 
 _NUMBER_OR_NULL = {"type": ["number", "null"]}
 _INT_OR_NULL = {"type": ["integer", "null"]}
@@ -240,7 +238,7 @@ class McapExporter:
         ):
             hex_data = data[offsets[position] : offsets[position + 1]].hex()
             index = first + position
-            if role == _REQUEST and not flags & _TIMEOUT:
+            if role == _REQUEST and not flags & TIMEOUT:
                 self._requests[index] = hex_data
                 if len(self._requests) > KEPT_REQUESTS:
                     self._requests.popitem(last=False)

@@ -22,9 +22,8 @@ import numpy.typing as npt
 import rerun as rr
 import rerun.blueprint as rrb
 
-from decoders.frame import FrameFlag
-from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, Message, MessageBatch, Role
-from sniffer.exports.levels import ERROR, INFO, WARNING, log_levels
+from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, Message, Role
+from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
 
 APPLICATION = "rtusniff"
 FLUSH_ROWS = 200_000
@@ -33,15 +32,6 @@ SECOND_NS = 1_000_000_000
 _LEVEL_NAMES = {INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}
 KEPT_PARTS = 4096
 _EXCEPTION = ROLE_CODE[Role.EXCEPTION]
-_TIMEOUT = int(FrameFlag.TIMEOUT)  # flags come as ints from the columns: no enum arithmetic
-_FLAG_SUFFIXES = [f" [{' '.join(FrameFlag(v).names)}]" if v else "" for v in range(1 << len(FrameFlag))]
-
-
-def _errors(messages: MessageBatch) -> npt.NDArray[np.bool_]:
-    """CRC errors, timeouts and exceptions: what the bus's error rate counts."""
-    timeout = (messages.flags & _TIMEOUT) != 0
-    errors: npt.NDArray[np.bool_] = ~messages.frames.crc_ok | timeout | (messages.role == _EXCEPTION)
-    return errors
 
 
 @dataclass
@@ -95,8 +85,8 @@ class RerunExporter:
         positions = batch.positions()
         messages, frames = batch.messages, batch.messages.frames
         t_start = frames.t_start_ns[positions]
-        errors = _errors(messages)[positions]
-        self._bus(t_start, frames.t_end_ns[positions] - t_start, errors, first_index=frames.first_index)
+        failed = errors(messages)[positions]
+        self._bus(t_start, frames.t_end_ns[positions] - t_start, failed, first_index=frames.first_index)
         columns = zip(
             t_start.tolist(), log_levels(messages)[positions].tolist(), messages.flags[positions].tolist(),
             messages.slave[positions].tolist(), messages.latency_ns[positions].tolist(),
@@ -109,14 +99,14 @@ class RerunExporter:
                 self._log("bus/noise", t, index, decoding.summary, "WARN")
                 continue
             parts = self._parts.get(decoding) or self._decoding_parts(decoding, rows[position])
-            self._log(parts.log_entity, t, index, f"#{index}{parts.text}{_FLAG_SUFFIXES[flags]}", _LEVEL_NAMES[level])
+            self._log(parts.log_entity, t, index, f"#{index}{parts.text}{FLAG_SUFFIXES[flags]}", _LEVEL_NAMES[level])
             for entity, value, name in parts.scalars:
                 self._scalar(entity, t, index, value, name)
             for entity, text in parts.states:
                 self._state(entity, t, index, text)
             if latency != NONE and parts.latency_entity and crc_ok:
                 self._scalar(parts.latency_entity, t, index, latency / 1e6, parts.latency_name)
-            if flags & _TIMEOUT:
+            if flags & TIMEOUT:
                 self._scalar(f"slaves/{slave}/errors/timeout", t, index, 1.0, "timeout errors", points=True)
             if not crc_ok:
                 self._scalar(f"slaves/{slave}/errors/crc", t, index, 1.0, "crc errors", points=True)
@@ -162,7 +152,7 @@ class RerunExporter:
         seen.add(address)
         return True
 
-    def _bus(self, t_start: npt.NDArray[np.int64], wire_ns: npt.NDArray[np.int64], errors: npt.NDArray[np.bool_],
+    def _bus(self, t_start: npt.NDArray[np.int64], wire_ns: npt.NDArray[np.int64], failed: npt.NDArray[np.bool_],
              *, first_index: int) -> None:
         """Bus load and errors per second, a point at the start of each second once it is over."""
         if not len(t_start):
@@ -170,8 +160,8 @@ class RerunExporter:
         seconds = t_start // SECOND_NS
         starts = np.flatnonzero(np.diff(seconds, prepend=seconds[0] - 1))
         wire = np.add.reduceat(wire_ns, starts).tolist()
-        failed = np.add.reduceat(errors.astype(np.int64), starts).tolist()
-        for second, first, wire_sum, error_count in zip(seconds[starts].tolist(), starts.tolist(), wire, failed,
+        failures = np.add.reduceat(failed.astype(np.int64), starts).tolist()
+        for second, first, wire_sum, error_count in zip(seconds[starts].tolist(), starts.tolist(), wire, failures,
                                                          strict=True):
             if self._second is not None and second != self._second:
                 t, index = self._second * SECOND_NS, first_index + first

@@ -38,7 +38,7 @@ class JsonlView:
         self._out.flush()
 
     def _write(self, record: dict[str, Any]) -> None:
-        self._out.write(encode_record(record).decode() + "\n")
+        self._out.write(encode_record(record) + "\n")
 
 
 def _with_devices(lines: list[str], positions: list[int], first: int, decodings: list[Decoding]) -> Iterator[str]:
@@ -47,4 +47,4 @@ def _with_devices(lines: list[str], positions: list[int], first: int, decodings:
         yield line
         device = decodings[position].device
         if device is not None:
-            yield encode_record(device_record(first + position, device)).decode()
+            yield encode_record(device_record(first + position, device))

@@ -17,10 +17,10 @@ from decoders.message import NONE, AnnotatedBatch, Decoding, DeviceIdentity, Mes
 NS_PER_S = 1e9
 
 
-def encode_record(record: dict[str, Any]) -> bytes:
-    """One record as compact UTF-8 JSON, byte for byte what ``json.dumps`` writes with
+def encode_record(record: dict[str, Any]) -> str:
+    """One record as compact JSON, exactly what ``json.dumps`` writes with
     ``separators=(",", ":")`` and ``ensure_ascii=False`` (scripts compare outputs)."""
-    return json.dumps(record, ensure_ascii=False, separators=(",", ":")).encode()
+    return json.dumps(record, ensure_ascii=False, separators=(",", ":"))
 
 
 def encode_json(value: object) -> bytes:
@@ -75,8 +75,8 @@ def frame_record(message: Message) -> dict[str, Any]:
     }
 
 
-#: Frame records' encoded tails kept per decoding; a full cache starts again empty.
-KEPT_TAILS = 4096
+#: Frame records' parts kept per decoding; a full cache starts again empty.
+KEPT_PARTS = 4096
 _PROTOCOL_JSON = {code: f'"{name}"' for code, name in PROTOCOL_NAMES.items()}
 _FLAGS_JSON = [encode_json(list(flag_set(value).names)).decode() for value in range(1 << len(FrameFlag))]
 
@@ -91,7 +91,6 @@ class FrameRecordEncoder:
     """
 
     def __init__(self) -> None:
-        self._tails: dict[Decoding, tuple[str, str]] = {}
         self._parts: dict[Decoding, tuple[str, str]] = {}
 
     def encode_batch(self, batch: AnnotatedBatch) -> list[str]:
@@ -99,14 +98,15 @@ class FrameRecordEncoder:
         column formatted by one ``repr``."""
         messages, frames = batch.messages, batch.messages.frames
         positions = batch.positions()
+        requests, latencies = messages.request_index[positions], messages.latency_ns[positions]
         columns = zip(
             _texts(frames.t_start_ns[positions] / NS_PER_S),
             _texts(frames.t_end_ns[positions] / NS_PER_S),
             _texts(frames.t_start_ns[positions]),
             _texts(frames.t_end_ns[positions]),
             messages.flags[positions].tolist(),
-            _or_null(_texts(messages.request_index[positions]), messages.request_index[positions]),
-            _or_null(_texts(messages.latency_ns[positions] / NS_PER_S), messages.latency_ns[positions]),
+            _or_null(_texts(requests), requests),
+            _or_null(_texts(latencies / NS_PER_S), latencies),
             strict=True,
         )
         first, decodings, rows, lines = frames.first_index, batch.decodings, messages.rows(), []
@@ -125,28 +125,20 @@ class FrameRecordEncoder:
         from ``params`` to the end (the annotator shares a decoding only between frames with the
         same bytes, role and protocol)."""
         frame, slave, function, code = message.frame, message.slave, message.function, message.exception_code
-        params_summary, remarks = self._tail(decoding)
+        record = {"params": [param_record(p) for p in decoding.params], "summary": decoding.summary}
+        text = encode_json(record).decode() if _spelt_alike(decoding.params) else encode_record(record)
+        params_summary = text[1:-1]
+        remarks = encode_json(list(decoding.remarks)).decode()
         parts = (
             f'"hex":"{frame.data.hex()}","crc_ok":{"true" if frame.crc_ok else "false"},'
             f'"slave":{"null" if slave is None else slave},"function":{"null" if function is None else function},'
             f'"role":"{message.role.value}","exception_code":{"null" if code is None else code}',
             f'{params_summary},"protocol":{_PROTOCOL_JSON[frame.protocol]},"remarks":{remarks}',
         )
-        if len(self._parts) >= KEPT_TAILS:
+        if len(self._parts) >= KEPT_PARTS:
             self._parts.clear()
         self._parts[decoding] = parts
         return parts
-
-    def _tail(self, decoding: Decoding) -> tuple[str, str]:
-        tail = self._tails.get(decoding)
-        if tail is None:
-            record = {"params": [param_record(p) for p in decoding.params], "summary": decoding.summary}
-            params = encode_json(record) if _spelt_alike(decoding.params) else encode_record(record)
-            tail = (params.decode()[1:-1], encode_json(list(decoding.remarks)).decode())
-            if len(self._tails) >= KEPT_TAILS:
-                self._tails.clear()
-            self._tails[decoding] = tail
-        return tail
 
 
 def device_record(index: int, device: DeviceIdentity) -> dict[str, Any]:

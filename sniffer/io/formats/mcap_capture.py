@@ -92,22 +92,15 @@ class McapCaptureWriter:
     back up to it.
     """
 
-    def __init__(self, path: str, info: CaptureInfo, *, chunk_size: int = 1) -> None:
-        """``chunk_size``: 1 makes every block its own chunk (durable recordings); exports that
-        write many small messages pass the usual 1 MiB."""
+    def __init__(self, path: str, info: CaptureInfo) -> None:
         self._file: BinaryIO = open(path, "wb")  # noqa: SIM115
-        self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=chunk_size)
+        self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=1)
         self._writer.start(profile=PROFILE, library=f"rtusniff {version('rtusniff')}")
         self._writer.add_metadata(METADATA_NAME, info_metadata(info))
         self._channel = self._writer.register_channel(
             topic=TOPIC, message_encoding=MESSAGE_ENCODING, schema_id=0, metadata={"layout": LAYOUT_DOC}
         )
         self._sequence = 0
-
-    @property
-    def writer(self) -> Writer:
-        """The MCAP writer, for exports that add channels beside the raw chunks."""
-        return self._writer
 
     def write_batch(self, batch: ChunkBatch) -> None:
         for t_first, payload in encode_blocks(batch):
