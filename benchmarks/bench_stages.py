@@ -1,4 +1,4 @@
-"""What bounds `analyze --format jsonl`: each stage added in turn, per kind of traffic; prints a table.
+"""What bounds `analyze --format jsonl` and the exports: stage by stage, per kind of traffic; prints a table.
 
     python -m benchmarks.bench_stages [--frames 200000] [--keep DIR]
 
@@ -9,7 +9,13 @@ random values (no two frames alike: the worst case). Stages, one process, one co
 
 1. read the MCAP capture, frame, pair, count statistics (all in columns);
 2. + annotate: decode each distinct frame once (a Python object per distinct frame);
-3. + JSONL: the frame records, written from columns and per-decoding parts.
+3. + JSONL: the frame records, written from columns and per-decoding parts;
+4. annotate + MCAP export (instead of JSONL): every channel written (foxglove-sdk);
+5. annotate + Rerun export (instead of JSONL): every entity buffered and sent in columns.
+
+The last lines time foxglove-sdk's MCAP writer alone (one call per message, zstd chunks):
+the MCAP export writes three to four messages per frame, and that alone is a floor under
+its time per frame.
 
 The ``distinct`` column is the share of frames the annotator had to decode: the rest were
 repeats answered from its cache. Per-frame Python work on the distinct ones is what bounds
@@ -20,9 +26,14 @@ from __future__ import annotations
 
 import argparse
 import gc
+import random
 import tempfile
 import time
 from pathlib import Path
+
+import foxglove
+from foxglove import Channel, Context, Schema
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from benchmarks.bench_memory import benchmark_capture
 from decoders.message import MessageBatch
@@ -31,11 +42,14 @@ from decoders.pipeline import Decoder
 from decoders.profiles.apply import ProfileApplier
 from decoders.stats import Statistics
 from sniffer.cli import GC_YOUNG_THRESHOLD
+from sniffer.exports.mcap_export import CHUNK_SIZE, McapExporter
+from sniffer.exports.rerun_export import RerunExporter
 from sniffer.io.registry import open_reader
 from sniffer.profiles_io import profile_book
 from sniffer.views.records import FrameRecordEncoder
 
-STAGES = ("read, frame, pair, statistics", "+ annotate", "+ JSONL records")
+STAGES = ("read, frame, pair, statistics", "+ annotate", "+ JSONL records", "+ annotate, MCAP export",
+          "+ annotate, Rerun export")
 TRAFFIC = ("steady", "mixed", "polling")
 
 
@@ -49,13 +63,16 @@ class _CountingAnnotator(Annotator):
         return super()._decode(*args, **kwargs)
 
 
-def run(capture: Path, stages: int) -> tuple[float, int, int]:
-    """Seconds for the first ``stages`` stages, frames, and frames decoded."""
+def run(capture: Path, stage: int, output: Path) -> tuple[float, int, int]:
+    """Seconds for ``stage`` (1-based, see STAGES), frames, and frames decoded."""
     reader = open_reader(str(capture))
-    assert reader.info.line is not None
-    decoder = Decoder(reader.info.line, reader.info.timing)
+    line = reader.info.line
+    assert line is not None
+    decoder = Decoder(line, reader.info.timing)
     annotator = _CountingAnnotator(ProfileApplier(profile_book([], [])))
     encoder, statistics, frames = FrameRecordEncoder(), Statistics(), 0
+    mcap = McapExporter(str(output / "stage.mcap"), reader.info, line, {}) if stage == 4 else None
+    rerun = RerunExporter(str(output / "stage.rrd")) if stage == 5 else None
     start = time.perf_counter()
 
     def deliver(batches: list[MessageBatch]) -> None:
@@ -63,15 +80,38 @@ def run(capture: Path, stages: int) -> tuple[float, int, int]:
         for batch in batches:
             statistics.add_batch(batch)
             frames += len(batch)
-            if stages >= 2:
+            if stage >= 2:
                 annotated = annotator.annotate_batch(batch)
-                if stages >= 3:
+                if stage == 3:
                     "\n".join(encoder.encode_batch(annotated))
+                for exporter in filter(None, (mcap, rerun)):
+                    exporter.messages(annotated)
 
     for chunks in reader.batches():
+        if mcap is not None:
+            mcap.raw(chunks)
         deliver(decoder.feed(chunks))
     deliver(decoder.flush())
+    for exporter in filter(None, (mcap, rerun)):
+        exporter.close()
     return time.perf_counter() - start, frames, annotator.decoded
+
+
+def mcap_writer_alone(output: Path, messages: int = 1_000_000) -> float:
+    """foxglove-sdk's MCAP writer alone: seconds per message of 160 bytes (hex text), zstd."""
+    context = Context()
+    options = MCAPWriteOptions(compression=MCAPCompression.Zstd, chunk_size=CHUNK_SIZE, compression_threads=0)
+    writer = foxglove.open_mcap(str(output / "writer.mcap"), allow_overwrite=True, context=context,
+                                writer_options=options)
+    channel = Channel("/bench", schema=Schema(name="bench", encoding="", data=b""), message_encoding="raw",
+                      context=context)
+    payloads = [random.randbytes(80).hex().encode() for _ in range(1024)]
+    log = channel.base.log
+    start = time.perf_counter()
+    for index in range(messages):
+        log(payloads[index & 1023], index, None)
+    writer.close()
+    return (time.perf_counter() - start) / messages
 
 
 def main() -> None:
@@ -88,12 +128,15 @@ def main() -> None:
         for stage in range(1, len(STAGES) + 1):
             row = []
             for traffic in TRAFFIC:
-                seconds, frames, decoded = run(captures[traffic], stage)
+                seconds, frames, decoded = run(captures[traffic], stage, Path(tmp))
                 row.append(f"{frames / seconds:>12,.0f}")
                 if stage == len(STAGES):
                     distinct[traffic] = decoded / frames
             print(f"{STAGES[stage - 1]:<32}" + "".join(row))
         print(f"{'distinct (decoded) frames':<32}" + "".join(f"{distinct[t]:>12.1%}" for t in TRAFFIC))
+        per_message = mcap_writer_alone(Path(tmp))
+        print(f"foxglove-sdk MCAP writer alone: {1 / per_message:,.0f} messages/s "
+              f"({per_message * 1e6:.2f} µs a message)")
 
 
 if __name__ == "__main__":

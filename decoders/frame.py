@@ -63,7 +63,9 @@ def flag_set(value: int) -> FrameFlag:
     return _FLAGS_BY_VALUE[value]
 
 
-@dataclass(frozen=True, slots=True)
+# Not frozen (treat as immutable): a frozen dataclass sets each field through object.__setattr__,
+# 4× slower to build, and the annotator builds one per frame it has not seen before.
+@dataclass(slots=True)
 class Frame:
     """One frame (or one run of noise bytes) with its wire times.
 

@@ -57,7 +57,8 @@ class DeviceIdentity:
     applied: bool
 
 
-@dataclass(frozen=True, slots=True, eq=False)
+# Not frozen, for the same reason as ParamValue: one or two are built per distinct frame.
+@dataclass(slots=True, eq=False)
 class Decoding:
     """What a frame says, apart from when it was seen: its summary, decoded PDU, params.
 
@@ -199,16 +200,18 @@ class MessageRows:
             self._columns = [column.tolist() for column in (batch.role, batch.slave, batch.function,
                                                             batch.exception_code, batch.flags,
                                                             batch.request_index, batch.latency_ns)]
-        role, slave, function, code, flags, request, latency = (column[position] for column in self._columns)
+        roles, slaves, functions, codes, flags, requests, latencies = self._columns
+        slave, function, code = slaves[position], functions[position], codes[position]
+        request, latency = requests[position], latencies[position]
         return Message(
-            frame=self._frames[position],
-            role=ROLE_ORDER[role],
-            slave=None if slave == NONE else slave,
-            function=None if function == NONE else function,
-            exception_code=None if code == NONE else code,
-            flags=flag_set(flags),
-            request_index=None if request == NONE else request,
-            latency_ns=None if latency == NONE else latency,
+            self._frames[position],
+            ROLE_ORDER[roles[position]],
+            None if slave == NONE else slave,
+            None if function == NONE else function,
+            None if code == NONE else code,
+            flag_set(flags[position]),
+            None if request == NONE else request,
+            None if latency == NONE else latency,
         )
 
 

@@ -114,23 +114,30 @@ def test_analyze_of_the_export_equals_analyze_of_the_capture(exported: tuple[Pat
     assert again[1:] == original[1:]  # all but the capture record, which names the file
 
 
-def test_rerun_recording_read_back(exported: tuple[Path, Path], cli: Cli) -> None:
+def _rerun_rows(rrd: Path) -> tuple[list[tuple[str, int]], dict[str, list[float]], set[str]]:
+    """Per chunk with a timeline: its entity and rows; the scalar values per entity; the timelines."""
     import rerun as rr
 
-    _, rrd = exported
-    frames = [r for r in cli("analyze", str(SAMPLE_LOG), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
-    rows: Counter[str] = Counter()
+    chunks: list[tuple[str, int]] = []
     values: dict[str, list[float]] = {}
     timelines: set[str] = set()
     for chunk in rr.chunk.RrdReader(str(rrd)).stream().to_chunks():
         if not chunk.timeline_names:
             continue  # static: the series' name and style
-        rows[chunk.entity_path] += chunk.num_rows
+        chunks.append((chunk.entity_path, chunk.num_rows))
         timelines.update(chunk.timeline_names)
         batch = chunk.to_record_batch()
         if "Scalars:scalars" in batch.schema.names:
             values.setdefault(chunk.entity_path, []).extend(
                 v[0] for v in batch.column("Scalars:scalars").to_pylist() if v)
+    return chunks, values, timelines
+
+
+def test_rerun_recording_read_back(exported: tuple[Path, Path], cli: Cli) -> None:
+    _, rrd = exported
+    frames = [r for r in cli("analyze", str(SAMPLE_LOG), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
+    chunks, values, timelines = _rerun_rows(rrd)
+    rows = _summed(chunks)
     assert {"capture_time", "frame"} <= timelines
     assert values["/slaves/2/params/HSP"][0] == 50.0
     assert values["/slaves/20/params/NM2_RFRD"][0] == 5000.0
@@ -138,10 +145,50 @@ def test_rerun_recording_read_back(exported: tuple[Path, Path], cli: Cli) -> Non
     assert rows["/slaves/3/errors/timeout"] == 4
     assert rows["/slaves/12/errors/exception"] == 1
     assert any(path.startswith("/slaves/20/state/") for path in rows)
-    assert rows["/bus/load_percent"] >= 1
-    verify = subprocess.run([RERUN, "rrd", "verify", str(rrd)], capture_output=True, text=True,
-                            env=QUIET_RERUN, check=False, timeout=120)
-    assert verify.returncode == 0, verify.stdout + verify.stderr
+
+
+@pytest.mark.parametrize(("entity_rows", "max_buffered"), [(4, 10**9), (10**9, 24)])
+def test_rerun_chunks_are_large_and_memory_is_capped(
+    exported: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, entity_rows: int, max_buffered: int
+) -> None:
+    """An entity is sent when it holds ENTITY_ROWS rows (so a long capture makes few, large
+    chunks: the recording keeps an index entry per chunk); past MAX_BUFFERED_ROWS the largest
+    go early. Either way the recording holds the same rows, in the same order."""
+    from sniffer.cli import main
+    from sniffer.exports import rerun_export
+
+    monkeypatch.setattr(rerun_export, "ENTITY_ROWS", entity_rows)
+    monkeypatch.setattr(rerun_export, "MAX_BUFFERED_ROWS", max_buffered)
+    buffered: list[int] = []
+    send_due = rerun_export.RerunExporter._send_due
+
+    def recorded_send_due(self: rerun_export.RerunExporter) -> None:
+        send_due(self)
+        buffered.append(self._rows)
+
+    monkeypatch.setattr(rerun_export.RerunExporter, "_send_due", recorded_send_due)
+    rrd = tmp_path / "small.rrd"
+    assert main(["export", str(SAMPLE_LOG), "--rrd", str(rrd), "--profile", "atv71"]) == 0
+    chunks, values, _ = _rerun_rows(rrd)
+    expected_chunks, expected_values, _ = _rerun_rows(exported[1])
+    assert values == expected_values
+    assert _summed(chunks) == _summed(expected_chunks)
+    if entity_rows == 4:
+        per_entity: dict[str, list[int]] = {}
+        for entity, count in chunks:
+            per_entity.setdefault(entity, []).append(count)
+        assert all(min(counts[:-1], default=entity_rows) >= entity_rows for counts in per_entity.values())
+        assert max(len(counts) for counts in per_entity.values()) > 1
+    else:
+        assert buffered and max(buffered) <= max_buffered
+        assert len(chunks) > len(expected_chunks)
+
+
+def _summed(chunks: list[tuple[str, int]]) -> Counter[str]:
+    totals: Counter[str] = Counter()
+    for entity, count in chunks:
+        totals[entity] += count
+    return totals
 
 
 def test_export_options(cli: Cli, tmp_path: Path) -> None:

@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections import OrderedDict
 
 from decoders.frame import USS
+from decoders.memo import Memo
 from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, Message, MessageBatch, ParamValue, Role
 from decoders.modbus.codes import function_name
 from decoders.modbus.layouts import fits_request
@@ -42,9 +43,8 @@ from decoders.uss import parse_uss
 
 #: Decoded requests kept for their responses; older ones are answered or lost.
 KEPT_REQUESTS = 1024
-#: Decodings kept for repeats, in two generations: when the young one is full it becomes the
-#: old one, and what is used from the old one moves back, so that what a bus repeats stays
-#: while one-off frames (changing values) pass through (an LRU that costs a dict lookup).
+#: Decodings kept for repeats, per generation of the memo: what a bus repeats stays while
+#: one-off frames (changing values) pass through (an LRU that costs a dict lookup).
 KEPT_DECODINGS = 8192
 _AS_REQUEST = {Role.REQUEST, Role.BROADCAST}
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
@@ -64,8 +64,7 @@ class Annotator:
         #: Open requests by frame index: their answer context and decoded PDU.
         self._requests: OrderedDict[int, tuple[AnswerContext, Pdu]] = OrderedDict()
         self._profiles = profiles
-        self._decodings: dict[DecodingKey, tuple[Decoding, AnswerContext]] = {}
-        self._old_decodings: dict[DecodingKey, tuple[Decoding, AnswerContext]] = {}
+        self._decodings: Memo[DecodingKey, tuple[Decoding, AnswerContext]] = Memo(KEPT_DECODINGS)
 
     def annotate_batch(self, batch: MessageBatch) -> AnnotatedBatch:
         """Every message of the batch, decoded; repeats share one :class:`Decoding`.
@@ -80,13 +79,9 @@ class Annotator:
             key = (role, protocol, data[offsets[position] : offsets[position + 1]], context, version)
             known = self._decodings.get(key)
             if known is None:
-                known = self._old_decodings.get(key)
-                if known is None:
-                    decoding = self._decode(messages[position], request).decoding
-                    known = decoding, answer_context(decoding.pdu)
-                if len(self._decodings) >= KEPT_DECODINGS:
-                    self._old_decodings, self._decodings = self._decodings, {}
-                self._decodings[key] = known
+                decoding = self._decode(messages[position], request).decoding
+                known = decoding, answer_context(decoding.pdu)
+                self._decodings.put(key, known)
             if role == _REQUEST_CODE:
                 self._keep_request(first + position, known[1], known[0].pdu)
             decodings.append(known[0])

@@ -22,6 +22,15 @@ _SMALL = [bytes([value]) for value in range(0x80)]
 def _varint(value: int) -> bytes:
     if 0 <= value < 0x80:  # one byte: lengths and small numbers
         return _SMALL[value]
+    if 0 <= value < 1 << 35:  # up to five bytes, unrolled: every timestamp's nanoseconds
+        if value < 1 << 14:
+            return bytes((value & 0x7F | 0x80, value >> 7))
+        if value < 1 << 21:
+            return bytes((value & 0x7F | 0x80, value >> 7 & 0x7F | 0x80, value >> 14))
+        if value < 1 << 28:
+            return bytes((value & 0x7F | 0x80, value >> 7 & 0x7F | 0x80, value >> 14 & 0x7F | 0x80, value >> 21))
+        return bytes((value & 0x7F | 0x80, value >> 7 & 0x7F | 0x80, value >> 14 & 0x7F | 0x80,
+                      value >> 21 & 0x7F | 0x80, value >> 28))
     value &= (1 << 64) - 1
     out = bytearray()
     while True:

@@ -37,7 +37,9 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
 from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
-from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, Role
+from decoders.memo import Memo
+from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, AnnotatedBatch, Decoding, Role
+from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports import foxglove_log
 from sniffer.exports.levels import FLAG_SUFFIXES, TIMEOUT, log_levels
 from sniffer.io.formats.mcap_capture import (
@@ -52,9 +54,10 @@ from sniffer.io.formats.mcap_capture import (
 from sniffer.views.records import FrameRecordEncoder, encode_json
 
 KEPT_REQUESTS = 4096
-#: Parts built per decoding, kept for repeats; a full cache starts again empty.
-KEPT_PARTS = 4096
-CHUNK_SIZE = 1 << 20
+#: Uncompressed bytes per chunk. The writer keeps every chunk's index entry (with an offset
+#: per channel) until it writes the summary: 4 MiB chunks keep that to ~0.5 MB a million frames,
+#: where 1 MiB chunks grew a day's export by 64 MB.
+CHUNK_SIZE = 4 << 20
 #: Frames between flushes, which is where a failed write (a full disk) shows.
 FLUSH_FRAMES = 100_000
 _REQUEST, _BROADCAST, _EXCEPTION = (ROLE_CODE[role] for role in (Role.REQUEST, Role.BROADCAST, Role.EXCEPTION))
@@ -164,10 +167,12 @@ class McapExporter:
         self._frame_records = FrameRecordEncoder()
         self._log_encoder = foxglove_log.LogEncoder()
         #: Per decoding: the log text after the frame index, and the numeric params as JSON members.
-        self._parts: dict[Decoding, tuple[bytes, bytes | None]] = {}
+        self._parts: Memo[Decoding, tuple[bytes, bytes | None]] = Memo(KEPT_DECODINGS)
         #: Open requests by index: their hex.
         self._requests: OrderedDict[int, str] = OrderedDict()
         self._unflushed = 0
+        #: The log's ``name`` per slave column value (NONE: noise).
+        self._log_names = {NONE: "noise", **{slave: f"slave {slave}" for slave in range(256)}}
 
     def _json_channel(self, topic: str, schema: dict[str, Any]) -> Channel:
         return Channel(topic, schema=Schema(name=schema["title"], encoding="jsonschema",
@@ -187,17 +192,18 @@ class McapExporter:
             log_levels(messages)[positions].tolist(),
             messages.flags[positions].tolist(),
             messages.slave[positions].tolist(),
+            messages.role[positions].tolist(),
             strict=True,
         )
-        first, decodings, rows = frames.first_index, batch.decodings, messages.rows()
+        first, decodings, names = frames.first_index, batch.decodings, self._log_names
         # The Rust channel's own log, without the Python wrapper's checks: three calls per frame.
         frames_log, log_log, log_encode = self._frames.base.log, self._log.base.log, self._log_encoder.encode
-        for position, (record, t_ns, level, flags, slave) in zip(positions, columns, strict=True):
+        for position, (record, t_ns, level, flags, slave, role) in zip(positions, columns, strict=True):
             frames_log(record.encode(), t_ns, None)
             decoding = decodings[position]
-            parts = self._parts.get(decoding) or self._decoding_parts(decoding, rows[position].role)
+            parts = self._parts.get(decoding) or self._decoding_parts(decoding, ROLE_ORDER[role])
             text = b"#%d%s%s" % (first + position, parts[0], _FLAG_SUFFIXES[flags])
-            log_log(log_encode(t_ns, level, text, "noise" if slave == NONE else f"slave {slave}"), t_ns, None)
+            log_log(log_encode(t_ns, level, text, names[slave]), t_ns, None)
             # Answers and writes carry values; read requests carry only addresses.
             if parts[1] is not None and slave != NONE:
                 self._slave_channel(slave).base.log(b'{"index":%d,%s' % (first + position, parts[1]), t_ns, None)
@@ -210,9 +216,7 @@ class McapExporter:
     def _decoding_parts(self, decoding: Decoding, role: Role) -> tuple[bytes, bytes | None]:
         values = numeric_params(decoding)
         parts = (f" {role.value}: {decoding.summary}".encode(), encode_json(values)[1:] if values else None)
-        if len(self._parts) >= KEPT_PARTS:
-            self._parts.clear()
-        self._parts[decoding] = parts
+        self._parts.put(decoding, parts)
         return parts
 
     def _slave_channel(self, slave: int) -> Channel:

@@ -8,13 +8,16 @@ Entities, per slave N: ``slaves/N/log`` (every frame's summary, with a level),
 and for the bus: ``bus/load_percent`` and ``bus/errors_per_s`` per second, ``bus/noise``.
 
 Rows are buffered per entity and sent in columns (``send_columns``), which is hundreds of
-times faster than logging row by row. A blueprint opens the recording with the plots on top
+times faster than logging row by row. Each send is one chunk, and the recording keeps an index
+entry per chunk until it writes the file's footer, so an entity is sent when it holds
+``ENTITY_ROWS`` rows, and only when all buffers together pass ``MAX_BUFFERED_ROWS`` are the
+largest ones sent early: a day-long capture makes a few thousand large chunks, not one per
+entity and batch, and memory stays flat. A blueprint opens the recording with the plots on top
 and the logs below.
 """
 
 from __future__ import annotations
 
-from collections import defaultdict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,44 +25,52 @@ import numpy.typing as npt
 import rerun as rr
 import rerun.blueprint as rrb
 
-from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, Message, Role
+from decoders.memo import Memo
+from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, AnnotatedBatch, Decoding, ParamValue, Role
+from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
 
 APPLICATION = "rtusniff"
-FLUSH_ROWS = 200_000
+ENTITY_ROWS = 32_768
+MAX_BUFFERED_ROWS = 400_000
 MAX_UNNAMED_SERIES = 64
 SECOND_NS = 1_000_000_000
-_LEVEL_NAMES = {INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}
-KEPT_PARTS = 4096
+#: Rerun's level names by foxglove.Log level.
+_LEVEL_NAMES = np.array([{INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}.get(level, "") for level in range(ERROR + 1)],
+                        dtype=object)
+_ERRORS = ("crc", "timeout", "exception")
 _EXCEPTION = ROLE_CODE[Role.EXCEPTION]
 
 
-@dataclass
+@dataclass(eq=False)
 class _Parts:
-    """What one decoding puts on the timeline: its log entity and text (after the frame index),
-    numeric params (entity, value, series name), states (entity, text), its latency series."""
+    """What one decoding puts on the timeline: its log text, numeric params (entity ids and
+    values), states (entity id, text) and its latency series (entity id, or -1)."""
 
-    log_entity: str
     text: str
-    scalars: list[tuple[str, float, str]] = field(default_factory=list)
-    states: list[tuple[str, str]] = field(default_factory=list)
-    latency_entity: str = ""
-    latency_name: str = ""
+    scalar_ids: npt.NDArray[np.int64]
+    scalar_values: npt.NDArray[np.float64]
+    states: list[tuple[int, str]]
+    latency_entity: int
 
 
 @dataclass
 class _Rows:
-    """Buffered rows of one entity."""
+    """Buffered rows of one entity, as the column pieces of each batch."""
 
-    times: list[int] = field(default_factory=list)
-    frames: list[int] = field(default_factory=list)
-    values: list[float] = field(default_factory=list)
+    times: list[npt.NDArray[np.int64]] = field(default_factory=list)
+    frames: list[npt.NDArray[np.int64]] = field(default_factory=list)
+    values: list[npt.NDArray[np.float64]] = field(default_factory=list)
     texts: list[str] = field(default_factory=list)
     levels: list[str] = field(default_factory=list)
+    count: int = 0
 
 
 class RerunExporter:
-    """Buffers rows per entity and sends them in columns; ``close`` writes the file."""
+    """Buffers rows per entity and sends them in columns; ``close`` writes the file.
+
+    Entities have integer ids, so that a batch's rows are sorted to their entities in columns:
+    the per-frame Python work is looking up what its decoding contributes."""
 
     def __init__(self, path: str | None, spawn: bool = False) -> None:
         self._rec = rr.RecordingStream(APPLICATION)
@@ -69,12 +80,18 @@ class RerunExporter:
             self._rec.spawn()
         if path is not None:
             self._rec.save(path)
-        self._scalars: defaultdict[str, _Rows] = defaultdict(_Rows)
-        self._logs: defaultdict[str, _Rows] = defaultdict(_Rows)
-        self._series: dict[str, str] = {}
-        self._states: dict[str, str] = {}
+        self._paths: list[str] = []
+        self._ids: dict[str, int] = {}
+        self._buffers: dict[int, _Rows] = {}
+        self._states: dict[int, str] = {}
         self._slaves: set[int] = set()
-        self._parts: dict[Decoding, _Parts] = {}
+        # As many as the annotator keeps decodings: a repeat finds its parts.
+        self._parts: Memo[Decoding, _Parts] = Memo(KEPT_DECODINGS)
+        #: (plot entity, state entity), or () for a register not plotted.
+        self._param_entities: Memo[tuple[int, int, str | None, str | None], tuple[int, int] | tuple[()]] = Memo(
+            KEPT_DECODINGS)
+        #: Per slave address: the entity ids of its log and its crc, timeout and exception errors.
+        self._slave_ids = np.full((256, 1 + len(_ERRORS)), -1, np.int64)
         self._unnamed: dict[int, set[int]] = {}
         self._second: int | None = None
         self._wire_ns = 0
@@ -82,64 +99,121 @@ class RerunExporter:
         self._rows = 0
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        positions = batch.positions()
+        positions = np.asarray(batch.positions(), np.int64)
+        if not len(positions):
+            return
         messages, frames = batch.messages, batch.messages.frames
         t_start = frames.t_start_ns[positions]
         failed = errors(messages)[positions]
         self._bus(t_start, frames.t_end_ns[positions] - t_start, failed, first_index=frames.first_index)
-        columns = zip(
-            t_start.tolist(), log_levels(messages)[positions].tolist(), messages.flags[positions].tolist(),
-            messages.slave[positions].tolist(), messages.latency_ns[positions].tolist(),
-            frames.crc_ok[positions].tolist(), messages.role[positions].tolist(), strict=True,
-        )
-        first, decodings, rows = frames.first_index, batch.decodings, messages.rows()
-        for position, (t, level, flags, slave, latency, crc_ok, role) in zip(positions, columns, strict=True):
-            decoding, index = decodings[position], first + position
-            if slave == NONE:
-                self._log("bus/noise", t, index, decoding.summary, "WARN")
-                continue
-            parts = self._parts.get(decoding) or self._decoding_parts(decoding, rows[position])
-            self._log(parts.log_entity, t, index, f"#{index}{parts.text}{FLAG_SUFFIXES[flags]}", _LEVEL_NAMES[level])
-            for entity, value, name in parts.scalars:
-                self._scalar(entity, t, index, value, name)
-            for entity, text in parts.states:
-                self._state(entity, t, index, text)
-            if latency != NONE and parts.latency_entity and crc_ok:
-                self._scalar(parts.latency_entity, t, index, latency / 1e6, parts.latency_name)
-            if flags & TIMEOUT:
-                self._scalar(f"slaves/{slave}/errors/timeout", t, index, 1.0, "timeout errors", points=True)
-            if not crc_ok:
-                self._scalar(f"slaves/{slave}/errors/crc", t, index, 1.0, "crc errors", points=True)
-            if role == _EXCEPTION:
-                self._scalar(f"slaves/{slave}/errors/exception", t, index, 1.0, "exception errors", points=True)
-        if self._rows >= FLUSH_ROWS:
-            self._flush()
+        slave = messages.slave[positions]
+        noise = slave == NONE
+        if noise.any():
+            chosen = positions[noise]
+            self._append(self._entity("bus/noise"), t_start[noise], chosen + frames.first_index,
+                         texts=[batch.decodings[p].summary for p in chosen.tolist()], level="WARN")
+            keep = ~noise
+            positions, t_start, slave = positions[keep], t_start[keep], slave[keep]
+        if len(positions):
+            self._frames(batch, positions, t_start, slave)
+        self._send_due()
 
-    def _decoding_parts(self, decoding: Decoding, message: Message) -> _Parts:
+    def _frames(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64], t_start: npt.NDArray[np.int64],
+                slave: npt.NDArray[np.int16]) -> None:
+        """The frames of slaves: log lines, parameter values, states, latencies, error points."""
+        messages, frames = batch.messages, batch.messages.frames
+        index = positions + frames.first_index
+        for unknown in np.unique(slave[self._slave_ids[slave, 0] < 0]).tolist():
+            self._known_slave(unknown)
+        parts = self._parts_of(batch, positions)
+        flags = messages.flags[positions]
+        texts = [p.text + FLAG_SUFFIXES[f] if f else p.text for p, f in zip(parts, flags.tolist(), strict=True)]
+        levels = _LEVEL_NAMES[log_levels(messages)[positions]]
+        self._grouped(self._slave_ids[slave, 0], t_start, index, texts=np.array(texts, dtype=object), levels=levels)
+        counts = np.fromiter((len(p.scalar_ids) for p in parts), np.int64, len(parts))
+        if counts.any():
+            rows = np.repeat(np.arange(len(parts)), counts)
+            self._grouped(np.concatenate([p.scalar_ids for p in parts]), t_start[rows], index[rows],
+                          values=np.concatenate([p.scalar_values for p in parts]))
+        for row in [row for row, p in enumerate(parts) if p.states]:
+            for entity, text in parts[row].states:
+                if self._states.get(entity) != text:
+                    self._states[entity] = text
+                    self._append(entity, t_start[row : row + 1], index[row : row + 1], texts=[text], level="INFO")
+        latency = messages.latency_ns[positions]
+        crc_ok = frames.crc_ok[positions]
+        latency_ids = np.fromiter((p.latency_entity for p in parts), np.int64, len(parts))
+        timed = (latency != NONE) & crc_ok & (latency_ids >= 0)
+        self._grouped(latency_ids[timed], t_start[timed], index[timed], values=latency[timed] / 1e6)
+        failures = (~crc_ok, (flags & TIMEOUT) != 0, messages.role[positions] == _EXCEPTION)
+        for column, failed in enumerate(failures, start=1):
+            if failed.any():
+                ids = self._slave_ids[slave[failed], column]
+                self._grouped(ids, t_start[failed], index[failed], values=np.ones(len(ids)))
+
+    def _parts_of(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64]) -> list[_Parts]:
+        decodings = [batch.decodings[p] for p in positions.tolist()]
+        parts: list[_Parts | None] = [self._parts.get(d) for d in decodings]
+        if None in parts:
+            messages = batch.messages
+            columns = (messages.slave, messages.role, messages.function)
+            for row, part in enumerate(parts):
+                if part is None:  # built by an earlier row of this batch, or to be built now
+                    position = int(positions[row])
+                    slave, role, function = (int(column[position]) for column in columns)
+                    parts[row] = self._parts.get(decodings[row]) or self._decoding_parts(
+                        decodings[row], slave, role, function)
+        return parts  # type: ignore[return-value]  # every None was filled
+
+    def _decoding_parts(self, decoding: Decoding, slave: int, role: int, function: int) -> _Parts:
         """What a decoding puts on the timeline, built once per decoding."""
-        slave = message.slave
-        assert slave is not None
-        base = f"slaves/{slave}"
-        self._slaves.add(slave)
-        parts = _Parts(f"{base}/log", f" {message.role.value}: {decoding.summary}")
+        self._known_slave(slave)
+        scalar_ids: list[int] = []
+        scalar_values: list[float] = []
+        states: list[tuple[int, str]] = []
         for param in decoding.params:
             if param.raw is None:
                 continue
-            code = param.code or str(param.address)
-            if param.code is None and not self._may_plot(slave, param.address):
+            series = self._param_series(slave, param)
+            if not series:
                 continue
             if isinstance(param.value, int | float):
-                name = f"{code} ({param.unit})" if param.unit else code
-                parts.scalars.append((f"{base}/params/{_path(code)}", float(param.value), name))
+                scalar_ids.append(series[0])
+                scalar_values.append(float(param.value))
             elif isinstance(param.value, str) and param.code is not None:
-                parts.states.append((f"{base}/state/{_path(code)}", f"{code}: {param.value}"))
-        if message.function is not None:
-            parts.latency_entity = f"{base}/latency_ms/fc{message.function}"
-            parts.latency_name = f"latency FC {message.function} (ms)"
-        if len(self._parts) >= KEPT_PARTS:
-            self._parts.clear()
-        self._parts[decoding] = parts
+                states.append((series[1], f"{param.code}: {param.value}"))
+        latency = -1
+        if function != NONE:
+            latency = self._entity(f"slaves/{slave}/latency_ms/fc{function}", f"latency FC {function} (ms)")
+        parts = _Parts(f"{ROLE_ORDER[role].value}: {decoding.summary}", np.array(scalar_ids, np.int64),
+                       np.array(scalar_values, np.float64), states, latency)
+        self._parts.put(decoding, parts)
         return parts
+
+    def _known_slave(self, slave: int) -> None:
+        if slave not in self._slaves:
+            self._slaves.add(slave)
+            self._slave_ids[slave] = [
+                self._entity(f"slaves/{slave}/log"),
+                *(self._entity(f"slaves/{slave}/errors/{kind}", f"{kind} errors", points=True) for kind in _ERRORS),
+            ]
+
+    def _param_series(self, slave: int, param: ParamValue) -> tuple[int, int] | tuple[()]:
+        """A parameter's plot entity and its state entity; none for an unnamed register past the
+        first ``MAX_UNNAMED_SERIES`` of its slave. Kept: slaves are polled for the same
+        parameters all day."""
+        key = (slave, param.address, param.code, param.unit)
+        known = self._param_entities.get(key)
+        if known is not None:
+            return known
+        code = param.code or str(param.address)
+        series: tuple[int, int] | tuple[()] = ()
+        if param.code is not None or self._may_plot(slave, param.address):
+            name = f"{code} ({param.unit})" if param.unit else code
+            series = (self._entity(f"slaves/{slave}/params/{_path(code)}", name),
+                      self._entity(f"slaves/{slave}/state/{_path(code)}"))
+        self._param_entities.put(key, series)
+        return series
 
     def _may_plot(self, slave: int, address: int) -> bool:
         """Registers without a name are plotted for the first ``MAX_UNNAMED_SERIES`` addresses
@@ -152,62 +226,101 @@ class RerunExporter:
         seen.add(address)
         return True
 
+    def _entity(self, path: str, series: str | None = None, *, points: bool = False) -> int:
+        """An entity's id; a plotted one (``series`` named) gets its style once, as static data."""
+        entity = self._ids.get(path)
+        if entity is None:
+            entity = self._ids[path] = len(self._paths)
+            self._paths.append(path)
+            if series is not None:
+                style = rr.SeriesPoints(names=series) if points else rr.SeriesLines(names=series)
+                self._rec.log(path, style, static=True)
+        return entity
+
     def _bus(self, t_start: npt.NDArray[np.int64], wire_ns: npt.NDArray[np.int64], failed: npt.NDArray[np.bool_],
              *, first_index: int) -> None:
         """Bus load and errors per second, a point at the start of each second once it is over."""
-        if not len(t_start):
-            return
         seconds = t_start // SECOND_NS
         starts = np.flatnonzero(np.diff(seconds, prepend=seconds[0] - 1))
         wire = np.add.reduceat(wire_ns, starts).tolist()
         failures = np.add.reduceat(failed.astype(np.int64), starts).tolist()
+        times, indexes, loads, rates = [], [], [], []
         for second, first, wire_sum, error_count in zip(seconds[starts].tolist(), starts.tolist(), wire, failures,
                                                          strict=True):
             if self._second is not None and second != self._second:
-                t, index = self._second * SECOND_NS, first_index + first
-                self._scalar("bus/load_percent", t, index, 100 * self._wire_ns / SECOND_NS, "bus load (%)")
-                self._scalar("bus/errors_per_s", t, index, float(self._errors), "errors per second")
+                times.append(self._second * SECOND_NS)
+                indexes.append(first_index + first)
+                loads.append(100 * self._wire_ns / SECOND_NS)
+                rates.append(float(self._errors))
                 self._wire_ns = self._errors = 0
             self._second = second
             self._wire_ns += wire_sum
             self._errors += error_count
+        if times:
+            at, frame = np.array(times, np.int64), np.array(indexes, np.int64)
+            self._append(self._entity("bus/load_percent", "bus load (%)"), at, frame, values=np.array(loads))
+            self._append(self._entity("bus/errors_per_s", "errors per second"), at, frame, values=np.array(rates))
 
-    def _scalar(self, entity: str, t: int, index: int, value: float, name: str, *, points: bool = False) -> None:
-        rows = self._scalars[entity]
-        rows.times.append(t)
-        rows.frames.append(index)
-        rows.values.append(value)
-        self._rows += 1
-        if entity not in self._series:
-            self._series[entity] = name
-            style = rr.SeriesPoints(names=name) if points else rr.SeriesLines(names=name)
-            self._rec.log(entity, style, static=True)
+    def _grouped(self, entities: npt.NDArray[np.int64], times: npt.NDArray[np.int64], frames: npt.NDArray[np.int64],
+                 *, values: npt.NDArray[np.float64] | None = None, texts: npt.NDArray[np.object_] | None = None,
+                 levels: npt.NDArray[np.object_] | None = None) -> None:
+        """Rows of several entities, each given to its entity in its order."""
+        if not len(entities):
+            return
+        order = np.argsort(entities, kind="stable")
+        ordered = entities[order]
+        starts = np.flatnonzero(np.diff(ordered, prepend=ordered[0] - 1))
+        for entity, rows in zip(ordered[starts].tolist(), np.split(order, starts[1:]), strict=True):
+            if texts is not None and levels is not None:
+                self._append(entity, times[rows], frames[rows], texts=texts[rows].tolist(),
+                             levels=levels[rows].tolist())
+            elif values is not None:
+                self._append(entity, times[rows], frames[rows], values=values[rows])
 
-    def _log(self, entity: str, t: int, index: int, text: str, level: str) -> None:
-        rows = self._logs[entity]
-        rows.times.append(t)
-        rows.frames.append(index)
-        rows.texts.append(text)
-        rows.levels.append(level)
-        self._rows += 1
+    def _append(self, entity: int, times: npt.NDArray[np.int64], frames: npt.NDArray[np.int64], *,
+                values: npt.NDArray[np.float64] | None = None, texts: list[str] | None = None,
+                level: str | None = None, levels: list[str] | None = None) -> None:
+        rows = self._buffers.get(entity)
+        if rows is None:
+            rows = self._buffers[entity] = _Rows()
+        rows.times.append(times)
+        rows.frames.append(frames)
+        if values is not None:
+            rows.values.append(values)
+        if texts is not None:
+            rows.texts.extend(texts)
+            rows.levels.extend(levels if levels is not None else [level or "INFO"] * len(texts))
+        rows.count += len(times)
+        self._rows += len(times)
 
-    def _state(self, entity: str, t: int, index: int, text: str) -> None:
-        if self._states.get(entity) != text:
-            self._states[entity] = text
-            self._log(entity, t, index, text, "INFO")
+    def _send_due(self) -> None:
+        """Send full entities; past the memory cap, send the largest until half the cap is left."""
+        for entity, rows in list(self._buffers.items()):
+            if rows.count >= ENTITY_ROWS:
+                self._send(entity, rows)
+        if self._rows < MAX_BUFFERED_ROWS:
+            return
+        for entity, rows in sorted(self._buffers.items(), key=lambda item: -item[1].count):
+            if self._rows <= MAX_BUFFERED_ROWS // 2:
+                break
+            self._send(entity, rows)
+
+    def _send(self, entity: int, rows: _Rows) -> None:
+        del self._buffers[entity]
+        if rows.texts:
+            columns = rr.TextLog.columns(text=rows.texts, level=rows.levels)
+        else:
+            columns = rr.Scalars.columns(scalars=np.concatenate(rows.values))
+        indexes = [
+            rr.TimeColumn("capture_time", timestamp=np.concatenate(rows.times).astype("datetime64[ns]")),
+            rr.TimeColumn("frame", sequence=np.concatenate(rows.frames)),
+        ]
+        self._rec.send_columns(self._paths[entity], indexes=indexes, columns=columns)
+        self._rows -= rows.count
 
     def _flush(self) -> None:
-        for entity, rows in self._scalars.items():
-            if rows.times:
-                self._rec.send_columns(entity, indexes=_indexes(rows),
-                                       columns=rr.Scalars.columns(scalars=np.array(rows.values)))
-        for entity, rows in self._logs.items():
-            if rows.times:
-                self._rec.send_columns(entity, indexes=_indexes(rows),
-                                       columns=rr.TextLog.columns(text=rows.texts, level=rows.levels))
-        self._rows = 0
-        self._scalars.clear()
-        self._logs.clear()
+        for entity, rows in list(self._buffers.items()):
+            self._send(entity, rows)
 
     def close(self) -> None:
         self._flush()
@@ -223,13 +336,6 @@ class RerunExporter:
             rrb.Vertical(rrb.Grid(*plots), rrb.TextLogView(origin="/", name="frames"), row_shares=[3, 2]),
             rrb.TimePanel(expanded=True),
         )
-
-
-def _indexes(rows: _Rows) -> list[rr.TimeColumn]:
-    return [
-        rr.TimeColumn("capture_time", timestamp=np.array(rows.times, np.int64).astype("datetime64[ns]")),
-        rr.TimeColumn("frame", sequence=np.array(rows.frames, np.int64)),
-    ]
 
 
 def _path(code: str) -> str:

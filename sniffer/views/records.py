@@ -12,7 +12,9 @@ import orjson
 from decoders.capture import CaptureInfo
 from decoders.frame import PROTOCOL_NAMES, FrameFlag, flag_set
 from decoders.line import LineSettings
+from decoders.memo import Memo
 from decoders.message import NONE, AnnotatedBatch, Decoding, DeviceIdentity, Message, ParamValue
+from decoders.modbus.annotate import KEPT_DECODINGS
 
 NS_PER_S = 1e9
 
@@ -75,8 +77,6 @@ def frame_record(message: Message) -> dict[str, Any]:
     }
 
 
-#: Frame records' parts kept per decoding; a full cache starts again empty.
-KEPT_PARTS = 4096
 _PROTOCOL_JSON = {code: f'"{name}"' for code, name in PROTOCOL_NAMES.items()}
 _FLAGS_JSON = [encode_json(list(flag_set(value).names)).decode() for value in range(1 << len(FrameFlag))]
 
@@ -91,7 +91,8 @@ class FrameRecordEncoder:
     """
 
     def __init__(self) -> None:
-        self._parts: dict[Decoding, tuple[str, str]] = {}
+        # As many as the annotator keeps decodings: a repeat finds its parts.
+        self._parts: Memo[Decoding, tuple[str, str]] = Memo(KEPT_DECODINGS)
 
     def encode_batch(self, batch: AnnotatedBatch) -> list[str]:
         """The kept messages' frame records, from the columns: no message objects, and each
@@ -135,9 +136,7 @@ class FrameRecordEncoder:
             f'"role":"{message.role.value}","exception_code":{"null" if code is None else code}',
             f'{params_summary},"protocol":{_PROTOCOL_JSON[frame.protocol]},"remarks":{remarks}',
         )
-        if len(self._parts) >= KEPT_PARTS:
-            self._parts.clear()
-        self._parts[decoding] = parts
+        self._parts.put(decoding, parts)
         return parts
 
 

@@ -1,0 +1,39 @@
+"""A memo that forgets in bulk, for what is built once per distinct frame.
+
+Two generations: when the young one is full it becomes the old one and the oldest is dropped;
+a hit in the old generation moves back to the young one. Entries in use all day (a drive's
+status answer) stay; the rest go, with no per-entry bookkeeping on the hot path.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+from typing import Generic, TypeVar
+
+Key = TypeVar("Key", bound=Hashable)
+Value = TypeVar("Value")
+
+
+class Memo(Generic[Key, Value]):
+    """At most ``2 × size`` entries; ``get`` answers ``None`` for what it does not hold."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self._young: dict[Key, Value] = {}
+        self._old: dict[Key, Value] = {}
+
+    def get(self, key: Key) -> Value | None:
+        value = self._young.get(key)
+        if value is None:
+            value = self._old.get(key)
+            if value is not None:
+                self.put(key, value)
+        return value
+
+    def put(self, key: Key, value: Value) -> None:
+        if len(self._young) >= self.size:
+            self._old, self._young = self._young, {}
+        self._young[key] = value
+
+    def __len__(self) -> int:
+        return len(self._young) + len(self._old)
