@@ -36,10 +36,11 @@ class Role(Enum):
 class ParamValue:
     """A register or coil a frame names, with what a device profile knows of it."""
 
+    # In the order of a JSONL param record.
     address: int
-    raw: int | None
     code: str | None = None
     name: str | None = None
+    raw: int | None = None
     value: float | int | str | None = None
     unit: str | None = None
 

@@ -158,29 +158,29 @@ def named_registers(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:
         return ()
     match pdu:
         case ReadRequest(address=address, count=count) | WriteMultipleResponse(address=address, count=count):
-            return tuple([ParamValue(a, None) for a in range(address, address + count)])
+            return tuple([ParamValue(a) for a in range(address, address + count)])
         case RegistersResponse(values=values):
             start = _read_start(request)
             if start is None:
                 return ()
-            return tuple([ParamValue(start + i, v, None, None, v) for i, v in enumerate(values)])
+            return tuple([ParamValue(start + i, None, None, v, v) for i, v in enumerate(values)])
         case BitsResponse(bits=bits) if isinstance(request, ReadRequest):
             asked = bits[: request.count]
-            return tuple(ParamValue(request.address + i, int(b), value=int(b)) for i, b in enumerate(asked))
+            return tuple(ParamValue(request.address + i, raw=int(b), value=int(b)) for i, b in enumerate(asked))
         case WriteSingle(function=5, address=address, value=value):
             bit = 1 if value == COIL_ON else 0
-            return (ParamValue(address, bit, value=bit),)
+            return (ParamValue(address, raw=bit, value=bit),)
         case WriteSingle(address=address, value=value):
-            return (ParamValue(address, value, value=value),)
+            return (ParamValue(address, raw=value, value=value),)
         case WriteRegistersRequest(address=address, values=values):
-            return tuple(ParamValue(address + i, v, value=v) for i, v in enumerate(values))
+            return tuple(ParamValue(address + i, raw=v, value=v) for i, v in enumerate(values))
         case WriteCoilsRequest(address=address, bits=bits):
-            return tuple(ParamValue(address + i, int(b), value=int(b)) for i, b in enumerate(bits))
+            return tuple(ParamValue(address + i, raw=int(b), value=int(b)) for i, b in enumerate(bits))
         case ReadWriteRequest():
-            written = tuple(ParamValue(pdu.write_address + i, v, value=v) for i, v in enumerate(pdu.values))
-            return written + tuple(ParamValue(pdu.read_address + i, None) for i in range(pdu.read_count))
+            written = tuple(ParamValue(pdu.write_address + i, raw=v, value=v) for i, v in enumerate(pdu.values))
+            return written + tuple(ParamValue(pdu.read_address + i) for i in range(pdu.read_count))
         case MaskWrite(address=address):
-            return (ParamValue(address, None),)
+            return (ParamValue(address),)
     return ()
 
 

@@ -159,7 +159,7 @@ class ProfileApplier:
         if parameter is None:
             what = "unassigned" if not target else f"copy of register {target}"
             plain = _plain(profile, param, reported)
-            return ParamValue(param.address, param.raw, code, f"{code} ({what})", plain.value, None)
+            return ParamValue(param.address, code, f"{code} ({what})", param.raw, plain.value)
         label = f"{code} → {parameter.name}"
         return _named(profile, parameter, param, f"{code}→{parameter.code}", label, reported=reported)
 
@@ -193,7 +193,7 @@ def _uss_words(profile: Profile, message: Message) -> Message:
 def _named(
     profile: Profile, parameter: Parameter, param: ParamValue, code: str, name: str, *, reported: bool
 ) -> ParamValue:
-    return ParamValue(param.address, param.raw, code, name, *_value(profile, parameter, param.raw, reported))
+    return ParamValue(param.address, code, name, param.raw, *_value(profile, parameter, param.raw, reported))
 
 
 def _special(profile: Profile, raw: int | None, reported: bool) -> str | None:
@@ -234,8 +234,8 @@ def _plain(profile: Profile, param: ParamValue, reported: bool) -> ParamValue:
     value = param.raw if special is None else special
     if profile.address_style == "xbt":
         # XBT addressing: %MWi is Modbus register 40001+i, PDU address i.
-        return ParamValue(param.address, param.raw, f"%MW{param.address}", f"4{param.address + 1:05d}", value, None)
-    return ParamValue(param.address, param.raw, None, None, value, None)
+        return ParamValue(param.address, f"%MW{param.address}", f"4{param.address + 1:05d}", param.raw, value)
+    return ParamValue(param.address, raw=param.raw, value=value)
 
 
 def _limit_remarks(profile: Profile, message: Message, pdu: Pdu) -> list[str]:

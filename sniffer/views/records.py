@@ -13,7 +13,16 @@ from decoders.capture import CaptureInfo
 from decoders.frame import PROTOCOL_NAMES, FrameFlag, flag_set
 from decoders.line import LineSettings
 from decoders.memo import Memo
-from decoders.message import NONE, AnnotatedBatch, Decoding, DeviceIdentity, Message, ParamValue
+from decoders.message import (
+    NONE,
+    ROLE_ORDER,
+    AnnotatedBatch,
+    Decoding,
+    DeviceIdentity,
+    Message,
+    MessageBatch,
+    ParamValue,
+)
 from decoders.modbus.annotate import KEPT_DECODINGS
 
 NS_PER_S = 1e9
@@ -110,10 +119,10 @@ class FrameRecordEncoder:
             _or_null(_texts(latencies / NS_PER_S), latencies),
             strict=True,
         )
-        first, decodings, rows, lines = frames.first_index, batch.decodings, messages.rows(), []
+        first, decodings, facts, lines = frames.first_index, batch.decodings, _FrameFacts(messages), []
         for position, (t, t_end, t_ns, t_end_ns, flags, request, latency) in zip(positions, columns, strict=True):
             decoding = decodings[position]
-            parts = self._parts.get(decoding) or self._frame_parts(rows[position], decoding)
+            parts = self._parts.get(decoding) or self._frame_parts(facts, position, decoding)
             lines.append(
                 f'{{"kind":"frame","index":{first + position},"t":{t},"t_end":{t_end},"t_ns":{t_ns},'
                 f'"t_end_ns":{t_end_ns},{parts[0]},"flags":{_FLAGS_JSON[flags]},"request_index":{request},'
@@ -121,23 +130,44 @@ class FrameRecordEncoder:
             )
         return lines
 
-    def _frame_parts(self, message: Message, decoding: Decoding) -> tuple[str, str]:
+    def _frame_parts(self, facts: _FrameFacts, position: int, decoding: Decoding) -> tuple[str, str]:
         """A record's parts that a decoding determines: from ``hex`` to ``exception_code``, and
         from ``params`` to the end (the annotator shares a decoding only between frames with the
         same bytes, role and protocol)."""
-        frame, slave, function, code = message.frame, message.slave, message.function, message.exception_code
+        data, crc_ok, slave, function, role, code, protocol = facts(position)
         record = {"params": [param_record(p) for p in decoding.params], "summary": decoding.summary}
         text = encode_json(record).decode() if _spelt_alike(decoding.params) else encode_record(record)
         params_summary = text[1:-1]
         remarks = encode_json(list(decoding.remarks)).decode()
         parts = (
-            f'"hex":"{frame.data.hex()}","crc_ok":{"true" if frame.crc_ok else "false"},'
-            f'"slave":{"null" if slave is None else slave},"function":{"null" if function is None else function},'
-            f'"role":"{message.role.value}","exception_code":{"null" if code is None else code}',
-            f'{params_summary},"protocol":{_PROTOCOL_JSON[frame.protocol]},"remarks":{remarks}',
+            f'"hex":"{data.hex()}","crc_ok":{"true" if crc_ok else "false"},'
+            f'"slave":{"null" if slave == NONE else slave},"function":{"null" if function == NONE else function},'
+            f'"role":"{ROLE_ORDER[role].value}","exception_code":{"null" if code == NONE else code}',
+            f'{params_summary},"protocol":{_PROTOCOL_JSON[protocol]},"remarks":{remarks}',
         )
         self._parts.put(decoding, parts)
         return parts
+
+
+class _FrameFacts:
+    """What a frame record takes from a batch's columns besides its times, by position: the
+    columns are read into lists at the first frame whose decoding is new (none, for a batch
+    of repeats)."""
+
+    def __init__(self, batch: MessageBatch) -> None:
+        self._batch = batch
+        self._lists: tuple[list[Any], ...] | None = None
+
+    def __call__(self, position: int) -> tuple[bytes, bool, int, int, int, int, int]:
+        if self._lists is None:
+            batch, frames = self._batch, self._batch.frames
+            self._lists = tuple(column.tolist() for column in (
+                frames.offsets, frames.crc_ok, batch.slave, batch.function, batch.role, batch.exception_code,
+                frames.protocols()))
+        offsets, crc_ok, slave, function, role, code, protocol = self._lists
+        data = self._batch.frames.data[offsets[position] : offsets[position + 1]]
+        return data, crc_ok[position], slave[position], function[position], role[position], code[position], \
+            protocol[position]
 
 
 def device_record(index: int, device: DeviceIdentity) -> dict[str, Any]:

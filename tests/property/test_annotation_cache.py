@@ -123,9 +123,10 @@ NUMBERS = st.one_of(st.none(), st.integers(-(2**40), 2**40), st.floats(allow_nan
 @st.composite
 def decodings(draw: st.DrawFn) -> Decoding:
     params = tuple(
-        ParamValue(draw(st.integers(0, 65535)), draw(st.one_of(st.none(), st.integers(0, 65535))),
-                   draw(st.one_of(st.none(), st.text(max_size=6))), draw(st.one_of(st.none(), st.text(max_size=6))),
-                   draw(NUMBERS), draw(st.one_of(st.none(), st.text(max_size=3))))
+        ParamValue(draw(st.integers(0, 65535)), raw=draw(st.one_of(st.none(), st.integers(0, 65535))),
+                   code=draw(st.one_of(st.none(), st.text(max_size=6))),
+                   name=draw(st.one_of(st.none(), st.text(max_size=6))), value=draw(NUMBERS),
+                   unit=draw(st.one_of(st.none(), st.text(max_size=3))))
         for _ in range(draw(st.integers(0, 3)))
     )
     return Decoding(draw(st.text()), params, remarks=tuple(draw(st.lists(st.text(max_size=10), max_size=2))))
