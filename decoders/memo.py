@@ -7,7 +7,7 @@ status answer) stay; the rest go, with no per-entry bookkeeping on the hot path.
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from typing import Generic, TypeVar
 
 Key = TypeVar("Key", bound=Hashable)
@@ -29,6 +29,11 @@ class Memo(Generic[Key, Value]):
             if value is not None:
                 self.put(key, value)
         return value
+
+    def recent(self) -> Callable[[Key], Value | None]:
+        """The young generation's lookup, to ``map`` over a batch in C: what it misses (``None``),
+        ``get`` answers. Valid until the next ``put``."""
+        return self._young.get
 
     def put(self, key: Key, value: Value) -> None:
         if len(self._young) >= self.size:

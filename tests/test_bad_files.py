@@ -49,8 +49,8 @@ def test_bad_file(cli: Cli, tmp_path: Path, bad: tuple[str, str, Content, int, s
         content(path)
     else:
         path.write_bytes(content)
-    for command in ("analyze", "stats"):
-        result = cli(command, str(path))
+    for command in (["analyze"], ["stats"], ["export", "--rrd", str(tmp_path / "out.rrd"), "--force"]):
+        result = cli(command[0], str(path), *command[1:])
         assert result.code == code, f"{name}: {result.err}"
         error_lines = [line for line in result.err.splitlines() if line.startswith("error: ")]
         assert len(error_lines) == 1 and words in error_lines[0], result.err

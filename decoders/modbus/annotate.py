@@ -72,20 +72,29 @@ class Annotator:
         frames = batch.frames
         data, offsets, first = frames.data, frames.offsets.tolist(), frames.first_index
         rows = zip(batch.role.tolist(), frames.protocols().tolist(), batch.request_index.tolist(), strict=True)
-        decodings, messages = [], batch.rows()
+        decodings, messages, requests, memo = [], batch.rows(), self._requests, self._decodings
+        # Only decoding a frame teaches the profiles (a new version) or fills the memo.
+        recent, version = memo.recent(), self._version()
         for position, (role, protocol, request_index) in enumerate(rows):
-            context, request = _NO_REQUEST if request_index == NONE else self._requests.pop(request_index, _NO_REQUEST)
-            version = 0 if self._profiles is None else self._profiles.version
+            context, request = _NO_REQUEST if request_index == NONE else requests.pop(request_index, _NO_REQUEST)
             key = (role, protocol, data[offsets[position] : offsets[position + 1]], context, version)
-            known = self._decodings.get(key)
+            known = recent(key)
             if known is None:
-                decoding = self._decode(messages[position], request).decoding
-                known = decoding, answer_context(decoding.pdu)
-                self._decodings.put(key, known)
-            if role == _REQUEST_CODE:
-                self._keep_request(first + position, known[1], known[0].pdu)
+                known = memo.get(key)
+                if known is None:
+                    decoding = self._decode(messages[position], request).decoding
+                    known = decoding, answer_context(decoding.pdu)
+                    memo.put(key, known)
+                recent, version = memo.recent(), self._version()
+            if role == _REQUEST_CODE and known[0].pdu is not None:
+                requests[first + position] = (known[1], known[0].pdu)
+                if len(requests) > KEPT_REQUESTS:
+                    requests.popitem(last=False)
             decodings.append(known[0])
         return AnnotatedBatch(batch, decodings)
+
+    def _version(self) -> int:
+        return 0 if self._profiles is None else self._profiles.version
 
     def annotate_all(self, batch: MessageBatch) -> list[Message]:
         """:meth:`annotate_batch` as message objects."""

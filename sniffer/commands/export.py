@@ -61,6 +61,8 @@ class ExportView:
     def __init__(self, args: argparse.Namespace, analysis: Analysis) -> None:
         # pcap alone needs no decoding: it is fed whole batches, and annotation is skipped.
         self.wants_messages = bool(args.mcap or args.rrd or args.spawn)
+        # The exports count their own bus load and errors: the statistics' tables are not written.
+        self.wants_statistics = False
         self.args = args
         self.analysis = analysis
         self.mcap: McapExporter | None = None

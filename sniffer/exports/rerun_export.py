@@ -19,6 +19,7 @@ and the logs below.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from operator import attrgetter
 
 import numpy as np
 import numpy.typing as npt
@@ -39,6 +40,10 @@ SECOND_NS = 1_000_000_000
 _LEVEL_NAMES = np.array([{INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}.get(level, "") for level in range(ERROR + 1)],
                         dtype=object)
 _ERRORS = ("crc", "timeout", "exception")
+# Read from every frame's parts with ``map``, in C.
+_TEXT, _LATENCY_ENTITY, _STATE_COUNT = attrgetter("text"), attrgetter("latency_entity"), attrgetter("state_count")
+_SCALAR_COUNT, _SCALAR_IDS = attrgetter("scalar_count"), attrgetter("scalar_ids")
+_SCALAR_VALUES = attrgetter("scalar_values")
 _EXCEPTION = ROLE_CODE[Role.EXCEPTION]
 
 
@@ -52,6 +57,11 @@ class _Parts:
     scalar_values: npt.NDArray[np.float64]
     states: list[tuple[int, str]]
     latency_entity: int
+    scalar_count: int = 0
+    state_count: int = 0
+
+    def __post_init__(self) -> None:
+        self.scalar_count, self.state_count = len(self.scalar_ids), len(self.states)
 
 
 @dataclass
@@ -61,8 +71,10 @@ class _Rows:
     times: list[npt.NDArray[np.int64]] = field(default_factory=list)
     frames: list[npt.NDArray[np.int64]] = field(default_factory=list)
     values: list[npt.NDArray[np.float64]] = field(default_factory=list)
-    texts: list[str] = field(default_factory=list)
-    levels: list[str] = field(default_factory=list)
+    #: Text logs' rows as object arrays of str: Rerun hands those to Arrow as they are, where it
+    #: would call ``str`` on every item of a list.
+    texts: list[npt.NDArray[np.object_]] = field(default_factory=list)
+    levels: list[npt.NDArray[np.object_]] = field(default_factory=list)
     count: int = 0
 
 
@@ -111,7 +123,7 @@ class RerunExporter:
         if noise.any():
             chosen = positions[noise]
             self._append(self._entity("bus/noise"), t_start[noise], chosen + frames.first_index,
-                         texts=[batch.decodings[p].summary for p in chosen.tolist()], level="WARN")
+                         texts=_strings([batch.decodings[p].summary for p in chosen.tolist()]), level="WARN")
             keep = ~noise
             positions, t_start, slave = positions[keep], t_start[keep], slave[keep]
         if len(positions):
@@ -127,22 +139,25 @@ class RerunExporter:
             self._known_slave(unknown)
         parts = self._parts_of(batch, positions)
         flags = messages.flags[positions]
-        texts = [p.text + FLAG_SUFFIXES[f] if f else p.text for p, f in zip(parts, flags.tolist(), strict=True)]
+        texts = np.array(list(map(_TEXT, parts)), dtype=object)
+        for row in np.flatnonzero(flags).tolist():
+            texts[row] += FLAG_SUFFIXES[flags[row]]
         levels = _LEVEL_NAMES[log_levels(messages)[positions]]
-        self._grouped(self._slave_ids[slave, 0], t_start, index, texts=np.array(texts, dtype=object), levels=levels)
-        counts = np.fromiter((len(p.scalar_ids) for p in parts), np.int64, len(parts))
+        self._grouped(self._slave_ids[slave, 0], t_start, index, texts=texts, levels=levels)
+        counts = np.fromiter(map(_SCALAR_COUNT, parts), np.int64, len(parts))
         if counts.any():
             rows = np.repeat(np.arange(len(parts)), counts)
-            self._grouped(np.concatenate([p.scalar_ids for p in parts]), t_start[rows], index[rows],
-                          values=np.concatenate([p.scalar_values for p in parts]))
-        for row in [row for row, p in enumerate(parts) if p.states]:
+            self._grouped(np.concatenate(list(map(_SCALAR_IDS, parts))), t_start[rows], index[rows],
+                          values=np.concatenate(list(map(_SCALAR_VALUES, parts))))
+        for row in np.flatnonzero(np.fromiter(map(_STATE_COUNT, parts), np.int64, len(parts))).tolist():
             for entity, text in parts[row].states:
                 if self._states.get(entity) != text:
                     self._states[entity] = text
-                    self._append(entity, t_start[row : row + 1], index[row : row + 1], texts=[text], level="INFO")
+                    self._append(entity, t_start[row : row + 1], index[row : row + 1], texts=_strings([text]),
+                                 level="INFO")
         latency = messages.latency_ns[positions]
         crc_ok = frames.crc_ok[positions]
-        latency_ids = np.fromiter((p.latency_entity for p in parts), np.int64, len(parts))
+        latency_ids = np.fromiter(map(_LATENCY_ENTITY, parts), np.int64, len(parts))
         timed = (latency != NONE) & crc_ok & (latency_ids >= 0)
         self._grouped(latency_ids[timed], t_start[timed], index[timed], values=latency[timed] / 1e6)
         failures = (~crc_ok, (flags & TIMEOUT) != 0, messages.role[positions] == _EXCEPTION)
@@ -152,8 +167,9 @@ class RerunExporter:
                 self._grouped(ids, t_start[failed], index[failed], values=np.ones(len(ids)))
 
     def _parts_of(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64]) -> list[_Parts]:
-        decodings = [batch.decodings[p] for p in positions.tolist()]
-        parts: list[_Parts | None] = [self._parts.get(d) for d in decodings]
+        every = len(positions) == len(batch.decodings)  # positions are ordered and distinct: all of them
+        decodings = batch.decodings if every else [batch.decodings[p] for p in positions.tolist()]
+        parts: list[_Parts | None] = list(map(self._parts.recent(), decodings))
         if None in parts:
             messages = batch.messages
             columns = (messages.slave, messages.role, messages.function)
@@ -272,14 +288,13 @@ class RerunExporter:
         starts = np.flatnonzero(np.diff(ordered, prepend=ordered[0] - 1))
         for entity, rows in zip(ordered[starts].tolist(), np.split(order, starts[1:]), strict=True):
             if texts is not None and levels is not None:
-                self._append(entity, times[rows], frames[rows], texts=texts[rows].tolist(),
-                             levels=levels[rows].tolist())
+                self._append(entity, times[rows], frames[rows], texts=texts[rows], levels=levels[rows])
             elif values is not None:
                 self._append(entity, times[rows], frames[rows], values=values[rows])
 
     def _append(self, entity: int, times: npt.NDArray[np.int64], frames: npt.NDArray[np.int64], *,
-                values: npt.NDArray[np.float64] | None = None, texts: list[str] | None = None,
-                level: str | None = None, levels: list[str] | None = None) -> None:
+                values: npt.NDArray[np.float64] | None = None, texts: npt.NDArray[np.object_] | None = None,
+                level: str = "INFO", levels: npt.NDArray[np.object_] | None = None) -> None:
         rows = self._buffers.get(entity)
         if rows is None:
             rows = self._buffers[entity] = _Rows()
@@ -288,8 +303,8 @@ class RerunExporter:
         if values is not None:
             rows.values.append(values)
         if texts is not None:
-            rows.texts.extend(texts)
-            rows.levels.extend(levels if levels is not None else [level or "INFO"] * len(texts))
+            rows.texts.append(texts)
+            rows.levels.append(levels if levels is not None else np.full(len(texts), level, dtype=object))
         rows.count += len(times)
         self._rows += len(times)
 
@@ -308,7 +323,7 @@ class RerunExporter:
     def _send(self, entity: int, rows: _Rows) -> None:
         del self._buffers[entity]
         if rows.texts:
-            columns = rr.TextLog.columns(text=rows.texts, level=rows.levels)
+            columns = rr.TextLog.columns(text=np.concatenate(rows.texts), level=np.concatenate(rows.levels))
         else:
             columns = rr.Scalars.columns(scalars=np.concatenate(rows.values))
         indexes = [
@@ -336,6 +351,11 @@ class RerunExporter:
             rrb.Vertical(rrb.Grid(*plots), rrb.TextLogView(origin="/", name="frames"), row_shares=[3, 2]),
             rrb.TimePanel(expanded=True),
         )
+
+
+def _strings(texts: list[str]) -> npt.NDArray[np.object_]:
+    strings: npt.NDArray[np.object_] = np.array(texts, dtype=object)
+    return strings
 
 
 def _path(code: str) -> str:

@@ -20,6 +20,7 @@ class JsonlView:
         self._frames = FrameRecordEncoder()
 
     wants_messages = True
+    wants_statistics = True
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._write(capture_record(source, info, line))

@@ -43,6 +43,7 @@ class StatsView:
         self._header: dict[str, object] = {}
 
     wants_messages = False
+    wants_statistics = True
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._header = {"source": source, "line": line.format(), "timing": info.timing.value}

@@ -57,6 +57,7 @@ class TableView:
         self._header_shown = False
 
     wants_messages = True
+    wants_statistics = True
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._console.print(
