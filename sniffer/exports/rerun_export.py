@@ -153,8 +153,9 @@ class RerunExporter:
             for entity, text in parts[row].states:
                 if self._states.get(entity) != text:
                     self._states[entity] = text
-                    self._append(entity, t_start[row : row + 1], index[row : row + 1], texts=_strings([text]),
-                                 level="INFO")
+                    # Copies, not views: a state can stay buffered all day, and a view would keep
+                    # its whole batch's column alive with it.
+                    self._append(entity, t_start[[row]], index[[row]], texts=_strings([text]), level="INFO")
         latency = messages.latency_ns[positions]
         crc_ok = frames.crc_ok[positions]
         latency_ids = np.fromiter(map(_LATENCY_ENTITY, parts), np.int64, len(parts))
