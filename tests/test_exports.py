@@ -147,18 +147,21 @@ def test_rerun_recording_read_back(exported: tuple[Path, Path], cli: Cli) -> Non
     assert any(path.startswith("/slaves/20/state/") for path in rows)
 
 
-@pytest.mark.parametrize(("entity_rows", "max_buffered"), [(4, 10**9), (10**9, 24)])
+@pytest.mark.parametrize("limits", [(4, 10**9, 32), (10**9, 24, 32), (10**9, 10**9, 2)])
 def test_rerun_chunks_are_large_and_memory_is_capped(
-    exported: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, entity_rows: int, max_buffered: int
+    exported: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, limits: tuple[int, int, int]
 ) -> None:
     """An entity is sent when it holds ENTITY_ROWS rows (so a long capture makes few, large
     chunks: the recording keeps an index entry per chunk); past MAX_BUFFERED_ROWS the largest
-    go early. Either way the recording holds the same rows, in the same order."""
+    go early; a buffer's column pieces are merged at MAX_PIECES. Either way the recording holds
+    the same rows, in the same order."""
+    entity_rows, max_buffered, max_pieces = limits
     from sniffer.cli import main
     from sniffer.exports import rerun_export
 
     monkeypatch.setattr(rerun_export, "ENTITY_ROWS", entity_rows)
     monkeypatch.setattr(rerun_export, "MAX_BUFFERED_ROWS", max_buffered)
+    monkeypatch.setattr(rerun_export, "MAX_PIECES", max_pieces)
     buffered: list[int] = []
     send_due = rerun_export.RerunExporter._send_due
 
@@ -179,7 +182,7 @@ def test_rerun_chunks_are_large_and_memory_is_capped(
             per_entity.setdefault(entity, []).append(count)
         assert all(min(counts[:-1], default=entity_rows) >= entity_rows for counts in per_entity.values())
         assert max(len(counts) for counts in per_entity.values()) > 1
-    else:
+    elif max_buffered == 24:
         assert buffered and max(buffered) <= max_buffered
         assert len(chunks) > len(expected_chunks)
 
@@ -278,6 +281,7 @@ def test_rerun_buffered_rows_own_their_memory(tmp_path: Path) -> None:
     from decoders.modbus.annotate import Annotator
     from decoders.pipeline import Decoder
     from decoders.profiles.apply import ProfileApplier
+    from sniffer.exports import rerun_export
     from sniffer.exports.rerun_export import RerunExporter
     from sniffer.io.registry import open_reader
     from sniffer.profiles_io import profile_book
@@ -294,4 +298,5 @@ def test_rerun_buffered_rows_own_their_memory(tmp_path: Path) -> None:
     columns = [c for rows in buffers for c in (*rows.times, *rows.frames, *rows.values, *rows.texts, *rows.levels)]
     assert any("/state/" in exporter._paths[entity] for entity in exporter._buffers)
     assert columns and all(column.base is None for column in columns)
+    assert all(len(rows.times) < rerun_export.MAX_PIECES for rows in buffers)
     exporter.close()

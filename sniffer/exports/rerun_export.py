@@ -34,6 +34,8 @@ from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING,
 APPLICATION = "rtusniff"
 ENTITY_ROWS = 32_768
 MAX_BUFFERED_ROWS = 400_000
+#: Column pieces an entity's buffer holds before they are merged into one.
+MAX_PIECES = 32
 MAX_UNNAMED_SERIES = 64
 SECOND_NS = 1_000_000_000
 #: Rerun's level names by foxglove.Log level.
@@ -76,6 +78,13 @@ class _Rows:
     texts: list[npt.NDArray[np.object_]] = field(default_factory=list)
     levels: list[npt.NDArray[np.object_]] = field(default_factory=list)
     count: int = 0
+
+    def merge(self) -> None:
+        """One piece per column: a slave's rarely read parameter gains a row or two a batch, and
+        an array per row would cost a hundred bytes of header for its eight of data."""
+        for pieces in (self.times, self.frames, self.values, self.texts, self.levels):
+            if len(pieces) > 1:
+                pieces[:] = [np.concatenate(pieces)]
 
 
 class RerunExporter:
@@ -308,6 +317,8 @@ class RerunExporter:
             rows.levels.append(levels if levels is not None else np.full(len(texts), level, dtype=object))
         rows.count += len(times)
         self._rows += len(times)
+        if len(rows.times) >= MAX_PIECES:
+            rows.merge()
 
     def _send_due(self) -> None:
         """Send full entities; past the memory cap, send the largest until half the cap is left."""
