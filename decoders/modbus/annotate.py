@@ -86,10 +86,8 @@ class Annotator:
                     known = decoding, answer_context(decoding.pdu)
                     memo.put(key, known)
                 recent, version = memo.recent(), self._version()
-            if role == _REQUEST_CODE and known[0].pdu is not None:
-                requests[first + position] = (known[1], known[0].pdu)
-                if len(requests) > KEPT_REQUESTS:
-                    requests.popitem(last=False)
+            if role == _REQUEST_CODE:
+                self._keep_request(first + position, known[1], known[0].pdu)
             decodings.append(known[0])
         return AnnotatedBatch(batch, decodings)
 
