@@ -114,6 +114,17 @@ def test_analyze_of_the_export_equals_analyze_of_the_capture(exported: tuple[Pat
     assert again[1:] == original[1:]  # all but the capture record, which names the file
 
 
+def test_rerun_styles_only_series_that_have_rows(exported: tuple[Path, Path]) -> None:
+    """A series style (static) goes with an entity's first rows: a slave that never failed a CRC,
+    a state word (text, not plotted) or a function never answered shows no empty series."""
+    import rerun as rr
+
+    static, timed = set(), set()
+    for chunk in rr.chunk.RrdReader(str(exported[1])).stream().to_chunks():
+        (timed if chunk.timeline_names else static).add(chunk.entity_path)
+    assert static and static <= timed | {"/__properties"}, sorted(static - timed)
+
+
 def _rerun_rows(rrd: Path) -> tuple[list[tuple[str, int]], dict[str, list[float]], set[str]]:
     """Per chunk with a timeline: its entity and rows; the scalar values per entity; the timelines."""
     import rerun as rr

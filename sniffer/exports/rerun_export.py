@@ -43,9 +43,8 @@ _LEVEL_NAMES = np.array([{INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}.get(lev
                         dtype=object)
 _ERRORS = ("crc", "timeout", "exception")
 # Read from every frame's parts with ``map``, in C.
-_TEXT, _LATENCY_ENTITY, _STATE_COUNT = attrgetter("text"), attrgetter("latency_entity"), attrgetter("state_count")
-_SCALAR_COUNT, _SCALAR_IDS = attrgetter("scalar_count"), attrgetter("scalar_ids")
-_SCALAR_VALUES = attrgetter("scalar_values")
+_TEXT, _LATENCY_ENTITY, _STATES = attrgetter("text"), attrgetter("latency_entity"), attrgetter("states")
+_SCALAR_IDS, _SCALAR_VALUES = attrgetter("scalar_ids"), attrgetter("scalar_values")
 _EXCEPTION = ROLE_CODE[Role.EXCEPTION]
 
 
@@ -59,11 +58,6 @@ class _Parts:
     scalar_values: npt.NDArray[np.float64]
     states: list[tuple[int, str]]
     latency_entity: int
-    scalar_count: int = 0
-    state_count: int = 0
-
-    def __post_init__(self) -> None:
-        self.scalar_count, self.state_count = len(self.scalar_ids), len(self.states)
 
 
 @dataclass
@@ -103,6 +97,8 @@ class RerunExporter:
             self._rec.save(path)
         self._paths: list[str] = []
         self._ids: dict[str, int] = {}
+        #: Series styles of plotted entities not sent yet.
+        self._styles: dict[int, rr.SeriesLines | rr.SeriesPoints] = {}
         self._buffers: dict[int, _Rows] = {}
         self._states: dict[int, str] = {}
         self._slaves: set[int] = set()
@@ -153,12 +149,12 @@ class RerunExporter:
             texts[row] += FLAG_SUFFIXES[flags[row]]
         levels = _LEVEL_NAMES[log_levels(messages)[positions]]
         self._grouped(self._slave_ids[slave, 0], t_start, index, texts=texts, levels=levels)
-        counts = np.fromiter(map(_SCALAR_COUNT, parts), np.int64, len(parts))
+        counts = np.fromiter(map(len, map(_SCALAR_IDS, parts)), np.int64, len(parts))
         if counts.any():
             rows = np.repeat(np.arange(len(parts)), counts)
             self._grouped(np.concatenate(list(map(_SCALAR_IDS, parts))), t_start[rows], index[rows],
                           values=np.concatenate(list(map(_SCALAR_VALUES, parts))))
-        for row in np.flatnonzero(np.fromiter(map(_STATE_COUNT, parts), np.int64, len(parts))).tolist():
+        for row in np.flatnonzero(np.fromiter(map(len, map(_STATES, parts)), np.int64, len(parts))).tolist():
             for entity, text in parts[row].states:
                 if self._states.get(entity) != text:
                     self._states[entity] = text
@@ -253,14 +249,14 @@ class RerunExporter:
         return True
 
     def _entity(self, path: str, series: str | None = None, *, points: bool = False) -> int:
-        """An entity's id; a plotted one (``series`` named) gets its style once, as static data."""
+        """An entity's id; a plotted one (``series`` named) gets its style, as static data, with
+        its first rows: an entity that never gets any is not shown as an empty series."""
         entity = self._ids.get(path)
         if entity is None:
             entity = self._ids[path] = len(self._paths)
             self._paths.append(path)
             if series is not None:
-                style = rr.SeriesPoints(names=series) if points else rr.SeriesLines(names=series)
-                self._rec.log(path, style, static=True)
+                self._styles[entity] = rr.SeriesPoints(names=series) if points else rr.SeriesLines(names=series)
         return entity
 
     def _bus(self, t_start: npt.NDArray[np.int64], wire_ns: npt.NDArray[np.int64], failed: npt.NDArray[np.bool_],
@@ -342,6 +338,9 @@ class RerunExporter:
             rr.TimeColumn("capture_time", timestamp=np.concatenate(rows.times).astype("datetime64[ns]")),
             rr.TimeColumn("frame", sequence=np.concatenate(rows.frames)),
         ]
+        style = self._styles.pop(entity, None)
+        if style is not None:
+            self._rec.log(self._paths[entity], style, static=True)
         self._rec.send_columns(self._paths[entity], indexes=indexes, columns=columns)
         self._rows -= rows.count
 
