@@ -10,12 +10,13 @@ random values (no two frames alike: the worst case). Stages, one process, one co
 1. read the MCAP capture, frame, pair, count statistics (all in columns);
 2. + annotate: decode each distinct frame once (a Python object per distinct frame);
 3. + JSONL: the frame records, written from columns and per-decoding parts;
-4. annotate + MCAP export (instead of JSONL): every channel written (foxglove-sdk);
+4. annotate + MCAP export (instead of JSONL): every channel built in columns and written in blocks;
 5. annotate + Rerun export (instead of JSONL): every entity buffered and sent in columns.
 
-The last lines time foxglove-sdk's MCAP writer alone (one call per message, zstd chunks):
-the MCAP export writes three to four messages per frame, and that alone is a floor under
-its time per frame.
+The last lines time MCAP writers alone on the same messages (160 bytes of hex text, zstd
+chunks), side by side: the export's columnar writer (blocks of 4096), the ``mcap`` package's
+Python writer and, where it is installed, foxglove-sdk's Rust writer (one call per message).
+The export writes three to four messages per frame.
 
 The ``distinct`` column is the share of frames the annotator had to decode: the rest were
 repeats answered from its cache. Per-frame Python work on the distinct ones is what bounds
@@ -31,9 +32,8 @@ import tempfile
 import time
 from pathlib import Path
 
-import foxglove
-from foxglove import Channel, Context, Schema
-from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+import numpy as np
+from mcap.writer import CompressionType, Writer
 
 from benchmarks.bench_memory import benchmark_capture
 from decoders.message import MessageBatch
@@ -43,13 +43,20 @@ from decoders.profiles.apply import ProfileApplier
 from decoders.stats import Statistics
 from sniffer.cli import GC_YOUNG_THRESHOLD
 from sniffer.exports.mcap_export import CHUNK_SIZE, McapExporter
+from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
 from sniffer.exports.rerun_export import RerunExporter
 from sniffer.io.registry import open_reader
 from sniffer.profiles_io import profile_book
 from sniffer.views.records import FrameRecordEncoder
+from sniffer.views.rows import join_rows
 
-STAGES = ("read, frame, pair, statistics", "+ annotate", "+ JSONL records", "+ annotate, MCAP export",
-          "+ annotate, Rerun export")
+STAGES = (
+    "read, frame, pair, statistics",
+    "+ annotate",
+    "+ JSONL records",
+    "+ annotate, MCAP export",
+    "+ annotate, Rerun export",
+)
 TRAFFIC = ("steady", "mixed", "polling")
 
 
@@ -97,16 +104,57 @@ def run(capture: Path, stage: int, output: Path) -> tuple[float, int, int]:
     return time.perf_counter() - start, frames, annotator.decoded
 
 
-def mcap_writer_alone(output: Path, messages: int = 1_000_000) -> float:
-    """foxglove-sdk's MCAP writer alone: seconds per message of 160 bytes (hex text), zstd."""
+def _payloads() -> list[bytes]:
+    return [random.randbytes(80).hex().encode() for _ in range(1024)]
+
+
+def columnar_writer_alone(output: Path, messages: int = 1_000_000, block: int = 4096) -> float:
+    """The export's writer: seconds per message, blocks built from the payloads' list."""
+    payloads = _payloads() * (block // 1024)
+    channels, times = np.ones(block, np.uint16), np.arange(block, dtype=np.int64)
+    with (output / "columnar.mcap").open("wb") as file:
+        writer = ColumnarMcapWriter(file, profile="bench", library="bench", chunk_size=CHUNK_SIZE)
+        channel = writer.add_channel("/bench", "raw", 0, {})
+        channels[:] = channel
+        start = time.perf_counter()
+        for first in range(0, messages, block):
+            writer.write(MessageBlock(join_rows([payloads], block, HEADER_SIZE), channels, times + first))
+        writer.close()
+    return (time.perf_counter() - start) / messages
+
+
+def mcap_python_writer_alone(output: Path, messages: int = 200_000) -> float:
+    """The ``mcap`` package's writer, one call per message."""
+    payloads = _payloads()
+    with (output / "python.mcap").open("wb") as file:
+        writer = Writer(file, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD)
+        writer.start()
+        channel = writer.register_channel("/bench", "raw", 0)
+        start = time.perf_counter()
+        for index in range(messages):
+            writer.add_message(channel, index, payloads[index & 1023], index)
+        writer.finish()
+    return (time.perf_counter() - start) / messages
+
+
+def foxglove_writer_alone(output: Path, messages: int = 1_000_000) -> float | None:
+    """foxglove-sdk's Rust writer, one call per message; ``None`` where it is not installed
+    (it is no dependency: the export's writer replaced it)."""
+    try:
+        import foxglove
+        from foxglove import Channel, Context, Schema
+        from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+    except ImportError:
+        return None
     context = Context()
     options = MCAPWriteOptions(compression=MCAPCompression.Zstd, chunk_size=CHUNK_SIZE, compression_threads=0)
-    writer = foxglove.open_mcap(str(output / "writer.mcap"), allow_overwrite=True, context=context,
-                                writer_options=options)
-    channel = Channel("/bench", schema=Schema(name="bench", encoding="", data=b""), message_encoding="raw",
-                      context=context)
-    payloads = [random.randbytes(80).hex().encode() for _ in range(1024)]
-    log = channel.base.log
+    writer = foxglove.open_mcap(
+        str(output / "foxglove.mcap"), allow_overwrite=True, context=context, writer_options=options
+    )
+    channel = Channel(
+        "/bench", schema=Schema(name="bench", encoding="", data=b""), message_encoding="raw", context=context
+    )
+    payloads, log = _payloads(), channel.base.log
     start = time.perf_counter()
     for index in range(messages):
         log(payloads[index & 1023], index, None)
@@ -134,9 +182,17 @@ def main() -> None:
                     distinct[traffic] = decoded / frames
             print(f"{STAGES[stage - 1]:<32}" + "".join(row))
         print(f"{'distinct (decoded) frames':<32}" + "".join(f"{distinct[t]:>12.1%}" for t in TRAFFIC))
-        per_message = mcap_writer_alone(Path(tmp))
-        print(f"foxglove-sdk MCAP writer alone: {1 / per_message:,.0f} messages/s "
-              f"({per_message * 1e6:.2f} µs a message)")
+        for name, writer in (
+            ("columnar (the export's)", columnar_writer_alone),
+            ("mcap package, per message", mcap_python_writer_alone),
+            ("foxglove-sdk, per message", foxglove_writer_alone),
+        ):
+            per_message = writer(Path(tmp))
+            if per_message is not None:
+                print(
+                    f"MCAP writer alone, {name}: {1 / per_message:,.0f} messages/s "
+                    f"({per_message * 1e6:.2f} µs a message)"
+                )
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ import struct
 import subprocess
 from collections import Counter
 from collections.abc import Callable
+from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
@@ -46,8 +47,10 @@ def test_mcap_channels_schemas_and_metadata(exported: tuple[Path, Path]) -> None
         summary = reader.get_summary()
         assert summary is not None and summary.statistics is not None
         topics = {c.topic: c for c in summary.channels.values()}
-        counts = {topics_id.topic: summary.statistics.channel_message_counts[cid]
-                  for cid, topics_id in summary.channels.items()}
+        counts = {
+            topics_id.topic: summary.statistics.channel_message_counts[cid]
+            for cid, topics_id in summary.channels.items()
+        }
         schemas = {s.id: s for s in summary.schemas.values()}
         assert schemas[topics["/modbus/log"].schema_id].name == "foxglove.Log"
         assert schemas[topics["/modbus/log"].schema_id].encoding == "protobuf"
@@ -80,8 +83,9 @@ def test_mcap_values_transactions_and_log_levels(exported: tuple[Path, Path]) ->
 
 def test_rerun_checks_the_mcap(exported: tuple[Path, Path]) -> None:
     mcap, _ = exported
-    result = subprocess.run([RERUN, "mcap", "check", str(mcap)], capture_output=True, text=True,
-                            env=QUIET_RERUN, check=False, timeout=120)
+    result = subprocess.run(
+        [RERUN, "mcap", "check", str(mcap)], capture_output=True, text=True, env=QUIET_RERUN, check=False, timeout=120
+    )
     assert result.returncode == 0, result.stdout + result.stderr
 
 
@@ -91,8 +95,14 @@ def test_rerun_renders_the_mcap_log(exported: tuple[Path, Path], tmp_path: Path)
 
     mcap, _ = exported
     converted = tmp_path / "converted.rrd"
-    result = subprocess.run([RERUN, "mcap", "convert", str(mcap), "-o", str(converted)], capture_output=True,
-                            text=True, env=QUIET_RERUN, check=False, timeout=120)
+    result = subprocess.run(
+        [RERUN, "mcap", "convert", str(mcap), "-o", str(converted)],
+        capture_output=True,
+        text=True,
+        env=QUIET_RERUN,
+        check=False,
+        timeout=120,
+    )
     assert result.returncode == 0, result.stderr
     levels: Counter[str] = Counter()
     texts: list[str] = []
@@ -112,6 +122,35 @@ def test_analyze_of_the_export_equals_analyze_of_the_capture(exported: tuple[Pat
     original = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl").jsonl()
     again = cli("analyze", str(mcap), "--format", "jsonl").jsonl()
     assert again[1:] == original[1:]  # all but the capture record, which names the file
+
+
+def test_mcap_frames_are_the_jsonl_frame_records(exported: tuple[Path, Path], cli: Cli) -> None:
+    """Every field of every frame record; the times in seconds are the exact decimals of their
+    nanoseconds there, so they equal the JSONL's floats to within the floats' rounding."""
+    mcap, _ = exported
+    records = [
+        r
+        for r in cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--profile", "atv71").jsonl()
+        if r["kind"] == "frame"
+    ]
+    frames = messages(mcap, "/modbus/frames")
+    assert len(frames) == len(records) == 52
+    for frame, record in zip(frames, records, strict=True):
+        for field in ("t", "t_end", "latency_s"):
+            ours, theirs = frame.pop(field), record.pop(field)
+            assert (ours is None) == (theirs is None)
+            assert ours is None or ours == pytest.approx(theirs, rel=1e-15, abs=1e-12)
+        assert frame == record
+
+
+def test_mcap_times_are_exact_decimals(exported: tuple[Path, Path]) -> None:
+    mcap, _ = exported
+    with mcap.open("rb") as f:
+        for _, channel, message in make_reader(f).iter_messages(topics=["/modbus/frames"]):
+            record = json.loads(message.data, parse_float=Decimal)
+            assert record["t"] == Decimal(record["t_ns"]) / 10**9
+            assert record["t_end"] == Decimal(record["t_end_ns"]) / 10**9
+            assert message.log_time == record["t_ns"] and channel.message_encoding == "json"
 
 
 def test_rerun_styles_only_series_that_have_rows(exported: tuple[Path, Path]) -> None:
@@ -140,7 +179,8 @@ def _rerun_rows(rrd: Path) -> tuple[list[tuple[str, int]], dict[str, list[float]
         batch = chunk.to_record_batch()
         if "Scalars:scalars" in batch.schema.names:
             values.setdefault(chunk.entity_path, []).extend(
-                v[0] for v in batch.column("Scalars:scalars").to_pylist() if v)
+                v[0] for v in batch.column("Scalars:scalars").to_pylist() if v
+            )
     return chunks, values, timelines
 
 
@@ -223,12 +263,28 @@ def test_pcap_decoded_by_tshark(cli: Cli, tmp_path: Path) -> None:
 
     pcap = tmp_path / "poll.pcap"
     assert cli("export", str(SAMPLE_LOG), "--pcap", str(pcap)).code == 0
-    fields = ["frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "modbus.exception_code",
-              "mbrtu.crc16.status"]
+    fields = ["frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "modbus.exception_code", "mbrtu.crc16.status"]
     shown = subprocess.run(
-        [str(TSHARK), "-n", "-o", f"uat:user_dlts:{WIRESHARK_USER_DLT}", "-o", "mbrtu.crc_verification:TRUE",
-         "-r", str(pcap), "-T", "fields", "-E", "separator=;", *[a for f in fields for a in ("-e", f)]],
-        capture_output=True, text=True, check=True, timeout=120).stdout.splitlines()
+        [
+            str(TSHARK),
+            "-n",
+            "-o",
+            f"uat:user_dlts:{WIRESHARK_USER_DLT}",
+            "-o",
+            "mbrtu.crc_verification:TRUE",
+            "-r",
+            str(pcap),
+            "-T",
+            "fields",
+            "-E",
+            "separator=;",
+            *[a for f in fields for a in ("-e", f)],
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+    ).stdout.splitlines()
     analyzed = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl")
     frames = [r for r in map(json.loads, analyzed.out.splitlines()) if r["kind"] == "frame"]
     assert len(shown) == len(frames) > 40

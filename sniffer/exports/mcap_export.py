@@ -14,34 +14,33 @@ Channels (JSON Schema, JSON messages; the schemas are below and in the README):
   short_idle, retries, unexpected answers, noise.
 
 Metadata ``rtusniff.export``: line, timing, source file and SHA-256, tool version, command
-line, profiles. Written with foxglove-sdk's MCAP writer (Rust; 4× the messages per second of the
-pure-Python ``mcap`` writer, measured in benchmarks/bench_exports.py): zstd chunks, a summary
-section with its indexes. Messages are built from the batches' columns, and what a decoding
-determines (log text, numeric params) is built once per decoding.
+line, profiles. Written by :mod:`sniffer.exports.mcap_writer` a block of messages at a time:
+zstd chunks, message indexes, a summary section with its indexes. Each channel's messages of a
+batch are built as columns (:mod:`sniffer.views.rows`) and written as one block; what a decoding
+determines (log text, numeric params, the frame record's fixed parts) is built once per decoding.
+Numbers are spelt for speed, not as ``json.dumps`` spells them: times as the exact decimals of
+their nanoseconds (``"t":1700000000.001997592``).
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
-import logging
-import re
-from collections import OrderedDict
-from collections.abc import Callable
 from importlib.metadata import version
-from typing import Any
+from typing import Any, BinaryIO
 
-import foxglove
-from foxglove import Channel, Context, Schema
-from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+import numpy as np
+import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.memo import Memo
-from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, AnnotatedBatch, Decoding, Role
+from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding
 from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports import foxglove_log
-from sniffer.exports.levels import FLAG_SUFFIXES, TIMEOUT, log_levels
+from sniffer.exports.levels import FLAG_SUFFIXES, log_levels
+from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
+from sniffer.exports.transactions import OUTCOMES, TransactionEncoder
 from sniffer.io.formats.mcap_capture import (
     LAYOUT_DOC,
     MESSAGE_ENCODING,
@@ -52,15 +51,12 @@ from sniffer.io.formats.mcap_capture import (
     info_metadata,
 )
 from sniffer.views.records import FrameRecordEncoder, encode_json
+from sniffer.views.rows import Column, Integers, Rows, join_rows, number_texts
 
-KEPT_REQUESTS = 4096
 #: Uncompressed bytes per chunk. The writer keeps every chunk's index entry (with an offset
 #: per channel) until it writes the summary: 4 MiB chunks keep that to ~0.5 MB a million frames,
 #: where 1 MiB chunks grew a day's export by 64 MB.
 CHUNK_SIZE = 4 << 20
-#: Frames between flushes, which is where a failed write (a full disk) shows.
-FLUSH_FRAMES = 100_000
-_REQUEST, _BROADCAST, _EXCEPTION = (ROLE_CODE[role] for role in (Role.REQUEST, Role.BROADCAST, Role.EXCEPTION))
 _FLAG_SUFFIXES = [suffix.encode() for suffix in FLAG_SUFFIXES]
 
 _NUMBER_OR_NULL = {"type": ["number", "null"]}
@@ -90,7 +86,7 @@ TRANSACTION_SCHEMA: dict[str, Any] = {
     "properties": {
         "request_index": {"type": "integer"}, "answer_index": _INT_OR_NULL, "slave": {"type": "integer"},
         "function": _INT_OR_NULL, "outcome": {"type": "string",
-                                             "enum": ["answered", "exception", "crc_error", "timeout", "broadcast"]},
+                                             "enum": OUTCOMES},
         "latency_s": _NUMBER_OR_NULL, "latency_ms": _NUMBER_OR_NULL, "exception_code": _INT_OR_NULL,
         "request": {"type": "string"}, "answer": _TEXT_OR_NULL,
     },
@@ -102,21 +98,6 @@ PARAMS_SCHEMA: dict[str, Any] = {
     "properties": {"index": {"type": "integer"}},
     "additionalProperties": {"type": "number"},
 }
-
-
-class _WriteFailure(logging.Handler):
-    """Keeps the first error foxglove-sdk logs: its writer logs a failed write (a full disk) once
-    per message and raises only a generic error at the next flush, without the cause."""
-
-    def __init__(self) -> None:
-        super().__init__(logging.ERROR)
-        self.cause: str | None = None
-
-    def emit(self, record: logging.LogRecord) -> None:
-        if self.cause is None:
-            text = record.getMessage()
-            found = re.search(r'message: "([^"]+)"', text)
-            self.cause = found.group(1) if found else text
 
 
 def numeric_params(decoding: Decoding) -> dict[str, float | int]:
@@ -131,150 +112,133 @@ def numeric_params(decoding: Decoding) -> dict[str, float | int]:
 
 
 class McapExporter:
-    """Writes the decoded channels next to the raw chunks of the native capture format."""
+    """Writes the decoded channels next to the raw chunks of the native capture format, a
+    batch at a time: each channel's messages are built as columns and written as one block."""
 
     def __init__(self, path: str, info: CaptureInfo, line: LineSettings, metadata: dict[str, str]) -> None:
-        # A context of its own: nothing else that logs through foxglove-sdk reaches this file.
-        self._context = Context()
-        # Its log would repeat a write failure for every message; the error is said once, here.
-        self._failure = _WriteFailure()
-        sdk_log = logging.getLogger("foxglove")
-        sdk_log.addHandler(self._failure)
-        sdk_log.propagate = False
-        options = MCAPWriteOptions(compression=MCAPCompression.Zstd, chunk_size=CHUNK_SIZE, profile=PROFILE,
-                                   compression_threads=0)
-        self._writer = foxglove.open_mcap(path, allow_overwrite=True, context=self._context, writer_options=options)
+        self._file: BinaryIO = open(path, "wb")  # noqa: SIM115 (closed by close)
         tool = f"rtusniff {version('rtusniff')}"
-        export = {**metadata, "line": line.format(), "timing": info.timing.value, "tool": tool}
+        self._writer = ColumnarMcapWriter(self._file, profile=PROFILE, library=tool, chunk_size=CHUNK_SIZE)
         try:
             # Metadata first: a reader of the capture finds the line settings before any block.
-            self._written(lambda: self._writer.write_metadata(METADATA_NAME, info_metadata(info)))
-            self._written(lambda: self._writer.write_metadata("rtusniff.export", export))
-        except OSError:
-            # Closed now, or the writer tries again (and complains) when it is collected.
-            with contextlib.suppress(RuntimeError):
-                self._writer.close()
+            self._writer.add_metadata(METADATA_NAME, info_metadata(info))
+            export = {**metadata, "line": line.format(), "timing": info.timing.value, "tool": tool}
+            self._writer.add_metadata("rtusniff.export", export)
+            self._raw = self._writer.add_channel(TOPIC, MESSAGE_ENCODING, 0, {"layout": LAYOUT_DOC})
+            self._frames = self._json_channel("/modbus/frames", FRAME_SCHEMA)
+            self._transactions = self._json_channel("/modbus/transactions", TRANSACTION_SCHEMA)
+            log_schema = self._writer.add_schema(
+                foxglove_log.SCHEMA_NAME, foxglove_log.ENCODING, foxglove_log.FILE_DESCRIPTOR_SET
+            )
+            self._log = self._writer.add_channel("/modbus/log", foxglove_log.ENCODING, log_schema, {})
+            self._params_schema = self._writer.add_schema(
+                PARAMS_SCHEMA["title"], "jsonschema", json.dumps(PARAMS_SCHEMA).encode()
+            )
+            self._writer.flush()
+        except BaseException:
+            self._abandon()
             raise
-        self._raw = Channel(TOPIC, schema=Schema(name=MESSAGE_ENCODING, encoding="", data=b""),
-                            message_encoding=MESSAGE_ENCODING, context=self._context, metadata={"layout": LAYOUT_DOC})
-        self._frames = self._json_channel("/modbus/frames", FRAME_SCHEMA)
-        self._transactions = self._json_channel("/modbus/transactions", TRANSACTION_SCHEMA)
-        log_schema = Schema(name=foxglove_log.SCHEMA_NAME, encoding=foxglove_log.ENCODING,
-                            data=foxglove_log.FILE_DESCRIPTOR_SET)
-        self._log = Channel("/modbus/log", schema=log_schema, message_encoding=foxglove_log.ENCODING,
-                            context=self._context)
-        self._param_channels: dict[int, Channel] = {}
-        self._frame_records = FrameRecordEncoder()
+        #: ``/slave/N/params`` channel ids by slave, made when a slave first carries values.
+        self._param_channels = np.zeros(256, np.uint16)
+        self._frame_records = FrameRecordEncoder(exact=False)
         self._log_encoder = foxglove_log.LogEncoder()
         #: Per decoding: the log text after the frame index, and the numeric params as JSON members.
         self._parts: Memo[Decoding, tuple[bytes, bytes | None]] = Memo(KEPT_DECODINGS)
-        #: Open requests by index: their hex.
-        self._requests: OrderedDict[int, str] = OrderedDict()
-        self._unflushed = 0
-        #: The log's ``name`` per slave column value (NONE: noise).
-        self._log_names = {NONE: "noise", **{slave: f"slave {slave}" for slave in range(256)}}
+        self._transaction_rows = TransactionEncoder(HEADER_SIZE)
 
-    def _json_channel(self, topic: str, schema: dict[str, Any]) -> Channel:
-        return Channel(topic, schema=Schema(name=schema["title"], encoding="jsonschema",
-                                            data=json.dumps(schema).encode()),
-                       message_encoding="json", context=self._context)
+    def _json_channel(self, topic: str, schema: dict[str, Any]) -> int:
+        schema_id = self._writer.add_schema(schema["title"], "jsonschema", json.dumps(schema).encode())
+        return self._writer.add_channel(topic, "json", schema_id, {})
 
     def raw(self, batch: ChunkBatch) -> None:
-        for t_first, payload in encode_blocks(batch):
-            self._raw.log(payload, log_time=t_first)
+        blocks = list(encode_blocks(batch))
+        rows = join_rows([[payload for _, payload in blocks]], len(blocks), HEADER_SIZE)
+        times = np.array([t_first for t_first, _ in blocks], np.int64)
+        self._writer.write(MessageBlock(rows, np.full(len(blocks), self._raw, np.uint16), times))
 
     def messages(self, batch: AnnotatedBatch) -> None:
         positions = batch.positions()
+        if not positions:
+            return
+        kept = np.array(positions, np.int64)
         messages, frames = batch.messages, batch.messages.frames
-        columns = zip(
-            self._frame_records.encode_batch(batch),
-            frames.t_start_ns[positions].tolist(),
-            log_levels(messages)[positions].tolist(),
-            messages.flags[positions].tolist(),
-            messages.slave[positions].tolist(),
-            messages.role[positions].tolist(),
-            strict=True,
-        )
-        first, decodings, names = frames.first_index, batch.decodings, self._log_names
-        # The Rust channel's own log, without the Python wrapper's checks: three calls per frame.
-        frames_log, log_log, log_encode = self._frames.base.log, self._log.base.log, self._log_encoder.encode
-        for position, (record, t_ns, level, flags, slave, role) in zip(positions, columns, strict=True):
-            frames_log(record.encode(), t_ns, None)
-            decoding = decodings[position]
-            parts = self._parts.get(decoding) or self._decoding_parts(decoding, ROLE_ORDER[role])
-            text = b"#%d%s%s" % (first + position, parts[0], _FLAG_SUFFIXES[flags])
-            log_log(log_encode(t_ns, level, text, names[slave]), t_ns, None)
-            # Answers and writes carry values; read requests carry only addresses.
-            if parts[1] is not None and slave != NONE:
-                self._slave_channel(slave).base.log(b'{"index":%d,%s' % (first + position, parts[1]), t_ns, None)
-        self._transactions_of(batch, positions)
-        self._unflushed += len(positions)
-        if self._unflushed >= FLUSH_FRAMES:
-            self._unflushed = 0
-            self._written(self._writer.flush)
+        t_ns, slaves = frames.t_start_ns[kept], messages.slave[kept]
+        decodings = list(map(batch.decodings.__getitem__, positions))
+        heads, values = self._decoding_parts(decodings, messages.role[kept])
+        indexes = number_texts(kept + frames.first_index)
+        count = len(positions)
+        self._write(self._frame_records.rows(batch, reserved=HEADER_SIZE), self._frames, t_ns)
+        text: list[Column] = [
+            b"#",
+            indexes,
+            heads,
+            list(map(_FLAG_SUFFIXES.__getitem__, messages.flags[kept].tolist())),
+        ]
+        names = list(map(_LOG_NAMES.__getitem__, slaves.tolist()))
+        log_rows = self._log_encoder.rows(t_ns, log_levels(messages)[kept], text, names, HEADER_SIZE)
+        self._write(log_rows, np.full(count, self._log, np.uint16), t_ns)
+        self._params(values, indexes, slaves, t_ns)
+        transactions, times = self._transaction_rows.rows(batch, kept)
+        self._write(transactions, self._transactions, times)
 
-    def _decoding_parts(self, decoding: Decoding, role: Role) -> tuple[bytes, bytes | None]:
+    def _write(self, rows: Rows, channels: npt.NDArray[np.uint16] | int, t_ns: npt.NDArray[np.int64]) -> None:
+        if isinstance(channels, int):
+            channels = np.full(len(rows), channels, np.uint16)
+        self._writer.write(MessageBlock(rows, channels, t_ns))
+
+    def _params(
+        self,
+        values: list[bytes | None],
+        indexes: list[bytes],
+        slaves: Integers,
+        t_ns: npt.NDArray[np.int64],
+    ) -> None:
+        """A message per answer or write that carried values, on its slave's channel (read
+        requests carry only addresses)."""
+        carried = np.fromiter(map(_is_bytes, values), np.bool_, len(values)) & (slaves != NONE)
+        rows = np.flatnonzero(carried)
+        if not len(rows):
+            return
+        for slave in np.unique(slaves[rows]).tolist():
+            if not self._param_channels[slave]:
+                self._param_channels[slave] = self._writer.add_channel(
+                    f"/slave/{slave}/params", "json", self._params_schema, {}
+                )
+        picked = rows.tolist()
+        columns: list[Column] = [b'{"index":', [indexes[row] for row in picked], b",", [values[row] for row in picked]]  # type: ignore[misc]
+        self._write(join_rows(columns, len(picked), HEADER_SIZE), self._param_channels[slaves[rows]], t_ns[rows])
+
+    def _decoding_parts(self, decodings: list[Decoding], roles: Integers) -> tuple[list[bytes], list[bytes | None]]:
+        """Per message: the log text after the frame index, and its numeric params as JSON
+        members (``None``: it carried no values). Looked up in C for repeats."""
+        found = list(map(self._parts.recent(), decodings))
+        for row, parts in enumerate(found):
+            if parts is None:
+                found[row] = self._parts.get(decodings[row]) or self._new_parts(decodings[row], int(roles[row]))
+        return [parts[0] for parts in found], [parts[1] for parts in found]  # type: ignore[index]
+
+    def _new_parts(self, decoding: Decoding, role: int) -> tuple[bytes, bytes | None]:
         values = numeric_params(decoding)
-        parts = (f" {role.value}: {decoding.summary}".encode(), encode_json(values)[1:] if values else None)
+        parts = (f" {ROLE_ORDER[role].value}: {decoding.summary}".encode(), encode_json(values)[1:] if values else None)
         self._parts.put(decoding, parts)
         return parts
 
-    def _slave_channel(self, slave: int) -> Channel:
-        channel = self._param_channels.get(slave)
-        if channel is None:
-            channel = self._param_channels[slave] = self._json_channel(f"/slave/{slave}/params", PARAMS_SCHEMA)
-        return channel
-
-    def _transactions_of(self, batch: AnnotatedBatch, positions: list[int]) -> None:
-        """Requests and what became of them: answered, exception, crc_error, timeout, broadcast."""
-        messages, frames = batch.messages, batch.messages.frames
-        data, offsets, first = frames.data, frames.offsets.tolist(), frames.first_index
-        columns = zip(
-            messages.role[positions].tolist(), messages.flags[positions].tolist(),
-            messages.request_index[positions].tolist(), frames.t_start_ns[positions].tolist(),
-            frames.t_end_ns[positions].tolist(), frames.crc_ok[positions].tolist(),
-            messages.slave[positions].tolist(), messages.function[positions].tolist(),
-            messages.exception_code[positions].tolist(), messages.latency_ns[positions].tolist(),
-            strict=True,
-        )
-        for position, (role, flags, paired_with, t_start, t_end, ok, slave, function, code, latency) in zip(
-            positions, columns, strict=True
-        ):
-            hex_data = data[offsets[position] : offsets[position + 1]].hex()
-            index = first + position
-            if role == _REQUEST and not flags & TIMEOUT:
-                self._requests[index] = hex_data
-                if len(self._requests) > KEPT_REQUESTS:
-                    self._requests.popitem(last=False)
-                continue
-            if role in (_REQUEST, _BROADCAST):
-                outcome = "timeout" if role == _REQUEST else "broadcast"
-                t_ns, request, request_hex, answer = t_end, index, hex_data, None
-            elif paired_with != NONE and paired_with in self._requests:
-                outcome = "exception" if role == _EXCEPTION else "answered" if ok else "crc_error"
-                t_ns, request, request_hex, answer = t_start, paired_with, self._requests.pop(paired_with), index
-            else:
-                continue
-            seconds = None if latency == NONE or answer is None else latency / 1e9
-            self._transactions.base.log(encode_json({
-                "request_index": request, "answer_index": answer, "slave": None if slave == NONE else slave,
-                "function": None if function == NONE else function, "outcome": outcome, "latency_s": seconds,
-                "latency_ms": None if seconds is None else seconds * 1e3,
-                "exception_code": None if code == NONE else code, "request": request_hex,
-                "answer": None if answer is None else hex_data,
-            }), t_ns, None)
-
-    def _written(self, step: Callable[[], None]) -> None:
-        """Runs a step that writes the file, which is where foxglove-sdk reports a failed write."""
-        try:
-            step()
-        except RuntimeError as exc:
-            raise OSError(self._failure.cause or str(exc)) from None
-
     def close(self) -> None:
         try:
-            self._written(self._writer.close)
+            self._writer.close()
         finally:
-            sdk_log = logging.getLogger("foxglove")
-            sdk_log.removeHandler(self._failure)
-            sdk_log.propagate = True
+            self._file.close()
+
+    def _abandon(self) -> None:
+        with contextlib.suppress(OSError):
+            self._writer.close()
+        with contextlib.suppress(OSError):
+            self._file.close()
+
+
+def _is_bytes(value: object) -> bool:
+    return value is not None
+
+
+#: The log's ``name`` by slave; NONE (-1, noise) is the last.
+_LOG_NAMES = [f"slave {slave}" for slave in range(256)] + ["noise"]

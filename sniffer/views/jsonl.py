@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any, TextIO
 
 from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch, Decoding
+from decoders.message import AnnotatedBatch
 from decoders.stats import Statistics
 from sniffer.views.records import FrameRecordEncoder, capture_record, device_record, encode_record
+from sniffer.views.rows import Rows
 
 
 class JsonlView:
@@ -26,12 +26,11 @@ class JsonlView:
         self._write(capture_record(source, info, line))
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        lines = self._frames.encode_batch(batch)
-        first, decodings = batch.messages.frames.first_index, batch.decodings
-        if any(decoding.device is not None for decoding in decodings):
-            lines = list(_with_devices(lines, batch.positions(), first, decodings))
-        lines.append("")
-        self._out.write("\n".join(lines))
+        rows = self._frames.rows(batch, end=b"\n")
+        if any(decoding.device is not None for decoding in batch.decodings):
+            self._write_with_devices(rows, batch)
+        else:
+            self._out.write(rows.data.decode())
 
     def finish(self, statistics: Statistics) -> None:
         """The closing ``summary`` record: statistics of every frame, filtered or not."""
@@ -41,11 +40,14 @@ class JsonlView:
     def _write(self, record: dict[str, Any]) -> None:
         self._out.write(encode_record(record) + "\n")
 
-
-def _with_devices(lines: list[str], positions: list[int], first: int, decodings: list[Decoding]) -> Iterator[str]:
-    """The frame records, each followed by its ``device`` record (a slave identified itself)."""
-    for line, position in zip(lines, positions, strict=True):
-        yield line
-        device = decodings[position].device
-        if device is not None:
-            yield encode_record(device_record(first + position, device))
+    def _write_with_devices(self, rows: Rows, batch: AnnotatedBatch) -> None:
+        """The frame records, each followed by its ``device`` record (a slave identified itself)."""
+        first, decodings, written = batch.messages.frames.first_index, batch.decodings, 0
+        for row, position in enumerate(batch.positions()):
+            device = decodings[position].device
+            if device is not None:
+                end = int(rows.offsets[row + 1])
+                self._out.write(rows.data[written:end].decode())
+                self._write(device_record(first + position, device))
+                written = end
+        self._out.write(rows.data[written:].decode())

@@ -24,6 +24,7 @@ from decoders.message import (
     ParamValue,
 )
 from decoders.modbus.annotate import KEPT_DECODINGS
+from sniffer.views.rows import Column, Rows, join_rows, number_texts, or_null, seconds_columns
 
 NS_PER_S = 1e9
 
@@ -87,53 +88,75 @@ def frame_record(message: Message) -> dict[str, Any]:
 
 
 _PROTOCOL_JSON = {code: f'"{name}"' for code, name in PROTOCOL_NAMES.items()}
-_FLAGS_JSON = [encode_json(list(flag_set(value).names)).decode() for value in range(1 << len(FrameFlag))]
+_FLAGS_JSON = [encode_json(list(flag_set(value).names)) for value in range(1 << len(FrameFlag))]
 
 
 class FrameRecordEncoder:
-    """Frame records as JSON text, exactly ``encode_record(frame_record(m))``, fast.
+    """Frame records as JSON, exactly ``encode_record(frame_record(m))``, a batch at a time.
 
     Every frame passes through here. What a decoding determines (bytes, role, params,
     summary, remarks) is encoded once per :class:`Decoding` (the annotator shares one
-    between repeats); times, flags and pairing come from the batch's columns. Floats
-    are written as ``repr`` writes them, which is what ``json.dumps`` does.
+    between repeats); times, flags and pairing are columns of the batch, each formatted by
+    one ``repr`` (which is how ``json.dumps`` writes floats), and the columns are joined into
+    records by :func:`~sniffer.views.rows.join_rows`.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, *, exact: bool = True) -> None:
+        """``exact``: spelt as ``json.dumps`` spells it (JSONL); otherwise the times
+        (``t``, ``t_end``, ``latency_s``) are the exact decimals of their nanoseconds, spelt
+        several times faster (see :func:`~sniffer.views.rows.seconds_columns`)."""
+        self._exact = exact
         # As many as the annotator keeps decodings: a repeat finds its parts.
-        self._parts: Memo[Decoding, tuple[str, str]] = Memo(KEPT_DECODINGS)
+        self._parts: Memo[Decoding, tuple[bytes, bytes]] = Memo(KEPT_DECODINGS)
 
-    def encode_batch(self, batch: AnnotatedBatch) -> list[str]:
-        """The kept messages' frame records, from the columns: no message objects, and each
-        column formatted by one ``repr``."""
+    def rows(self, batch: AnnotatedBatch, *, reserved: int = 0, end: bytes = b"") -> Rows:
+        """The kept messages' frame records, each followed by ``end`` (and preceded by
+        ``reserved`` bytes, see :func:`~sniffer.views.rows.join_rows`)."""
         messages, frames = batch.messages, batch.messages.frames
         positions = batch.positions()
-        requests, latencies = messages.request_index[positions], messages.latency_ns[positions]
-        columns = zip(
-            _texts(frames.t_start_ns[positions] / NS_PER_S),
-            _texts(frames.t_end_ns[positions] / NS_PER_S),
-            _texts(frames.t_start_ns[positions]),
-            _texts(frames.t_end_ns[positions]),
-            messages.flags[positions].tolist(),
-            _or_null(_texts(requests), requests),
-            _or_null(_texts(latencies / NS_PER_S), latencies),
-            strict=True,
-        )
-        first, decodings, facts, lines = frames.first_index, batch.decodings, _FrameFacts(messages), []
-        for position, (t, t_end, t_ns, t_end_ns, flags, request, latency) in zip(positions, columns, strict=True):
-            decoding = decodings[position]
-            parts = self._parts.get(decoding) or self._frame_parts(facts, position, decoding)
-            lines.append(
-                f'{{"kind":"frame","index":{first + position},"t":{t},"t_end":{t_end},"t_ns":{t_ns},'
-                f'"t_end_ns":{t_end_ns},{parts[0]},"flags":{_FLAGS_JSON[flags]},"request_index":{request},'
-                f'"latency_s":{latency},{parts[1]}}}'
-            )
-        return lines
+        kept = np.array(positions, np.int64)
+        requests, latencies = messages.request_index[kept], messages.latency_ns[kept]
+        t_start, t_end = frames.t_start_ns[kept], frames.t_end_ns[kept]
+        heads, tails = self._decoding_parts(batch, positions)
+        columns: list[Column] = [
+            b'{"kind":"frame","index":', number_texts(kept + frames.first_index),
+            b',"t":', *self._seconds(t_start),
+            b',"t_end":', *self._seconds(t_end),
+            b',"t_ns":', number_texts(t_start),
+            b',"t_end_ns":', number_texts(t_end),
+            b",", heads,
+            b',"flags":', list(map(_FLAGS_JSON.__getitem__, messages.flags[kept].tolist())),
+            b',"request_index":', or_null(number_texts(requests), requests, NONE),
+            b',"latency_s":', *self._seconds(latencies, NONE),
+            b",", tails, b"}" + end,
+        ]  # fmt: skip
+        return join_rows(columns, len(positions), reserved)
 
-    def _frame_parts(self, facts: _FrameFacts, position: int, decoding: Decoding) -> tuple[str, str]:
-        """A record's parts that a decoding determines: from ``hex`` to ``exception_code``, and
-        from ``params`` to the end (the annotator shares a decoding only between frames with the
-        same bytes, role and protocol)."""
+    def _seconds(self, ns: npt.NDArray[np.int64], none: int | None = None) -> list[Column]:
+        if not self._exact:
+            return seconds_columns(ns, none)
+        texts = number_texts(ns / NS_PER_S)
+        return [texts if none is None else or_null(texts, ns, none)]
+
+    def encode_batch(self, batch: AnnotatedBatch) -> list[str]:
+        """The records as text, one per kept message."""
+        rows = self.rows(batch)
+        return [rows.row(index).decode() for index in range(len(rows))]
+
+    def _decoding_parts(self, batch: AnnotatedBatch, positions: list[int]) -> tuple[list[bytes], list[bytes]]:
+        """Per kept message, its record from ``hex`` to ``exception_code`` and from ``params``
+        to the end: looked up in C for repeats, built for new decodings."""
+        decodings = list(map(batch.decodings.__getitem__, positions))
+        found = list(map(self._parts.recent(), decodings))
+        facts = _FrameFacts(batch.messages)
+        for row, parts in enumerate(found):
+            if parts is None:
+                found[row] = self._parts.get(decodings[row]) or self._frame_parts(facts, positions[row], decodings[row])
+        return [parts[0] for parts in found], [parts[1] for parts in found]  # type: ignore[index]
+
+    def _frame_parts(self, facts: _FrameFacts, position: int, decoding: Decoding) -> tuple[bytes, bytes]:
+        """A record's parts that a decoding determines (the annotator shares a decoding only
+        between frames with the same bytes, role and protocol)."""
         data, crc_ok, slave, function, role, code, protocol = facts(position)
         record = {"params": [param_record(p) for p in decoding.params], "summary": decoding.summary}
         text = encode_json(record).decode() if _spelt_alike(decoding.params) else encode_record(record)
@@ -142,8 +165,8 @@ class FrameRecordEncoder:
         parts = (
             f'"hex":"{data.hex()}","crc_ok":{"true" if crc_ok else "false"},'
             f'"slave":{"null" if slave == NONE else slave},"function":{"null" if function == NONE else function},'
-            f'"role":"{ROLE_ORDER[role].value}","exception_code":{"null" if code == NONE else code}',
-            f'{params_summary},"protocol":{_PROTOCOL_JSON[protocol]},"remarks":{remarks}',
+            f'"role":"{ROLE_ORDER[role].value}","exception_code":{"null" if code == NONE else code}'.encode(),
+            f'{params_summary},"protocol":{_PROTOCOL_JSON[protocol]},"remarks":{remarks}'.encode(),
         )
         self._parts.put(decoding, parts)
         return parts
@@ -161,13 +184,29 @@ class _FrameFacts:
     def __call__(self, position: int) -> tuple[bytes, bool, int, int, int, int, int]:
         if self._lists is None:
             batch, frames = self._batch, self._batch.frames
-            self._lists = tuple(column.tolist() for column in (
-                frames.offsets, frames.crc_ok, batch.slave, batch.function, batch.role, batch.exception_code,
-                frames.protocols()))
+            self._lists = tuple(
+                column.tolist()
+                for column in (
+                    frames.offsets,
+                    frames.crc_ok,
+                    batch.slave,
+                    batch.function,
+                    batch.role,
+                    batch.exception_code,
+                    frames.protocols(),
+                )
+            )
         offsets, crc_ok, slave, function, role, code, protocol = self._lists
         data = self._batch.frames.data[offsets[position] : offsets[position + 1]]
-        return data, crc_ok[position], slave[position], function[position], role[position], code[position], \
-            protocol[position]
+        return (
+            data,
+            crc_ok[position],
+            slave[position],
+            function[position],
+            role[position],
+            code[position],
+            protocol[position],
+        )
 
 
 def device_record(index: int, device: DeviceIdentity) -> dict[str, Any]:
@@ -182,19 +221,6 @@ def device_record(index: int, device: DeviceIdentity) -> dict[str, Any]:
         "profile": device.profile,
         "applied": device.applied,
     }
-
-
-def _texts(column: npt.NDArray[Any]) -> list[str]:
-    """Each number of ``column`` as ``repr`` (so ``json.dumps``) writes it. One ``repr`` of the
-    whole list formats in C what a loop would format one by one."""
-    return repr(column.tolist())[1:-1].split(", ") if len(column) else []
-
-
-def _or_null(texts: list[str], column: npt.NDArray[np.int64]) -> list[str]:
-    """``texts`` with null where ``column`` holds ``NONE``."""
-    for position in np.flatnonzero(column == NONE).tolist():
-        texts[position] = "null"
-    return texts
 
 
 def param_record(param: ParamValue) -> dict[str, Any]:

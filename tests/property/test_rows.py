@@ -1,0 +1,129 @@
+"""Hypothesis: records built in columns equal records built one by one.
+
+:func:`join_rows` against concatenating each row's pieces; :func:`hex_texts` against
+``bytes.hex``; :func:`decimal_columns` against exact decimal arithmetic; the columnar protobuf
+varints and ``foxglove.Log`` messages against the one-by-one encoder.
+"""
+
+from __future__ import annotations
+
+from decimal import Decimal
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+
+from sniffer.exports.foxglove_log import LogEncoder, _varint, varint_pieces
+from sniffer.views.rows import decimal_columns, hex_texts, join_rows, number_texts, or_null
+
+NONE = -1
+pieces = st.binary(max_size=12)
+
+
+@st.composite
+def tables(draw: st.DrawFn) -> tuple[list[bytes | list[bytes]], int]:
+    count = draw(st.integers(0, 20))
+    columns = draw(st.lists(st.one_of(pieces, st.lists(pieces, min_size=count, max_size=count)), max_size=8))
+    return columns, count
+
+
+@given(tables(), st.integers(0, 40))
+def test_join_rows_is_each_row_concatenated(table: tuple[list[bytes | list[bytes]], int], reserved: int) -> None:
+    columns, count = table
+    rows = join_rows(columns, count, reserved)
+    assert len(rows) == count
+    for row in range(count):
+        expected = b"".join(column if isinstance(column, bytes) else column[row] for column in columns)
+        assert rows.row(row) == expected
+        start = int(rows.offsets[row])
+        assert rows.data[start : start + reserved] == bytes(reserved)
+    assert int(rows.offsets[-1]) == len(rows.data)
+
+
+@given(st.lists(st.binary(max_size=40), max_size=30), st.binary(max_size=5))
+def test_hex_texts_are_bytes_hex(frames: list[bytes], before: bytes) -> None:
+    data = before + b"".join(frames)
+    offsets = np.cumsum([len(before), *map(len, frames)]).astype(np.int64)
+    assert hex_texts(data, offsets) == [frame.hex().encode() for frame in frames]
+
+
+@given(st.lists(st.one_of(st.integers(-(1 << 62), 1 << 62), st.just(NONE)), max_size=30))
+def test_number_texts_or_null_are_json(values: list[int]) -> None:
+    column = np.array(values, np.int64)
+    texts = or_null(number_texts(column), column, NONE)
+    assert texts == [b"null" if value == NONE else str(value).encode() for value in values]
+
+
+@given(st.lists(st.one_of(st.integers(0, 1 << 62), st.just(NONE)), max_size=30), st.integers(1, 12))
+def test_decimal_columns_are_exact(values: list[int], places: int) -> None:
+    rows = join_rows(decimal_columns(np.array(values, np.int64), places, NONE), len(values))
+    for row, value in enumerate(values):
+        text = rows.row(row)
+        assert text == b"null" if value == NONE else Decimal(text.decode()) == Decimal(value).scaleb(-places)
+
+
+@given(st.lists(st.integers(-(1 << 40), 1 << 40), min_size=1, max_size=30), st.integers(1, 12))
+def test_negative_values_fall_back_to_floats(values: list[int], places: int) -> None:
+    rows = join_rows(decimal_columns(np.array(values, np.int64), places), len(values))
+    for row, value in enumerate(values):
+        assert float(rows.row(row)) == value / 10**places
+
+
+@given(st.lists(st.one_of(st.integers(0, (1 << 35) - 1), st.integers(-(1 << 63), (1 << 63) - 1)), max_size=30))
+def test_varint_pieces_are_the_varints(values: list[int]) -> None:
+    found, sizes = varint_pieces(np.array(values, np.int64))
+    assert found == [_varint(value) for value in values]
+    assert sizes.tolist() == [len(_varint(value)) for value in values]
+
+
+def _fields(message: bytes) -> dict[int, int | bytes]:
+    """A protobuf message's fields by number (varints and length-delimited only)."""
+    fields: dict[int, int | bytes] = {}
+    offset = 0
+    while offset < len(message):
+        key, offset = _read_varint(message, offset)
+        if key & 7 == 0:
+            fields[key >> 3], offset = _read_varint(message, offset)
+        else:
+            assert key & 7 == 2
+            size, offset = _read_varint(message, offset)
+            fields[key >> 3], offset = message[offset : offset + size], offset + size
+    assert offset == len(message)
+    return fields
+
+
+def _read_varint(data: bytes, offset: int) -> tuple[int, int]:
+    value = shift = 0
+    while True:
+        byte = data[offset]
+        value, shift, offset = value | (byte & 0x7F) << shift, shift + 7, offset + 1
+        if not byte & 0x80:
+            return value, offset
+
+
+@given(
+    st.lists(
+        st.tuples(
+            st.integers(0, 1 << 62),
+            st.integers(0, 5),
+            st.text(max_size=30),
+            st.sampled_from(["slave 1", "noise", "slave 247"]),
+        ),
+        max_size=20,
+    )
+)
+def test_log_rows_decode_to_what_was_given(entries: list[tuple[int, int, str, str]]) -> None:
+    """``foxglove.Log``: timestamp {seconds, nanos}, level, message, name; zeros left out (proto3)."""
+    t_ns = np.array([entry[0] for entry in entries], np.int64)
+    levels = np.array([entry[1] for entry in entries], np.uint8)
+    texts = [entry[2].encode() for entry in entries]
+    rows = LogEncoder().rows(t_ns, levels, [b"#", texts], [entry[3] for entry in entries])
+    for row, (t, level, text, name) in enumerate(entries):
+        fields = _fields(rows.row(row))
+        timestamp = _fields(fields.pop(1))  # type: ignore[arg-type]
+        assert timestamp == {key: value for key, value in ((1, t // 10**9), (2, t % 10**9)) if value}
+        assert (
+            fields == {2: level, 3: b"#" + text.encode(), 4: name.encode()}
+            if level
+            else fields == {3: b"#" + text.encode(), 4: name.encode()}
+        )
