@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from sniffer.views.rows import Column, Rows, join_rows
+from sniffer.views.rows import Column, Integers, Pieces, Rows, Table, join_rows
 
 SCHEMA_NAME = "foxglove.Log"
 ENCODING = "protobuf"
@@ -76,70 +76,64 @@ class LogEncoder:
     :func:`~sniffer.views.rows.join_rows`) and the constant ones are encoded once: seconds,
     names, levels."""
 
-    def __init__(self) -> None:
+    def __init__(self, names: Sequence[str]) -> None:
+        """``names``: the loggers' names, which :meth:`rows` chooses by index."""
         self._seconds: dict[int, bytes] = {}
-        self._names: dict[str, bytes] = {}
+        self._names = Table([_text(4, name) for name in names])
 
     def rows(
         self,
         t_ns: npt.NDArray[np.int64],
         levels: npt.NDArray[np.uint8],
         text: Sequence[Column],
-        names: Sequence[str],
+        names: Integers,
         reserved: int = 0,
     ) -> Rows:
         """A message per row: its time, level, the text that the ``text`` columns make up, and
-        the logger's name."""
+        the logger's name (an index into the names given; negative counts from the end)."""
         count = len(t_ns)
         seconds, nanos = np.divmod(t_ns, 1_000_000_000)
-        seconds_fields = list(map(self._seconds_field, seconds.tolist()))
-        nanos_fields, nanos_sizes = varint_pieces(nanos)
-        nanos_keys = [_NANOS_KEY] * count
-        for row in np.flatnonzero(nanos == 0).tolist():  # proto3 leaves a zero out
-            nanos_keys[row] = nanos_fields[row] = b""
-        timestamp_sizes = np.fromiter(map(len, seconds_fields), np.int64, count) + np.where(
-            nanos > 0, 1 + nanos_sizes, 0
-        )
-        text_sizes = sum(
-            (
-                np.full(count, len(column))
-                if isinstance(column, bytes)
-                else np.fromiter(map(len, column), np.int64, count)
-                for column in text
-            ),
-            np.zeros(count, np.int64),
-        )
+        # A batch spans a few seconds: their fields are looked up in C.
+        seconds_fields = list(map(self._seconds_fields(seconds).__getitem__, seconds.tolist()))
+        nanos_fields = varint_pieces(nanos)
+        nanos_keys = Pieces([_NANOS_KEY] * count, np.ones(count, np.int64))
+        zero = np.flatnonzero(nanos == 0)  # proto3 leaves a zero out
+        nanos_keys.fill(zero, b"")
+        nanos_fields.fill(zero, b"")
+        timestamp_sizes = np.fromiter(map(len, seconds_fields), np.int64, count) + nanos_keys.sizes + nanos_fields.sizes
+        text_sizes = sum((_sizes(column, count) for column in text), np.zeros(count, np.int64))
         columns: list[Column] = [
-            _TIMESTAMP_KEY, varint_pieces(timestamp_sizes)[0], seconds_fields, nanos_keys, nanos_fields,
-            list(map(_LEVELS.__getitem__, levels.tolist())), _MESSAGE_KEY, varint_pieces(text_sizes)[0], *text,
-            list(map(self._name_field, names)),
+            _TIMESTAMP_KEY, varint_pieces(timestamp_sizes), seconds_fields, nanos_keys, nanos_fields,
+            _LEVELS.column(levels), _MESSAGE_KEY, varint_pieces(text_sizes), *text,
+            self._names.column(names),
         ]  # fmt: skip
         return join_rows(columns, count, reserved)
 
-    def _seconds_field(self, seconds: int) -> bytes:
-        field = self._seconds.get(seconds)
-        if field is None:
-            if len(self._seconds) > 4096:  # a day has 86 400: keep the recent ones
-                self._seconds.clear()
-            field = self._seconds[seconds] = _number(1, seconds) if seconds else b""
-        return field
-
-    def _name_field(self, name: str) -> bytes:
-        field = self._names.get(name)
-        if field is None:
-            field = self._names[name] = _text(4, name)
-        return field
+    def _seconds_fields(self, seconds: npt.NDArray[np.int64]) -> dict[int, bytes]:
+        """The ``seconds`` field (proto3 leaves a zero out) of every second in ``seconds``."""
+        if len(self._seconds) > 4096:  # a day has 86 400: keep the recent ones
+            self._seconds.clear()
+        for second in np.unique(seconds).tolist():
+            if second not in self._seconds:
+                self._seconds[second] = _number(1, second) if second else b""
+        return self._seconds
 
 
-def varint_pieces(values: npt.NDArray[np.int64]) -> tuple[list[bytes], npt.NDArray[np.int64]]:
-    """Each value as a protobuf varint, and the varints' sizes, for a column at once: the
+def _sizes(column: Column, count: int) -> npt.NDArray[np.int64]:
+    if isinstance(column, bytes):
+        return np.full(count, len(column), np.int64)
+    return column.sizes if isinstance(column, Pieces) else np.fromiter(map(len, column), np.int64, count)
+
+
+def varint_pieces(values: npt.NDArray[np.int64]) -> Pieces:
+    """Each value as a protobuf varint (with the varints' sizes), for a column at once: the
     seven-bit groups are cut by numpy, and the varints of each size become ``bytes`` in one
     ``tolist`` (of a void view). Values must lie in ``0 .. 2**35`` (five bytes: nanoseconds,
     lengths); others are encoded one by one."""
     count = len(values)
     if count and (int(values.min()) < 0 or int(values.max()) >= 1 << 35):
         pieces = [_varint(value) for value in values.tolist()]
-        return pieces, np.fromiter(map(len, pieces), np.int64, count)
+        return Pieces(pieces, np.fromiter(map(len, pieces), np.int64, count))
     unsigned = values.astype(np.uint64)
     sizes = np.ones(count, np.int64)
     for bits in (7, 14, 21, 28):
@@ -153,11 +147,11 @@ def varint_pieces(values: npt.NDArray[np.int64]) -> tuple[list[bytes], npt.NDArr
         rows = np.flatnonzero(sizes == size)
         if len(rows):
             found[rows] = np.ascontiguousarray(groups[rows, :size]).view(f"V{size}").ravel().tolist()
-    return found.tolist(), sizes
+    return Pieces(found.tolist(), sizes)
 
 
 _TIMESTAMP_KEY, _NANOS_KEY, _MESSAGE_KEY = _key(1, _LENGTH), _key(2, _VARINT), _key(3, _LENGTH)
-_LEVELS = [_number(2, level) if level else b"" for level in range(6)]  # proto3 leaves zeros out
+_LEVELS = Table([_number(2, level) if level else b"" for level in range(6)])  # proto3 leaves zeros out
 
 
 def _field(name: str, number: int, kind: int, type_name: str = "") -> bytes:

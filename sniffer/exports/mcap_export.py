@@ -51,13 +51,13 @@ from sniffer.io.formats.mcap_capture import (
     info_metadata,
 )
 from sniffer.views.records import FrameRecordEncoder, encode_json
-from sniffer.views.rows import Column, Integers, Rows, join_rows, number_texts
+from sniffer.views.rows import Column, Integers, Rows, Table, join_rows, number_texts
 
 #: Uncompressed bytes per chunk. The writer keeps every chunk's index entry (with an offset
 #: per channel) until it writes the summary: 4 MiB chunks keep that to ~0.5 MB a million frames,
 #: where 1 MiB chunks grew a day's export by 64 MB.
 CHUNK_SIZE = 4 << 20
-_FLAG_SUFFIXES = [suffix.encode() for suffix in FLAG_SUFFIXES]
+_FLAG_SUFFIXES = Table([suffix.encode() for suffix in FLAG_SUFFIXES])
 
 _NUMBER_OR_NULL = {"type": ["number", "null"]}
 _INT_OR_NULL = {"type": ["integer", "null"]}
@@ -141,7 +141,7 @@ class McapExporter:
         #: ``/slave/N/params`` channel ids by slave, made when a slave first carries values.
         self._param_channels = np.zeros(256, np.uint16)
         self._frame_records = FrameRecordEncoder(exact=False)
-        self._log_encoder = foxglove_log.LogEncoder()
+        self._log_encoder = foxglove_log.LogEncoder(_LOG_NAMES)
         #: Per decoding: the log text after the frame index, and the numeric params as JSON members.
         self._parts: Memo[Decoding, tuple[bytes, bytes | None]] = Memo(KEPT_DECODINGS)
         self._transaction_rows = TransactionEncoder(HEADER_SIZE)
@@ -172,10 +172,9 @@ class McapExporter:
             b"#",
             indexes,
             heads,
-            list(map(_FLAG_SUFFIXES.__getitem__, messages.flags[kept].tolist())),
+            _FLAG_SUFFIXES.column(messages.flags[kept]),
         ]
-        names = list(map(_LOG_NAMES.__getitem__, slaves.tolist()))
-        log_rows = self._log_encoder.rows(t_ns, log_levels(messages)[kept], text, names, HEADER_SIZE)
+        log_rows = self._log_encoder.rows(t_ns, log_levels(messages)[kept], text, slaves, HEADER_SIZE)
         self._write(log_rows, np.full(count, self._log, np.uint16), t_ns)
         self._params(values, indexes, slaves, t_ns)
         transactions, times = self._transaction_rows.rows(batch, kept)

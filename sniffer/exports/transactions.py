@@ -15,14 +15,24 @@ import numpy.typing as npt
 
 from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Role
 from sniffer.exports.levels import TIMEOUT
-from sniffer.views.rows import Column, Rows, decimal_columns, hex_texts, join_rows, number_texts, or_null
+from sniffer.views.rows import (
+    Column,
+    Integers,
+    Pieces,
+    Rows,
+    Table,
+    decimal_columns,
+    hex_texts,
+    join_rows,
+    number_texts,
+    or_null,
+)
 
 #: Open requests kept for their answers: older ones are forgotten (their answers never came).
 KEPT_REQUESTS = 4096
 _REQUEST, _BROADCAST, _EXCEPTION = (ROLE_CODE[role] for role in (Role.REQUEST, Role.BROADCAST, Role.EXCEPTION))
 OUTCOMES = ["answered", "exception", "crc_error", "timeout", "broadcast"]
 _ANSWERED, _EXCEPTION_OUTCOME, _CRC_ERROR, _TIMEOUT_OUTCOME, _BROADCAST_OUTCOME = range(len(OUTCOMES))
-_OUTCOME_JSON = [f'"{outcome}"'.encode() for outcome in OUTCOMES]
 
 
 class TransactionEncoder:
@@ -39,7 +49,7 @@ class TransactionEncoder:
         messages, frames = batch.messages, batch.messages.frames
         role, paired = messages.role[kept], messages.request_index[kept]
         indexes = kept + frames.first_index
-        hexes = _kept(hex_texts(frames.data, frames.offsets), kept)
+        hexes = _kept(hex_texts(frames.data, frames.offsets, quoted=True), kept)
         timed_out = (messages.flags[kept] & TIMEOUT) != 0
         opening = np.flatnonzero((role == _REQUEST) & ~timed_out)
         self._requests.update(zip(indexes[opening].tolist(), _kept(hexes, opening), strict=True))
@@ -67,7 +77,7 @@ class TransactionEncoder:
         positions: npt.NDArray[np.int64],
         lonely: npt.NDArray[np.bool_],
         request_hex: list[bytes],
-        own_hex: list[bytes],
+        own_hex: Pieces,
     ) -> tuple[Rows, npt.NDArray[np.int64]]:
         messages, frames = batch.messages, batch.messages.frames
         role = messages.role[positions]
@@ -79,25 +89,44 @@ class TransactionEncoder:
         latency = np.where(lonely, NONE, messages.latency_ns[positions])
         request = np.where(lonely, indexes, messages.request_index[positions])
         answer = np.where(lonely, NONE, indexes)
-        slave, function, code = (
-            column[positions] for column in (messages.slave, messages.function, messages.exception_code)
-        )
-        quote = [b"" if alone else b'"' for alone in lonely.tolist()]
-        answer_hex = [b"null" if alone else text for alone, text in zip(lonely.tolist(), own_hex, strict=True)]
+        answer_hex = own_hex
+        answer_hex.fill(np.flatnonzero(lonely), b"null")
         columns: list[Column] = [
             b'{"request_index":', number_texts(request),
             b',"answer_index":', or_null(number_texts(answer), answer, NONE),
-            b',"slave":', or_null(number_texts(slave), slave, NONE),
-            b',"function":', or_null(number_texts(function), function, NONE),
-            b',"outcome":', list(map(_OUTCOME_JSON.__getitem__, outcome.tolist())),
+            b",", _facts(messages.slave[positions], messages.function[positions], outcome,
+                         messages.exception_code[positions]),
             b',"latency_s":', *decimal_columns(latency, 9, NONE),
             b',"latency_ms":', *decimal_columns(latency, 6, NONE),
-            b',"exception_code":', or_null(number_texts(code), code, NONE),
-            b',"request":"', request_hex, b'","answer":', quote, answer_hex, quote, b"}",
+            b',"request":', request_hex, b',"answer":', answer_hex, b"}",
         ]  # fmt: skip
         times = np.where(lonely, frames.t_end_ns[positions], frames.t_start_ns[positions])
         return join_rows(columns, len(positions), self._reserved), times
 
 
-def _kept(items: list[bytes], rows: npt.NDArray[np.int64]) -> list[bytes]:
-    return items if len(rows) == len(items) else list(map(items.__getitem__, rows.tolist()))
+def _facts(slave: Integers, function: Integers, outcome: Integers, code: Integers) -> Pieces:
+    """``"slave":…,"function":…,"outcome":…,"exception_code":…`` per transaction: a bus has few
+    combinations, each spelt once per batch."""
+    keys = ((slave.astype(np.int64) + 1) * 257 + function + 1) * 257 + code + 1
+    combinations, rows = np.unique(keys * len(OUTCOMES) + outcome, return_inverse=True)
+    texts = []
+    for combination in combinations.tolist():
+        key, outcome_code = divmod(combination, len(OUTCOMES))
+        key, code_1 = divmod(key, 257)
+        slave_1, function_1 = divmod(key, 257)
+        texts.append(
+            b'"slave":%s,"function":%s,"outcome":"%s","exception_code":%s'
+            % (_or_null(slave_1 - 1), _or_null(function_1 - 1), OUTCOMES[outcome_code].encode(), _or_null(code_1 - 1))
+        )
+    return Table(texts).column(rows)
+
+
+def _or_null(value: int) -> bytes:
+    return b"null" if value == NONE else b"%d" % value
+
+
+def _kept(items: Pieces, rows: npt.NDArray[np.int64]) -> Pieces:
+    """The pieces at ``rows`` (sorted, distinct: all of them when as many)."""
+    if len(rows) == len(items):
+        return items
+    return Pieces(list(map(items.__getitem__, rows.tolist())), items.sizes[rows])

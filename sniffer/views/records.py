@@ -24,7 +24,7 @@ from decoders.message import (
     ParamValue,
 )
 from decoders.modbus.annotate import KEPT_DECODINGS
-from sniffer.views.rows import Column, Rows, join_rows, number_texts, or_null, seconds_columns
+from sniffer.views.rows import Column, Rows, Table, join_rows, number_texts, or_null, seconds_columns, times_block
 
 NS_PER_S = 1e9
 
@@ -88,7 +88,7 @@ def frame_record(message: Message) -> dict[str, Any]:
 
 
 _PROTOCOL_JSON = {code: f'"{name}"' for code, name in PROTOCOL_NAMES.items()}
-_FLAGS_JSON = [encode_json(list(flag_set(value).names)) for value in range(1 << len(FrameFlag))]
+_FLAGS_JSON = Table([encode_json(list(flag_set(value).names)) for value in range(1 << len(FrameFlag))])
 
 
 class FrameRecordEncoder:
@@ -120,17 +120,25 @@ class FrameRecordEncoder:
         heads, tails = self._decoding_parts(batch, positions)
         columns: list[Column] = [
             b'{"kind":"frame","index":', number_texts(kept + frames.first_index),
-            b',"t":', *self._seconds(t_start),
-            b',"t_end":', *self._seconds(t_end),
-            b',"t_ns":', number_texts(t_start),
-            b',"t_end_ns":', number_texts(t_end),
+            *self._times(t_start, t_end),
             b",", heads,
-            b',"flags":', list(map(_FLAGS_JSON.__getitem__, messages.flags[kept].tolist())),
+            b',"flags":', _FLAGS_JSON.column(messages.flags[kept]),
             b',"request_index":', or_null(number_texts(requests), requests, NONE),
             b',"latency_s":', *self._seconds(latencies, NONE),
             b",", tails, b"}" + end,
         ]  # fmt: skip
         return join_rows(columns, len(positions), reserved)
+
+    def _times(self, t_start: npt.NDArray[np.int64], t_end: npt.NDArray[np.int64]) -> list[Column]:
+        """``t``, ``t_end``, ``t_ns``, ``t_end_ns``: in one column of fixed width where it can be."""
+        if not self._exact:
+            block = times_block(t_start, t_end)
+            if block is not None:
+                return [block]
+        return [
+            b',"t":', *self._seconds(t_start), b',"t_end":', *self._seconds(t_end),
+            b',"t_ns":', number_texts(t_start), b',"t_end_ns":', number_texts(t_end),
+        ]  # fmt: skip
 
     def _seconds(self, ns: npt.NDArray[np.int64], none: int | None = None) -> list[Column]:
         if not self._exact:

@@ -18,6 +18,29 @@ import numpy.typing as npt
 
 #: A field of every row: the same bytes for all, or one piece per row.
 Column = bytes | Sequence[bytes]
+
+
+class Pieces(list[bytes]):
+    """A column's pieces whose sizes numpy knew already (from the text they were cut from),
+    so that :func:`join_rows` need not measure them one by one."""
+
+    def __init__(self, pieces: list[bytes], sizes: npt.NDArray[np.int64]) -> None:
+        super().__init__(pieces)
+        self.sizes = sizes
+
+    def fill(self, rows: npt.NDArray[np.int64], piece: bytes) -> None:
+        """``piece`` at ``rows``: one by one for a few, through a numpy object array for many."""
+        if len(rows) < 16:
+            for row in rows.tolist():
+                self[row] = piece
+        else:
+            items = np.empty(len(self), object)
+            items[:] = self
+            items[rows] = piece
+            self[:] = items.tolist()
+        self.sizes[rows] = len(piece)
+
+
 #: A column of integers of any width (slaves are int16, roles uint8, times int64).
 Integers = npt.NDArray[np.integer[Any]]
 
@@ -68,44 +91,71 @@ def join_rows(columns: Sequence[Column], count: int, reserved: int = 0) -> Rows:
             if len(column) != count:
                 raise ValueError(f"column {place} has {len(column)} pieces for {count} rows")
             pieces[place::width] = column
-            lengths += np.fromiter(map(len, column), np.int64, count)
+            lengths += column.sizes if isinstance(column, Pieces) else np.fromiter(map(len, column), np.int64, count)
     offsets = np.zeros(count + 1, np.int64)
     np.cumsum(lengths + fixed, out=offsets[1:])
     return Rows(bytearray(b"".join(pieces)), offsets, reserved)
 
 
-def number_texts(column: npt.NDArray[Any]) -> list[bytes]:
+def number_texts(column: npt.NDArray[Any]) -> Pieces:
     """Each number as ``repr`` (and so ``json.dumps``) writes it: one ``repr`` of the whole
-    list formats in C what a loop would format one by one."""
-    return repr(column.tolist()).encode()[1:-1].split(b", ") if len(column) else []
+    list formats in C what a loop would format one by one; the sizes come from where the
+    separators are."""
+    if not len(column):
+        return Pieces([], np.zeros(0, np.int64))
+    text = repr(column.tolist()).encode()[1:-1]
+    separators = np.flatnonzero(np.frombuffer(text, np.uint8) == ord(","))
+    # Piece i runs from after separator i - 1 (and its space) to separator i, or to the end.
+    sizes = np.diff(separators, prepend=-2, append=len(text)) - 2
+    return Pieces(text.split(b", "), sizes)
 
 
-def or_null(texts: list[bytes], column: Integers, none: int) -> list[bytes]:
+class Table:
+    """Pieces chosen by a small integer (flags, a level, an outcome): looked up for a whole
+    column in C, their sizes by numpy."""
+
+    def __init__(self, pieces: Sequence[bytes]) -> None:
+        self._pieces = list(pieces)
+        self._sizes = np.fromiter(map(len, self._pieces), np.int64, len(self._pieces))
+
+    def __getitem__(self, key: int) -> bytes:
+        return self._pieces[key]
+
+    def column(self, keys: Integers) -> Pieces:
+        """The piece of each key (negative keys count from the end, as in a list)."""
+        return Pieces(list(map(self._pieces.__getitem__, keys.tolist())), self._sizes[keys])
+
+
+def or_null(texts: Pieces, column: Integers, none: int) -> Pieces:
     """``texts`` with ``null`` where ``column`` holds ``none``."""
-    for position in np.flatnonzero(column == none).tolist():
-        texts[position] = b"null"
+    texts.fill(np.flatnonzero(column == none), b"null")
     return texts
 
 
 _HEX_DIGITS = np.frombuffer(b"0123456789abcdef", np.uint8)
 
 
-def hex_texts(data: bytes, offsets: npt.NDArray[np.int64]) -> list[bytes]:
-    """Lower-case hex of each ``data[offsets[i] : offsets[i + 1]]``, as ``bytes.hex`` writes it,
-    for all pieces at once: the digits are laid out by numpy with a separator after each piece
-    (``|`` is no hex digit) and split in C."""
+def hex_texts(data: bytes, offsets: npt.NDArray[np.int64], *, quoted: bool = False) -> Pieces:
+    """Lower-case hex of each ``data[offsets[i] : offsets[i + 1]]``, as ``bytes.hex`` writes it
+    (in double quotes: a JSON string, if ``quoted``), for all pieces at once: the digits are laid
+    out by numpy with a separator after each piece (``|`` is no hex digit) and split in C."""
     count = len(offsets) - 1
     if count == 0:
-        return []
+        return Pieces([], np.zeros(0, np.int64))
     raw = np.frombuffer(data, np.uint8, int(offsets[-1] - offsets[0]), int(offsets[0]))
-    lengths = np.diff(offsets)
-    # Piece i's digits start after the digits and separators of the pieces before it.
-    starts = 2 * (offsets[:-1] - offsets[0]) + np.arange(count)
-    text = np.full(2 * len(raw) + count - 1, ord("|"), np.uint8)
-    byte_places = np.repeat(starts - 2 * (offsets[:-1] - offsets[0]), lengths) + 2 * np.arange(len(raw))
+    quotes = 2 if quoted else 0
+    sizes = 2 * np.diff(offsets) + quotes
+    # Piece i starts after the pieces before it and their separators.
+    starts = np.zeros(count, np.int64)
+    np.cumsum(sizes[:-1] + 1, out=starts[1:])
+    text = np.full(int(sizes.sum()) + count - 1, ord("|"), np.uint8)
+    digits_at = starts + quotes // 2
+    byte_places = np.repeat(digits_at - 2 * (offsets[:-1] - offsets[0]), np.diff(offsets)) + 2 * np.arange(len(raw))
     text[byte_places] = _HEX_DIGITS[raw >> 4]
     text[byte_places + 1] = _HEX_DIGITS[raw & 0x0F]
-    return text.tobytes().split(b"|")
+    if quoted:
+        text[starts] = text[starts + sizes - 1] = ord('"')
+    return Pieces(text.tobytes().split(b"|"), sizes)
 
 
 def seconds_columns(ns: Integers, none: int | None = None) -> list[Column]:
@@ -121,19 +171,59 @@ def decimal_columns(values: Integers, places: int, none: int | None = None) -> l
     no one compares spellings (MCAP messages). ``null`` where ``values`` holds ``none``. Negative
     values (never seen, but possible in a text capture) fall back to floats."""
     count = len(values)
-    missing = np.flatnonzero(values == none).tolist() if none is not None else []
-    present = np.where(values == none, 0, values) if missing else values
+    missing = np.flatnonzero(values == none) if none is not None else np.zeros(0, np.int64)
+    present = np.where(values == none, 0, values) if len(missing) else values
     if count and int(present.min()) < 0:
         texts = number_texts(values / 10**places)
         return [or_null(texts, values, none) if none is not None else texts]
     whole, fraction = np.divmod(present, 10**places)
     place_values = 10 ** np.arange(places - 1, -1, -1, dtype=np.int64)
     digits = (fraction[:, None] // place_values % 10 + ord("0")).astype(np.uint8)
-    fraction_texts: list[bytes] = digits.view(f"S{places}").ravel().tolist()
+    fraction_texts = Pieces(digits.view(f"S{places}").ravel().tolist(), np.full(count, places, np.int64))
     whole_texts = number_texts(whole)
-    if not missing:
+    if not len(missing):
         return [whole_texts, b".", fraction_texts]
-    points = [b"."] * count
-    for row in missing:
-        whole_texts[row], points[row], fraction_texts[row] = b"null", b"", b""
+    points = Pieces([b"."] * count, np.ones(count, np.int64))
+    whole_texts.fill(missing, b"null")
+    points.fill(missing, b"")
+    fraction_texts.fill(missing, b"")
     return [whole_texts, points, fraction_texts]
+
+
+_TIMES = (
+    b',"t":SSSSSSSSSS.NNNNNNNNN,"t_end":SSSSSSSSSS.NNNNNNNNN,"t_ns":DDDDDDDDDDDDDDDDDDD,"t_end_ns":DDDDDDDDDDDDDDDDDDD'
+)
+_TIMES_TEMPLATE = np.frombuffer(_TIMES, np.uint8)
+#: Where each time's digits go: (t_ns digits, fraction digits) per field of the template.
+_T, _T_END = _TIMES.index(b"S"), _TIMES.index(b"S", _TIMES.index(b"t_end"))
+_T_NS, _T_END_NS = _TIMES.index(b"D"), _TIMES.index(b"D", _TIMES.index(b"t_end_ns"))
+EPOCH_DIGITS = 19  # nanoseconds since 1970 from 2001-09-09 to 2286-11-20
+
+
+def times_block(t_start: npt.NDArray[np.int64], t_end: npt.NDArray[np.int64]) -> list[bytes] | None:
+    """``,"t":…,"t_end":…,"t_ns":…,"t_end_ns":…`` per row, all four from the two columns'
+    digits (``t`` as the exact decimal of ``t_ns``), in one column of fixed width: the digits
+    come from one ``repr`` per column and are placed by numpy. ``None`` unless every time has
+    19 digits (any capture time from 2001 to 2286); then the caller spells them field by field."""
+    count = len(t_start)
+    if not count or not all(
+        int(column.min()) >= 10 ** (EPOCH_DIGITS - 1) and int(column.max()) < 10**EPOCH_DIGITS
+        for column in (t_start, t_end)
+    ):
+        return None
+    block = np.empty((count, len(_TIMES)), np.uint8)
+    block[:] = _TIMES_TEMPLATE
+    for column, seconds_at, digits_at in ((t_start, _T, _T_NS), (t_end, _T_END, _T_END_NS)):
+        digits = _digits(column)
+        block[:, digits_at : digits_at + EPOCH_DIGITS] = digits
+        block[:, seconds_at : seconds_at + 10] = digits[:, :10]
+        block[:, seconds_at + 11 : seconds_at + 20] = digits[:, 10:]
+    texts: list[bytes] = block.view(f"S{len(_TIMES)}").ravel().tolist()
+    return texts
+
+
+def _digits(column: npt.NDArray[np.int64]) -> npt.NDArray[np.uint8]:
+    """The digits of numbers that all have 19: ``repr`` of the list, cut into rows of 21
+    (19 digits and ``", "``)."""
+    text = repr(column.tolist()).encode()[1:-1] + b", "
+    return np.frombuffer(text, np.uint8).reshape(len(column), EPOCH_DIGITS + 2)[:, :EPOCH_DIGITS]

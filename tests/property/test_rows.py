@@ -7,6 +7,7 @@ varints and ``foxglove.Log`` messages against the one-by-one encoder.
 
 from __future__ import annotations
 
+import json
 from decimal import Decimal
 
 import numpy as np
@@ -14,7 +15,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from sniffer.exports.foxglove_log import LogEncoder, _varint, varint_pieces
-from sniffer.views.rows import decimal_columns, hex_texts, join_rows, number_texts, or_null
+from sniffer.views.rows import Pieces, decimal_columns, hex_texts, join_rows, number_texts, or_null, times_block
 
 NONE = -1
 pieces = st.binary(max_size=12)
@@ -40,11 +41,14 @@ def test_join_rows_is_each_row_concatenated(table: tuple[list[bytes | list[bytes
     assert int(rows.offsets[-1]) == len(rows.data)
 
 
-@given(st.lists(st.binary(max_size=40), max_size=30), st.binary(max_size=5))
-def test_hex_texts_are_bytes_hex(frames: list[bytes], before: bytes) -> None:
+@given(st.lists(st.binary(max_size=40), max_size=30), st.binary(max_size=5), st.booleans())
+def test_hex_texts_are_bytes_hex(frames: list[bytes], before: bytes, quoted: bool) -> None:
     data = before + b"".join(frames)
     offsets = np.cumsum([len(before), *map(len, frames)]).astype(np.int64)
-    assert hex_texts(data, offsets) == [frame.hex().encode() for frame in frames]
+    texts = hex_texts(data, offsets, quoted=quoted)
+    quote = b'"' if quoted else b""
+    assert texts == [quote + frame.hex().encode() + quote for frame in frames]
+    assert texts.sizes.tolist() == list(map(len, texts))
 
 
 @given(st.lists(st.one_of(st.integers(-(1 << 62), 1 << 62), st.just(NONE)), max_size=30))
@@ -52,11 +56,22 @@ def test_number_texts_or_null_are_json(values: list[int]) -> None:
     column = np.array(values, np.int64)
     texts = or_null(number_texts(column), column, NONE)
     assert texts == [b"null" if value == NONE else str(value).encode() for value in values]
+    assert texts.sizes.tolist() == list(map(len, texts))
+
+
+@given(st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=30))
+def test_number_texts_of_floats_are_repr_with_their_sizes(values: list[float]) -> None:
+    texts = number_texts(np.array(values, np.float64))
+    assert texts == [repr(value).encode() for value in values]
+    assert texts.sizes.tolist() == list(map(len, texts))
 
 
 @given(st.lists(st.one_of(st.integers(0, 1 << 62), st.just(NONE)), max_size=30), st.integers(1, 12))
 def test_decimal_columns_are_exact(values: list[int], places: int) -> None:
-    rows = join_rows(decimal_columns(np.array(values, np.int64), places, NONE), len(values))
+    columns = decimal_columns(np.array(values, np.int64), places, NONE)
+    for column in columns:
+        assert isinstance(column, bytes) or column.sizes.tolist() == list(map(len, column))  # type: ignore[union-attr]
+    rows = join_rows(columns, len(values))
     for row, value in enumerate(values):
         text = rows.row(row)
         assert text == b"null" if value == NONE else Decimal(text.decode()) == Decimal(value).scaleb(-places)
@@ -71,9 +86,9 @@ def test_negative_values_fall_back_to_floats(values: list[int], places: int) -> 
 
 @given(st.lists(st.one_of(st.integers(0, (1 << 35) - 1), st.integers(-(1 << 63), (1 << 63) - 1)), max_size=30))
 def test_varint_pieces_are_the_varints(values: list[int]) -> None:
-    found, sizes = varint_pieces(np.array(values, np.int64))
+    found = varint_pieces(np.array(values, np.int64))
     assert found == [_varint(value) for value in values]
-    assert sizes.tolist() == [len(_varint(value)) for value in values]
+    assert found.sizes.tolist() == [len(_varint(value)) for value in values]
 
 
 def _fields(message: bytes) -> dict[int, int | bytes]:
@@ -117,7 +132,9 @@ def test_log_rows_decode_to_what_was_given(entries: list[tuple[int, int, str, st
     t_ns = np.array([entry[0] for entry in entries], np.int64)
     levels = np.array([entry[1] for entry in entries], np.uint8)
     texts = [entry[2].encode() for entry in entries]
-    rows = LogEncoder().rows(t_ns, levels, [b"#", texts], [entry[3] for entry in entries])
+    names = ["slave 1", "noise", "slave 247"]
+    keys = np.array([names.index(entry[3]) for entry in entries], np.int64)
+    rows = LogEncoder(names).rows(t_ns, levels, [b"#", texts], keys)
     for row, (t, level, text, name) in enumerate(entries):
         fields = _fields(rows.row(row))
         timestamp = _fields(fields.pop(1))  # type: ignore[arg-type]
@@ -127,3 +144,41 @@ def test_log_rows_decode_to_what_was_given(entries: list[tuple[int, int, str, st
             if level
             else fields == {3: b"#" + text.encode(), 4: name.encode()}
         )
+
+
+epoch_ns = st.integers(10**18, (1 << 63) - 1)  # 19 digits that fit int64
+
+
+@given(st.lists(st.tuples(epoch_ns, epoch_ns), max_size=20))
+def test_times_block_spells_the_four_times(times: list[tuple[int, int]]) -> None:
+    t_start = np.array([t for t, _ in times], np.int64)
+    t_end = np.array([t for _, t in times], np.int64)
+    block = times_block(t_start, t_end)
+    if not times:
+        assert block is None
+        return
+    assert block is not None
+    for text, (start, end) in zip(block, times, strict=True):
+        fields = json.loads(b"{" + text[1:] + b"}", parse_float=Decimal)
+        assert fields == {
+            "t": Decimal(start).scaleb(-9),
+            "t_end": Decimal(end).scaleb(-9),
+            "t_ns": start,
+            "t_end_ns": end,
+        }
+
+
+@given(st.lists(st.integers(0, 10**18 - 1), min_size=1, max_size=5))
+def test_times_block_leaves_other_times_to_the_fields(times: list[int]) -> None:
+    column = np.array(times, np.int64)
+    assert times_block(column, column) is None
+
+
+@given(st.lists(st.binary(max_size=6), max_size=60), st.data())
+def test_fill_puts_the_piece_at_the_rows(items: list[bytes], data: st.DataObject) -> None:
+    """One by one for a few rows, through numpy for many: the same pieces and sizes."""
+    rows = sorted(data.draw(st.sets(st.integers(0, len(items) - 1))) if items else set())
+    pieces = Pieces(list(items), np.fromiter(map(len, items), np.int64, len(items)))
+    pieces.fill(np.array(rows, np.int64), b"null")
+    assert pieces == [b"null" if row in rows else item for row, item in enumerate(items)]
+    assert pieces.sizes.tolist() == list(map(len, pieces))
