@@ -27,11 +27,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         keep = ["--keep", str(args.keep or tmp)]
         frames = ["--frames", str(args.frames)]
-        runs = [
-            [name, *frames, *keep, "--traffic", traffic]
-            for traffic in TRAFFIC
-            for name in ("bench_tshark", "bench_exports")
-        ]
+        runs = [[name, *frames, *keep, "--traffic", traffic]
+                for traffic in TRAFFIC for name in ("bench_tshark", "bench_exports")]
         runs.append(["bench_stages", "--frames", str(max(args.frames // 5, 1000)), *keep])
         runs.append(["bench_stats", "--frames", str(args.frames), str(5 * args.frames), *keep])
         for name, *options in runs:

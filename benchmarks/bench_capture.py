@@ -51,23 +51,8 @@ def run(seconds: float, view: bool, folder: Path) -> tuple[int, int, float]:
     recording = folder / f"load-{'view' if view else 'quiet'}.mcap"
     with pty_pair(folder, "load-view" if view else "load-quiet") as pair:
         mode = ["--format", "view"] if view else ["--quiet"]
-        capture = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "sniffer",
-                "capture",
-                str(pair.b),
-                "--line",
-                "115200",
-                "8N1",
-                "-o",
-                str(recording),
-                *mode,
-            ],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-        )
+        capture = subprocess.Popen([sys.executable, "-m", "sniffer", "capture", str(pair.b), "--line", "115200", "8N1",
+                                    "-o", str(recording), *mode], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         time.sleep(1.5)
         data = traffic()
         written = 0
@@ -100,10 +85,8 @@ def main() -> None:
         print(f"{'mode':<12} {'seconds':>8} {'written':>12} {'recorded':>12} {'lost':>6} {'CPU % of a core':>16}")
         for view in (False, True):
             written, recorded, cpu = run(args.seconds, view, Path(tmp))
-            print(
-                f"{'live view' if view else 'quiet':<12} {args.seconds:>8.0f} {written:>12,} {recorded:>12,} "
-                f"{written - recorded:>6} {100 * cpu:>15.1f}%"
-            )
+            print(f"{'live view' if view else 'quiet':<12} {args.seconds:>8.0f} {written:>12,} {recorded:>12,} "
+                  f"{written - recorded:>6} {100 * cpu:>15.1f}%")
 
 
 if __name__ == "__main__":

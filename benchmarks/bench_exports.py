@@ -35,24 +35,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         capture = benchmark_capture(args.keep or Path(tmp), args.frames, args.traffic)
         wire_mb = wire_megabytes(capture)
-        print(
-            f"{'export':<8} {'frames':>10} {'seconds':>8} {'frames/s':>10} {'wire MB/s':>10} {'output MB':>10} "
-            f"{'peak RSS MB':>12}"
-        )
+        print(f"{'export':<8} {'frames':>10} {'seconds':>8} {'frames/s':>10} {'wire MB/s':>10} {'output MB':>10} "
+              f"{'peak RSS MB':>12}")
         for option, suffix in (("--mcap", ".mcap"), ("--rrd", ".rrd")):
             output = Path(tmp) / f"export{suffix}"
-            result = subprocess.run(
-                [sys.executable, "-c", CHILD, str(capture), option, str(output)],
-                capture_output=True,
-                text=True,
-                check=True,
-                env={**os.environ, "CI": "1"},
-            )
+            result = subprocess.run([sys.executable, "-c", CHILD, str(capture), option, str(output)],
+                                    capture_output=True, text=True, check=True, env={**os.environ, "CI": "1"})
             seconds, rss_kb = result.stdout.split()
-            print(
-                f"{option[2:]:<8} {args.frames:>10,} {float(seconds):>8.1f} {args.frames / float(seconds):>10,.0f} "
-                f"{wire_mb / float(seconds):>10.2f} {output.stat().st_size / 1e6:>10.1f} {int(rss_kb) / 1024:>12.1f}"
-            )
+            print(f"{option[2:]:<8} {args.frames:>10,} {float(seconds):>8.1f} {args.frames / float(seconds):>10,.0f} "
+                  f"{wire_mb / float(seconds):>10.2f} {output.stat().st_size / 1e6:>10.1f} {int(rss_kb) / 1024:>12.1f}")
 
 
 if __name__ == "__main__":

@@ -102,10 +102,8 @@ def main() -> None:
     started = time.perf_counter()
     batches = polling_capture(args.frames)
     total_bytes = sum(len(b.data) for b in batches)
-    print(
-        f"capture: {args.frames:,} frames, {total_bytes / 1e6:.1f} MB, {LINE.format()} "
-        f"(generated in {time.perf_counter() - started:.1f} s)"
-    )
+    print(f"capture: {args.frames:,} frames, {total_bytes / 1e6:.1f} MB, {LINE.format()} "
+          f"(generated in {time.perf_counter() - started:.1f} s)")
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.mcap"
         writer = open_writer(str(path), CaptureInfo(LINE, TimingQuality.EXACT))

@@ -35,13 +35,9 @@ PIECE_FRAMES = 100_000
 def add_capture_options(parser: argparse.ArgumentParser) -> None:
     """``--keep`` and ``--traffic``, as every end-to-end benchmark takes them."""
     parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated captures in this folder")
-    parser.add_argument(
-        "--traffic",
-        choices=["polling", "mixed", "steady"],
-        default="polling",
-        help="FC 3 polling of random registers and values; mixed ATV traffic with faults and random "
-        "values; the same with steady drives (benchmarks/generate_capture.py)",
-    )
+    parser.add_argument("--traffic", choices=["polling", "mixed", "steady"], default="polling",
+                        help="FC 3 polling of random registers and values; mixed ATV traffic with faults and random "
+                             "values; the same with steady drives (benchmarks/generate_capture.py)")
 
 
 def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Path:
@@ -90,10 +86,8 @@ def main() -> None:
             result = subprocess.run(command, capture_output=True, text=True, check=True)
             seconds, rss_kb = result.stdout.split()
             size_mb = path.stat().st_size / 1e6
-            print(
-                f"{frames:>10,} {size_mb:>7.1f} {float(seconds):>10.2f} {frames / float(seconds):>10,.0f} "
-                f"{int(rss_kb) / 1024:>12.1f}"
-            )
+            print(f"{frames:>10,} {size_mb:>7.1f} {float(seconds):>10.2f} {frames / float(seconds):>10,.0f} "
+                  f"{int(rss_kb) / 1024:>12.1f}")
 
 
 if __name__ == "__main__":

@@ -50,13 +50,8 @@ from sniffer.profiles_io import profile_book
 from sniffer.views.records import FrameRecordEncoder
 from sniffer.views.rows import join_rows
 
-STAGES = (
-    "read, frame, pair, statistics",
-    "+ annotate",
-    "+ JSONL records",
-    "+ annotate, MCAP export",
-    "+ annotate, Rerun export",
-)
+STAGES = ("read, frame, pair, statistics", "+ annotate", "+ JSONL records", "+ annotate, MCAP export",
+          "+ annotate, Rerun export")
 TRAFFIC = ("steady", "mixed", "polling")
 
 
@@ -148,12 +143,10 @@ def foxglove_writer_alone(output: Path, messages: int = 1_000_000) -> float | No
         return None
     context = Context()
     options = MCAPWriteOptions(compression=MCAPCompression.Zstd, chunk_size=CHUNK_SIZE, compression_threads=0)
-    writer = foxglove.open_mcap(
-        str(output / "foxglove.mcap"), allow_overwrite=True, context=context, writer_options=options
-    )
-    channel = Channel(
-        "/bench", schema=Schema(name="bench", encoding="", data=b""), message_encoding="raw", context=context
-    )
+    writer = foxglove.open_mcap(str(output / "foxglove.mcap"), allow_overwrite=True, context=context,
+                                writer_options=options)
+    channel = Channel("/bench", schema=Schema(name="bench", encoding="", data=b""), message_encoding="raw",
+                      context=context)
     payloads, log = _payloads(), channel.base.log
     start = time.perf_counter()
     for index in range(messages):
@@ -182,17 +175,13 @@ def main() -> None:
                     distinct[traffic] = decoded / frames
             print(f"{STAGES[stage - 1]:<32}" + "".join(row))
         print(f"{'distinct (decoded) frames':<32}" + "".join(f"{distinct[t]:>12.1%}" for t in TRAFFIC))
-        for name, writer in (
-            ("columnar (the export's)", columnar_writer_alone),
-            ("mcap package, per message", mcap_python_writer_alone),
-            ("foxglove-sdk, per message", foxglove_writer_alone),
-        ):
+        for name, writer in (("columnar (the export's)", columnar_writer_alone),
+                             ("mcap package, per message", mcap_python_writer_alone),
+                             ("foxglove-sdk, per message", foxglove_writer_alone)):
             per_message = writer(Path(tmp))
             if per_message is not None:
-                print(
-                    f"MCAP writer alone, {name}: {1 / per_message:,.0f} messages/s "
-                    f"({per_message * 1e6:.2f} µs a message)"
-                )
+                print(f"MCAP writer alone, {name}: {1 / per_message:,.0f} messages/s "
+                      f"({per_message * 1e6:.2f} µs a message)")
 
 
 if __name__ == "__main__":

@@ -43,10 +43,8 @@ def main() -> None:
             command = [sys.executable, "-c", CHILD, str(path), str(report)]
             seconds, rss_kb = subprocess.run(command, capture_output=True, text=True, check=True).stdout.split()
             wire_mb = json.loads(report.read_text())["bytes"] / 1e6
-            print(
-                f"{frames:>10,} {path.stat().st_size / 1e6:>7.1f} {float(seconds):>8.2f} "
-                f"{frames / float(seconds):>10,.0f} {wire_mb / float(seconds):>6.1f} {int(rss_kb) / 1024:>12.1f}"
-            )
+            print(f"{frames:>10,} {path.stat().st_size / 1e6:>7.1f} {float(seconds):>8.2f} "
+                  f"{frames / float(seconds):>10,.0f} {wire_mb / float(seconds):>6.1f} {int(rss_kb) / 1024:>12.1f}")
 
 
 if __name__ == "__main__":

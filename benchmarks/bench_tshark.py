@@ -23,14 +23,8 @@ from pathlib import Path
 from benchmarks.bench_memory import add_capture_options, benchmark_capture, wire_megabytes
 from sniffer.exports.pcap_export import WIRESHARK_USER_DLT
 
-TSHARK_FIELDS = [
-    "frame.number",
-    "frame.time_epoch",
-    "mbrtu.unit_id",
-    "modbus.func_code",
-    "mbrtu.crc16.status",
-    "modbus.regval_uint16",
-]
+TSHARK_FIELDS = ["frame.number", "frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "mbrtu.crc16.status",
+                 "modbus.regval_uint16"]
 
 
 def run(argv: list[str], output: Path) -> tuple[float, float]:
@@ -63,29 +57,14 @@ def main() -> None:
             ("rtusniff stats --format json", [*rtusniff, "stats", str(capture), "--format", "json"]),
             ("rtusniff analyze --format jsonl", [*rtusniff, "analyze", str(capture), "--format", "jsonl"]),
             ("rtusniff export --pcap", [*rtusniff, "export", str(capture), "--pcap", str(pcap), "--force"]),
-            (
-                "tshark -T fields (mbrtu, on that pcap)",
-                [
-                    tshark,
-                    "-n",
-                    "-o",
-                    f"uat:user_dlts:{WIRESHARK_USER_DLT}",
-                    "-o",
-                    "mbrtu.crc_verification:TRUE",
-                    "-r",
-                    str(pcap),
-                    "-T",
-                    "fields",
-                    *fields,
-                ],
-            ),
+            ("tshark -T fields (mbrtu, on that pcap)",
+             [tshark, "-n", "-o", f"uat:user_dlts:{WIRESHARK_USER_DLT}", "-o", "mbrtu.crc_verification:TRUE",
+              "-r", str(pcap), "-T", "fields", *fields]),
         ]
         wire_mb = wire_megabytes(capture)
         print(f"{args.frames:,} frames, {wire_mb:.1f} MB on the wire, {capture.stat().st_size / 1e6:.1f} MB capture")
-        print(
-            f"{'command':<40} {'seconds':>8} {'frames/s':>10} {'wire MB/s':>10} {'peak RSS MB':>12} "
-            f"{'output lines':>13}"
-        )
+        print(f"{'command':<40} {'seconds':>8} {'frames/s':>10} {'wire MB/s':>10} {'peak RSS MB':>12} "
+              f"{'output lines':>13}")
         seconds_by_job = {}
         for name, argv in jobs:
             output = Path(tmp) / "out.txt"
@@ -93,10 +72,8 @@ def main() -> None:
             with output.open("rb") as f:
                 lines = sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(1 << 20), b""))
             seconds_by_job[name] = seconds
-            print(
-                f"{name:<40} {seconds:>8.1f} {args.frames / seconds:>10,.0f} {wire_mb / seconds:>10.2f} "
-                f"{rss:>12.1f} {lines:>13,}"
-            )
+            print(f"{name:<40} {seconds:>8.1f} {args.frames / seconds:>10,.0f} {wire_mb / seconds:>10.2f} "
+                  f"{rss:>12.1f} {lines:>13,}")
         tshark_seconds = seconds_by_job[jobs[-1][0]]
         for name in ("rtusniff stats --format json", "rtusniff analyze --format jsonl"):
             print(f"tshark time / {name} time: {tshark_seconds / seconds_by_job[name]:.2f}")

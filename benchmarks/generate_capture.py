@@ -144,21 +144,11 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--line", default="115200 8N1")
     parser.add_argument("--timing", choices=["exact", "host"], default="exact")
-    parser.add_argument(
-        "--values",
-        choices=["random", "steady"],
-        default="random",
-        help="speeds and states drawn anew each time, or held by each drive for a while",
-    )
+    parser.add_argument("--values", choices=["random", "steady"], default="random",
+                        help="speeds and states drawn anew each time, or held by each drive for a while")
     args = parser.parse_args()
-    write(
-        args.output,
-        args.frames,
-        args.seed,
-        LineSettings.parse(args.line),
-        TimingQuality(args.timing),
-        values=args.values,
-    )
+    write(args.output, args.frames, args.seed, LineSettings.parse(args.line), TimingQuality(args.timing),
+          values=args.values)
 
 
 if __name__ == "__main__":

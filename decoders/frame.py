@@ -130,19 +130,9 @@ class FrameRows:
     def __getitem__(self, position: int) -> Frame:
         if self._columns is None:
             batch = self._batch
-            self._columns = [
-                column.tolist()
-                for column in (
-                    batch.offsets,
-                    batch.t_start_ns,
-                    batch.t_end_ns,
-                    batch.crc_ok,
-                    batch.flags,
-                    batch.is_noise,
-                    batch.idle_before_ns,
-                    batch.protocols(),
-                )
-            ]
+            self._columns = [column.tolist() for column in (batch.offsets, batch.t_start_ns, batch.t_end_ns,
+                                                            batch.crc_ok, batch.flags, batch.is_noise,
+                                                            batch.idle_before_ns, batch.protocols())]
         offsets, start, end, ok, flags, noise, idle, protocol = self._columns
         return Frame(
             index=self._batch.first_index + position,

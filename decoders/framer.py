@@ -155,12 +155,8 @@ class Framer:
         position = np.cumsum(per_segment) - per_segment
         total = int(per_segment.sum())
         columns = _Pieces(
-            np.empty(total, np.int64),
-            np.empty(total, np.int64),
-            np.zeros(total, np.bool_),
-            np.ones(total, np.bool_),
-            np.zeros(total, np.uint16),
-            np.zeros(total, np.uint8),
+            np.empty(total, np.int64), np.empty(total, np.int64), np.zeros(total, np.bool_),
+            np.ones(total, np.bool_), np.zeros(total, np.uint16), np.zeros(total, np.uint8),
         )
         columns.first[position[single]] = seg_starts[single]
         columns.last[position[single]] = seg_ends[single]

@@ -148,17 +148,8 @@ class Message:
             device=known.device if device is None else device,
             uss=known.uss if uss is None else uss,
         )
-        return Message(
-            self.frame,
-            self.role,
-            self.slave,
-            self.function,
-            self.exception_code,
-            self.flags,
-            self.request_index,
-            self.latency_ns,
-            decoding,
-        )
+        return Message(self.frame, self.role, self.slave, self.function, self.exception_code, self.flags,
+                       self.request_index, self.latency_ns, decoding)
 
 
 #: Roles by their code in :class:`MessageBatch`.
@@ -207,18 +198,9 @@ class MessageRows:
     def __getitem__(self, position: int) -> Message:
         if self._columns is None:
             batch = self._batch
-            self._columns = [
-                column.tolist()
-                for column in (
-                    batch.role,
-                    batch.slave,
-                    batch.function,
-                    batch.exception_code,
-                    batch.flags,
-                    batch.request_index,
-                    batch.latency_ns,
-                )
-            ]
+            self._columns = [column.tolist() for column in (batch.role, batch.slave, batch.function,
+                                                            batch.exception_code, batch.flags,
+                                                            batch.request_index, batch.latency_ns)]
         roles, slaves, functions, codes, flags, requests, latencies = self._columns
         slave, function, code = slaves[position], functions[position], codes[position]
         request, latency = requests[position], latencies[position]

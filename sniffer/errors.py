@@ -31,7 +31,8 @@ class ErrorKind(Enum):
 class RtuSniffError(Exception):
     """An error in a file or an option, reported as ``error: WHERE: WHAT``."""
 
-    def __init__(self, kind: ErrorKind, message: str, *, path: str | None = None, location: str | None = None) -> None:
+    def __init__(self, kind: ErrorKind, message: str, *, path: str | None = None,
+                 location: str | None = None) -> None:
         self.kind = kind
         self.path = path
         self.location = location

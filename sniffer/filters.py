@@ -82,7 +82,9 @@ def parse_filters(specs: Sequence[str]) -> MessageFilter:
     for spec in specs:
         key, sep, text = spec.partition("=")
         if not sep or key not in parsers:
-            raise RtuSniffError(ErrorKind.USAGE, f"--filter {spec}: use KEY=VALUE with KEY one of {', '.join(parsers)}")
+            raise RtuSniffError(
+                ErrorKind.USAGE, f"--filter {spec}: use KEY=VALUE with KEY one of {', '.join(parsers)}"
+            )
         values[key].add(parsers[key](text))
     flags = FrameFlag.NONE
     for flag in values["flag"]:

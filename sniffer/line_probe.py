@@ -42,21 +42,16 @@ def probe_line(port: str, seconds: float, candidates: list[str] | None = None) -
     if not heard:
         refused = [t.line.format() for t in trials if t.refused]
         extra = f" ({len(refused)} settings the port refused)" if refused else ""
-        raise RtuSniffError(
-            ErrorKind.RUNTIME,
-            f"no traffic heard in {seconds:g} s per setting{extra}; give the settings with --line BAUD FORMAT",
-            path=port,
-        )
+        raise RtuSniffError(ErrorKind.RUNTIME, f"no traffic heard in {seconds:g} s per setting{extra}; "
+                            "give the settings with --line BAUD FORMAT", path=port)
     # The best share wins; within a percent of it, the more common setting (earlier in the list).
     top = max(t.share for t in heard)
     best = next(t for t in heard if t.share >= top - 0.01)
     others = sorted((t for t in heard if t is not best), key=lambda t: -t.share)
     runner_up = f"; next best {others[0].line.format()}: {others[0].share:.0%}" if others else ""
     sure = "sure" if best.share >= 0.9 and best.frames >= 3 else "not sure"
-    report = (
-        f"line {best.line.format()} chosen ({sure}): {best.share:.0%} of {best.heard} bytes formed "
-        f"{best.frames} valid frames{runner_up}"
-    )
+    report = (f"line {best.line.format()} chosen ({sure}): {best.share:.0%} of {best.heard} bytes formed "
+              f"{best.frames} valid frames{runner_up}")
     if best.valid == 0:
         raise RtuSniffError(ErrorKind.RUNTIME, f"no setting gives valid frames ({report}); give --line", path=port)
     return best.line, report

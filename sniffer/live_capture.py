@@ -75,9 +75,8 @@ def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
     status = source.open()
     recorder = _recorder(options, status)
     shared = _Shared(threading.Event(), queue.Queue(VIEW_QUEUE_READS))
-    reader = threading.Thread(
-        target=_read, args=(source, recorder, shared, options.mode != "quiet"), name="rtusniff-reader", daemon=True
-    )
+    reader = threading.Thread(target=_read, args=(source, recorder, shared, options.mode != "quiet"),
+                              name="rtusniff-reader", daemon=True)
     previous_term = signal.signal(signal.SIGTERM, _raise_terminated)
     code = 0
     session = _Session(options, status, recorder, shared, out)
@@ -140,22 +139,16 @@ def _raise_terminated(signum: int, frame: FrameType | None) -> None:
 class _Session:
     """The main thread's side: decoding, statistics, the view, the stop conditions."""
 
-    def __init__(
-        self, options: CaptureOptions, status: PortStatus, recorder: Recorder | None, shared: _Shared, out: TextIO
-    ) -> None:
+    def __init__(self, options: CaptureOptions, status: PortStatus, recorder: Recorder | None,
+                 shared: _Shared, out: TextIO) -> None:
         self.options, self.recorder, self.shared = options, recorder, shared
         self.decoder = Decoder(options.line, TimingQuality.HOST, response_timeout_ns=options.response_timeout_ns)
         applier = ProfileApplier(options.profiles) if options.profiles is not None else None
         self.annotator = Annotator(applier)
         self.statistics = Statistics()
         self.jsonl = JsonlView(out) if options.mode == "jsonl" else None
-        self.state = LiveState(
-            options.port,
-            options.line.format(),
-            options.output,
-            "timing host (times are when the PC read the bytes)",
-            advice=status.advice(),
-        )
+        self.state = LiveState(options.port, options.line.format(), options.output,
+                               "timing host (times are when the PC read the bytes)", advice=status.advice())
         self.view = LiveView(self.state) if options.mode == "view" else None
         self.out = out
         self._counters: dict[str, int] | None = None
@@ -168,9 +161,8 @@ class _Session:
         render: Callable[[], None] = lambda: None  # noqa: E731
         live = None
         if self.view is not None:
-            live = Live(
-                self.view.render(self.statistics), console=Console(file=self.out), refresh_per_second=4, transient=False
-            )
+            live = Live(self.view.render(self.statistics), console=Console(file=self.out), refresh_per_second=4,
+                        transient=False)
             live.start()
             view = self.view
             render = lambda: live.update(view.render(self.statistics))  # noqa: E731
@@ -249,7 +241,6 @@ def _report(code: int, options: CaptureOptions, recorder: Recorder | None, share
     if shared.failure is not None:
         raise shared.failure
     if shared.gone is not None:
-        raise RtuSniffError(
-            ErrorKind.PORT_GONE, f"the port went away ({shared.gone}); the recording is closed", path=options.port
-        )
+        raise RtuSniffError(ErrorKind.PORT_GONE, f"the port went away ({shared.gone}); the recording is closed",
+                            path=options.port)
     return code

@@ -57,9 +57,8 @@ def rotated_path(path: str, number: int) -> str:
 class Recorder:
     """Writes handed-over chunks to disk from its own thread."""
 
-    def __init__(
-        self, path: str, info: CaptureInfo, rotation: Rotation | None = None, flush_interval_s: float = FLUSH_INTERVAL_S
-    ) -> None:
+    def __init__(self, path: str, info: CaptureInfo, rotation: Rotation | None = None,
+                 flush_interval_s: float = FLUSH_INTERVAL_S) -> None:
         self.path = path
         self.info = info
         self.rotation = rotation
@@ -147,11 +146,9 @@ class Recorder:
     def _fail(self, exc: OSError) -> None:
         """A write failed (disk full): keep the file as it was at its last flush."""
         path = self.current_file
-        self.error = RtuSniffError(
-            ErrorKind.OUTPUT_FAILED,
-            f"writing failed ({exc.strerror}); the recording is kept up to its last flush ({self._durable_size} bytes)",
-            path=path,
-        )
+        self.error = RtuSniffError(ErrorKind.OUTPUT_FAILED,
+                                   f"writing failed ({exc.strerror}); the recording is kept up to its last flush "
+                                   f"({self._durable_size} bytes)", path=path)
         writer, self._writer = self._writer, None
         if writer is not None:
             writer.abandon()

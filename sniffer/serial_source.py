@@ -54,10 +54,8 @@ class PortStatus:
 
     def advice(self) -> str | None:
         if self.latency_timer_ms is not None and self.latency_timer_ms > SLOW_LATENCY_TIMER_MS:
-            return (
-                f"the adapter's latency timer is {self.latency_timer_ms} ms: bytes reach the PC in bursts; "
-                "for better times: echo 1 | sudo tee /sys/bus/usb-serial/devices/<tty>/latency_timer"
-            )
+            return (f"the adapter's latency timer is {self.latency_timer_ms} ms: bytes reach the PC in bursts; "
+                    "for better times: echo 1 | sudo tee /sys/bus/usb-serial/devices/<tty>/latency_timer")
         return None
 
 

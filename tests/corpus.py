@@ -101,10 +101,8 @@ def exchange(rng: random.Random, slave: int) -> tuple[bytes, bytes]:
             mei.ReadDeviceInformationResponse(dev_id=slave, read_code=1, information=info)
         )
     function = rng.choice([3, 6, 16])
-    request = (
-        adu(regs.ReadHoldingRegistersRequest(dev_id=slave, address=address, count=count))
-        if function == 3
-        else (adu(regs.WriteSingleRegisterRequest(dev_id=slave, address=address, registers=_words(rng, 1))))
+    request = adu(regs.ReadHoldingRegistersRequest(dev_id=slave, address=address, count=count)) if function == 3 else (
+        adu(regs.WriteSingleRegisterRequest(dev_id=slave, address=address, registers=_words(rng, 1)))
     )
     if function == 16:
         request = adu(regs.WriteMultipleRegistersRequest(dev_id=slave, address=address, registers=_words(rng, 3)))
@@ -155,16 +153,8 @@ SCENARIOS = [
     Scenario("garbage", garbage_rate=0.1, start_mid_frame=True),
     Scenario("bit-errors", corrupt_rate=0.05),
     Scenario("truncated", truncate_end=True),
-    Scenario(
-        "everything",
-        turnaround=(0.3, 4.0),
-        gap_1_5_rate=0.03,
-        glitch_rate=0.2,
-        garbage_rate=0.03,
-        corrupt_rate=0.03,
-        start_mid_frame=True,
-        truncate_end=True,
-    ),
+    Scenario("everything", turnaround=(0.3, 4.0), gap_1_5_rate=0.03, glitch_rate=0.2, garbage_rate=0.03,
+             corrupt_rate=0.03, start_mid_frame=True, truncate_end=True),
 ]
 LINES = [LineSettings.parse(t) for t in ("9600 8E1", "19200 8E1", "115200 8N1")]
 

@@ -67,8 +67,7 @@ def pty_pair(directory: Path, name: str) -> Iterator[PtyPair]:
     a, b = directory / f"{name}-a", directory / f"{name}-b"
     process = subprocess.Popen(
         [SOCAT, f"PTY,raw,echo=0,link={a}", f"PTY,raw,echo=0,link={b}"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
     )
     try:
         deadline = time.monotonic() + 5
@@ -137,9 +136,8 @@ class Relay:
 
 @contextmanager
 def pymodbus_slave(port: Path) -> Iterator[subprocess.Popen[bytes]]:
-    process = subprocess.Popen(
-        [sys.executable, "-c", SLAVE_SCRIPT, str(port)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
-    )
+    process = subprocess.Popen([sys.executable, "-c", SLAVE_SCRIPT, str(port)],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         time.sleep(1.0)  # the server opens its port
         if process.poll() is not None:

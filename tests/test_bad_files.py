@@ -29,21 +29,11 @@ BAD_FILES: list[tuple[str, str, Content, int, str]] = [
     ("bad hex", "c.log", (HEADER + "1.0 01 ZZ\n").encode(), 7, "c.log:line 4: bad hex digit 'Z'"),
     ("odd hex digits", "c.log", (HEADER + "1.0 01 0\n").encode(), 7, "c.log:line 4: odd number of hex digits"),
     ("decreasing times", "c.log", (HEADER + "2.0 01\n1.0 02\n").encode(), 8, "c.log:line 5: time 1.000000000"),
-    (
-        "time beyond 2262",
-        "c.log",
-        (HEADER + "17004010417.0 02\n").encode(),
-        7,
-        "c.log:line 4: time 17004010417.0 is beyond",
-    ),
+    ("time beyond 2262", "c.log", (HEADER + "17004010417.0 02\n").encode(), 7,
+     "c.log:line 4: time 17004010417.0 is beyond"),
     ("binary garbage", "c.log", HEADER.encode() + b"\x89PNG\r\n\x1a\n\x00\xff", 7, "c.log:line 4: not text"),
-    (
-        "truncated MCAP",
-        "c.mcap",
-        SAMPLE_MCAP.read_bytes()[:800],
-        9,
-        "c.mcap:byte 334: damaged MCAP: a record runs past",
-    ),
+    ("truncated MCAP", "c.mcap", SAMPLE_MCAP.read_bytes()[:800], 9,
+     "c.mcap:byte 334: damaged MCAP: a record runs past"),
     ("corrupted MCAP", "c.mcap", corrupted_mcap, 9, "c.mcap:byte 334: damaged MCAP"),
     ("not an MCAP", "c.mcap", HEADER.encode(), 9, "c.mcap:byte 0"),
     ("MCAP from another tool", "c.mcap", write_foreign_mcap, 9, "c.mcap:byte 138: not an rtusniff capture"),
@@ -68,6 +58,7 @@ def test_bad_file(cli: Cli, tmp_path: Path, bad: tuple[str, str, Content, int, s
         assert "Traceback" not in result.err
 
 
+
 def test_huge_gap_is_analysed_not_refused(cli: Cli, tmp_path: Path) -> None:
     path = tmp_path / "gap.log"
     # A request, then its answer a year later (a capture left running across a site shutdown).
@@ -77,3 +68,4 @@ def test_huge_gap_is_analysed_not_refused(cli: Cli, tmp_path: Path) -> None:
     assert [f["role"] for f in frames] == ["request", "response"]
     assert "timeout" in frames[0]["flags"] and "unexpected" in frames[1]["flags"]
     assert records[-1]["duration_s"] == pytest.approx(31536000, abs=1)
+

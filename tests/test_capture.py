@@ -38,10 +38,7 @@ def start_capture(port: Path, *args: str, **kwargs: Any) -> subprocess.Popen[str
     try:
         process = subprocess.Popen(
             [sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1", *args],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            **kwargs,
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs,
         )
     finally:
         signal.signal(signal.SIGINT, previous)
@@ -51,12 +48,8 @@ def start_capture(port: Path, *args: str, **kwargs: Any) -> subprocess.Popen[str
 
 
 def analyze(path: Path) -> tuple[int, list[dict[str, Any]], str]:
-    result = subprocess.run(
-        [sys.executable, "-m", "sniffer", "analyze", str(path), "--format", "jsonl"],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
+    result = subprocess.run([sys.executable, "-m", "sniffer", "analyze", str(path), "--format", "jsonl"],
+                            capture_output=True, text=True, check=False)
     return result.returncode, [json.loads(line) for line in result.stdout.splitlines()], result.stderr
 
 
@@ -86,13 +79,11 @@ def test_real_master_and_slave_decoded_live_and_recorded(tmp_path: Path) -> None
     from tests.test_pty_pymodbus import assert_session_decoded, run_master
 
     recording = tmp_path / "live.mcap"
-    with (
-        pty_pair(tmp_path, "master") as to_master,
-        pty_pair(tmp_path, "slave") as to_slave,
-        pty_pair(tmp_path, "tap") as tap,
-    ):
+    with pty_pair(tmp_path, "master") as to_master, pty_pair(tmp_path, "slave") as to_slave, \
+            pty_pair(tmp_path, "tap") as tap:
         capture = start_capture(tap.b, "-o", str(recording), "--format", "jsonl")
-        with pymodbus_slave(to_slave.b), Relay(to_master.b, to_slave.a, absent=frozenset({9}), copy_to=tap.a) as relay:
+        with pymodbus_slave(to_slave.b), Relay(to_master.b, to_slave.a, absent=frozenset({9}),
+                                               copy_to=tap.a) as relay:
             operations = run_master(to_master.a)
             time.sleep(1.5)
             capture.send_signal(signal.SIGINT)
@@ -214,26 +205,9 @@ def test_line_auto_finds_the_settings(tmp_path: Path, line_tap: tuple[Path, Path
     sender.start()
     try:
         result = subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "sniffer",
-                "capture",
-                str(port),
-                "--line",
-                "auto",
-                "--probe-seconds",
-                "0.4",
-                "--duration",
-                "1",
-                "-o",
-                str(tmp_path / "auto.log"),
-                "--quiet",
-            ],
-            capture_output=True,
-            text=True,
-            check=False,
-            timeout=60,
+            [sys.executable, "-m", "sniffer", "capture", str(port), "--line", "auto", "--probe-seconds", "0.4",
+             "--duration", "1", "-o", str(tmp_path / "auto.log"), "--quiet"],
+            capture_output=True, text=True, check=False, timeout=60,
         )
     finally:
         stop.set()
@@ -250,20 +224,12 @@ def test_capture_refuses_to_overwrite(tmp_path: Path, line_tap: tuple[Path, Path
     _, port, _ = line_tap
     existing = tmp_path / "old.mcap"
     existing.write_bytes(b"precious")
-    result = subprocess.run(
-        [sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1", "-o", str(existing)],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
+    result = subprocess.run([sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1",
+                             "-o", str(existing)], capture_output=True, text=True, check=False)
     assert result.returncode == 11 and "never overwrites" in result.stderr
     assert existing.read_bytes() == b"precious"
-    missing = subprocess.run(
-        [sys.executable, "-m", "sniffer", "capture", "/dev/ttyNOPE", "--line", "19200", "8N1"],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
+    missing = subprocess.run([sys.executable, "-m", "sniffer", "capture", "/dev/ttyNOPE", "--line", "19200", "8N1"],
+                             capture_output=True, text=True, check=False)
     assert missing.returncode == 4 and "cannot open the port" in missing.stderr
     assert os.path.exists(port)
 

@@ -15,21 +15,9 @@ from tests.conftest import CAPTURES, SAMPLE_LOG, SAMPLE_MCAP, CliResult
 
 Cli = Callable[..., CliResult]
 FRAME_FIELDS = {
-    "kind": str,
-    "index": int,
-    "t": float,
-    "t_end": float,
-    "hex": str,
-    "crc_ok": bool,
-    "slave": (int, type(None)),
-    "function": (int, type(None)),
-    "role": str,
-    "exception_code": (int, type(None)),
-    "flags": list,
-    "request_index": (int, type(None)),
-    "latency_s": (float, type(None)),
-    "params": list,
-    "summary": str,
+    "kind": str, "index": int, "t": float, "t_end": float, "hex": str, "crc_ok": bool, "slave": (int, type(None)),
+    "function": (int, type(None)), "role": str, "exception_code": (int, type(None)), "flags": list,
+    "request_index": (int, type(None)), "latency_s": (float, type(None)), "params": list, "summary": str,
 }
 
 
@@ -58,9 +46,8 @@ def test_analyze_jsonl_follows_the_contract(cli: Cli) -> None:
             assert isinstance(frame[name], kind), (name, frame)
         assert frame["hex"] == frame["hex"].lower()
         assert frame["t"] <= frame["t_end"]
-    capture_bytes = bytes.fromhex(
-        "".join(line.split(" ", 1)[1] for line in SAMPLE_LOG.read_text().splitlines() if not line.startswith("#"))
-    )
+    capture_bytes = bytes.fromhex("".join(line.split(" ", 1)[1] for line in SAMPLE_LOG.read_text().splitlines()
+                                          if not line.startswith("#")))
     assert bytes.fromhex("".join(f["hex"] for f in frames)) == capture_bytes
     bad = [f for f in frames if not f["crc_ok"] and f["role"] != "noise"]
     assert [f["hex"] for f in bad] == ["0203080028025001f4000052b0"]
@@ -68,14 +55,8 @@ def test_analyze_jsonl_follows_the_contract(cli: Cli) -> None:
     assert exceptions == [(12, 3, 2), (4, 16, 4)]
     flagged = {f["index"]: f["flags"] for f in frames if f["flags"]}
     assert flagged == {
-        12: ["timeout"],
-        19: ["timeout", "retry"],
-        26: ["retry"],
-        32: ["timeout", "retry"],
-        36: ["gap_1_5"],
-        39: ["timeout", "retry"],
-        47: ["short_idle"],
-        51: ["retry"],
+        12: ["timeout"], 19: ["timeout", "retry"], 26: ["retry"], 32: ["timeout", "retry"], 36: ["gap_1_5"],
+        39: ["timeout", "retry"], 47: ["short_idle"], 51: ["retry"],
     }
     [noise] = [f for f in frames if f["role"] == "noise"]
     assert (noise["hex"], noise["crc_ok"], noise["slave"], noise["function"]) == ("00", False, None, None)
@@ -93,22 +74,12 @@ def test_analyze_jsonl_follows_the_contract(cli: Cli) -> None:
         "HR = 0028 0258 01F4 0000 (4 registers): SFr = 4.0 kHz, tFr = 60.0 Hz, HSP = 50.0 Hz, LSP = 0.0 Hz"
     )
     assert [(p["address"], p["code"], p["raw"], p["value"], p["unit"]) for p in first_answer["params"]] == [
-        (3102, "SFr", 40, 4.0, "kHz"),
-        (3103, "tFr", 600, 60.0, "Hz"),
-        (3104, "HSP", 500, 50.0, "Hz"),
+        (3102, "SFr", 40, 4.0, "kHz"), (3103, "tFr", 600, 60.0, "Hz"), (3104, "HSP", 500, 50.0, "Hz"),
         (3105, "LSP", 0, 0.0, "Hz"),
     ]
     [device] = [r for r in records if r["kind"] == "device"]
-    assert device == {
-        "kind": "device",
-        "index": 1,
-        "slave": 2,
-        "vendor": "Telemecanique",
-        "product_code": "ATV71HU15M3",
-        "revision": "0201",
-        "profile": "atv71",
-        "applied": True,
-    }
+    assert device == {"kind": "device", "index": 1, "slave": 2, "vendor": "Telemecanique",
+                      "product_code": "ATV71HU15M3", "revision": "0201", "profile": "atv71", "applied": True}
     # Drive 12 never identified itself: its registers stay unnamed without --profile.
     assert all(p["code"] is None for p in frames[11]["params"])
 
@@ -180,10 +151,7 @@ def test_errors_are_one_line_without_traceback(tmp_path: Path, args: list[str], 
     (tmp_path / "capture.pcapng").write_bytes(b"\x0a\x0d\x0d\x0a")
     argv = [a.replace("{tmp}", str(tmp_path)) for a in args]
     result = subprocess.run(
-        [sys.executable, "-m", "sniffer", *argv],
-        capture_output=True,
-        text=True,
-        check=False,
+        [sys.executable, "-m", "sniffer", *argv], capture_output=True, text=True, check=False,
         env={**os.environ, "COLUMNS": "200"},
     )
     assert result.returncode == code, result.stderr
@@ -195,9 +163,7 @@ def test_errors_are_one_line_without_traceback(tmp_path: Path, args: list[str], 
 def test_debug_shows_the_traceback(tmp_path: Path) -> None:
     result = subprocess.run(
         [sys.executable, "-m", "sniffer", "--debug", "analyze", "/nonexistent/x.log"],
-        capture_output=True,
-        text=True,
-        check=False,
+        capture_output=True, text=True, check=False,
     )
     assert result.returncode != 0
     assert "Traceback" in result.stderr
@@ -274,12 +240,8 @@ def test_filters(cli: Cli) -> None:
 
 @pytest.mark.parametrize(
     ("spec", "words"),
-    [
-        ("slave=300", "slave must be a number from 0 to 247"),
-        ("role=master", "role is one of request, response"),
-        ("flag=late", "flag is one of gap_1_5"),
-        ("colour=red", "KEY one of slave, function, role, flag"),
-    ],
+    [("slave=300", "slave must be a number from 0 to 247"), ("role=master", "role is one of request, response"),
+     ("flag=late", "flag is one of gap_1_5"), ("colour=red", "KEY one of slave, function, role, flag")],
 )
 def test_bad_filters_say_what_is_allowed(cli: Cli, spec: str, words: str) -> None:
     result = cli("analyze", str(SAMPLE_LOG), "--filter", spec)

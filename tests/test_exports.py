@@ -47,10 +47,8 @@ def test_mcap_channels_schemas_and_metadata(exported: tuple[Path, Path]) -> None
         summary = reader.get_summary()
         assert summary is not None and summary.statistics is not None
         topics = {c.topic: c for c in summary.channels.values()}
-        counts = {
-            topics_id.topic: summary.statistics.channel_message_counts[cid]
-            for cid, topics_id in summary.channels.items()
-        }
+        counts = {topics_id.topic: summary.statistics.channel_message_counts[cid]
+                  for cid, topics_id in summary.channels.items()}
         schemas = {s.id: s for s in summary.schemas.values()}
         assert schemas[topics["/modbus/log"].schema_id].name == "foxglove.Log"
         assert schemas[topics["/modbus/log"].schema_id].encoding == "protobuf"
@@ -83,9 +81,8 @@ def test_mcap_values_transactions_and_log_levels(exported: tuple[Path, Path]) ->
 
 def test_rerun_checks_the_mcap(exported: tuple[Path, Path]) -> None:
     mcap, _ = exported
-    result = subprocess.run(
-        [RERUN, "mcap", "check", str(mcap)], capture_output=True, text=True, env=QUIET_RERUN, check=False, timeout=120
-    )
+    result = subprocess.run([RERUN, "mcap", "check", str(mcap)], capture_output=True, text=True,
+                            env=QUIET_RERUN, check=False, timeout=120)
     assert result.returncode == 0, result.stdout + result.stderr
 
 
@@ -95,14 +92,8 @@ def test_rerun_renders_the_mcap_log(exported: tuple[Path, Path], tmp_path: Path)
 
     mcap, _ = exported
     converted = tmp_path / "converted.rrd"
-    result = subprocess.run(
-        [RERUN, "mcap", "convert", str(mcap), "-o", str(converted)],
-        capture_output=True,
-        text=True,
-        env=QUIET_RERUN,
-        check=False,
-        timeout=120,
-    )
+    result = subprocess.run([RERUN, "mcap", "convert", str(mcap), "-o", str(converted)], capture_output=True,
+                            text=True, env=QUIET_RERUN, check=False, timeout=120)
     assert result.returncode == 0, result.stderr
     levels: Counter[str] = Counter()
     texts: list[str] = []
@@ -179,8 +170,7 @@ def _rerun_rows(rrd: Path) -> tuple[list[tuple[str, int]], dict[str, list[float]
         batch = chunk.to_record_batch()
         if "Scalars:scalars" in batch.schema.names:
             values.setdefault(chunk.entity_path, []).extend(
-                v[0] for v in batch.column("Scalars:scalars").to_pylist() if v
-            )
+                v[0] for v in batch.column("Scalars:scalars").to_pylist() if v)
     return chunks, values, timelines
 
 
@@ -263,28 +253,12 @@ def test_pcap_decoded_by_tshark(cli: Cli, tmp_path: Path) -> None:
 
     pcap = tmp_path / "poll.pcap"
     assert cli("export", str(SAMPLE_LOG), "--pcap", str(pcap)).code == 0
-    fields = ["frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "modbus.exception_code", "mbrtu.crc16.status"]
+    fields = ["frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "modbus.exception_code",
+              "mbrtu.crc16.status"]
     shown = subprocess.run(
-        [
-            str(TSHARK),
-            "-n",
-            "-o",
-            f"uat:user_dlts:{WIRESHARK_USER_DLT}",
-            "-o",
-            "mbrtu.crc_verification:TRUE",
-            "-r",
-            str(pcap),
-            "-T",
-            "fields",
-            "-E",
-            "separator=;",
-            *[a for f in fields for a in ("-e", f)],
-        ],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=120,
-    ).stdout.splitlines()
+        [str(TSHARK), "-n", "-o", f"uat:user_dlts:{WIRESHARK_USER_DLT}", "-o", "mbrtu.crc_verification:TRUE",
+         "-r", str(pcap), "-T", "fields", "-E", "separator=;", *[a for f in fields for a in ("-e", f)]],
+        capture_output=True, text=True, check=True, timeout=120).stdout.splitlines()
     analyzed = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl")
     frames = [r for r in map(json.loads, analyzed.out.splitlines()) if r["kind"] == "frame"]
     assert len(shown) == len(frames) > 40

@@ -34,10 +34,8 @@ def test_host_timing_records_the_same_frames(cli: Cli, tmp_path: Path) -> None:
     exact, host = tmp_path / "exact.mcap", tmp_path / "host.mcap"
     write(exact, 4_000, 3, LINE, TimingQuality.EXACT)
     write(host, 4_000, 3, LINE, TimingQuality.HOST)
-    hex_of = [
-        [r["hex"] for r in cli("analyze", str(p), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
-        for p in (exact, host)
-    ]
+    hex_of = [[r["hex"] for r in cli("analyze", str(p), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
+              for p in (exact, host)]
     assert cli("analyze", str(host), "--format", "jsonl").jsonl()[0]["timing"] == "host"
     assert len(hex_of[1]) >= 0.999 * len(hex_of[0])
     assert len(set(hex_of[0]) ^ set(hex_of[1])) <= 0.002 * len(hex_of[0])

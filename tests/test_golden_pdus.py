@@ -47,20 +47,8 @@ def decoded() -> dict[str, Any]:
 PROFILED = ROOT / "tests" / "golden" / "manual-exchanges.profiled.json"
 #: The manuals' exchanges (request, answer), decoded with the profile of their device.
 EXCHANGES = {
-    "atv71": [
-        ("A11", "A12"),
-        ("A1", "A2"),
-        ("A3", "A4"),
-        ("A5", "A6"),
-        ("A7", "A7"),
-        ("A8", "A8"),
-        ("A9", "A10"),
-        ("A13", "A14"),
-        ("A15", "A16"),
-        ("A17", "A18"),
-        ("A17", "A19"),
-        ("A17", "A20"),
-    ],
+    "atv71": [("A11", "A12"), ("A1", "A2"), ("A3", "A4"), ("A5", "A6"), ("A7", "A7"), ("A8", "A8"), ("A9", "A10"),
+              ("A13", "A14"), ("A15", "A16"), ("A17", "A18"), ("A17", "A19"), ("A17", "A20")],
     "atv312": [("B4", "B5"), ("B1", "B2"), ("B3", "B3"), ("B6", "B7")],
     "nord-sk": [("N1r", "N1r"), ("N3req", "N3res")],
 }

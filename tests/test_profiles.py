@@ -49,25 +49,14 @@ BAD = [
     ("[profile]\nid='x'\nname='x'\n", "profile: missing 'sources'"),
     ("[profile]\nid='x'\nname='x'\nsources=[]\n", "cite at least one source"),
     ("[profile]\nid='x'\nname='x'\nsources=['m']\n[[parameter]]\ncode='A'\nname='a'\naddress=1\n", "missing 'source'"),
-    (
-        "[profile]\nid='x'\nname='x'\nsources=['m']\n[[parameter]]\ncode='A'\nname='a'\naddress=1\nsource='s'\n"
-        "[[parameter]]\ncode='B'\nname='b'\naddress=1\nsource='s'\n",
-        "address 1 is already A",
-    ),
-    (
-        "[profile]\nid='x'\nname='x'\nsources=['m']\n[[parameter]]\ncode='A'\nname='a'\naddress=70000\nsource='s'\n",
-        "70000 is outside 0..65535",
-    ),
-    (
-        "[profile]\nid='x'\nname='x'\nsources=['m']\n[[parameter]]\ncode='A'\nname='a'\naddress=1\nsource='s'\n"
-        "bitfield='nope'\n",
-        "no [bitfield.nope]",
-    ),
-    (
-        "[profile]\nid='x'\nname='x'\nsources=['m']\n[[parameter]]\ncode='A'\nname='a'\naddress=1\nsource='s'\n"
-        "access='maybe'\n",
-        "'maybe' is not one of r, rw, w",
-    ),
+    ("[profile]\nid='x'\nname='x'\nsources=['m']\n[[parameter]]\ncode='A'\nname='a'\naddress=1\nsource='s'\n"
+     "[[parameter]]\ncode='B'\nname='b'\naddress=1\nsource='s'\n", "address 1 is already A"),
+    ("[profile]\nid='x'\nname='x'\nsources=['m']\n[[parameter]]\ncode='A'\nname='a'\naddress=70000\nsource='s'\n",
+     "70000 is outside 0..65535"),
+    ("[profile]\nid='x'\nname='x'\nsources=['m']\n[[parameter]]\ncode='A'\nname='a'\naddress=1\nsource='s'\n"
+     "bitfield='nope'\n", "no [bitfield.nope]"),
+    ("[profile]\nid='x'\nname='x'\nsources=['m']\n[[parameter]]\ncode='A'\nname='a'\naddress=1\nsource='s'\n"
+     "access='maybe'\n", "'maybe' is not one of r, rw, w"),
     ("[profile\n", "TOML"),
 ]
 
@@ -96,11 +85,8 @@ def test_atv71_protected_and_missing_parameters(manual_frames: dict[str, bytes])
         [manual_frames[k] for k in ("A17", "A18", "A17", "A19", "A17", "A20")], "atv71"
     )
     protected_text = "non-existent or protected parameter"
-    assert values(partly) == [
-        (None, protected_text, None),
-        ("CHCF", "I/O profile", None),
-        ("COP", "copy of the command word", None),
-    ]
+    assert values(partly) == [(None, protected_text, None), ("CHCF", "I/O profile", None),
+                              ("COP", "copy of the command word", None)]
     assert values(protected)[1] == ("CHCF", protected_text, None)
     assert "8400 = 16#8000 non-existent or protected parameter" in partly.summary
     assert any("every parameter of a read block is non-existent or protected" in r for r in refused.remarks)
@@ -129,15 +115,12 @@ def test_scanner_learnt_from_the_traffic(manual_frames: dict[str, bytes]) -> Non
     nca = (8501, 8602, 3104, 3105, 9001, 9002)
     setup = []
     for address, table in ((12701, nma), (12721, nca)):
-        setup += [
-            with_crc(struct.pack(">BBHH", 20, 3, address, len(table))),
-            with_crc(struct.pack(f">BBB{len(table)}H", 20, 3, 2 * len(table), *table)),
-        ]
+        setup += [with_crc(struct.pack(">BBHH", 20, 3, address, len(table))),
+                  with_crc(struct.pack(f">BBB{len(table)}H", 20, 3, 2 * len(table), *table))]
     messages = run([*setup, manual_frames["A13"], manual_frames["A14"]], "atv71")
     request, answer = messages[-2:]
-    assert [p.code for p in answer.params] == [
-        f"NM{i}→{c}" for i, c in enumerate(["ETA", "RFRD", "LCR", "OTR", "ULN", "THD", "THR", "LFT"], 1)
-    ]
+    assert [p.code for p in answer.params] == [f"NM{i}→{c}" for i, c in enumerate(
+        ["ETA", "RFRD", "LCR", "OTR", "ULN", "THD", "THR", "LFT"], 1)]
     assert answer.params[1].value == 5000 and answer.params[1].unit == "rpm"
     written = {p.code: p.value for p in request.params if p.raw is not None}
     assert written["NC1→CMD"] == "enable operation, forward"
@@ -165,10 +148,7 @@ def test_identification_picks_the_profile(manual_frames: dict[str, bytes]) -> No
     messages = run([manual_frames["B4"], manual_frames["B5"], manual_frames["B1"], manual_frames["B2"]])
     device = messages[1].device
     assert device is not None and (device.product_code, device.profile, device.applied) == (
-        "ATV31HU09M3S232",
-        "atv312",
-        True,
-    )
+        "ATV31HU09M3S232", "atv312", True)
     assert values(messages[3])[2] == ("HSP", 50.0, "Hz")
 
 
@@ -196,25 +176,11 @@ def test_cli_profile_options(cli: Callable[..., CliResult], tmp_path: Path) -> N
     from tests.conftest import SAMPLE_LOG
 
     custom = tmp_path / "pump.toml"
-    custom.write_text(
-        '[profile]\nid = "pump"\nname = "Our pump"\nsources = ["pump manual p. 12"]\n'
-        '[[parameter]]\naddress = 3102\ncode = "PUMP_SPEED"\nname = "Pump speed"\nunit = "%"\n'
-        'scale = 0.5\nsource = "p. 12"\n'
-    )
-    result = cli(
-        "analyze",
-        str(SAMPLE_LOG),
-        "--format",
-        "jsonl",
-        "--profile-file",
-        str(custom),
-        "--profile",
-        "2=pump",
-        "--filter",
-        "slave=2",
-        "--filter",
-        "role=response",
-    )
+    custom.write_text('[profile]\nid = "pump"\nname = "Our pump"\nsources = ["pump manual p. 12"]\n'
+                      '[[parameter]]\naddress = 3102\ncode = "PUMP_SPEED"\nname = "Pump speed"\nunit = "%"\n'
+                      'scale = 0.5\nsource = "p. 12"\n')
+    result = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--profile-file", str(custom),
+                 "--profile", "2=pump", "--filter", "slave=2", "--filter", "role=response")
     records = [r for r in result.jsonl() if r["kind"] == "frame"]
     named = [p for r in records for p in r["params"] if p["code"] == "PUMP_SPEED"]
     assert named and named[0]["value"] == 20.0 and named[0]["unit"] == "%"
@@ -227,10 +193,8 @@ def test_cli_profile_options(cli: Callable[..., CliResult], tmp_path: Path) -> N
 
 @pytest.mark.parametrize(
     ("args", "words"),
-    [
-        (["--profile", "atv99"], "unknown profile 'atv99'; known: atv312, atv71, generic, nord-sk, xbt"),
-        (["--profile", "300=atv71"], "the slave must be a number from 0 to 247"),
-    ],
+    [(["--profile", "atv99"], "unknown profile 'atv99'; known: atv312, atv71, generic, nord-sk, xbt"),
+     (["--profile", "300=atv71"], "the slave must be a number from 0 to 247")],
 )
 def test_bad_profile_options(cli: Callable[..., CliResult], args: list[str], words: str) -> None:
     from tests.conftest import SAMPLE_LOG

@@ -42,7 +42,8 @@ def run_master(port: Path) -> list[dict[str, Any]]:
     from pymodbus import FramerType
     from pymodbus.client import ModbusSerialClient
 
-    client = ModbusSerialClient(str(port), framer=FramerType.RTU, baudrate=19200, parity="N", timeout=0.3, retries=0)
+    client = ModbusSerialClient(str(port), framer=FramerType.RTU, baudrate=19200, parity="N", timeout=0.3,
+                                retries=0)
     assert client.connect()
     try:
         return run_operations(client)
@@ -82,11 +83,8 @@ def run_operations(client: Any) -> list[dict[str, Any]]:
     call(15, {"address": 0, "values": [1, 0, 1]}, lambda: client.write_coils(0, [True, False, True]))
     call(16, {"address": 10, "values": [1, 2, 3]}, lambda: client.write_registers(10, [1, 2, 3]))
     call(3, {"address": 10, "count": 3}, lambda: client.read_holding_registers(10, count=3))
-    call(
-        23,
-        {"read_address": 0, "read_count": 3, "write_address": 20, "values": [7, 8]},
-        lambda: client.readwrite_registers(read_address=0, read_count=3, write_address=20, values=[7, 8]),
-    )
+    call(23, {"read_address": 0, "read_count": 3, "write_address": 20, "values": [7, 8]},
+         lambda: client.readwrite_registers(read_address=0, read_count=3, write_address=20, values=[7, 8]))
     call(43, {"read_code": 1, "object_id": 0}, lambda: client.read_device_information(read_code=1, object_id=0))
     call(3, {"address": 500, "count": 2}, lambda: client.read_holding_registers(500, count=2))  # exception 2
     call(3, {"address": 0, "count": 2}, lambda: client.read_holding_registers(0, count=2, device_id=17), slave=17)

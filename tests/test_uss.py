@@ -70,9 +70,7 @@ def test_uss_record_in_jsonl(cli: object, tmp_path: object) -> None:
     records = cli("analyze", str(capture), "--format", "jsonl", "--profile", "nord-sk").jsonl()  # type: ignore[operator]
     frames = [r for r in records if r["kind"] == "frame"]
     assert [(f["protocol"], f["role"], f["slave"], f["function"], f["crc_ok"]) for f in frames] == [
-        ("uss", "request", 5, None, True),
-        ("uss", "response", 5, None, True),
-    ]
+        ("uss", "request", 5, None, True), ("uss", "response", 5, None, True)]
     assert records[-1]["crc_errors"] == 0
 
 

@@ -333,3 +333,4 @@ def _sequential(ctx: _Context, limit: int) -> SegmentParse:
 def _leftover(data: bytes, start: int, end: int, at_capture_start: bool) -> Piece:
     piece = classify_leftover(data[start:end], at_capture_start=at_capture_start)
     return Piece(start, end, piece.is_noise, piece.crc_ok, piece.flags)
+

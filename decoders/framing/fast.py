@@ -49,13 +49,8 @@ class _RuleTable:
                 position[function], base[function] = rule.position, rule.base
         return cls(fixed, position, base)
 
-    def lengths(
-        self,
-        padded: npt.NDArray[np.uint8],
-        starts: Int64Array,
-        functions: npt.NDArray[np.intp],
-        seg_lengths: Int64Array,
-    ) -> Int64Array:
+    def lengths(self, padded: npt.NDArray[np.uint8], starts: Int64Array, functions: npt.NDArray[np.intp],
+                seg_lengths: Int64Array) -> Int64Array:
         """The rule length of every segment, or -1 where this table cannot say."""
         position = self.position[functions]
         counted_ok = (position >= 0) & (position < seg_lengths)

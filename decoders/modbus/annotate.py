@@ -133,6 +133,7 @@ class Annotator:
         annotated = message.decoded(summary=summary, params=named_registers(pdu, request), pdu=pdu)
         return annotated if self._profiles is None else self._profiles.apply(annotated, request)
 
+
     def _uss(self, message: Message) -> Message:
         telegram = parse_uss(message.frame.data)
         annotated = message.decoded(summary=telegram.summary(), uss=telegram)

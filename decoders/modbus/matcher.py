@@ -213,9 +213,8 @@ class Matcher:
             slave, raw, shape, position = slaves[i], functions[i], shape_of[i], first + i
             if raw & EXCEPTION_BIT:
                 code = data[offsets[i] + (3 if offsets[i + 1] - offsets[i] == MEI_EXCEPTION_LENGTH else 2)]
-                self._exception(
-                    position, slave, raw & ~EXCEPTION_BIT, shape, code=code, crc_ok=crc_oks[i], t_start=t_start
-                )
+                self._exception(position, slave, raw & ~EXCEPTION_BIT, shape, code=code, crc_ok=crc_oks[i],
+                                t_start=t_start)
                 deadline, timeout = self._deadline(), self.timeout_ns
                 continue
             if slave == BROADCAST_ADDRESS:
@@ -407,13 +406,6 @@ def _empty_batch() -> MessageBatch:
 
 def _no_frames() -> FrameBatch:
     return FrameBatch(
-        0,
-        b"",
-        np.zeros(1, np.int64),
-        np.zeros(0, np.int64),
-        np.zeros(0, np.int64),
-        np.zeros(0, np.bool_),
-        np.zeros(0, np.uint16),
-        np.zeros(0, np.bool_),
-        np.zeros(0, np.int64),
+        0, b"", np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.bool_),
+        np.zeros(0, np.uint16), np.zeros(0, np.bool_), np.zeros(0, np.int64),
     )

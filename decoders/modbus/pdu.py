@@ -450,32 +450,10 @@ class Malformed:
 
 
 Pdu = (
-    ReadRequest
-    | BitsResponse
-    | RegistersResponse
-    | WriteSingle
-    | NoData
-    | ExceptionStatus
-    | Diagnostics
-    | CommEventCounter
-    | CommEventLog
-    | WriteCoilsRequest
-    | WriteRegistersRequest
-    | WriteMultipleResponse
-    | ServerId
-    | FileRecords
-    | FileReadResponse
-    | MaskWrite
-    | ReadWriteRequest
-    | FifoRequest
-    | FifoResponse
-    | DeviceIdRequest
-    | DeviceIdResponse
-    | MeiRaw
-    | ExceptionPdu
-    | AltivarMeiError
-    | RawPdu
-    | Malformed
+    ReadRequest | BitsResponse | RegistersResponse | WriteSingle | NoData | ExceptionStatus | Diagnostics
+    | CommEventCounter | CommEventLog | WriteCoilsRequest | WriteRegistersRequest | WriteMultipleResponse
+    | ServerId | FileRecords | FileReadResponse | MaskWrite | ReadWriteRequest | FifoRequest | FifoResponse
+    | DeviceIdRequest | DeviceIdResponse | MeiRaw | ExceptionPdu | AltivarMeiError | RawPdu | Malformed
 )
 Parser = Callable[[int, bytes], Pdu]
 

@@ -50,10 +50,8 @@ def frame_shapes(frames: FrameBatch) -> Shapes:
     exception = (raw & EXCEPTION_BIT) != 0
     fits_req = long_enough & ~exception & (lengths == REQUEST_RULES.lengths(padded, starts, raw, lengths))
     fits_resp = long_enough & ~exception & (lengths == RESPONSE_RULES.lengths(padded, starts, raw, lengths))
-    exception_fit = (
-        long_enough
-        & exception
-        & ((lengths == EXCEPTION_LENGTH) | ((raw == (43 | EXCEPTION_BIT)) & (lengths == MEI_EXCEPTION_LENGTH)))
+    exception_fit = long_enough & exception & (
+        (lengths == EXCEPTION_LENGTH) | ((raw == (43 | EXCEPTION_BIT)) & (lengths == MEI_EXCEPTION_LENGTH))
     )
     shape = fits_req * FITS_REQUEST | fits_resp * FITS_RESPONSE | exception_fit * (FITS_RESPONSE | IS_EXCEPTION)
     shape = shape.astype(np.int64)

@@ -223,15 +223,8 @@ def _value(
 
 def _knows_nothing(profile: Profile) -> bool:
     """A profile with nothing to add (generic): messages pass unchanged."""
-    return not (
-        profile.parameters
-        or profile.specials
-        or profile.indirections
-        or profile.exceptions
-        or profile.limits.functions
-        or profile.address_style != "plain"
-        or profile.uss_control_word
-    )
+    return not (profile.parameters or profile.specials or profile.indirections or profile.exceptions
+                or profile.limits.functions or profile.address_style != "plain" or profile.uss_control_word)
 
 
 def _plain(profile: Profile, param: ParamValue, reported: bool) -> ParamValue:
@@ -259,10 +252,8 @@ def _limit_remarks(profile: Profile, message: Message, pdu: Pdu) -> list[str]:
     if isinstance(pdu, WriteRegistersRequest | WriteCoilsRequest):
         checks.append((pdu.count, limits.write_registers, "writes"))
     if isinstance(pdu, ReadWriteRequest):
-        checks += [
-            (pdu.read_count, limits.read_write_read, "reads (FC 23)"),
-            (pdu.write_count, limits.read_write_write, "writes (FC 23)"),
-        ]
+        checks += [(pdu.read_count, limits.read_write_read, "reads (FC 23)"),
+                   (pdu.write_count, limits.read_write_write, "writes (FC 23)")]
     for count, limit, verb in checks:
         if limit and count > limit:
             remarks.append(f"{verb} {count} words; {name} {verb.split()[0]} at most {limit}")
@@ -284,10 +275,8 @@ def _addresses(pdu: Pdu | None) -> list[int]:
     if isinstance(pdu, ReadRequest | WriteRegistersRequest | WriteCoilsRequest):
         return list(range(pdu.address, pdu.address + pdu.count))
     if isinstance(pdu, ReadWriteRequest):
-        return [
-            *range(pdu.read_address, pdu.read_address + pdu.read_count),
-            *range(pdu.write_address, pdu.write_address + pdu.write_count),
-        ]
+        return [*range(pdu.read_address, pdu.read_address + pdu.read_count),
+                *range(pdu.write_address, pdu.write_address + pdu.write_count)]
     address = getattr(pdu, "address", None)
     return [address] if isinstance(address, int) else []
 

@@ -63,17 +63,8 @@ class _Reader:
 
 def _kind_name(kind: type | tuple[type, ...]) -> str:
     kinds = kind if isinstance(kind, tuple) else (kind,)
-    return " or ".join(
-        {
-            "str": "text",
-            "int": "a whole number",
-            "float": "a number",
-            "list": "a list",
-            "dict": "a table",
-            "bool": "true/false",
-        }.get(k.__name__, k.__name__)
-        for k in kinds
-    )
+    return " or ".join({"str": "text", "int": "a whole number", "float": "a number", "list": "a list",
+                        "dict": "a table", "bool": "true/false"}.get(k.__name__, k.__name__) for k in kinds)
 
 
 def parse_profile(text: str, origin: str) -> Profile:
@@ -235,9 +226,8 @@ def _bit_number(reader: _Reader, table: dict[str, Any], where: str) -> int:
 
 
 def _special(reader: _Reader, table: dict[str, Any], where: str) -> Special:
-    return Special(
-        reader.get(table, "raw", int, where), reader.get(table, "meaning", str, where), _source(reader, table, where)
-    )
+    return Special(reader.get(table, "raw", int, where), reader.get(table, "meaning", str, where),
+                   _source(reader, table, where))
 
 
 def _exception(reader: _Reader, table: dict[str, Any], where: str) -> ExceptionNote:
@@ -252,10 +242,8 @@ def _exception(reader: _Reader, table: dict[str, Any], where: str) -> ExceptionN
 
 def _limits(reader: _Reader, table: dict[str, Any]) -> Limits:
     where = "limits"
-    numbers = {
-        key: reader.get(table, key, int, where, 0)
-        for key in ("read_registers", "write_registers", "read_write_read", "read_write_write")
-    }
+    numbers = {key: reader.get(table, key, int, where, 0) for key in
+               ("read_registers", "write_registers", "read_write_read", "read_write_write")}
     for key, value in numbers.items():
         if not 0 <= value <= 125:
             raise reader.fail(f"{where}.{key}", f"{value} is outside 0..125")

@@ -26,29 +26,16 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "its time, and show the decoded traffic as it happens.",
     )
     parser.add_argument("port", help="serial port, e.g. /dev/ttyUSB0 (see 'rtusniff ports')")
-    parser.add_argument(
-        "--line",
-        nargs="+",
-        required=True,
-        metavar="SETTING",
-        help="'BAUD FORMAT' (e.g. --line 19200 8E1), or 'auto' to find them by listening",
-    )
-    parser.add_argument(
-        "--probe-seconds",
-        type=float,
-        default=1.5,
-        help="with --line auto: how long to listen per setting (default 1.5)",
-    )
+    parser.add_argument("--line", nargs="+", required=True, metavar="SETTING",
+                        help="'BAUD FORMAT' (e.g. --line 19200 8E1), or 'auto' to find them by listening")
+    parser.add_argument("--probe-seconds", type=float, default=1.5,
+                        help="with --line auto: how long to listen per setting (default 1.5)")
     parser.add_argument("--char-timing", action="store_true", help="as for analyze")
     parser.add_argument("-o", "--output", help="record to FILE.mcap (native) or FILE.log (text), flushed every second")
     parser.add_argument("--rotate", help="start a new file after a size (100MB) or a duration (1h): FILE-0001.mcap, …")
     parser.add_argument("--quiet", action="store_true", help="only record: no decoding, no view")
-    parser.add_argument(
-        "--format",
-        choices=["view", "jsonl"],
-        default="view",
-        help="view: live terminal view (default); jsonl: stream JSON Lines records to stdout",
-    )
+    parser.add_argument("--format", choices=["view", "jsonl"], default="view",
+                        help="view: live terminal view (default); jsonl: stream JSON Lines records to stdout")
     parser.add_argument("--duration", type=float, metavar="SECONDS", help="stop after SECONDS")
     add_response_timeout_option(parser)
     add_profile_options(parser)
@@ -62,9 +49,8 @@ def run(args: argparse.Namespace) -> int:
     if args.output is not None:
         find_format(args.output)
         if Path(args.output).exists():
-            raise RtuSniffError(
-                ErrorKind.OUTPUT_FAILED, "exists; capture never overwrites a recording", path=args.output
-            )
+            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; capture never overwrites a recording",
+                                path=args.output)
     book = profile_book(args.profile, args.profile_file)
     line = _line(args, err)
     options = CaptureOptions(

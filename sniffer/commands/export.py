@@ -110,11 +110,7 @@ class ExportView:
     def close(self) -> None:
         """Closes every output; the first that fails to write is the error."""
         exporters, self.mcap, self.pcap, self.rerun = (
-            [(self.args.mcap, self.mcap), (self.args.pcap, self.pcap), (self.args.rrd, self.rerun)],
-            None,
-            None,
-            None,
-        )
+            [(self.args.mcap, self.mcap), (self.args.pcap, self.pcap), (self.args.rrd, self.rerun)], None, None, None)
         with ExitStack() as closing:
             for path, exporter in exporters:
                 if exporter is not None:
@@ -138,12 +134,8 @@ def _writing(path: str | None) -> Iterator[None]:
 
 def _metadata(args: argparse.Namespace, analysis: Analysis) -> dict[str, str]:
     book = analysis.profiles
-    profiles = (
-        "generic"
-        if book is None
-        else ", ".join(
-            [f"default {book.default.id}", *(f"slave {s}: {p.id}" for s, p in sorted(book.per_slave.items()))]
-        )
+    profiles = "generic" if book is None else ", ".join(
+        [f"default {book.default.id}", *(f"slave {s}: {p.id}" for s, p in sorted(book.per_slave.items()))]
     )
     return {
         "source": args.capture,

@@ -11,11 +11,8 @@ from sniffer.serial_source import serial_ports
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
-        "ports",
-        help="list the serial ports (for capture)",
-        description="List the serial ports pyserial finds, with their descriptions.",
-    )
+    parser = subparsers.add_parser("ports", help="list the serial ports (for capture)",
+                                   description="List the serial ports pyserial finds, with their descriptions.")
     parser.set_defaults(run=run)
 
 

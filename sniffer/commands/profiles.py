@@ -34,10 +34,8 @@ def run(args: argparse.Namespace) -> int:
         raise RtuSniffError(ErrorKind.USAGE, f"profiles {args.action}: give a {wanted}")
     if args.action == "check":
         profile = load_profile_file(args.target)
-        console.print(
-            f"{args.target}: profile {profile.id!r} is valid: {len(profile.parameters)} parameters, "
-            f"{len(profile.bitfields)} bit fields, {len(profile.exceptions)} exception notes"
-        )
+        console.print(f"{args.target}: profile {profile.id!r} is valid: {len(profile.parameters)} parameters, "
+                      f"{len(profile.bitfields)} bit fields, {len(profile.exceptions)} exception notes")
         return 0
     known = shipped_profiles()
     if args.target not in known:
@@ -51,9 +49,8 @@ def _list_table(profiles: dict[str, Profile]) -> Table:
     for header in ("name", "device", "role", "parameters", "identified by product code"):
         table.add_column(header)
     for profile in profiles.values():
-        table.add_row(
-            profile.id, profile.name, profile.role, str(len(profile.parameters)), ", ".join(profile.product_codes)
-        )
+        table.add_row(profile.id, profile.name, profile.role, str(len(profile.parameters)),
+                      ", ".join(profile.product_codes))
     return table
 
 
@@ -65,16 +62,10 @@ def _show(console: Console, profile: Profile) -> None:
         console.print(f"  note: {note}")
     limits = profile.limits
     if limits.functions:
-        console.print(
-            f"  functions: {', '.join(map(str, limits.functions))}; broadcast: "
-            f"{', '.join(map(str, limits.broadcast_functions)) or 'none'}"
-        )
-        counts = {
-            "read": limits.read_registers,
-            "write": limits.write_registers,
-            "FC 23 read": limits.read_write_read,
-            "FC 23 write": limits.read_write_write,
-        }
+        console.print(f"  functions: {', '.join(map(str, limits.functions))}; broadcast: "
+                      f"{', '.join(map(str, limits.broadcast_functions)) or 'none'}")
+        counts = {"read": limits.read_registers, "write": limits.write_registers,
+                  "FC 23 read": limits.read_write_read, "FC 23 write": limits.read_write_write}
         shown = ", ".join(f"{k} {v}" for k, v in counts.items() if v)
         if shown:
             console.print(f"  at most (registers): {shown}")
@@ -83,10 +74,8 @@ def _show(console: Console, profile: Profile) -> None:
     if profile.parameters:
         console.print(_parameter_table(profile))
     for table in profile.indirections:
-        console.print(
-            f"  {table.prefix}1-{table.count}: registers {table.value_registers}.. carry the parameters "
-            f"whose addresses registers {table.address_registers}.. hold; defaults {list(table.defaults)}"
-        )
+        console.print(f"  {table.prefix}1-{table.count}: registers {table.value_registers}.. carry the parameters "
+                      f"whose addresses registers {table.address_registers}.. hold; defaults {list(table.defaults)}")
     for exception in profile.exceptions:
         scope = f" on FC {exception.function}" if exception.function else ""
         console.print(f"  exception {exception.code:02X}{scope}: {exception.explanation}")
@@ -104,15 +93,7 @@ def _parameter_table(profile: Profile) -> Table:
     for address, parameter in sorted(profile.parameters.items()):
         scale = "" if parameter.scale == 1.0 else f"{parameter.scale:g}"
         kind = f" [{parameter.bitfield}]" if parameter.bitfield else ""
-        table.add_row(
-            str(address),
-            f"16#{address:04X}",
-            parameter.code,
-            parameter.name + kind,
-            parameter.unit or "",
-            scale + (" signed" if parameter.signed else ""),
-            parameter.access,
-            parameter.source,
-            parameter.note or "",
-        )
+        table.add_row(str(address), f"16#{address:04X}", parameter.code, parameter.name + kind, parameter.unit or "",
+                      scale + (" signed" if parameter.signed else ""), parameter.access, parameter.source,
+                      parameter.note or "")
     return table

@@ -36,15 +36,8 @@ def _varint(value: int) -> bytes:
             return bytes((value & 0x7F | 0x80, value >> 7 & 0x7F | 0x80, value >> 14))
         if value < 1 << 28:
             return bytes((value & 0x7F | 0x80, value >> 7 & 0x7F | 0x80, value >> 14 & 0x7F | 0x80, value >> 21))
-        return bytes(
-            (
-                value & 0x7F | 0x80,
-                value >> 7 & 0x7F | 0x80,
-                value >> 14 & 0x7F | 0x80,
-                value >> 21 & 0x7F | 0x80,
-                value >> 28,
-            )
-        )
+        return bytes((value & 0x7F | 0x80, value >> 7 & 0x7F | 0x80, value >> 14 & 0x7F | 0x80,
+                      value >> 21 & 0x7F | 0x80, value >> 28))
     value &= (1 << 64) - 1
     out = bytearray()
     while True:
@@ -155,44 +148,29 @@ _LEVELS = Table([_number(2, level) if level else b"" for level in range(6)])  # 
 
 
 def _field(name: str, number: int, kind: int, type_name: str = "") -> bytes:
-    return (
-        _text(1, name)
-        + _number(3, number)
-        + _number(4, _OPTIONAL)
-        + _number(5, kind)
-        + (_text(6, type_name) if type_name else b"")
-    )
+    return (_text(1, name) + _number(3, number) + _number(4, _OPTIONAL) + _number(5, kind)
+            + (_text(6, type_name) if type_name else b""))
 
 
 def _file_descriptor_set() -> bytes:
     seconds_and_nanos = _bytes(2, _field("seconds", 1, _INT64)) + _bytes(2, _field("nanos", 2, _INT32))
     timestamp = (
-        _text(1, "google/protobuf/timestamp.proto")
-        + _text(2, "google.protobuf")
+        _text(1, "google/protobuf/timestamp.proto") + _text(2, "google.protobuf")
         + _bytes(4, _text(1, "Timestamp") + seconds_and_nanos)
         + _text(12, "proto3")
     )
-    levels = b"".join(
-        _bytes(2, _text(1, name) + _number(2, number))
-        for number, name in enumerate(["UNKNOWN", "DEBUG", "INFO", "WARNING", "ERROR", "FATAL"])
-    )
+    levels = b"".join(_bytes(2, _text(1, name) + _number(2, number)) for number, name in
+                      enumerate(["UNKNOWN", "DEBUG", "INFO", "WARNING", "ERROR", "FATAL"]))
     log = (
         _text(1, "Log")
         + _bytes(2, _field("timestamp", 1, _MESSAGE, ".google.protobuf.Timestamp"))
         + _bytes(2, _field("level", 2, _ENUM, ".foxglove.Log.Level"))
-        + _bytes(2, _field("message", 3, _STRING))
-        + _bytes(2, _field("name", 4, _STRING))
-        + _bytes(2, _field("file", 5, _STRING))
-        + _bytes(2, _field("line", 6, _FIXED32_TYPE))
+        + _bytes(2, _field("message", 3, _STRING)) + _bytes(2, _field("name", 4, _STRING))
+        + _bytes(2, _field("file", 5, _STRING)) + _bytes(2, _field("line", 6, _FIXED32_TYPE))
         + _bytes(4, _text(1, "Level") + levels)
     )
-    foxglove = (
-        _text(1, "foxglove/Log.proto")
-        + _text(2, "foxglove")
-        + _text(3, "google/protobuf/timestamp.proto")
-        + _bytes(4, log)
-        + _text(12, "proto3")
-    )
+    foxglove = (_text(1, "foxglove/Log.proto") + _text(2, "foxglove") + _text(3, "google/protobuf/timestamp.proto")
+                + _bytes(4, log) + _text(12, "proto3"))
     return _bytes(1, timestamp) + _bytes(1, foxglove)
 
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 import contextlib
 import json
 from importlib.metadata import version
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -85,8 +85,7 @@ TRANSACTION_SCHEMA: dict[str, Any] = {
     "description": "A request and what became of it.",
     "properties": {
         "request_index": {"type": "integer"}, "answer_index": _INT_OR_NULL, "slave": {"type": "integer"},
-        "function": _INT_OR_NULL, "outcome": {"type": "string",
-                                             "enum": OUTCOMES},
+        "function": _INT_OR_NULL, "outcome": {"type": "string", "enum": OUTCOMES},
         "latency_s": _NUMBER_OR_NULL, "latency_ms": _NUMBER_OR_NULL, "exception_code": _INT_OR_NULL,
         "request": {"type": "string"}, "answer": _TEXT_OR_NULL,
     },
@@ -143,7 +142,7 @@ class McapExporter:
         self._frame_records = FrameRecordEncoder(exact=False)
         self._log_encoder = foxglove_log.LogEncoder(_LOG_NAMES)
         #: Per decoding: the log text after the frame index, and the numeric params as JSON members.
-        self._parts: Memo[Decoding, tuple[bytes, bytes | None]] = Memo(KEPT_DECODINGS)
+        self._parts: Memo[Decoding, tuple[bytes, bytes]] = Memo(KEPT_DECODINGS)
         self._transaction_rows = TransactionEncoder(HEADER_SIZE)
 
     def _json_channel(self, topic: str, schema: dict[str, Any]) -> int:
@@ -166,16 +165,10 @@ class McapExporter:
         decodings = list(map(batch.decodings.__getitem__, positions))
         heads, values = self._decoding_parts(decodings, messages.role[kept])
         indexes = number_texts(kept + frames.first_index)
-        count = len(positions)
         self._write(self._frame_records.rows(batch, reserved=HEADER_SIZE), self._frames, t_ns)
-        text: list[Column] = [
-            b"#",
-            indexes,
-            heads,
-            _FLAG_SUFFIXES.column(messages.flags[kept]),
-        ]
+        text: list[Column] = [b"#", indexes, heads, _FLAG_SUFFIXES.column(messages.flags[kept])]
         log_rows = self._log_encoder.rows(t_ns, log_levels(messages)[kept], text, slaves, HEADER_SIZE)
-        self._write(log_rows, np.full(count, self._log, np.uint16), t_ns)
+        self._write(log_rows, self._log, t_ns)
         self._params(values, indexes, slaves, t_ns)
         transactions, times = self._transaction_rows.rows(batch, kept)
         self._write(transactions, self._transactions, times)
@@ -185,16 +178,10 @@ class McapExporter:
             channels = np.full(len(rows), channels, np.uint16)
         self._writer.write(MessageBlock(rows, channels, t_ns))
 
-    def _params(
-        self,
-        values: list[bytes | None],
-        indexes: list[bytes],
-        slaves: Integers,
-        t_ns: npt.NDArray[np.int64],
-    ) -> None:
-        """A message per answer or write that carried values, on its slave's channel (read
-        requests carry only addresses)."""
-        carried = np.fromiter(map(_is_bytes, values), np.bool_, len(values)) & (slaves != NONE)
+    def _params(self, values: list[bytes], indexes: list[bytes], slaves: Integers, t_ns: npt.NDArray[np.int64]) -> None:
+        """A message per answer or write that carried values (read requests carry only
+        addresses: no values, ``b""``), on its slave's channel."""
+        carried = (np.fromiter(map(len, values), np.int64, len(values)) > 0) & (slaves != NONE)
         rows = np.flatnonzero(carried)
         if not len(rows):
             return
@@ -204,21 +191,22 @@ class McapExporter:
                     f"/slave/{slave}/params", "json", self._params_schema, {}
                 )
         picked = rows.tolist()
-        columns: list[Column] = [b'{"index":', [indexes[row] for row in picked], b",", [values[row] for row in picked]]  # type: ignore[misc]
+        columns: list[Column] = [b'{"index":', [indexes[row] for row in picked], b",", [values[row] for row in picked]]
         self._write(join_rows(columns, len(picked), HEADER_SIZE), self._param_channels[slaves[rows]], t_ns[rows])
 
-    def _decoding_parts(self, decodings: list[Decoding], roles: Integers) -> tuple[list[bytes], list[bytes | None]]:
+    def _decoding_parts(self, decodings: list[Decoding], roles: Integers) -> tuple[list[bytes], list[bytes]]:
         """Per message: the log text after the frame index, and its numeric params as JSON
-        members (``None``: it carried no values). Looked up in C for repeats."""
+        members (``b""``: it carried no values). Looked up in C for repeats."""
         found = list(map(self._parts.recent(), decodings))
         for row, parts in enumerate(found):
             if parts is None:
                 found[row] = self._parts.get(decodings[row]) or self._new_parts(decodings[row], int(roles[row]))
-        return [parts[0] for parts in found], [parts[1] for parts in found]  # type: ignore[index]
+        complete = cast(list[tuple[bytes, bytes]], found)
+        return [parts[0] for parts in complete], [parts[1] for parts in complete]
 
-    def _new_parts(self, decoding: Decoding, role: int) -> tuple[bytes, bytes | None]:
+    def _new_parts(self, decoding: Decoding, role: int) -> tuple[bytes, bytes]:
         values = numeric_params(decoding)
-        parts = (f" {ROLE_ORDER[role].value}: {decoding.summary}".encode(), encode_json(values)[1:] if values else None)
+        parts = (f" {ROLE_ORDER[role].value}: {decoding.summary}".encode(), encode_json(values)[1:] if values else b"")
         self._parts.put(decoding, parts)
         return parts
 
@@ -233,10 +221,6 @@ class McapExporter:
             self._writer.close()
         with contextlib.suppress(OSError):
             self._file.close()
-
-
-def _is_bytes(value: object) -> bool:
-    return value is not None
 
 
 #: The log's ``name`` by slave; NONE (-1, noise) is the last.

@@ -115,7 +115,8 @@ class ColumnarMcapWriter:
         self._position = 0
         self._schemas: list[Schema] = []
         self._channels: list[Channel] = []
-        self._chunk_indexes: list[ChunkIndex] = []
+        #: Chunk Index records, serialised at once: a day's export has ten thousand chunks.
+        self._chunk_indexes: list[bytes] = []
         self._metadata_indexes: list[MetadataIndex] = []
         self._counts = np.zeros(1, np.int64)
         self._times: tuple[int, int] | None = None
@@ -257,16 +258,18 @@ class ColumnarMcapWriter:
             indexes_size += len(index)
         self._put(b"".join(index for _, index in indexes))
         self._chunk_indexes.append(
-            ChunkIndex(
-                message_start_time=int(times.min()),
-                message_end_time=int(times.max()),
-                chunk_start_offset=chunk_start,
-                chunk_length=len(record),
-                message_index_offsets=offsets,
-                message_index_length=self._position - index_start,
-                compression="zstd",
-                compressed_size=len(compressed),
-                uncompressed_size=len(records),
+            _records(
+                ChunkIndex(
+                    message_start_time=int(times.min()),
+                    message_end_time=int(times.max()),
+                    chunk_start_offset=chunk_start,
+                    chunk_length=len(record),
+                    message_index_offsets=offsets,
+                    message_index_length=self._position - index_start,
+                    compression="zstd",
+                    compressed_size=len(compressed),
+                    uncompressed_size=len(records),
+                )
             )
         )
 
@@ -288,15 +291,15 @@ class ColumnarMcapWriter:
             channel_message_counts=channel_counts,
         )
         for opcode, group in (
-            (Opcode.SCHEMA, self._schemas),
-            (Opcode.CHANNEL, self._channels),
-            (Opcode.STATISTICS, [statistics]),
+            (Opcode.SCHEMA, [_records(*self._schemas)]),
+            (Opcode.CHANNEL, [_records(*self._channels)]),
+            (Opcode.STATISTICS, [_records(statistics)]),
             (Opcode.CHUNK_INDEX, self._chunk_indexes),
-            (Opcode.METADATA_INDEX, self._metadata_indexes),
+            (Opcode.METADATA_INDEX, [_records(*self._metadata_indexes)]),
         ):
             group_start = summary.count
-            for item in group:
-                item.write(summary)
+            for records in group:
+                summary.write(records)
             groups.append(
                 SummaryOffset(
                     group_opcode=opcode,
@@ -317,7 +320,9 @@ class ColumnarMcapWriter:
         self._file.flush()
 
 
-def _records(*records: Header | Schema | Channel | Metadata | Chunk | DataEnd | Footer) -> bytes:
+def _records(
+    *records: Header | Schema | Channel | Metadata | Chunk | ChunkIndex | MetadataIndex | Statistics | DataEnd | Footer,
+) -> bytes:
     builder = RecordBuilder()
     for record in records:
         record.write(builder)

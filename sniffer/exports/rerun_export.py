@@ -39,9 +39,8 @@ MAX_PIECES = 32
 MAX_UNNAMED_SERIES = 64
 SECOND_NS = 1_000_000_000
 #: Rerun's level names by foxglove.Log level.
-_LEVEL_NAMES = np.array(
-    [{INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}.get(level, "") for level in range(ERROR + 1)], dtype=object
-)
+_LEVEL_NAMES = np.array([{INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}.get(level, "") for level in range(ERROR + 1)],
+                        dtype=object)
 _ERRORS = ("crc", "timeout", "exception")
 # Read from every frame's parts with ``map``, in C.
 _TEXT, _LATENCY_ENTITY, _STATES = attrgetter("text"), attrgetter("latency_entity"), attrgetter("states")
@@ -107,8 +106,7 @@ class RerunExporter:
         self._parts: Memo[Decoding, _Parts] = Memo(KEPT_DECODINGS)
         #: (plot entity, state entity), or () for a register not plotted.
         self._param_entities: Memo[tuple[int, int, str | None, str | None], tuple[int, int] | tuple[()]] = Memo(
-            KEPT_DECODINGS
-        )
+            KEPT_DECODINGS)
         #: Per slave address: the entity ids of its log and its crc, timeout and exception errors.
         self._slave_ids = np.full((256, 1 + len(_ERRORS)), -1, np.int64)
         self._unnamed: dict[int, set[int]] = {}
@@ -129,26 +127,16 @@ class RerunExporter:
         noise = slave == NONE
         if noise.any():
             chosen = positions[noise]
-            self._append(
-                self._entity("bus/noise"),
-                t_start[noise],
-                chosen + frames.first_index,
-                texts=_strings([batch.decodings[p].summary for p in chosen.tolist()]),
-                level="WARN",
-            )
+            self._append(self._entity("bus/noise"), t_start[noise], chosen + frames.first_index,
+                         texts=_strings([batch.decodings[p].summary for p in chosen.tolist()]), level="WARN")
             keep = ~noise
             positions, t_start, slave = positions[keep], t_start[keep], slave[keep]
         if len(positions):
             self._frames(batch, positions, t_start, slave)
         self._send_due()
 
-    def _frames(
-        self,
-        batch: AnnotatedBatch,
-        positions: npt.NDArray[np.int64],
-        t_start: npt.NDArray[np.int64],
-        slave: npt.NDArray[np.int16],
-    ) -> None:
+    def _frames(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64], t_start: npt.NDArray[np.int64],
+                slave: npt.NDArray[np.int16]) -> None:
         """The frames of slaves: log lines, parameter values, states, latencies, error points."""
         messages, frames = batch.messages, batch.messages.frames
         index = positions + frames.first_index
@@ -164,12 +152,8 @@ class RerunExporter:
         counts = np.fromiter(map(len, map(_SCALAR_IDS, parts)), np.int64, len(parts))
         if counts.any():
             rows = np.repeat(np.arange(len(parts)), counts)
-            self._grouped(
-                np.concatenate(list(map(_SCALAR_IDS, parts))),
-                t_start[rows],
-                index[rows],
-                values=np.concatenate(list(map(_SCALAR_VALUES, parts))),
-            )
+            self._grouped(np.concatenate(list(map(_SCALAR_IDS, parts))), t_start[rows], index[rows],
+                          values=np.concatenate(list(map(_SCALAR_VALUES, parts))))
         for row in np.flatnonzero(np.fromiter(map(len, map(_STATES, parts)), np.int64, len(parts))).tolist():
             for entity, text in parts[row].states:
                 if self._states.get(entity) != text:
@@ -200,8 +184,7 @@ class RerunExporter:
                     position = int(positions[row])
                     slave, role, function = (int(column[position]) for column in columns)
                     parts[row] = self._parts.get(decodings[row]) or self._decoding_parts(
-                        decodings[row], slave, role, function
-                    )
+                        decodings[row], slave, role, function)
         return parts  # type: ignore[return-value]  # every None was filled
 
     def _decoding_parts(self, decoding: Decoding, slave: int, role: int, function: int) -> _Parts:
@@ -224,13 +207,8 @@ class RerunExporter:
         latency = -1
         if function != NONE:
             latency = self._entity(f"slaves/{slave}/latency_ms/fc{function}", f"latency FC {function} (ms)")
-        parts = _Parts(
-            f"{ROLE_ORDER[role].value}: {decoding.summary}",
-            np.array(scalar_ids, np.int64),
-            np.array(scalar_values, np.float64),
-            states,
-            latency,
-        )
+        parts = _Parts(f"{ROLE_ORDER[role].value}: {decoding.summary}", np.array(scalar_ids, np.int64),
+                       np.array(scalar_values, np.float64), states, latency)
         self._parts.put(decoding, parts)
         return parts
 
@@ -254,10 +232,8 @@ class RerunExporter:
         series: tuple[int, int] | tuple[()] = ()
         if param.code is not None or self._may_plot(slave, param.address):
             name = f"{code} ({param.unit})" if param.unit else code
-            series = (
-                self._entity(f"slaves/{slave}/params/{_path(code)}", name),
-                self._entity(f"slaves/{slave}/state/{_path(code)}"),
-            )
+            series = (self._entity(f"slaves/{slave}/params/{_path(code)}", name),
+                      self._entity(f"slaves/{slave}/state/{_path(code)}"))
         self._param_entities.put(key, series)
         return series
 
@@ -283,23 +259,16 @@ class RerunExporter:
                 self._styles[entity] = rr.SeriesPoints(names=series) if points else rr.SeriesLines(names=series)
         return entity
 
-    def _bus(
-        self,
-        t_start: npt.NDArray[np.int64],
-        wire_ns: npt.NDArray[np.int64],
-        failed: npt.NDArray[np.bool_],
-        *,
-        first_index: int,
-    ) -> None:
+    def _bus(self, t_start: npt.NDArray[np.int64], wire_ns: npt.NDArray[np.int64], failed: npt.NDArray[np.bool_],
+             *, first_index: int) -> None:
         """Bus load and errors per second, a point at the start of each second once it is over."""
         seconds = t_start // SECOND_NS
         starts = np.flatnonzero(np.diff(seconds, prepend=seconds[0] - 1))
         wire = np.add.reduceat(wire_ns, starts).tolist()
         failures = np.add.reduceat(failed.astype(np.int64), starts).tolist()
         times, indexes, loads, rates = [], [], [], []
-        for second, first, wire_sum, error_count in zip(
-            seconds[starts].tolist(), starts.tolist(), wire, failures, strict=True
-        ):
+        for second, first, wire_sum, error_count in zip(seconds[starts].tolist(), starts.tolist(), wire, failures,
+                                                         strict=True):
             if self._second is not None and second != self._second:
                 times.append(self._second * SECOND_NS)
                 indexes.append(first_index + first)
@@ -314,16 +283,9 @@ class RerunExporter:
             self._append(self._entity("bus/load_percent", "bus load (%)"), at, frame, values=np.array(loads))
             self._append(self._entity("bus/errors_per_s", "errors per second"), at, frame, values=np.array(rates))
 
-    def _grouped(
-        self,
-        entities: npt.NDArray[np.int64],
-        times: npt.NDArray[np.int64],
-        frames: npt.NDArray[np.int64],
-        *,
-        values: npt.NDArray[np.float64] | None = None,
-        texts: npt.NDArray[np.object_] | None = None,
-        levels: npt.NDArray[np.object_] | None = None,
-    ) -> None:
+    def _grouped(self, entities: npt.NDArray[np.int64], times: npt.NDArray[np.int64], frames: npt.NDArray[np.int64],
+                 *, values: npt.NDArray[np.float64] | None = None, texts: npt.NDArray[np.object_] | None = None,
+                 levels: npt.NDArray[np.object_] | None = None) -> None:
         """Rows of several entities, each given to its entity in its order."""
         if not len(entities):
             return
@@ -336,17 +298,9 @@ class RerunExporter:
             elif values is not None:
                 self._append(entity, times[rows], frames[rows], values=values[rows])
 
-    def _append(
-        self,
-        entity: int,
-        times: npt.NDArray[np.int64],
-        frames: npt.NDArray[np.int64],
-        *,
-        values: npt.NDArray[np.float64] | None = None,
-        texts: npt.NDArray[np.object_] | None = None,
-        level: str = "INFO",
-        levels: npt.NDArray[np.object_] | None = None,
-    ) -> None:
+    def _append(self, entity: int, times: npt.NDArray[np.int64], frames: npt.NDArray[np.int64], *,
+                values: npt.NDArray[np.float64] | None = None, texts: npt.NDArray[np.object_] | None = None,
+                level: str = "INFO", levels: npt.NDArray[np.object_] | None = None) -> None:
         rows = self._buffers.get(entity)
         if rows is None:
             rows = self._buffers[entity] = _Rows()

@@ -40,7 +40,9 @@ def find_format(path: str, name: str | None = None, head: bytes = b"") -> Captur
     known = all_formats()
     if name is not None:
         if name not in known:
-            raise RtuSniffError(ErrorKind.USAGE, f"unknown capture format {name!r}; known: {', '.join(sorted(known))}")
+            raise RtuSniffError(
+                ErrorKind.USAGE, f"unknown capture format {name!r}; known: {', '.join(sorted(known))}"
+            )
         return known[name]
     if path == STDIO:
         return known[STDIO_FORMAT]

@@ -51,8 +51,7 @@ class LiveView:
         load = "" if statistics.bus_load is None else f", bus load {100 * statistics.bus_load:.1f} %"
         where = f"{state.recorded_bytes:,} bytes recorded to {state.recording}" if state.recording else "not recording"
         text = Text.assemble(
-            (f"{state.port}", "bold"),
-            f"  {state.line}  {state.timing_note}\n",
+            (f"{state.port}", "bold"), f"  {state.line}  {state.timing_note}\n",
             f"{elapsed:,.0f} s, {statistics.frames:,} frames{load}, {where}\n",
         )
         if state.uart_errors:
@@ -60,24 +59,15 @@ class LiveView:
         if state.advice:
             text.append(f"note: {state.advice}\n", "yellow")
         if state.behind_reads:
-            text.append(
-                f"the view is behind: it skipped {state.behind_reads} reads (the recording has every byte)\n", "yellow"
-            )
+            text.append(f"the view is behind: it skipped {state.behind_reads} reads (the recording has every byte)\n",
+                        "yellow")
         return text
 
     @staticmethod
     def _slaves(statistics: Statistics) -> Table:
         table = Table(title="per slave", title_justify="left", expand=False)
-        for header in (
-            "slave",
-            "requests",
-            "responses",
-            "exceptions",
-            "CRC errors",
-            "timeouts",
-            "lat p50 ms",
-            "lat p95 ms",
-        ):
+        for header in ("slave", "requests", "responses", "exceptions", "CRC errors", "timeouts", "lat p50 ms",
+                       "lat p95 ms"):
             table.add_column(header, justify="right")
         per_slave: dict[int, list[int]] = {}
         latency: dict[int, Histogram] = {}
@@ -93,12 +83,8 @@ class LiveView:
                 merged.merge(stats.latency.counts, stats.latency.count, stats.latency.minimum, stats.latency.maximum)
         for slave in sorted(per_slave):
             p50, p95 = latency[slave].percentile(50), latency[slave].percentile(95)
-            table.add_row(
-                str(slave),
-                *map(str, per_slave[slave]),
-                "" if p50 is None else f"{p50 / 1e6:.2f}",
-                "" if p95 is None else f"{p95 / 1e6:.2f}",
-            )
+            table.add_row(str(slave), *map(str, per_slave[slave]),
+                          "" if p50 is None else f"{p50 / 1e6:.2f}", "" if p95 is None else f"{p95 / 1e6:.2f}")
         return table
 
     def _frames(self) -> Table:

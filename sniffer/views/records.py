@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -160,7 +160,8 @@ class FrameRecordEncoder:
         for row, parts in enumerate(found):
             if parts is None:
                 found[row] = self._parts.get(decodings[row]) or self._frame_parts(facts, positions[row], decodings[row])
-        return [parts[0] for parts in found], [parts[1] for parts in found]  # type: ignore[index]
+        complete = cast(list[tuple[bytes, bytes]], found)
+        return [parts[0] for parts in complete], [parts[1] for parts in complete]
 
     def _frame_parts(self, facts: _FrameFacts, position: int, decoding: Decoding) -> tuple[bytes, bytes]:
         """A record's parts that a decoding determines (the annotator shares a decoding only
@@ -192,29 +193,13 @@ class _FrameFacts:
     def __call__(self, position: int) -> tuple[bytes, bool, int, int, int, int, int]:
         if self._lists is None:
             batch, frames = self._batch, self._batch.frames
-            self._lists = tuple(
-                column.tolist()
-                for column in (
-                    frames.offsets,
-                    frames.crc_ok,
-                    batch.slave,
-                    batch.function,
-                    batch.role,
-                    batch.exception_code,
-                    frames.protocols(),
-                )
-            )
+            self._lists = tuple(column.tolist() for column in (
+                frames.offsets, frames.crc_ok, batch.slave, batch.function, batch.role, batch.exception_code,
+                frames.protocols()))
         offsets, crc_ok, slave, function, role, code, protocol = self._lists
         data = self._batch.frames.data[offsets[position] : offsets[position + 1]]
-        return (
-            data,
-            crc_ok[position],
-            slave[position],
-            function[position],
-            role[position],
-            code[position],
-            protocol[position],
-        )
+        return data, crc_ok[position], slave[position], function[position], role[position], code[position], \
+            protocol[position]
 
 
 def device_record(index: int, device: DeviceIdentity) -> dict[str, Any]:

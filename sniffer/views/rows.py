@@ -3,8 +3,12 @@
 A sink that writes a record per frame (a JSON line, an MCAP message) spends most of its time
 putting small pieces together. Here each field is a column: one constant piece for every row, or
 a list with one piece per row. :func:`join_rows` interleaves the columns with one list slice
-assignment each and joins them with one ``bytes.join``: the Python work is per column, not per
-row. The numbers' texts come from one ``repr`` per column (:func:`number_texts`).
+assignment each and joins them with one ``join``: the Python work is per column, not per row.
+
+The columns are built whole too: numbers by one ``repr`` per column (:func:`number_texts`), hex
+by numpy (:func:`hex_texts`), times as exact decimals (:func:`decimal_columns`,
+:func:`times_block`), small codes through a :class:`Table`. :class:`Pieces` carry the sizes numpy
+already knew, so that joining need not measure every piece.
 """
 
 from __future__ import annotations
@@ -94,7 +98,7 @@ def join_rows(columns: Sequence[Column], count: int, reserved: int = 0) -> Rows:
             lengths += column.sizes if isinstance(column, Pieces) else np.fromiter(map(len, column), np.int64, count)
     offsets = np.zeros(count + 1, np.int64)
     np.cumsum(lengths + fixed, out=offsets[1:])
-    return Rows(bytearray(b"".join(pieces)), offsets, reserved)
+    return Rows(bytearray().join(pieces), offsets, reserved)
 
 
 def number_texts(column: npt.NDArray[Any]) -> Pieces:

@@ -66,12 +66,8 @@ class StatsView:
         table.add_column("value", justify="right")
         load = "" if s.bus_load is None else f"{100 * s.bus_load:.1f} %"
         rows = [
-            ("frames", str(s.frames)),
-            ("bytes", str(s.total_bytes)),
-            ("duration", f"{s.duration_ns / 1e9:.3f} s"),
-            ("bus load", load),
-            ("CRC errors", _count(s.crc_errors)),
-            ("noise bytes", _count(s.noise_bytes)),
+            ("frames", str(s.frames)), ("bytes", str(s.total_bytes)), ("duration", f"{s.duration_ns / 1e9:.3f} s"),
+            ("bus load", load), ("CRC errors", _count(s.crc_errors)), ("noise bytes", _count(s.noise_bytes)),
         ]
         rows += [(f"role {role}", str(n)) for role, n in sorted(s.roles.items())]
         rows += [(f"flag {flag}", _count(n, "yellow")) for flag, n in sorted(s.flags.items())]
@@ -81,25 +77,8 @@ class StatsView:
 
     def _function_table(self, s: Statistics) -> Table:
         table = Table(title="per slave and function (latency and poll period in ms)", title_justify="left")
-        headers = [
-            "slave",
-            "function",
-            "req",
-            "resp",
-            "exc",
-            "CRC",
-            "timeout",
-            "retry",
-            "unexp",
-            "gap1.5",
-            "short",
-            "lat min",
-            "p50",
-            "p95",
-            "p99",
-            "max",
-            "poll p50",
-        ]
+        headers = ["slave", "function", "req", "resp", "exc", "CRC", "timeout", "retry", "unexp", "gap1.5",
+                   "short", "lat min", "p50", "p95", "p99", "max", "poll p50"]
         for header in headers:
             table.add_column(header, justify="left" if header == "function" else "right")
         for (slave, function), stats in sorted(s.per_function.items()):
@@ -110,15 +89,8 @@ class StatsView:
     def _cells(f: FunctionStats) -> list[str]:
         exceptions = " ".join(f"{code:02X}×{n}" for code, n in sorted(f.exceptions.items()))
         return [
-            str(f.requests + f.broadcasts),
-            str(f.responses),
-            f"[red]{exceptions}[/]" if exceptions else "",
-            _count(f.crc_errors),
-            _count(f.timeouts),
-            _count(f.retries, "yellow"),
-            _count(f.unexpected, "yellow"),
-            _count(f.gap_1_5, "yellow"),
-            _count(f.short_idle, "yellow"),
-            *_latency_cells(f.latency),
-            _ms(f.poll_period.percentile(50)),
+            str(f.requests + f.broadcasts), str(f.responses), f"[red]{exceptions}[/]" if exceptions else "",
+            _count(f.crc_errors), _count(f.timeouts), _count(f.retries, "yellow"), _count(f.unexpected, "yellow"),
+            _count(f.gap_1_5, "yellow"), _count(f.short_idle, "yellow"),
+            *_latency_cells(f.latency), _ms(f.poll_period.percentile(50)),
         ]

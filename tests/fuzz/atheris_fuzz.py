@@ -83,10 +83,8 @@ def decode_frames(provider: atheris.FuzzedDataProvider) -> None:
     if not frames:
         return
     matcher = Matcher()
-    cached, plain = (
-        Annotator(ProfileApplier(profile_book(choice, []))),
-        Annotator(ProfileApplier(profile_book(choice, []))),
-    )
+    cached, plain = Annotator(ProfileApplier(profile_book(choice, []))), Annotator(
+        ProfileApplier(profile_book(choice, [])))
     encoder = FrameRecordEncoder()
     for batch in (matcher.feed(frames_to_batch(frames)), matcher.flush()):
         expected = [plain.annotate(message) for message in batch]

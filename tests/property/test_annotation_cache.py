@@ -79,14 +79,8 @@ def matched(adus: list[bytes]) -> list[MessageBatch]:
 
 
 def said(decoding: Decoding) -> tuple[object, ...]:
-    return (
-        decoding.summary,
-        [astuple(p) for p in decoding.params],
-        decoding.remarks,
-        decoding.device,
-        decoding.pdu,
-        decoding.uss,
-    )
+    return (decoding.summary, [astuple(p) for p in decoding.params], decoding.remarks, decoding.device,
+            decoding.pdu, decoding.uss)
 
 
 @settings(max_examples=max(300, EXAMPLES), deadline=None)
@@ -122,22 +116,17 @@ def test_what_the_profiles_learn_is_not_answered_from_the_cache() -> None:
     assert messages[5].params[0].code == "NM1→RFRD" and messages[5].params[0].unit == "rpm"
 
 
-NUMBERS = st.one_of(
-    st.none(), st.integers(-(2**40), 2**40), st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=8)
-)
+NUMBERS = st.one_of(st.none(), st.integers(-(2**40), 2**40), st.floats(allow_nan=False, allow_infinity=False),
+                    st.text(max_size=8))
 
 
 @st.composite
 def decodings(draw: st.DrawFn) -> Decoding:
     params = tuple(
-        ParamValue(
-            draw(st.integers(0, 65535)),
-            raw=draw(st.one_of(st.none(), st.integers(0, 65535))),
-            code=draw(st.one_of(st.none(), st.text(max_size=6))),
-            name=draw(st.one_of(st.none(), st.text(max_size=6))),
-            value=draw(NUMBERS),
-            unit=draw(st.one_of(st.none(), st.text(max_size=3))),
-        )
+        ParamValue(draw(st.integers(0, 65535)), raw=draw(st.one_of(st.none(), st.integers(0, 65535))),
+                   code=draw(st.one_of(st.none(), st.text(max_size=6))),
+                   name=draw(st.one_of(st.none(), st.text(max_size=6))), value=draw(NUMBERS),
+                   unit=draw(st.one_of(st.none(), st.text(max_size=3))))
         for _ in range(draw(st.integers(0, 3)))
     )
     return Decoding(draw(st.text()), params, remarks=tuple(draw(st.lists(st.text(max_size=10), max_size=2))))
@@ -151,17 +140,8 @@ def annotated_batches(draw: st.DrawFn) -> AnnotatedBatch:
         t += draw(st.integers(0, 10**9))
         data = draw(st.one_of(st.binary(min_size=1, max_size=12), exchanges().map(lambda pair: pair[0])))
         uss = len(data) >= 3 and draw(st.integers(0, 3)) == 0  # USS telegrams have STX, LGE, ADR at least
-        frames.append(
-            Frame(
-                index,
-                t,
-                t + 1000 * len(data),
-                data,
-                crc_ok(data),
-                flag_set(draw(st.integers(0, 15))),
-                protocol=int(uss),
-            )
-        )
+        frames.append(Frame(index, t, t + 1000 * len(data), data, crc_ok(data), flag_set(draw(st.integers(0, 15))),
+                            protocol=int(uss)))
     batch = Matcher().feed(frames_to_batch(frames))
     annotated = AnnotatedBatch(batch, [draw(decodings()) for _ in range(len(batch))])
     return annotated.select(np.array(draw(st.lists(st.booleans(), min_size=len(batch), max_size=len(batch)))))

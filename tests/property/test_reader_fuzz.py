@@ -79,9 +79,8 @@ def test_readers_on_arbitrary_bytes(data: bytes, suffix: str) -> None:
 
 
 @FUZZ
-@given(
-    st.one_of(mutated(SAMPLE_LOG.read_bytes()), mutated(SAMPLE_MCAP.read_bytes())), st.sampled_from([".log", ".mcap"])
-)
+@given(st.one_of(mutated(SAMPLE_LOG.read_bytes()), mutated(SAMPLE_MCAP.read_bytes())),
+       st.sampled_from([".log", ".mcap"]))
 def test_whole_command_on_damaged_captures(data: bytes, suffix: str) -> None:
     """Reading, framing, decoding and profiles together: success or one known exit code."""
     path = SCRATCH / f"whole{suffix}"

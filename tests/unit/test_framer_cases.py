@@ -19,11 +19,9 @@ def run_framer(corpus: Corpus, batch_chunks: int = 64) -> list[tuple[bytes, bool
 
 
 def describe(result: Score) -> str:
-    return (
-        f"found {result.frames_found}/{result.frames}, spurious {result.spurious_valid}, "
-        f"exact pieces {result.pieces_exact}/{result.pieces}, false {result.false_flags}, "
-        f"missed {result.missed_flags}"
-    )
+    return (f"found {result.frames_found}/{result.frames}, spurious {result.spurious_valid}, "
+            f"exact pieces {result.pieces_exact}/{result.pieces}, false {result.false_flags}, "
+            f"missed {result.missed_flags}")
 
 
 @pytest.mark.parametrize("line", LINES, ids=lambda line: line.format())

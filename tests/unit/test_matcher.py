@@ -46,18 +46,13 @@ def test_request_and_response_pair_with_latency() -> None:
 
 def test_echoes_by_order() -> None:
     assert roles(run((0, WRITE_2), (5, WRITE_2), (50, WRITE_2), (55, WRITE_2))) == [
-        ("request", None, []),
-        ("response", 0, []),
-        ("request", None, []),
-        ("response", 2, []),
+        ("request", None, []), ("response", 0, []), ("request", None, []), ("response", 2, []),
     ]
 
 
 def test_unanswered_request_times_out_when_the_same_slave_is_asked_again() -> None:
     assert roles(run((0, READ_2), (30, READ_2), (35, ANSWER_2))) == [
-        ("request", None, ["timeout"]),
-        ("request", None, ["retry"]),
-        ("response", 1, []),
+        ("request", None, ["timeout"]), ("request", None, ["retry"]), ("response", 1, []),
     ]
 
 
@@ -73,10 +68,7 @@ def test_no_verdict_for_a_request_open_at_the_end() -> None:
 def test_requests_to_other_slaves_interleave() -> None:
     """Two masters: requests to slaves 2 and 5 overlap; each answer finds its own request."""
     assert roles(run((0, READ_2), (2, READ_5), (6, ANSWER_2), (9, ANSWER_5))) == [
-        ("request", None, []),
-        ("request", None, []),
-        ("response", 0, []),
-        ("response", 1, []),
+        ("request", None, []), ("request", None, []), ("response", 0, []), ("response", 1, []),
     ]
 
 
@@ -99,30 +91,21 @@ def test_exception_pairs_with_its_request() -> None:
 def test_broadcast_gets_no_answer_and_a_reply_is_unexpected() -> None:
     broadcast = adu("00 06 2329 000D")
     result = run((0, broadcast), (5, broadcast), (50, READ_2), (55, ANSWER_2))
-    assert roles(result) == [
-        ("broadcast", None, []),
-        ("response", None, ["unexpected"]),
-        ("request", None, []),
-        ("response", 2, []),
-    ]
+    assert roles(result) == [("broadcast", None, []), ("response", None, ["unexpected"]),
+                             ("request", None, []), ("response", 2, [])]
 
 
 def test_crc_error_answer_makes_the_repeat_a_retry() -> None:
     damaged = bytearray(ANSWER_2)
     damaged[5] ^= 1
     result = run((0, READ_2), (5, bytes(damaged)), (40, READ_2), (45, ANSWER_2))
-    assert roles(result) == [
-        ("request", None, []),
-        ("response", 0, []),
-        ("request", None, ["retry"]),
-        ("response", 2, []),
-    ]
+    assert roles(result) == [("request", None, []), ("response", 0, []), ("request", None, ["retry"]),
+                             ("response", 2, [])]
 
 
 def test_late_answer_after_the_timeout_is_unexpected() -> None:
     assert roles(run((0, READ_2), (150, ANSWER_2), timeout_ms=100)) == [
-        ("request", None, ["timeout"]),
-        ("response", None, ["unexpected"]),
+        ("request", None, ["timeout"]), ("response", None, ["unexpected"]),
     ]
 
 
@@ -132,10 +115,8 @@ def test_adaptive_timeout_follows_the_traffic() -> None:
     frames = []
     for i in range(40):
         start = i * 50 * MS
-        frames += [
-            Frame(2 * i, start, start + MS, READ_2, True, FrameFlag.NONE),
-            Frame(2 * i + 1, start + 4 * MS, start + 5 * MS, ANSWER_2, True, FrameFlag.NONE),
-        ]
+        frames += [Frame(2 * i, start, start + MS, READ_2, True, FrameFlag.NONE),
+                   Frame(2 * i + 1, start + 4 * MS, start + 5 * MS, ANSWER_2, True, FrameFlag.NONE)]
     matcher.feed(frames_to_batch(frames))
     assert matcher.timeout_ns == MIN_TIMEOUT_NS  # 10 x 3 ms latency is below the 100 ms floor
 
@@ -148,17 +129,8 @@ def test_messages_leave_in_capture_order() -> None:
 def test_same_result_whatever_the_batches() -> None:
     from decoders.frame import slice_frames
 
-    sequence = [
-        (0, READ_2),
-        (2, READ_5),
-        (6, ANSWER_2),
-        (9, ANSWER_5),
-        (30, WRITE_2),
-        (33, WRITE_2),
-        (60, READ_2),
-        (200, READ_2),
-        (205, ANSWER_2),
-    ]
+    sequence = [(0, READ_2), (2, READ_5), (6, ANSWER_2), (9, ANSWER_5), (30, WRITE_2), (33, WRITE_2),
+                (60, READ_2), (200, READ_2), (205, ANSWER_2)]
     frames = []
     for index, (start_ms, data) in enumerate(sequence):
         start = int(start_ms * MS)
@@ -178,12 +150,8 @@ def test_damaged_exception_answer_makes_the_repeat_a_retry() -> None:
     damaged = bytearray(adu("02 83 02"))
     damaged[-1] ^= 0xFF
     result = run((0, READ_2), (4, bytes(damaged)), (40, READ_2), (44, ANSWER_2))
-    assert roles(result) == [
-        ("request", None, []),
-        ("exception", 0, []),
-        ("request", None, ["retry"]),
-        ("response", 2, []),
-    ]
+    assert roles(result) == [("request", None, []), ("exception", 0, []), ("request", None, ["retry"]),
+                             ("response", 2, [])]
 
 
 def test_bulk_settling_changes_nothing() -> None:

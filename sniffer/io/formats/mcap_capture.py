@@ -48,7 +48,9 @@ LAYOUT_DOC = "u32 count | i64[count] t_end_ns | u32[count] length | bytes data (
 def encode_block(batch: ChunkBatch) -> bytes:
     """One message payload for a batch of chunks."""
     lengths = np.diff(batch.ends, prepend=0).astype("<u4")
-    return b"".join([_COUNT.pack(len(batch)), batch.t_end_ns.astype("<i8").tobytes(), lengths.tobytes(), batch.data])
+    return b"".join(
+        [_COUNT.pack(len(batch)), batch.t_end_ns.astype("<i8").tobytes(), lengths.tobytes(), batch.data]
+    )
 
 
 def decode_block(payload: bytes) -> ChunkBatch:
@@ -165,7 +167,9 @@ class McapCaptureReader:
         self._file.close()
 
     def _error(self, message: str) -> CaptureFormatError:
-        return CaptureFormatError(ErrorKind.BAD_MCAP, message, path=self.path, location=f"byte {self._file.tell()}")
+        return CaptureFormatError(
+            ErrorKind.BAD_MCAP, message, path=self.path, location=f"byte {self._file.tell()}"
+        )
 
     def _next_records(self) -> Iterator[object]:
         try:

@@ -125,7 +125,9 @@ class TextCaptureReader:
         try:
             return TimingQuality(value.strip().lower())
         except ValueError:
-            raise self._error(ErrorKind.BAD_HEADER, f"timing {value.strip()!r} is neither 'exact' nor 'host'") from None
+            raise self._error(
+                ErrorKind.BAD_HEADER, f"timing {value.strip()!r} is neither 'exact' nor 'host'"
+            ) from None
 
     def batches(self) -> Iterator[ChunkBatch]:
         times: list[int] = []
