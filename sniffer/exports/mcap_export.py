@@ -79,6 +79,7 @@ FRAME_SCHEMA: dict[str, Any] = {
             "value": {"type": ["number", "string", "null"]}, "unit": _TEXT_OR_NULL}}},
     },
 }  # fmt: skip
+FRAME_SCHEMA["required"] = list(FRAME_SCHEMA["properties"])
 TRANSACTION_SCHEMA: dict[str, Any] = {
     "title": "rtusniff.Transaction",
     "type": "object",
@@ -90,11 +91,13 @@ TRANSACTION_SCHEMA: dict[str, Any] = {
         "request": {"type": "string"}, "answer": _TEXT_OR_NULL,
     },
 }  # fmt: skip
+TRANSACTION_SCHEMA["required"] = list(TRANSACTION_SCHEMA["properties"])
 PARAMS_SCHEMA: dict[str, Any] = {
     "title": "rtusniff.SlaveParams",
     "type": "object",
     "description": "Numeric register values one frame carried, by profile code or by address.",
     "properties": {"index": {"type": "integer"}},
+    "required": ["index"],
     "additionalProperties": {"type": "number"},
 }
 
