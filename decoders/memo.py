@@ -8,7 +8,7 @@ status answer) stay; the rest go, with no per-entry bookkeeping on the hot path.
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable
-from typing import Generic, TypeVar
+from typing import Generic, TypeVar, cast
 
 Key = TypeVar("Key", bound=Hashable)
 Value = TypeVar("Value")
@@ -34,6 +34,21 @@ class Memo(Generic[Key, Value]):
         """The young generation's lookup, to ``map`` over a batch in C: what it misses (``None``),
         ``get`` answers. Valid until the next ``put``."""
         return self._young.get
+
+    def get_all(self, keys: list[Key], build: Callable[[int], Value]) -> list[Value]:
+        """The value of every key, for a batch: repeats looked up in C (``map`` over the young
+        generation), the rest through :meth:`get`, and what neither holds built by
+        ``build(row)`` and kept (so a key that comes again later in the batch finds it)."""
+        values = list(map(self._young.get, keys))
+        if None in values:
+            for row, value in enumerate(values):
+                if value is None:
+                    found = self.get(keys[row])
+                    if found is None:
+                        found = build(row)
+                        self.put(keys[row], found)
+                    values[row] = found
+        return cast(list[Value], values)
 
     def put(self, key: Key, value: Value) -> None:
         if len(self._young) >= self.size:

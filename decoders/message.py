@@ -242,6 +242,13 @@ class AnnotatedBatch:
         """The kept positions, in order."""
         return list(range(len(self.decodings))) if self.rows is None else self.rows.tolist()
 
+    def decodings_at(self, positions: list[int]) -> list[Decoding]:
+        """The decodings at ``positions`` (ordered and distinct, as :meth:`positions` gives them:
+        all of them when as many)."""
+        if len(positions) == len(self.decodings):
+            return self.decodings
+        return list(map(self.decodings.__getitem__, positions))
+
     def select(self, keep: npt.NDArray[np.bool_]) -> AnnotatedBatch:
         """Only the messages where ``keep`` (one flag per message of ``messages``) is true."""
         rows = np.flatnonzero(keep)

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from sniffer.views.rows import Column, Integers, Pieces, Rows, Table, join_rows
+from sniffer.views.rows import Column, Integers, Pieces, Rows, Table, column_sizes, join_rows
 
 SCHEMA_NAME = "foxglove.Log"
 ENCODING = "protobuf"
@@ -94,7 +94,7 @@ class LogEncoder:
         nanos_keys.fill(zero, b"")
         nanos_fields.fill(zero, b"")
         timestamp_sizes = np.fromiter(map(len, seconds_fields), np.int64, count) + nanos_keys.sizes + nanos_fields.sizes
-        text_sizes = sum((_sizes(column, count) for column in text), np.zeros(count, np.int64))
+        text_sizes = sum((column_sizes(column, count) for column in text), np.zeros(count, np.int64))
         columns: list[Column] = [
             _TIMESTAMP_KEY, varint_pieces(timestamp_sizes), seconds_fields, nanos_keys, nanos_fields,
             _LEVELS.column(levels), _MESSAGE_KEY, varint_pieces(text_sizes), *text,
@@ -110,12 +110,6 @@ class LogEncoder:
             if second not in self._seconds:
                 self._seconds[second] = _number(1, second) if second else b""
         return self._seconds
-
-
-def _sizes(column: Column, count: int) -> npt.NDArray[np.int64]:
-    if isinstance(column, bytes):
-        return np.full(count, len(column), np.int64)
-    return column.sizes if isinstance(column, Pieces) else np.fromiter(map(len, column), np.int64, count)
 
 
 def varint_pieces(values: npt.NDArray[np.int64]) -> Pieces:

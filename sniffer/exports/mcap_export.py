@@ -27,7 +27,7 @@ from __future__ import annotations
 import contextlib
 import json
 from importlib.metadata import version
-from typing import Any, BinaryIO, cast
+from typing import Any, BinaryIO
 
 import numpy as np
 import numpy.typing as npt
@@ -165,8 +165,7 @@ class McapExporter:
         kept = np.array(positions, np.int64)
         messages, frames = batch.messages, batch.messages.frames
         t_ns, slaves = frames.t_start_ns[kept], messages.slave[kept]
-        decodings = list(map(batch.decodings.__getitem__, positions))
-        heads, values = self._decoding_parts(decodings, messages.role[kept])
+        heads, values = self._decoding_parts(batch.decodings_at(positions), messages.role[kept])
         indexes = number_texts(kept + frames.first_index)
         self._write(self._frame_records.rows(batch, reserved=HEADER_SIZE), self._frames, t_ns)
         text: list[Column] = [b"#", indexes, heads, _FLAG_SUFFIXES.column(messages.flags[kept])]
@@ -200,18 +199,8 @@ class McapExporter:
     def _decoding_parts(self, decodings: list[Decoding], roles: Integers) -> tuple[list[bytes], list[bytes]]:
         """Per message: the log text after the frame index, and its numeric params as JSON
         members (``b""``: it carried no values). Looked up in C for repeats."""
-        found = list(map(self._parts.recent(), decodings))
-        for row, parts in enumerate(found):
-            if parts is None:
-                found[row] = self._parts.get(decodings[row]) or self._new_parts(decodings[row], int(roles[row]))
-        complete = cast(list[tuple[bytes, bytes]], found)
-        return [parts[0] for parts in complete], [parts[1] for parts in complete]
-
-    def _new_parts(self, decoding: Decoding, role: int) -> tuple[bytes, bytes]:
-        values = numeric_params(decoding)
-        parts = (f" {ROLE_ORDER[role].value}: {decoding.summary}".encode(), encode_json(values)[1:] if values else b"")
-        self._parts.put(decoding, parts)
-        return parts
+        found = self._parts.get_all(decodings, lambda row: _decoding_parts(decodings[row], int(roles[row])))
+        return [parts[0] for parts in found], [parts[1] for parts in found]
 
     def close(self) -> None:
         try:
@@ -224,6 +213,11 @@ class McapExporter:
             self._writer.close()
         with contextlib.suppress(OSError):
             self._file.close()
+
+
+def _decoding_parts(decoding: Decoding, role: int) -> tuple[bytes, bytes]:
+    values = numeric_params(decoding)
+    return f" {ROLE_ORDER[role].value}: {decoding.summary}".encode(), encode_json(values)[1:] if values else b""
 
 
 #: The log's ``name`` by slave; NONE (-1, noise) is the last.

@@ -239,10 +239,11 @@ class ColumnarMcapWriter:
             np.concatenate(chunk.log_times),
         )
         compressed = self._compressor.compress(records)
+        first, last = int(times.min()), int(times.max())
         record = _records(
             Chunk(
-                message_start_time=int(times.min()),
-                message_end_time=int(times.max()),
+                message_start_time=first,
+                message_end_time=last,
                 uncompressed_size=len(records),
                 uncompressed_crc=zlib.crc32(records),
                 compression="zstd",
@@ -260,8 +261,8 @@ class ColumnarMcapWriter:
         self._chunk_indexes.append(
             _records(
                 ChunkIndex(
-                    message_start_time=int(times.min()),
-                    message_end_time=int(times.max()),
+                    message_start_time=first,
+                    message_end_time=last,
                     chunk_start_offset=chunk_start,
                     chunk_length=len(record),
                     message_index_offsets=offsets,
@@ -275,8 +276,6 @@ class ColumnarMcapWriter:
 
     def _finish(self) -> None:
         self._put(_records(DataEnd(data_section_crc=0)))
-        summary_start, summary = self._position, RecordBuilder()
-        groups: list[SummaryOffset] = []
         channel_counts = {channel.id: int(self._counts[channel.id]) for channel in self._channels}
         start, end = self._times or (0, 0)
         statistics = Statistics(
@@ -290,38 +289,27 @@ class ColumnarMcapWriter:
             message_end_time=end,
             channel_message_counts=channel_counts,
         )
-        for opcode, group in (
-            (Opcode.SCHEMA, [_records(*self._schemas)]),
-            (Opcode.CHANNEL, [_records(*self._channels)]),
-            (Opcode.STATISTICS, [_records(statistics)]),
-            (Opcode.CHUNK_INDEX, self._chunk_indexes),
-            (Opcode.METADATA_INDEX, [_records(*self._metadata_indexes)]),
-        ):
-            group_start = summary.count
-            for records in group:
-                summary.write(records)
-            groups.append(
-                SummaryOffset(
-                    group_opcode=opcode,
-                    group_start=summary_start + group_start,
-                    group_length=summary.count - group_start,
-                )
-            )
-        offsets_start = summary_start + summary.count
-        for group_offset in groups:
-            group_offset.write(summary)
-        data: bytes = summary.end()  # type: ignore[no-untyped-call]
-        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start, offsets_start), zlib.crc32(data))
-        self._put(
-            data
-            + _records(Footer(summary_start=summary_start, summary_offset_start=offsets_start, summary_crc=crc))
-            + MAGIC
+        groups = (
+            (Opcode.SCHEMA, _records(*self._schemas)),
+            (Opcode.CHANNEL, _records(*self._channels)),
+            (Opcode.STATISTICS, _records(statistics)),
+            (Opcode.CHUNK_INDEX, b"".join(self._chunk_indexes)),
+            (Opcode.METADATA_INDEX, _records(*self._metadata_indexes)),
         )
+        summary_start, offsets, group_start = self._position, [], self._position
+        for opcode, group in groups:
+            offsets.append(SummaryOffset(group_opcode=opcode, group_start=group_start, group_length=len(group)))
+            group_start += len(group)
+        summary = b"".join(group for _, group in groups) + _records(*offsets)
+        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start, group_start), zlib.crc32(summary))
+        footer = Footer(summary_start=summary_start, summary_offset_start=group_start, summary_crc=crc)
+        self._put(summary + _records(footer) + MAGIC)
         self._file.flush()
 
 
 def _records(
-    *records: Header | Schema | Channel | Metadata | Chunk | ChunkIndex | MetadataIndex | Statistics | DataEnd | Footer,
+    *records: Header | Schema | Channel | Metadata | Chunk | ChunkIndex | MetadataIndex | Statistics | SummaryOffset
+    | DataEnd | Footer,
 ) -> bytes:
     builder = RecordBuilder()
     for record in records:

@@ -173,19 +173,14 @@ class RerunExporter:
                 self._grouped(ids, t_start[failed], index[failed], values=np.ones(len(ids)))
 
     def _parts_of(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64]) -> list[_Parts]:
-        every = len(positions) == len(batch.decodings)  # positions are ordered and distinct: all of them
-        decodings = batch.decodings if every else [batch.decodings[p] for p in positions.tolist()]
-        parts: list[_Parts | None] = list(map(self._parts.recent(), decodings))
-        if None in parts:
-            messages = batch.messages
-            columns = (messages.slave, messages.role, messages.function)
-            for row, part in enumerate(parts):
-                if part is None:  # built by an earlier row of this batch, or to be built now
-                    position = int(positions[row])
-                    slave, role, function = (int(column[position]) for column in columns)
-                    parts[row] = self._parts.get(decodings[row]) or self._decoding_parts(
-                        decodings[row], slave, role, function)
-        return parts  # type: ignore[return-value]  # every None was filled
+        decodings, messages = batch.decodings_at(positions.tolist()), batch.messages
+        columns = (messages.slave, messages.role, messages.function)
+
+        def build(row: int) -> _Parts:
+            slave, role, function = (int(column[positions[row]]) for column in columns)
+            return self._decoding_parts(decodings[row], slave, role, function)
+
+        return self._parts.get_all(decodings, build)
 
     def _decoding_parts(self, decoding: Decoding, slave: int, role: int, function: int) -> _Parts:
         """What a decoding puts on the timeline, built once per decoding."""
@@ -207,10 +202,8 @@ class RerunExporter:
         latency = -1
         if function != NONE:
             latency = self._entity(f"slaves/{slave}/latency_ms/fc{function}", f"latency FC {function} (ms)")
-        parts = _Parts(f"{ROLE_ORDER[role].value}: {decoding.summary}", np.array(scalar_ids, np.int64),
-                       np.array(scalar_values, np.float64), states, latency)
-        self._parts.put(decoding, parts)
-        return parts
+        return _Parts(f"{ROLE_ORDER[role].value}: {decoding.summary}", np.array(scalar_ids, np.int64),
+                      np.array(scalar_values, np.float64), states, latency)
 
     def _known_slave(self, slave: int) -> None:
         if slave not in self._slaves:

@@ -77,7 +77,7 @@ class TransactionEncoder:
         positions: npt.NDArray[np.int64],
         lonely: npt.NDArray[np.bool_],
         request_hex: list[bytes],
-        own_hex: Pieces,
+        answer_hex: Pieces,
     ) -> tuple[Rows, npt.NDArray[np.int64]]:
         messages, frames = batch.messages, batch.messages.frames
         role = messages.role[positions]
@@ -89,7 +89,6 @@ class TransactionEncoder:
         latency = np.where(lonely, NONE, messages.latency_ns[positions])
         request = np.where(lonely, indexes, messages.request_index[positions])
         answer = np.where(lonely, NONE, indexes)
-        answer_hex = own_hex
         answer_hex.fill(np.flatnonzero(lonely), b"null")
         columns: list[Column] = [
             b'{"request_index":', number_texts(request),
@@ -106,22 +105,20 @@ class TransactionEncoder:
 
 def _facts(slave: Integers, function: Integers, outcome: Integers, code: Integers) -> Pieces:
     """``"slave":…,"function":…,"outcome":…,"exception_code":…`` per transaction: a bus has few
-    combinations, each spelt once per batch."""
-    keys = ((slave.astype(np.int64) + 1) * 257 + function + 1) * 257 + code + 1
-    combinations, rows = np.unique(keys * len(OUTCOMES) + outcome, return_inverse=True)
-    texts = []
-    for combination in combinations.tolist():
-        key, outcome_code = divmod(combination, len(OUTCOMES))
-        key, code_1 = divmod(key, 257)
-        slave_1, function_1 = divmod(key, 257)
-        texts.append(
-            b'"slave":%s,"function":%s,"outcome":"%s","exception_code":%s'
-            % (_or_null(slave_1 - 1), _or_null(function_1 - 1), OUTCOMES[outcome_code].encode(), _or_null(code_1 - 1))
-        )
+    combinations, each spelt once per batch from its first row (one packed key per row: a
+    third of the time of ``np.unique`` over rows)."""
+    keys = (((slave.astype(np.int64) + 1) * 257 + function + 1) * 257 + code + 1) * len(OUTCOMES) + outcome
+    _, firsts, rows = np.unique(keys, return_index=True, return_inverse=True)
+    spelt = (column[firsts].tolist() for column in (slave, function, outcome, code))
+    texts = [
+        b'"slave":%s,"function":%s,"outcome":"%s","exception_code":%s'
+        % (_number_or_null(slave), _number_or_null(function), OUTCOMES[outcome].encode(), _number_or_null(code))
+        for slave, function, outcome, code in zip(*spelt, strict=True)
+    ]
     return Table(texts).column(rows)
 
 
-def _or_null(value: int) -> bytes:
+def _number_or_null(value: int) -> bytes:
     return b"null" if value == NONE else b"%d" % value
 
 

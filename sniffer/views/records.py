@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -24,7 +24,7 @@ from decoders.message import (
     ParamValue,
 )
 from decoders.modbus.annotate import KEPT_DECODINGS
-from sniffer.views.rows import Column, Rows, Table, join_rows, number_texts, or_null, seconds_columns, times_block
+from sniffer.views.rows import Column, Rows, Table, decimal_columns, join_rows, number_texts, or_null, times_block
 
 NS_PER_S = 1e9
 
@@ -104,7 +104,7 @@ class FrameRecordEncoder:
     def __init__(self, *, exact: bool = True) -> None:
         """``exact``: spelt as ``json.dumps`` spells it (JSONL); otherwise the times
         (``t``, ``t_end``, ``latency_s``) are the exact decimals of their nanoseconds, spelt
-        several times faster (see :func:`~sniffer.views.rows.seconds_columns`)."""
+        several times faster (see :func:`~sniffer.views.rows.decimal_columns`)."""
         self._exact = exact
         # As many as the annotator keeps decodings: a repeat finds its parts.
         self._parts: Memo[Decoding, tuple[bytes, bytes]] = Memo(KEPT_DECODINGS)
@@ -142,7 +142,7 @@ class FrameRecordEncoder:
 
     def _seconds(self, ns: npt.NDArray[np.int64], none: int | None = None) -> list[Column]:
         if not self._exact:
-            return seconds_columns(ns, none)
+            return decimal_columns(ns, 9, none)
         texts = number_texts(ns / NS_PER_S)
         return [texts if none is None else or_null(texts, ns, none)]
 
@@ -154,14 +154,9 @@ class FrameRecordEncoder:
     def _decoding_parts(self, batch: AnnotatedBatch, positions: list[int]) -> tuple[list[bytes], list[bytes]]:
         """Per kept message, its record from ``hex`` to ``exception_code`` and from ``params``
         to the end: looked up in C for repeats, built for new decodings."""
-        decodings = list(map(batch.decodings.__getitem__, positions))
-        found = list(map(self._parts.recent(), decodings))
-        facts = _FrameFacts(batch.messages)
-        for row, parts in enumerate(found):
-            if parts is None:
-                found[row] = self._parts.get(decodings[row]) or self._frame_parts(facts, positions[row], decodings[row])
-        complete = cast(list[tuple[bytes, bytes]], found)
-        return [parts[0] for parts in complete], [parts[1] for parts in complete]
+        decodings, facts = batch.decodings_at(positions), _FrameFacts(batch.messages)
+        found = self._parts.get_all(decodings, lambda row: self._frame_parts(facts, positions[row], decodings[row]))
+        return [parts[0] for parts in found], [parts[1] for parts in found]
 
     def _frame_parts(self, facts: _FrameFacts, position: int, decoding: Decoding) -> tuple[bytes, bytes]:
         """A record's parts that a decoding determines (the annotator shares a decoding only
@@ -171,14 +166,12 @@ class FrameRecordEncoder:
         text = encode_json(record).decode() if _spelt_alike(decoding.params) else encode_record(record)
         params_summary = text[1:-1]
         remarks = encode_json(list(decoding.remarks)).decode()
-        parts = (
+        return (
             f'"hex":"{data.hex()}","crc_ok":{"true" if crc_ok else "false"},'
             f'"slave":{"null" if slave == NONE else slave},"function":{"null" if function == NONE else function},'
             f'"role":"{ROLE_ORDER[role].value}","exception_code":{"null" if code == NONE else code}'.encode(),
             f'{params_summary},"protocol":{_PROTOCOL_JSON[protocol]},"remarks":{remarks}'.encode(),
         )
-        self._parts.put(decoding, parts)
-        return parts
 
 
 class _FrameFacts:

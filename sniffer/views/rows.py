@@ -95,10 +95,18 @@ def join_rows(columns: Sequence[Column], count: int, reserved: int = 0) -> Rows:
             if len(column) != count:
                 raise ValueError(f"column {place} has {len(column)} pieces for {count} rows")
             pieces[place::width] = column
-            lengths += column.sizes if isinstance(column, Pieces) else np.fromiter(map(len, column), np.int64, count)
+            lengths += column_sizes(column, count)
     offsets = np.zeros(count + 1, np.int64)
     np.cumsum(lengths + fixed, out=offsets[1:])
     return Rows(bytearray().join(pieces), offsets, reserved)
+
+
+def column_sizes(column: Column, count: int) -> npt.NDArray[np.int64]:
+    """The size of each of the ``count`` pieces of ``column``: known already for :class:`Pieces`
+    and constants, measured otherwise."""
+    if isinstance(column, bytes):
+        return np.full(count, len(column), np.int64)
+    return column.sizes if isinstance(column, Pieces) else np.fromiter(map(len, column), np.int64, count)
 
 
 def number_texts(column: npt.NDArray[Any]) -> Pieces:
@@ -121,9 +129,6 @@ class Table:
     def __init__(self, pieces: Sequence[bytes]) -> None:
         self._pieces = list(pieces)
         self._sizes = np.fromiter(map(len, self._pieces), np.int64, len(self._pieces))
-
-    def __getitem__(self, key: int) -> bytes:
-        return self._pieces[key]
 
     def column(self, keys: Integers) -> Pieces:
         """The piece of each key (negative keys count from the end, as in a list)."""
@@ -160,12 +165,6 @@ def hex_texts(data: bytes, offsets: npt.NDArray[np.int64], *, quoted: bool = Fal
     if quoted:
         text[starts] = text[starts + sizes - 1] = ord('"')
     return Pieces(text.tobytes().split(b"|"), sizes)
-
-
-def seconds_columns(ns: Integers, none: int | None = None) -> list[Column]:
-    """Nanoseconds as the exact decimal of seconds (``1700000000.001997592``): see
-    :func:`decimal_columns`."""
-    return decimal_columns(ns, 9, none)
 
 
 def decimal_columns(values: Integers, places: int, none: int | None = None) -> list[Column]:

@@ -22,3 +22,21 @@ def test_what_is_used_stays_and_one_offs_go() -> None:
         memo.put(f"value {key}", key)
     assert memo.get("value 3") is None
     assert memo.get("value 999") == 999
+
+
+def test_get_all_builds_each_missing_key_once() -> None:
+    """A batch: young hits, an old-generation hit, and a new key that comes twice."""
+    memo: Memo[str, str] = Memo(2)
+    memo.put("old", "OLD")
+    memo.put("a", "A")
+    memo.put("b", "B")  # "old" and "a" are now the old generation
+    built: list[int] = []
+
+    def build(row: int) -> str:
+        built.append(row)
+        return keys[row].upper()
+
+    keys = ["b", "old", "new", "b", "new"]
+    assert memo.get_all(keys, build) == ["B", "OLD", "NEW", "B", "NEW"]
+    assert built == [2]  # "new" at row 4 found what row 2 built
+    assert memo.get_all(["b", "new"], build) == ["B", "NEW"] and built == [2]
