@@ -85,7 +85,7 @@ def run(capture: Path, stage: int, output: Path) -> tuple[float, int, int]:
             if stage >= 2:
                 annotated = annotator.annotate_batch(batch)
                 if stage == 3:
-                    "\n".join(encoder.encode_batch(annotated))
+                    encoder.rows(annotated, end=b"\n").data.decode()  # what the JSONL view writes
                 for exporter in filter(None, (mcap, rerun)):
                     exporter.messages(annotated)
 
