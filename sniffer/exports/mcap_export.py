@@ -19,7 +19,8 @@ zstd chunks, message indexes, a summary section with its indexes. Each channel's
 batch are built as columns (:mod:`sniffer.views.rows`) and written as one block; what a decoding
 determines (log text, numeric params, the frame record's fixed parts) is built once per decoding.
 Numbers are spelt for speed, not as ``json.dumps`` spells them: times as the exact decimals of
-their nanoseconds (``"t":1700000000.001997592``).
+their nanoseconds (``"t":1700000000.001997592``), a frame's and a transaction's own fields padded
+with spaces to one width per batch (:mod:`sniffer.views.blocks`).
 """
 
 from __future__ import annotations

@@ -15,17 +15,13 @@ import numpy.typing as npt
 
 from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Role
 from sniffer.exports.levels import TIMEOUT
+from sniffer.views.blocks import Block
 from sniffer.views.rows import (
-    Column,
     Integers,
     Pieces,
     Rows,
-    Table,
-    decimal_columns,
     hex_texts,
     join_rows,
-    number_texts,
-    or_null,
 )
 
 #: Open requests kept for their answers: older ones are forgotten (their answers never came).
@@ -90,23 +86,27 @@ class TransactionEncoder:
         request = np.where(lonely, indexes, messages.request_index[positions])
         answer = np.where(lonely, NONE, indexes)
         answer_hex.fill(np.flatnonzero(lonely), b"null")
-        columns: list[Column] = [
-            b'{"request_index":', number_texts(request),
-            b',"answer_index":', or_null(number_texts(answer), answer, NONE),
-            b",", _facts(messages.slave[positions], messages.function[positions], outcome,
-                         messages.exception_code[positions]),
-            b',"latency_s":', *decimal_columns(latency, 9, NONE),
-            b',"latency_ms":', *decimal_columns(latency, 6, NONE),
-            b',"request":', request_hex, b',"answer":', answer_hex, b"}",
-        ]  # fmt: skip
+        facts = _facts(messages.slave[positions], messages.function[positions], outcome,
+                       messages.exception_code[positions])  # fmt: skip
+        block = (
+            Block(len(positions))
+            .text(bytes(self._reserved) + b'{"request_index":').integers(request)
+            .text(b',"answer_index":').integers(answer, NONE)
+            .text(b",").choice(*facts)
+            .text(b',"latency_s":').decimals(latency, 9, NONE)
+            .text(b',"latency_ms":').decimals(latency, 6, NONE)
+            .text(b',"request":')
+            .pieces()
+        )  # fmt: skip
+        rows = join_rows([block, request_hex, b',"answer":', answer_hex, b"}"], len(positions))
         times = np.where(lonely, frames.t_end_ns[positions], frames.t_start_ns[positions])
-        return join_rows(columns, len(positions), self._reserved), times
+        return Rows(rows.data, rows.offsets, self._reserved), times
 
 
-def _facts(slave: Integers, function: Integers, outcome: Integers, code: Integers) -> Pieces:
-    """``"slave":…,"function":…,"outcome":…,"exception_code":…`` per transaction: a bus has few
-    combinations, each spelt once per batch from its first row (one packed key per row: a
-    third of the time of ``np.unique`` over rows)."""
+def _facts(slave: Integers, function: Integers, outcome: Integers, code: Integers) -> tuple[Integers, list[bytes]]:
+    """``"slave":…,"function":…,"outcome":…,"exception_code":…`` per transaction, as the
+    combination each row has and the combinations' texts: a bus has few, each spelt once per
+    batch from its first row (one packed key per row: a third of the time of ``np.unique`` over rows)."""
     keys = (((slave.astype(np.int64) + 1) * 257 + function + 1) * 257 + code + 1) * len(OUTCOMES) + outcome
     _, firsts, rows = np.unique(keys, return_index=True, return_inverse=True)
     spelt = (column[firsts].tolist() for column in (slave, function, outcome, code))
@@ -115,7 +115,7 @@ def _facts(slave: Integers, function: Integers, outcome: Integers, code: Integer
         % (_number_or_null(slave), _number_or_null(function), OUTCOMES[outcome].encode(), _number_or_null(code))
         for slave, function, outcome, code in zip(*spelt, strict=True)
     ]
-    return Table(texts).column(rows)
+    return rows, texts
 
 
 def _number_or_null(value: int) -> bytes:

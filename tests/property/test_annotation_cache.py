@@ -12,6 +12,7 @@ import json
 import os
 import struct
 from dataclasses import astuple
+from decimal import Decimal
 
 import numpy as np
 from hypothesis import given, settings
@@ -24,7 +25,7 @@ from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.profiles.apply import ProfileApplier
 from sniffer.profiles_io import profile_book
-from sniffer.views.records import FrameRecordEncoder, frame_record
+from sniffer.views.records import FrameRecordEncoder, encode_record, frame_record
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 SLAVES = st.sampled_from([1, 2, 7])
@@ -154,3 +155,21 @@ def test_frame_records_are_what_json_dumps_writes(batch: AnnotatedBatch) -> None
     expected = [json.dumps(frame_record(m), ensure_ascii=False, separators=(",", ":")) for m in batch]
     assert encoder.encode_batch(batch) == expected
     assert encoder.encode_batch(batch) == expected  # again, from the encoder's cache
+
+
+@settings(max_examples=max(300, EXAMPLES), deadline=None)
+@given(annotated_batches(), st.integers(0, 40))
+def test_fast_frame_records_say_what_the_exact_ones_say(batch: AnnotatedBatch, reserved: int) -> None:
+    """The MCAP spelling: times as the exact decimals of their nanoseconds, a frame's own
+    fields padded to one width; parsed, the same record."""
+    rows = FrameRecordEncoder(exact=False).rows(batch, reserved=reserved)
+    assert rows.reserved == reserved and len(rows) == len(batch)
+    for row, message in enumerate(batch):
+        assert bytes(rows.data[rows.offsets[row] : rows.offsets[row] + reserved]) == bytes(reserved)
+        record = json.loads(rows.row(row), parse_float=Decimal)
+        expected = json.loads(encode_record(frame_record(message)), parse_float=Decimal)
+        for field, ns in (("t", message.frame.t_start_ns), ("t_end", message.frame.t_end_ns),
+                          ("latency_s", message.latency_ns)):
+            assert record.pop(field) == (None if ns is None else Decimal(ns).scaleb(-9))
+            expected.pop(field)
+        assert record == expected

@@ -1,8 +1,8 @@
 """Hypothesis: records built in columns equal records built one by one.
 
 :func:`join_rows` against concatenating each row's pieces; :func:`hex_texts` against
-``bytes.hex``; :func:`decimal_columns` against exact decimal arithmetic; the columnar protobuf
-varints and ``foxglove.Log`` messages against the one-by-one encoder.
+``bytes.hex``; the columnar protobuf varints and ``foxglove.Log`` messages against the
+one-by-one encoder.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from sniffer.exports.foxglove_log import LogEncoder, _varint, varint_pieces
-from sniffer.views.rows import Pieces, decimal_columns, hex_texts, join_rows, number_texts, or_null, times_block
+from sniffer.views.rows import Pieces, hex_texts, join_rows, number_texts, or_null, times_matrix
 
 NONE = -1
 pieces = st.binary(max_size=12)
@@ -64,24 +64,6 @@ def test_number_texts_of_floats_are_repr_with_their_sizes(values: list[float]) -
     texts = number_texts(np.array(values, np.float64))
     assert texts == [repr(value).encode() for value in values]
     assert texts.sizes.tolist() == list(map(len, texts))
-
-
-@given(st.lists(st.one_of(st.integers(0, 1 << 62), st.just(NONE)), max_size=30), st.integers(1, 12))
-def test_decimal_columns_are_exact(values: list[int], places: int) -> None:
-    columns = decimal_columns(np.array(values, np.int64), places, NONE)
-    for column in columns:
-        assert isinstance(column, bytes) or column.sizes.tolist() == list(map(len, column))  # type: ignore[union-attr]
-    rows = join_rows(columns, len(values))
-    for row, value in enumerate(values):
-        text = rows.row(row)
-        assert text == b"null" if value == NONE else Decimal(text.decode()) == Decimal(value).scaleb(-places)
-
-
-@given(st.lists(st.integers(-(1 << 40), 1 << 40), min_size=1, max_size=30), st.integers(1, 12))
-def test_negative_values_fall_back_to_floats(values: list[int], places: int) -> None:
-    rows = join_rows(decimal_columns(np.array(values, np.int64), places), len(values))
-    for row, value in enumerate(values):
-        assert float(rows.row(row)) == value / 10**places
 
 
 @given(st.lists(st.one_of(st.integers(0, (1 << 35) - 1), st.integers(-(1 << 63), (1 << 63) - 1)), max_size=30))
@@ -150,15 +132,15 @@ epoch_ns = st.integers(10**18, (1 << 63) - 1)  # 19 digits that fit int64
 
 
 @given(st.lists(st.tuples(epoch_ns, epoch_ns), max_size=20))
-def test_times_block_spells_the_four_times(times: list[tuple[int, int]]) -> None:
+def test_times_matrix_spells_the_four_times(times: list[tuple[int, int]]) -> None:
     t_start = np.array([t for t, _ in times], np.int64)
     t_end = np.array([t for _, t in times], np.int64)
-    block = times_block(t_start, t_end)
+    block = times_matrix(t_start, t_end)
     if not times:
         assert block is None
         return
     assert block is not None
-    for text, (start, end) in zip(block, times, strict=True):
+    for text, (start, end) in zip(block.view(f"S{block.shape[1]}").ravel().tolist(), times, strict=True):
         fields = json.loads(b"{" + text[1:] + b"}", parse_float=Decimal)
         assert fields == {
             "t": Decimal(start).scaleb(-9),
@@ -169,9 +151,9 @@ def test_times_block_spells_the_four_times(times: list[tuple[int, int]]) -> None
 
 
 @given(st.lists(st.integers(0, 10**18 - 1), min_size=1, max_size=5))
-def test_times_block_leaves_other_times_to_the_fields(times: list[int]) -> None:
+def test_times_matrix_leaves_other_times_to_the_fields(times: list[int]) -> None:
     column = np.array(times, np.int64)
-    assert times_block(column, column) is None
+    assert times_matrix(column, column) is None
 
 
 @given(st.lists(st.binary(max_size=6), max_size=60), st.data())

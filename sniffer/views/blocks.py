@@ -1,0 +1,104 @@
+"""Rows of one width, laid out by numpy: the per-frame fields of a JSON message in one matrix.
+
+:mod:`sniffer.views.rows` joins columns of pieces with one list operation per column; a
+message with a dozen small fields (an index, four times, flags, a pairing, a latency) still
+costs a dozen list operations per row. Where no one compares bytes with ``json.dumps`` (MCAP
+messages), those fields can instead sit at fixed places in a byte matrix, each right-aligned in
+the width its widest value in the batch needs and padded with spaces (JSON allows whitespace
+before a value): numpy writes each field for all rows at once, and one ``tolist`` gives the rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from sniffer.views.rows import Pieces, fixed_digits
+
+Integers = npt.NDArray[np.integer[Any]]
+#: Writes a field into its columns of the matrix (rows × the field's width).
+_Writer = Callable[[npt.NDArray[np.uint8]], None]
+_SPACE, _MINUS, _NULL = ord(" "), ord("-"), np.frombuffer(b"null", np.uint8)
+_POWERS = 10 ** np.arange(1, 19, dtype=np.uint64)
+
+
+class Block:
+    """Fields of ``count`` rows, described in order; :meth:`pieces` lays them out."""
+
+    def __init__(self, count: int) -> None:
+        self.count = count
+        self._fields: list[tuple[int, _Writer]] = []
+
+    def text(self, constant: bytes) -> Block:
+        """The same bytes in every row (a key, a separator, a reserved slot of zeros)."""
+        pattern = np.frombuffer(constant, np.uint8)
+        self._fields.append((len(constant), lambda place: place.__setitem__(slice(None), pattern)))
+        return self
+
+    def integers(self, values: Integers, none: int | None = None) -> Block:
+        """Integers in decimal, as ``repr`` spells them; ``null`` where ``values`` holds ``none``."""
+        return self.decimals(values, 0, none)
+
+    def decimals(self, values: Integers, places: int, none: int | None = None) -> Block:
+        """``values / 10**places`` as exact decimals (nanoseconds as seconds: ``places`` 9,
+        ``-0.000001500``), integers for ``places`` 0; ``null`` where ``values`` holds ``none``."""
+        missing = values == none if none is not None and (values == none).any() else None
+        negative = (values < 0) if missing is None else (values < 0) & ~missing
+        signed = np.flatnonzero(negative)
+        # Magnitudes in uint64 (the magnitude of -2**63 fits there).
+        magnitude = values.astype(np.uint64)
+        if len(signed):
+            magnitude[signed] = (-(values[signed] + 1)).astype(np.uint64) + 1
+        if missing is not None:
+            magnitude[missing] = 0
+        whole, fraction = np.divmod(magnitude, np.uint64(10**places))
+        lengths = 1 + np.searchsorted(_POWERS, whole, side="right") + negative
+        fraction_width = places + 1 if places else 0
+        whole_width = max(int(lengths.max(initial=1)), 4 - fraction_width if missing is not None else 0)
+        width = whole_width + fraction_width
+
+        def write(place: npt.NDArray[np.uint8]) -> None:
+            whole_place = place[:, :whole_width]
+            whole_place[:] = fixed_digits(whole, whole_width)
+            if int(lengths.min(initial=whole_width)) < whole_width:
+                whole_place[np.arange(whole_width) < (whole_width - lengths)[:, None]] = _SPACE
+            whole_place[signed, whole_width - lengths[signed]] = _MINUS
+            if places:
+                place[:, whole_width] = ord(".")
+                place[:, whole_width + 1 :] = fixed_digits(fraction, places)
+            if missing is not None:
+                place[missing] = _SPACE
+                place[missing, width - 4 :] = _NULL
+
+        self._fields.append((width, write))
+        return self
+
+    def matrix(self, rows: npt.NDArray[np.uint8]) -> Block:
+        """Bytes laid out already, a row of ``rows`` per row (see :func:`~sniffer.views.rows.times_matrix`)."""
+        self._fields.append((rows.shape[1], lambda place: place.__setitem__(slice(None), rows)))
+        return self
+
+    def choice(self, keys: Integers, pieces: list[bytes]) -> Block:
+        """The piece each key picks, right-aligned in the width of the widest picked."""
+        used = np.unique(keys).tolist()
+        width = max((len(pieces[key]) for key in used), default=0)
+        table = np.full((len(pieces), width), _SPACE, np.uint8)
+        for key in used:
+            table[key, width - len(pieces[key]) :] = np.frombuffer(pieces[key], np.uint8)
+        self._fields.append((width, lambda place: place.__setitem__(slice(None), table[keys])))
+        return self
+
+    def pieces(self) -> Pieces:
+        """Each row as bytes, all of one width."""
+        width = sum(field_width for field_width, _ in self._fields)
+        matrix = np.empty((self.count, width), np.uint8)
+        start = 0
+        for field_width, write in self._fields:
+            write(matrix[:, start : start + field_width])
+            start += field_width
+        # A row ends in a field's last byte, never in a zero (which ``tolist`` of bytes would drop).
+        rows: list[bytes] = matrix.view(f"S{width}").ravel().tolist() if width else [b""] * self.count
+        return Pieces(rows, np.full(self.count, width, np.int64))

@@ -1,0 +1,53 @@
+"""Hypothesis: a :class:`Block` writes what ``json`` reads back exactly, in rows of one width."""
+
+from __future__ import annotations
+
+import json
+import os
+from decimal import Decimal
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from sniffer.views.blocks import Block
+
+EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
+INT64 = st.integers(-(2**63), 2**63 - 1)
+NONE = -1
+
+
+@settings(max_examples=max(300, EXAMPLES), deadline=None)
+@given(
+    st.lists(st.one_of(INT64, st.integers(-20, 20), st.just(NONE)), min_size=1, max_size=40),
+    st.integers(0, 12),
+    st.lists(st.integers(0, 3), min_size=40, max_size=40),
+)
+def test_rows_read_back_as_the_exact_numbers(values: list[int], places: int, keys: list[int]) -> None:
+    column = np.array(values, np.int64)
+    choices = [b"[]", b'["gap_1_5"]', b'"x"', b"null"]
+    picked = np.array(keys[: len(values)], np.int64)
+    rows = (
+        Block(len(values))
+        .text(b'{"integer":').integers(column)
+        .text(b',"or_null":').integers(column, NONE)
+        .text(b',"decimal":').decimals(column, places, NONE)
+        .text(b',"choice":').choice(picked, choices)
+        .text(b"}")
+        .pieces()
+    )  # fmt: skip
+    assert len({len(row) for row in rows}) == 1 and list(rows.sizes) == [len(row) for row in rows]
+    for row, value, key in zip(rows, values, picked.tolist(), strict=True):
+        record = json.loads(row, parse_float=Decimal)
+        assert record["integer"] == value
+        assert record["or_null"] == (None if value == NONE else value)
+        expected = None if value == NONE else Decimal(value).scaleb(-places)
+        assert record["decimal"] == expected
+        assert json.dumps(record["choice"], separators=(",", ":")).encode() == choices[key]
+        if places and value != NONE:  # every fraction digit written, as the nanoseconds' exact decimal
+            assert len(row.split(b'"decimal":')[1].split(b",")[0].strip().split(b".")[1]) == places
+
+
+def test_a_column_without_the_none_value_takes_no_room_for_null() -> None:
+    rows = Block(2).text(b"[").integers(np.array([1, 2]), NONE).text(b"]").pieces()
+    assert list(rows) == [b"[1]", b"[2]"]
