@@ -8,7 +8,6 @@ request's end. A request's bytes are kept until its answer comes, in this batch 
 from __future__ import annotations
 
 from collections import OrderedDict
-from itertools import repeat
 
 import numpy as np
 import numpy.typing as npt
@@ -41,38 +40,51 @@ class TransactionEncoder:
         self._requests: OrderedDict[int, bytes] = OrderedDict()
 
     def rows(self, batch: AnnotatedBatch, kept: npt.NDArray[np.int64]) -> tuple[Rows, npt.NDArray[np.int64]]:
-        """The transactions that the messages at positions ``kept`` close, and their log times."""
+        """The transactions that the messages at positions ``kept`` close, and their log times.
+
+        An answer takes its request from this batch (found by numpy) or from the requests
+        kept open from earlier batches; the first answer to a request takes it, later ones
+        find nothing (as they would have after an answer popped it)."""
         messages, frames = batch.messages, batch.messages.frames
         role, paired = messages.role[kept], messages.request_index[kept]
-        indexes = kept + frames.first_index
         hexes = _kept(hex_texts(frames.data, frames.offsets, quoted=True), kept)
         timed_out = (messages.flags[kept] & TIMEOUT) != 0
         opening = np.flatnonzero((role == _REQUEST) & ~timed_out)
-        self._requests.update(zip(indexes[opening].tolist(), _kept(hexes, opening), strict=True))
+        opening_index = (kept + frames.first_index)[opening]
         lonely = ((role == _REQUEST) & timed_out) | (role == _BROADCAST)
         answering = np.flatnonzero((paired != NONE) & (role != _REQUEST) & (role != _BROADCAST))
-        request_hex = dict(
-            zip(answering.tolist(), map(self._requests.pop, paired[answering].tolist(), repeat(None)), strict=True)
-        )
+        answering = answering[np.sort(np.unique(paired[answering], return_index=True)[1])]
+        targets = paired[answering]
+        at = np.minimum(np.searchsorted(opening_index, targets), max(len(opening) - 1, 0))
+        here = (opening_index[at] == targets) if len(opening) else np.zeros(len(targets), np.bool_)
+        #: Each row's request: its own row (lonely requests and broadcasts) or its request's row.
+        request_rows = np.arange(len(kept))
+        request_rows[answering[here]] = opening[at[here]]
+        answered = np.zeros(len(kept), np.bool_)
+        answered[answering[here]] = True
+        earlier = {row: self._requests.pop(target, None) for row, target in
+                   zip(answering[~here].tolist(), targets[~here].tolist(), strict=True)}  # fmt: skip
+        answered[[row for row, found in earlier.items() if found is not None]] = True
+        unanswered = np.ones(len(opening), np.bool_)
+        unanswered[at[here]] = False
+        self._requests.update(zip(opening_index[unanswered].tolist(), _kept(hexes, opening[unanswered]), strict=True))
         while len(self._requests) > KEPT_REQUESTS:
             self._requests.popitem(last=False)
-        answered = np.zeros(len(kept), np.bool_)
-        answered[[row for row, found in request_hex.items() if found is not None]] = True
         emitted = np.flatnonzero(lonely | answered)
-        return self._encode(
-            batch,
-            kept[emitted],
-            lonely[emitted],
-            [request_hex.get(row) or hexes[row] for row in emitted.tolist()],
-            _kept(hexes, emitted),
-        )
+        request_hex = Pieces(list(map(hexes.__getitem__, request_rows[emitted].tolist())),
+                             hexes.sizes[request_rows[emitted]])  # fmt: skip
+        for place in np.flatnonzero(np.isin(emitted, list(earlier))).tolist():
+            found = earlier[int(emitted[place])]
+            assert found is not None
+            request_hex[place], request_hex.sizes[place] = found, len(found)
+        return self._encode(batch, kept[emitted], lonely[emitted], request_hex, _kept(hexes, emitted))
 
     def _encode(
         self,
         batch: AnnotatedBatch,
         positions: npt.NDArray[np.int64],
         lonely: npt.NDArray[np.bool_],
-        request_hex: list[bytes],
+        request_hex: Pieces,
         answer_hex: Pieces,
     ) -> tuple[Rows, npt.NDArray[np.int64]]:
         messages, frames = batch.messages, batch.messages.frames

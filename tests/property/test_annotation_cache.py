@@ -13,6 +13,7 @@ import os
 import struct
 from dataclasses import astuple
 from decimal import Decimal
+from itertools import pairwise
 
 import numpy as np
 from hypothesis import given, settings
@@ -70,13 +71,18 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
     return [request, answer] if answer else [request]
 
 
-def matched(adus: list[bytes]) -> list[MessageBatch]:
+def matched(adus: list[bytes], cuts: tuple[int, ...] = ()) -> list[MessageBatch]:
+    """The frames paired by the matcher, fed to it in pieces ending at ``cuts``."""
     frames, t = [], 0
     for index, data in enumerate(adus):
         t += 5_000_000
         frames.append(Frame(index, t, t + 1000 * len(data), data, crc_ok(data), FrameFlag.NONE))
+    if not frames:
+        return []
     matcher = Matcher()
-    return [matcher.feed(frames_to_batch(frames)), matcher.flush()] if frames else []
+    bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(frames)), len(frames)]
+    pieces = [frames[start:end] for start, end in pairwise(bounds)]
+    return [matcher.feed(frames_to_batch(piece)) for piece in pieces] + [matcher.flush()]
 
 
 def said(decoding: Decoding) -> tuple[object, ...]:
