@@ -45,7 +45,9 @@ class Block:
     def decimals(self, values: Integers, places: int, none: int | None = None) -> Block:
         """``values / 10**places`` as exact decimals (nanoseconds as seconds: ``places`` 9,
         ``-0.000001500``), integers for ``places`` 0; ``null`` where ``values`` holds ``none``."""
-        missing = values == none if none is not None and (values == none).any() else None
+        missing = None if none is None else values == none
+        if missing is not None and not missing.any():
+            missing = None
         negative = (values < 0) if missing is None else (values < 0) & ~missing
         signed = np.flatnonzero(negative)
         # Magnitudes in uint64 (the magnitude of -2**63 fits there).
@@ -99,6 +101,7 @@ class Block:
         for field_width, write in self._fields:
             write(matrix[:, start : start + field_width])
             start += field_width
-        # A row ends in a field's last byte, never in a zero (which ``tolist`` of bytes would drop).
+        if width and self.count and not matrix[:, -1].all():
+            raise ValueError("a block's rows end in a zero byte, which tolist() would drop")
         rows: list[bytes] = matrix.view(f"S{width}").ravel().tolist() if width else [b""] * self.count
         return Pieces(rows, np.full(self.count, width, np.int64))

@@ -7,6 +7,7 @@ import os
 from decimal import Decimal
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -51,3 +52,9 @@ def test_rows_read_back_as_the_exact_numbers(values: list[int], places: int, key
 def test_a_column_without_the_none_value_takes_no_room_for_null() -> None:
     rows = Block(2).text(b"[").integers(np.array([1, 2]), NONE).text(b"]").pieces()
     assert list(rows) == [b"[1]", b"[2]"]
+
+
+def test_a_row_ending_in_a_zero_byte_is_refused() -> None:
+    """``tolist`` of a bytes view drops trailing zeros: such a row would lose bytes silently."""
+    with pytest.raises(ValueError, match="zero byte"):
+        Block(2).text(b"{").text(bytes(3)).pieces()

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, MessageBatch, Role
 from sniffer.exports.levels import TIMEOUT
-from sniffer.exports.transactions import TransactionEncoder
+from sniffer.exports.transactions import KEPT_REQUESTS, TransactionEncoder
 from tests.property.test_annotation_cache import exchanges, matched
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
@@ -46,7 +46,7 @@ def expected(batches: list[tuple[MessageBatch, list[int]]]) -> list[tuple[int, i
                     closed.append((position, (message.request_index, first + position, request,
                                               message.frame.data.hex())))  # fmt: skip
         found += [transaction for _, transaction in sorted(closed)]
-        while len(open_requests) > 4096:
+        while len(open_requests) > KEPT_REQUESTS:
             open_requests.popitem(last=False)
     return found
 
