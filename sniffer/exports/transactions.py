@@ -71,8 +71,7 @@ class TransactionEncoder:
         while len(self._requests) > KEPT_REQUESTS:
             self._requests.popitem(last=False)
         emitted = np.flatnonzero(lonely | answered)
-        request_hex = Pieces(list(map(hexes.__getitem__, request_rows[emitted].tolist())),
-                             hexes.sizes[request_rows[emitted]])  # fmt: skip
+        request_hex = hexes.take(request_rows[emitted])
         for place in np.flatnonzero(np.isin(emitted, list(earlier))).tolist():
             found = earlier[int(emitted[place])]
             assert found is not None
@@ -102,7 +101,7 @@ class TransactionEncoder:
                        messages.exception_code[positions])  # fmt: skip
         block = (
             Block(len(positions))
-            .text(bytes(self._reserved) + b'{"request_index":').integers(request)
+            .text(b'{"request_index":').integers(request)
             .text(b',"answer_index":').integers(answer, NONE)
             .text(b",").choice(*facts)
             .text(b',"latency_s":').decimals(latency, 9, NONE)
@@ -110,9 +109,8 @@ class TransactionEncoder:
             .text(b',"request":')
             .pieces()
         )  # fmt: skip
-        rows = join_rows([block, request_hex, b',"answer":', answer_hex, b"}"], len(positions))
-        times = np.where(lonely, frames.t_end_ns[positions], frames.t_start_ns[positions])
-        return Rows(rows.data, rows.offsets, self._reserved), times
+        rows = join_rows([block, request_hex, b',"answer":', answer_hex, b"}"], len(positions), self._reserved)
+        return rows, np.where(lonely, frames.t_end_ns[positions], frames.t_start_ns[positions])
 
 
 def _facts(slave: Integers, function: Integers, outcome: Integers, code: Integers) -> tuple[Integers, list[bytes]]:
@@ -136,6 +134,4 @@ def _number_or_null(value: int) -> bytes:
 
 def _kept(items: Pieces, rows: npt.NDArray[np.int64]) -> Pieces:
     """The pieces at ``rows`` (sorted, distinct: all of them when as many)."""
-    if len(rows) == len(items):
-        return items
-    return Pieces(list(map(items.__getitem__, rows.tolist())), items.sizes[rows])
+    return items if len(rows) == len(items) else items.take(rows)

@@ -24,7 +24,7 @@ from decoders.message import (
     ParamValue,
 )
 from decoders.modbus.annotate import KEPT_DECODINGS
-from sniffer.views.blocks import Block
+from sniffer.views.blocks import Block, times_matrix
 from sniffer.views.rows import (
     Column,
     Rows,
@@ -32,7 +32,6 @@ from sniffer.views.rows import (
     join_rows,
     number_texts,
     or_null,
-    times_matrix,
 )
 
 NS_PER_S = 1e9
@@ -152,7 +151,7 @@ class FrameRecordEncoder:
         positions = batch.positions()
         kept = np.array(positions, np.int64)
         t_start, t_end = frames.t_start_ns[kept], frames.t_end_ns[kept]
-        block = Block(len(positions)).text(bytes(reserved) + b'{"kind":"frame","index":')
+        block = Block(len(positions)).text(b'{"kind":"frame","index":')
         block.integers(kept + frames.first_index)
         times = times_matrix(t_start, t_end)  # the digits of each time once, for both spellings
         if times is not None:
@@ -171,8 +170,7 @@ class FrameRecordEncoder:
         tails = self._tails.get_all(
             decodings, lambda row: b",".join(self._frame_parts(facts, positions[row], decodings[row])) + b"}"
         )
-        joined = join_rows([rows, tails] + ([end] if end else []), len(positions))
-        return Rows(joined.data, joined.offsets, reserved)
+        return join_rows([rows, tails] + ([end] if end else []), len(positions), reserved)
 
     def _times(self, t_start: npt.NDArray[np.int64], t_end: npt.NDArray[np.int64]) -> list[Column]:
         return [

@@ -6,8 +6,7 @@ a list with one piece per row. :func:`join_rows` interleaves the columns with on
 assignment each and joins them with one ``join``: the Python work is per column, not per row.
 
 The columns are built whole too: numbers by one ``repr`` per column (:func:`number_texts`), hex
-by numpy (:func:`hex_texts`), times as exact decimals (:func:`times_matrix`), small codes
-through a :class:`Table`. :class:`Pieces` carry the sizes numpy
+by numpy (:func:`hex_texts`), small codes through a :class:`Table`. :class:`Pieces` carry the sizes numpy
 already knew, so that joining need not measure every piece.
 """
 
@@ -43,6 +42,10 @@ class Pieces(list[bytes]):
             items[rows] = piece
             self[:] = items.tolist()
         self.sizes[rows] = len(piece)
+
+    def take(self, rows: npt.NDArray[np.int64]) -> Pieces:
+        """The pieces at ``rows``, in that order."""
+        return Pieces(list(map(self.__getitem__, rows.tolist())), self.sizes[rows])
 
 
 #: A column of integers of any width (slaves are int16, roles uint8, times int64).
@@ -165,54 +168,3 @@ def hex_texts(data: bytes, offsets: npt.NDArray[np.int64], *, quoted: bool = Fal
     if quoted:
         text[starts] = text[starts + sizes - 1] = ord('"')
     return Pieces(text.tobytes().split(b"|"), sizes)
-
-
-_TIMES = (
-    b',"t":SSSSSSSSSS.NNNNNNNNN,"t_end":SSSSSSSSSS.NNNNNNNNN,"t_ns":DDDDDDDDDDDDDDDDDDD,"t_end_ns":DDDDDDDDDDDDDDDDDDD'
-)
-_TIMES_TEMPLATE = np.frombuffer(_TIMES, np.uint8)
-#: Where each time's digits go: (t_ns digits, fraction digits) per field of the template.
-_T, _T_END = _TIMES.index(b"S"), _TIMES.index(b"S", _TIMES.index(b"t_end"))
-_T_NS, _T_END_NS = _TIMES.index(b"D"), _TIMES.index(b"D", _TIMES.index(b"t_end_ns"))
-EPOCH_DIGITS = 19  # nanoseconds since 1970 from 2001-09-09 to 2286-11-20
-
-
-def times_matrix(t_start: npt.NDArray[np.int64], t_end: npt.NDArray[np.int64]) -> npt.NDArray[np.uint8] | None:
-    """``,"t":…,"t_end":…,"t_ns":…,"t_end_ns":…`` per row of a byte matrix, all four from the two
-    columns' digits (``t`` as the exact decimal of ``t_ns``): the digits come from one ``repr``
-    per column and are placed by numpy. ``None`` unless every time has 19 digits (any capture
-    time from 2001 to 2286)."""
-    count = len(t_start)
-    if not count or not all(
-        int(column.min()) >= 10 ** (EPOCH_DIGITS - 1) and int(column.max()) < 10**EPOCH_DIGITS
-        for column in (t_start, t_end)
-    ):
-        return None
-    block = np.empty((count, len(_TIMES)), np.uint8)
-    block[:] = _TIMES_TEMPLATE
-    for column, seconds_at, digits_at in ((t_start, _T, _T_NS), (t_end, _T_END, _T_END_NS)):
-        digits = _digits(column)
-        block[:, digits_at : digits_at + EPOCH_DIGITS] = digits
-        block[:, seconds_at : seconds_at + 10] = digits[:, :10]
-        block[:, seconds_at + 11 : seconds_at + 20] = digits[:, 10:]
-    return block
-
-
-def _digits(column: npt.NDArray[np.int64]) -> npt.NDArray[np.uint8]:
-    return fixed_digits(column, EPOCH_DIGITS)
-
-
-def fixed_digits(values: Integers, width: int) -> npt.NDArray[np.uint8]:
-    """Each non-negative value's last ``width`` decimal digits, with leading zeros: a digit
-    column at a time, in 32 bits (several times faster than 64): larger values are cut into
-    their last nine digits and the rest."""
-    if len(values) and width > 9 and int(values.max()) >= 1 << 32:
-        high, low = np.divmod(values, values.dtype.type(10**9))
-        return np.concatenate([fixed_digits(high, width - 9), fixed_digits(low, 9)], axis=1)
-    digits = np.empty((len(values), width), np.uint8)
-    rest = values.astype(np.uint32)
-    for place in range(width - 1, -1, -1):
-        rest, digit = np.divmod(rest, np.uint32(10))
-        digits[:, place] = digit
-    digits += ord("0")
-    return digits

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sniffer.views.blocks import Block
+from sniffer.views.blocks import Block, times_matrix
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 INT64 = st.integers(-(2**63), 2**63 - 1)
@@ -58,3 +58,31 @@ def test_a_row_ending_in_a_zero_byte_is_refused() -> None:
     """``tolist`` of a bytes view drops trailing zeros: such a row would lose bytes silently."""
     with pytest.raises(ValueError, match="zero byte"):
         Block(2).text(b"{").text(bytes(3)).pieces()
+
+
+epoch_ns = st.integers(10**18, (1 << 63) - 1)  # 19 digits that fit int64
+
+
+@given(st.lists(st.tuples(epoch_ns, epoch_ns), max_size=20))
+def test_times_matrix_spells_the_four_times(times: list[tuple[int, int]]) -> None:
+    t_start = np.array([t for t, _ in times], np.int64)
+    t_end = np.array([t for _, t in times], np.int64)
+    block = times_matrix(t_start, t_end)
+    if not times:
+        assert block is None
+        return
+    assert block is not None
+    for text, (start, end) in zip(block.view(f"S{block.shape[1]}").ravel().tolist(), times, strict=True):
+        fields = json.loads(b"{" + text[1:] + b"}", parse_float=Decimal)
+        assert fields == {
+            "t": Decimal(start).scaleb(-9),
+            "t_end": Decimal(end).scaleb(-9),
+            "t_ns": start,
+            "t_end_ns": end,
+        }
+
+
+@given(st.lists(st.integers(0, 10**18 - 1), min_size=1, max_size=5))
+def test_times_matrix_leaves_other_times_to_the_fields(times: list[int]) -> None:
+    column = np.array(times, np.int64)
+    assert times_matrix(column, column) is None

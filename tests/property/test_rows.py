@@ -7,15 +7,12 @@ one-by-one encoder.
 
 from __future__ import annotations
 
-import json
-from decimal import Decimal
-
 import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
 from sniffer.exports.foxglove_log import LogEncoder, _varint, varint_pieces
-from sniffer.views.rows import Pieces, hex_texts, join_rows, number_texts, or_null, times_matrix
+from sniffer.views.rows import Pieces, hex_texts, join_rows, number_texts, or_null
 
 NONE = -1
 pieces = st.binary(max_size=12)
@@ -126,34 +123,6 @@ def test_log_rows_decode_to_what_was_given(entries: list[tuple[int, int, str, st
             if level
             else fields == {3: b"#" + text.encode(), 4: name.encode()}
         )
-
-
-epoch_ns = st.integers(10**18, (1 << 63) - 1)  # 19 digits that fit int64
-
-
-@given(st.lists(st.tuples(epoch_ns, epoch_ns), max_size=20))
-def test_times_matrix_spells_the_four_times(times: list[tuple[int, int]]) -> None:
-    t_start = np.array([t for t, _ in times], np.int64)
-    t_end = np.array([t for _, t in times], np.int64)
-    block = times_matrix(t_start, t_end)
-    if not times:
-        assert block is None
-        return
-    assert block is not None
-    for text, (start, end) in zip(block.view(f"S{block.shape[1]}").ravel().tolist(), times, strict=True):
-        fields = json.loads(b"{" + text[1:] + b"}", parse_float=Decimal)
-        assert fields == {
-            "t": Decimal(start).scaleb(-9),
-            "t_end": Decimal(end).scaleb(-9),
-            "t_ns": start,
-            "t_end_ns": end,
-        }
-
-
-@given(st.lists(st.integers(0, 10**18 - 1), min_size=1, max_size=5))
-def test_times_matrix_leaves_other_times_to_the_fields(times: list[int]) -> None:
-    column = np.array(times, np.int64)
-    assert times_matrix(column, column) is None
 
 
 @given(st.lists(st.binary(max_size=6), max_size=60), st.data())
