@@ -34,10 +34,21 @@ class RtuSniffError(Exception):
     def __init__(self, kind: ErrorKind, message: str, *, path: str | None = None,
                  location: str | None = None) -> None:
         self.kind = kind
+        self.message = message
         self.path = path
         self.location = location
         where = ":".join(part for part in (path, location) if part)
         super().__init__(f"{where}: {message}" if where else message)
+
+    def __reduce__(self) -> tuple[object, ...]:
+        # Pickled (from the decoding process) by the arguments it was made with, not by its text.
+        return (_rebuilt, (type(self), self.kind, self.message, self.path, self.location))
+
+
+def _rebuilt(
+    cls: type[RtuSniffError], kind: ErrorKind, message: str, path: str | None, location: str | None
+) -> RtuSniffError:
+    return cls(kind, message, path=path, location=location)
 
 
 class CaptureFormatError(RtuSniffError):

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from contextlib import closing
 from dataclasses import dataclass, replace
-from typing import Protocol
+from functools import partial
+from typing import Generic, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -16,6 +18,7 @@ from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from decoders.profiles.apply import ProfileApplier, ProfileBook
 from decoders.stats import Statistics
+from sniffer.decoding_process import ChildDecoding, DecodingStep, Prepare, Prepared, decode_here
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.base import CaptureReader
 
@@ -67,35 +70,71 @@ def analyze(
     *,
     raw: Callable[[ChunkBatch], None] | None = None,
     framed: Callable[[MessageBatch], None] | None = None,
+    prepare: Prepare[Prepared] | None = None,
+    prepared: Callable[[Prepared], None] | None = None,
+    jobs: int = 1,
 ) -> Statistics:
     """Decode every batch of ``reader`` into ``view``, streaming; statistics cover all frames
     (when the view wants them).
     ``raw`` gets the chunks as they are read (exports keep them); ``framed`` the framed and
-    paired messages in columns, before annotation (exports that need only the frames)."""
+    paired messages in columns, before annotation (exports that need only the frames).
+    ``prepare`` works on those too, where they are made; ``prepared`` gets what it made of a
+    batch after ``view`` got the batch.
+    ``jobs=2``: reading, framing, pairing and ``prepare`` run in a child process
+    (:mod:`sniffer.decoding_process`), forked before ``view.start``; the output is the same."""
+    if (prepare is None) != (prepared is None):
+        raise ValueError("prepare and prepared come together")
     decoder = Decoder(analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns)
+    info = replace(reader.info, timing=analysis.timing)
+    run = partial(_run, source=source, info=info, analysis=analysis, view=view, sinks=_Sinks(raw, framed, prepared))
+    if jobs == 1:
+        return run(decode_here(reader, decoder, prepare))
+    with closing(ChildDecoding(reader, decoder, with_chunks=raw is not None, prepare=prepare)) as child:
+        return run(child)
+
+
+@dataclass(frozen=True)
+class _Sinks(Generic[Prepared]):
+    """Who gets what besides the view."""
+
+    raw: Callable[[ChunkBatch], None] | None
+    framed: Callable[[MessageBatch], None] | None
+    prepared: Callable[[Prepared], None] | None
+
+
+def _run(
+    steps: Iterable[DecodingStep[Prepared]],
+    *,
+    source: str,
+    info: CaptureInfo,
+    analysis: Analysis,
+    view: MessageView,
+    sinks: _Sinks[Prepared],
+) -> Statistics:
     applier = ProfileApplier(analysis.profiles) if analysis.profiles is not None else None
     annotator = Annotator(applier) if view.wants_messages else None
     statistics = Statistics()
     framed_bytes = 0
-    view.start(source, replace(reader.info, timing=analysis.timing), analysis.line)
+    view.start(source, info, analysis.line)
 
-    def deliver(batches: list[MessageBatch]) -> None:
+    def deliver(step: DecodingStep[Prepared]) -> None:
         nonlocal framed_bytes
-        for batch in batches:
+        for position, batch in enumerate(step.batches):
             framed_bytes += len(batch.frames.data)
             if view.wants_statistics:
                 statistics.add_batch(batch)
-            if framed is not None:
-                framed(batch)
+            if sinks.framed is not None:
+                sinks.framed(batch)
             if annotator is not None:
                 annotated = annotator.annotate_batch(batch)
                 view.messages(annotated if analysis.keep is None else annotated.select(analysis.keep(batch)))
+            if sinks.prepared is not None:
+                sinks.prepared(step.prepared[position])
 
-    for chunks in reader.batches():
-        if raw is not None:
-            raw(chunks)
-        deliver(decoder.feed(chunks))
-    deliver(decoder.flush())
+    for step in steps:
+        if sinks.raw is not None and step.chunks is not None:
+            sinks.raw(step.chunks)
+        deliver(step)
     view.finish(statistics)
     if framed_bytes == 0:
         # Scripts must not take an empty recording (a quiet line, a wrong port) for a healthy bus.

@@ -49,7 +49,9 @@ def test_bad_file(cli: Cli, tmp_path: Path, bad: tuple[str, str, Content, int, s
         content(path)
     else:
         path.write_bytes(content)
-    for command in (["analyze"], ["stats"], ["export", "--rrd", str(tmp_path / "out.rrd"), "--force"]):
+    commands = (["stats"], *(["analyze", "--jobs", jobs] for jobs in ("1", "2")),
+                *(["export", "--rrd", str(tmp_path / "out.rrd"), "--force", "--jobs", jobs] for jobs in ("1", "2")))
+    for command in commands:  # jobs 2: read in the decoding process
         result = cli(command[0], str(path), *command[1:])
         assert result.code == code, f"{name}: {result.err}"
         error_lines = [line for line in result.err.splitlines() if line.startswith("error: ")]

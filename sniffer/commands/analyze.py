@@ -9,7 +9,8 @@ from dataclasses import replace
 
 from rich.console import Console
 
-from sniffer.commands.common import add_decoding_options, open_analysis, open_output
+from sniffer.commands.common import add_decoding_options, add_jobs_option, open_analysis, open_output
+from sniffer.decoding_process import decoding_jobs
 from sniffer.filters import parse_filters
 from sniffer.pipeline import MessageView, analyze
 from sniffer.views.jsonl import JsonlView
@@ -38,6 +39,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "alternatives, combine keys to narrow (the JSONL summary still covers every frame)",
     )
     add_decoding_options(parser)
+    add_jobs_option(parser)
     parser.set_defaults(run=run)
 
 
@@ -54,5 +56,5 @@ def run(args: argparse.Namespace) -> int:
         else:
             width = None if out.isatty() or "COLUMNS" in os.environ else FILE_TABLE_WIDTH
             view = TableView(Console(file=out, width=width, highlight=False))
-        analyze(reader, args.capture, analysis, view)
+        analyze(reader, args.capture, analysis, view, jobs=decoding_jobs(args.jobs))
     return 0

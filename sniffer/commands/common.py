@@ -92,6 +92,18 @@ def add_decoding_options(parser: argparse.ArgumentParser) -> None:
     add_input_format_option(parser)
 
 
+def add_jobs_option(parser: argparse.ArgumentParser) -> None:
+    """For commands that spend more per frame after decoding than the decoding does (not
+    ``stats``: there a second process only adds the pipe)."""
+    parser.add_argument(
+        "--jobs",
+        choices=["auto", "1", "2"],
+        default="auto",
+        help="processes to decode with: 2 reads, frames and pairs in a second process while this one "
+        "annotates and writes (faster on two cores, same output); default auto: 2 where there are two cores",
+    )
+
+
 def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureReader, Analysis]:
     """Open ``args.capture`` and settle how to decode it."""
     book = profile_book(args.profile, args.profile_file)

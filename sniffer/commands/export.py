@@ -10,14 +10,21 @@ from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from typing import TYPE_CHECKING
 
+import numpy as np
+import numpy.typing as npt
+
 from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch, MessageBatch
 from decoders.stats import Statistics
-from sniffer.commands.common import add_decoding_options, open_analysis
+from sniffer.commands.common import add_decoding_options, add_jobs_option, open_analysis
+from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.mcap_writer import HEADER_SIZE
 from sniffer.exports.pcap_export import PcapExporter
+from sniffer.exports.transactions import TransactionEncoder
 from sniffer.pipeline import Analysis, analyze
+from sniffer.views.rows import Rows
 
 if TYPE_CHECKING:
     from sniffer.exports.mcap_export import McapExporter
@@ -38,6 +45,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("--spawn", action="store_true", help="also open the Rerun viewer (needs a display)")
     parser.add_argument("--force", action="store_true", help="overwrite existing output files")
     add_decoding_options(parser)
+    add_jobs_option(parser)
     parser.set_defaults(run=run)
 
 
@@ -51,7 +59,17 @@ def run(args: argparse.Namespace) -> int:
         reader, analysis = open_analysis(args, stack)
         view = ExportView(args, analysis)
         stack.callback(view.close)
-        analyze(reader, args.capture, analysis, view, raw=view.raw, framed=view.framed if args.pcap else None)
+        analyze(
+            reader,
+            args.capture,
+            analysis,
+            view,
+            raw=view.raw,
+            framed=view.framed if args.pcap else None,
+            prepare=view.transactions if args.mcap else None,
+            prepared=view.write_transactions if args.mcap else None,
+            jobs=decoding_jobs(args.jobs),
+        )
     return 0
 
 
@@ -67,18 +85,22 @@ class ExportView:
         self.analysis = analysis
         self.mcap: McapExporter | None = None
         self.pcap: PcapExporter | None = None
-        self.rerun = None
+        self.rerun: RerunExporter | None = None
         if args.pcap:
             with _writing(args.pcap):
                 self.pcap = PcapExporter(args.pcap)
-        if args.rrd or args.spawn:
+        #: The MCAP's transactions need no decodings: built where the messages are framed and paired.
+        self._transactions = TransactionEncoder(HEADER_SIZE)
+
+    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        # Exporters that start threads (Rerun's SDK, the MCAP writer's compressor) are made here,
+        # after the decoding process is forked: a fork copies no thread, only the locks they hold.
+        if self.args.rrd or self.args.spawn:
             # Rerun takes a third of a second to import: only when asked for.
             from sniffer.exports.rerun_export import RerunExporter  # noqa: PLC0415
 
-            with _writing(args.rrd):
-                self.rerun = RerunExporter(args.rrd, spawn=args.spawn)
-
-    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+            with _writing(self.args.rrd):
+                self.rerun = RerunExporter(self.args.rrd, spawn=self.args.spawn)
         if self.args.mcap:
             # Imported when asked for, as Rerun is: a pcap export needs neither.
             from sniffer.exports.mcap_export import McapExporter  # noqa: PLC0415
@@ -90,6 +112,15 @@ class ExportView:
         if self.mcap is not None:
             with _writing(self.args.mcap):
                 self.mcap.raw(chunks)
+
+    def transactions(self, batch: MessageBatch) -> tuple[Rows, npt.NDArray[np.int64]]:
+        """A batch's ``/modbus/transactions`` messages and their times (in the decoding process)."""
+        return self._transactions.rows(batch, np.arange(len(batch)))
+
+    def write_transactions(self, transactions: tuple[Rows, npt.NDArray[np.int64]]) -> None:
+        if self.mcap is not None:
+            with _writing(self.args.mcap):
+                self.mcap.transactions(*transactions)
 
     def framed(self, batch: MessageBatch) -> None:
         if self.pcap is not None:

@@ -41,7 +41,7 @@ from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports import foxglove_log
 from sniffer.exports.levels import FLAG_SUFFIXES, log_levels
 from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
-from sniffer.exports.transactions import OUTCOMES, TransactionEncoder
+from sniffer.exports.transactions import OUTCOMES
 from sniffer.io.formats.mcap_capture import (
     LAYOUT_DOC,
     MESSAGE_ENCODING,
@@ -147,7 +147,6 @@ class McapExporter:
         self._log_encoder = foxglove_log.LogEncoder(_LOG_NAMES)
         #: Per decoding: the log text after the frame index, and the numeric params as JSON members.
         self._parts: Memo[Decoding, tuple[bytes, bytes]] = Memo(KEPT_DECODINGS)
-        self._transaction_rows = TransactionEncoder(HEADER_SIZE)
 
     def _json_channel(self, topic: str, schema: dict[str, Any]) -> int:
         schema_id = self._writer.add_schema(schema["title"], "jsonschema", json.dumps(schema).encode())
@@ -173,8 +172,11 @@ class McapExporter:
         log_rows = self._log_encoder.rows(t_ns, log_levels(messages)[kept], text, slaves, HEADER_SIZE)
         self._write(log_rows, self._log, t_ns)
         self._params(values, indexes, slaves, t_ns)
-        transactions, times = self._transaction_rows.rows(batch, kept)
-        self._write(transactions, self._transactions, times)
+
+    def transactions(self, rows: Rows, t_ns: npt.NDArray[np.int64]) -> None:
+        """A batch's ``/modbus/transactions`` messages, built by
+        :class:`~sniffer.exports.transactions.TransactionEncoder` (``reserved=HEADER_SIZE``)."""
+        self._write(rows, self._transactions, t_ns)
 
     def _write(self, rows: Rows, channels: npt.NDArray[np.uint16] | int, t_ns: npt.NDArray[np.int64]) -> None:
         if isinstance(channels, int):

@@ -3,6 +3,8 @@
 One message per answered request (``answered``, ``exception``, ``crc_error``, at the answer's
 start), per request that timed out (``timeout``) and per broadcast (``broadcast``), at the
 request's end. A request's bytes are kept until its answer comes, in this batch or a later one.
+Built from framed and paired messages alone, no decodings: with a decoding process
+(:mod:`sniffer.decoding_process`) they are built there, next to the framing.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from collections import OrderedDict
 import numpy as np
 import numpy.typing as npt
 
-from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Role
+from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from sniffer.exports.levels import TIMEOUT
 from sniffer.views.blocks import Block
 from sniffer.views.rows import (
@@ -39,13 +41,13 @@ class TransactionEncoder:
         #: Open requests' hex by frame index, oldest first.
         self._requests: OrderedDict[int, bytes] = OrderedDict()
 
-    def rows(self, batch: AnnotatedBatch, kept: npt.NDArray[np.int64]) -> tuple[Rows, npt.NDArray[np.int64]]:
+    def rows(self, messages: MessageBatch, kept: npt.NDArray[np.int64]) -> tuple[Rows, npt.NDArray[np.int64]]:
         """The transactions that the messages at positions ``kept`` close, and their log times.
 
         An answer takes its request from this batch (found by numpy) or from the requests
         kept open from earlier batches; the first answer to a request takes it, later ones
         find nothing (as they would have after an answer popped it)."""
-        messages, frames = batch.messages, batch.messages.frames
+        frames = messages.frames
         role, paired = messages.role[kept], messages.request_index[kept]
         hexes = _kept(hex_texts(frames.data, frames.offsets, quoted=True), kept)
         timed_out = (messages.flags[kept] & TIMEOUT) != 0
@@ -76,17 +78,17 @@ class TransactionEncoder:
             found = earlier[int(emitted[place])]
             assert found is not None
             request_hex[place], request_hex.sizes[place] = found, len(found)
-        return self._encode(batch, kept[emitted], lonely[emitted], request_hex, _kept(hexes, emitted))
+        return self._encode(messages, kept[emitted], lonely[emitted], request_hex, _kept(hexes, emitted))
 
     def _encode(
         self,
-        batch: AnnotatedBatch,
+        messages: MessageBatch,
         positions: npt.NDArray[np.int64],
         lonely: npt.NDArray[np.bool_],
         request_hex: Pieces,
         answer_hex: Pieces,
     ) -> tuple[Rows, npt.NDArray[np.int64]]:
-        messages, frames = batch.messages, batch.messages.frames
+        frames = messages.frames
         role = messages.role[positions]
         indexes = positions + frames.first_index
         outcome = np.where(

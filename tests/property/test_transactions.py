@@ -14,7 +14,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, MessageBatch, Role
+from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from sniffer.exports.levels import TIMEOUT
 from sniffer.exports.transactions import KEPT_REQUESTS, TransactionEncoder
 from tests.property.test_annotation_cache import exchanges, matched
@@ -69,8 +69,7 @@ def test_transactions_follow_the_rule(traffic: list[list[bytes]], cuts: list[int
         batches.append((batch, kept))
     encoder, got = TransactionEncoder(), []
     for batch, kept in batches:
-        annotated = AnnotatedBatch(batch, [Decoding("")] * len(batch))
-        rows, _ = encoder.rows(annotated, np.array(kept, np.int64))
+        rows, _ = encoder.rows(batch, np.array(kept, np.int64))
         for row in range(len(rows)):
             record = json.loads(rows.row(row))
             got.append((record["request_index"], record["answer_index"], record["request"], record["answer"]))

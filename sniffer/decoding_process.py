@@ -1,0 +1,192 @@
+"""Reading, framing and pairing in a child process, so that they and a view run on two cores.
+
+An export spends more per frame building and writing messages than reading, framing and
+pairing cost; in one process the two add up. Here a forked child runs
+:class:`decoders.pipeline.Decoder` over the reader and sends each step (the chunks read, the
+message batches they completed) through a pipe, pickled: columns, a few hundred bytes a frame
+at most. The parent annotates and runs the view, exactly as in one process, so the output is
+the same byte for byte.
+
+The child is forked before the view starts any thread. It ignores Ctrl-C (the parent stops
+it), and it ends when the parent stops reading (the pipe breaks) or kills it. Its failures come
+back as the exception it raised (the same one-line errors for bad input, its traceback added as
+a note), and the reader's warnings come back with its last message. Where ``os.fork`` is
+missing, :func:`decoding_jobs` says one process.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import signal
+import traceback
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
+from multiprocessing.connection import Connection, Pipe
+from typing import Generic, NoReturn, TypeVar
+
+from decoders.capture import ChunkBatch
+from decoders.message import MessageBatch
+from decoders.pipeline import Decoder
+from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.io.base import CaptureReader
+
+#: Pipe buffer asked for (Linux; 64 KiB otherwise): about three batches, so that the child runs
+#: ahead of the parent without a context switch per 64 KiB.
+PIPE_SIZE = 1 << 20
+
+
+Prepared = TypeVar("Prepared")
+#: Work on framed and paired messages alone (no decodings), done where they are made.
+Prepare = Callable[[MessageBatch], Prepared]
+
+
+@dataclass(frozen=True)
+class DecodingStep(Generic[Prepared]):
+    """What one batch of chunks completed. ``chunks`` is ``None`` at the end (the framer's and
+    matcher's leftovers), and when the view does not want the chunks; ``prepared``: what the
+    ``prepare`` stage made of each batch (empty without one)."""
+
+    chunks: ChunkBatch | None
+    batches: list[MessageBatch]
+    prepared: list[Prepared]
+
+
+@dataclass(frozen=True)
+class _Ended:
+    warnings: list[str]
+
+
+@dataclass(frozen=True)
+class _Failed:
+    error: BaseException
+    child_traceback: str
+    warnings: list[str]
+
+
+def decoding_jobs(requested: str) -> int:
+    """Processes to decode with: ``"1"``, ``"2"``, or ``"auto"`` (two where there are two cores
+    for this process and ``os.fork``)."""
+    if requested != "auto":
+        return int(requested)
+    if not hasattr(os, "fork"):
+        return 1
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return 2 if cores >= 2 else 1
+
+
+def decode_here(
+    reader: CaptureReader, decoder: Decoder, prepare: Prepare[Prepared] | None = None
+) -> Iterator[DecodingStep[Prepared]]:
+    """The steps of decoding ``reader``, in this process."""
+    for chunks in reader.batches():
+        yield _step(chunks, decoder.feed(chunks), prepare)
+    yield _step(None, decoder.flush(), prepare)
+
+
+def _step(
+    chunks: ChunkBatch | None, batches: list[MessageBatch], prepare: Prepare[Prepared] | None
+) -> DecodingStep[Prepared]:
+    return DecodingStep(chunks, batches, [] if prepare is None else [prepare(batch) for batch in batches])
+
+
+class ChildDecoding(Generic[Prepared]):
+    """The steps of decoding ``reader``, decoded in a child forked at once (``prepare`` runs
+    there too). Iterate once; :meth:`close` (also when iterating stopped early or failed)
+    stops the child."""
+
+    def __init__(
+        self, reader: CaptureReader, decoder: Decoder, *, with_chunks: bool, prepare: Prepare[Prepared] | None = None
+    ) -> None:
+        self._reader = reader
+        self._receive, send = Pipe(duplex=False)
+        _widen(send)
+        pid = os.fork()
+        if pid == 0:
+            self._receive.close()
+            _child(send, decode_here(reader, decoder, prepare), reader, with_chunks)
+        send.close()
+        self._child = _Child(pid)
+        #: The child's process id.
+        self.pid = pid
+
+    def __iter__(self) -> Iterator[DecodingStep[Prepared]]:
+        while True:
+            try:
+                item = self._receive.recv()
+            except EOFError:
+                raise RtuSniffError(
+                    ErrorKind.RUNTIME, f"the decoding process ended without a word ({self._child.wait()})"
+                ) from None
+            if isinstance(item, DecodingStep):
+                yield item
+                continue
+            self._child.ended = True
+            self._reader.warnings.extend(item.warnings)
+            if isinstance(item, _Failed):
+                item.error.add_note(f"in the decoding process:\n{item.child_traceback}")
+                raise item.error
+            return
+
+    def close(self) -> None:
+        self._receive.close()
+        self._child.stop()
+
+
+class _Child:
+    """The forked decoding process: waited for once, killed if it has not said it ended."""
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self.ended = False
+        self._status: int | None = None
+
+    def wait(self) -> str:
+        if self._status is None:
+            self._status = os.waitpid(self.pid, 0)[1]
+        if os.WIFSIGNALED(self._status):
+            return f"killed by {signal.Signals(os.WTERMSIG(self._status)).name}"
+        return f"exit status {os.waitstatus_to_exitcode(self._status)}"
+
+    def stop(self) -> None:
+        if not self.ended and self._status is None:
+            os.kill(self.pid, signal.SIGKILL)
+        self.wait()
+
+
+def _child(
+    send: Connection, steps: Iterator[DecodingStep[Prepared]], reader: CaptureReader, with_chunks: bool
+) -> NoReturn:
+    """Decode and send until done; never returns, never runs the parent's clean-up (``os._exit``)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    code = 0
+    try:
+        for step in steps:
+            send.send(step if with_chunks or step.chunks is None else replace(step, chunks=None))
+        send.send(_Ended(reader.warnings))
+    except OSError:
+        code = 1  # the parent stopped reading: it has its own error to tell, or was interrupted
+    except BaseException as exc:
+        code = 1
+        _report(send, exc, reader.warnings)
+    finally:
+        os._exit(code)
+
+
+def _report(send: Connection, exc: BaseException, warnings: list[str]) -> None:
+    failure = _Failed(exc, traceback.format_exc(), warnings)
+    try:
+        send.send(failure)
+    except OSError:
+        pass  # the parent is gone
+    except Exception:
+        send.send(_Failed(RuntimeError(f"{type(exc).__name__}: {exc}"), failure.child_traceback, warnings))
+
+
+def _widen(send: Connection) -> None:
+    setting = getattr(fcntl, "F_SETPIPE_SZ", None)
+    if setting is not None:
+        # A limit on pipe sizes (/proc/sys/fs/pipe-max-size) leaves the default: it works, slower.
+        with contextlib.suppress(OSError):
+            fcntl.fcntl(send.fileno(), setting, PIPE_SIZE)

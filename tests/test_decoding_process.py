@@ -1,0 +1,207 @@
+"""Decoding in a second process (``--jobs 2``): the same output as one process, failures said
+the same way, the child never left behind."""
+
+from __future__ import annotations
+
+import os
+import signal
+import struct
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mcap.reader import make_reader
+
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.line import LineSettings
+from decoders.pipeline import Decoder
+from sniffer.decoding_process import ChildDecoding, decode_here
+from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.io.registry import open_reader
+from tests.conftest import SAMPLE_LOG, SAMPLE_MCAP, CliResult
+
+Cli = Callable[..., CliResult]
+CAPTURES = Path(__file__).parent.parent / "captures"
+SAMPLES = sorted(CAPTURES.glob("*.log"))
+LINE = LineSettings.parse("19200 8E1")
+
+
+def mcap_messages(path: Path) -> list[tuple[str, int, int, bytes]]:
+    with path.open("rb") as f:
+        return [
+            (c.topic, m.sequence, m.log_time, m.data) for _, c, m in make_reader(f).iter_messages(log_time_order=False)
+        ]
+
+
+@pytest.mark.parametrize("sample", SAMPLES, ids=[s.stem for s in SAMPLES])
+def test_two_processes_give_what_one_gives(cli: Cli, tmp_path: Path, sample: Path) -> None:
+    outputs: dict[str, list[Any]] = {}
+    for jobs in ("1", "2"):
+        mcap = tmp_path / f"{jobs}.mcap"
+        runs = [
+            cli("analyze", str(sample), "--format", "jsonl", "--jobs", jobs),
+            cli("analyze", str(sample), "--filter", "role=response", "--jobs", jobs),
+            cli("export", str(sample), "--mcap", str(mcap), "--jobs", jobs),
+        ]
+        assert [run.code for run in runs] == [0] * len(runs), [run.err for run in runs]
+        outputs[jobs] = [(run.out, run.err) for run in runs] + mcap_messages(mcap)
+    assert outputs["1"] == outputs["2"]
+
+
+def test_an_export_with_every_output_in_two_processes(cli: Cli, tmp_path: Path) -> None:
+    """Rerun's SDK starts threads: it is started after the fork, and the recording is complete."""
+    os.environ.setdefault("CI", "1")
+    rrd, pcap = tmp_path / "out.rrd", tmp_path / "out.pcap"
+    result = cli("export", str(SAMPLE_LOG), "--rrd", str(rrd), "--pcap", str(pcap), "--jobs", "2")
+    assert result.code == 0, result.err
+    single = cli("export", str(SAMPLE_LOG), "--pcap", str(tmp_path / "one.pcap"), "--jobs", "1")
+    assert single.code == 0 and (tmp_path / "one.pcap").read_bytes() == pcap.read_bytes()
+    assert rrd.stat().st_size > 10_000
+
+
+def cut_short(source: Path, target: Path) -> None:
+    """``source`` up to its Data End record, as a recording killed after its last flush is."""
+    data, offset = source.read_bytes(), 8
+    while data[offset] != 0x0F:  # Data End
+        offset += 9 + struct.unpack_from("<Q", data, offset + 1)[0]
+    target.write_bytes(data[:offset])
+
+
+def test_the_readers_warnings_come_back(cli: Cli, tmp_path: Path) -> None:
+    recording = tmp_path / "killed.mcap"
+    cut_short(SAMPLE_MCAP, recording)
+    results = [cli("analyze", str(recording), "--format", "jsonl", "--jobs", jobs) for jobs in ("1", "2")]
+    assert results[0].code == results[1].code == 0
+    assert "recording cut short" in results[0].err and results[0].err == results[1].err
+    assert results[0].out == results[1].out
+
+
+class Reader:
+    """A capture reader that yields the sample's batches, then does what the test asks."""
+
+    def __init__(self, then: Callable[[], None] | None = None, *, repeat: int = 1) -> None:
+        sample = open_reader(str(SAMPLE_LOG))
+        self._batches = list(sample.batches())
+        sample.close()
+        self.info = CaptureInfo(line=LINE, timing=TimingQuality.EXACT)
+        self.late_notes: list[str] = []
+        self.warnings: list[str] = []
+        self._then = then
+        self._repeat = repeat
+
+    def batches(self) -> Iterator[ChunkBatch]:
+        for _ in range(self._repeat):
+            yield from self._batches
+        self.warnings.append("said by the child")
+        if self._then is not None:
+            self._then()
+
+    def close(self) -> None:
+        pass
+
+
+def steps_in_child(reader: Reader) -> tuple[list[int], ChildDecoding]:
+    child = ChildDecoding(reader, Decoder(LINE, TimingQuality.EXACT), with_chunks=True)
+    frames: list[int] = []
+    try:
+        for step in child:
+            frames.append(sum(len(batch) for batch in step.batches))
+    finally:
+        child.close()
+    return frames, child
+
+
+def assert_reaped(child: ChildDecoding) -> None:
+    with pytest.raises(ChildProcessError):
+        os.waitpid(child.pid, os.WNOHANG)
+
+
+def test_the_child_sends_every_step_then_the_warnings() -> None:
+    reader = Reader()
+    frames, child = steps_in_child(reader)
+    here = [
+        sum(len(batch) for batch in step.batches) for step in decode_here(Reader(), Decoder(LINE, TimingQuality.EXACT))
+    ]
+    assert frames == here and sum(frames) == 52
+    assert reader.warnings == ["said by the child"]
+    assert_reaped(child)
+
+
+def fail_with_bad_data() -> None:
+    raise RtuSniffError(ErrorKind.BAD_DATA, "bad hex digit 'Z'", path="c.log", location="line 9")
+
+
+def test_an_error_in_the_child_is_raised_as_it_was() -> None:
+    reader = Reader(fail_with_bad_data)
+    with pytest.raises(RtuSniffError) as raised:
+        steps_in_child(reader)
+    assert raised.value.kind is ErrorKind.BAD_DATA and str(raised.value) == "c.log:line 9: bad hex digit 'Z'"
+    assert "in the decoding process" in raised.value.__notes__[0]
+    assert reader.warnings == ["said by the child"]
+
+
+class UnpicklableError(Exception):
+    def __init__(self) -> None:
+        super().__init__("cannot travel")
+        self.handle = lambda: None
+
+
+def fail_unpicklably() -> None:
+    raise UnpicklableError
+
+
+def test_an_error_that_does_not_pickle_comes_back_as_its_text() -> None:
+    with pytest.raises(RuntimeError, match="UnpicklableError: cannot travel"):
+        steps_in_child(Reader(fail_unpicklably))
+
+
+def test_a_child_that_dies_is_one_error() -> None:
+    with pytest.raises(RtuSniffError, match=r"ended without a word \(killed by SIGKILL\)") as raised:
+        steps_in_child(Reader(lambda: os.kill(os.getpid(), signal.SIGKILL)))
+    assert raised.value.kind is ErrorKind.RUNTIME
+
+
+def test_stopping_early_stops_the_child() -> None:
+    child = ChildDecoding(Reader(repeat=10**6), Decoder(LINE, TimingQuality.EXACT), with_chunks=False)
+    try:
+        first = next(iter(child))
+        assert first.chunks is None and first.batches
+    finally:
+        child.close()
+    assert_reaped(child)
+
+
+def test_ctrl_c_leaves_a_valid_export_and_no_child(tmp_path: Path) -> None:
+    """Ctrl-C reaches the whole process group: the child ignores it, the parent stops it and
+    closes the export."""
+    output = tmp_path / "interrupted.mcap"
+    command = [sys.executable, "-m", "sniffer", "export", "-", "--mcap", str(output), "--jobs", "2"]
+    # An ignored SIGINT stays ignored across exec (a background shell job ignores it): handled here.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        export = subprocess.Popen(
+            command,
+            stdin=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+            env={**os.environ, "CI": "1"},
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert export.stdin is not None
+    export.stdin.write(SAMPLE_LOG.read_text())  # no end of input: the child waits for more
+    export.stdin.flush()
+    time.sleep(3.0)  # the interpreter starts, forks, and both wait
+    os.killpg(export.pid, signal.SIGINT)
+    _, err = export.communicate(timeout=60)
+    assert export.returncode == 130 and err == "interrupted\n", err
+    with pytest.raises(ProcessLookupError):
+        os.killpg(export.pid, 0)  # nobody left in the group: the child is gone too
+    with output.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and "/modbus/frames" in {c.topic for c in summary.channels.values()}
