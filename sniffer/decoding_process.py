@@ -160,18 +160,32 @@ def _child(
 ) -> NoReturn:
     """Decode and send until done; never returns, never runs the parent's clean-up (``os._exit``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    code = 0
+    code = 1
     try:
-        for step in steps:
-            send.send(step if with_chunks or step.chunks is None else replace(step, chunks=None))
-        send.send(_Ended(reader.warnings))
-    except OSError:
-        code = 1  # the parent stopped reading: it has its own error to tell, or was interrupted
-    except BaseException as exc:
-        code = 1
+        code = _decode_and_send(send, steps, reader, with_chunks)
+    except BaseException as exc:  # every failure goes to the parent, which reports it
         _report(send, exc, reader.warnings)
     finally:
         os._exit(code)
+
+
+def _decode_and_send(
+    send: Connection, steps: Iterator[DecodingStep[Prepared]], reader: CaptureReader, with_chunks: bool
+) -> int:
+    """0 when all is sent; 1 when the parent stopped reading (it has its own error to tell, or
+    was interrupted). Only sending is guarded: an ``OSError`` of the reader is a failure to report."""
+    for step in steps:
+        if not _sent(send, step if with_chunks or step.chunks is None else replace(step, chunks=None)):
+            return 1
+    return 0 if _sent(send, _Ended(reader.warnings)) else 1
+
+
+def _sent(send: Connection, item: object) -> bool:
+    try:
+        send.send(item)
+    except OSError:
+        return False
+    return True
 
 
 def _report(send: Connection, exc: BaseException, warnings: list[str]) -> None:

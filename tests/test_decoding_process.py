@@ -144,6 +144,15 @@ def test_an_error_in_the_child_is_raised_as_it_was() -> None:
     assert reader.warnings == ["said by the child"]
 
 
+def fail_to_read() -> None:
+    raise OSError(5, "Input/output error")
+
+
+def test_a_read_error_in_the_child_is_raised_not_taken_for_a_broken_pipe() -> None:
+    with pytest.raises(OSError, match="Input/output error"):
+        steps_in_child(Reader(fail_to_read))
+
+
 class UnpicklableError(Exception):
     def __init__(self) -> None:
         super().__init__("cannot travel")
