@@ -191,11 +191,9 @@ def _sent(send: Connection, item: object) -> bool:
 def _report(send: Connection, exc: BaseException, warnings: list[str]) -> None:
     failure = _Failed(exc, traceback.format_exc(), warnings)
     try:
-        send.send(failure)
-    except OSError:
-        pass  # the parent is gone
-    except Exception:
-        send.send(_Failed(RuntimeError(f"{type(exc).__name__}: {exc}"), failure.child_traceback, warnings))
+        _sent(send, failure)
+    except Exception:  # an exception that does not pickle: its text does
+        _sent(send, _Failed(RuntimeError(f"{type(exc).__name__}: {exc}"), failure.child_traceback, warnings))
 
 
 def _widen(send: Connection) -> None:

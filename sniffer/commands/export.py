@@ -20,15 +20,14 @@ from decoders.stats import Statistics
 from sniffer.commands.common import add_decoding_options, add_jobs_option, open_analysis
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.exports.mcap_writer import HEADER_SIZE
 from sniffer.exports.pcap_export import PcapExporter
-from sniffer.exports.transactions import TransactionEncoder
 from sniffer.pipeline import Analysis, analyze
 from sniffer.views.rows import Rows
 
 if TYPE_CHECKING:
     from sniffer.exports.mcap_export import McapExporter
     from sniffer.exports.rerun_export import RerunExporter
+    from sniffer.exports.transactions import TransactionEncoder
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -90,7 +89,12 @@ class ExportView:
             with _writing(args.pcap):
                 self.pcap = PcapExporter(args.pcap)
         #: The MCAP's transactions need no decodings: built where the messages are framed and paired.
-        self._transactions = TransactionEncoder(HEADER_SIZE)
+        self._transactions: TransactionEncoder | None = None
+        if args.mcap:
+            # Imported when asked for (the MCAP packages cost every command's start-up 13 ms).
+            from sniffer.exports.mcap_export import transaction_encoder  # noqa: PLC0415
+
+            self._transactions = transaction_encoder()
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         # Exporters that start threads (Rerun's SDK, the MCAP writer's compressor) are made here,
@@ -115,6 +119,7 @@ class ExportView:
 
     def transactions(self, batch: MessageBatch) -> tuple[Rows, npt.NDArray[np.int64]]:
         """A batch's ``/modbus/transactions`` messages and their times (in the decoding process)."""
+        assert self._transactions is not None, "prepared only for an MCAP export"
         return self._transactions.rows(batch, np.arange(len(batch)))
 
     def write_transactions(self, transactions: tuple[Rows, npt.NDArray[np.int64]]) -> None:

@@ -41,7 +41,7 @@ from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports import foxglove_log
 from sniffer.exports.levels import FLAG_SUFFIXES, log_levels
 from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
-from sniffer.exports.transactions import OUTCOMES
+from sniffer.exports.transactions import OUTCOMES, TransactionEncoder
 from sniffer.io.formats.mcap_capture import (
     LAYOUT_DOC,
     MESSAGE_ENCODING,
@@ -155,8 +155,7 @@ class McapExporter:
     def raw(self, batch: ChunkBatch) -> None:
         blocks = list(encode_blocks(batch))
         rows = join_rows([[payload for _, payload in blocks]], len(blocks), HEADER_SIZE)
-        times = np.array([t_first for t_first, _ in blocks], np.int64)
-        self._writer.write(MessageBlock(rows, np.full(len(blocks), self._raw, np.uint16), times))
+        self._write(rows, self._raw, np.array([t_first for t_first, _ in blocks], np.int64))
 
     def messages(self, batch: AnnotatedBatch) -> None:
         positions = batch.positions()
@@ -216,6 +215,12 @@ class McapExporter:
             self._writer.close()
         with contextlib.suppress(OSError):
             self._file.close()
+
+
+def transaction_encoder() -> TransactionEncoder:
+    """The encoder of what :meth:`McapExporter.transactions` writes: it needs no decodings, so it
+    may run in the decoding process (``prepare`` in :func:`sniffer.pipeline.analyze`)."""
+    return TransactionEncoder(HEADER_SIZE)
 
 
 def _decoding_parts(decoding: Decoding, role: int) -> tuple[bytes, bytes]:
