@@ -18,10 +18,21 @@ DEFAULT_PROFILE = "generic"
 def shipped_profiles() -> dict[str, Profile]:
     """Every profile that ships with rtusniff, by id."""
     found = {}
-    for entry in sorted(files("decoders.profiles").joinpath("data").iterdir(), key=lambda e: e.name):
-        if entry.name.endswith(".toml"):
-            profile = parse_profile(entry.read_text(encoding="utf-8"), f"decoders/profiles/data/{entry.name}")
-            found[profile.id] = profile
+    folder = files("decoders.profiles").joinpath("data")
+    try:
+        entries = sorted(folder.iterdir(), key=lambda e: e.name)
+        for entry in entries:
+            if entry.name.endswith(".toml"):
+                profile = parse_profile(entry.read_text(encoding="utf-8"), f"decoders/profiles/data/{entry.name}")
+                found[profile.id] = profile
+    except OSError as exc:
+        raise RtuSniffError(ErrorKind.BAD_PROFILE, f"the shipped device profiles cannot be read ({exc.strerror}); "
+                            "reinstall rtusniff", path=str(folder)) from None
+    except ProfileError as exc:
+        raise RtuSniffError(ErrorKind.BAD_PROFILE, str(exc)) from None
+    if DEFAULT_PROFILE not in found:
+        raise RtuSniffError(ErrorKind.BAD_PROFILE, f"the shipped profile {DEFAULT_PROFILE!r} is missing; "
+                            "reinstall rtusniff", path=str(folder))
     return found
 
 
