@@ -23,7 +23,7 @@ CHILD = """
 import resource, sys, time
 from sniffer.cli import main
 start = time.perf_counter()
-code = main(["stats", sys.argv[1], "--format", "json", "-o", sys.argv[2]])
+code = main(["stats", sys.argv[1], "--format", "json", "-o", sys.argv[2], "--force"])
 print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 sys.exit(code)
 """

@@ -43,6 +43,9 @@ class ParamValue:
     raw: int | None = None
     value: float | int | str | None = None
     unit: str | None = None
+    #: False where the raw word is a marker, not a reading (the Altivar's 16#8000 "non-existent
+    #: or protected parameter"): ``value`` then says what it means, and no plot takes it.
+    available: bool = True
 
 
 @dataclass(frozen=True, slots=True)

@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
+from dataclasses import replace
+
+import numpy as np
 
 from decoders.capture import ChunkBatch, TimingQuality
 from decoders.framer import Framer
 from decoders.line import LineSettings
-from decoders.message import Message, MessageBatch
+from decoders.line_check import LineRateCheck
+from decoders.message import NONE, Message, MessageBatch
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.profiles.apply import ProfileApplier, ProfileBook
@@ -23,16 +27,29 @@ class Decoder:
     def __init__(self, line: LineSettings, timing: TimingQuality, *, response_timeout_ns: int | None = None) -> None:
         self.framer = Framer(line, timing)
         self.matcher = Matcher(response_timeout_ns)
+        #: Host times are when the PC read the bytes: a request and its answer often come in one
+        #: read (0 ms) or an answer a read later (the read timeout). They pair frames and time
+        #: requests out, but a latency from them would be a measured-looking number nobody
+        #: measured: published latencies are ``NONE`` on host captures ("n/a: host timing").
+        self.measures_latency = timing is TimingQuality.EXACT
+        self.line_check = LineRateCheck(line, timing)
 
     def feed(self, batch: ChunkBatch) -> list[MessageBatch]:
-        return [self.matcher.feed(self.framer.feed(batch))]
+        self.line_check.feed(batch)
+        return [self._published(self.matcher.feed(self.framer.feed(batch)))]
 
     def tick(self, now_ns: int) -> list[MessageBatch]:
         """Live capture: what the passing of time alone completes (idle line, timeouts)."""
-        return [self.matcher.feed(self.framer.close_idle(now_ns)), self.matcher.tick(now_ns)]
+        return [self._published(self.matcher.feed(self.framer.close_idle(now_ns))),
+                self._published(self.matcher.tick(now_ns))]
 
     def flush(self) -> list[MessageBatch]:
-        return [self.matcher.feed(self.framer.flush()), self.matcher.flush()]
+        return [self._published(self.matcher.feed(self.framer.flush())), self._published(self.matcher.flush())]
+
+    def _published(self, batch: MessageBatch) -> MessageBatch:
+        if self.measures_latency:
+            return batch
+        return replace(batch, latency_ns=np.full(len(batch), NONE, np.int64))
 
 
 def decode(

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import re
 import sys
 from collections.abc import Sequence
 from importlib.metadata import version
@@ -28,20 +29,54 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rtusniff",
         description="Modbus RTU protocol analyzer and passive RS485 bus sniffer.",
+        epilog="'rtusniff COMMAND --help' tells a command's options; exit codes are listed in the README.",
     )
     parser.add_argument("--version", action="version", version=f"rtusniff {version('rtusniff')}")
     parser.add_argument("--debug", action="store_true", help="show the traceback of errors")
-    subparsers = parser.add_subparsers(title="commands", metavar="COMMAND", required=True)
+    subparsers = parser.add_subparsers(title="commands", metavar="COMMAND")
     for command in COMMANDS:
         command.add_parser(subparsers)
+    for subparser in subparsers.choices.values():
+        # Also after the command (`rtusniff analyze --debug X`); SUPPRESS keeps the top level's value.
+        subparser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                               help="show the traceback of errors")
     return parser
+
+
+#: ``--line 19200 8E1``: a baud rate and a character format, written as two words.
+_BAUD = re.compile(r"^\d+$")
+#: Anything shaped like a character format (``8E1``, also a wrong one such as ``8Q1``: the
+#: line-settings parser then says what is wrong with it).
+_CHARACTER_FORMAT = re.compile(r"^\d[A-Za-z]\d(\.\d)?$")
+
+
+def joined_line_settings(argv: Sequence[str]) -> list[str]:
+    """``--line BAUD FORMAT`` as one argument, so that ``--line`` takes exactly one value and
+    never swallows the capture name that follows it (``--line 19200 8E1 cap.log``)."""
+    joined: list[str] = []
+    position = 0
+    while position < len(argv):
+        word = argv[position]
+        following = argv[position + 1 : position + 3]
+        if (word == "--line" and len(following) == 2 and _BAUD.match(following[0])
+                and _CHARACTER_FORMAT.match(following[1])):
+            joined += [word, " ".join(following)]
+            position += 3
+            continue
+        joined.append(word)
+        position += 1
+    return joined
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     gc.set_threshold(GC_YOUNG_THRESHOLD, *gc.get_threshold()[1:])
     parser = build_parser()
-    args = parser.parse_args(argv)
-    args.command_line = ["rtusniff", *(sys.argv[1:] if argv is None else argv)]
+    given = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(joined_line_settings(given))
+    if not hasattr(args, "run"):
+        parser.print_help()
+        return 0
+    args.command_line = ["rtusniff", *given]
     try:
         result: int = args.run(args)
         return result

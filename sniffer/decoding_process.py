@@ -17,7 +17,6 @@ missing, :func:`decoding_jobs` says one process.
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import os
 import signal
 import traceback
@@ -68,6 +67,9 @@ class _Failed:
 def decoding_jobs(requested: str) -> int:
     """Processes to decode with: ``"1"``, ``"2"``, or ``"auto"`` (two where there are two cores
     for this process and ``os.fork``)."""
+    if requested == "2" and not hasattr(os, "fork"):
+        raise RtuSniffError(ErrorKind.USAGE, "--jobs 2: this platform cannot fork a decoding process "
+                            "(Windows); use --jobs 1 or auto")
     if requested != "auto":
         return int(requested)
     if not hasattr(os, "fork"):
@@ -82,6 +84,10 @@ def decode_here(
     """The steps of decoding ``reader``, in this process."""
     for chunks in reader.batches():
         yield _step(chunks, decoder.feed(chunks), prepare)
+    warning = decoder.line_check.warning()
+    if warning is not None:
+        # Told with the reader's warnings (from the decoding process too: they travel with them).
+        reader.warnings.append(warning)
     yield _step(None, decoder.flush(), prepare)
 
 
@@ -197,6 +203,10 @@ def _report(send: Connection, exc: BaseException, warnings: list[str]) -> None:
 
 
 def _widen(send: Connection) -> None:
+    try:
+        import fcntl  # noqa: PLC0415 (POSIX only; the child process exists only where os.fork does)
+    except ImportError:
+        return
     setting = getattr(fcntl, "F_SETPIPE_SZ", None)
     if setting is not None:
         # A limit on pipe sizes (/proc/sys/fs/pipe-max-size) leaves the default: it works, slower.

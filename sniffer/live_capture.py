@@ -77,26 +77,33 @@ def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
     shared = _Shared(threading.Event(), queue.Queue(VIEW_QUEUE_READS))
     reader = threading.Thread(target=_read, args=(source, recorder, shared, options.mode != "quiet"),
                               name="rtusniff-reader", daemon=True)
-    previous_term = signal.signal(signal.SIGTERM, _raise_terminated)
+    # Handlers for both signals, whatever this process inherited: a shell starts a background job
+    # with SIGINT ignored, and `kill -INT` must still stop a capture cleanly (as dumpcap's does).
+    previous = _handle_stop_signals()
     code = 0
     session = _Session(options, status, recorder, shared, out)
     try:
         if recorder is not None:
             recorder.start()
         reader.start()
+        target = f" to {options.output}" if options.output else ""
+        err.print(f"capturing {options.port} at {options.line.format()}{target}; Ctrl-C to stop", highlight=False)
         session.run(source)
     except KeyboardInterrupt:
         code = INTERRUPTED
     except TerminatedError:
         code = TERMINATED
     finally:
-        signal.signal(signal.SIGTERM, previous_term)
+        _restore_signals(previous)
         shared.stop.set()
         reader.join(timeout=2)
         source.close()
         if recorder is not None:
             recorder.stop()
         session.finish()
+    warning = session.decoder.line_check.warning()
+    if warning is not None:
+        err.print(f"warning: {options.port}: {warning}", highlight=False)
     return _report(code, options, recorder, shared, err)
 
 
@@ -134,6 +141,26 @@ def _read(source: SerialSource, recorder: Recorder | None, shared: _Shared, deco
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
     raise TerminatedError
+
+
+_SignalHandler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
+
+
+def _handle_stop_signals() -> dict[int, _SignalHandler]:
+    """SIGINT raises KeyboardInterrupt and SIGTERM TerminatedError; the previous handlers, to
+    restore. Only the main thread may set handlers (tests run captures in threads too)."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {
+        signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler),
+        signal.SIGTERM: signal.signal(signal.SIGTERM, _raise_terminated),
+    }
+
+
+def _restore_signals(previous: dict[int, _SignalHandler]) -> None:
+    for number, handler in previous.items():
+        if handler is not None:  # None: set outside Python, cannot be put back
+            signal.signal(number, handler)
 
 
 class _Session:

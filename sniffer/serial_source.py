@@ -8,22 +8,23 @@ read returns: ``host`` timing.
 What the driver offers is reported, not required: low-latency mode
 (ASYNC_LOW_LATENCY), the FTDI latency timer (sysfs), and the UART error counters
 (TIOCGICOUNT: framing, parity, overrun).
+
+Runs on Linux, macOS and Windows: the POSIX-only modules (``fcntl``, ``termios``) are
+imported where they are used, and where they are missing the port is read through
+pyserial's own ``read`` and the error counters are simply not offered.
 """
 
 from __future__ import annotations
 
 import errno
-import fcntl
+import importlib
 import os
 import select
 import struct
-import termios
 import time
 from dataclasses import dataclass
 from pathlib import Path
-
-import serial
-from serial.tools import list_ports
+from types import ModuleType
 
 from decoders.capture import Chunk
 from decoders.line import LineSettings, Parity
@@ -31,13 +32,35 @@ from sniffer.errors import ErrorKind, RtuSniffError
 
 READ_SIZE = 65536
 #: Linux TIOCGICOUNT: struct serial_icounter_struct (cts dsr rng dcd rx tx frame overrun parity brk buf_overrun).
-TIOCGICOUNT = getattr(termios, "TIOCGICOUNT", 0x545D)
+TIOCGICOUNT_LINUX = 0x545D
 _ICOUNT = struct.Struct("11i9i")
 ICOUNT_FIELDS = ("cts", "dsr", "rng", "dcd", "rx", "tx", "frame", "overrun", "parity", "brk", "buf_overrun")
 SLOW_LATENCY_TIMER_MS = 4
 
-_PARITY = {Parity.NONE: serial.PARITY_NONE, Parity.EVEN: serial.PARITY_EVEN, Parity.ODD: serial.PARITY_ODD,
-           Parity.MARK: serial.PARITY_MARK, Parity.SPACE: serial.PARITY_SPACE}  # fmt: skip
+#: pyserial's parity names (``serial.PARITY_*``), which are these letters.
+_PARITY = {Parity.NONE: "N", Parity.EVEN: "E", Parity.ODD: "O", Parity.MARK: "M", Parity.SPACE: "S"}
+
+
+def pyserial() -> ModuleType:
+    """pyserial, imported when a port is used: it imports ``fcntl`` and ``termios`` on POSIX,
+    and commands that read files (analyze, stats, export) need none of it."""
+    return importlib.import_module("serial")
+
+
+def posix_module(name: str) -> ModuleType | None:
+    """``fcntl`` or ``termios`` where the platform has them (not on Windows), else ``None``."""
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        return None
+
+
+def port_errors() -> tuple[type[BaseException], ...]:
+    """What opening or configuring a port raises when the port refuses: pyserial's error, an
+    OS error, a bad value, and on POSIX ``termios.error`` (a setting the driver rejects)."""
+    termios = posix_module("termios")
+    extra: tuple[type[BaseException], ...] = (termios.error,) if termios is not None else ()
+    return (pyserial().SerialException, OSError, ValueError, *extra)
 
 
 class PortGoneError(Exception):
@@ -65,6 +88,7 @@ class SerialSource:
     def __init__(self, port: str, line: LineSettings) -> None:
         self.port = port
         self.line = line
+        serial = pyserial()
         self._serial = serial.Serial()
         self._serial.port = port
         self._serial.baudrate = line.baud
@@ -80,8 +104,9 @@ class SerialSource:
     def open(self) -> PortStatus:
         try:
             self._serial.open()
-        except (serial.SerialException, OSError, ValueError) as exc:
-            raise RtuSniffError(ErrorKind.FILE_UNREADABLE, f"cannot open the port: {exc}", path=self.port) from None
+        except port_errors() as exc:
+            raise RtuSniffError(ErrorKind.FILE_UNREADABLE, f"cannot open the port with {self.line.format()}: "
+                                f"{exc}", path=self.port) from None
         return PortStatus(self._low_latency(), _latency_timer_ms(self.port), self.counters() is not None)
 
     @property
@@ -101,14 +126,20 @@ class SerialSource:
 
     def counters(self) -> dict[str, int] | None:
         """The UART's error counters, where the driver has them."""
+        fcntl, termios = posix_module("fcntl"), posix_module("termios")
+        if fcntl is None or termios is None:
+            return None
         try:
-            raw = fcntl.ioctl(self._serial.fileno(), TIOCGICOUNT, bytes(_ICOUNT.size))
-        except OSError:
+            request = getattr(termios, "TIOCGICOUNT", TIOCGICOUNT_LINUX)
+            raw = fcntl.ioctl(self._serial.fileno(), request, bytes(_ICOUNT.size))
+        except (OSError, AttributeError, ValueError):
             return None
         return dict(zip(ICOUNT_FIELDS, _ICOUNT.unpack(raw)[:11], strict=True))
 
     def read(self, timeout_s: float) -> Chunk | None:
         """The bytes that arrived, stamped when the read returned; ``None`` after ``timeout_s``."""
+        if os.name != "posix":
+            return self._read_portable(timeout_s)
         fd = self._serial.fileno()
         try:
             ready, _, _ = select.select([fd], [], [], timeout_s)
@@ -123,6 +154,19 @@ class SerialSource:
         if not data:
             raise PortGoneError("end of file")
         return Chunk(stamp, data)
+
+    def _read_portable(self, timeout_s: float) -> Chunk | None:
+        """:meth:`read` through pyserial (Windows: ``select`` takes only sockets there)."""
+        try:
+            self._serial.timeout = timeout_s
+            data = self._serial.read(1)
+            if data:
+                data += self._serial.read(self._serial.in_waiting)
+        except (pyserial().SerialException, OSError) as exc:
+            raise PortGoneError(str(exc)) from None
+        if not data:
+            return None
+        return Chunk(time.monotonic_ns() + self._offset_ns, data)
 
     def now_ns(self) -> int:
         """The same clock the chunks are stamped with."""
@@ -143,4 +187,5 @@ def _latency_timer_ms(port: str) -> int | None:
 
 def serial_ports() -> list[tuple[str, str, str]]:
     """(device, description, hardware id) of every serial port pyserial finds."""
+    list_ports = importlib.import_module("serial.tools.list_ports")
     return [(p.device, p.description, p.hwid) for p in sorted(list_ports.comports(), key=lambda p: p.device)]

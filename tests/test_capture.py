@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import resource
+import select
 import signal
 import subprocess
 import sys
@@ -30,11 +31,11 @@ RESPONSE = bytes.fromhex("0203080028025801F4000052B0")
 HANG_S = 60
 
 
-def start_capture(port: Path, *args: str, **kwargs: Any) -> subprocess.Popen[str]:
-    # A shell running a job in the background (`bash .ci/run &`) makes it ignore SIGINT, and an
-    # ignored signal stays ignored across exec (a handled one is reset): Ctrl-C is what these
-    # tests send, so SIGINT is handled here while the capture starts.
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+def start_capture(port: Path, *args: str, ignore_sigint: bool = True, **kwargs: Any) -> subprocess.Popen[str]:
+    """A capture in a child process, returned once it says it is capturing (its first line on
+    standard error). Started with SIGINT ignored, as a shell starts a background job: the
+    capture must install its own handlers for Ctrl-C and SIGTERM to work."""
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN if ignore_sigint else signal.default_int_handler)
     try:
         process = subprocess.Popen(
             [sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1", *args],
@@ -42,9 +43,24 @@ def start_capture(port: Path, *args: str, **kwargs: Any) -> subprocess.Popen[str
         )
     finally:
         signal.signal(signal.SIGINT, previous)
-    time.sleep(1.0)  # the interpreter starts and opens the port
-    assert process.poll() is None, process.stderr.read() if process.stderr else ""
+    wait_until_capturing(process)
     return process
+
+
+def wait_until_capturing(process: subprocess.Popen[str], timeout_s: float = HANG_S) -> None:
+    assert process.stderr is not None
+    deadline, said = time.monotonic() + timeout_s, []
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([process.stderr], [], [], 0.1)
+        if ready:
+            line = process.stderr.readline()
+            said.append(line)
+            if line.startswith("capturing "):
+                return
+            if not line and process.poll() is not None:
+                break
+    process.kill()
+    raise AssertionError(f"capture never said it was capturing: {''.join(said)!r}")
 
 
 def analyze(path: Path) -> tuple[int, list[dict[str, Any]], str]:

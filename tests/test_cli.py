@@ -144,7 +144,7 @@ def test_missing_line_settings_say_how_to_fix(cli: Cli, tmp_path: Path) -> None:
         (["analyze", "{tmp}/capture.pcapng"], 5, "cannot tell the capture format"),
         (["analyze", str(SAMPLE_LOG), "--line", "19200", "8Q1"], 2, "--line: line settings '19200 8Q1'"),
         (["analyze", str(SAMPLE_LOG), "--line", "7", "8E1"], 2, "--line: baud rate 7 is outside 50..4000000"),
-        (["analyze", str(SAMPLE_LOG), "--response-timeout", "-5"], 2, "give milliseconds from 0 to 600000"),
+        (["analyze", str(SAMPLE_LOG), "--response-timeout", "-5"], 2, "give milliseconds from 0 (no limit) to 600000"),
     ],
 )
 def test_errors_are_one_line_without_traceback(tmp_path: Path, args: list[str], code: int, words: str) -> None:

@@ -159,7 +159,8 @@ class ProfileApplier:
         if parameter is None:
             what = "unassigned" if not target else f"copy of register {target}"
             plain = _plain(profile, param, reported)
-            return ParamValue(param.address, code, f"{code} ({what})", param.raw, plain.value)
+            return ParamValue(param.address, code, f"{code} ({what})", param.raw, plain.value,
+                              available=plain.available)
         label = f"{code} → {parameter.name}"
         return _named(profile, parameter, param, f"{code}→{parameter.code}", label, reported=reported)
 
@@ -193,7 +194,9 @@ def _uss_words(profile: Profile, message: Message) -> Message:
 def _named(
     profile: Profile, parameter: Parameter, param: ParamValue, code: str, name: str, *, reported: bool
 ) -> ParamValue:
-    return ParamValue(param.address, code, name, param.raw, *_value(profile, parameter, param.raw, reported))
+    value, unit = _value(profile, parameter, param.raw, reported)
+    return ParamValue(param.address, code, name, param.raw, value, unit,
+                      available=_special(profile, param.raw, reported) is None)
 
 
 def _special(profile: Profile, raw: int | None, reported: bool) -> str | None:
@@ -234,8 +237,9 @@ def _plain(profile: Profile, param: ParamValue, reported: bool) -> ParamValue:
     value = param.raw if special is None else special
     if profile.address_style == "xbt":
         # XBT addressing: %MWi is Modbus register 40001+i, PDU address i.
-        return ParamValue(param.address, f"%MW{param.address}", f"4{param.address + 1:05d}", param.raw, value)
-    return ParamValue(param.address, raw=param.raw, value=value)
+        return ParamValue(param.address, f"%MW{param.address}", f"4{param.address + 1:05d}", param.raw, value,
+                          available=special is None)
+    return ParamValue(param.address, raw=param.raw, value=value, available=special is None)
 
 
 def _limit_remarks(profile: Profile, message: Message, pdu: Pdu) -> list[str]:

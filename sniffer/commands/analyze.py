@@ -9,7 +9,14 @@ from dataclasses import replace
 
 from rich.console import Console
 
-from sniffer.commands.common import add_decoding_options, add_jobs_option, open_analysis, open_output
+from sniffer.commands.common import (
+    add_decoding_options,
+    add_force_option,
+    add_jobs_option,
+    check_outputs,
+    open_analysis,
+    open_output,
+)
 from sniffer.decoding_process import decoding_jobs
 from sniffer.filters import parse_filters
 from sniffer.pipeline import MessageView, analyze
@@ -30,6 +37,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("capture", help="capture file (.log/.txt text, .mcap native), or - for text on stdin")
     parser.add_argument("--format", choices=["table", "jsonl"], default="table", help="output format (default: table)")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
+    add_force_option(parser)
     parser.add_argument(
         "--filter",
         action="append",
@@ -45,6 +53,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 def run(args: argparse.Namespace) -> int:
     keep = parse_filters(args.filter)
+    check_outputs([args.output], [args.capture], force=args.force)
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)

@@ -26,7 +26,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "its time, and show the decoded traffic as it happens.",
     )
     parser.add_argument("port", help="serial port, e.g. /dev/ttyUSB0 (see 'rtusniff ports')")
-    parser.add_argument("--line", nargs="+", required=True, metavar="SETTING",
+    parser.add_argument("--line", required=True, metavar="'BAUD FORMAT'|auto",
                         help="'BAUD FORMAT' (e.g. --line 19200 8E1), or 'auto' to find them by listening")
     parser.add_argument("--probe-seconds", type=float, default=1.5,
                         help="with --line auto: how long to listen per setting (default 1.5)")
@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     if args.output is None and args.quiet:
         raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: give a file with -o")
     if args.output is not None:
-        find_format(args.output)
+        find_format(args.output, option="")
         if Path(args.output).exists():
             raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; capture never overwrites a recording",
                                 path=args.output)
@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _line(args: argparse.Namespace, err: Console) -> LineSettings:
-    text = " ".join(args.line)
+    text: str = args.line
     if text.strip().lower() == "auto":
         line, report = probe_line(args.port, args.probe_seconds)
         err.print(report)

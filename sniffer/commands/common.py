@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from contextlib import ExitStack
 from dataclasses import replace
@@ -20,9 +21,8 @@ from sniffer.profiles_io import profile_book
 def add_line_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--line",
-        nargs="+",
-        metavar="SETTING",
-        help="line settings 'BAUD FORMAT', e.g. --line 19200 8E1; overrides the capture's own",
+        metavar="'BAUD FORMAT'",
+        help="line settings, e.g. --line 19200 8E1; overrides the capture's own",
     )
     parser.add_argument(
         "--char-timing",
@@ -46,23 +46,30 @@ def effective_timing(info: CaptureInfo, args: argparse.Namespace) -> TimingQuali
     return TimingQuality(args.timing) if args.timing else info.timing
 
 
+#: ``--response-timeout 0``: a limit no capture reaches (146 years; added to epoch nanoseconds in int64).
+NO_TIME_LIMIT_NS = 2**62
+
+
 def add_response_timeout_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--response-timeout",
         type=float,
         metavar="MS",
-        help="a request not answered within MS milliseconds is a timeout (default: derived from the traffic, "
-        "ten times the longest recent latency, 100 ms to 1 s)",
+        help="a request not answered within MS milliseconds is a timeout; 0: no time limit (a request is a "
+        "timeout only when the master moves on). Default: derived from the traffic, ten times the longest "
+        "recent latency, 100 ms to 1 s",
     )
 
 
 def response_timeout_ns(args: argparse.Namespace) -> int | None:
     if args.response_timeout is None:
         return None
-    if not 0 < args.response_timeout <= 600_000:
-        raise RtuSniffError(ErrorKind.USAGE, "--response-timeout: give milliseconds from 0 to 600000")
+    if not 0 <= args.response_timeout <= 600_000:
+        raise RtuSniffError(ErrorKind.USAGE, "--response-timeout: give milliseconds from 0 (no limit) to 600000")
+    if args.response_timeout == 0:
+        return NO_TIME_LIMIT_NS
     timeout_ns: int = round(args.response_timeout * 1e6)
-    return timeout_ns
+    return max(timeout_ns, 1)
 
 
 def add_profile_options(parser: argparse.ArgumentParser) -> None:
@@ -109,7 +116,11 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
     book = profile_book(args.profile, args.profile_file)
     reader = open_reader(args.capture, args.input_format)
     stack.callback(close_reader, reader)
-    line = apply_char_timing(effective_line(reader.info, line_override(args), args.capture), args)
+    override = line_override(args)
+    if override is not None and reader.info.line is not None and override.format() != reader.info.line.format():
+        reader.warnings.append(f"{args.capture}: --line {override.format()} overrides the capture's own "
+                               f"{reader.info.line.format()}")
+    line = apply_char_timing(effective_line(reader.info, override, args.capture), args)
     analysis = Analysis(line, effective_timing(reader.info, args), response_timeout_ns(args), profiles=book)
     return reader, analysis
 
@@ -117,8 +128,51 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
 def close_reader(reader: CaptureReader) -> None:
     """Close ``reader`` and tell what it found worth a warning (on standard error)."""
     reader.close()
-    for warning in reader.warnings:
+    # dict.fromkeys: each once (the decoding process sends back the warnings it inherited too).
+    for warning in dict.fromkeys(reader.warnings):
         print(f"warning: {warning}", file=sys.stderr)
+
+
+def check_outputs(outputs: list[str | None], inputs: list[str], *, force: bool) -> None:
+    """Refuse an output that is an input (the same file, also through a link or another
+    spelling), two outputs that are one file, and an existing output without ``--force``:
+    no command ever truncates a capture it reads. ``-`` and ``None`` are standard streams."""
+    files = [path for path in outputs if path is not None and path != "-"]
+    for position, path in enumerate(files):
+        for source in inputs:
+            if source != "-" and _same_file(path, source):
+                raise RtuSniffError(ErrorKind.USAGE, f"is the input {source}: rtusniff never writes over a "
+                                    "capture it reads; choose another output", path=path)
+        if any(_same_file(path, other) for other in files[:position]):
+            raise RtuSniffError(ErrorKind.USAGE, "named as two outputs", path=path)
+        # Only files: writing to a device or a pipe (-o /dev/null) destroys nothing.
+        if os.path.isfile(path) and not force:
+            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; add --force to overwrite it", path=path)
+
+
+def _same_file(a: str, b: str) -> bool:
+    """Whether ``a`` and ``b`` are one file: the same inode (links, other spellings), or the
+    same resolved path where one does not exist yet."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
+def human_size(count: int) -> str:
+    """``532 bytes``, ``1.2 MB``: decimal units, as file managers show them."""
+    if count < 1000:
+        return f"{count} bytes"
+    value = count / 1000
+    for unit in ("kB", "MB", "GB"):
+        if value < 1000:
+            return f"{value:.1f} {unit}"
+        value /= 1000
+    return f"{value:.1f} TB"
+
+
+def add_force_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--force", action="store_true", help="overwrite an existing output file (never the input)")
 
 
 def open_output(path: str | None, stack: ExitStack) -> TextIO:
@@ -144,7 +198,7 @@ def line_override(args: argparse.Namespace) -> LineSettings | None:
     if args.line is None:
         return None
     try:
-        return LineSettings.parse(" ".join(args.line), char_timing=args.char_timing)
+        return LineSettings.parse(args.line, char_timing=args.char_timing)
     except ValueError as exc:
         raise RtuSniffError(ErrorKind.USAGE, f"--line: {exc}") from None
 

@@ -4,10 +4,17 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 from dataclasses import replace
 
-from sniffer.commands.common import add_input_format_option, add_line_options, close_reader, line_override
-from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.commands.common import (
+    add_input_format_option,
+    add_line_options,
+    check_outputs,
+    close_reader,
+    human_size,
+    line_override,
+)
 from sniffer.io.registry import all_formats, open_reader, open_writer
 
 
@@ -28,10 +35,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.output != "-" and os.path.exists(args.output) and not args.force:
-        raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; add --force to overwrite it", path=args.output)
-    if args.output != "-" and os.path.abspath(args.output) == os.path.abspath(args.input):
-        raise RtuSniffError(ErrorKind.USAGE, "input and output are the same file", path=args.output)
+    check_outputs([args.output], [args.input], force=args.force)
     reader = open_reader(args.input, args.input_format)
     try:
         info = reader.info
@@ -39,9 +43,12 @@ def run(args: argparse.Namespace) -> int:
         if override is not None:
             info = replace(info, line=override)
         writer = open_writer(args.output, info, args.output_format)
+        chunks = size = 0
         try:
             for batch in reader.batches():
                 writer.write_batch(batch)
+                chunks += len(batch)
+                size += len(batch.data)
             writer.add_notes(reader.late_notes)
         except BaseException:
             writer.close()
@@ -52,4 +59,6 @@ def run(args: argparse.Namespace) -> int:
         writer.close()
     finally:
         close_reader(reader)
+    target = "standard output" if args.output == "-" else f"{args.output} ({human_size(os.path.getsize(args.output))})"
+    print(f"wrote {chunks:,} chunks, {size:,} bytes of line data to {target}", file=sys.stderr)
     return 0

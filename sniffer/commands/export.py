@@ -6,8 +6,11 @@ import argparse
 import hashlib
 import os
 import shlex
+import shutil
+import sys
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -17,7 +20,7 @@ from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch, MessageBatch
 from decoders.stats import Statistics
-from sniffer.commands.common import add_decoding_options, add_jobs_option, open_analysis
+from sniffer.commands.common import add_decoding_options, add_jobs_option, check_outputs, human_size, open_analysis
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.pcap_export import PcapExporter
@@ -51,9 +54,15 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def run(args: argparse.Namespace) -> int:
     if not (args.mcap or args.rrd or args.pcap or args.spawn):
         raise RtuSniffError(ErrorKind.USAGE, "export: give --mcap OUT.mcap, --rrd OUT.rrd, --pcap OUT.pcap or --spawn")
-    for path in filter(None, (args.mcap, args.rrd, args.pcap)):
-        if os.path.exists(path) and not args.force:
-            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; add --force to overwrite it", path=path)
+    for option, path in (("--mcap", args.mcap), ("--rrd", args.rrd)):
+        if path == "-":
+            raise RtuSniffError(ErrorKind.USAGE, f"{option} -: only --pcap writes to standard output; name a file")
+    if args.pcap == "-" and sys.stdout.isatty():
+        raise RtuSniffError(ErrorKind.USAGE, "--pcap -: binary pcap to a terminal; pipe it (| wireshark -k -i -) "
+                            "or redirect it to a file")
+    check_outputs([args.mcap, args.rrd, args.pcap], [args.capture], force=args.force)
+    if args.spawn:
+        check_viewer_can_start()
     with ExitStack() as stack:
         reader, analysis = open_analysis(args, stack)
         view = ExportView(args, analysis)
@@ -69,7 +78,41 @@ def run(args: argparse.Namespace) -> int:
             prepared=view.write_transactions if args.mcap else None,
             jobs=decoding_jobs(args.jobs),
         )
+    _tell_written(args, view.frames)
     return 0
+
+
+def _tell_written(args: argparse.Namespace, frames: int) -> None:
+    """One line per output on standard error: what was written where."""
+    for kind, path in (("MCAP", args.mcap), ("Rerun recording", args.rrd), ("pcap", args.pcap)):
+        if path == "-":
+            print(f"wrote {frames:,} frames as {kind} to standard output", file=sys.stderr)
+        elif path:
+            print(f"wrote {path}: {kind}, {frames:,} frames, {human_size(os.path.getsize(path))}", file=sys.stderr)
+    if args.spawn:
+        print(f"sent {frames:,} frames to the Rerun viewer", file=sys.stderr)
+
+
+def check_viewer_can_start() -> None:
+    """``--spawn`` starts the Rerun viewer: a window. Refuse at once where none can open (the
+    SDK would wait for a viewer that never starts) or where no ``rerun`` program is found."""
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise RtuSniffError(ErrorKind.USAGE, "--spawn opens the Rerun viewer, but there is no display (DISPLAY and "
+                            "WAYLAND_DISPLAY are unset); write --rrd FILE.rrd and open it with 'rerun FILE.rrd' "
+                            "where there is one")
+    if rerun_viewer() is None:
+        raise RtuSniffError(ErrorKind.USAGE, "--spawn: the Rerun viewer ('rerun') is neither beside this Python "
+                            f"({Path(sys.executable).parent}) nor on PATH; reinstall rtusniff (it brings rerun-sdk)")
+
+
+def rerun_viewer() -> str | None:
+    """The ``rerun`` program of this installation: beside the interpreter (a venv's bin or
+    Scripts folder, not always on PATH), else on PATH."""
+    name = "rerun.exe" if os.name == "nt" else "rerun"
+    beside = Path(sys.executable).parent / name
+    if beside.is_file():
+        return str(beside)
+    return shutil.which("rerun")
 
 
 class ExportView:
@@ -82,6 +125,8 @@ class ExportView:
         self.wants_statistics = False
         self.args = args
         self.analysis = analysis
+        #: Frames written (to every output: each gets every frame).
+        self.frames = 0
         self.mcap: McapExporter | None = None
         self.pcap: PcapExporter | None = None
         self.rerun: RerunExporter | None = None
@@ -104,7 +149,7 @@ class ExportView:
             from sniffer.exports.rerun_export import RerunExporter  # noqa: PLC0415
 
             with _writing(self.args.rrd):
-                self.rerun = RerunExporter(self.args.rrd, spawn=self.args.spawn)
+                self.rerun = RerunExporter(self.args.rrd, spawn=rerun_viewer() if self.args.spawn else None)
         if self.args.mcap:
             # Imported when asked for, as Rerun is: a pcap export needs neither.
             from sniffer.exports.mcap_export import McapExporter  # noqa: PLC0415
@@ -128,11 +173,14 @@ class ExportView:
                 self.mcap.transactions(*transactions)
 
     def framed(self, batch: MessageBatch) -> None:
+        if not self.wants_messages:
+            self.frames += len(batch)
         if self.pcap is not None:
             with _writing(self.args.pcap):
                 self.pcap.batch(batch)
 
     def messages(self, batch: AnnotatedBatch) -> None:
+        self.frames += len(batch.messages)
         if self.mcap is not None:
             with _writing(self.args.mcap):
                 self.mcap.messages(batch)

@@ -9,7 +9,7 @@ from contextlib import ExitStack
 from rich.console import Console
 
 from sniffer.commands.analyze import FILE_TABLE_WIDTH
-from sniffer.commands.common import add_decoding_options, open_analysis, open_output
+from sniffer.commands.common import add_decoding_options, add_force_option, check_outputs, open_analysis, open_output
 from sniffer.pipeline import analyze
 from sniffer.views.stats_view import StatsView
 
@@ -25,11 +25,13 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("capture", help="capture file (.log/.txt text, .mcap native), or - for text on stdin")
     parser.add_argument("--format", choices=["table", "json"], default="table", help="output format (default: table)")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
+    add_force_option(parser)
     add_decoding_options(parser)
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    check_outputs([args.output], [args.capture], force=args.force)
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)

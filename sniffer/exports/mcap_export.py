@@ -41,6 +41,7 @@ from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports import foxglove_log
 from sniffer.exports.levels import FLAG_SUFFIXES, log_levels
 from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
+from sniffer.exports.published import PublishedValues, plotted
 from sniffer.exports.transactions import OUTCOMES, TransactionEncoder
 from sniffer.io.formats.mcap_capture import (
     LAYOUT_DOC,
@@ -106,9 +107,8 @@ PARAMS_SCHEMA: dict[str, Any] = {
 def numeric_params(decoding: Decoding) -> dict[str, float | int]:
     """The values a frame carried, by code (or address), numbers only: state words give their raw value."""
     values: dict[str, float | int] = {}
-    for param in decoding.params:
-        if param.raw is None:
-            continue
+    for param in plotted(decoding.params):
+        assert param.raw is not None  # plotted() takes only params with a raw value
         key = param.code if param.code is not None else str(param.address)
         values[key] = param.value if isinstance(param.value, int | float) else param.raw
     return values
@@ -141,6 +141,7 @@ class McapExporter:
         except BaseException:
             self._abandon()
             raise
+        self._published = PublishedValues()
         #: ``/slave/N/params`` channel ids by slave, made when a slave first carries values.
         self._param_channels = np.zeros(256, np.uint16)
         self._frame_records = FrameRecordEncoder(exact=False)
@@ -165,12 +166,26 @@ class McapExporter:
         messages, frames = batch.messages, batch.messages.frames
         t_ns, slaves = frames.t_start_ns[kept], messages.slave[kept]
         heads, values = self._decoding_parts(batch.decodings_at(positions), messages.role[kept])
+        values = self._published_values(batch, kept, values)
         indexes = number_texts(kept + frames.first_index)
         self._write(self._frame_records.rows(batch, reserved=HEADER_SIZE), self._frames, t_ns)
         text: list[Column] = [b"#", indexes, heads, _FLAG_SUFFIXES.column(messages.flags[kept])]
         log_rows = self._log_encoder.rows(t_ns, log_levels(messages)[kept], text, slaves, HEADER_SIZE)
         self._write(log_rows, self._log, t_ns)
         self._params(values, indexes, slaves, t_ns)
+
+    def _published_values(self, batch: AnnotatedBatch, kept: npt.NDArray[np.int64], values: list[bytes]) -> list[bytes]:
+        """``values`` of the messages whose values are published (valid answers), with the values
+        of the writes they accept; ``b""`` for the rest (:mod:`sniffer.exports.published`)."""
+        published, accepted = self._published.select(batch, kept)
+        if not published.all():
+            values = [value if keep else b"" for value, keep in zip(values, published.tolist(), strict=True)]
+        for row, request in accepted:
+            written = numeric_params(request)
+            if written:
+                members = encode_json(written)[1:]
+                values[row] = values[row][:-1] + b"," + members if values[row] else members
+        return values
 
     def transactions(self, rows: Rows, t_ns: npt.NDArray[np.int64]) -> None:
         """A batch's ``/modbus/transactions`` messages, built by

@@ -12,6 +12,7 @@ Noise records are packets too (Wireshark shows them as malformed): nothing is dr
 from __future__ import annotations
 
 import struct
+import sys
 from typing import BinaryIO
 
 import numpy as np
@@ -31,14 +32,19 @@ class PcapExporter:
     """Writes frames as they are framed: it needs no decoding, so it takes whole batches."""
 
     def __init__(self, path: str) -> None:
-        self._file: BinaryIO = open(path, "wb")  # noqa: SIM115
+        """``path`` ``-``: standard output (``| wireshark -k -i -``)."""
+        self._to_stdout = path == "-"
+        self._file: BinaryIO = sys.stdout.buffer if self._to_stdout else open(path, "wb")  # noqa: SIM115
         self._file.write(_HEADER.pack(_NANOSECOND_MAGIC, 2, 4, 0, 0, SNAPLEN, LINKTYPE_USER0))
 
     def batch(self, batch: MessageBatch) -> None:
         self._file.write(pcap_records(batch))
 
     def close(self) -> None:
-        self._file.close()
+        if self._to_stdout:
+            self._file.flush()
+        else:
+            self._file.close()
 
 
 def pcap_records(batch: MessageBatch) -> bytes:

@@ -19,7 +19,7 @@ and the logs below.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from operator import attrgetter
+from operator import attrgetter, itemgetter
 
 import numpy as np
 import numpy.typing as npt
@@ -30,6 +30,7 @@ from decoders.memo import Memo
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, AnnotatedBatch, Decoding, ParamValue, Role
 from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
+from sniffer.exports.published import PublishedValues, plotted
 
 APPLICATION = "rtusniff"
 ENTITY_ROWS = 32_768
@@ -43,9 +44,10 @@ _LEVEL_NAMES = np.array([{INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}.get(lev
                         dtype=object)
 _ERRORS = ("crc", "timeout", "exception")
 # Read from every frame's parts with ``map``, in C.
-_TEXT, _LATENCY_ENTITY, _STATES = attrgetter("text"), attrgetter("latency_entity"), attrgetter("states")
+_TEXT, _LATENCY_ENTITY = attrgetter("text"), attrgetter("latency_entity")
 _SCALAR_IDS, _SCALAR_VALUES = attrgetter("scalar_ids"), attrgetter("scalar_values")
 _EXCEPTION = ROLE_CODE[Role.EXCEPTION]
+_REQUEST = ROLE_CODE[Role.REQUEST]
 
 
 @dataclass(eq=False)
@@ -87,12 +89,13 @@ class RerunExporter:
     Entities have integer ids, so that a batch's rows are sorted to their entities in columns:
     the per-frame Python work is looking up what its decoding contributes."""
 
-    def __init__(self, path: str | None, spawn: bool = False) -> None:
+    def __init__(self, path: str | None, spawn: str | None = None) -> None:
+        """``spawn``: the path of a ``rerun`` viewer program to start and stream to."""
         self._rec = rr.RecordingStream(APPLICATION)
         self._rec.set_log_time_enabled(False)
         self._rec.set_log_tick_enabled(False)
-        if spawn:
-            self._rec.spawn()
+        if spawn is not None:
+            rr.spawn(executable_path=spawn, recording=self._rec)
         if path is not None:
             self._rec.save(path)
         self._paths: list[str] = []
@@ -102,6 +105,7 @@ class RerunExporter:
         self._buffers: dict[int, _Rows] = {}
         self._states: dict[int, str] = {}
         self._slaves: set[int] = set()
+        self._published = PublishedValues()
         # As many as the annotator keeps decodings: a repeat finds its parts.
         self._parts: Memo[Decoding, _Parts] = Memo(KEPT_DECODINGS)
         #: (plot entity, state entity), or () for a register not plotted.
@@ -149,18 +153,7 @@ class RerunExporter:
             texts[row] += FLAG_SUFFIXES[flags[row]]
         levels = _LEVEL_NAMES[log_levels(messages)[positions]]
         self._grouped(self._slave_ids[slave, 0], t_start, index, texts=texts, levels=levels)
-        counts = np.fromiter(map(len, map(_SCALAR_IDS, parts)), np.int64, len(parts))
-        if counts.any():
-            rows = np.repeat(np.arange(len(parts)), counts)
-            self._grouped(np.concatenate(list(map(_SCALAR_IDS, parts))), t_start[rows], index[rows],
-                          values=np.concatenate(list(map(_SCALAR_VALUES, parts))))
-        for row in np.flatnonzero(np.fromiter(map(len, map(_STATES, parts)), np.int64, len(parts))).tolist():
-            for entity, text in parts[row].states:
-                if self._states.get(entity) != text:
-                    self._states[entity] = text
-                    # Copies, not views: a state can stay buffered all day, and a view would keep
-                    # its whole batch's column alive with it.
-                    self._append(entity, t_start[[row]], index[[row]], texts=_strings([text]), level="INFO")
+        self._values(self._published_parts(batch, positions, parts, slave), t_start, index)
         latency = messages.latency_ns[positions]
         crc_ok = frames.crc_ok[positions]
         latency_ids = np.fromiter(map(_LATENCY_ENTITY, parts), np.int64, len(parts))
@@ -171,6 +164,38 @@ class RerunExporter:
             if failed.any():
                 ids = self._slave_ids[slave[failed], column]
                 self._grouped(ids, t_start[failed], index[failed], values=np.ones(len(ids)))
+
+    def _published_parts(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64], parts: list[_Parts],
+                         slave: npt.NDArray[np.int16]) -> list[tuple[int, _Parts]]:
+        """``(row, parts)`` whose values go on plots and state series: valid answers, and the
+        writes they accept (:mod:`sniffer.exports.published`), in row order."""
+        published, accepted = self._published.select(batch, positions)
+        shown = [(row, parts[row]) for row in np.flatnonzero(published).tolist()]
+        if accepted:
+            functions = batch.messages.function[positions]
+            shown += [(row, self._decoding_parts(request, int(slave[row]), _REQUEST, int(functions[row])))
+                      for row, request in accepted]
+            shown.sort(key=itemgetter(0))
+        return shown
+
+    def _values(self, shown: list[tuple[int, _Parts]], t_start: npt.NDArray[np.int64],
+                index: npt.NDArray[np.int64]) -> None:
+        """Parameter values as points of their plots, state texts when they change."""
+        if not shown:
+            return
+        rows, parts = np.array([row for row, _ in shown], np.int64), [part for _, part in shown]
+        counts = np.fromiter(map(len, map(_SCALAR_IDS, parts)), np.int64, len(parts))
+        if counts.any():
+            repeated = np.repeat(rows, counts)
+            self._grouped(np.concatenate(list(map(_SCALAR_IDS, parts))), t_start[repeated], index[repeated],
+                          values=np.concatenate(list(map(_SCALAR_VALUES, parts))))
+        for row, part in shown:
+            for entity, text in part.states:
+                if self._states.get(entity) != text:
+                    self._states[entity] = text
+                    # Copies, not views: a state can stay buffered all day, and a view would keep
+                    # its whole batch's column alive with it.
+                    self._append(entity, t_start[[row]], index[[row]], texts=_strings([text]), level="INFO")
 
     def _parts_of(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64]) -> list[_Parts]:
         decodings, messages = batch.decodings_at(positions.tolist()), batch.messages
@@ -188,9 +213,7 @@ class RerunExporter:
         scalar_ids: list[int] = []
         scalar_values: list[float] = []
         states: list[tuple[int, str]] = []
-        for param in decoding.params:
-            if param.raw is None:
-                continue
+        for param in plotted(decoding.params):
             series = self._param_series(slave, param)
             if not series:
                 continue

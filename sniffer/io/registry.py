@@ -34,9 +34,12 @@ def all_formats() -> dict[str, CaptureFormat]:
     return found
 
 
-def find_format(path: str, name: str | None = None, head: bytes = b"") -> CaptureFormat:
+def find_format(
+    path: str, name: str | None = None, head: bytes = b"", *, option: str = "--input-format"
+) -> CaptureFormat:
     """The format called ``name``, else the one whose suffix ``path`` has, else the one
-    whose magic bytes ``head`` (the file's first bytes) starts with."""
+    whose magic bytes ``head`` (the file's first bytes) starts with. ``option`` is the
+    command's option that names a format, for the error's hint."""
     known = all_formats()
     if name is not None:
         if name not in known:
@@ -57,7 +60,7 @@ def find_format(path: str, name: str | None = None, head: bytes = b"") -> Captur
     raise RtuSniffError(
         ErrorKind.UNKNOWN_FORMAT,
         f"cannot tell the capture format from the suffix {suffix or '(none)'!r}; "
-        f"use one of {suffixes} or name the format with --input-format/--output-format",
+        f"use one of {suffixes}" + (f" or name the format with {option}" if option else ""),
         path=path,
     )
 
@@ -70,7 +73,7 @@ def open_reader(path: str, format_name: str | None = None) -> CaptureReader:
 
 def open_writer(path: str, info: CaptureInfo, format_name: str | None = None) -> CaptureWriter:
     """Create a capture file for writing."""
-    fmt = find_format(path, format_name)
+    fmt = find_format(path, format_name, option="--output-format")
     try:
         return fmt.open_writer(path, info)
     except OSError as exc:

@@ -83,8 +83,9 @@ class LiveView:
                 merged.merge(stats.latency.counts, stats.latency.count, stats.latency.minimum, stats.latency.maximum)
         for slave in sorted(per_slave):
             p50, p95 = latency[slave].percentile(50), latency[slave].percentile(95)
+            # A live tap reads the port: host timing, latencies not measured (say so, never 0.00).
             table.add_row(str(slave), *map(str, per_slave[slave]),
-                          "" if p50 is None else f"{p50 / 1e6:.2f}", "" if p95 is None else f"{p95 / 1e6:.2f}")
+                          "n/a" if p50 is None else f"{p50 / 1e6:.2f}", "n/a" if p95 is None else f"{p95 / 1e6:.2f}")
         return table
 
     def _frames(self) -> Table:

@@ -8,7 +8,7 @@ from typing import TextIO
 from rich.console import Console
 from rich.table import Table
 
-from decoders.capture import CaptureInfo
+from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch
 from decoders.modbus.codes import function_name
@@ -19,7 +19,15 @@ def _ms(value_ns: float | None) -> str:
     return "" if value_ns is None else f"{value_ns / 1e6:.2f}"
 
 
-def _latency_cells(histogram: Histogram) -> list[str]:
+#: What the latency cells of a host-timed capture say: read times do not measure latency.
+HOST_LATENCY = "n/a"
+HOST_LATENCY_NOTE = ("latency n/a: host timing (times are when the PC read the bytes; a request and its "
+                     "answer often arrive in one read)")
+
+
+def _latency_cells(histogram: Histogram, measured: bool = True) -> list[str]:
+    if not measured:
+        return [HOST_LATENCY] * 5
     return [
         _ms(histogram.minimum),
         _ms(histogram.percentile(50)),
@@ -41,24 +49,29 @@ class StatsView:
         self._console = console
         self._as_json = as_json
         self._header: dict[str, object] = {}
+        self._latency_measured = True
 
     wants_messages = False
     wants_statistics = True
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
+        self._latency_measured = info.timing is TimingQuality.EXACT
 
     def messages(self, batch: AnnotatedBatch) -> None:
         pass
 
     def finish(self, statistics: Statistics) -> None:
         if self._as_json:
-            self._out.write(json.dumps({**self._header, **statistics.to_dict()}, indent=2) + "\n")
+            measured = {"latency_measured": self._latency_measured}
+            self._out.write(json.dumps({**self._header, **measured, **statistics.to_dict()}, indent=2) + "\n")
             return
         header = self._header
         self._console.print(f"[bold]{header['source']}[/]  line {header['line']}  timing {header['timing']}")
         self._console.print(self._bus_table(statistics))
         self._console.print(self._function_table(statistics))
+        if not self._latency_measured:
+            self._console.print(HOST_LATENCY_NOTE, style="yellow")
 
     def _bus_table(self, s: Statistics) -> Table:
         table = Table(show_header=False)
@@ -82,15 +95,16 @@ class StatsView:
         for header in headers:
             table.add_column(header, justify="left" if header == "function" else "right")
         for (slave, function), stats in sorted(s.per_function.items()):
-            table.add_row(str(slave), f"{function} {function_name(function)}", *self._cells(stats))
+            name = f"{function} {function_name(function)}"
+            table.add_row(str(slave), name, *self._cells(stats, self._latency_measured))
         return table
 
     @staticmethod
-    def _cells(f: FunctionStats) -> list[str]:
+    def _cells(f: FunctionStats, latency_measured: bool) -> list[str]:
         exceptions = " ".join(f"{code:02X}×{n}" for code, n in sorted(f.exceptions.items()))
         return [
             str(f.requests + f.broadcasts), str(f.responses), f"[red]{exceptions}[/]" if exceptions else "",
             _count(f.crc_errors), _count(f.timeouts), _count(f.retries, "yellow"), _count(f.unexpected, "yellow"),
             _count(f.gap_1_5, "yellow"), _count(f.short_idle, "yellow"),
-            *_latency_cells(f.latency), _ms(f.poll_period.percentile(50)),
+            *_latency_cells(f.latency, latency_measured), _ms(f.poll_period.percentile(50)),
         ]
