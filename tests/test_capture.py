@@ -280,3 +280,42 @@ def test_latency_timer_advice() -> None:
     assert "latency timer is 16 ms" in (PortStatus(True, 16, False).advice() or "")
     assert PortStatus(True, 1, False).advice() is None
     assert PortStatus(None, None, False).advice() is None
+
+
+def test_a_setting_the_port_refuses_is_one_error_and_skipped_by_auto(
+        line_tap: tuple[Path, Path, Any], monkeypatch: pytest.MonkeyPatch) -> None:
+    """A driver that rejects a setting raises termios.error from pyserial: never a traceback."""
+    import termios
+
+    from sniffer.errors import RtuSniffError
+    from sniffer.line_probe import probe_line
+
+    _, port, _ = line_tap
+    real_open = serial.Serial.open
+
+    def refusing_even_parity(self: serial.Serial) -> None:
+        if self.parity == serial.PARITY_EVEN:
+            raise termios.error(22, "Invalid argument")
+        real_open(self)
+
+    monkeypatch.setattr(serial.Serial, "open", refusing_even_parity)
+    source = SerialSource(str(port), LineSettings.parse("19200 8E1"))
+    with pytest.raises(RtuSniffError, match="cannot open the port with 19200 8E1"):
+        source.open()
+    # --line auto goes on past the refused setting (and hears nothing on this quiet line).
+    with pytest.raises(RtuSniffError, match=r"no traffic heard .*\(1 settings the port refused\)"):
+        probe_line(str(port), 0.2, ["19200 8E1", "19200 8N1"])
+
+
+def test_sigint_stops_a_capture_started_with_sigint_ignored(tmp_path: Path, line_tap: tuple[Path, Path, Any]) -> None:
+    """`rtusniff capture … &` from a script: the shell ignores SIGINT for it; `kill -INT` still stops it."""
+    line, port, _ = line_tap
+    recording = tmp_path / "bg.mcap"
+    capture = start_capture(port, "-o", str(recording), "--quiet", ignore_sigint=True)
+    send_exchanges(line, 5)
+    time.sleep(0.3)
+    capture.send_signal(signal.SIGINT)
+    _, err = capture.communicate(timeout=HANG_S)
+    assert capture.returncode == 130, err
+    code, records, _ = analyze(recording)
+    assert code == 0 and len([f for f in frames_of(records) if f["crc_ok"]]) == 10
