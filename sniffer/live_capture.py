@@ -87,7 +87,8 @@ def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
             recorder.start()
         reader.start()
         target = f" to {options.output}" if options.output else ""
-        err.print(f"capturing {options.port} at {options.line.format()}{target}; Ctrl-C to stop", highlight=False)
+        err.print(f"capturing {options.port} at {options.line.format()}{target}; Ctrl-C to stop", highlight=False,
+                  soft_wrap=True)
         session.run(source)
     except KeyboardInterrupt:
         code = INTERRUPTED
