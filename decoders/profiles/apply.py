@@ -194,9 +194,12 @@ def _uss_words(profile: Profile, message: Message) -> Message:
 def _named(
     profile: Profile, parameter: Parameter, param: ParamValue, code: str, name: str, *, reported: bool
 ) -> ParamValue:
-    value, unit = _value(profile, parameter, param.raw, reported)
-    return ParamValue(param.address, code, name, param.raw, value, unit,
-                      available=_special(profile, param.raw, reported) is None)
+    special = _special(profile, param.raw, reported)
+    if special is not None:
+        # A marker (16#8000), not a reading: its meaning, no unit, not available.
+        return ParamValue(param.address, code, name, param.raw, special, None, available=False)
+    value, unit = _value(profile, parameter, param.raw)
+    return ParamValue(param.address, code, name, param.raw, value, unit)
 
 
 def _special(profile: Profile, raw: int | None, reported: bool) -> str | None:
@@ -205,15 +208,10 @@ def _special(profile: Profile, raw: int | None, reported: bool) -> str | None:
     return next((special.meaning for special in profile.specials if special.raw == raw), None)
 
 
-def _value(
-    profile: Profile, parameter: Parameter, raw: int | None, reported: bool
-) -> tuple[float | int | str | None, str | None]:
-    """The value as the device means it, and its unit."""
+def _value(profile: Profile, parameter: Parameter, raw: int | None) -> tuple[float | int | str | None, str | None]:
+    """The value as the device means it, and its unit (for a raw word that is no marker)."""
     if raw is None:
         return None, parameter.unit
-    special = _special(profile, raw, reported)
-    if special is not None:
-        return special, None
     if parameter.bitfield is not None:
         return profile.bitfields[parameter.bitfield].describe(raw) or f"16#{raw:04X}", None
     if raw in parameter.enum:
