@@ -61,3 +61,65 @@ def crc_ok_many(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.NDArray[np.b
     remainders = np.fromiter(map(crc16.modbus, frames), np.int64, len(bounds) - 1)
     valid: npt.NDArray[np.bool_] = (remainders == 0) & (np.diff(offsets) >= 3)
     return valid
+
+
+_STEP_TABLE = np.array(CRC_TABLE, np.uint32)
+#: Spans up to this long are checked by :func:`crc_ok_spans`.
+MAX_SPAN = 320
+
+
+def _zero_shift_tables() -> npt.NDArray[np.uint32]:
+    """``tables[n, 0, x]`` / ``tables[n, 1, x]``: the register ``x`` / ``x << 8`` after n
+    zero bytes, with no initial value (CRC is linear: a register's effect splits by byte)."""
+    tables = np.empty((MAX_SPAN + 1, 2, 256), np.uint32)
+    current = np.stack([np.arange(256, dtype=np.uint32), np.arange(256, dtype=np.uint32) << 8])
+    for shift in range(MAX_SPAN + 1):
+        tables[shift] = current
+        current = (current >> 8) ^ _STEP_TABLE[current & 0xFF]
+    return tables
+
+
+_ZERO_SHIFT = _zero_shift_tables()
+
+
+def _shifted(registers: npt.NDArray[np.uint32], counts: npt.NDArray[np.int64]) -> npt.NDArray[np.uint32]:
+    """Each register carried through ``counts`` zero bytes (no initial value)."""
+    shifted: npt.NDArray[np.uint32] = _ZERO_SHIFT[counts, 0, registers & 0xFF] ^ _ZERO_SHIFT[counts, 1, registers >> 8]
+    return shifted
+
+
+def prefix_registers(data: bytes) -> npt.NDArray[np.uint32]:
+    """``registers[k]``: the CRC register after ``data[:k]`` (``registers[0]`` = 0xFFFF).
+
+    Blocks of ``data`` are stepped in lockstep by numpy, one byte position of every
+    block at a time, from each block's initial register (chained by ``fastcrc``).
+    """
+    size = len(data)
+    block = max(64, int(size**0.5) + 1)
+    blocks = -(-size // block) if size else 0
+    initial = np.empty(blocks, np.uint32)
+    register = 0xFFFF
+    for k in range(blocks):
+        initial[k] = register
+        register = crc16.modbus(data[k * block : (k + 1) * block], initial=register)
+    matrix = np.frombuffer(data + bytes(blocks * block - size), np.uint8).reshape(blocks, block)
+    steps = np.empty((blocks, block), np.uint32)
+    current = initial
+    for column in range(block):
+        current = (current >> 8) ^ _STEP_TABLE[(current ^ matrix[:, column]) & 0xFF]
+        steps[:, column] = current
+    registers = np.empty(size + 1, np.uint32)
+    registers[0] = 0xFFFF
+    registers[1:] = steps.ravel()[:size]
+    return registers
+
+
+def crc_ok_spans(
+    registers: npt.NDArray[np.uint32], starts: npt.NDArray[np.int64], lengths: npt.NDArray[np.int64]
+) -> npt.NDArray[np.bool_]:
+    """Whether each span ``data[starts[i] : starts[i] + lengths[i]]`` passes the CRC, from
+    :func:`prefix_registers` (lengths 3..``MAX_SPAN``): the span's own register from
+    0xFFFF is ``R[end] ^ shift(R[start] ^ 0xFFFF, length)``, zero when the CRC holds."""
+    own = registers[starts + lengths] ^ _shifted(registers[starts] ^ 0xFFFF, lengths)
+    valid: npt.NDArray[np.bool_] = (own == 0) & (lengths >= 3)
+    return valid

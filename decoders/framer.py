@@ -1,10 +1,14 @@
 """The framer: frames from timing where timing can be trusted, from content elsewhere.
 
 Timing (numpy over byte times) cuts the stream into segments at silences that
-certainly separate frames: t3.5 on an ``exact`` capture, ``host_gap_ns`` on a
-``host`` one (a USB adapter delivers bytes late and in bursts, so shorter gaps say
-nothing). :func:`decoders.framing.content.parse_segment` then cuts each segment
-into frames and noise by length rules and CRC. Every byte ends up in exactly one
+certainly separate frames: t3.5 on an ``exact`` capture; on a ``host`` one, the
+capture's own delivery delay (a read may return mid-frame and the rest come a read
+timeout later, so shorter gaps prove nothing): twice the 99th percentile of the
+intervals between reads seen so far, at least 100 ms and at most 3 s, unless
+``host_gap_ns`` fixes it. Segments that are one whole valid frame are recognised
+in bulk (:mod:`decoders.framing.fast`); :func:`decoders.framing.best_parse.parse_segment`
+cuts the others into frames and noise by the best parse of their content, with
+silences > t1.5 as evidence on exact captures. Every byte ends up in exactly one
 frame or noise record.
 
 Flags: ``gap_1_5`` on a silence > t1.5 inside a frame and ``short_idle`` on a frame
@@ -17,8 +21,6 @@ are compared with 1 ns of allowance.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import numpy.typing as npt
 
@@ -26,49 +28,22 @@ from decoders.byte_times import byte_times
 from decoders.capture import ChunkBatch, Int64Array, TimingQuality
 from decoders.crc import crc_ok_many
 from decoders.frame import NO_IDLE, FrameBatch, FrameFlag
-from decoders.framing.content import OPEN_LOOKAHEAD, OpenRequest, Piece, after_frame, parse_segment
+from decoders.framing.best_parse import Context, Pieces, clean_frame_end, parse_segment
+from decoders.framing.content import OpenRequest, after_frame
 from decoders.framing.fast import single_frame_segments
 from decoders.line import LineSettings
-from decoders.modbus.layouts import MAX_ADU
 
 #: Rounding allowance when comparing integer-ns silences with fractional thresholds.
 TOLERANCE_NS = 1.0
-#: On host-timed captures, the silence that certainly separates frames: well above
-#: a USB adapter's latency timer (16 ms by default) and the host's scheduling jitter.
-DEFAULT_HOST_GAP_NS = 100_000_000
-#: An open segment longer than this is parsed before its end is known.
-OPEN_PARSE_BYTES = OPEN_LOOKAHEAD + MAX_ADU
+#: On host-timed captures, the silence that certainly separates frames is learned from
+#: the capture (see the module docstring) within these bounds: above a USB adapter's
+#: latency timer (16 ms by default) and the host's jitter, below what any read loop waits.
+MIN_HOST_GAP_NS = 100_000_000
+MAX_HOST_GAP_NS = 3_000_000_000
+DELIVERY_PERCENTILE = 99
+DELIVERY_MARGIN = 2
 
 
-@dataclass
-class _Pieces:
-    """Pieces in columns, in wire order; offsets index the framer's byte buffer."""
-
-    first: Int64Array
-    last: Int64Array
-    is_noise: npt.NDArray[np.bool_]
-    crc_ok: npt.NDArray[np.bool_]
-    flags: npt.NDArray[np.uint16]
-    protocol: npt.NDArray[np.uint8]
-
-    @classmethod
-    def of(cls, pieces: list[Piece]) -> _Pieces:
-        count = len(pieces)
-        return cls(
-            np.fromiter((p.start for p in pieces), np.int64, count),
-            np.fromiter((p.end for p in pieces), np.int64, count),
-            np.fromiter((p.is_noise for p in pieces), np.bool_, count),
-            np.fromiter((p.crc_ok for p in pieces), np.bool_, count),
-            np.fromiter((p.flags for p in pieces), np.uint16, count),
-            np.fromiter((p.protocol for p in pieces), np.uint8, count),
-        )
-
-    @classmethod
-    def join(cls, parts: list[_Pieces]) -> _Pieces:
-        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in _PIECE_COLUMNS))
-
-
-_PIECE_COLUMNS = ("first", "last", "is_noise", "crc_ok", "flags", "protocol")
 #: How many frames back the open request is replayed from before a segment that the
 #: content parser handles (only a run of echo frames longer than this could mislead it).
 REPLAY_FRAMES = 4
@@ -77,19 +52,27 @@ REPLAY_FRAMES = 4
 class Framer:
     """Splits a byte stream into frames and noise; ``feed`` batches in order, then ``flush``.
 
-    Held back between calls: the open segment, bounded by ``OPEN_PARSE_BYTES`` plus
-    one batch.
+    Held back between calls: the open segment's bytes after its last committed piece
+    (a few maximum frames; see :mod:`decoders.framing.best_parse`). ``fast=False``
+    parses every segment by the plain dynamic programme once it is closed: the
+    reference the tests hold the fast path to.
     """
 
     def __init__(
         self,
         line: LineSettings,
         timing: TimingQuality = TimingQuality.EXACT,
-        host_gap_ns: int = DEFAULT_HOST_GAP_NS,
+        host_gap_ns: int | None = None,
+        *,
+        fast: bool = True,
     ) -> None:
         self.line = line
         self.timing = timing
-        self._boundary_ns = line.t3_5_ns - TOLERANCE_NS if timing is TimingQuality.EXACT else float(host_gap_ns)
+        self.fast = fast
+        self._learns_delivery = timing is TimingQuality.HOST and host_gap_ns is None
+        host_gap = MIN_HOST_GAP_NS if host_gap_ns is None else host_gap_ns
+        self._boundary_ns = line.t3_5_ns - TOLERANCE_NS if timing is TimingQuality.EXACT else float(host_gap)
+        self._last_chunk_ns: int | None = None
         self._data = b""
         self._starts: Int64Array = np.zeros(0, np.int64)
         self._ends: Int64Array = np.zeros(0, np.int64)
@@ -98,74 +81,83 @@ class Framer:
         self._next_index = 0
         self._last_end_ns: int | None = None
 
+    @property
+    def delivery_gap_ns(self) -> int:
+        """The silence that separates frames for certain: t3.5, or on host timing the
+        capture's delivery delay as learned so far."""
+        return int(self._boundary_ns)
+
     def feed(self, batch: ChunkBatch) -> FrameBatch:
         """Frames and noise that ``batch`` completes."""
+        if self._learns_delivery:
+            self._learn_delivery(batch)
         new_starts, new_ends = byte_times(batch, self.line.char_time_ns)
         data = self._data + batch.data
         starts = np.concatenate([self._starts, new_starts])
         ends = np.concatenate([self._ends, new_ends])
         cuts = np.flatnonzero(starts[1:] - ends[:-1] >= self._boundary_ns) + 1
         bounds = np.concatenate([np.zeros(1, np.int64), cuts])
-        parts = [self._closed_segments(data, bounds)]
+        parts = [self._closed_segments(data, starts, ends, bounds)]
         open_start = int(bounds[-1])
         kept_from = open_start
-        if len(data) - open_start > OPEN_PARSE_BYTES:
-            open_pieces = self._parse(data, open_start, len(data), closed=False)
-            parts.append(_Pieces.of(open_pieces))
-            kept_from = open_pieces[-1].end if open_pieces else open_start
+        if len(data) > open_start:
+            open_pieces = self._parse(data, starts, ends, open_start, len(data), closed=False)
+            parts.append(open_pieces)
+            kept_from = int(open_pieces.last[-1]) if len(open_pieces) else open_start
         self._data, self._starts, self._ends = data[kept_from:], starts[kept_from:], ends[kept_from:]
-        return self._assemble(data, starts, ends, _Pieces.join(parts))
+        return self._assemble(data, starts, ends, Pieces.join(parts))
+
+    def _learn_delivery(self, batch: ChunkBatch) -> None:
+        """Raise the host boundary to the delivery delay this batch shows (never lower it:
+        a boundary once learned holds for the rest of the capture)."""
+        times = batch.t_end_ns
+        if self._last_chunk_ns is not None:
+            times = np.concatenate([[self._last_chunk_ns], times])
+        if len(times):
+            self._last_chunk_ns = int(times[-1])
+        if len(times) < 2:
+            return
+        delay = DELIVERY_MARGIN * float(np.percentile(np.diff(times), DELIVERY_PERCENTILE))
+        self._boundary_ns = min(float(MAX_HOST_GAP_NS), max(self._boundary_ns, delay))
 
     def close_idle(self, now_ns: int) -> FrameBatch:
         """Live capture: the open segment is closed once the line has been quiet for as
         long as a boundary needs (t3.5, or the host gap), without waiting for a next byte."""
         if not self._data or now_ns - int(self._ends[-1]) < self._boundary_ns:
-            return self._assemble(b"", self._starts[:0], self._ends[:0], _Pieces.of([]))
+            return self._assemble(b"", self._starts[:0], self._ends[:0], Pieces.of([]))
         data, starts, ends = self._data, self._starts, self._ends
         self._data, self._starts, self._ends = b"", np.zeros(0, np.int64), np.zeros(0, np.int64)
-        return self._assemble(data, starts, ends, _Pieces.of(self._parse(data, 0, len(data), closed=True)))
+        return self._assemble(data, starts, ends, self._parse(data, starts, ends, 0, len(data), closed=True))
 
     def flush(self) -> FrameBatch:
         """Everything still held, at the end of the capture."""
         data, starts, ends = self._data, self._starts, self._ends
         self._data, self._starts, self._ends = b"", np.zeros(0, np.int64), np.zeros(0, np.int64)
-        pieces = self._parse(data, 0, len(data), closed=True, at_end=True) if data else []
-        return self._assemble(data, starts, ends, _Pieces.of(pieces))
+        pieces = self._parse(data, starts, ends, 0, len(data), closed=True, at_end=True) if data else Pieces.of([])
+        return self._assemble(data, starts, ends, pieces)
 
-    def _closed_segments(self, data: bytes, bounds: Int64Array) -> _Pieces:
+    def _closed_segments(self, data: bytes, starts: Int64Array, ends: Int64Array, bounds: Int64Array) -> Pieces:
         """Pieces of the segments ``data[bounds[i]:bounds[i+1]]``: whole frames in bulk,
         the rest through the content parser."""
         seg_starts, seg_ends = bounds[:-1], bounds[1:]
         count = len(seg_starts)
         single = single_frame_segments(data, seg_starts, seg_ends, crc_ok_many(data, bounds))
+        if not self.fast:
+            single[:] = False
         slow = np.flatnonzero(~single).tolist()
-        parsed: list[list[Piece]] = []
+        parsed: list[Pieces] = []
         done = 0
         for index in slow:
             if index > 0:
                 self._at_capture_start = False  # whole frames came before it
             self._open_request = self._replay(data, seg_starts, seg_ends, done, index)
-            parsed.append(self._parse(data, int(seg_starts[index]), int(seg_ends[index]), closed=True))
+            parsed.append(self._parse(data, starts, ends, int(seg_starts[index]), int(seg_ends[index]), closed=True))
             done = index + 1
         self._open_request = self._replay(data, seg_starts, seg_ends, done, count)
         if count:
             self._at_capture_start = False
-        per_segment = np.ones(count, np.int64)
-        per_segment[slow] = [len(p) for p in parsed]
-        position = np.cumsum(per_segment) - per_segment
-        total = int(per_segment.sum())
-        columns = _Pieces(
-            np.empty(total, np.int64), np.empty(total, np.int64), np.zeros(total, np.bool_),
-            np.ones(total, np.bool_), np.zeros(total, np.uint16), np.zeros(total, np.uint8),
-        )
-        columns.first[position[single]] = seg_starts[single]
-        columns.last[position[single]] = seg_ends[single]
-        if parsed:
-            slow_pieces = _Pieces.of([p for pieces in parsed for p in pieces])
-            slots = np.concatenate([position[i] + np.arange(len(p)) for i, p in zip(slow, parsed, strict=True)])
-            for name in _PIECE_COLUMNS:
-                getattr(columns, name)[slots] = getattr(slow_pieces, name)
-        return columns
+        whole = Pieces.frames(seg_starts[single], seg_ends[single])
+        return Pieces.join([whole, *parsed]).in_order() if parsed else whole
 
     def _replay(self, data: bytes, seg_starts: Int64Array, seg_ends: Int64Array, begin: int, stop: int) -> OpenRequest:
         """The open request after the whole-frame segments ``begin..stop-1``."""
@@ -175,20 +167,28 @@ class Framer:
             state = after_frame(data[int(seg_starts[k]) : int(seg_ends[k])], state)
         return state
 
-    def _parse(self, data: bytes, begin: int, stop: int, *, closed: bool, at_end: bool = False) -> list[Piece]:
-        parse = parse_segment(
-            data[begin:stop],
-            closed=closed,
-            at_capture_start=self._at_capture_start,
-            at_capture_end=at_end,
-            open_request=self._open_request,
-        )
-        if parse.pieces:
+    def _parse(
+        self, data: bytes, starts: Int64Array, ends: Int64Array, begin: int, stop: int, *, closed: bool,
+        at_end: bool = False,
+    ) -> Pieces:
+        if closed and clean_frame_end(data[begin:stop], 0, stop - begin) == stop - begin:
+            # Timing and CRC agree on one frame (a frame ending in 0x00 comes here).
+            self._at_capture_start = False
+            self._open_request = after_frame(data[begin:stop], self._open_request)
+            return Pieces.frames(np.array([begin], np.int64), np.array([stop], np.int64))
+        pauses: tuple[int, ...] = ()
+        if self.timing is TimingQuality.EXACT and stop - begin > 1:
+            silences = starts[begin + 1 : stop] - ends[begin : stop - 1]
+            pauses = tuple((np.flatnonzero(silences > self.line.t1_5_ns + TOLERANCE_NS) + 1).tolist())
+        context = Context(pauses, closed=closed, at_capture_start=self._at_capture_start, at_capture_end=at_end,
+                          timed=closed)
+        parse = parse_segment(data[begin:stop], context, self._open_request, fast=self.fast)
+        if len(parse.pieces):
             self._at_capture_start = False
             self._open_request = parse.open_request
-        return [Piece(p.start + begin, p.end + begin, p.is_noise, p.crc_ok, p.flags, p.protocol) for p in parse.pieces]
+        return parse.pieces.shifted(begin)
 
-    def _assemble(self, data: bytes, starts: Int64Array, ends: Int64Array, pieces: _Pieces) -> FrameBatch:
+    def _assemble(self, data: bytes, starts: Int64Array, ends: Int64Array, pieces: Pieces) -> FrameBatch:
         first, last, is_noise, flags = pieces.first, pieces.last, pieces.is_noise, pieces.flags.copy()
         count = len(first)
         if count:

@@ -24,6 +24,7 @@ from pymodbus.pdu.exceptionresponse import ExceptionResponse
 
 from decoders.capture import Chunk, TimingQuality
 from decoders.line import LineSettings
+from decoders.read_loops import READ_LOOPS
 from decoders.synthesis import Transmission, exact_chunks, usb_adapter_chunks
 
 T0_NS = 1_650_000_000_000_000_000
@@ -138,16 +139,41 @@ class Scenario:
     name: str
     #: Silence before a response, as a fraction of t3.5 (below 1: a too-fast slave).
     turnaround: tuple[float, float] = (1.5, 6.0)
+    #: Silence before a request, as a fraction of t3.5.
+    poll_gap: tuple[float, float] = (1.2, 8.0)
+    #: Silence before every frame in character times instead (a bus that never leaves t3.5).
+    idle_chars: tuple[float, float] | None = None
     gap_1_5_rate: float = 0.0
+    #: A stray byte directly after a response (and after a request with ``glitch_after_requests``).
     glitch_rate: float = 0.0
+    glitch_values: tuple[int, ...] = (0x00, 0xFF)
+    glitch_after_requests: bool = False
+    #: 0x00 after a master's frame, 0xFE after a slave's, any value one time in ten.
+    glitch_by_side: bool = False
+    #: Stray bytes on both sides of a frame, no silence between them and the frame.
+    junk_around_rate: float = 0.0
     garbage_rate: float = 0.0
     corrupt_rate: float = 0.0
+    #: A response cut off (the slave stopped sending), the next request after a silence.
+    truncate_rate: float = 0.0
+    #: FC 8 sub-function 0 requests echoing 1-120 bytes.
+    echo_rate: float = 0.0
+    slaves: tuple[int, int] = (1, 32)
     start_mid_frame: bool = False
     truncate_end: bool = False
 
 
 SCENARIOS = [
     Scenario("clean", gap_1_5_rate=0.05),
+    # The nine classes real wires and read loops showed (issue 16); 2, 7 and 8 are read
+    # loops (decoders/read_loops.py: read-timeout, random-sizes, slow-delivery) over these.
+    Scenario("glitch-polling", idle_chars=(1.6, 3.0), glitch_rate=1.0, glitch_after_requests=True,
+             glitch_by_side=True),
+    Scenario("junk-both-sides", junk_around_rate=0.5),
+    Scenario("high-address", slaves=(240, 255), idle_chars=(1.6, 3.0), glitch_rate=0.3, glitch_by_side=True),
+    Scenario("zero-after-frame", slaves=(1, 255), glitch_rate=1.0, glitch_values=(0x00,), glitch_after_requests=True),
+    Scenario("echo-fc8", echo_rate=0.5),
+    Scenario("broken-answers", truncate_rate=0.1, corrupt_rate=0.05),
     Scenario("fast-slave", turnaround=(0.0, 0.95)),
     Scenario("turn-off-glitch", glitch_rate=0.5),
     Scenario("garbage", garbage_rate=0.1, start_mid_frame=True),
@@ -156,7 +182,7 @@ SCENARIOS = [
     Scenario("everything", turnaround=(0.3, 4.0), gap_1_5_rate=0.03, glitch_rate=0.2, garbage_rate=0.03,
              corrupt_rate=0.03, start_mid_frame=True, truncate_end=True),
 ]
-LINES = [LineSettings.parse(t) for t in ("9600 8E1", "19200 8E1", "115200 8N1")]
+LINES = [LineSettings.parse(t) for t in ("9600 8N1", "19200 8E1", "115200 8N1")]
 
 
 def build(scenario: Scenario, line: LineSettings, exchanges: int = 300, seed: int = 0) -> Corpus:
@@ -167,6 +193,8 @@ def build(scenario: Scenario, line: LineSettings, exchanges: int = 300, seed: in
     out: list[tuple[Transmission, Expected]] = []
 
     def idle(low: float, high: float) -> int:
+        if scenario.idle_chars is not None:
+            return int(rng.uniform(*scenario.idle_chars) * line.char_time_ns) + 2
         return int(rng.uniform(low, high) * t3_5) + 2
 
     def send(data: bytes, silence: int, expected: Expected) -> None:
@@ -174,14 +202,42 @@ def build(scenario: Scenario, line: LineSettings, exchanges: int = 300, seed: in
         if not expected.is_noise and len(data) > 2 and rng.random() < scenario.gap_1_5_rate:
             gaps[rng.randrange(1, len(data))] = int(rng.uniform(t1_5 * 1.1, t3_5 * 0.9))
             expected = Expected(expected.data, expected.is_noise, expected.crc_ok, expected.flags | {"gap_1_5"})
+        if not expected.is_noise and silence < t3_5 and out:  # the capture's first frame has no silence before it
+            expected = Expected(expected.data, expected.is_noise, expected.crc_ok, expected.flags | {"short_idle"})
         out.append((Transmission(data, silence, gaps), expected))
+
+    def noise(data: bytes, silence: int) -> None:
+        send(data, silence, Expected(data, is_noise=True, crc_ok=False))
+
+    def glitch(after_request: bool) -> None:
+        if scenario.glitch_by_side:
+            value = rng.randrange(256) if rng.random() < 0.1 else (0x00 if after_request else 0xFE)
+        else:
+            value = rng.choice(scenario.glitch_values)
+        noise(bytes([value]), int(rng.uniform(0, 0.9) * line.char_time_ns))
+
+    def frame(data: bytes, silence: int, expected: Expected, *, after_request: bool) -> None:
+        junk = rng.random() < scenario.junk_around_rate
+        if junk:
+            noise(rng.randbytes(rng.randint(1, 3)), silence)
+            silence = 0
+        send(data, silence, expected)
+        if junk:
+            noise(rng.randbytes(1), 0)
+        elif (scenario.glitch_after_requests or not after_request) and rng.random() < scenario.glitch_rate:
+            glitch(after_request)
 
     if scenario.start_mid_frame:
         request, _ = exchange(rng, 1)
-        send(request[3:], 0, Expected(request[3:], is_noise=True, crc_ok=False))
+        noise(request[3:], 0)
     for _ in range(exchanges):
-        request, response = exchange(rng, rng.randint(1, 32))
-        send(request, idle(1.2, 8.0), Expected(request))
+        slave = rng.randint(*scenario.slaves)
+        request, response = exchange(rng, slave)
+        if rng.random() < scenario.echo_rate:
+            request = adu(diag.ReturnQueryDataRequest(dev_id=slave, message=rng.randbytes(rng.randint(1, 120))))
+            response = request
+        frame(request, idle(*scenario.poll_gap), Expected(request), after_request=True)
+        expected = Expected(response)
         if len(response) > 6 and rng.random() < scenario.corrupt_rate:
             # A bit error in the data: address, function, byte count and CRC stay readable.
             position = rng.randrange(3, len(response) - 2)
@@ -189,18 +245,13 @@ def build(scenario: Scenario, line: LineSettings, exchanges: int = 300, seed: in
             damaged[position] ^= 1 << rng.randrange(8)
             response = bytes(damaged)
             expected = Expected(response, crc_ok=False)
-        else:
-            expected = Expected(response)
-        silence = idle(*scenario.turnaround)
-        if silence < t3_5:
-            expected = Expected(expected.data, expected.is_noise, expected.crc_ok, expected.flags | {"short_idle"})
-        send(response, silence, expected)
-        if rng.random() < scenario.glitch_rate:
-            stray = bytes([rng.choice([0x00, 0xFF])])
-            send(stray, int(rng.uniform(0, 0.9) * line.char_time_ns), Expected(stray, is_noise=True, crc_ok=False))
+        elif len(response) > 5 and rng.random() < scenario.truncate_rate:
+            response = response[: rng.randint(4, len(response) - 1)]
+            expected = Expected(response, crc_ok=False, flags=frozenset({"truncated"}))
+        frame(response, idle(*scenario.turnaround), expected, after_request=False)
         if rng.random() < scenario.garbage_rate:
             junk = bytes([0xFF]) + rng.randbytes(rng.randint(1, 12))  # 0xFF: no slave has that address
-            send(junk, idle(1.2, 3.0), Expected(junk, is_noise=True, crc_ok=False))
+            noise(junk, idle(1.2, 3.0))
     if scenario.truncate_end:
         request, _ = exchange(rng, 7)
         cut = request[: rng.randint(4, len(request) - 1)]
@@ -211,9 +262,20 @@ def build(scenario: Scenario, line: LineSettings, exchanges: int = 300, seed: in
         line=line,
         timing=TimingQuality.EXACT,
         chunks=list(exact_chunks(transmissions, line, T0_NS)),
-        expected=[e for _, e in out],
+        expected=_joined_noise([e for _, e in out], [t.idle_before_ns > t1_5 for t in transmissions]),
         transmissions=transmissions,
     )
+
+
+def _joined_noise(expected: list[Expected], pause_before: list[bool]) -> list[Expected]:
+    """Noise transmissions with no pause between them are one noise record on the wire."""
+    joined: list[Expected] = []
+    for item, pause in zip(expected, pause_before, strict=True):
+        if joined and item.is_noise and joined[-1].is_noise and not pause:
+            joined[-1] = Expected(joined[-1].data + item.data, is_noise=True, crc_ok=False)
+        else:
+            joined.append(item)
+    return joined
 
 
 def usb_adapter(corpus: Corpus, latency_ms: float = 16.0, seed: int = 0) -> Corpus:
@@ -223,8 +285,17 @@ def usb_adapter(corpus: Corpus, latency_ms: float = 16.0, seed: int = 0) -> Corp
 
 
 def host_expected(expected: list[Expected]) -> list[Expected]:
-    """Host timing cannot see silences: no gap_1_5 or short_idle is expected."""
-    return [Expected(e.data, e.is_noise, e.crc_ok, e.flags - {"gap_1_5", "short_idle"}) for e in expected]
+    """Host timing cannot see silences: no gap_1_5 or short_idle is expected, and noise
+    runs next to each other are one."""
+    plain = [Expected(e.data, e.is_noise, e.crc_ok, e.flags - {"gap_1_5", "short_idle"}) for e in expected]
+    return _joined_noise(plain, [False] * len(plain))
+
+
+def deliver(corpus: Corpus, read_loop: str, seed: int = 0) -> Corpus:
+    """The corpus as the named read loop (decoders/read_loops.py) records it."""
+    chunks = READ_LOOPS[read_loop](corpus.chunks, corpus.line, seed)
+    return Corpus(f"{corpus.name}/{read_loop}", corpus.line, TimingQuality.HOST, chunks, corpus.expected,
+                  corpus.transmissions)
 
 
 Builder = Callable[[Scenario, LineSettings], Corpus]

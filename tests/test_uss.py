@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from decoders.capture import ChunkBatch, TimingQuality
-from decoders.framing.content import parse_segment
+from decoders.framing.best_parse import Context, parse_segment
 from decoders.line import LineSettings
 from decoders.message import Message, Role
 from decoders.pipeline import decode
@@ -79,7 +79,7 @@ def test_uss_record_in_jsonl(cli: object, tmp_path: object) -> None:
 def test_noise_is_not_taken_for_uss_next_to_modbus(noise: bytes) -> None:
     """Modbus frames around random bytes stay found; USS only where a telegram really is."""
     data = MODBUS_ANSWER + noise + MODBUS_ANSWER
-    pieces = parse_segment(data, closed=True, at_capture_start=False).pieces
+    pieces = list(parse_segment(data, Context(closed=True, timed=True)).pieces)
     assert (pieces[0].start, pieces[0].end, pieces[0].crc_ok) == (0, len(MODBUS_ANSWER), True)
     assert (pieces[-1].end - pieces[-1].start, pieces[-1].crc_ok) == (len(MODBUS_ANSWER), True)
     for piece in pieces:

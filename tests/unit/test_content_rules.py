@@ -1,4 +1,4 @@
-"""The content parser's rules, one by one, on hand-made segments."""
+"""The best parse's rules, one by one, on hand-made segments, over the fast path and the reference."""
 
 from __future__ import annotations
 
@@ -7,8 +7,9 @@ import numpy as np
 from decoders.capture import ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.frame import FrameFlag
-from decoders.framer import OPEN_PARSE_BYTES, Framer
-from decoders.framing.content import Piece, parse_segment, rule_lengths
+from decoders.framer import Framer
+from decoders.framing.best_parse import MAX_EDGE, WINDOW, Context, Piece, parse_segment
+from decoders.framing.content import rule_lengths
 from decoders.line import LineSettings
 from decoders.synthesis import Transmission, exact_chunks
 
@@ -21,9 +22,14 @@ def with_crc(body: bytes) -> bytes:
 
 
 def pieces(data: bytes, **kwargs: object) -> list[tuple[bytes, bool, bool, FrameFlag]]:
-    options: dict[str, object] = {"closed": True, "at_capture_start": False} | kwargs
-    parse = parse_segment(data, **options)  # type: ignore[arg-type]
-    return [(data[p.start : p.end], p.is_noise, p.crc_ok, p.flags) for p in parse.pieces]
+    """The pieces of a closed segment; the fast path and the reference must agree."""
+    options: dict[str, object] = {"closed": True, "timed": True} | kwargs
+    results = []
+    for fast in (True, False):
+        parse = parse_segment(data, Context(**options), fast=fast)  # type: ignore[arg-type]
+        results.append([(data[p.start : p.end], p.is_noise, p.crc_ok, p.flags) for p in parse.pieces])
+    assert results[0] == results[1]
+    return results[0]
 
 
 def test_rule_lengths_both_directions() -> None:
@@ -79,6 +85,9 @@ def test_damaged_frame_between_valid_ones() -> None:
 
 def test_truncated_at_capture_end_and_mid_frame_start() -> None:
     assert pieces(RESPONSE[:9], at_capture_end=True) == [(RESPONSE[:9], False, False, FrameFlag.TRUNCATED)]
+    # 8 bytes fit an FC 3 request, but after an open FC 3 request they are its answer, cut short.
+    assert pieces(REQUEST + RESPONSE[:8]) == [(REQUEST, False, True, FrameFlag.NONE),
+                                              (RESPONSE[:8], False, False, FrameFlag.TRUNCATED)]
     assert pieces(RESPONSE[4:] + REQUEST, at_capture_start=True) == [
         (RESPONSE[4:], True, False, FrameFlag.NONE),
         (REQUEST, False, True, FrameFlag.NONE),
@@ -90,12 +99,20 @@ def test_garbage_without_a_plausible_header_is_noise() -> None:
     assert pieces(junk) == [(junk, True, False, FrameFlag.NONE)]
 
 
-def test_open_segment_is_parsed_only_behind_the_lookahead() -> None:
+def test_open_segment_is_committed_up_to_what_bytes_to_come_cannot_change() -> None:
     data = REQUEST * 200
-    parse = parse_segment(data, closed=False, at_capture_start=False)
-    assert parse.consumed <= len(data) - 256
+    parse = parse_segment(data, Context(closed=False))
+    assert parse.consumed <= len(data) - MAX_EDGE
     assert all(isinstance(p, Piece) and p.end <= parse.consumed for p in parse.pieces)
-    assert parse.consumed >= len(data) - 2 * 256 - len(REQUEST)
+    assert parse.consumed >= len(data) - MAX_EDGE - 2 * len(REQUEST)
+
+
+def test_open_segment_without_anchors_is_committed_window_by_window() -> None:
+    broadcast = with_crc(bytes.fromhex("0006000A0001"))  # address 0: never an anchor
+    data = broadcast * 300
+    parse = parse_segment(data, Context(closed=False))
+    assert parse.consumed >= len(data) - WINDOW
+    assert [data[p.start : p.end] for p in parse.pieces] == [broadcast] * (parse.consumed // len(broadcast))
 
 
 def test_framer_memory_stays_bounded_without_any_silence() -> None:
@@ -110,4 +127,4 @@ def test_framer_memory_stays_bounded_without_any_silence() -> None:
         t += 1_000_000
         framer.feed(ChunkBatch.from_chunks(list(exact_chunks([Transmission(frames, 0)], line, t))))
         held.append(len(framer._data))
-    assert max(held) <= OPEN_PARSE_BYTES + 20 * (len(REQUEST) + len(RESPONSE)) + 5
+    assert max(held) <= MAX_EDGE + 2 * (len(REQUEST) + len(RESPONSE)) + 5

@@ -1,0 +1,238 @@
+"""The evidence the best parse weighs, and the candidate pieces it reads at a byte position.
+
+Every reading of a run of bytes is scored in bits: the log2 of how much likelier the
+reading makes the bytes than the alternative of noise. The weights, all in one place:
+
+=====================  ======  ===============================================================
+evidence               bits    why
+=====================  ======  ===============================================================
+CRC matches            +16     a random run passes CRC-16 with probability 2^-16
+noise byte             -3      a byte no frame explains (roughly one byte in eight is noise
+                               on a bad line; on a good one far fewer)
+stray byte at a frame  -1      a transmitter's turn-on/turn-off glitch: one byte directly
+                               before or after a frame is common on real RS485 lines
+address 248-255        -3      reserved by the specification, yet used by many meters,
+                               batteries and inverters (0xFE, 0xFF)
+broadcast (address 0)  -1      for a function a master may broadcast (writes, diagnostics)
+address 0, a read      -6      nobody can answer it
+user-defined function  -3      65-72, 100-110: legal, rare
+unknown function       -6      found only by CRC search, only where a boundary supports it
+length by CRC search   -8      no length rule: ~256 lengths tried, 2^8 more chances to match
+expected direction     +3      where the request and response rules give different lengths:
+                               the response reading after a request to the same slave and
+                               function, the request reading otherwise
+silence > t1.5 at a    +1      exact timing only: a pause (or a segment end) where a piece
+piece's start or end           starts or ends
+silence > t1.5 inside  -4      exact timing only: each pause inside a frame
+damaged frame          -10     a plausible header whose frame fails its CRC; allowed only
+                               between supported boundaries (a segment end, a pause, a
+                               valid frame), +2 when its length fits its rule
+USS telegram           +12     BCC (8 bits) plus STX and a NORD PPO length (4 bits)
+=====================  ======  ===============================================================
+
+Zero bytes after a frame keep its CRC register at zero, so every valid frame ending
+in 0x00 has a CRC-valid prefix, and a frame followed by a 0x00 glitch a CRC-valid
+longer reading. Where both readings fit a length rule (an FC 3 request ending in
+0x00 whose first seven bytes read as a 7-byte answer; an 8-byte request and its
+glitch as a 9-byte answer), the expected direction decides (+2 against the
+glitch's -1 and a boundary's +1). A longer reading that fits no rule (CRC search, a whole run) is no
+candidate at all when a shorter prefix fits one: its CRC is no evidence.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from fastcrc import crc16
+
+from decoders.frame import MODBUS, USS, FrameFlag
+from decoders.framing.content import rule_lengths
+from decoders.modbus.codes import EXCEPTION_BIT, FUNCTION_NAMES, USER_DEFINED_FUNCTIONS
+from decoders.modbus.layouts import LAYOUTS, MAX_ADU
+from decoders.uss import STX, uss_length
+
+CRC_MATCH = 16.0
+NOISE_BYTE = -3.0
+GLITCH_BYTE = -1.0
+ADDRESS_RESERVED = -3.0
+ADDRESS_BROADCAST = -1.0
+ADDRESS_BROADCAST_READ = -6.0
+FUNCTION_USER_DEFINED = -3.0
+FUNCTION_UNKNOWN = -6.0
+LENGTH_SEARCHED = -8.0
+EXPECTED_DIRECTION = 3.0
+BOUNDARY_SUPPORTED = 1.0
+PAUSE_INSIDE = -4.0
+DAMAGED = -10.0
+DAMAGED_FITS_RULE = 2.0
+USS_MATCH = 12.0
+
+MIN_ADU = 4
+MAX_SLAVE_ADDRESS = 247
+#: Functions a master may send to address 0 (every slave acts, none answers).
+BROADCAST_FUNCTIONS = frozenset({5, 6, 8, 15, 16, 21, 22, 23})
+#: FC 8 sub-function 0 (return query data) echoes any number of bytes.
+DIAGNOSTICS = 8
+
+#: (slave, function) of the request that awaits its response, if any.
+OpenRequest = tuple[int, int] | None
+
+
+def address_prior(address: int, function: int) -> float:
+    """What an address says about a frame that starts with it."""
+    if 1 <= address <= MAX_SLAVE_ADDRESS:
+        return 0.0
+    if address == 0:
+        return ADDRESS_BROADCAST if function in BROADCAST_FUNCTIONS else ADDRESS_BROADCAST_READ
+    return ADDRESS_RESERVED
+
+
+def function_prior(function: int) -> float | None:
+    """What a function code says; ``None`` for 0, which no frame carries."""
+    code = function & ~EXCEPTION_BIT
+    if code == 0:
+        return None
+    if code in FUNCTION_NAMES:
+        return 0.0
+    if code in USER_DEFINED_FUNCTIONS:
+        return FUNCTION_USER_DEFINED
+    return FUNCTION_UNKNOWN
+
+
+def plausible_damaged_header(address: int, function: int) -> bool:
+    """A header a damaged frame may have: a slave address (or broadcast) and a function that exists."""
+    code = function & ~EXCEPTION_BIT
+    return address <= MAX_SLAVE_ADDRESS and (code in FUNCTION_NAMES or code in USER_DEFINED_FUNCTIONS)
+
+
+def zero_padded(data: bytes, start: int, end: int) -> bool:
+    """Whether ``data[start:end]`` ends in 0x00 bytes after a shorter CRC-valid prefix
+    that is a frame by its length rule (the prefix of any valid frame ending in 0x00
+    passes the CRC too, so the prefix must fit its rule to count)."""
+    stop = end
+    while stop > start + MIN_ADU and data[stop - 1] == 0:
+        stop -= 1
+        if crc16.modbus(data[start:stop]) == 0 and stop - start in rule_lengths(data[start:stop]):
+            return True
+    return False
+
+
+@dataclass(frozen=True, slots=True)
+class Candidate:
+    """A reading of ``[start, end)``: a CRC-valid frame (``crc_ok``) or a damaged one."""
+
+    end: int
+    score: float
+    crc_ok: bool = True
+    flags: FrameFlag = FrameFlag.NONE
+    protocol: int = MODBUS
+
+
+def searchable(head: bytes) -> bool:
+    """Whether only CRC search can find this frame's length: no rule gives one, or
+    FC 8 sub-function 0 (return query data), which echoes any number of bytes."""
+    if head[1] == DIAGNOSTICS:
+        return len(head) >= 4 and head[2] == 0 and head[3] == 0
+    return not any(length is not None for length in rule_lengths(head))
+
+
+#: A reading's direction, where the request and response rules differ.
+NO_DIRECTION, REQUEST_READING, RESPONSE_READING = 0, 1, 2
+#: (end, score without timing and direction, flags, protocol, direction)
+Reading = tuple[int, float, FrameFlag, int, int]
+
+
+def direction_bonus(direction: int, header: tuple[int, int], open_request: OpenRequest) -> float:
+    """The expected direction's evidence (see the table above)."""
+    if direction == NO_DIRECTION:
+        return 0.0
+    expects_response = open_request == header
+    return EXPECTED_DIRECTION if (direction == RESPONSE_READING) == expects_response else 0.0
+
+
+def valid_frames_at(data: bytes, start: int, stop: int, *, search_unknown: bool) -> list[Reading]:
+    """CRC-valid readings starting at ``start`` within ``stop``. ``search_unknown``: CRC
+    search for unknown function codes too (only where a boundary supports a frame
+    start: they are tried at few places)."""
+    if stop - start < MIN_ADU:
+        return []
+    found: list[Reading] = []
+    if data[start] == STX:
+        uss = uss_length(data[start : min(stop, start + MAX_ADU)])
+        if uss is not None:
+            found.append((start + uss, USS_MATCH, FrameFlag.NONE, USS, NO_DIRECTION))
+    address, function = data[start], data[start + 1]
+    prior = function_prior(function)
+    if prior is None:
+        return found
+    prior += address_prior(address, function)
+    head = data[start : min(stop, start + MAX_ADU)]
+    lengths = rule_lengths(head)
+    for position, length in enumerate(lengths):
+        if length is None or not MIN_ADU <= length <= len(head) or crc16.modbus(head[:length]) != 0:
+            continue
+        direction = NO_DIRECTION if len(lengths) == 1 else (REQUEST_READING, RESPONSE_READING)[position]
+        found.append((start + length, CRC_MATCH + prior, FrameFlag.NONE, MODBUS, direction))
+    known = (function & ~EXCEPTION_BIT) in FUNCTION_NAMES or (function & ~EXCEPTION_BIT) in USER_DEFINED_FUNCTIONS
+    if (known or search_unknown) and searchable(head):
+        for length in range(MIN_ADU, len(head) + 1):
+            if length not in lengths and crc16.modbus(head[:length]) == 0 and not zero_padded(data, start, start + length):
+                found.append((start + length, CRC_MATCH + prior + LENGTH_SEARCHED, FrameFlag.NONE, MODBUS, NO_DIRECTION))
+    return found
+
+
+def whole_run_frame(data: bytes, start: int, stop: int) -> bool:
+    """A run that timing closes on both sides passes the CRC as a whole, fits no rule,
+    and is not a shorter frame padded with zeros: one frame of a bad length."""
+    length = stop - start
+    if not MIN_ADU <= length <= MAX_ADU or crc16.modbus(data[start:stop]) != 0 or zero_padded(data, start, stop):
+        return False
+    return length not in rule_lengths(data[start:stop]) and function_prior(data[start + 1]) is not None
+
+
+def damaged_flags(head: bytes, *, open_request: OpenRequest, at_capture_end: bool) -> tuple[FrameFlag, bool]:
+    """How a CRC-bad frame of ``len(head)`` bytes reads: (flag, fits its rule).
+
+    ``truncated`` if its rule wants more bytes (a response to the open request is read
+    as one first: an answer cut short is not a damaged request); ``bad_length`` if less.
+    """
+    lengths = rule_lengths(head)
+    if not lengths:
+        return FrameFlag.NONE, False
+    size = len(head)
+    longer = any(length is None or length > size for length in lengths)
+    if open_request == (head[0], head[1]) and len(lengths) == 2:
+        response = lengths[1]
+        if response is None or response > size:
+            return FrameFlag.TRUNCATED, False
+        return (FrameFlag.NONE, True) if response == size else (FrameFlag.BAD_LENGTH, False)
+    if size in lengths and not (at_capture_end and longer):
+        return FrameFlag.NONE, True
+    return (FrameFlag.TRUNCATED if longer else FrameFlag.BAD_LENGTH), False
+
+
+#: Per function code: the length rules a clean frame may have, as (fixed, position, base)
+#: triples; a frame is clean when one of them gives a CRC-valid length (see best_parse).
+CleanRule = tuple[int, int, int]
+
+
+def _clean_rules() -> list[tuple[CleanRule, ...]]:
+    table: list[tuple[CleanRule, ...]] = [() for _ in range(256)]
+    for function, layout in LAYOUTS.items():
+        rules: list[CleanRule] = []
+        for rule in (layout.request, layout.response):
+            if rule.fixed is not None:
+                triple = (rule.fixed, 0, 0)
+            elif rule.position is not None and rule.size == 1:
+                triple = (0, rule.position, rule.base)
+            else:
+                continue  # FC 24's two-byte count, FC 43's objects: the parser's business
+            if triple not in rules:
+                rules.append(triple)
+        table[function] = tuple(rules)
+        if function != 43:
+            table[function | EXCEPTION_BIT] = ((5, 0, 0),)
+    return table
+
+
+CLEAN_RULES = _clean_rules()
