@@ -1,11 +1,15 @@
 """The framer: frames from timing where timing can be trusted, from content elsewhere.
 
 Timing (numpy over byte times) cuts the stream into segments at silences that
-certainly separate frames: t3.5 on an ``exact`` capture; on a ``host`` one, the
-capture's own delivery delay (a read may return mid-frame and the rest come a read
-timeout later, so shorter gaps prove nothing): twice the 99th percentile of the
-intervals between reads seen so far, at least 100 ms and at most 3 s, unless
-``host_gap_ns`` fixes it. Segments that are one whole valid frame are recognised
+certainly separate frames: t3.5 on an ``exact`` capture; on a ``host`` one, 3 s
+unless ``host_gap_ns`` says otherwise: a read may return mid-frame and the rest of
+the frame come a read timeout later (pyserial loops wait up to a second or two),
+so no shorter gap proves anything. What the capture's read loop really does is
+learned from the frames themselves: ``delivery_delay_ns`` is the longest silence
+the host times show inside a CRC-valid frame (a frame whose bytes came in two
+reads), which sets the matcher's least response timeout. A live capture knows
+its own reader: :meth:`Framer.close_idle` closes the open segment after 100 ms
+of quiet. Segments that are one whole valid frame are recognised
 in bulk (:mod:`decoders.framing.fast`); :func:`decoders.framing.best_parse.parse_segment`
 cuts the others into frames and noise by the best parse of their content, with
 silences > t1.5 as evidence on exact captures. Every byte ends up in exactly one
@@ -35,13 +39,12 @@ from decoders.line import LineSettings
 
 #: Rounding allowance when comparing integer-ns silences with fractional thresholds.
 TOLERANCE_NS = 1.0
-#: On host-timed captures, the silence that certainly separates frames is learned from
-#: the capture (see the module docstring) within these bounds: above a USB adapter's
-#: latency timer (16 ms by default) and the host's jitter, below what any read loop waits.
-MIN_HOST_GAP_NS = 100_000_000
-MAX_HOST_GAP_NS = 3_000_000_000
-DELIVERY_PERCENTILE = 99
-DELIVERY_MARGIN = 2
+#: On host-timed capture files, the silence that certainly separates frames: longer
+#: than any read loop's delivery delay (see the module docstring).
+HOST_GAP_NS = 3_000_000_000
+#: Live capture through rtusniff's own reader: quiet this long means the line is idle
+#: (above a USB adapter's 16 ms latency timer and the host's jitter).
+LIVE_IDLE_NS = 100_000_000
 
 
 #: How many frames back the open request is replayed from before a segment that the
@@ -69,10 +72,10 @@ class Framer:
         self.line = line
         self.timing = timing
         self.fast = fast
-        self._learns_delivery = timing is TimingQuality.HOST and host_gap_ns is None
-        host_gap = MIN_HOST_GAP_NS if host_gap_ns is None else host_gap_ns
+        host_gap = HOST_GAP_NS if host_gap_ns is None else host_gap_ns
         self._boundary_ns = line.t3_5_ns - TOLERANCE_NS if timing is TimingQuality.EXACT else float(host_gap)
-        self._last_chunk_ns: int | None = None
+        self._idle_ns = self._boundary_ns if timing is TimingQuality.EXACT else float(min(host_gap, LIVE_IDLE_NS))
+        self._delivery_delay_ns = 0
         self._data = b""
         self._starts: Int64Array = np.zeros(0, np.int64)
         self._ends: Int64Array = np.zeros(0, np.int64)
@@ -82,15 +85,13 @@ class Framer:
         self._last_end_ns: int | None = None
 
     @property
-    def delivery_gap_ns(self) -> int:
-        """The silence that separates frames for certain: t3.5, or on host timing the
-        capture's delivery delay as learned so far."""
-        return int(self._boundary_ns)
+    def delivery_delay_ns(self) -> int:
+        """Host timing: the longest silence seen inside a CRC-valid frame so far (how late
+        the capture's read loop delivers the rest of a frame); 0 on exact timing."""
+        return self._delivery_delay_ns
 
     def feed(self, batch: ChunkBatch) -> FrameBatch:
         """Frames and noise that ``batch`` completes."""
-        if self._learns_delivery:
-            self._learn_delivery(batch)
         new_starts, new_ends = byte_times(batch, self.line.char_time_ns)
         data = self._data + batch.data
         starts = np.concatenate([self._starts, new_starts])
@@ -107,23 +108,10 @@ class Framer:
         self._data, self._starts, self._ends = data[kept_from:], starts[kept_from:], ends[kept_from:]
         return self._assemble(data, starts, ends, Pieces.join(parts))
 
-    def _learn_delivery(self, batch: ChunkBatch) -> None:
-        """Raise the host boundary to the delivery delay this batch shows (never lower it:
-        a boundary once learned holds for the rest of the capture)."""
-        times = batch.t_end_ns
-        if self._last_chunk_ns is not None:
-            times = np.concatenate([[self._last_chunk_ns], times])
-        if len(times):
-            self._last_chunk_ns = int(times[-1])
-        if len(times) < 2:
-            return
-        delay = DELIVERY_MARGIN * float(np.percentile(np.diff(times), DELIVERY_PERCENTILE))
-        self._boundary_ns = min(float(MAX_HOST_GAP_NS), max(self._boundary_ns, delay))
-
     def close_idle(self, now_ns: int) -> FrameBatch:
-        """Live capture: the open segment is closed once the line has been quiet for as
-        long as a boundary needs (t3.5, or the host gap), without waiting for a next byte."""
-        if not self._data or now_ns - int(self._ends[-1]) < self._boundary_ns:
+        """Live capture: the open segment is closed once the line has been quiet for t3.5
+        (exact) or ``LIVE_IDLE_NS`` (host), without waiting for a next byte."""
+        if not self._data or now_ns - int(self._ends[-1]) < self._idle_ns:
             return self._assemble(b"", self._starts[:0], self._ends[:0], Pieces.of([]))
         data, starts, ends = self._data, self._starts, self._ends
         self._data, self._starts, self._ends = b"", np.zeros(0, np.int64), np.zeros(0, np.int64)
@@ -207,6 +195,7 @@ class Framer:
         if self.timing is TimingQuality.EXACT:
             flags |= self._timing_flags(starts, ends, first=first, last=last, idle=idle, is_noise=is_noise)
         else:
+            self._learn_delivery(starts, ends, first, last, pieces.crc_ok & ~is_noise)
             # Host times are estimates; a negative silence is an artefact of them.
             idle[(idle < 0) & (idle != NO_IDLE)] = 0
         offsets = np.zeros(count + 1, np.int64)
@@ -226,6 +215,20 @@ class Framer:
         )
         self._next_index += count
         return batch
+
+    def _learn_delivery(
+        self, starts: Int64Array, ends: Int64Array, first: Int64Array, last: Int64Array, valid: npt.NDArray[np.bool_]
+    ) -> None:
+        """The longest silence inside a valid frame: its bytes were contiguous on the wire,
+        so the silence is how late the second read came."""
+        spans = valid & (last - first >= 2)
+        if not spans.any():
+            return
+        silences = np.zeros(len(starts) + 1, np.int64)  # one more: reduceat's last index may be the end
+        silences[1:-1] = starts[1:] - ends[:-1]
+        # The largest silence before bytes first+1 .. last-1 of each valid frame.
+        inner = np.maximum.reduceat(silences, np.stack([first[spans] + 1, last[spans]], axis=1).ravel())[::2]
+        self._delivery_delay_ns = max(self._delivery_delay_ns, int(inner.max()))
 
     def _timing_flags(
         self,

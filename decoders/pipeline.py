@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from decoders.capture import ChunkBatch, TimingQuality
+from decoders.frame import FrameBatch
 from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.line_check import LineRateCheck
@@ -15,6 +16,10 @@ from decoders.message import NONE, Message, MessageBatch
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.profiles.apply import ProfileApplier, ProfileBook
+
+
+#: The most the delivery delay may raise the response timeout to.
+DELIVERY_FLOOR_CAP_NS = 3_000_000_000
 
 
 class Decoder:
@@ -36,15 +41,22 @@ class Decoder:
 
     def feed(self, batch: ChunkBatch) -> list[MessageBatch]:
         self.line_check.feed(batch)
-        return [self._published(self.matcher.feed(self.framer.feed(batch)))]
+        return [self._published(self._matched(self.framer.feed(batch)))]
+
+    def _matched(self, frames: FrameBatch) -> MessageBatch:
+        if not self.measures_latency:
+            # Host reads arrive up to the capture's delivery delay late: no answer is declared
+            # missing sooner than twice that (the framer learns it from frames split by reads).
+            self.matcher.delivery_floor_ns = min(DELIVERY_FLOOR_CAP_NS, 2 * self.framer.delivery_delay_ns)
+        return self.matcher.feed(frames)
 
     def tick(self, now_ns: int) -> list[MessageBatch]:
         """Live capture: what the passing of time alone completes (idle line, timeouts)."""
-        return [self._published(self.matcher.feed(self.framer.close_idle(now_ns))),
+        return [self._published(self._matched(self.framer.close_idle(now_ns))),
                 self._published(self.matcher.tick(now_ns))]
 
     def flush(self) -> list[MessageBatch]:
-        return [self._published(self.matcher.feed(self.framer.flush())), self._published(self.matcher.flush())]
+        return [self._published(self._matched(self.framer.flush())), self._published(self.matcher.flush())]
 
     def _published(self, batch: MessageBatch) -> MessageBatch:
         if self.measures_latency:

@@ -15,7 +15,8 @@ requests still open, pairs every response and exception with its request, and fl
   sub-function or MEI type).
 * A request is ``timeout`` when another request to the same slave comes first, or
   when the response timeout passes (fixed, or derived from the traffic: ten times
-  the longest recent latency, at least 100 ms, at most 1 s).
+  the longest recent latency, at least 100 ms, at most 1 s; on host captures never
+  less than the delivery delay the framer learned from the reads, up to 3 s).
 * A request is ``retry`` when it repeats, byte for byte, the previous request to
   that slave that got no valid answer.
 * Address 0 is a broadcast: nobody answers it, and a frame that looks like an
@@ -128,11 +129,16 @@ class Matcher:
     #: Settle clean request/answer runs in bulk (off only to prove the shortcut changes nothing).
     _bulk: bool = True
     _uss_open: dict[int, tuple[int, int]] = field(default_factory=dict)
+    #: The least a derived timeout may be: on host captures, how late the capture's read
+    #: loop delivers bytes (an answer often comes one read, a read timeout, after its request).
+    delivery_floor_ns: int = 0
 
     @property
     def timeout_ns(self) -> int:
         """The response timeout in force."""
-        return self.response_timeout_ns if self.response_timeout_ns is not None else self._adaptive_timeout_ns
+        if self.response_timeout_ns is not None:
+            return self.response_timeout_ns
+        return max(self._adaptive_timeout_ns, self.delivery_floor_ns)
 
     def feed(self, frames: FrameBatch) -> MessageBatch:
         held = self._held

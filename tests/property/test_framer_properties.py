@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from itertools import pairwise
 
 from hypothesis import given, settings
@@ -86,3 +87,62 @@ def test_rechunking_does_not_change_frames(capture: tuple[LineSettings, list[Chu
     batch_sizes = data.draw(st.lists(st.integers(1, 5), min_size=1, max_size=4))
     result = frames_of(rechunked, line, batch_sizes)
     assert close(result, reference), (result, reference)
+
+
+#: A read holds at most this much of the wire's time (a read loop returns at its timeout).
+READ_SPAN_NS = 400_000_000
+
+
+def deliveries(wire: list[Chunk], line: LineSettings, data: st.DataObject) -> list[Chunk]:
+    """The wire's bytes cut into reads at random (none holding more than ``READ_SPAN_NS`` of
+    the wire), each stamped at or after its last byte's end by up to half a second, in order:
+    a read loop whose times are consistent with the wire, delivering within a second."""
+    from decoders.read_loops import wire_byte_ends
+
+    payload, ends = wire_byte_ends(wire, line)
+    cuts = set(data.draw(st.lists(st.integers(1, max(1, len(payload) - 1)), max_size=len(payload) // 4)))
+    read_start = 0
+    for index in range(1, len(payload)):
+        if index in cuts or ends[index] - ends[read_start] > READ_SPAN_NS:
+            cuts.add(index)
+            read_start = index
+    bounds = [0, *sorted(c for c in cuts if 0 < c < len(payload)), len(payload)]
+    reads, stamp = [], 0
+    for begin, end in pairwise(bounds):
+        delay = data.draw(st.sampled_from([0, 1_000_000, 16_000_000, 100_000_000, 500_000_000]))
+        stamp = max(stamp, ends[end - 1] + delay)
+        reads.append(Chunk(stamp, payload[begin:end]))
+    return reads
+
+
+@settings(max_examples=int(os.environ.get("RTUSNIFF_EXAMPLES", "100")), deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 12), LINES, st.data())
+def test_host_rechunking_finds_every_frame(seed: int, exchanges: int, line: LineSettings, data: st.DataObject) -> None:
+    """Real frames (pymodbus) with realistic silences, read by any read loop consistent with
+    the wire: every frame is found where it was sent, and nothing else passes as a frame."""
+    import random
+
+    from decoders.capture import TimingQuality
+    from tests.corpus import exchange
+
+    rng = random.Random(seed)
+    transmissions, sent, offset = [], [], 0
+    for _ in range(exchanges):
+        for frame in exchange(rng, rng.randint(1, 247)):
+            silence = int(rng.choice([0.5, 2.0, 20.0, 200.0]) * line.t3_5_ns)
+            transmissions.append(Transmission(frame, silence))
+            sent.append((offset, frame))
+            offset += len(frame)
+    wire = list(exact_chunks(transmissions, line, T0))
+    framer = Framer(line, TimingQuality.HOST)
+    reads = deliveries(wire, line, data)
+    frames = []
+    for k in range(0, len(reads), 3):
+        frames.extend(framer.feed(ChunkBatch.from_chunks(reads[k : k + 3])))
+    frames.extend(framer.flush())
+    found, position = [], 0
+    for frame in frames:
+        if frame.crc_ok and not frame.is_noise:
+            found.append((position, frame.data))
+        position += len(frame.data)
+    assert found == sent

@@ -1,4 +1,5 @@
-"""Hypothesis: noise between frames loses no valid frame; arbitrary bytes never raise."""
+"""Hypothesis: noise between frames loses no valid frame (exact timing, and host timing
+through every read-loop model); arbitrary bytes never raise."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from decoders.frame import Frame
 from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.synthesis import Transmission, exact_chunks
-from tests.corpus import Corpus, exchange, usb_adapter
+from decoders.read_loops import READ_LOOPS
+from tests.corpus import exchange
 
 T0 = 1_600_000_000_000_000_000
 #: RTUSNIFF_EXAMPLES raises the number of examples for a long run.
@@ -79,8 +81,7 @@ def check_noise_between_frames(line: LineSettings, seed: int, noise: list[bytes]
     chunks = list(exact_chunks(transmissions, line, T0))
     timing = TimingQuality.EXACT
     if host:
-        corpus = usb_adapter(Corpus("p", line, TimingQuality.EXACT, chunks, []), latency_ms=rng.choice([1.0, 16.0]))
-        chunks, timing = corpus.chunks, TimingQuality.HOST
+        chunks, timing = READ_LOOPS[rng.choice(sorted(READ_LOOPS))](chunks, line, seed), TimingQuality.HOST
     frames = run(chunks, line, timing)
     assert b"".join(f.data for f in frames) == b"".join(c.data for c in chunks)
     found = valid_frames_at(frames)
