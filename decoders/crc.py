@@ -120,6 +120,6 @@ def crc_ok_spans(
     """Whether each span ``data[starts[i] : starts[i] + lengths[i]]`` passes the CRC, from
     :func:`prefix_registers` (lengths 3..``MAX_SPAN``): the span's own register from
     0xFFFF is ``R[end] ^ shift(R[start] ^ 0xFFFF, length)``, zero when the CRC holds."""
-    own = registers[starts + lengths] ^ _shifted(registers[starts] ^ 0xFFFF, lengths)
+    own = registers[starts + lengths] ^ _shifted(registers[starts] ^ np.uint32(0xFFFF), lengths)
     valid: npt.NDArray[np.bool_] = (own == 0) & (lengths >= 3)
     return valid

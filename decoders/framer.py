@@ -5,9 +5,8 @@ certainly separate frames: t3.5 on an ``exact`` capture; on a ``host`` one, 3 s
 unless ``host_gap_ns`` says otherwise: a read may return mid-frame and the rest of
 the frame come a read timeout later (pyserial loops wait up to a second or two),
 so no shorter gap proves anything. What the capture's read loop really does is
-learned from the frames themselves: ``delivery_delay_ns`` is the longest silence
-the host times show inside a CRC-valid frame (a frame whose bytes came in two
-reads), which sets the matcher's least response timeout. A live capture knows
+learned from the frames themselves (:mod:`decoders.framing.delivery`), and sets
+the matcher's least response timeout. A live capture knows
 its own reader: :meth:`Framer.close_idle` closes the open segment after 100 ms
 of quiet. Segments that are one whole valid frame are recognised
 in bulk (:mod:`decoders.framing.fast`); :func:`decoders.framing.best_parse.parse_segment`
@@ -32,9 +31,11 @@ from decoders.byte_times import byte_times
 from decoders.capture import ChunkBatch, Int64Array, TimingQuality
 from decoders.crc import crc_ok_many
 from decoders.frame import NO_IDLE, FrameBatch, FrameFlag
-from decoders.framing.best_parse import Context, Pieces, clean_frame_end, parse_segment
+from decoders.framing.best_parse import Pieces, clean_frame_end, parse_segment
 from decoders.framing.content import OpenRequest, after_frame
+from decoders.framing.delivery import DeliveryDelay
 from decoders.framing.fast import single_frame_segments
+from decoders.framing.programme import Context
 from decoders.line import LineSettings
 
 #: Rounding allowance when comparing integer-ns silences with fractional thresholds.
@@ -75,7 +76,7 @@ class Framer:
         host_gap = HOST_GAP_NS if host_gap_ns is None else host_gap_ns
         self._boundary_ns = line.t3_5_ns - TOLERANCE_NS if timing is TimingQuality.EXACT else float(host_gap)
         self._idle_ns = self._boundary_ns if timing is TimingQuality.EXACT else float(min(host_gap, LIVE_IDLE_NS))
-        self._delivery_delay_ns = 0
+        self._delivery = DeliveryDelay()
         self._data = b""
         self._starts: Int64Array = np.zeros(0, np.int64)
         self._ends: Int64Array = np.zeros(0, np.int64)
@@ -86,9 +87,9 @@ class Framer:
 
     @property
     def delivery_delay_ns(self) -> int:
-        """Host timing: the longest silence seen inside a CRC-valid frame so far (how late
-        the capture's read loop delivers the rest of a frame); 0 on exact timing."""
-        return self._delivery_delay_ns
+        """Host timing: how late the capture's read loop delivers bytes, as learned so far
+        (:mod:`decoders.framing.delivery`); 0 on exact timing."""
+        return self._delivery.longest_ns
 
     def feed(self, batch: ChunkBatch) -> FrameBatch:
         """Frames and noise that ``batch`` completes."""
@@ -195,7 +196,7 @@ class Framer:
         if self.timing is TimingQuality.EXACT:
             flags |= self._timing_flags(starts, ends, first=first, last=last, idle=idle, is_noise=is_noise)
         else:
-            self._learn_delivery(starts, ends, first, last, pieces.crc_ok & ~is_noise)
+            self._delivery.learn(data, (starts, ends), (first, last), pieces.crc_ok & ~is_noise)
             # Host times are estimates; a negative silence is an artefact of them.
             idle[(idle < 0) & (idle != NO_IDLE)] = 0
         offsets = np.zeros(count + 1, np.int64)
@@ -215,20 +216,6 @@ class Framer:
         )
         self._next_index += count
         return batch
-
-    def _learn_delivery(
-        self, starts: Int64Array, ends: Int64Array, first: Int64Array, last: Int64Array, valid: npt.NDArray[np.bool_]
-    ) -> None:
-        """The longest silence inside a valid frame: its bytes were contiguous on the wire,
-        so the silence is how late the second read came."""
-        spans = valid & (last - first >= 2)
-        if not spans.any():
-            return
-        silences = np.zeros(len(starts) + 1, np.int64)  # one more: reduceat's last index may be the end
-        silences[1:-1] = starts[1:] - ends[:-1]
-        # The largest silence before bytes first+1 .. last-1 of each valid frame.
-        inner = np.maximum.reduceat(silences, np.stack([first[spans] + 1, last[spans]], axis=1).ravel())[::2]
-        self._delivery_delay_ns = max(self._delivery_delay_ns, int(inner.max()))
 
     def _timing_flags(
         self,

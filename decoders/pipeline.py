@@ -17,7 +17,6 @@ from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.profiles.apply import ProfileApplier, ProfileBook
 
-
 #: The most the delivery delay may raise the response timeout to.
 DELIVERY_FLOOR_CAP_NS = 3_000_000_000
 

@@ -118,6 +118,8 @@ class Expected:
     is_noise: bool = False
     crc_ok: bool = True
     flags: frozenset[str] = frozenset()
+    #: "request" or "response" (an answer: response or exception) for frames sent as such.
+    role: str = ""
 
 
 @dataclass
@@ -201,9 +203,11 @@ def build(scenario: Scenario, line: LineSettings, exchanges: int = 300, seed: in
         gaps: dict[int, int] = {}
         if not expected.is_noise and len(data) > 2 and rng.random() < scenario.gap_1_5_rate:
             gaps[rng.randrange(1, len(data))] = int(rng.uniform(t1_5 * 1.1, t3_5 * 0.9))
-            expected = Expected(expected.data, expected.is_noise, expected.crc_ok, expected.flags | {"gap_1_5"})
+            expected = Expected(expected.data, expected.is_noise, expected.crc_ok, expected.flags | {"gap_1_5"},
+                                expected.role)
         if not expected.is_noise and silence < t3_5 and out:  # the capture's first frame has no silence before it
-            expected = Expected(expected.data, expected.is_noise, expected.crc_ok, expected.flags | {"short_idle"})
+            expected = Expected(expected.data, expected.is_noise, expected.crc_ok, expected.flags | {"short_idle"},
+                                expected.role)
         out.append((Transmission(data, silence, gaps), expected))
 
     def noise(data: bytes, silence: int) -> None:
@@ -236,18 +240,18 @@ def build(scenario: Scenario, line: LineSettings, exchanges: int = 300, seed: in
         if rng.random() < scenario.echo_rate:
             request = adu(diag.ReturnQueryDataRequest(dev_id=slave, message=rng.randbytes(rng.randint(1, 120))))
             response = request
-        frame(request, idle(*scenario.poll_gap), Expected(request), after_request=True)
-        expected = Expected(response)
+        frame(request, idle(*scenario.poll_gap), Expected(request, role="request"), after_request=True)
+        expected = Expected(response, role="response")
         if len(response) > 6 and rng.random() < scenario.corrupt_rate:
             # A bit error in the data: address, function, byte count and CRC stay readable.
             position = rng.randrange(3, len(response) - 2)
             damaged = bytearray(response)
             damaged[position] ^= 1 << rng.randrange(8)
             response = bytes(damaged)
-            expected = Expected(response, crc_ok=False)
+            expected = Expected(response, crc_ok=False, role="response")
         elif len(response) > 5 and rng.random() < scenario.truncate_rate:
             response = response[: rng.randint(4, len(response) - 1)]
-            expected = Expected(response, crc_ok=False, flags=frozenset({"truncated"}))
+            expected = Expected(response, crc_ok=False, flags=frozenset({"truncated"}), role="response")
         frame(response, idle(*scenario.turnaround), expected, after_request=False)
         if rng.random() < scenario.garbage_rate:
             junk = bytes([0xFF]) + rng.randbytes(rng.randint(1, 12))  # 0xFF: no slave has that address
@@ -287,7 +291,7 @@ def usb_adapter(corpus: Corpus, latency_ms: float = 16.0, seed: int = 0) -> Corp
 def host_expected(expected: list[Expected]) -> list[Expected]:
     """Host timing cannot see silences: no gap_1_5 or short_idle is expected, and noise
     runs next to each other are one."""
-    plain = [Expected(e.data, e.is_noise, e.crc_ok, e.flags - {"gap_1_5", "short_idle"}) for e in expected]
+    plain = [Expected(e.data, e.is_noise, e.crc_ok, e.flags - {"gap_1_5", "short_idle"}, e.role) for e in expected]
     return _joined_noise(plain, [False] * len(plain))
 
 

@@ -63,14 +63,17 @@ def load(name: str) -> Recording:
     expected = RECORDINGS[name]
     frames = None
     if expected is not None:
-        rate = int(_RATE.search(path.read_text()).group(1))  # type: ignore[union-attr]
+        rate_match = _RATE.search(path.read_text())
+        assert rate_match is not None, path
+        rate = int(rate_match.group(1))
         frames = _sigrok_frames(EXPECTED / expected, rate, chunks, reader.info.line)
     return Recording(name, reader.info.line, chunks, frames)
 
 
 def _sigrok_frames(output: Path, rate: int, chunks: list[Chunk], line: LineSettings) -> list[tuple[int, int]]:
     """sigrok's CRC-correct frames as byte ranges: a frame runs from the byte whose start
-    bit begins at its server-id annotation to the byte whose stop bit ends its CRC annotation (sigrok ends it at the last data bit: up to 3 bits before)."""
+    bit begins at its server-id annotation to the byte whose stop bit ends its CRC
+    annotation (sigrok ends that at the last data bit: up to 3 bits before)."""
     ends = [chunk.t_end_ns for chunk in chunks for _ in chunk.data]
     starts = [end - round(line.char_time_ns) for end in ends]
     bit_ns = 1e9 / line.baud

@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from decoders.capture import ChunkBatch, TimingQuality
-from decoders.framing.best_parse import Context, parse_segment
+from decoders.framing.best_parse import parse_segment
+from decoders.framing.programme import Context
 from decoders.line import LineSettings
 from decoders.message import Message, Role
 from decoders.pipeline import decode

@@ -11,12 +11,13 @@ its length rule in either direction, a frame by CRC search, a USS telegram, a da
 frame between supported boundaries, one noise byte -- carries a score from its
 evidence (the weights: :mod:`decoders.framing.evidence`). Dynamic programming over
 byte positions (Viterbi) finds the sequence of pieces covering every byte with the
-highest total score.
+highest total score (:mod:`decoders.framing.programme`).
 
 **Anchors (the fast path).** A *clean* frame -- CRC-valid at its rule length, a
 public function code, an address 1-247, one reading only (not also CRC-valid in
-the other direction), no pause inside, no other clean frame starting inside it -- that touches another clean frame (up to ``ANCHOR_REACH`` stray
-bytes between them) or a supported boundary is on every best parse: reading its
+the other direction), no pause inside, no other clean frame starting inside it --
+that touches another clean frame (up to ``ANCHOR_REACH`` stray bytes between them)
+or a supported boundary is on every best parse: reading its
 bytes any other way gives up 16 bits of CRC evidence per frame that no other
 reading can win back except by another CRC coincidence (2^-16). Anchors are found
 by a scan that costs one or two CRC calls per frame; the dynamic programme runs
@@ -32,7 +33,6 @@ ancestor of their tracebacks), so memory and delay stay bounded.
 
 from __future__ import annotations
 
-from bisect import bisect_left, bisect_right
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -41,31 +41,18 @@ import numpy.typing as npt
 from fastcrc import crc16
 
 from decoders.capture import Int64Array
-from decoders.frame import MODBUS, FrameFlag
+from decoders.frame import FrameFlag
 from decoders.framing import evidence as ev
 from decoders.framing.content import after_frame
 from decoders.framing.fast import clean_frame_ends
+from decoders.framing.programme import MAX_EDGE, Context, Piece, Region, best_pieces
 from decoders.modbus.layouts import MAX_ADU
 
 OpenRequest = ev.OpenRequest
 #: Stray bytes allowed between two clean frames that confirm each other.
 ANCHOR_REACH = 4
-#: The longest piece the programme can take, with a stray byte on either side.
-MAX_EDGE = MAX_ADU + 2
 #: An open segment without anchors is parsed in windows of this many bytes.
 WINDOW = 4 * MAX_ADU
-
-
-@dataclass(frozen=True, slots=True)
-class Piece:
-    """Bytes ``[start, end)`` of a segment: a frame, or noise."""
-
-    start: int
-    end: int
-    is_noise: bool = False
-    crc_ok: bool = True
-    flags: FrameFlag = FrameFlag.NONE
-    protocol: int = MODBUS
 
 
 @dataclass
@@ -125,19 +112,6 @@ class SegmentParse:
     open_request: OpenRequest = None
 
 
-@dataclass(frozen=True, slots=True)
-class Context:
-    """What the parse of a segment knows beyond its bytes."""
-
-    #: Positions (relative to the segment) whose byte follows a silence > t1.5; empty on host timing.
-    pauses: tuple[int, ...] = ()
-    closed: bool = True
-    at_capture_start: bool = False
-    at_capture_end: bool = False
-    #: Timing closes the segment on both sides (a hard cut before and after it).
-    timed: bool = False
-
-
 def parse_segment(
     data: bytes, context: Context, open_request: OpenRequest = None, *, fast: bool = True
 ) -> SegmentParse:
@@ -147,8 +121,9 @@ def parse_segment(
     if not fast:
         if not context.closed:
             return SegmentParse(Pieces.of([]), 0, open_request)
-        parse = _programme(data, 0, end, context, open_request, start_after_frame=False, end_before_frame=False)
+        parse = best_pieces(Region(data, 0, end, context, ev.CrcSearch(data)), open_request)
         return SegmentParse(Pieces.of(parse.pieces), end, parse.open_request)
+    search = ev.CrcSearch(data)
     small = end < SMALL_SEGMENT
     if small:
         starts, stops = _anchors_small(data, context)
@@ -164,24 +139,24 @@ def parse_segment(
         np.flatnonzero(anchor_starts > np.array(previous_ends[:-1], np.int64)).tolist())
     for index in gaps:
         position = previous_ends[index]
-        open_request = _replayed(data, starts, stops, since, index, open_request)
-        gap = _programme(data, position, starts[index], context, open_request,
-                         start_after_frame=position > 0, end_before_frame=True)
+        open_request = _replayed(data, (starts, stops), range(since, index), open_request)
+        region = Region(data, position, starts[index], context, search, after_frame=position > 0, before_frame=True)
+        gap = best_pieces(region, open_request)
         pieces.extend(gap.pieces)
         open_request, since = gap.open_request, index
-    open_request = _replayed(data, starts, stops, since, len(starts), open_request)
+    open_request = _replayed(data, (starts, stops), range(since, len(starts)), open_request)
     position = previous_ends[-1]
     if context.closed:
         if position < end:
-            tail = _programme(data, position, end, context, open_request,
-                              start_after_frame=position > 0, end_before_frame=False)
+            tail = best_pieces(Region(data, position, end, context, search, after_frame=position > 0), open_request)
             pieces.extend(tail.pieces)
             open_request = tail.open_request
         position = end
     else:
         while end - position > WINDOW:
-            window = _programme(data, position, position + WINDOW, context, open_request,
-                                start_after_frame=position > 0, end_before_frame=False, open_end=True)
+            region = Region(data, position, position + WINDOW, context, search, after_frame=position > 0,
+                            open_end=True)
+            window = best_pieces(region, open_request)
             if window.consumed == position:
                 break
             pieces.extend(window.pieces)
@@ -219,12 +194,13 @@ REPLAY_FRAMES = 4
 
 
 def _replayed(
-    data: bytes, starts: list[int], stops: list[int], begin: int, stop: int, open_request: OpenRequest
+    data: bytes, frames: tuple[list[int], list[int]], which: range, open_request: OpenRequest
 ) -> OpenRequest:
-    """The open request after the whole frames ``begin..stop-1``."""
-    if stop - begin > REPLAY_FRAMES:
-        begin, open_request = stop - REPLAY_FRAMES, None
-    for k in range(begin, stop):
+    """The open request after the whole frames ``which`` (by index into ``frames``: starts, stops)."""
+    starts, stops = frames
+    if len(which) > REPLAY_FRAMES:
+        which, open_request = which[-REPLAY_FRAMES:], None
+    for k in which:
         open_request = after_frame(data[starts[k] : stops[k]], open_request)
     return open_request
 
@@ -297,168 +273,3 @@ def _anchors_of(
         # Of an open segment, a frame near the end may still be read differently with bytes to come.
         anchored &= end - last > MAX_EDGE
     return first[anchored], last[anchored]
-
-
-def _pauses_in(pauses: tuple[int, ...], start: int, stop: int) -> int:
-    return bisect_left(pauses, stop) - bisect_right(pauses, start)
-
-
-@dataclass(slots=True)
-class _Edge:
-    start: int
-    end: int
-    kind: int  # _FRAME, _DAMAGED or _NOISE
-    flags: FrameFlag = FrameFlag.NONE
-    protocol: int = MODBUS
-
-
-@dataclass(slots=True)
-class _Parse:
-    pieces: list[Piece]
-    consumed: int
-    open_request: OpenRequest
-
-
-_FRAME, _DAMAGED, _NOISE = 0, 1, 2
-_NEVER = float("-inf")
-
-
-def _programme(
-    data: bytes, begin: int, stop: int, context: Context, open_request: OpenRequest, *,
-    start_after_frame: bool, end_before_frame: bool, open_end: bool = False,
-) -> _Parse:
-    """The best parse of ``data[begin:stop]`` (see the module docstring); with
-    ``open_end``, only the part every best path to the last positions agrees on."""
-    pauses = context.pauses
-    pause_set = set(pauses)
-    segment_end = len(data)
-    closed_at_stop = not open_end and (stop < segment_end or context.closed)
-    frames = [_valid_at(data, s, stop, begin, context, pause_set) for s in range(begin, stop)]
-    frame_starts = [s for s in range(begin, stop) if frames[s - begin]]
-    size = stop - begin
-    best = [_NEVER] * (size + 1)
-    back: list[_Edge | None] = [None] * (size + 1)
-    requests: list[OpenRequest] = [None] * (size + 1)
-    best[0], requests[0] = 0.0, open_request
-    frame_ends = {begin} if start_after_frame else set()
-
-    def supported(position: int) -> float:
-        if position in pause_set or (position == stop and closed_at_stop):
-            return ev.BOUNDARY_SUPPORTED
-        return 0.0
-
-    def offer(edge: _Edge, score: float) -> None:
-        target = edge.end - begin
-        if score > best[target]:
-            best[target], back[target] = score, edge
-            requests[target] = (after_frame(data[edge.start : edge.end], requests[edge.start - begin])
-                                if edge.kind == _FRAME and edge.protocol == MODBUS
-                                else None if edge.kind == _DAMAGED else requests[edge.start - begin])
-
-    for s in range(begin, stop):
-        here = best[s - begin]
-        if here == _NEVER:
-            continue
-        header = (data[s], data[s + 1]) if s + 1 < stop else (0, 0)
-        for end, score, flags, protocol, direction in frames[s - begin]:
-            score += ev.direction_bonus(direction, header, requests[s - begin])
-            inside = _pauses_in(pauses, s, end) * ev.PAUSE_INSIDE if pauses else 0.0
-            offer(_Edge(s, end, _FRAME, flags, protocol), here + score + inside + supported(s) + supported(end))
-            frame_ends.add(end)
-        glitch = (
-            (back[s - begin] is not None and back[s - begin].kind == _FRAME)  # type: ignore[union-attr]
-            or (s == begin and start_after_frame)
-            or (s + 1 < stop and bool(frames[s + 1 - begin]))
-            or (s + 1 == stop and end_before_frame)
-        )
-        offer(_Edge(s, s + 1, _NOISE), here + (ev.GLITCH_BYTE if glitch else ev.NOISE_BYTE))
-        starts_supported = (s == begin and (start_after_frame or begin == 0)) or s in pause_set or s in frame_ends
-        # Where a valid frame starts, no damaged one does: its bytes pass the CRC.
-        if starts_supported and not frames[s - begin]:
-            for edge, score in _damaged_at(data, s, stop, frame_starts, pauses, closed_at_stop,
-                                           context, requests[s - begin]):
-                offer(edge, here + score)
-    if open_end:
-        return _commit_agreed(data, begin, stop, back, requests, context)
-    return _Parse(_pieces(data, begin, _traceback(back, begin, stop), context), stop, requests[size])
-
-
-def _valid_at(data: bytes, s: int, stop: int, begin: int, context: Context, pause_set: set[int]) -> list[ev.Reading]:
-    supported = s == begin or s in pause_set
-    found = ev.valid_frames_at(data, s, stop, search_unknown=supported)
-    if context.timed and s == 0 and stop == len(data) and context.closed and ev.whole_run_frame(data, 0, stop):
-        if not any(end == stop for end, *_ in found):
-            found.append((stop, ev.CRC_MATCH + ev.LENGTH_SEARCHED, FrameFlag.BAD_LENGTH, MODBUS, ev.NO_DIRECTION))
-    return found
-
-
-def _damaged_at(
-    data: bytes, s: int, stop: int, frame_starts: list[int], pauses: tuple[int, ...], closed_at_stop: bool,
-    context: Context, open_request: OpenRequest,
-) -> list[tuple[_Edge, float]]:
-    """Damaged frames from ``s`` to a supported boundary: the next valid frame (or the
-    byte before it, a glitch), a pause, or the segment's end."""
-    if stop - s < ev.MIN_ADU or not ev.plausible_damaged_header(data[s], data[s + 1]):
-        return []
-    limit = min(stop, s + MAX_ADU)
-    following = bisect_right(frame_starts, s)
-    next_frame = frame_starts[following] if following < len(frame_starts) else None
-    if next_frame is not None:
-        limit = min(limit, next_frame)
-    ends = {p for p in pauses[bisect_right(pauses, s):bisect_right(pauses, limit)]}
-    if next_frame is not None and next_frame <= s + MAX_ADU:
-        ends |= {next_frame, next_frame - 1}
-    if closed_at_stop and stop <= s + MAX_ADU and (next_frame is None or next_frame >= stop):
-        ends.add(stop)
-    edges = []
-    at_end = context.at_capture_end and context.closed
-    for end in sorted(e for e in ends if e - s >= ev.MIN_ADU):
-        flags, fits = ev.damaged_flags(data[s:end], open_request=open_request, at_capture_end=at_end and end == stop)
-        score = ev.DAMAGED + (ev.DAMAGED_FITS_RULE if fits else 0.0) + _pauses_in(pauses, s, end) * ev.PAUSE_INSIDE
-        edges.append((_Edge(s, end, _DAMAGED, flags), score))
-    return edges
-
-
-def _traceback(back: list[_Edge | None], begin: int, position: int) -> list[_Edge]:
-    edges = []
-    while position > begin:
-        edge = back[position - begin]
-        assert edge is not None  # every position is reachable by noise bytes
-        edges.append(edge)
-        position = edge.start
-    edges.reverse()
-    return edges
-
-
-def _commit_agreed(
-    data: bytes, begin: int, stop: int, back: list[_Edge | None], requests: list[OpenRequest], context: Context
-) -> _Parse:
-    """Pieces on the best path to every position a longer parse can continue from."""
-    frontier = set(range(max(begin + 1, stop - MAX_EDGE), stop + 1))
-    while len(frontier) > 1:
-        latest = max(frontier)
-        frontier.discard(latest)
-        edge = back[latest - begin]
-        assert edge is not None
-        frontier.add(edge.start)
-    (agreed,) = frontier
-    return _Parse(_pieces(data, begin, _traceback(back, begin, agreed), context), agreed,
-                        requests[agreed - begin])
-
-
-def _pieces(data: bytes, begin: int, edges: list[_Edge], context: Context) -> list[Piece]:
-    """Edges as pieces: noise bytes joined into runs (split at pauses), damaged frames at
-    the very start of a capture (its first bytes are the tail of a frame) taken as noise."""
-    pause_set = set(context.pauses)
-    pieces: list[Piece] = []
-    for edge in edges:
-        if edge.kind == _NOISE or (edge.kind == _DAMAGED and edge.start == 0 and context.at_capture_start):
-            last = pieces[-1] if pieces else None
-            if last is not None and last.is_noise and last.end == edge.start and edge.start not in pause_set:
-                pieces[-1] = Piece(last.start, edge.end, is_noise=True, crc_ok=False)
-            else:
-                pieces.append(Piece(edge.start, edge.end, is_noise=True, crc_ok=False))
-        else:
-            pieces.append(Piece(edge.start, edge.end, crc_ok=edge.kind == _FRAME, flags=edge.flags,
-                                protocol=edge.protocol))
-    return pieces

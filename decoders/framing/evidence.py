@@ -30,21 +30,31 @@ damaged frame          -10     a plausible header whose frame fails its CRC; all
 USS telegram           +12     BCC (8 bits) plus STX and a NORD PPO length (4 bits)
 =====================  ======  ===============================================================
 
+A length found by CRC search counts only between supported boundaries too: its
+start at a segment start, a pause or a valid frame's end, its end at a segment end,
+a pause or the start of another valid reading. Random bytes pass a CRC
+search about once in 256 tries (2^-16 per length, 256 lengths): unguarded, a noisy
+line would be full of invented frames.
+
 Zero bytes after a frame keep its CRC register at zero, so every valid frame ending
 in 0x00 has a CRC-valid prefix, and a frame followed by a 0x00 glitch a CRC-valid
 longer reading. Where both readings fit a length rule (an FC 3 request ending in
 0x00 whose first seven bytes read as a 7-byte answer; an 8-byte request and its
-glitch as a 9-byte answer), the expected direction decides (+2 against the
-glitch's -1 and a boundary's +1). A longer reading that fits no rule (CRC search, a whole run) is no
-candidate at all when a shorter prefix fits one: its CRC is no evidence.
+glitch as a 9-byte answer), the expected direction decides (+3 against the
+glitch's -1 and a boundary's +1). A longer reading that fits no rule (CRC search,
+a whole run) is no candidate at all when a shorter prefix fits one: its CRC is no
+evidence.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+import numpy.typing as npt
 from fastcrc import crc16
 
+from decoders.crc import crc_ok_spans, prefix_registers
 from decoders.frame import MODBUS, USS, FrameFlag
 from decoders.framing.content import rule_lengths
 from decoders.modbus.codes import EXCEPTION_BIT, FUNCTION_NAMES, USER_DEFINED_FUNCTIONS
@@ -136,21 +146,40 @@ def searchable(head: bytes) -> bool:
     return not any(length is not None for length in rule_lengths(head))
 
 
-#: A reading's direction, where the request and response rules differ.
-NO_DIRECTION, REQUEST_READING, RESPONSE_READING = 0, 1, 2
+#: A reading's direction, where the request and response rules differ; ``SEARCHED``: a
+#: length found by CRC search (taken only between supported boundaries).
+NO_DIRECTION, REQUEST_READING, RESPONSE_READING, SEARCHED = 0, 1, 2, 3
 #: (end, score without timing and direction, flags, protocol, direction)
 Reading = tuple[int, float, FrameFlag, int, int]
 
 
 def direction_bonus(direction: int, header: tuple[int, int], open_request: OpenRequest) -> float:
     """The expected direction's evidence (see the table above)."""
-    if direction == NO_DIRECTION:
+    if direction in (NO_DIRECTION, SEARCHED):
         return 0.0
     expects_response = open_request == header
     return EXPECTED_DIRECTION if (direction == RESPONSE_READING) == expects_response else 0.0
 
 
-def valid_frames_at(data: bytes, start: int, stop: int, *, search_unknown: bool) -> list[Reading]:
+class CrcSearch:
+    """CRC search over one run of bytes: every length at which a span from a given start
+    passes the CRC, by numpy over the run's prefix registers (computed at the first search)."""
+
+    def __init__(self, data: bytes) -> None:
+        self.data = data
+        self._registers: npt.NDArray[np.uint32] | None = None
+
+    def lengths(self, start: int, stop: int) -> list[int]:
+        """Lengths ``MIN_ADU..min(MAX_ADU, stop - start)`` whose span passes the CRC."""
+        if self._registers is None:
+            self._registers = prefix_registers(self.data)
+        lengths = np.arange(MIN_ADU, min(MAX_ADU, stop - start) + 1, dtype=np.int64)
+        valid = crc_ok_spans(self._registers, np.full(len(lengths), start, np.int64), lengths)
+        found: list[int] = lengths[valid].tolist()
+        return found
+
+
+def valid_frames_at(data: bytes, start: int, stop: int, *, search_unknown: bool, search: CrcSearch) -> list[Reading]:
     """CRC-valid readings starting at ``start`` within ``stop``. ``search_unknown``: CRC
     search for unknown function codes too (only where a boundary supports a frame
     start: they are tried at few places)."""
@@ -175,9 +204,10 @@ def valid_frames_at(data: bytes, start: int, stop: int, *, search_unknown: bool)
         found.append((start + length, CRC_MATCH + prior, FrameFlag.NONE, MODBUS, direction))
     known = (function & ~EXCEPTION_BIT) in FUNCTION_NAMES or (function & ~EXCEPTION_BIT) in USER_DEFINED_FUNCTIONS
     if (known or search_unknown) and searchable(head):
-        for length in range(MIN_ADU, len(head) + 1):
-            if length not in lengths and crc16.modbus(head[:length]) == 0 and not zero_padded(data, start, start + length):
-                found.append((start + length, CRC_MATCH + prior + LENGTH_SEARCHED, FrameFlag.NONE, MODBUS, NO_DIRECTION))
+        score = CRC_MATCH + prior + LENGTH_SEARCHED
+        for length in search.lengths(start, stop):
+            if length not in lengths and not zero_padded(data, start, start + length):
+                found.append((start + length, score, FrameFlag.NONE, MODBUS, SEARCHED))
     return found
 
 

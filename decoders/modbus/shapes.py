@@ -25,6 +25,7 @@ FITS_REQUEST = 1
 FITS_RESPONSE = 2
 IS_EXCEPTION = 4
 MIN_ADU = 4
+DIAGNOSTICS = 8
 _SPECIAL = np.zeros(256, np.bool_)
 _SPECIAL[[24, 43, 43 | EXCEPTION_BIT]] = True  # rules numpy cannot evaluate
 
@@ -53,7 +54,10 @@ def frame_shapes(frames: FrameBatch) -> Shapes:
     exception_fit = long_enough & exception & (
         (lengths == EXCEPTION_LENGTH) | ((raw == (43 | EXCEPTION_BIT)) & (lengths == MEI_EXCEPTION_LENGTH))
     )
-    shape = fits_req * FITS_REQUEST | fits_resp * FITS_RESPONSE | exception_fit * (FITS_RESPONSE | IS_EXCEPTION)
+    # FC 8 sub-function 0 (return query data) echoes any number of bytes, both ways.
+    echo = long_enough & (raw == DIAGNOSTICS) & (b2 == 0) & (b3 == 0) & (lengths >= 6)
+    shape = (fits_req | echo) * FITS_REQUEST | (fits_resp | echo) * FITS_RESPONSE
+    shape |= exception_fit * (FITS_RESPONSE | IS_EXCEPTION)
     shape = shape.astype(np.int64)
     _special_shapes(frames, shape, np.flatnonzero(_SPECIAL[raw] & long_enough))
     return Shapes(

@@ -13,8 +13,8 @@ from decoders.capture import Chunk, ChunkBatch, TimingQuality
 from decoders.frame import Frame
 from decoders.framer import Framer
 from decoders.line import LineSettings
-from decoders.synthesis import Transmission, exact_chunks
 from decoders.read_loops import READ_LOOPS
+from decoders.synthesis import Transmission, exact_chunks
 from tests.corpus import exchange
 
 T0 = 1_600_000_000_000_000_000

@@ -8,8 +8,9 @@ from decoders.capture import ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.frame import FrameFlag
 from decoders.framer import Framer
-from decoders.framing.best_parse import MAX_EDGE, WINDOW, Context, Piece, parse_segment
+from decoders.framing.best_parse import WINDOW, parse_segment
 from decoders.framing.content import rule_lengths
+from decoders.framing.programme import MAX_EDGE, Context, Piece
 from decoders.line import LineSettings
 from decoders.synthesis import Transmission, exact_chunks
 
