@@ -5,7 +5,8 @@
 Stages measured side by side on the same capture in one process:
 the vectorised timing pass alone, the whole framer (timing, content pass, CRC,
 frame assembly) on the exact capture and on the same traffic through a USB
-adapter model (host timing: every frame found by content), the framer plus role
+adapter model and two pyserial read loops (host timing: every frame found by content;
+decoders/read_loops.py), the framer plus role
 classification (what `analyze` does before output), and reading the native MCAP
 capture back.
 """
@@ -27,6 +28,7 @@ from decoders.crc import crc_bytes
 from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.pipeline import Decoder
+from decoders.read_loops import READ_LOOPS
 from decoders.synthesis import Transmission, exact_chunks, usb_adapter_chunks
 from sniffer.io.registry import open_reader, open_writer
 
@@ -111,10 +113,15 @@ def main() -> None:
             writer.write_batch(batch)
         writer.close()
         host = host_capture(batches)
+        exact_chunks = [c for b in batches for c in b.chunks()]
+        read_timeout = batched(READ_LOOPS["read-timeout"](exact_chunks, LINE, 1))
+        random_sizes = batched(READ_LOOPS["random-sizes"](exact_chunks, LINE, 1))
         stages: list[tuple[str, Callable[[list[ChunkBatch]], int], list[ChunkBatch]]] = [
             ("timing pass (numpy)", timing_pass, batches),
             ("framer, exact timing", framer, batches),
             ("framer, host timing (16 ms)", lambda b: framer(b, TimingQuality.HOST), host),
+            ("framer, host (read-timeout)", lambda b: framer(b, TimingQuality.HOST), read_timeout),
+            ("framer, host (random-sizes)", lambda b: framer(b, TimingQuality.HOST), random_sizes),
             ("framer + matcher, exact", decoder, batches),
             ("MCAP capture read", mcap_read(path), batches),
         ]

@@ -48,7 +48,7 @@ def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Pa
     if not capture.exists():
         if traffic in ("mixed", "steady"):
             values = "steady" if traffic == "steady" else "random"
-            generate_capture.write(capture, frames, 1, LINE, TimingQuality.EXACT, values=values)
+            generate_capture.write(capture, frames, 1, LINE, "exact", values=values)
         else:
             write_capture(capture, frames)
     return capture

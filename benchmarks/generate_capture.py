@@ -1,7 +1,7 @@
 """Large realistic captures for benchmarks, reproducibly from a seed, as native MCAP captures.
 
     python -m benchmarks.generate_capture OUT.mcap [--frames 1000000] [--seed 1]
-        [--line "115200 8N1"] [--timing exact|host] [--values random|steady]
+        [--line "115200 8N1"] [--timing exact|host|READ_LOOP] [--values random|steady]
 
 A saturated line: a PLC polls 16 Altivar-like drives (ETA/RFRD reads by FC 3, CMD/LFRD writes by
 FC 16, HSP by FC 6, the FC 23 scanner exchange, FC 43 identification now and then), with the
@@ -23,10 +23,11 @@ import struct
 from collections.abc import Iterator
 from pathlib import Path
 
-from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.line import LineSettings
-from decoders.synthesis import Transmission, exact_chunks, usb_adapter_chunks
+from decoders.read_loops import READ_LOOPS
+from decoders.synthesis import Transmission, exact_chunks
 from sniffer.io.registry import open_writer
 
 T0_NS = 1_700_000_000_000_000_000
@@ -118,20 +119,27 @@ def transmissions(exchanges: int, rng: random.Random, line: LineSettings, drives
 
 
 def write(
-    path: Path, frames: int, seed: int, line: LineSettings, timing: TimingQuality, *, values: str = "random"
+    path: Path, frames: int, seed: int, line: LineSettings, timing: str, *, values: str = "random"
 ) -> None:
+    """``timing``: ``exact``, ``host`` (a USB adapter, 16 ms latency timer) or the name of a
+    read loop of decoders/read_loops.py."""
+    read_loop = None if timing == "exact" else READ_LOOPS["usb-16ms" if timing == "host" else timing]
     rng = random.Random(seed)
     drives = Drives(rng, values)
     note = f"benchmarks.generate_capture seed {seed}" + (f", {values} values" if values != "random" else "")
-    writer = open_writer(str(path), CaptureInfo(line, timing, (note,)))
+    quality = TimingQuality.HOST if read_loop else TimingQuality.EXACT
+    writer = open_writer(str(path), CaptureInfo(line, quality, (note,)))
     t0_ns = T0_NS
+    last_stamp = 0
     try:
         for piece in range(0, frames // 2, PIECE_EXCHANGES):
             exchanges = min(PIECE_EXCHANGES, frames // 2 - piece)
             chunks = list(exact_chunks(transmissions(exchanges, rng, line, drives), line, t0_ns))
             t0_ns = chunks[-1].t_end_ns
-            if timing is TimingQuality.HOST:
-                chunks = usb_adapter_chunks(chunks, line, seed=seed + piece)
+            if read_loop is not None:
+                # Pieces are delivered one by one: a read of the next never comes before the last of this.
+                chunks = [Chunk(max(last_stamp, c.t_end_ns), c.data) for c in read_loop(chunks, line, seed + piece)]
+                last_stamp = chunks[-1].t_end_ns
             writer.write_batch(ChunkBatch.from_chunks(chunks))
     finally:
         writer.close()
@@ -143,12 +151,12 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=1_000_000, help="about this many frames (requests+answers)")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--line", default="115200 8N1")
-    parser.add_argument("--timing", choices=["exact", "host"], default="exact")
+    parser.add_argument("--timing", choices=["exact", "host", *sorted(READ_LOOPS)], default="exact",
+                        help="host: a USB adapter with a 16 ms latency timer; or a read loop (decoders/read_loops.py)")
     parser.add_argument("--values", choices=["random", "steady"], default="random",
                         help="speeds and states drawn anew each time, or held by each drive for a while")
     args = parser.parse_args()
-    write(args.output, args.frames, args.seed, LineSettings.parse(args.line), TimingQuality(args.timing),
-          values=args.values)
+    write(args.output, args.frames, args.seed, LineSettings.parse(args.line), args.timing, values=args.values)
 
 
 if __name__ == "__main__":

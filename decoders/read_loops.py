@@ -3,7 +3,7 @@
 A passive tap on a PC records what its read loop got and when: a chunk per read,
 stamped when the read returned. The models here take an exact capture (every
 byte's true end on the wire) and give the host-timed capture a read loop would
-record, for tests, benchmarks and ``rtusniff generate``:
+record, for tests and benchmarks (``benchmarks.generate_capture --timing``):
 
 * ``usb-1ms``, ``usb-16ms``: a USB adapter's latency timer
   (:func:`decoders.synthesis.usb_adapter_chunks`);

@@ -10,7 +10,8 @@ CRC matches            +16     a random run passes CRC-16 with probability 2^-16
 noise byte             -3      a byte no frame explains (roughly one byte in eight is noise
                                on a bad line; on a good one far fewer)
 stray byte at a frame  -1      a transmitter's turn-on/turn-off glitch: one byte directly
-                               before or after a frame is common on real RS485 lines
+                               before or after a frame (valid or damaged; on exact timing
+                               with no pause between) is common on real RS485 lines
 address 248-255        -3      reserved by the specification, yet used by many meters,
                                batteries and inverters (0xFE, 0xFF)
 broadcast (address 0)  -1      for a function a master may broadcast (writes, diagnostics)
@@ -26,7 +27,9 @@ piece's start or end           starts or ends
 silence > t1.5 inside  -4      exact timing only: each pause inside a frame
 damaged frame          -10     a plausible header whose frame fails its CRC; allowed only
                                between supported boundaries (a segment end, a pause, a
-                               valid frame), +2 when its length fits its rule
+                               valid frame), +4 when its length fits its rule (as
+                               much as a pause inside it costs), +3 when it is the answer
+                               the open request awaits (same slave and function)
 USS telegram           +12     BCC (8 bits) plus STX and a NORD PPO length (4 bits)
 =====================  ======  ===============================================================
 
@@ -74,7 +77,7 @@ EXPECTED_DIRECTION = 3.0
 BOUNDARY_SUPPORTED = 1.0
 PAUSE_INSIDE = -4.0
 DAMAGED = -10.0
-DAMAGED_FITS_RULE = 2.0
+DAMAGED_FITS_RULE = 4.0
 USS_MATCH = 12.0
 
 MIN_ADU = 4

@@ -169,12 +169,10 @@ class _Programme:
             self._offer(_Edge(s, end, _FRAME, flags, protocol), here + total)
             self.frame_ends.add(end)
         previous = self.back[s - begin]
-        glitch = (
-            (previous is not None and previous.kind == _FRAME)
-            or (s == begin and region.after_frame)
-            or (s + 1 < stop and bool(self.readings[s + 1 - begin]))
-            or (s + 1 == stop and region.before_frame)
-        )
+        # A glitch sits directly against its transmitter's frame (valid or damaged): no pause between.
+        after = (previous is not None and previous.kind != _NOISE) or (s == begin and region.after_frame)
+        before = (s + 1 < stop and bool(self.readings[s + 1 - begin])) or (s + 1 == stop and region.before_frame)
+        glitch = (after and s not in region.pause_set) or (before and s + 1 not in region.pause_set)
         self._offer(_Edge(s, s + 1, _NOISE), here + (ev.GLITCH_BYTE if glitch else ev.NOISE_BYTE))
         # Where a valid frame starts, no damaged one does: its bytes pass the CRC.
         if starts_supported and not self.readings[s - begin]:
@@ -186,8 +184,8 @@ class _Programme:
         return (end == region.stop and region.closed_at_stop) or end in region.pause_set or end in self.starts_of_frames
 
     def _damaged_at(self, s: int, open_request: OpenRequest) -> list[tuple[_Edge, float]]:
-        """Damaged frames from ``s`` to a supported boundary: the next valid frame (or the
-        byte before it, a glitch), a pause, or the segment's end."""
+        """Damaged frames from ``s`` to a supported boundary -- the next valid frame, a pause,
+        or the segment's end -- or to the byte before it (a glitch)."""
         region = self.region
         data, stop, pauses = region.data, region.stop, region.context.pauses
         if stop - s < ev.MIN_ADU or not ev.plausible_damaged_header(data[s], data[s + 1]):
@@ -195,17 +193,20 @@ class _Programme:
         following = bisect_right(self.frame_starts, s)
         next_frame = self.frame_starts[following] if following < len(self.frame_starts) else None
         limit = min(stop, s + MAX_ADU, next_frame if next_frame is not None else stop)
-        ends = set(pauses[bisect_right(pauses, s) : bisect_right(pauses, limit)])
+        boundaries = set(pauses[bisect_right(pauses, s) : bisect_right(pauses, limit)])
         if next_frame is not None and next_frame <= s + MAX_ADU:
-            ends |= {next_frame, next_frame - 1}
+            boundaries.add(next_frame)
         if region.closed_at_stop and stop <= s + MAX_ADU and (next_frame is None or next_frame >= stop):
-            ends.add(stop)
+            boundaries.add(stop)
+        # A damaged frame may be followed by its transmitter's glitch before the boundary.
+        ends = boundaries | {b - 1 for b in boundaries}
         at_capture_end = region.context.at_capture_end and region.context.closed
         edges = []
         for end in sorted(e for e in ends if e - s >= ev.MIN_ADU):
-            flags, fits = ev.damaged_flags(data[s:end], open_request=open_request,
-                                           at_capture_end=at_capture_end and end == stop)
+            flags, fits = ev.damaged_flags(data[s:end], open_request=open_request, at_capture_end=at_capture_end)
             score = ev.DAMAGED + (ev.DAMAGED_FITS_RULE if fits else 0.0) + pauses_in(pauses, s, end) * ev.PAUSE_INSIDE
+            if open_request == (data[s], data[s + 1]):
+                score += ev.EXPECTED_DIRECTION  # the answer the open request awaits, damaged or cut short
             edges.append((_Edge(s, end, _DAMAGED, flags), score))
         return edges
 
