@@ -1,7 +1,7 @@
 """One best parse of a run of bytes: frames, damaged frames and noise, by dynamic programming.
 
 A *segment* is a run of bytes that timing could not split (no silence of t3.5 on an
-exact capture; no gap longer than the capture's own delivery delay on a host one).
+exact capture; no gap of 3 s on a host one).
 It may hold one frame or thousands (a master that never leaves t3.5, a host read
 holding many frames), stray bytes, glitches and damaged frames. :func:`parse_segment`
 cuts it into :class:`Piece` s covering every byte exactly once.
@@ -17,12 +17,14 @@ highest total score (:mod:`decoders.framing.programme`).
 public function code, an address 1-247, one reading only (not also CRC-valid in
 the other direction), no pause inside, no other clean frame starting inside it --
 that touches another clean frame (up to ``ANCHOR_REACH`` stray bytes between them)
-or a supported boundary is on every best parse: reading its
-bytes any other way gives up 16 bits of CRC evidence per frame that no other
-reading can win back except by another CRC coincidence (2^-16). Anchors are found
-by a scan that costs one or two CRC calls per frame; the dynamic programme runs
-only over the bytes between anchors. ``fast=False`` runs it over the whole segment
-instead: the plain reference path the tests hold the fast path to.
+or a supported boundary is on every best parse: reading its bytes any other way
+gives up 16 bits of CRC evidence per frame that no other reading can win back
+except by another CRC coincidence (2^-16). Anchors are found for a whole segment at
+once by numpy (:func:`decoders.framing.fast.clean_frame_ends`: the CRC of every
+candidate span from prefix registers); short segments by a scalar pass. The
+dynamic programme runs only over the bytes between anchors. ``fast=False`` runs it
+over the whole segment instead: the plain reference path the tests hold the fast
+path to.
 
 **Streaming.** Of an open segment (its end not yet known), pieces are committed up
 to the last anchor whose confirmation is complete. When no anchor comes for
@@ -124,28 +126,13 @@ def parse_segment(
         parse = best_pieces(Region(data, 0, end, context, ev.CrcSearch(data)), open_request)
         return SegmentParse(Pieces.of(parse.pieces), end, parse.open_request)
     search = ev.CrcSearch(data)
-    small = end < SMALL_SEGMENT
-    if small:
+    if end < SMALL_SEGMENT:
         starts, stops = _anchors_small(data, context)
-        anchor_starts = anchor_ends = np.zeros(0, np.int64)
     else:
         anchor_starts, anchor_ends = _anchors_of(_clean_frames(data, context), data, context)
         starts, stops = anchor_starts.tolist(), anchor_ends.tolist()
-    pieces: list[Piece] = []
-    previous_ends = [0, *stops]
-    # Anchors since the open request was last known; it is replayed only where needed.
-    since = 0
-    gaps = [k for k in range(len(starts)) if starts[k] > previous_ends[k]] if small else (
-        np.flatnonzero(anchor_starts > np.array(previous_ends[:-1], np.int64)).tolist())
-    for index in gaps:
-        position = previous_ends[index]
-        open_request = _replayed(data, (starts, stops), range(since, index), open_request)
-        region = Region(data, position, starts[index], context, search, after_frame=position > 0, before_frame=True)
-        gap = best_pieces(region, open_request)
-        pieces.extend(gap.pieces)
-        open_request, since = gap.open_request, index
-    open_request = _replayed(data, (starts, stops), range(since, len(starts)), open_request)
-    position = previous_ends[-1]
+    pieces, open_request = _between_anchors(data, context, search, (starts, stops), open_request)
+    position = stops[-1] if stops else 0
     if context.closed:
         if position < end:
             tail = best_pieces(Region(data, position, end, context, search, after_frame=position > 0), open_request)
@@ -153,20 +140,50 @@ def parse_segment(
             open_request = tail.open_request
         position = end
     else:
-        while end - position > WINDOW:
-            region = Region(data, position, position + WINDOW, context, search, after_frame=position > 0,
-                            open_end=True)
-            window = best_pieces(region, open_request)
-            if window.consumed == position:
-                break
-            pieces.extend(window.pieces)
-            open_request, position = window.open_request, window.consumed
-    if small:
+        committed, position, open_request = _windows(data, context, search, position, open_request)
+        pieces.extend(committed)
+    if end < SMALL_SEGMENT:
         pieces.extend(Piece(a, b) for a, b in zip(starts, stops, strict=True))
         pieces.sort(key=lambda piece: piece.start)
         return SegmentParse(Pieces.of(pieces), position, open_request)
     columns = Pieces.join([Pieces.frames(anchor_starts, anchor_ends), Pieces.of(pieces)]).in_order()
     return SegmentParse(columns, position, open_request)
+
+
+def _between_anchors(
+    data: bytes, context: Context, search: ev.CrcSearch, anchors: tuple[list[int], list[int]],
+    open_request: OpenRequest,
+) -> tuple[list[Piece], OpenRequest]:
+    """The programme's pieces between consecutive anchors (not the anchors themselves),
+    and the open request after the last anchor."""
+    starts, stops = anchors
+    pieces: list[Piece] = []
+    previous_ends = [0, *stops]
+    since = 0  # anchors since the open request was last known: replayed only where needed
+    for index in [k for k in range(len(starts)) if starts[k] > previous_ends[k]]:
+        position = previous_ends[index]
+        open_request = _replayed(data, anchors, range(since, index), open_request)
+        region = Region(data, position, starts[index], context, search, after_frame=position > 0, before_frame=True)
+        gap = best_pieces(region, open_request)
+        pieces.extend(gap.pieces)
+        open_request, since = gap.open_request, index
+    return pieces, _replayed(data, anchors, range(since, len(starts)), open_request)
+
+
+def _windows(
+    data: bytes, context: Context, search: ev.CrcSearch, position: int, open_request: OpenRequest
+) -> tuple[list[Piece], int, OpenRequest]:
+    """Of an open segment without anchors for ``WINDOW`` bytes from ``position``: the
+    pieces every best path agrees on, window by window; where they end; the open request."""
+    pieces: list[Piece] = []
+    while len(data) - position > WINDOW:
+        region = Region(data, position, position + WINDOW, context, search, after_frame=position > 0, open_end=True)
+        window = best_pieces(region, open_request)
+        if window.consumed == position:
+            break
+        pieces.extend(window.pieces)
+        open_request, position = window.open_request, window.consumed
+    return pieces, position, open_request
 
 
 def clean_frame_end(data: bytes, start: int, stop: int) -> int:
