@@ -164,6 +164,10 @@ def direction_bonus(direction: int, header: tuple[int, int], open_request: OpenR
     return EXPECTED_DIRECTION if (direction == RESPONSE_READING) == expects_response else 0.0
 
 
+#: Runs shorter than this are CRC-searched by one ``fastcrc`` call per length.
+SCALAR_SEARCH_BYTES = 1024
+
+
 class CrcSearch:
     """CRC search over one run of bytes: every length at which a span from a given start
     passes the CRC, by numpy over the run's prefix registers (computed at the first search)."""
@@ -174,9 +178,14 @@ class CrcSearch:
 
     def lengths(self, start: int, stop: int) -> list[int]:
         """Lengths ``MIN_ADU..min(MAX_ADU, stop - start)`` whose span passes the CRC."""
+        longest = min(MAX_ADU, stop - start)
+        if len(self.data) < SCALAR_SEARCH_BYTES:
+            # A short run: prefix registers would cost more than the CRC calls.
+            data = self.data
+            return [n for n in range(MIN_ADU, longest + 1) if crc16.modbus(data[start : start + n]) == 0]
         if self._registers is None:
             self._registers = prefix_registers(self.data)
-        lengths = np.arange(MIN_ADU, min(MAX_ADU, stop - start) + 1, dtype=np.int64)
+        lengths = np.arange(MIN_ADU, longest + 1, dtype=np.int64)
         valid = crc_ok_spans(self._registers, np.full(len(lengths), start, np.int64), lengths)
         found: list[int] = lengths[valid].tolist()
         return found
