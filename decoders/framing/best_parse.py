@@ -45,12 +45,11 @@ from fastcrc import crc16
 from decoders.capture import Int64Array
 from decoders.frame import FrameFlag
 from decoders.framing import evidence as ev
-from decoders.framing.content import after_frame
+from decoders.framing.content import OpenRequest, after_frame
 from decoders.framing.fast import clean_frame_ends
 from decoders.framing.programme import MAX_EDGE, Context, Piece, Region, best_pieces
 from decoders.modbus.layouts import MAX_ADU
 
-OpenRequest = ev.OpenRequest
 #: Stray bytes allowed between two clean frames that confirm each other.
 ANCHOR_REACH = 4
 #: An open segment without anchors is parsed in windows of this many bytes.

@@ -51,15 +51,13 @@ evidence.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import numpy.typing as npt
 from fastcrc import crc16
 
 from decoders.crc import crc_ok_spans, prefix_registers
 from decoders.frame import MODBUS, USS, FrameFlag
-from decoders.framing.content import rule_lengths
+from decoders.framing.content import OpenRequest, rule_lengths
 from decoders.modbus.codes import EXCEPTION_BIT, FUNCTION_NAMES, USER_DEFINED_FUNCTIONS
 from decoders.modbus.layouts import LAYOUTS, MAX_ADU
 from decoders.uss import STX, uss_length
@@ -87,8 +85,6 @@ BROADCAST_FUNCTIONS = frozenset({5, 6, 8, 15, 16, 21, 22, 23})
 #: FC 8 sub-function 0 (return query data) echoes any number of bytes.
 DIAGNOSTICS = 8
 
-#: (slave, function) of the request that awaits its response, if any.
-OpenRequest = tuple[int, int] | None
 
 
 def address_prior(address: int, function: int) -> float:
@@ -128,17 +124,6 @@ def zero_padded(data: bytes, start: int, end: int) -> bool:
         if crc16.modbus(data[start:stop]) == 0 and stop - start in rule_lengths(data[start:stop]):
             return True
     return False
-
-
-@dataclass(frozen=True, slots=True)
-class Candidate:
-    """A reading of ``[start, end)``: a CRC-valid frame (``crc_ok``) or a damaged one."""
-
-    end: int
-    score: float
-    crc_ok: bool = True
-    flags: FrameFlag = FrameFlag.NONE
-    protocol: int = MODBUS
 
 
 def searchable(head: bytes) -> bool:
