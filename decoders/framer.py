@@ -193,6 +193,13 @@ class Framer:
             t_end = np.maximum.reduceat(ends[span], first - first[0])
         else:
             t_start = t_end = np.zeros(0, np.int64)
+        if self.timing is TimingQuality.HOST and count:
+            # A frame's bytes were back to back on the wire even when two reads delivered them:
+            # it ends with its last byte and lasted its length in characters (host times of
+            # the first part would stretch it by the read delay).
+            whole = ~is_noise
+            t_start = np.where(whole, t_end - np.rint((last - first) * self.line.char_time_ns).astype(np.int64),
+                               t_start)
         idle = np.empty(count, np.int64)
         if count:
             idle[1:] = t_start[1:] - t_end[:-1]

@@ -4,6 +4,8 @@ every read-loop model (host timing), by the fast path and by the reference."""
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from decoders.capture import Chunk, ChunkBatch, TimingQuality
@@ -84,3 +86,19 @@ def test_recording_with_a_glitch_after_every_frame_and_no_silence(recording: Rec
     for read_loop in ("random-sizes", "read-timeout"):
         delivered = READ_LOOPS[read_loop](chunks, recording.line, 0)
         assert valid_frames(delivered, recording.line, TimingQuality.HOST) == expected
+
+
+def test_host_frames_last_their_length_on_the_wire(recording: Recording) -> None:
+    """A frame that two reads delivered still lasted its length in characters: host times
+    place it ending with its last byte, so durations and bus load stay physical."""
+    delivered = READ_LOOPS["read-timeout"](recording.chunks, recording.line, 0)
+    framer = Framer(recording.line, TimingQuality.HOST)
+    frames = [*framer.feed(ChunkBatch.from_chunks(delivered)), *framer.flush()]
+    for frame in frames:
+        if not frame.is_noise:
+            assert frame.t_end_ns - frame.t_start_ns == round(len(frame.data) * recording.line.char_time_ns)
+    read_ends = set(itertools.accumulate(len(c.data) for c in delivered))
+    offsets = list(itertools.accumulate(len(f.data) for f in frames))
+    straddling = [f for f, end in zip(frames, offsets, strict=True)
+                  if any(end - len(f.data) < e < end for e in read_ends)]
+    assert straddling  # 32-byte reads end inside frames: the case this is about
