@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     if args.output is None and args.quiet:
         raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: give a file with -o")
     if args.output is not None:
-        find_format(args.output, option="")
+        find_format(args.output, option="", purpose="write")
         if Path(args.output).exists():
             raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; capture never overwrites a recording",
                                 path=args.output)

@@ -12,8 +12,8 @@ from typing import TextIO
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.io.base import CaptureReader
-from sniffer.io.registry import all_formats, open_reader
+from sniffer.io.base import CaptureReader, ReaderOptions
+from sniffer.io.registry import format_help, formats_for, open_reader
 from sniffer.pipeline import Analysis, effective_line
 from sniffer.profiles_io import profile_book
 
@@ -114,9 +114,10 @@ def add_jobs_option(parser: argparse.ArgumentParser) -> None:
 def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureReader, Analysis]:
     """Open ``args.capture`` and settle how to decode it."""
     book = profile_book(args.profile, args.profile_file)
-    reader = open_reader(args.capture, args.input_format)
-    stack.callback(close_reader, reader)
     override = line_override(args)
+    options = ReaderOptions(line=override, timing=TimingQuality(args.timing) if args.timing else None)
+    reader = open_reader(args.capture, args.input_format, options)
+    stack.callback(close_reader, reader)
     if override is not None and reader.info.line is not None and override.format() != reader.info.line.format():
         reader.warnings.append(f"{args.capture}: --line {override.format()} overrides the capture's own "
                                f"{reader.info.line.format()}")
@@ -188,8 +189,9 @@ def open_output(path: str | None, stack: ExitStack) -> TextIO:
 def add_input_format_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--input-format",
-        choices=sorted(all_formats()),
-        help="capture format of the input (default: from the file suffix; text for -)",
+        choices=sorted(formats_for("read")),
+        help="capture format of the input (default: from the file suffix, else from its first bytes; "
+        f"text for -). {format_help('read')}",
     )
 
 

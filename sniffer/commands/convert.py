@@ -15,7 +15,8 @@ from sniffer.commands.common import (
     human_size,
     line_override,
 )
-from sniffer.io.registry import all_formats, open_reader, open_writer
+from sniffer.io.base import ReaderOptions
+from sniffer.io.registry import format_help, formats_for, open_reader, open_writer
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -28,7 +29,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("input", help="capture to read, or - for text on stdin")
     parser.add_argument("output", help="capture to write, or - for text on stdout")
     add_input_format_option(parser)
-    parser.add_argument("--output-format", choices=sorted(all_formats()), help="default: from the suffix")
+    parser.add_argument("--output-format", choices=sorted(formats_for("write")),
+                        help=f"default: from the suffix. {format_help('write')}")
     add_line_options(parser)
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
     parser.set_defaults(run=run)
@@ -36,10 +38,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 def run(args: argparse.Namespace) -> int:
     check_outputs([args.output], [args.input], force=args.force)
-    reader = open_reader(args.input, args.input_format)
+    override = line_override(args)
+    reader = open_reader(args.input, args.input_format, ReaderOptions(line=override))
     try:
         info = reader.info
-        override = line_override(args)
         if override is not None:
             info = replace(info, line=override)
         writer = open_writer(args.output, info, args.output_format)

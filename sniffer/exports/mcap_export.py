@@ -43,7 +43,7 @@ from sniffer.exports.levels import FLAG_SUFFIXES, log_levels
 from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
 from sniffer.exports.published import PublishedValues, plotted
 from sniffer.exports.transactions import OUTCOMES, TransactionEncoder
-from sniffer.io.formats.mcap_capture import (
+from sniffer.io.mcap_native import (
     LAYOUT_DOC,
     MESSAGE_ENCODING,
     METADATA_NAME,

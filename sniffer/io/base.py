@@ -6,7 +6,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Protocol
 
-from decoders.capture import CaptureInfo, ChunkBatch
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.line import LineSettings
 
 
 class CaptureReader(Protocol):
@@ -45,13 +46,30 @@ class CaptureWriter(Protocol):
 
 
 @dataclass(frozen=True)
+class ReaderOptions:
+    """What the command line tells a reader beyond the file: a format whose files do not
+    say their line settings, timing or channel takes them from here."""
+
+    #: ``--line``: the line settings the user gave, if any.
+    line: LineSettings | None = None
+    #: ``--timing``: the timing quality the user gave, if any.
+    timing: TimingQuality | None = None
+    #: Which channel of a multi-channel recording carries the bus, if the user said.
+    channel: str | None = None
+
+
+@dataclass(frozen=True)
 class CaptureFormat:
-    """One capture format, declared by its module as ``FORMAT``."""
+    """One capture format, declared by its module in :mod:`sniffer.io.formats` as ``FORMAT``.
+
+    A format may be read-only or write-only (``open_writer`` / ``open_reader`` ``None``).
+    Its module stays light: the factories import a heavy dependency when called.
+    """
 
     name: str
     suffixes: tuple[str, ...]
     description: str
-    #: What a file of this format starts with, to recognise it without its suffix.
-    magic: bytes
-    open_reader: Callable[[str], CaptureReader]
-    open_writer: Callable[[str, CaptureInfo], CaptureWriter]
+    #: Whether a file's first ``SNIFF_BYTES`` bytes are of this format.
+    sniff: Callable[[bytes], bool]
+    open_reader: Callable[[str, ReaderOptions], CaptureReader] | None = None
+    open_writer: Callable[[str, CaptureInfo], CaptureWriter] | None = None

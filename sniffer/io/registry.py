@@ -1,8 +1,10 @@
 """The registry of capture formats.
 
 Every module in :mod:`sniffer.io.formats` declares one :class:`CaptureFormat` as
-``FORMAT``; adding a format is adding a module there. Formats are found by name or
-by file suffix.
+``FORMAT``; adding a format is adding a module there (a read-only format leaves
+``open_writer`` out). A format is chosen by name, else by the file's suffix, else by
+its ``sniff`` of the file's first bytes. Option choices, help texts and error hints
+are built from here.
 """
 
 from __future__ import annotations
@@ -11,16 +13,19 @@ import importlib
 import pkgutil
 from functools import cache
 from pathlib import Path
+from typing import Literal
 
 from decoders.capture import CaptureInfo
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io import formats
-from sniffer.io.base import CaptureFormat, CaptureReader, CaptureWriter
+from sniffer.io.base import CaptureFormat, CaptureReader, CaptureWriter, ReaderOptions
 
 STDIO = "-"
 STDIO_FORMAT = "text"
-#: How many leading bytes are read to recognise a format by its magic.
-MAGIC_LENGTH = 16
+#: How many leading bytes a format's ``sniff`` sees.
+SNIFF_BYTES = 64
+
+Purpose = Literal["read", "write"]
 
 
 @cache
@@ -34,17 +39,27 @@ def all_formats() -> dict[str, CaptureFormat]:
     return found
 
 
+def formats_for(purpose: Purpose) -> dict[str, CaptureFormat]:
+    """The formats that can be read (``read``) or written (``write``), by name."""
+    return {name: fmt for name, fmt in all_formats().items() if _can(fmt, purpose)}
+
+
+def _can(fmt: CaptureFormat, purpose: Purpose) -> bool:
+    return (fmt.open_reader if purpose == "read" else fmt.open_writer) is not None
+
+
 def find_format(
-    path: str, name: str | None = None, head: bytes = b"", *, option: str = "--input-format"
+    path: str, name: str | None = None, head: bytes = b"", *, option: str = "--input-format",
+    purpose: Purpose = "read",
 ) -> CaptureFormat:
     """The format called ``name``, else the one whose suffix ``path`` has, else the one
-    whose magic bytes ``head`` (the file's first bytes) starts with. ``option`` is the
+    whose ``sniff`` recognises ``head`` (the file's first bytes). ``option`` is the
     command's option that names a format, for the error's hint."""
-    known = all_formats()
+    known = formats_for(purpose)
     if name is not None:
         if name not in known:
             raise RtuSniffError(
-                ErrorKind.USAGE, f"unknown capture format {name!r}; known: {', '.join(sorted(known))}"
+                ErrorKind.USAGE, f"unknown capture format {name!r} to {purpose}; known: {', '.join(sorted(known))}"
             )
         return known[name]
     if path == STDIO:
@@ -54,7 +69,7 @@ def find_format(
         if suffix in fmt.suffixes:
             return fmt
     for fmt in known.values():
-        if head.startswith(fmt.magic):
+        if head and fmt.sniff(head):
             return fmt
     suffixes = ", ".join(s for fmt in known.values() for s in fmt.suffixes)
     raise RtuSniffError(
@@ -65,19 +80,28 @@ def find_format(
     )
 
 
-def open_reader(path: str, format_name: str | None = None) -> CaptureReader:
+def open_reader(path: str, format_name: str | None = None, options: ReaderOptions | None = None) -> CaptureReader:
     """Open a capture for reading; errors name the file."""
     head = b"" if path == STDIO else _read_head(path)
-    return find_format(path, format_name, head).open_reader(path)
+    fmt = find_format(path, format_name, head)
+    assert fmt.open_reader is not None  # formats_for("read") has only readable ones
+    return fmt.open_reader(path, options or ReaderOptions())
 
 
 def open_writer(path: str, info: CaptureInfo, format_name: str | None = None) -> CaptureWriter:
     """Create a capture file for writing."""
-    fmt = find_format(path, format_name, option="--output-format")
+    fmt = find_format(path, format_name, option="--output-format", purpose="write")
+    assert fmt.open_writer is not None  # formats_for("write") has only writable ones
     try:
         return fmt.open_writer(path, info)
     except OSError as exc:
         raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot write: {exc.strerror}", path=path) from exc
+
+
+def format_help(purpose: Purpose) -> str:
+    """One line per format that can be read or written: name, suffixes, description."""
+    return "; ".join(f"{fmt.name} ({', '.join(fmt.suffixes)}): {fmt.description}"
+                     for fmt in sorted(formats_for(purpose).values(), key=lambda f: f.name))
 
 
 def _read_head(path: str) -> bytes:
@@ -89,6 +113,6 @@ def _read_head(path: str) -> bytes:
         raise RtuSniffError(ErrorKind.FILE_UNREADABLE, "is a directory, not a capture file", path=path)
     try:
         with target.open("rb") as f:
-            return f.read(MAGIC_LENGTH)
+            return f.read(SNIFF_BYTES)
     except OSError as exc:
         raise RtuSniffError(ErrorKind.FILE_UNREADABLE, f"cannot read: {exc.strerror}", path=path) from exc

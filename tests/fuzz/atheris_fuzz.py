@@ -24,8 +24,6 @@ import atheris
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # run as a script: the repository's tests package
 
 with atheris.instrument_imports():
-    import sniffer.io.formats.mcap_capture
-    import sniffer.io.formats.text  # noqa: F401 - found by the registry later: imported here to be instrumented
     from decoders.capture import Chunk, ChunkBatch, TimingQuality
     from decoders.crc import crc_ok
     from decoders.frame import Frame, FrameFlag, frames_to_batch

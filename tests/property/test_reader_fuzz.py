@@ -10,14 +10,16 @@ import io
 import os
 import tempfile
 from contextlib import redirect_stderr, redirect_stdout
+from functools import cache
 from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sniffer.cli import main
 from sniffer.errors import CaptureFormatError, ErrorKind, RtuSniffError
-from sniffer.io.registry import open_reader
+from sniffer.io.registry import all_formats, formats_for, open_reader, open_writer
 from tests.conftest import SAMPLE_LOG, SAMPLE_MCAP
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "150"))
@@ -60,20 +62,33 @@ def read_all(data: bytes, suffix: str) -> int:
         return -1
 
 
+@cache
+def sample_of(name: str) -> bytes:
+    """The shipped sample in format ``name``: as shipped, or written by that format's writer."""
+    shipped = {"text": SAMPLE_LOG, "mcap": SAMPLE_MCAP}
+    if name in shipped:
+        return shipped[name].read_bytes()
+    target = SCRATCH / f"sample{all_formats()[name].suffixes[0]}"
+    reader = open_reader(str(SAMPLE_LOG))
+    writer = open_writer(str(target), reader.info, name)
+    for batch in reader.batches():
+        writer.write_batch(batch)
+    writer.close()
+    reader.close()
+    return target.read_bytes()
+
+
+@pytest.mark.parametrize("name", sorted(formats_for("read")))
 @FUZZ
-@given(mutated(SAMPLE_LOG.read_bytes()))
-def test_text_reader_on_damaged_captures(data: bytes) -> None:
-    read_all(data, ".log")
+@given(data=st.data())
+def test_reader_on_damaged_captures(name: str, data: st.DataObject) -> None:
+    """Every registered reader, on mutations of a capture in its own format."""
+    read_all(data.draw(mutated(sample_of(name))), all_formats()[name].suffixes[0])
 
 
 @FUZZ
-@given(mutated(SAMPLE_MCAP.read_bytes()))
-def test_mcap_reader_on_damaged_captures(data: bytes) -> None:
-    read_all(data, ".mcap")
-
-
-@FUZZ
-@given(st.binary(max_size=512), st.sampled_from([".log", ".mcap", ".bin"]))
+@given(st.binary(max_size=512),
+       st.sampled_from([".bin", *(s for fmt in formats_for("read").values() for s in fmt.suffixes)]))
 def test_readers_on_arbitrary_bytes(data: bytes, suffix: str) -> None:
     read_all(data, suffix)
 

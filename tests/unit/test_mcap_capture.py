@@ -12,8 +12,8 @@ from mcap.reader import make_reader
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
-from sniffer.io.formats import mcap_capture
-from sniffer.io.formats.mcap_capture import McapCaptureReader, McapCaptureWriter, decode_block, encode_block
+from sniffer.io import mcap_native
+from sniffer.io.mcap_native import McapCaptureReader, McapCaptureWriter, decode_block, encode_block
 from tests.conftest import write_foreign_mcap
 
 INFO = CaptureInfo(LineSettings.parse("19200 8E1"), TimingQuality.EXACT, ("site: pump house", "tap on port 1"))
@@ -57,11 +57,11 @@ def test_standard_reader_sees_blocks_and_metadata(tmp_path: Path) -> None:
         summary = reader.get_summary()
         assert summary is not None
         [channel] = summary.channels.values()
-        assert channel.topic == mcap_capture.TOPIC
+        assert channel.topic == mcap_native.TOPIC
         assert summary.statistics is not None
         assert summary.statistics.message_count == 3  # 10 000 chunks in blocks of 4096
         assert summary.chunk_indexes and summary.chunk_indexes[0].compression == "zstd"
-        [metadata] = [m for m in reader.iter_metadata() if m.name == mcap_capture.METADATA_NAME]
+        [metadata] = [m for m in reader.iter_metadata() if m.name == mcap_native.METADATA_NAME]
         assert metadata.metadata["line"] == "19200 8E1"
         assert metadata.metadata["timing"] == "exact"
         assert json.loads(metadata.metadata["notes"]) == list(INFO.notes)

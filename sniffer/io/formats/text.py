@@ -245,7 +245,8 @@ FORMAT = CaptureFormat(
     name="text",
     suffixes=(".log", ".txt", ".rtu"),
     description="rtu-capture v1 text: one line per chunk, 'SECONDS.NANOS HEX...'",
-    magic=b"# rtu-capture",
-    open_reader=TextCaptureReader,
+    # Any version: a file of another version is recognised, and its reader says why it cannot read it.
+    sniff=lambda head: head.startswith(b"# rtu-capture"),
+    open_reader=lambda path, options: TextCaptureReader(path),
     open_writer=TextCaptureWriter,
 )

@@ -1,0 +1,239 @@
+"""The native binary capture: raw chunks in an MCAP file.
+
+One MCAP message on topic ``/rtusniff/raw_chunks`` carries a block of up to
+``BLOCK_CHUNKS`` chunks in columns (little-endian)::
+
+    u32 count | i64[count] t_end_ns | u32[count] length | bytes data
+
+so a day-long capture is a few thousand messages and reading it is numpy work.
+Line settings, timing quality and notes are the MCAP metadata record
+``rtusniff.capture``, written before any block, so that a file cut short still
+says how to read it. The file is read as a stream (no seeking), which also reads
+files whose summary section was never written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import struct
+from collections.abc import Iterator
+from importlib.metadata import version
+from typing import BinaryIO
+
+import numpy as np
+from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
+from mcap.records import Channel, Message, Metadata
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, Writer
+from zstandard import ZstdError
+
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.line import LineSettings
+from sniffer.errors import CaptureFormatError, ErrorKind
+
+TOPIC = "/rtusniff/raw_chunks"
+MESSAGE_ENCODING = "rtusniff.chunk-block.v1"
+METADATA_NAME = "rtusniff.capture"
+NOTES_METADATA_NAME = "rtusniff.notes"
+PROFILE = "rtusniff"
+FORMAT_VERSION = "1"
+BLOCK_CHUNKS = 4096
+_COUNT = struct.Struct("<I")
+LAYOUT_DOC = "u32 count | i64[count] t_end_ns | u32[count] length | bytes data (little-endian)"
+
+
+def encode_block(batch: ChunkBatch) -> bytes:
+    """One message payload for a batch of chunks."""
+    lengths = np.diff(batch.ends, prepend=0).astype("<u4")
+    return b"".join(
+        [_COUNT.pack(len(batch)), batch.t_end_ns.astype("<i8").tobytes(), lengths.tobytes(), batch.data]
+    )
+
+
+def decode_block(payload: bytes) -> ChunkBatch:
+    """The chunks of one message payload; ``ValueError`` if it is inconsistent."""
+    if len(payload) < _COUNT.size:
+        raise ValueError("block shorter than its header")
+    (count,) = _COUNT.unpack_from(payload)
+    data_start = _COUNT.size + 12 * count
+    if len(payload) < data_start:
+        raise ValueError(f"block announces {count} chunks but is only {len(payload)} bytes")
+    times = np.frombuffer(payload, "<i8", count, _COUNT.size).astype(np.int64)
+    lengths = np.frombuffer(payload, "<u4", count, _COUNT.size + 8 * count).astype(np.int64)
+    ends = np.cumsum(lengths)
+    if (int(ends[-1]) if count else 0) != len(payload) - data_start:
+        raise ValueError("chunk lengths do not add up to the block's data")
+    if count and (np.any(np.diff(times) < 0)):
+        raise ValueError("chunk times decrease inside a block")
+    return ChunkBatch(payload[data_start:], ends, times)
+
+
+def info_metadata(info: CaptureInfo) -> dict[str, str]:
+    """The ``rtusniff.capture`` metadata record's fields."""
+    fields = {
+        "format_version": FORMAT_VERSION,
+        "timing": info.timing.value,
+        "notes": json.dumps(list(info.notes)),
+        "writer": f"rtusniff {version('rtusniff')}",
+    }
+    if info.line is not None:
+        fields["line"] = info.line.format()
+    return fields
+
+
+class McapCaptureWriter:
+    """Streams blocks of chunks into a zstd-compressed, indexed MCAP file.
+
+    Every block is its own MCAP chunk, written out at once, so that :meth:`flush`
+    makes everything written so far durable: a recording killed after a flush reads
+    back up to it.
+    """
+
+    def __init__(self, path: str, info: CaptureInfo) -> None:
+        self._file: BinaryIO = open(path, "wb")  # noqa: SIM115
+        self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=1)
+        self._writer.start(profile=PROFILE, library=f"rtusniff {version('rtusniff')}")
+        self._writer.add_metadata(METADATA_NAME, info_metadata(info))
+        self._channel = self._writer.register_channel(
+            topic=TOPIC, message_encoding=MESSAGE_ENCODING, schema_id=0, metadata={"layout": LAYOUT_DOC}
+        )
+        self._sequence = 0
+
+    def write_batch(self, batch: ChunkBatch) -> None:
+        for t_first, payload in encode_blocks(batch):
+            self._writer.add_message(
+                channel_id=self._channel, log_time=t_first, publish_time=t_first, data=payload, sequence=self._sequence
+            )
+            self._sequence += 1
+
+    def add_notes(self, notes: list[str]) -> None:
+        if notes:
+            self._writer.add_metadata(NOTES_METADATA_NAME, {"notes": json.dumps(notes)})
+
+    def flush(self) -> None:
+        self._file.flush()
+        os.fsync(self._file.fileno())
+
+    @property
+    def size(self) -> int:
+        """Bytes written so far."""
+        return self._file.tell()
+
+    def close(self) -> None:
+        self._writer.finish()  # type: ignore[no-untyped-call]
+        self._file.close()
+
+    def abandon(self) -> None:
+        with contextlib.suppress(OSError):
+            self._file.close()
+
+
+def encode_blocks(batch: ChunkBatch) -> Iterator[tuple[int, bytes]]:
+    """The message payloads for a batch of chunks, with their time (the first chunk's end)."""
+    for start in range(0, len(batch), BLOCK_CHUNKS):
+        block = _slice(batch, start, start + BLOCK_CHUNKS)
+        yield int(block.t_end_ns[0]), encode_block(block)
+
+
+def _slice(batch: ChunkBatch, start: int, stop: int) -> ChunkBatch:
+    if start == 0 and stop >= len(batch):
+        return batch
+    ends = batch.ends[start:stop]
+    first = int(batch.ends[start - 1]) if start else 0
+    return ChunkBatch(batch.data[first : int(ends[-1])], ends - first, batch.t_end_ns[start:stop])
+
+
+class McapCaptureReader:
+    """Reads the metadata at open; :meth:`batches` decodes the blocks in file order."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self._file: BinaryIO = open(path, "rb")  # noqa: SIM115
+        self._size = os.fstat(self._file.fileno()).st_size
+        # A damaged length field must not make the reader allocate gigabytes: no record is
+        # longer than the file.
+        self._records = StreamReader(self._file, record_size_limit=max(self._size, 1)).records
+        self._channel_ids: set[int] = set()
+        self._good = 0
+        self.late_notes: list[str] = []
+        #: Said once reading is done: e.g. a recording that was cut short.
+        self.warnings: list[str] = []
+        self.info = self._read_info()
+
+    def close(self) -> None:
+        self._file.close()
+
+    def _error(self, message: str) -> CaptureFormatError:
+        return CaptureFormatError(
+            ErrorKind.BAD_MCAP, message, path=self.path, location=f"byte {self._file.tell()}"
+        )
+
+    def _next_records(self) -> Iterator[object]:
+        try:
+            for record in self._records:
+                yield record
+                self._good = self._file.tell()
+        except (McapError, ValueError, struct.error, EOFError, OverflowError, MemoryError, ZstdError) as exc:
+            if self._good == self._size and self._good > 0:
+                # Complete records up to the end, but no summary: a recording that was
+                # killed or lost its disk after its last flush. Everything in it is read.
+                self.warnings.append(
+                    f"{self.path}: recording cut short at byte {self._size} (no closing summary); "
+                    "everything up to its last flush was read"
+                )
+                return
+            damage = _damage(exc, at_end=self._file.tell() >= self._size)
+            raise CaptureFormatError(
+                ErrorKind.BAD_MCAP, f"damaged MCAP: {damage}", path=self.path, location=f"byte {self._good}"
+            ) from None
+
+    def _read_info(self) -> CaptureInfo:
+        self._iter = self._next_records()
+        for record in self._iter:
+            if isinstance(record, Metadata) and record.name == METADATA_NAME:
+                return self._parse_info(record.metadata)
+            if isinstance(record, Message):
+                break
+        raise self._error(
+            f"not an rtusniff capture: no '{METADATA_NAME}' metadata before the first message "
+            "(an MCAP written by another tool?)"
+        )
+
+    def _parse_info(self, fields: dict[str, str]) -> CaptureInfo:
+        if fields.get("format_version") != FORMAT_VERSION:
+            raise CaptureFormatError(
+                ErrorKind.UNKNOWN_FORMAT,
+                f"capture format version {fields.get('format_version')!r} is not {FORMAT_VERSION!r}",
+                path=self.path,
+            )
+        try:
+            line = LineSettings.parse(fields["line"]) if "line" in fields else None
+            timing = TimingQuality(fields.get("timing", ""))
+            notes = tuple(json.loads(fields.get("notes", "[]")))
+        except (ValueError, TypeError) as exc:
+            raise self._error(f"bad '{METADATA_NAME}' metadata: {exc}") from None
+        return CaptureInfo(line=line, timing=timing, notes=notes)
+
+    def batches(self) -> Iterator[ChunkBatch]:
+        for record in self._iter:
+            if isinstance(record, Channel) and record.topic == TOPIC:
+                if record.message_encoding != MESSAGE_ENCODING:
+                    raise self._error(f"channel {TOPIC} has unknown encoding {record.message_encoding!r}")
+                self._channel_ids.add(record.id)
+            elif isinstance(record, Message) and record.channel_id in self._channel_ids:
+                try:
+                    batch = decode_block(record.data)
+                except ValueError as exc:
+                    raise self._error(f"bad chunk block (sequence {record.sequence}): {exc}") from None
+                if len(batch):
+                    yield batch
+            elif isinstance(record, Metadata) and record.name == NOTES_METADATA_NAME:
+                self.late_notes.extend(json.loads(record.metadata.get("notes", "[]")))
+
+
+def _damage(exc: Exception, *, at_end: bool) -> str:
+    if at_end or isinstance(exc, (EndOfFile, EOFError, RecordLengthLimitExceeded)):
+        return "a record runs past the end of the file (truncated, or its length is damaged)"
+    return str(exc) or type(exc).__name__
