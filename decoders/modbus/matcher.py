@@ -45,6 +45,7 @@ from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from decoders.modbus.codes import EXCEPTION_BIT
 from decoders.modbus.layouts import MEI_EXCEPTION_LENGTH
 from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, IS_EXCEPTION, MIN_ADU, Shapes, frame_shapes
+from decoders.uss_pairing import UssPairing
 
 BROADCAST_ADDRESS = 0
 MIN_TIMEOUT_NS = 100_000_000
@@ -126,9 +127,10 @@ class Matcher:
     _latencies: deque[int] = field(default_factory=lambda: deque(maxlen=LATENCY_WINDOW))
     _learned: int = 0
     _adaptive_timeout_ns: int = MAX_TIMEOUT_NS
-    #: Settle clean request/answer runs in bulk (off only to prove the shortcut changes nothing).
-    _bulk: bool = True
-    _uss_open: dict[int, tuple[int, int]] = field(default_factory=dict)
+    #: Settle clean request/answer runs in bulk; ``False`` is the plain frame-by-frame path,
+    #: the reference the tests hold the shortcut to.
+    bulk: bool = True
+    _uss: UssPairing = field(default_factory=UssPairing)
     #: The least a derived timeout may be: on host captures, how late the capture's read
     #: loop delivers bytes (an answer often comes one read, a read timeout, after its request).
     delivery_floor_ns: int = 0
@@ -179,7 +181,7 @@ class Matcher:
         runs = _pair_runs(frames, shapes, active)
         self._visit(frames, shapes, active, runs, first)
         if uss.any():
-            self._uss(frames, np.flatnonzero(uss), first)
+            self._uss.assign(frames, np.flatnonzero(uss), self._held.columns, first)
         if len(frames):
             last_start = int(frames.t_start_ns[-1])
             if last_start > self._deadline():
@@ -205,7 +207,7 @@ class Matcher:
         timeout = self.timeout_ns
         k = 0
         while k < len(active_list):
-            if runs[k] and self._bulk and not open_slaves and not failed:
+            if runs[k] and self.bulk and not open_slaves and not failed:
                 self._settle_pairs(frames, active[k : k + 2 * runs[k]], first)
                 k += 2 * runs[k]
                 timeout = self.timeout_ns
@@ -252,27 +254,6 @@ class Matcher:
             elif shape & FITS_RESPONSE:
                 role[position] = RESPONSE
                 flags[position] = UNEXPECTED
-
-    def _uss(self, frames: FrameBatch, telegrams: npt.NDArray[np.intp], first: int) -> None:
-        """USS telegrams: a master's telegram and the answer from the same address alternate."""
-        columns = self._held.columns
-        offsets = frames.offsets.tolist()
-        for i in telegrams.tolist():
-            adr = frames.data[offsets[i] + 2]
-            address, position = adr & 0x1F, first + i
-            columns["slave"][position] = address
-            columns["function"][position] = NONE
-            if adr & 0x20:
-                columns["role"][position] = BROADCAST
-                continue
-            asked = self._uss_open.pop(address, None)
-            if asked is None:
-                columns["role"][position] = REQUEST
-                self._uss_open[address] = (frames.first_index + i, int(frames.t_end_ns[i]))
-            else:
-                columns["role"][position] = RESPONSE
-                columns["request_index"][position] = asked[0]
-                columns["latency_ns"][position] = max(0, int(frames.t_start_ns[i]) - asked[1])
 
     def _settle_pairs(self, frames: FrameBatch, pair_frames: npt.NDArray[np.intp], first: int) -> None:
         """Requests and their answers, alternating, from a state with nothing open."""

@@ -169,7 +169,7 @@ def test_bulk_settling_changes_nothing() -> None:
         results = []
         for bulk in (True, False):
             matcher = Matcher()
-            matcher._bulk = bulk
+            matcher.bulk = bulk
             messages = [m for batch in batches for m in matcher.feed(batch)] + list(matcher.flush())
             results.append([(m.role, m.flags, m.request_index, m.latency_ns, m.exception_code) for m in messages])
             timeouts = matcher.timeout_ns
