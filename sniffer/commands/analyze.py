@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import os
+from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import replace
+from typing import TextIO
 
 from rich.console import Console
 
@@ -19,7 +21,8 @@ from sniffer.commands.common import (
 )
 from sniffer.decoding_process import decoding_jobs
 from sniffer.filters import parse_filters
-from sniffer.pipeline import MessageView, analyze
+from sniffer.pipeline import analyze
+from sniffer.sinks import Sink
 from sniffer.views.jsonl import JsonlView
 from sniffer.views.table import TableView
 
@@ -35,7 +38,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "the request it answers, length, CRC, flags, decoded summary and bytes.",
     )
     parser.add_argument("capture", help="capture file (.log/.txt text, .mcap native), or - for text on stdin")
-    parser.add_argument("--format", choices=["table", "jsonl"], default="table", help="output format (default: table)")
+    parser.add_argument("--format", choices=list(FORMATS), default="table", help="output format (default: table)")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
     add_force_option(parser)
     parser.add_argument(
@@ -51,6 +54,16 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.set_defaults(run=run)
 
 
+def table_sink(out: TextIO) -> Sink:
+    """The table, as wide as the terminal, or ``FILE_TABLE_WIDTH`` into a file or a pipe."""
+    width = None if out.isatty() or "COLUMNS" in os.environ else FILE_TABLE_WIDTH
+    return TableView(Console(file=out, width=width, highlight=False))
+
+
+#: ``--format`` → the sink writing it to the output; adding a format is a sink plus one line here.
+FORMATS: dict[str, Callable[[TextIO], Sink]] = {"table": table_sink, "jsonl": JsonlView}
+
+
 def run(args: argparse.Namespace) -> int:
     keep = parse_filters(args.filter)
     check_outputs([args.output], [args.capture], force=args.force)
@@ -59,11 +72,6 @@ def run(args: argparse.Namespace) -> int:
         reader, analysis = open_analysis(args, stack)
         if not keep.empty:
             analysis = replace(analysis, keep=keep)
-        view: MessageView
-        if args.format == "jsonl":
-            view = JsonlView(out)
-        else:
-            width = None if out.isatty() or "COLUMNS" in os.environ else FILE_TABLE_WIDTH
-            view = TableView(Console(file=out, width=width, highlight=False))
-        analyze(reader, args.capture, analysis, view, jobs=decoding_jobs(args.jobs))
+        sink = FORMATS[args.format](out)
+        analyze(reader, args.capture, analysis, [sink], jobs=decoding_jobs(args.jobs))
     return 0

@@ -3,34 +3,19 @@
 from __future__ import annotations
 
 import argparse
-import hashlib
 import os
-import shlex
 import shutil
 import sys
-from collections.abc import Iterator
-from contextlib import ExitStack, contextmanager
+from collections.abc import Callable
+from contextlib import ExitStack
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-import numpy as np
-import numpy.typing as npt
-
-from decoders.capture import CaptureInfo, ChunkBatch
-from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch, MessageBatch
-from decoders.stats import Statistics
 from sniffer.commands.common import add_decoding_options, add_jobs_option, check_outputs, human_size, open_analysis
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.exports.pcap_export import PcapExporter
+from sniffer.exports.outputs import McapSink, PcapSink, RerunSink
 from sniffer.pipeline import Analysis, analyze
-from sniffer.views.rows import Rows
-
-if TYPE_CHECKING:
-    from sniffer.exports.mcap_export import McapExporter
-    from sniffer.exports.rerun_export import RerunExporter
-    from sniffer.exports.transactions import TransactionEncoder
+from sniffer.sinks import FileSink
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -65,31 +50,51 @@ def run(args: argparse.Namespace) -> int:
         check_viewer_can_start()
     with ExitStack() as stack:
         reader, analysis = open_analysis(args, stack)
-        view = ExportView(args, analysis)
-        stack.callback(view.close)
-        analyze(
-            reader,
-            args.capture,
-            analysis,
-            view,
-            raw=view.raw,
-            framed=view.framed if args.pcap else None,
-            prepare=view.transactions if args.mcap else None,
-            prepared=view.write_transactions if args.mcap else None,
-            jobs=decoding_jobs(args.jobs),
-        )
-    _tell_written(args, view.frames)
+        sinks = output_sinks(args, analysis, stack)
+        analyze(reader, args.capture, analysis, [sink for _, sink in sinks], jobs=decoding_jobs(args.jobs))
+    _tell_written(args, sinks)
     return 0
 
 
-def _tell_written(args: argparse.Namespace, frames: int) -> None:
+#: The outputs ``export`` offers: option → (what it is called in messages, the sink for a path).
+#: Adding an output is a module with a :class:`sniffer.sinks.Sink` plus one line here; the
+#: order is the order the sinks get each batch in.
+OUTPUTS: list[tuple[str, str, Callable[[str, argparse.Namespace, Analysis], FileSink]]] = [
+    ("mcap", "MCAP", McapSink),
+    ("rrd", "Rerun recording", lambda path, args, analysis: RerunSink(path, rerun_viewer() if args.spawn else None)),
+    ("pcap", "pcap", lambda path, args, analysis: PcapSink(path)),
+]
+
+
+def output_sinks(
+    args: argparse.Namespace, analysis: Analysis, stack: ExitStack
+) -> list[tuple[str, FileSink]]:
+    """The sinks of the outputs asked for, each closed by ``stack`` (the first whose closing
+    fails to write is the error); ``--spawn`` without ``--rrd`` is a Rerun sink without a file."""
+    sinks: list[tuple[str, FileSink]] = []
+    for option, kind, make in OUTPUTS:
+        path = getattr(args, option)
+        if path or (option == "rrd" and args.spawn):
+            sinks.append((kind, make(path, args, analysis)))
+    # Closed last to first: the Rerun recording, then the pcap, then the MCAP, as always.
+    for _, sink in sorted(sinks, key=lambda item: _CLOSE_ORDER.index(item[0])):
+        stack.callback(sink.close)
+    return sinks
+
+
+_CLOSE_ORDER = ["MCAP", "pcap", "Rerun recording"]
+
+
+def _tell_written(args: argparse.Namespace, sinks: list[tuple[str, FileSink]]) -> None:
     """One line per output on standard error: what was written where."""
-    for kind, path in (("MCAP", args.mcap), ("Rerun recording", args.rrd), ("pcap", args.pcap)):
-        if path == "-":
-            print(f"wrote {frames:,} frames as {kind} to standard output", file=sys.stderr)
-        elif path:
-            print(f"wrote {path}: {kind}, {frames:,} frames, {human_size(os.path.getsize(path))}", file=sys.stderr)
+    for kind, sink in sinks:
+        if sink.path == "-":
+            print(f"wrote {sink.frames_written:,} frames as {kind} to standard output", file=sys.stderr)
+        elif sink.path:
+            print(f"wrote {sink.path}: {kind}, {sink.frames_written:,} frames, "
+                  f"{human_size(os.path.getsize(sink.path))}", file=sys.stderr)
     if args.spawn:
+        frames = next(sink.frames_written for kind, sink in sinks if kind == "Rerun recording")
         print(f"sent {frames:,} frames to the Rerun viewer", file=sys.stderr)
 
 
@@ -113,127 +118,3 @@ def rerun_viewer() -> str | None:
     if beside.is_file():
         return str(beside)
     return shutil.which("rerun")
-
-
-class ExportView:
-    """Hands messages and raw chunks to the exporters asked for."""
-
-    def __init__(self, args: argparse.Namespace, analysis: Analysis) -> None:
-        # pcap alone needs no decoding: it is fed whole batches, and annotation is skipped.
-        self.wants_messages = bool(args.mcap or args.rrd or args.spawn)
-        # The exports count their own bus load and errors: the statistics' tables are not written.
-        self.wants_statistics = False
-        self.args = args
-        self.analysis = analysis
-        #: Frames written (to every output: each gets every frame).
-        self.frames = 0
-        self.mcap: McapExporter | None = None
-        self.pcap: PcapExporter | None = None
-        self.rerun: RerunExporter | None = None
-        if args.pcap:
-            with _writing(args.pcap):
-                self.pcap = PcapExporter(args.pcap)
-        #: The MCAP's transactions need no decodings: built where the messages are framed and paired.
-        self._transactions: TransactionEncoder | None = None
-        if args.mcap:
-            # Imported when asked for (the MCAP packages cost every command's start-up 13 ms).
-            from sniffer.exports.mcap_export import transaction_encoder  # noqa: PLC0415
-
-            self._transactions = transaction_encoder()
-
-    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
-        # Exporters that start threads (Rerun's SDK, the MCAP writer's compressor) are made here,
-        # after the decoding process is forked: a fork copies no thread, only the locks they hold.
-        if self.args.rrd or self.args.spawn:
-            # Rerun takes a third of a second to import: only when asked for.
-            from sniffer.exports.rerun_export import RerunExporter  # noqa: PLC0415
-
-            with _writing(self.args.rrd):
-                self.rerun = RerunExporter(self.args.rrd, spawn=rerun_viewer() if self.args.spawn else None)
-        if self.args.mcap:
-            # Imported when asked for, as Rerun is: a pcap export needs neither.
-            from sniffer.exports.mcap_export import McapExporter  # noqa: PLC0415
-
-            with _writing(self.args.mcap):
-                self.mcap = McapExporter(self.args.mcap, info, line, _metadata(self.args, self.analysis))
-
-    def raw(self, chunks: ChunkBatch) -> None:
-        if self.mcap is not None:
-            with _writing(self.args.mcap):
-                self.mcap.raw(chunks)
-
-    def transactions(self, batch: MessageBatch) -> tuple[Rows, npt.NDArray[np.int64]]:
-        """A batch's ``/modbus/transactions`` messages and their times (in the decoding process)."""
-        assert self._transactions is not None, "prepared only for an MCAP export"
-        return self._transactions.rows(batch, np.arange(len(batch)))
-
-    def write_transactions(self, transactions: tuple[Rows, npt.NDArray[np.int64]]) -> None:
-        if self.mcap is not None:
-            with _writing(self.args.mcap):
-                self.mcap.transactions(*transactions)
-
-    def framed(self, batch: MessageBatch) -> None:
-        if not self.wants_messages:
-            self.frames += len(batch)
-        if self.pcap is not None:
-            with _writing(self.args.pcap):
-                self.pcap.batch(batch)
-
-    def messages(self, batch: AnnotatedBatch) -> None:
-        self.frames += len(batch.messages)
-        if self.mcap is not None:
-            with _writing(self.args.mcap):
-                self.mcap.messages(batch)
-        if self.rerun is not None:
-            with _writing(self.args.rrd):
-                self.rerun.messages(batch)
-
-    def finish(self, statistics: Statistics) -> None:
-        pass
-
-    def close(self) -> None:
-        """Closes every output; the first that fails to write is the error."""
-        exporters, self.mcap, self.pcap, self.rerun = (
-            [(self.args.mcap, self.mcap), (self.args.pcap, self.pcap), (self.args.rrd, self.rerun)], None, None, None)
-        with ExitStack() as closing:
-            for path, exporter in exporters:
-                if exporter is not None:
-                    closing.callback(_close, path, exporter)
-
-
-def _close(path: str | None, exporter: McapExporter | PcapExporter | RerunExporter) -> None:
-    with _writing(path):
-        exporter.close()
-
-
-@contextmanager
-def _writing(path: str | None) -> Iterator[None]:
-    """An exporter's write failures (a missing folder, a full disk) as one error naming its file."""
-    try:
-        yield
-    except (OSError, RuntimeError) as exc:  # RuntimeError: how Rerun's SDK reports I/O errors
-        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-        raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot write: {reason}", path=path or "the viewer") from None
-
-
-def _metadata(args: argparse.Namespace, analysis: Analysis) -> dict[str, str]:
-    book = analysis.profiles
-    profiles = "generic" if book is None else ", ".join(
-        [f"default {book.default.id}", *(f"slave {s}: {p.id}" for s, p in sorted(book.per_slave.items()))]
-    )
-    return {
-        "source": args.capture,
-        "source_sha256": _sha256(args.capture),
-        "command": shlex.join(args.command_line),
-        "profiles": profiles,
-    }
-
-
-def _sha256(path: str) -> str:
-    if path == "-":
-        return "(standard input)"
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()

@@ -37,5 +37,5 @@ def run(args: argparse.Namespace) -> int:
         reader, analysis = open_analysis(args, stack)
         width = None if out.isatty() or "COLUMNS" in os.environ else FILE_TABLE_WIDTH
         view = StatsView(out, Console(file=out, width=width, highlight=False), as_json=args.format == "json")
-        analyze(reader, args.capture, analysis, view)
+        analyze(reader, args.capture, analysis, [view])
     return 0

@@ -8,11 +8,12 @@ from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch
 from decoders.stats import Statistics
+from sniffer.sinks import Sink
 from sniffer.views.records import FrameRecordEncoder, capture_record, device_record, encode_record
 from sniffer.views.rows import Rows
 
 
-class JsonlView:
+class JsonlView(Sink):
     """Writes a ``capture`` record, then one ``frame`` record per message."""
 
     def __init__(self, out: TextIO) -> None:

@@ -13,6 +13,7 @@ from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch
 from decoders.modbus.codes import function_name
 from decoders.stats import FunctionStats, Histogram, Statistics
+from sniffer.sinks import Sink
 
 
 def _ms(value_ns: float | None) -> str:
@@ -41,7 +42,7 @@ def _count(value: int, style: str = "red") -> str:
     return f"[{style}]{value}[/]" if value else "0"
 
 
-class StatsView:
+class StatsView(Sink):
     """Keeps nothing per message; prints the statistics at the end."""
 
     def __init__(self, out: TextIO, console: Console, as_json: bool) -> None:

@@ -17,6 +17,7 @@ from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch, Message, Role
 from decoders.stats import Statistics
+from sniffer.sinks import Sink
 
 ROWS_PER_BLOCK = 200
 #: (header, width, justify); the hex column takes the rest of the width.
@@ -49,7 +50,7 @@ def format_clock(t_ns: int) -> str:
     return f"{clock}.{nanos // 1000:06d}"
 
 
-class TableView:
+class TableView(Sink):
     """Prints a heading, the frames in blocks, and a closing count."""
 
     def __init__(self, console: Console) -> None:

@@ -1,0 +1,156 @@
+"""The export outputs as sinks (:mod:`sniffer.sinks`): MCAP, Rerun, pcap.
+
+This module stays light: each sink imports its exporter's library when the export
+starts (MCAP and zstandard cost every command's start-up 13 ms, Rerun a third of a
+second), and exporters that start threads (Rerun's SDK, the MCAP writer's
+compressor) are made in ``start``, after the decoding process is forked: a fork
+copies no thread, only the locks they hold.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import shlex
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from decoders.capture import CaptureInfo, ChunkBatch
+from decoders.line import LineSettings
+from decoders.message import AnnotatedBatch, MessageBatch
+from sniffer.exports.pcap_export import PcapExporter
+from sniffer.pipeline import Analysis
+from sniffer.sinks import FileSink
+from sniffer.views.rows import Rows
+
+if TYPE_CHECKING:
+    from sniffer.exports.mcap_export import McapExporter
+    from sniffer.exports.rerun_export import RerunExporter
+
+
+class McapSink(FileSink):
+    """Decoded MCAP: raw chunks, frames, transactions (prepared where frames are paired),
+    parameter values, a log."""
+
+    wants_chunks = True
+    wants_messages = True
+
+    def __init__(self, path: str, args: argparse.Namespace, analysis: Analysis) -> None:
+        super().__init__(path)
+        self._args, self._analysis = args, analysis
+        self._exporter: McapExporter | None = None
+        from sniffer.exports.mcap_export import transaction_encoder  # noqa: PLC0415 - only for an MCAP export
+
+        encoder = transaction_encoder()
+
+        def transactions(batch: MessageBatch) -> tuple[Rows, npt.NDArray[np.int64]]:
+            """A batch's ``/modbus/transactions`` messages and their times (needs no decodings)."""
+            return encoder.rows(batch, np.arange(len(batch)))
+
+        self.prepare = transactions
+
+    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        from sniffer.exports.mcap_export import McapExporter  # noqa: PLC0415 - only for an MCAP export
+
+        with self.writing():
+            self._exporter = McapExporter(self.path or "", info, line, _metadata(self._args, self._analysis))
+
+    def chunks(self, batch: ChunkBatch) -> None:
+        if self._exporter is not None:
+            with self.writing():
+                self._exporter.raw(batch)
+
+    def messages(self, batch: AnnotatedBatch) -> None:
+        self.frames_written += len(batch.messages)
+        if self._exporter is not None:
+            with self.writing():
+                self._exporter.messages(batch)
+
+    def prepared(self, value: tuple[Rows, npt.NDArray[np.int64]]) -> None:
+        if self._exporter is not None:
+            with self.writing():
+                self._exporter.transactions(*value)
+
+    def close(self) -> None:
+        exporter, self._exporter = self._exporter, None
+        if exporter is not None:
+            with self.writing():
+                exporter.close()
+
+
+class RerunSink(FileSink):
+    """A Rerun recording (``path``) and/or the Rerun viewer (``spawn``: its program)."""
+
+    wants_messages = True
+
+    def __init__(self, path: str | None, spawn: str | None) -> None:
+        super().__init__(path)
+        self._spawn = spawn
+        self._exporter: RerunExporter | None = None
+
+    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        from sniffer.exports.rerun_export import RerunExporter  # noqa: PLC0415 - a third of a second to import
+
+        with self.writing():
+            self._exporter = RerunExporter(self.path, spawn=self._spawn)
+
+    def messages(self, batch: AnnotatedBatch) -> None:
+        self.frames_written += len(batch.messages)
+        if self._exporter is not None:
+            with self.writing():
+                self._exporter.messages(batch)
+
+    def close(self) -> None:
+        exporter, self._exporter = self._exporter, None
+        if exporter is not None:
+            with self.writing():
+                exporter.close()
+
+
+class PcapSink(FileSink):
+    """pcap for Wireshark: it needs no decoding, so it takes the framed batches."""
+
+    wants_frames = True
+
+    def __init__(self, path: str) -> None:
+        super().__init__(path)
+        self._exporter: PcapExporter | None = None
+        with self.writing():
+            self._exporter = PcapExporter(path)
+
+    def frames(self, batch: MessageBatch) -> None:
+        self.frames_written += len(batch)
+        if self._exporter is not None:
+            with self.writing():
+                self._exporter.batch(batch)
+
+    def close(self) -> None:
+        exporter, self._exporter = self._exporter, None
+        if exporter is not None:
+            with self.writing():
+                exporter.close()
+
+
+def _metadata(args: argparse.Namespace, analysis: Analysis) -> dict[str, str]:
+    book = analysis.profiles
+    profiles = "generic" if book is None else ", ".join(
+        [f"default {book.default.id}", *(f"slave {s}: {p.id}" for s, p in sorted(book.per_slave.items()))]
+    )
+    return {
+        "source": args.capture,
+        "source_sha256": _sha256(args.capture),
+        "command": shlex.join(args.command_line),
+        "profiles": profiles,
+    }
+
+
+def _sha256(path: str) -> str:
+    if path == "-":
+        return "(standard input)"
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
