@@ -42,13 +42,13 @@ from decoders.pipeline import Decoder
 from decoders.profiles.apply import ProfileApplier
 from decoders.stats import Statistics
 from sniffer.cli import GC_YOUNG_THRESHOLD
+from sniffer.encoding.records import FrameRecordEncoder
+from sniffer.encoding.rows import join_rows
 from sniffer.exports.mcap_export import CHUNK_SIZE, McapExporter
 from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
 from sniffer.exports.rerun_export import RerunExporter
 from sniffer.io.registry import open_reader
 from sniffer.profiles_io import profile_book
-from sniffer.views.records import FrameRecordEncoder
-from sniffer.views.rows import join_rows
 
 STAGES = ("read, frame, pair, statistics", "+ annotate", "+ JSONL records", "+ annotate, MCAP export",
           "+ annotate, Rerun export")

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from sniffer.views.rows import Column, Integers, Pieces, Rows, Table, column_sizes, join_rows
+from sniffer.encoding.rows import Column, Integers, Pieces, Rows, Table, column_sizes, join_rows
 
 SCHEMA_NAME = "foxglove.Log"
 ENCODING = "protobuf"
@@ -66,7 +66,7 @@ def _number(field: int, value: int) -> bytes:
 class LogEncoder:
     """``foxglove.Log`` messages (file empty, line 0: proto3 leaves them out), a batch at a
     time: one per frame of a capture, so the parts are columns (see
-    :func:`~sniffer.views.rows.join_rows`) and the constant ones are encoded once: seconds,
+    :func:`~sniffer.encoding.rows.join_rows`) and the constant ones are encoded once: seconds,
     names, levels."""
 
     def __init__(self, names: Sequence[str]) -> None:

@@ -16,11 +16,11 @@ Channels (JSON Schema, JSON messages; the schemas are below and in the README):
 Metadata ``rtusniff.export``: line, timing, source file and SHA-256, tool version, command
 line, profiles. Written by :mod:`sniffer.exports.mcap_writer` a block of messages at a time:
 zstd chunks, message indexes, a summary section with its indexes. Each channel's messages of a
-batch are built as columns (:mod:`sniffer.views.rows`) and written as one block; what a decoding
+batch are built as columns (:mod:`sniffer.encoding.rows`) and written as one block; what a decoding
 determines (log text, numeric params, the frame record's fixed parts) is built once per decoding.
 Numbers are spelt for speed, not as ``json.dumps`` spells them: times as the exact decimals of
 their nanoseconds (``"t":1700000000.001997592``), a frame's and a transaction's own fields padded
-with spaces to one width per batch (:mod:`sniffer.views.blocks`).
+with spaces to one width per batch (:mod:`sniffer.encoding.blocks`).
 """
 
 from __future__ import annotations
@@ -38,6 +38,8 @@ from decoders.line import LineSettings
 from decoders.memo import Memo
 from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding
 from decoders.modbus.annotate import KEPT_DECODINGS
+from sniffer.encoding.records import FrameRecordEncoder, encode_json
+from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
 from sniffer.exports import foxglove_log
 from sniffer.exports.levels import FLAG_SUFFIXES, log_levels
 from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
@@ -52,8 +54,6 @@ from sniffer.io.mcap_native import (
     encode_blocks,
     info_metadata,
 )
-from sniffer.views.records import FrameRecordEncoder, encode_json
-from sniffer.views.rows import Column, Integers, Rows, Table, join_rows, number_texts
 
 #: Uncompressed bytes per chunk. The writer keeps every chunk's index entry (with an offset
 #: per channel) until it writes the summary: 4 MiB chunks keep that to ~0.5 MB a million frames,

@@ -2,7 +2,7 @@
 
 The ``mcap`` package's writer and foxglove-sdk's both take one message per call: at three or
 four messages per frame, those calls alone cost more than everything else an export does per
-frame. Here a block of messages is one :class:`~sniffer.views.rows.Rows` (payloads laid end to
+frame. Here a block of messages is one :class:`~sniffer.encoding.rows.Rows` (payloads laid end to
 end, each after a reserved slot for its record header) with a channel id and a log time per
 message; numpy fills in all the record headers at once, and the rows are already the chunk's
 bytes. Compression, CRCs and file writes run on one worker thread (zstd and zlib release the
@@ -44,7 +44,7 @@ from mcap.records import (
     SummaryOffset,
 )
 
-from sniffer.views.rows import Rows
+from sniffer.encoding.rows import Rows
 
 MAGIC = b"\x89MCAP0\r\n"
 #: opcode, record length, channel id, sequence, log time, publish time: before every payload.

@@ -20,10 +20,10 @@ import numpy.typing as npt
 from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch, MessageBatch
+from sniffer.encoding.rows import Rows
 from sniffer.exports.pcap_export import PcapExporter
 from sniffer.pipeline import Analysis
 from sniffer.sinks import FileSink
-from sniffer.views.rows import Rows
 
 if TYPE_CHECKING:
     from sniffer.exports.mcap_export import McapExporter

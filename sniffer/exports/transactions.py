@@ -15,15 +15,15 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
-from sniffer.exports.levels import TIMEOUT
-from sniffer.views.blocks import Block
-from sniffer.views.rows import (
+from sniffer.encoding.blocks import Block
+from sniffer.encoding.rows import (
     Integers,
     Pieces,
     Rows,
     hex_texts,
     join_rows,
 )
+from sniffer.exports.levels import TIMEOUT
 
 #: Open requests kept for their answers: older ones are forgotten (their answers never came).
 KEPT_REQUESTS = 4096
@@ -36,7 +36,7 @@ class TransactionEncoder:
     """``/modbus/transactions`` messages from batches of annotated messages."""
 
     def __init__(self, reserved: int = 0) -> None:
-        """``reserved``: bytes before each message, see :func:`~sniffer.views.rows.join_rows`."""
+        """``reserved``: bytes before each message, see :func:`~sniffer.encoding.rows.join_rows`."""
         self._reserved = reserved
         #: Open requests' hex by frame index, oldest first.
         self._requests: OrderedDict[int, bytes] = OrderedDict()

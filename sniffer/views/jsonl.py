@@ -8,9 +8,9 @@ from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch
 from decoders.stats import Statistics
+from sniffer.encoding.records import FrameRecordEncoder, capture_record, device_record, encode_record
+from sniffer.encoding.rows import Rows
 from sniffer.sinks import Sink
-from sniffer.views.records import FrameRecordEncoder, capture_record, device_record, encode_record
-from sniffer.views.rows import Rows
 
 
 class JsonlView(Sink):

@@ -32,8 +32,8 @@ with atheris.instrument_imports():
     from decoders.modbus.annotate import Annotator
     from decoders.modbus.matcher import Matcher
     from decoders.profiles.apply import ProfileApplier
+    from sniffer.encoding.records import FrameRecordEncoder, frame_record
     from sniffer.profiles_io import profile_book
-    from sniffer.views.records import FrameRecordEncoder, frame_record
 
 # After the instrumented imports: hypothesis and pytest need no coverage counters.
 from tests.property.test_reader_fuzz import read_all

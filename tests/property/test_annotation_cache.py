@@ -25,8 +25,8 @@ from decoders.message import AnnotatedBatch, Decoding, MessageBatch, ParamValue
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.profiles.apply import ProfileApplier
+from sniffer.encoding.records import FrameRecordEncoder, encode_record, frame_record
 from sniffer.profiles_io import profile_book
-from sniffer.views.records import FrameRecordEncoder, encode_record, frame_record
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 SLAVES = st.sampled_from([1, 2, 7])

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sniffer.views.blocks import Block, times_matrix
+from sniffer.encoding.blocks import Block, times_matrix
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 INT64 = st.integers(-(2**63), 2**63 - 1)

@@ -11,8 +11,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
+from sniffer.encoding.rows import Pieces, hex_texts, join_rows, number_texts, or_null
 from sniffer.exports.foxglove_log import LogEncoder, _varint, varint_pieces
-from sniffer.views.rows import Pieces, hex_texts, join_rows, number_texts, or_null
 
 NONE = -1
 pieces = st.binary(max_size=12)

@@ -12,8 +12,8 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, MessageIndex
 from mcap.stream_reader import StreamReader
 
+from sniffer.encoding.rows import join_rows
 from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
-from sniffer.views.rows import join_rows
 
 
 def _block(payloads: list[bytes], channels: list[int], times: list[int]) -> MessageBlock:

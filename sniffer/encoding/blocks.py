@@ -1,6 +1,6 @@
 """Rows of one width, laid out by numpy: the per-frame fields of a JSON message in one matrix.
 
-:mod:`sniffer.views.rows` joins columns of pieces with one list operation per column; a
+:mod:`sniffer.encoding.rows` joins columns of pieces with one list operation per column; a
 message with a dozen small fields (an index, four times, flags, a pairing, a latency) still
 costs a dozen list operations per row. Where no one compares bytes with ``json.dumps`` (MCAP
 messages), those fields can instead sit at fixed places in a byte matrix, each right-aligned in
@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
-from sniffer.views.rows import Integers, Pieces
+from sniffer.encoding.rows import Integers, Pieces
 
 #: Writes a field into its columns of the matrix (rows × the field's width).
 _Writer = Callable[[npt.NDArray[np.uint8]], None]

@@ -24,8 +24,8 @@ from decoders.message import (
     ParamValue,
 )
 from decoders.modbus.annotate import KEPT_DECODINGS
-from sniffer.views.blocks import Block, times_matrix
-from sniffer.views.rows import (
+from sniffer.encoding.blocks import Block, times_matrix
+from sniffer.encoding.rows import (
     Column,
     Rows,
     Table,
@@ -107,7 +107,7 @@ class FrameRecordEncoder:
     summary, remarks) is encoded once per :class:`Decoding` (the annotator shares one
     between repeats); times, flags and pairing are columns of the batch, each formatted by
     one ``repr`` (which is how ``json.dumps`` writes floats), and the columns are joined into
-    records by :func:`~sniffer.views.rows.join_rows`.
+    records by :func:`~sniffer.encoding.rows.join_rows`.
     """
 
     def __init__(self, *, exact: bool = True) -> None:
@@ -123,7 +123,7 @@ class FrameRecordEncoder:
 
     def rows(self, batch: AnnotatedBatch, *, reserved: int = 0, end: bytes = b"") -> Rows:
         """The kept messages' frame records, each followed by ``end`` (and preceded by
-        ``reserved`` bytes, see :func:`~sniffer.views.rows.join_rows`)."""
+        ``reserved`` bytes, see :func:`~sniffer.encoding.rows.join_rows`)."""
         if not self._exact:
             return self._block_rows(batch, reserved, end)
         messages, frames = batch.messages, batch.messages.frames
@@ -145,7 +145,7 @@ class FrameRecordEncoder:
 
     def _block_rows(self, batch: AnnotatedBatch, reserved: int, end: bytes) -> Rows:
         """Not exact: what a frame's own columns say (index, times, flags, pairing, latency)
-        first, laid out as one :class:`~sniffer.views.blocks.Block`, then the decoding's part
+        first, laid out as one :class:`~sniffer.encoding.blocks.Block`, then the decoding's part
         in one piece."""
         messages, frames = batch.messages, batch.messages.frames
         positions = batch.positions()
