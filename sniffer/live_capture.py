@@ -24,13 +24,13 @@ from rich.live import Live
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from decoders.message import MessageBatch
-from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
-from decoders.profiles.apply import ProfileApplier, ProfileBook
-from decoders.stats import Statistics
+from decoders.profiles.apply import ProfileBook
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.pipeline import Delivery
 from sniffer.recorder import Recorder, Rotation
 from sniffer.serial_source import ICOUNT_FIELDS, PortGoneError, PortStatus, SerialSource
+from sniffer.sinks import Sink
 from sniffer.views.jsonl import JsonlView
 from sniffer.views.live import LiveState, LiveView
 
@@ -171,29 +171,27 @@ class _Session:
                  shared: _Shared, out: TextIO) -> None:
         self.options, self.recorder, self.shared = options, recorder, shared
         self.decoder = Decoder(options.line, TimingQuality.HOST, response_timeout_ns=options.response_timeout_ns)
-        applier = ProfileApplier(options.profiles) if options.profiles is not None else None
-        self.annotator = Annotator(applier)
-        self.statistics = Statistics()
-        self.jsonl = JsonlView(out) if options.mode == "jsonl" else None
         self.state = LiveState(options.port, options.line.format(), options.output,
                                "timing host (times are when the PC read the bytes)", advice=status.advice())
         self.view = LiveView(self.state) if options.mode == "view" else None
+        sinks: list[Sink] = [JsonlView(out)] if options.mode == "jsonl" else [self.view] if self.view else []
+        self.delivery = Delivery(sinks, options.profiles)
         self.out = out
         self._counters: dict[str, int] | None = None
 
     def run(self, source: SerialSource) -> None:
-        if self.jsonl is not None:
-            self.jsonl.start(self.options.port, CaptureInfo(self.options.line, TimingQuality.HOST), self.options.line)
+        self.delivery.start(self.options.port, CaptureInfo(self.options.line, TimingQuality.HOST), self.options.line)
         deadline = None if self.options.duration_s is None else time.monotonic() + self.options.duration_s
         next_counters = 0.0
         render: Callable[[], None] = lambda: None  # noqa: E731
         live = None
         if self.view is not None:
-            live = Live(self.view.render(self.statistics), console=Console(file=self.out), refresh_per_second=4,
+            statistics = self.delivery.statistics
+            live = Live(self.view.render(statistics), console=Console(file=self.out), refresh_per_second=4,
                         transient=False)
             live.start()
             view = self.view
-            render = lambda: live.update(view.render(self.statistics))  # noqa: E731
+            render = lambda: live.update(view.render(statistics))  # noqa: E731
         try:
             while not self.shared.stop.is_set():
                 self._drain(source)
@@ -230,13 +228,9 @@ class _Session:
 
     def _deliver(self, batches: list[MessageBatch]) -> None:
         for batch in batches:
-            self.statistics.add_batch(batch)
-            annotated = self.annotator.annotate_batch(batch)
-            if self.jsonl is not None:
-                self.jsonl.messages(annotated)
-                self.out.flush()
-            if self.view is not None:
-                self.view.add(list(annotated))
+            self.delivery.batch(batch)
+            if self.options.mode == "jsonl":
+                self.out.flush()  # a script reading the pipe sees each frame at once
 
     def _check_counters(self, source: SerialSource) -> None:
         counters = source.counters()
@@ -256,8 +250,7 @@ class _Session:
         if self.options.mode == "quiet":
             return
         self._deliver(self.decoder.flush())
-        if self.jsonl is not None:
-            self.jsonl.finish(self.statistics)
+        self.delivery.finish()
 
 
 def _report(code: int, options: CaptureOptions, recorder: Recorder | None, shared: _Shared, err: Console) -> int:

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from decoders.capture import CaptureInfo, TimingQuality
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from decoders.message import MessageBatch
 from decoders.modbus.annotate import Annotator
@@ -63,9 +63,9 @@ def analyze(
     process (:mod:`sniffer.decoding_process`), forked before any sink starts; the output is the same."""
     decoder = Decoder(analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns)
     info = replace(reader.info, timing=analysis.timing)
-    preparing = [sink for sink in sinks if sink.prepare is not None]
-    prepare = _each_prepare(preparing) if preparing else None
-    run = partial(_run, source=source, info=info, analysis=analysis, sinks=sinks, preparing=preparing)
+    delivery = Delivery(sinks, analysis.profiles, analysis.keep)
+    prepare = _each_prepare(delivery.preparing) if delivery.preparing else None
+    run = partial(_run, source=source, info=info, analysis=analysis, delivery=delivery)
     if jobs == 1:
         return run(decode_here(reader, decoder, prepare))
     with_chunks = any(sink.wants_chunks for sink in sinks)
@@ -79,50 +79,71 @@ def _each_prepare(preparing: list[Sink]) -> Callable[[MessageBatch], tuple[Any, 
     return lambda batch: tuple(stage(batch) for stage in stages)
 
 
+class Delivery:
+    """Hands decoded batches to sinks, each what it wants, in the order of the list: the
+    statistics (counted when a sink wants them), the framed batch, the annotated batch
+    (annotated only when a sink wants messages; filtered by ``keep``), what each sink's
+    ``prepare`` made of it. One core for offline analysis (:func:`analyze`) and live capture."""
+
+    def __init__(self, sinks: Sequence[Sink], profiles: ProfileBook | None = None,
+                 keep: Callable[[MessageBatch], npt.NDArray[np.bool_]] | None = None) -> None:
+        self.sinks = list(sinks)
+        self.preparing = [sink for sink in sinks if sink.prepare is not None]
+        self._chunk_sinks = [sink for sink in sinks if sink.wants_chunks]
+        self._frame_sinks = [sink for sink in sinks if sink.wants_frames]
+        self._message_sinks = [sink for sink in sinks if sink.wants_messages]
+        self._counts = any(sink.wants_statistics for sink in sinks)
+        applier = ProfileApplier(profiles) if profiles is not None else None
+        self._annotator = Annotator(applier) if self._message_sinks else None
+        self._keep = keep
+        self.statistics = Statistics()
+        #: Bytes of every frame and noise record delivered.
+        self.framed_bytes = 0
+
+    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        for sink in self.sinks:
+            sink.start(source, info, line)
+
+    def chunks(self, chunks: ChunkBatch) -> None:
+        for sink in self._chunk_sinks:
+            sink.chunks(chunks)
+
+    def batch(self, batch: MessageBatch, prepared: tuple[Any, ...] = ()) -> None:
+        self.framed_bytes += len(batch.frames.data)
+        if self._counts:
+            self.statistics.add_batch(batch)
+        for sink in self._frame_sinks:
+            sink.frames(batch)
+        if self._annotator is not None:
+            annotated = self._annotator.annotate_batch(batch)
+            kept = annotated if self._keep is None else annotated.select(self._keep(batch))
+            for sink in self._message_sinks:
+                sink.messages(kept)
+        for sink, value in zip(self.preparing, prepared, strict=True):
+            sink.prepared(value)
+
+    def finish(self) -> Statistics:
+        for sink in self.sinks:
+            sink.finish(self.statistics)
+        return self.statistics
+
+
 def _run(
     steps: Iterable[DecodingStep[tuple[Any, ...]]],
     *,
     source: str,
     info: CaptureInfo,
     analysis: Analysis,
-    sinks: Sequence[Sink],
-    preparing: list[Sink],
+    delivery: Delivery,
 ) -> Statistics:
-    applier = ProfileApplier(analysis.profiles) if analysis.profiles is not None else None
-    chunk_sinks = [sink for sink in sinks if sink.wants_chunks]
-    frame_sinks = [sink for sink in sinks if sink.wants_frames]
-    message_sinks = [sink for sink in sinks if sink.wants_messages]
-    counts = any(sink.wants_statistics for sink in sinks)
-    annotator = Annotator(applier) if message_sinks else None
-    statistics = Statistics()
-    framed_bytes = 0
-    for sink in sinks:
-        sink.start(source, info, analysis.line)
-
-    def deliver(step: DecodingStep[tuple[Any, ...]]) -> None:
-        nonlocal framed_bytes
-        for position, batch in enumerate(step.batches):
-            framed_bytes += len(batch.frames.data)
-            if counts:
-                statistics.add_batch(batch)
-            for sink in frame_sinks:
-                sink.frames(batch)
-            if annotator is not None:
-                annotated = annotator.annotate_batch(batch)
-                kept = annotated if analysis.keep is None else annotated.select(analysis.keep(batch))
-                for sink in message_sinks:
-                    sink.messages(kept)
-            for sink, value in zip(preparing, step.prepared[position] if preparing else (), strict=True):
-                sink.prepared(value)
-
+    delivery.start(source, info, analysis.line)
     for step in steps:
         if step.chunks is not None:
-            for sink in chunk_sinks:
-                sink.chunks(step.chunks)
-        deliver(step)
-    for sink in sinks:
-        sink.finish(statistics)
-    if framed_bytes == 0:
+            delivery.chunks(step.chunks)
+        for position, batch in enumerate(step.batches):
+            delivery.batch(batch, step.prepared[position] if delivery.preparing else ())
+    statistics = delivery.finish()
+    if delivery.framed_bytes == 0:
         # Scripts must not take an empty recording (a quiet line, a wrong port) for a healthy bus.
         raise RtuSniffError(ErrorKind.NO_DATA, "the capture holds no bytes, only its header", path=source)
     return statistics

@@ -10,8 +10,9 @@ from rich.console import Group, RenderableType
 from rich.table import Table
 from rich.text import Text
 
-from decoders.message import Message
+from decoders.message import AnnotatedBatch, Message
 from decoders.stats import Histogram, Statistics
+from sniffer.sinks import Sink
 from sniffer.views.table import ROLE_STYLES, format_clock
 
 RECENT_FRAMES = 15
@@ -32,12 +33,18 @@ class LiveState:
     started: float = field(default_factory=time.monotonic)
 
 
-class LiveView:
+class LiveView(Sink):
     """Keeps the last frames and renders the status, per-slave counters and recent frames."""
 
     def __init__(self, state: LiveState) -> None:
         self.state = state
         self._recent: deque[Message] = deque(maxlen=RECENT_FRAMES)
+
+    wants_messages = True
+    wants_statistics = True
+
+    def messages(self, batch: AnnotatedBatch) -> None:
+        self.add(list(batch))
 
     def add(self, messages: list[Message]) -> None:
         self._recent.extend(messages)
