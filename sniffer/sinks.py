@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import Any, Generic, Protocol, TypeVar
 
 from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
@@ -68,14 +68,29 @@ class Sink:
         """Release what the sink holds; called once, after ``finish`` or after a failure."""
 
 
-class FileSink(Sink):
-    """A sink writing one file (``-``: standard output): its write failures are one error
-    naming the file (exit 11), never a traceback."""
+class Closable(Protocol):
+    def close(self) -> None: ...
+
+
+Exporter = TypeVar("Exporter", bound=Closable)
+
+
+class FileSink(Sink, Generic[Exporter]):
+    """A sink writing one file (``-``: standard output) through an exporter: its write
+    failures are one error naming the file (exit 11), never a traceback."""
 
     def __init__(self, path: str | None) -> None:
         self.path = path
         #: Frames written (each output gets every frame).
         self.frames_written = 0
+        #: What writes the file, once opened.
+        self.exporter: Exporter | None = None
+
+    def close(self) -> None:
+        exporter, self.exporter = self.exporter, None
+        if exporter is not None:
+            with self.writing():
+                exporter.close()
 
     @contextmanager
     def writing(self) -> Iterator[None]:

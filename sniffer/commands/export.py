@@ -9,6 +9,7 @@ import sys
 from collections.abc import Callable
 from contextlib import ExitStack
 from pathlib import Path
+from typing import Any
 
 from sniffer.commands.common import add_decoding_options, add_jobs_option, check_outputs, human_size, open_analysis
 from sniffer.decoding_process import decoding_jobs
@@ -59,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
 #: The outputs ``export`` offers: option → (what it is called in messages, the sink for a path).
 #: Adding an output is a module with a :class:`sniffer.sinks.Sink` plus one line here; the
 #: order is the order the sinks get each batch in.
-OUTPUTS: list[tuple[str, str, Callable[[str, argparse.Namespace, Analysis], FileSink]]] = [
+OUTPUTS: list[tuple[str, str, Callable[[str, argparse.Namespace, Analysis], FileSink[Any]]]] = [
     ("mcap", "MCAP", McapSink),
     ("rrd", "Rerun recording", lambda path, args, analysis: RerunSink(path, rerun_viewer() if args.spawn else None)),
     ("pcap", "pcap", lambda path, args, analysis: PcapSink(path)),
@@ -68,10 +69,10 @@ OUTPUTS: list[tuple[str, str, Callable[[str, argparse.Namespace, Analysis], File
 
 def output_sinks(
     args: argparse.Namespace, analysis: Analysis, stack: ExitStack
-) -> list[tuple[str, FileSink]]:
+) -> list[tuple[str, FileSink[Any]]]:
     """The sinks of the outputs asked for, each closed by ``stack`` (the first whose closing
     fails to write is the error); ``--spawn`` without ``--rrd`` is a Rerun sink without a file."""
-    sinks: list[tuple[str, FileSink]] = []
+    sinks: list[tuple[str, FileSink[Any]]] = []
     for option, kind, make in OUTPUTS:
         path = getattr(args, option)
         if path or (option == "rrd" and args.spawn):
@@ -85,7 +86,7 @@ def output_sinks(
 _CLOSE_ORDER = ["MCAP", "pcap", "Rerun recording"]
 
 
-def _tell_written(args: argparse.Namespace, sinks: list[tuple[str, FileSink]]) -> None:
+def _tell_written(args: argparse.Namespace, sinks: list[tuple[str, FileSink[Any]]]) -> None:
     """One line per output on standard error: what was written where."""
     for kind, sink in sinks:
         if sink.path == "-":

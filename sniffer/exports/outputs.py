@@ -26,11 +26,11 @@ from sniffer.pipeline import Analysis
 from sniffer.sinks import FileSink
 
 if TYPE_CHECKING:
-    from sniffer.exports.mcap_export import McapExporter
-    from sniffer.exports.rerun_export import RerunExporter
+    from sniffer.exports.mcap_export import McapExporter  # noqa: F401 - named in a string (imported when used)
+    from sniffer.exports.rerun_export import RerunExporter  # noqa: F401 - named in a string (imported when used)
 
 
-class McapSink(FileSink):
+class McapSink(FileSink["McapExporter"]):
     """Decoded MCAP: raw chunks, frames, transactions (prepared where frames are paired),
     parameter values, a log."""
 
@@ -40,7 +40,6 @@ class McapSink(FileSink):
     def __init__(self, path: str, args: argparse.Namespace, analysis: Analysis) -> None:
         super().__init__(path)
         self._args, self._analysis = args, analysis
-        self._exporter: McapExporter | None = None
         from sniffer.exports.mcap_export import transaction_encoder  # noqa: PLC0415 - only for an MCAP export
 
         encoder = transaction_encoder()
@@ -55,32 +54,26 @@ class McapSink(FileSink):
         from sniffer.exports.mcap_export import McapExporter  # noqa: PLC0415 - only for an MCAP export
 
         with self.writing():
-            self._exporter = McapExporter(self.path or "", info, line, _metadata(self._args, self._analysis))
+            self.exporter = McapExporter(self.path or "", info, line, _metadata(self._args, self._analysis))
 
     def chunks(self, batch: ChunkBatch) -> None:
-        if self._exporter is not None:
+        if self.exporter is not None:
             with self.writing():
-                self._exporter.raw(batch)
+                self.exporter.raw(batch)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         self.frames_written += len(batch.messages)
-        if self._exporter is not None:
+        if self.exporter is not None:
             with self.writing():
-                self._exporter.messages(batch)
+                self.exporter.messages(batch)
 
     def prepared(self, value: tuple[Rows, npt.NDArray[np.int64]]) -> None:
-        if self._exporter is not None:
+        if self.exporter is not None:
             with self.writing():
-                self._exporter.transactions(*value)
-
-    def close(self) -> None:
-        exporter, self._exporter = self._exporter, None
-        if exporter is not None:
-            with self.writing():
-                exporter.close()
+                self.exporter.transactions(*value)
 
 
-class RerunSink(FileSink):
+class RerunSink(FileSink["RerunExporter"]):
     """A Rerun recording (``path``) and/or the Rerun viewer (``spawn``: its program)."""
 
     wants_messages = True
@@ -88,49 +81,35 @@ class RerunSink(FileSink):
     def __init__(self, path: str | None, spawn: str | None) -> None:
         super().__init__(path)
         self._spawn = spawn
-        self._exporter: RerunExporter | None = None
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         from sniffer.exports.rerun_export import RerunExporter  # noqa: PLC0415 - a third of a second to import
 
         with self.writing():
-            self._exporter = RerunExporter(self.path, spawn=self._spawn)
+            self.exporter = RerunExporter(self.path, spawn=self._spawn)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         self.frames_written += len(batch.messages)
-        if self._exporter is not None:
+        if self.exporter is not None:
             with self.writing():
-                self._exporter.messages(batch)
-
-    def close(self) -> None:
-        exporter, self._exporter = self._exporter, None
-        if exporter is not None:
-            with self.writing():
-                exporter.close()
+                self.exporter.messages(batch)
 
 
-class PcapSink(FileSink):
+class PcapSink(FileSink[PcapExporter]):
     """pcap for Wireshark: it needs no decoding, so it takes the framed batches."""
 
     wants_frames = True
 
     def __init__(self, path: str) -> None:
         super().__init__(path)
-        self._exporter: PcapExporter | None = None
         with self.writing():
-            self._exporter = PcapExporter(path)
+            self.exporter = PcapExporter(path)
 
     def frames(self, batch: MessageBatch) -> None:
         self.frames_written += len(batch)
-        if self._exporter is not None:
+        if self.exporter is not None:
             with self.writing():
-                self._exporter.batch(batch)
-
-    def close(self) -> None:
-        exporter, self._exporter = self._exporter, None
-        if exporter is not None:
-            with self.writing():
-                exporter.close()
+                self.exporter.batch(batch)
 
 
 def _metadata(args: argparse.Namespace, analysis: Analysis) -> dict[str, str]:
