@@ -71,3 +71,41 @@ def test_huge_gap_is_analysed_not_refused(cli: Cli, tmp_path: Path) -> None:
     assert "timeout" in frames[0]["flags"] and "unexpected" in frames[1]["flags"]
     assert records[-1]["duration_s"] == pytest.approx(31536000, abs=1)
 
+
+
+def _every_readable_format() -> list[str]:
+    from sniffer.io.registry import formats_for
+
+    return sorted(formats_for("read"))
+
+
+@pytest.mark.parametrize("name", _every_readable_format())
+@pytest.mark.parametrize("damage", ["empty", "cut in half", "garbage after the first bytes"])
+def test_every_format_refuses_a_broken_file_in_one_line(cli: Cli, tmp_path: Path, name: str, damage: str) -> None:
+    """Whatever format is registered: a broken file of it is one error line naming the file,
+    with a documented exit code, never a traceback (a file cut short may still read: a
+    recording cut short is data)."""
+    from sniffer.io.registry import all_formats, open_reader, open_writer
+    from tests.conftest import SAMPLE_LOG
+
+    fmt = all_formats()[name]
+    whole = tmp_path / f"whole{fmt.suffixes[0]}"
+    reader = open_reader(str(SAMPLE_LOG))
+    if fmt.open_writer is not None:
+        writer = open_writer(str(whole), reader.info, name)
+        for batch in reader.batches():
+            writer.write_batch(batch)
+        writer.close()
+    reader.close()
+    original = whole.read_bytes() if whole.exists() else b""
+    broken = {"empty": b"", "cut in half": original[: len(original) // 2],
+              "garbage after the first bytes": original[:20] + bytes(range(256)) * 4}[damage]
+    path = tmp_path / f"broken{fmt.suffixes[0]}"
+    path.write_bytes(broken)
+    result = cli("analyze", str(path), "--format", "jsonl", "-o", str(tmp_path / "out.jsonl"))
+    error_lines = [line for line in result.err.splitlines() if line.startswith("error: ")]
+    assert "Traceback" not in result.err
+    if damage == "cut in half" and result.code == 0:
+        return
+    assert result.code in (5, 6, 7, 8, 9, 14), result.err
+    assert len(error_lines) == 1 and str(path) in error_lines[0], result.err
