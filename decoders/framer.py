@@ -32,7 +32,7 @@ from decoders.capture import ChunkBatch, Int64Array, TimingQuality
 from decoders.crc import crc_ok_many
 from decoders.frame import NO_IDLE, FrameBatch, FrameFlag
 from decoders.framing.best_parse import Pieces, clean_frame_end, parse_segment
-from decoders.framing.content import OpenRequest, after_frame
+from decoders.framing.content import OpenRequest, replayed_open_request
 from decoders.framing.delivery import DeliveryDelay
 from decoders.framing.fast import single_frame_segments
 from decoders.framing.programme import Context
@@ -46,11 +46,6 @@ HOST_GAP_NS = 3_000_000_000
 #: Live capture through rtusniff's own reader: quiet this long means the line is idle
 #: (above a USB adapter's 16 ms latency timer and the host's jitter).
 LIVE_IDLE_NS = 100_000_000
-
-
-#: How many frames back the open request is replayed from before a segment that the
-#: content parser handles (only a run of echo frames longer than this could mislead it).
-REPLAY_FRAMES = 4
 
 
 class Framer:
@@ -144,32 +139,21 @@ class Framer:
         for index in slow:
             if index > 0:
                 self._at_capture_start = False  # whole frames came before it
-            self._open_request = self._replay(data, seg_starts, seg_ends, done, index)
+            self._open_request = replayed_open_request(data, (seg_starts, seg_ends), range(done, index),
+                                                       self._open_request)
             parsed.append(self._parse(data, starts, ends, int(seg_starts[index]), int(seg_ends[index]), closed=True))
             done = index + 1
-        self._open_request = self._replay(data, seg_starts, seg_ends, done, count)
+        self._open_request = replayed_open_request(data, (seg_starts, seg_ends), range(done, count),
+                                                   self._open_request)
         if count:
             self._at_capture_start = False
         whole = Pieces.frames(seg_starts[single], seg_ends[single])
         return Pieces.join([whole, *parsed]).in_order() if parsed else whole
 
-    def _replay(self, data: bytes, seg_starts: Int64Array, seg_ends: Int64Array, begin: int, stop: int) -> OpenRequest:
-        """The open request after the whole-frame segments ``begin..stop-1``."""
-        first = max(begin, stop - REPLAY_FRAMES)
-        state = self._open_request if first == begin else None
-        for k in range(first, stop):
-            state = after_frame(data[int(seg_starts[k]) : int(seg_ends[k])], state)
-        return state
-
     def _parse(
         self, data: bytes, starts: Int64Array, ends: Int64Array, begin: int, stop: int, *, closed: bool,
         at_end: bool = False,
     ) -> Pieces:
-        if closed and clean_frame_end(data[begin:stop], 0, stop - begin) == stop - begin:
-            # Timing and CRC agree on one frame (a frame ending in 0x00 comes here).
-            self._at_capture_start = False
-            self._open_request = after_frame(data[begin:stop], self._open_request)
-            return Pieces.frames(np.array([begin], np.int64), np.array([stop], np.int64))
         pauses: tuple[int, ...] = ()
         if self.timing is TimingQuality.EXACT and stop - begin > 1:
             silences = starts[begin + 1 : stop] - ends[begin : stop - 1]

@@ -45,7 +45,7 @@ from fastcrc import crc16
 from decoders.capture import Int64Array
 from decoders.frame import FrameFlag
 from decoders.framing import evidence as ev
-from decoders.framing.content import OpenRequest, after_frame
+from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, replayed_open_request
 from decoders.framing.fast import clean_frame_ends
 from decoders.framing.programme import MAX_EDGE, Context, Piece, Region, best_pieces
 from decoders.modbus.layouts import MAX_ADU
@@ -161,12 +161,12 @@ def _between_anchors(
     since = 0  # anchors since the open request was last known: replayed only where needed
     for index in [k for k in range(len(starts)) if starts[k] > previous_ends[k]]:
         position = previous_ends[index]
-        open_request = _replayed(data, anchors, range(since, index), open_request)
+        open_request = replayed_open_request(data, anchors, range(since, index), open_request)
         region = Region(data, position, starts[index], context, search, after_frame=position > 0, before_frame=True)
         gap = best_pieces(region, open_request)
         pieces.extend(gap.pieces)
         open_request, since = gap.open_request, index
-    return pieces, _replayed(data, anchors, range(since, len(starts)), open_request)
+    return pieces, replayed_open_request(data, anchors, range(since, len(starts)), open_request)
 
 
 def _windows(
@@ -187,7 +187,7 @@ def _windows(
 
 def clean_frame_end(data: bytes, start: int, stop: int) -> int:
     """End of the clean frame starting at ``start`` (within ``stop``), or 0."""
-    if stop - start < ev.MIN_ADU or not 0 < data[start] <= ev.MAX_SLAVE_ADDRESS:
+    if stop - start < MIN_ADU or not 0 < data[start] <= MAX_ADDRESS:
         return 0
     found = 0
     for fixed, position, base in ev.CLEAN_RULES[data[start + 1]]:
@@ -202,23 +202,6 @@ def clean_frame_end(data: bytes, start: int, stop: int) -> int:
                 return 0  # both directions pass the CRC (a frame ending in 0x00): the programme decides
             found = start + length
     return found
-
-
-#: How many frames back the open request is replayed from (only a run of echo frames
-#: longer than this could make it differ from replaying them all).
-REPLAY_FRAMES = 4
-
-
-def _replayed(
-    data: bytes, frames: tuple[list[int], list[int]], which: range, open_request: OpenRequest
-) -> OpenRequest:
-    """The open request after the whole frames ``which`` (by index into ``frames``: starts, stops)."""
-    starts, stops = frames
-    if len(which) > REPLAY_FRAMES:
-        which, open_request = which[-REPLAY_FRAMES:], None
-    for k in which:
-        open_request = after_frame(data[starts[k] : stops[k]], open_request)
-    return open_request
 
 
 #: Below this many bytes, clean frames are found by a scalar loop (numpy's fixed cost is higher).

@@ -7,6 +7,11 @@ Shared by the best parse (:mod:`decoders.framing.best_parse`), its evidence
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
 from decoders.modbus.codes import EXCEPTION_BIT
 from decoders.modbus.layouts import LAYOUTS, exception_length
 
@@ -48,3 +53,21 @@ def after_frame(frame: bytes, open_request: OpenRequest) -> OpenRequest:
     return (slave, function)
 
 
+#: Frame starts or stops: a list, or a column.
+Positions = Sequence[int] | npt.NDArray[np.int64]
+#: How many frames back the open request is replayed from (only a run of echo frames
+#: longer than this could make it differ from replaying them all).
+REPLAY_FRAMES = 4
+
+
+def replayed_open_request(
+    data: bytes, frames: tuple[Positions, Positions], which: range, open_request: OpenRequest
+) -> OpenRequest:
+    """The open request after the whole frames ``which`` (indexes into ``frames``: their
+    starts and stops in ``data``), from ``open_request`` before them."""
+    starts, stops = frames
+    if len(which) > REPLAY_FRAMES:
+        which, open_request = which[-REPLAY_FRAMES:], None
+    for k in which:
+        open_request = after_frame(data[int(starts[k]) : int(stops[k])], open_request)
+    return open_request

@@ -57,8 +57,8 @@ from fastcrc import crc16
 
 from decoders.crc import crc_ok_spans, prefix_registers
 from decoders.frame import MODBUS, USS, FrameFlag
-from decoders.framing.content import OpenRequest, rule_lengths
-from decoders.modbus.codes import EXCEPTION_BIT, FUNCTION_NAMES, USER_DEFINED_FUNCTIONS
+from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, rule_lengths
+from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT, FUNCTION_NAMES, USER_DEFINED_FUNCTIONS
 from decoders.modbus.layouts import LAYOUTS, MAX_ADU
 from decoders.uss import STX, uss_length
 
@@ -78,18 +78,14 @@ DAMAGED = -10.0
 DAMAGED_FITS_RULE = 4.0
 USS_MATCH = 12.0
 
-MIN_ADU = 4
-MAX_SLAVE_ADDRESS = 247
 #: Functions a master may send to address 0 (every slave acts, none answers).
 BROADCAST_FUNCTIONS = frozenset({5, 6, 8, 15, 16, 21, 22, 23})
-#: FC 8 sub-function 0 (return query data) echoes any number of bytes.
-DIAGNOSTICS = 8
 
 
 
 def address_prior(address: int, function: int) -> float:
     """What an address says about a frame that starts with it."""
-    if 1 <= address <= MAX_SLAVE_ADDRESS:
+    if 1 <= address <= MAX_ADDRESS:
         return 0.0
     if address == 0:
         return ADDRESS_BROADCAST if function in BROADCAST_FUNCTIONS else ADDRESS_BROADCAST_READ
@@ -111,7 +107,7 @@ def function_prior(function: int) -> float | None:
 def plausible_damaged_header(address: int, function: int) -> bool:
     """A header a damaged frame may have: a slave address (or broadcast) and a function that exists."""
     code = function & ~EXCEPTION_BIT
-    return address <= MAX_SLAVE_ADDRESS and (code in FUNCTION_NAMES or code in USER_DEFINED_FUNCTIONS)
+    return address <= MAX_ADDRESS and (code in FUNCTION_NAMES or code in USER_DEFINED_FUNCTIONS)
 
 
 def zero_padded(data: bytes, start: int, end: int) -> bool:

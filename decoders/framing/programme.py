@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 from decoders.frame import MODBUS, FrameFlag
 from decoders.framing import evidence as ev
-from decoders.framing.content import OpenRequest, after_frame
+from decoders.framing.content import MIN_ADU, OpenRequest, after_frame
 from decoders.modbus.layouts import MAX_ADU
 
 #: The longest piece the programme can take, with a stray byte on either side.
@@ -188,7 +188,7 @@ class _Programme:
         or the segment's end -- or to the byte before it (a glitch)."""
         region = self.region
         data, stop, pauses = region.data, region.stop, region.context.pauses
-        if stop - s < ev.MIN_ADU or not ev.plausible_damaged_header(data[s], data[s + 1]):
+        if stop - s < MIN_ADU or not ev.plausible_damaged_header(data[s], data[s + 1]):
             return []
         following = bisect_right(self.frame_starts, s)
         next_frame = self.frame_starts[following] if following < len(self.frame_starts) else None
@@ -202,7 +202,7 @@ class _Programme:
         ends = boundaries | {b - 1 for b in boundaries}
         at_capture_end = region.context.at_capture_end and region.context.closed
         edges = []
-        for end in sorted(e for e in ends if e - s >= ev.MIN_ADU):
+        for end in sorted(e for e in ends if e - s >= MIN_ADU):
             flags, fits = ev.damaged_flags(data[s:end], open_request=open_request, at_capture_end=at_capture_end)
             score = ev.DAMAGED + (ev.DAMAGED_FITS_RULE if fits else 0.0) + pauses_in(pauses, s, end) * ev.PAUSE_INSIDE
             if open_request == (data[s], data[s + 1]):

@@ -31,6 +31,9 @@ FUNCTION_NAMES: dict[int, str] = {
     43: "Encapsulated Interface Transport",
 }
 
+#: FC 8, whose sub-function 0 (return query data) echoes any number of bytes.
+DIAGNOSTICS = 8
+
 #: Function codes the specification leaves to users (shown as such, never as errors).
 USER_DEFINED_FUNCTIONS = frozenset(range(65, 73)) | frozenset(range(100, 111))
 

@@ -18,14 +18,13 @@ import numpy.typing as npt
 
 from decoders.frame import FrameBatch
 from decoders.framing.fast import REQUEST_RULES, RESPONSE_RULES, padded_bytes
-from decoders.modbus.codes import EXCEPTION_BIT
+from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT
 from decoders.modbus.layouts import EXCEPTION_LENGTH, MEI_EXCEPTION_LENGTH, fits_request, fits_response
 
 FITS_REQUEST = 1
 FITS_RESPONSE = 2
 IS_EXCEPTION = 4
 MIN_ADU = 4
-DIAGNOSTICS = 8
 _SPECIAL = np.zeros(256, np.bool_)
 _SPECIAL[[24, 43, 43 | EXCEPTION_BIT]] = True  # rules numpy cannot evaluate
 
