@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from decoders.frame import Frame, FrameBatch, FrameFlag, flag_set
+from decoders.frame import Frame, FrameBatch, FrameFlag, flag_set, slice_frames
 
 if TYPE_CHECKING:
     from decoders.modbus.pdu import Pdu
@@ -258,3 +258,10 @@ class AnnotatedBatch:
         if self.rows is not None:
             rows = np.intersect1d(rows, self.rows)
         return AnnotatedBatch(self.messages, self.decodings, rows.astype(np.int64))
+
+
+def slice_messages(batch: MessageBatch, start: int, stop: int) -> MessageBatch:
+    """Messages ``start`` to ``stop`` (positions) of ``batch``, as a batch of their own."""
+    return MessageBatch(slice_frames(batch.frames, start, stop), batch.role[start:stop], batch.slave[start:stop],
+                        batch.function[start:stop], batch.exception_code[start:stop], batch.flags[start:stop],
+                        batch.request_index[start:stop], batch.latency_ns[start:stop])

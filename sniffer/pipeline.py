@@ -12,8 +12,9 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.frame import FrameBatch
 from decoders.line import LineSettings
-from decoders.message import MessageBatch
+from decoders.message import AnnotatedBatch, MessageBatch, slice_messages
 from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from decoders.profiles.apply import ProfileApplier, ProfileBook
@@ -21,7 +22,11 @@ from decoders.stats import Statistics
 from sniffer.decoding_process import ChildDecoding, DecodingStep, decode_here
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.base import CaptureReader
+from sniffer.selection import EVERYTHING, Selection, Window
 from sniffer.sinks import Sink
+
+#: Frames before a window whose requests are decoded for the answers inside it.
+OPEN_REQUESTS_BEFORE = 64
 
 
 def effective_line(info: CaptureInfo, override: LineSettings | None, path: str) -> LineSettings:
@@ -44,9 +49,11 @@ class Analysis:
     line: LineSettings
     timing: TimingQuality
     response_timeout_ns: int | None = None
-    #: Which messages of a batch the message sinks get (all if ``None``).
-    keep: Callable[[MessageBatch], npt.NDArray[np.bool_]] | None = None
+    #: Which annotated messages of a batch the message sinks get (all if ``None``).
+    keep: Callable[[AnnotatedBatch], npt.NDArray[np.bool_]] | None = None
     profiles: ProfileBook | None = None
+    #: The part of the capture to look at, and how many frames to show at most.
+    selection: Selection = EVERYTHING
 
 
 def analyze(
@@ -63,8 +70,9 @@ def analyze(
     process (:mod:`sniffer.decoding_process`), forked before any sink starts; the output is the same."""
     decoder = Decoder(analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns)
     info = replace(reader.info, timing=analysis.timing)
-    delivery = Delivery(sinks, analysis.profiles, analysis.keep)
-    prepare = _each_prepare(delivery.preparing) if delivery.preparing else None
+    delivery = Delivery(sinks, analysis.profiles, analysis.keep, analysis.selection)
+    # With a window or a limit the parent prepares the part it delivers (see Delivery.batch).
+    prepare = _each_prepare(delivery.preparing) if delivery.preparing and not delivery.selective else None
     run = partial(_run, source=source, info=info, analysis=analysis, delivery=delivery)
     if jobs == 1:
         return run(decode_here(reader, decoder, prepare))
@@ -86,7 +94,8 @@ class Delivery:
     ``prepare`` made of it. One core for offline analysis (:func:`analyze`) and live capture."""
 
     def __init__(self, sinks: Sequence[Sink], profiles: ProfileBook | None = None,
-                 keep: Callable[[MessageBatch], npt.NDArray[np.bool_]] | None = None) -> None:
+                 keep: Callable[[AnnotatedBatch], npt.NDArray[np.bool_]] | None = None,
+                 selection: Selection = EVERYTHING) -> None:
         self.sinks = list(sinks)
         self.preparing = [sink for sink in sinks if sink.prepare is not None]
         self._chunk_sinks = [sink for sink in sinks if sink.wants_chunks]
@@ -96,33 +105,101 @@ class Delivery:
         applier = ProfileApplier(profiles) if profiles is not None else None
         self._annotator = Annotator(applier) if self._message_sinks else None
         self._keep = keep
+        self._window = Window(selection) if selection.windowed else None
+        #: Frames the message sinks may still get (``--limit``), ``None``: no limit.
+        self._left = selection.limit
         self.statistics = Statistics()
         #: Bytes of every frame and noise record delivered.
         self.framed_bytes = 0
+        #: Bytes of every frame read, in the window or not.
+        self.read_bytes = 0
+        #: Set when nothing more can be delivered (past the window, or the limit reached).
+        self.done = False
+        self._chunk_span = ChunkSpan()
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         for sink in self.sinks:
             sink.start(source, info, line)
 
+    @property
+    def selective(self) -> bool:
+        """Whether only part of the capture is delivered (a window, a limit)."""
+        return self._window is not None or self._left is not None
+
     def chunks(self, chunks: ChunkBatch) -> None:
-        for sink in self._chunk_sinks:
-            sink.chunks(chunks)
+        """Raw chunks; with a window or a limit, only those whose last byte falls among the frames
+        delivered (held back until the frames that hold their bytes are decoded)."""
+        if not self._chunk_sinks:
+            return
+        if not self.selective:
+            for sink in self._chunk_sinks:
+                sink.chunks(chunks)
+            return
+        self._chunk_span.add(chunks)
+
+    def release_chunks(self, final: bool = False) -> None:
+        for chunks in self._chunk_span.release(final):
+            for sink in self._chunk_sinks:
+                sink.chunks(chunks)
 
     def batch(self, batch: MessageBatch, prepared: tuple[Any, ...] = ()) -> None:
+        self.read_bytes += len(batch.frames.data)
+        if self._window is not None:
+            batch = self._windowed(batch)
+            self.done = self._window.past
+        kept = None
+        if self._annotator is not None:
+            annotated = self._annotator.annotate_batch(batch)
+            kept = annotated if self._keep is None else annotated.select(self._keep(annotated))
+        if self._left is not None:
+            batch, kept = self._limited(batch, kept)
+        if self.selective and self.preparing:
+            # What the decoding process prepared covers whole batches: here, only the part delivered.
+            prepared = tuple(sink.prepare(batch) for sink in self.preparing if sink.prepare is not None)
         self.framed_bytes += len(batch.frames.data)
+        if self.selective and len(batch):
+            self._chunk_span.delivering(batch.frames)
         if self._counts:
             self.statistics.add_batch(batch)
         for sink in self._frame_sinks:
             sink.frames(batch)
-        if self._annotator is not None:
-            annotated = self._annotator.annotate_batch(batch)
-            kept = annotated if self._keep is None else annotated.select(self._keep(batch))
+        if kept is not None:
             for sink in self._message_sinks:
                 sink.messages(kept)
         for sink, value in zip(self.preparing, prepared, strict=True):
             sink.prepared(value)
 
+    def _windowed(self, batch: MessageBatch) -> MessageBatch:
+        """The part of ``batch`` in the window. The requests just before it are decoded too
+        (not delivered): the answers inside the window read their addresses from them."""
+        assert self._window is not None
+        begin, end = self._window.span(batch)
+        if begin > 0:
+            self._chunk_span.skipped_until(int(batch.frames.t_end_ns[begin - 1]))
+        if self._annotator is not None and begin > 0:
+            self._annotator.annotate_batch(slice_messages(batch, max(begin - OPEN_REQUESTS_BEFORE, 0), begin))
+        return slice_messages(batch, begin, end)
+
+    def _limited(self, batch: MessageBatch,
+                 kept: AnnotatedBatch | None) -> tuple[MessageBatch, AnnotatedBatch | None]:
+        """``--limit``: the batch up to the last frame shown once the limit is reached (so that the
+        statistics count what was looked at), and the frames shown."""
+        assert self._left is not None
+        positions = list(range(len(batch))) if kept is None else kept.positions()
+        if len(positions) < self._left:
+            self._left -= len(positions)
+            return batch, kept
+        shown = positions[: self._left]
+        cut = shown[-1] + 1 if shown else 0
+        self._left, self.done = 0, True
+        batch = slice_messages(batch, 0, cut)
+        if kept is not None:
+            rows = None if kept.rows is None else np.array(shown, np.int64)
+            kept = AnnotatedBatch(batch, kept.decodings[:cut], rows)
+        return batch, kept
+
     def finish(self) -> Statistics:
+        self.release_chunks(final=True)
         for sink in self.sinks:
             sink.finish(self.statistics)
         return self.statistics
@@ -141,9 +218,61 @@ def _run(
         if step.chunks is not None:
             delivery.chunks(step.chunks)
         for position, batch in enumerate(step.batches):
-            delivery.batch(batch, step.prepared[position] if delivery.preparing else ())
+            delivery.batch(batch, step.prepared[position] if delivery.preparing and not delivery.selective else ())
+            if delivery.done:
+                break
+        if delivery.selective:
+            delivery.release_chunks()
+        if delivery.done:
+            break
     statistics = delivery.finish()
-    if delivery.framed_bytes == 0:
+    if delivery.read_bytes == 0:
         # Scripts must not take an empty recording (a quiet line, a wrong port) for a healthy bus.
         raise RtuSniffError(ErrorKind.NO_DATA, "the capture holds no bytes, only its header", path=source)
     return statistics
+
+
+class ChunkSpan:
+    """Raw chunks held back until it is known whether their bytes are in the part of the
+    capture delivered: a chunk goes with the frames when its last byte ends after the last
+    frame skipped and no later than the last frame delivered."""
+
+    def __init__(self) -> None:
+        self._pending: list[ChunkBatch] = []
+        self._skipped_ns: int | None = None
+        self._first_ns: int | None = None
+        #: End of the last frame delivered.
+        self.last_ns: int | None = None
+
+    def add(self, chunks: ChunkBatch) -> None:
+        self._pending.append(chunks)
+
+    def skipped_until(self, t_end_ns: int) -> None:
+        if self._first_ns is None:
+            self._skipped_ns = t_end_ns
+
+    def delivering(self, frames: FrameBatch) -> None:
+        if self._first_ns is None:
+            self._first_ns = int(frames.t_start_ns[0])
+        self.last_ns = int(frames.t_end_ns[-1])
+
+    def release(self, final: bool) -> list[ChunkBatch]:
+        """The chunks now known to go, in order; the undecided stay (none at ``final``)."""
+        released, pending = [], self._pending
+        self._pending = []
+        for chunks in pending:
+            times = chunks.t_end_ns
+            begin = 0 if self._skipped_ns is None else int(np.searchsorted(times, self._skipped_ns, "right"))
+            end = begin if self.last_ns is None else max(int(np.searchsorted(times, self.last_ns, "right")), begin)
+            if end > begin:
+                released.append(_chunk_slice(chunks, begin, end))
+            if end < len(chunks) and not final:
+                self._pending.append(_chunk_slice(chunks, end, len(chunks)))
+        return released
+
+
+def _chunk_slice(chunks: ChunkBatch, start: int, stop: int) -> ChunkBatch:
+    starts = chunks.starts
+    begin = int(starts[start]) if start < len(chunks) else len(chunks.data)
+    end = int(chunks.ends[stop - 1]) if stop > start else begin
+    return ChunkBatch(chunks.data[begin:end], chunks.ends[start:stop] - begin, chunks.t_end_ns[start:stop])

@@ -3,31 +3,32 @@
 from __future__ import annotations
 
 import argparse
-import os
 from collections.abc import Callable
 from contextlib import ExitStack
-from dataclasses import replace
 from typing import TextIO
 
 from rich.console import Console
 
 from sniffer.commands.common import (
     add_decoding_options,
+    add_filter_option,
     add_force_option,
     add_jobs_option,
+    add_quiet_option,
     check_outputs,
     open_analysis,
     open_output,
+    tell_written,
 )
 from sniffer.decoding_process import decoding_jobs
-from sniffer.filters import parse_filters
 from sniffer.pipeline import analyze
+from sniffer.progress import progress_for
 from sniffer.sinks import Sink
+from sniffer.views.clock import Clock
 from sniffer.views.jsonl import JsonlView
+from sniffer.views.layout import terminal_colors, terminal_width
+from sniffer.views.registers import add_register_options, summary_reader
 from sniffer.views.table import TableView
-
-#: Width of the table when the output is not a terminal (a file, a pipe).
-FILE_TABLE_WIDTH = 200
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -35,43 +36,57 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "analyze",
         help="split a capture into frames, decode and pair them, and show them",
         description="Show every frame of a capture: time, silence before it, slave, function, role, "
-        "the request it answers, length, CRC, flags, decoded summary and bytes.",
+        "the request it answers and its latency, length, CRC, flags, decoded summary and bytes. "
+        "On a terminal the table fits its width; into a pipe or a file every frame is one line.",
     )
     parser.add_argument("capture", help="capture file (.log/.txt text, .mcap native), or - for text on stdin")
     parser.add_argument("--format", choices=list(FORMATS), default="table", help="output format (default: table)")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
     add_force_option(parser)
-    parser.add_argument(
-        "--filter",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="show only matching frames: slave=N, function=N, role=NAME, flag=NAME; repeat a key for "
-        "alternatives, combine keys to narrow (the JSONL summary still covers every frame)",
-    )
+    add_filter_option(parser)
+    view = parser.add_argument_group("the table")
+    view.add_argument("--hex", action=argparse.BooleanOptionalAction, default=None,
+                      help="show the frame's bytes (default: on a terminal when there is room; not into a pipe)")
+    view.add_argument("--width", type=int, metavar="COLUMNS",
+                      help="lay the table out for a terminal this wide, also into a pipe or a file (0: one line per "
+                      "frame, as into a pipe)")
+    add_register_options(view)
     add_decoding_options(parser)
     add_jobs_option(parser)
+    add_quiet_option(parser)
     parser.set_defaults(run=run)
 
 
-def table_sink(out: TextIO) -> Sink:
-    """The table, as wide as the terminal, or ``FILE_TABLE_WIDTH`` into a file or a pipe."""
-    width = None if out.isatty() or "COLUMNS" in os.environ else FILE_TABLE_WIDTH
-    return TableView(Console(file=out, width=width, highlight=False))
+def table_sink(out: TextIO, args: argparse.Namespace) -> Sink:
+    """The table: laid out for the terminal ``out`` is (its width and colours), else one line a frame."""
+    console = Console(file=out, highlight=False)
+    width = terminal_width(args, console)
+    colors = terminal_colors(console) if width is not None else None
+    return TableView(out, width=width, color_system=colors, clock=Clock(args.time),
+                     hex_shown=args.hex, summary_of=summary_reader(args))
+
+
+def jsonl_sink(out: TextIO, args: argparse.Namespace) -> Sink:
+    return JsonlView(out)
 
 
 #: ``--format`` → the sink writing it to the output; adding a format is a sink plus one line here.
-FORMATS: dict[str, Callable[[TextIO], Sink]] = {"table": table_sink, "jsonl": JsonlView}
+FORMATS: dict[str, Callable[[TextIO, argparse.Namespace], Sink]] = {"table": table_sink, "jsonl": jsonl_sink}
 
 
 def run(args: argparse.Namespace) -> int:
-    keep = parse_filters(args.filter)
     check_outputs([args.output], [args.capture], force=args.force)
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)
-        if not keep.empty:
-            analysis = replace(analysis, keep=keep)
-        sink = FORMATS[args.format](out)
-        analyze(reader, args.capture, analysis, [sink], jobs=decoding_jobs(args.jobs))
+        sink = FORMATS[args.format](out, args)
+        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
+        statistics = analyze(reader, args.capture, analysis, [sink, progress.sink],
+                             jobs=decoding_jobs(args.jobs))
+    if args.output not in (None, "-"):
+        tell_written(args, [(args.output, f"{args.format}, {shown_frames(sink, statistics.frames):,} frames")])
     return 0
+
+
+def shown_frames(sink: Sink, frames: int) -> int:
+    return getattr(sink, "shown", frames)

@@ -12,10 +12,13 @@ from typing import TextIO
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.filters import parse_filters
 from sniffer.io.base import CaptureReader, ReaderOptions
 from sniffer.io.registry import format_help, formats_for, open_reader
 from sniffer.pipeline import Analysis, effective_line
 from sniffer.profiles_io import profile_book
+from sniffer.selection import add_selection_options, selection_from
+from sniffer.views.clock import MODES
 
 
 def add_line_options(parser: argparse.ArgumentParser) -> None:
@@ -90,8 +93,33 @@ def add_profile_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_filter_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--filter",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="only matching frames: slave=N, function=N, role=NAME, flag=NAME, crc=ok|bad, exception=CODE, "
+        "address=N or A-B, param=CODE, latency>MS; repeat a key for alternatives, combine keys to narrow "
+        "(statistics still count every frame of the window)",
+    )
+
+
+def add_time_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--time", choices=list(MODES), default="utc",
+                        help="times in UTC (default), local time, or seconds since the first frame shown; "
+                        "also the zone of --from/--to")
+
+
+def add_quiet_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no progress bar and no closing line saying what was written")
+
+
 def add_decoding_options(parser: argparse.ArgumentParser) -> None:
-    """Everything that says how to read and decode a capture."""
+    """Everything that says how to read and decode a capture, and which part of it."""
+    add_selection_options(parser)
+    add_time_option(parser)
     add_line_options(parser)
     add_timing_option(parser)
     add_response_timeout_option(parser)
@@ -123,6 +151,10 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
                                f"{reader.info.line.format()}")
     line = apply_char_timing(effective_line(reader.info, override, args.capture), args)
     analysis = Analysis(line, effective_timing(reader.info, args), response_timeout_ns(args), profiles=book)
+    if hasattr(args, "start"):
+        analysis = replace(analysis, selection=selection_from(args))
+    if getattr(args, "filter", None):
+        analysis = replace(analysis, keep=parse_filters(args.filter))
     return reader, analysis
 
 
@@ -207,3 +239,13 @@ def line_override(args: argparse.Namespace) -> LineSettings | None:
 
 def apply_char_timing(line: LineSettings, args: argparse.Namespace) -> LineSettings:
     return replace(line, char_timing=True) if args.char_timing else line
+
+
+def tell_written(args: argparse.Namespace, written: list[tuple[str, str]]) -> None:
+    """One line per file on standard error, ``wrote PATH: WHAT, SIZE``, unless ``--quiet``."""
+    if getattr(args, "quiet", False):
+        return
+    for path, what in written:
+        if not os.path.isfile(path):  # /dev/null, a pipe: nothing to tell
+            continue
+        print(f"wrote {path}: {what}, {human_size(os.path.getsize(path))}", file=sys.stderr)

@@ -3,14 +3,22 @@
 from __future__ import annotations
 
 import argparse
-import os
 from contextlib import ExitStack
 
 from rich.console import Console
 
-from sniffer.commands.analyze import FILE_TABLE_WIDTH
-from sniffer.commands.common import add_decoding_options, add_force_option, check_outputs, open_analysis, open_output
+from sniffer.commands.common import (
+    add_decoding_options,
+    add_force_option,
+    add_quiet_option,
+    check_outputs,
+    open_analysis,
+    open_output,
+    tell_written,
+)
 from sniffer.pipeline import analyze
+from sniffer.progress import progress_for
+from sniffer.views.layout import terminal_colors, terminal_width
 from sniffer.views.stats_view import StatsView
 
 
@@ -20,13 +28,18 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help="statistics per slave and function: requests, answers, errors, latency, poll period, bus load",
         description="Count what happened on the bus, per slave and function: requests, responses, exceptions "
         "by code, CRC errors, timeouts, retries, unexpected answers, gap_1_5 and short_idle; latency "
-        "min/p50/p95/p99/max and poll period; bus load and totals.",
+        "min/p50/p95/p99/max and poll period; bus load and totals. On a terminal the table fits its width "
+        "(the least needed columns go first); into a pipe or a file every row is one line.",
     )
     parser.add_argument("capture", help="capture file (.log/.txt text, .mcap native), or - for text on stdin")
     parser.add_argument("--format", choices=["table", "json"], default="table", help="output format (default: table)")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
+    parser.add_argument("--width", type=int, metavar="COLUMNS",
+                        help="lay the table out for a terminal this wide, also into a pipe or a file (0: one line "
+                        "per row, as into a pipe)")
     add_force_option(parser)
     add_decoding_options(parser)
+    add_quiet_option(parser)
     parser.set_defaults(run=run)
 
 
@@ -35,7 +48,12 @@ def run(args: argparse.Namespace) -> int:
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)
-        width = None if out.isatty() or "COLUMNS" in os.environ else FILE_TABLE_WIDTH
-        view = StatsView(out, Console(file=out, width=width, highlight=False), as_json=args.format == "json")
-        analyze(reader, args.capture, analysis, [view])
+        console = Console(file=out)
+        width = terminal_width(args, console)
+        view = StatsView(out, width=width, color_system=terminal_colors(console) if width else None,
+                         as_json=args.format == "json")
+        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
+        statistics = analyze(reader, args.capture, analysis, [view, progress.sink])
+    if args.output not in (None, "-"):
+        tell_written(args, [(args.output, f"{args.format} statistics of {statistics.frames:,} frames")])
     return 0

@@ -21,6 +21,11 @@ class CaptureReader(Protocol):
 
     def batches(self) -> Iterator[ChunkBatch]: ...
 
+    def last_time_ns(self) -> int | None:
+        """About when the capture ends, if the file says it without being read through (its
+        last line, an index): what progress is measured against. ``None``: unknown (stdin)."""
+        ...
+
     def close(self) -> None: ...
 
 

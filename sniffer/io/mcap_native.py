@@ -24,6 +24,7 @@ from typing import BinaryIO
 
 import numpy as np
 from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
+from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
@@ -164,6 +165,17 @@ class McapCaptureReader:
 
     def close(self) -> None:
         self._file.close()
+
+    def last_time_ns(self) -> int | None:
+        """The last message's time, from the summary section (none in a recording cut short)."""
+        try:
+            with open(self.path, "rb") as summary_file:
+                summary = make_reader(summary_file).get_summary()
+        except Exception:
+            return None
+        if summary is None or summary.statistics is None or not summary.statistics.message_count:
+            return None
+        return int(summary.statistics.message_end_time)
 
     def _error(self, message: str) -> CaptureFormatError:
         return CaptureFormatError(

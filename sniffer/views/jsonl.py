@@ -19,6 +19,8 @@ class JsonlView(Sink):
     def __init__(self, out: TextIO) -> None:
         self._out = out
         self._frames = FrameRecordEncoder()
+        #: Frame records written.
+        self.shown = 0
 
     wants_messages = True
     wants_statistics = True
@@ -27,6 +29,7 @@ class JsonlView(Sink):
         self._write(capture_record(source, info, line))
 
     def messages(self, batch: AnnotatedBatch) -> None:
+        self.shown += len(batch)
         rows = self._frames.rows(batch, end=b"\n")
         if any(decoding.device is not None for decoding in batch.decodings):
             self._write_with_devices(rows, batch)

@@ -1,21 +1,40 @@
-"""The live terminal view of ``capture``: redrawn a few times a second."""
+"""The live terminal view of ``capture``: redrawn a few times a second, as tall and as wide as
+the terminal: the status, the slaves, and as many of the latest frames as fit below (with
+their latency), laid out by the same rules as ``analyze`` (:mod:`sniffer.views.layout`)."""
 
 from __future__ import annotations
 
 import time
-from collections import deque
+from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 
-from rich.console import Group, RenderableType
-from rich.table import Table
+import numpy as np
+from rich.console import Console, ConsoleOptions, RenderResult
 from rich.text import Text
 
-from decoders.message import AnnotatedBatch, Message
+from decoders.message import ROLE_CODE, AnnotatedBatch, MessageBatch, Role
 from decoders.stats import Histogram, Statistics
 from sniffer.sinks import Sink
-from sniffer.views.table import ROLE_STYLES, format_clock
+from sniffer.views.clock import Clock
+from sniffer.views.frame_cells import NARROW, decoding_summary, frame_cells, frame_columns
+from sniffer.views.layout import ALWAYS, Cells, Column, Layout, terminal_colors
 
-RECENT_FRAMES = 15
+#: Frames kept for the view: more than any terminal is tall.
+KEPT_FRAMES = 300
+SLAVE_COLUMNS = [
+    Column("slave", "slave", right=True),
+    Column("requests", "requests", right=True),
+    Column("responses", "responses", right=True),
+    Column("exceptions", "exc", right=True, keep=40),
+    Column("crc", "CRC err", right=True),
+    Column("timeouts", "timeouts", right=True),
+    Column("p50", "lat p50 ms", right=True, keep=30),
+    Column("p95", "lat p95 ms", right=True, keep=20),
+    Column("fill", "", flexible=True, min_width=0, keep=ALWAYS),
+]
+_REQUEST = ROLE_CODE[Role.REQUEST]
+#: Slaves listed before "… and N more".
+SHOWN_SLAVES = 8
 
 
 @dataclass
@@ -34,79 +53,144 @@ class LiveState:
 
 
 class LiveView(Sink):
-    """Keeps the last frames and renders the status, per-slave counters and recent frames."""
-
-    def __init__(self, state: LiveState) -> None:
-        self.state = state
-        self._recent: deque[Message] = deque(maxlen=RECENT_FRAMES)
+    """Keeps the latest frames; :meth:`render` gives what the terminal shows now."""
 
     wants_messages = True
     wants_statistics = True
 
+    def __init__(self, state: LiveState, clock: Clock | None = None) -> None:
+        self.state = state
+        self.clock = clock or Clock()
+        self._recent: deque[tuple[AnnotatedBatch, list[str]]] = deque()
+        self._kept = 0
+        #: End times of recent requests by frame index, for the latency of their answers.
+        self._requests: OrderedDict[int, int] = OrderedDict()
+
     def messages(self, batch: AnnotatedBatch) -> None:
-        self.add(list(batch))
+        if not len(batch):
+            return
+        rows = np.arange(len(batch.decodings), dtype=np.int64) if batch.rows is None else batch.rows
+        latencies = self._read_latencies(batch.messages)
+        rows = rows[-KEPT_FRAMES:]
+        self._recent.append((AnnotatedBatch(batch.messages, batch.decodings, rows),
+                             [latencies[row] for row in rows.tolist()]))
+        self._kept += len(rows)
+        while self._kept - len(self._recent[0][0]) >= KEPT_FRAMES:
+            self._kept -= len(self._recent.popleft()[0])
 
-    def add(self, messages: list[Message]) -> None:
-        self._recent.extend(messages)
+    def _read_latencies(self, messages: MessageBatch) -> list[str]:
+        """Each answer's latency between host read times (``~``: not measured on the wire; a
+        live tap reads a port, and the decoder publishes no host latency), by position."""
+        frames, first = messages.frames, messages.frames.first_index
+        texts = [""] * len(messages)
+        answered = messages.request_index.tolist()
+        for position, role in enumerate(messages.role.tolist()):
+            if role == _REQUEST:
+                self._requests[first + position] = int(frames.t_end_ns[position])
+                if len(self._requests) > KEPT_FRAMES:
+                    self._requests.popitem(last=False)
+            elif answered[position] in self._requests:
+                latency = int(frames.t_start_ns[position]) - self._requests[answered[position]]
+                texts[position] = f"~{max(latency, 0) / 1e6:.1f}"
+        return texts
 
-    def render(self, statistics: Statistics) -> RenderableType:
-        return Group(self._status(statistics), self._slaves(statistics), self._frames())
+    def render(self, statistics: Statistics) -> LiveScreen:
+        return LiveScreen(self, statistics)
 
-    def _status(self, statistics: Statistics) -> Text:
+    def status(self, statistics: Statistics) -> Text:
         state = self.state
         elapsed = time.monotonic() - state.started
         load = "" if statistics.bus_load is None else f", bus load {100 * statistics.bus_load:.1f} %"
         where = f"{state.recorded_bytes:,} bytes recorded to {state.recording}" if state.recording else "not recording"
         text = Text.assemble(
             (f"{state.port}", "bold"), f"  {state.line}  {state.timing_note}\n",
-            f"{elapsed:,.0f} s, {statistics.frames:,} frames{load}, {where}\n",
+            f"{elapsed:,.0f} s, {statistics.frames:,} frames{load}, {where}",
         )
         if state.uart_errors:
-            text.append(f"UART errors: {state.uart_errors}\n", "red")
+            text.append(f"\nUART errors: {state.uart_errors}", "red")
         if state.advice:
-            text.append(f"note: {state.advice}\n", "yellow")
+            text.append(f"\nnote: {state.advice}", "yellow")
         if state.behind_reads:
-            text.append(f"the view is behind: it skipped {state.behind_reads} reads (the recording has every byte)\n",
+            text.append(f"\nthe view is behind: it skipped {state.behind_reads} reads (the recording has every byte)",
                         "yellow")
         return text
 
-    @staticmethod
-    def _slaves(statistics: Statistics) -> Table:
-        table = Table(title="per slave", title_justify="left", expand=False)
-        for header in ("slave", "requests", "responses", "exceptions", "CRC errors", "timeouts", "lat p50 ms",
-                       "lat p95 ms"):
-            table.add_column(header, justify="right")
-        per_slave: dict[int, list[int]] = {}
-        latency: dict[int, Histogram] = {}
-        for (slave, _), stats in statistics.per_function.items():
-            row = per_slave.setdefault(slave, [0, 0, 0, 0, 0])
-            row[0] += stats.requests
-            row[1] += stats.responses
-            row[2] += sum(stats.exceptions.values())
-            row[3] += stats.crc_errors
-            row[4] += stats.timeouts
-            merged = latency.setdefault(slave, Histogram())
-            if stats.latency.count and stats.latency.minimum is not None and stats.latency.maximum is not None:
-                merged.merge(stats.latency.counts, stats.latency.count, stats.latency.minimum, stats.latency.maximum)
-        for slave in sorted(per_slave):
-            p50, p95 = latency[slave].percentile(50), latency[slave].percentile(95)
-            # A live tap reads the port: host timing, latencies not measured (say so, never 0.00).
-            table.add_row(str(slave), *map(str, per_slave[slave]),
-                          "n/a" if p50 is None else f"{p50 / 1e6:.2f}", "n/a" if p95 is None else f"{p95 / 1e6:.2f}")
-        return table
+    def frame_lines(self, width: int, height: int, console: Console) -> str:
+        """The latest frames that fit ``height`` lines (a header first), newest last."""
+        layout = Layout(frame_columns(self.clock, plain=False, hex_shown=None, live=True), width,
+                        terminal_colors(console))
+        blocks = [frame_cells(batch, self.clock, plain=False, summary_of=decoding_summary, notes={},
+                              styled=layout.color_system is not None, short_roles=width < NARROW,
+                              latencies=latencies)
+                  for batch, latencies in self._recent]
+        for cells in blocks:
+            layout.measure(cells)
+        rows = [line for cells in blocks for line in _row_texts(layout, cells)]
+        shown: list[str] = []
+        room = height - 1
+        for row in reversed(rows):
+            lines = row.count("\n")
+            if lines > room:
+                break
+            shown.append(row)
+            room -= lines
+        return layout.header() + "".join(reversed(shown))
 
-    def _frames(self) -> Table:
-        table = Table(title="recent frames", title_justify="left", expand=True)
-        for header, width in (("time (UTC)", 15), ("slave", 5), ("fc", 3), ("role", 9), ("flags", 14)):
-            table.add_column(header, width=width, no_wrap=True)
-        table.add_column("summary", ratio=1, overflow="fold")
-        for message in self._recent:
-            table.add_row(
-                format_clock(message.frame.t_start_ns),
-                "" if message.slave is None else str(message.slave),
-                "" if message.function is None else str(message.function),
-                Text(message.role.value, ROLE_STYLES[message.role]),
-                Text(" ".join(message.flags.names), "yellow"),
-                message.summary,
-            )
-        return table
+
+def _row_texts(layout: Layout, cells: dict[str, Cells]) -> list[str]:
+    """Each row of ``cells`` laid out on its own (a row may take several lines)."""
+    count = len(cells["index"].texts)
+    return [layout.lines({key: Cells(c.texts[row : row + 1], c.styles[row : row + 1] if c.styles else None)
+                          for key, c in cells.items()}, 1) for row in range(count)]
+
+
+def slave_lines(statistics: Statistics, width: int, console: Console) -> str:
+    """Counters and latency per slave, the busiest first."""
+    per_slave: dict[int, list[int]] = {}
+    latency: dict[int, Histogram] = {}
+    for (slave, _), stats in statistics.per_function.items():
+        row = per_slave.setdefault(slave, [0, 0, 0, 0, 0])
+        row[0] += stats.requests
+        row[1] += stats.responses
+        row[2] += sum(stats.exceptions.values())
+        row[3] += stats.crc_errors
+        row[4] += stats.timeouts
+        merged = latency.setdefault(slave, Histogram())
+        if stats.latency.count and stats.latency.minimum is not None and stats.latency.maximum is not None:
+            merged.merge(stats.latency.counts, stats.latency.count, stats.latency.minimum, stats.latency.maximum)
+    order = sorted(per_slave, key=lambda s: (-per_slave[s][0], s))
+    texts: dict[str, list[str]] = {column.key: [] for column in SLAVE_COLUMNS}
+    for slave in order[:SHOWN_SLAVES]:
+        counts = per_slave[slave]
+        for key, count in zip(("requests", "responses", "exceptions", "crc", "timeouts"), counts, strict=True):
+            texts[key].append(str(count))
+        texts["slave"].append(str(slave))
+        for key, q in (("p50", 50), ("p95", 95)):
+            value = latency[slave].percentile(q)
+            # Host timing: latencies between reads, not on the wire; still the best the tap knows.
+            texts[key].append("" if value is None else f"{value / 1e6:.1f}")
+        texts["fill"].append("")
+    layout = Layout(SLAVE_COLUMNS, width, terminal_colors(console))
+    cells = {key: Cells(values) for key, values in texts.items()}
+    more = f"… and {len(order) - SHOWN_SLAVES} more slaves\n" if len(order) > SHOWN_SLAVES else ""
+    return layout.header() + layout.lines(cells, min(len(order), SHOWN_SLAVES)) + more
+
+
+class LiveScreen:
+    """One redraw: sized when rich renders it, to the terminal as it is then."""
+
+    def __init__(self, view: LiveView, statistics: Statistics) -> None:
+        self.view, self.statistics = view, statistics
+
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
+        width = options.max_width
+        height = options.height or console.size.height
+        status = self.view.status(self.statistics)
+        status_lines = len(status.wrap(console, width))
+        slaves = Text.from_ansi(slave_lines(self.statistics, width, console).rstrip("\n"))
+        # One line stays free: rich's live display keeps the cursor below the last line.
+        room = int(height) - status_lines - len(slaves.plain.splitlines()) - 2
+        frames = Text.from_ansi(self.view.frame_lines(width, max(room, 2), console).rstrip("\n"))
+        yield status
+        yield slaves
+        yield frames

@@ -1,66 +1,81 @@
-"""The ``stats`` command's output: rich tables, or one JSON document."""
+"""The ``stats`` command's output: tables laid out by :mod:`sniffer.views.layout` (fit to a
+terminal, one line a row into a pipe), or one JSON document.
+
+A capture with thousands of slave/function pairs prints its table in well under a second:
+the rows are formatted as columns of text, never as rich table objects.
+"""
 
 from __future__ import annotations
 
 import json
+import textwrap
 from typing import TextIO
 
-from rich.console import Console
-from rich.table import Table
+from rich.color import ColorSystem
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch
 from decoders.modbus.codes import function_name
 from decoders.stats import FunctionStats, Histogram, Statistics
 from sniffer.sinks import Sink
+from sniffer.views.layout import Cells, Column, Layout
+
+#: What the latency cells of a host-timed capture say: read times do not measure latency.
+HOST_LATENCY = "n/a"
+HOST_LATENCY_NOTE = ("latency n/a: host timing (times are when the PC read the bytes; a request and its "
+                     "answer often arrive in one read)")
+BUS_COLUMNS = [Column("what", "bus"), Column("value", "", right=True)]
+#: (key, header, keep): the per slave and function table; lower ``keep`` goes first when narrow.
+FUNCTION_COLUMNS = [
+    Column("slave", "slave", right=True),
+    Column("function", "fc", right=True),
+    Column("requests", "req", right=True),
+    Column("responses", "resp", right=True),
+    Column("exceptions", "exc"),
+    Column("crc", "CRC", right=True),
+    Column("timeouts", "timeout", right=True),
+    Column("retries", "retry", right=True, keep=60),
+    Column("unexpected", "unexp", right=True, keep=50),
+    Column("gap_1_5", "gap1.5", right=True, keep=40),
+    Column("short_idle", "short", right=True, keep=40),
+    Column("min", "lat min", right=True, keep=20),
+    Column("p50", "p50", right=True),
+    Column("p95", "p95", right=True, keep=70),
+    Column("p99", "p99", right=True, keep=10),
+    Column("max", "max", right=True),
+    Column("poll", "poll p50", right=True, keep=30),
+    Column("name", "function name", flexible=True, min_width=8, keep=5),
+]
 
 
 def _ms(value_ns: float | None) -> str:
     return "" if value_ns is None else f"{value_ns / 1e6:.2f}"
 
 
-#: What the latency cells of a host-timed capture say: read times do not measure latency.
-HOST_LATENCY = "n/a"
-HOST_LATENCY_NOTE = ("latency n/a: host timing (times are when the PC read the bytes; a request and its "
-                     "answer often arrive in one read)")
-
-
 def _latency_cells(histogram: Histogram, measured: bool = True) -> list[str]:
     if not measured:
         return [HOST_LATENCY] * 5
-    return [
-        _ms(histogram.minimum),
-        _ms(histogram.percentile(50)),
-        _ms(histogram.percentile(95)),
-        _ms(histogram.percentile(99)),
-        _ms(histogram.maximum),
-    ]
-
-
-def _count(value: int, style: str = "red") -> str:
-    return f"[{style}]{value}[/]" if value else "0"
+    return [_ms(histogram.minimum), _ms(histogram.percentile(50)), _ms(histogram.percentile(95)),
+            _ms(histogram.percentile(99)), _ms(histogram.maximum)]
 
 
 class StatsView(Sink):
     """Keeps nothing per message; prints the statistics at the end."""
 
-    def __init__(self, out: TextIO, console: Console, as_json: bool) -> None:
+    wants_statistics = True
+
+    def __init__(self, out: TextIO, *, width: int | None, color_system: ColorSystem | None = None,
+                 as_json: bool = False) -> None:
         self._out = out
-        self._console = console
+        self._width = width
+        self._colors = color_system
         self._as_json = as_json
         self._header: dict[str, object] = {}
         self._latency_measured = True
 
-    wants_messages = False
-    wants_statistics = True
-
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
         self._latency_measured = info.timing is TimingQuality.EXACT
-
-    def messages(self, batch: AnnotatedBatch) -> None:
-        pass
 
     def finish(self, statistics: Statistics) -> None:
         if self._as_json:
@@ -68,44 +83,73 @@ class StatsView(Sink):
             self._out.write(json.dumps({**self._header, **measured, **statistics.to_dict()}, indent=2) + "\n")
             return
         header = self._header
-        self._console.print(f"[bold]{header['source']}[/]  line {header['line']}  timing {header['timing']}")
-        self._console.print(self._bus_table(statistics))
-        self._console.print(self._function_table(statistics))
+        self._note(f"{header['source']}  line {header['line']}  timing {header['timing']}")
+        self._out.write(self._bus_lines(statistics))
+        self._out.write("\n")
+        self._note("per slave and function (latency and poll period in ms)")
+        self._out.write(self._function_lines(statistics))
         if not self._latency_measured:
-            self._console.print(HOST_LATENCY_NOTE, style="yellow")
+            self._note(HOST_LATENCY_NOTE)
+        self._out.flush()
 
-    def _bus_table(self, s: Statistics) -> Table:
-        table = Table(show_header=False)
-        table.add_column("what")
-        table.add_column("value", justify="right")
-        load = "" if s.bus_load is None else f"{100 * s.bus_load:.1f} %"
+    def _note(self, text: str) -> None:
+        if self._width is None:
+            self._out.write(f"# {text}\n")
+        else:
+            self._out.write("".join(f"{line}\n" for line in textwrap.wrap(text, self._width, break_on_hyphens=False)))
+
+    def _bus_lines(self, s: Statistics) -> str:
+        unit = "" if self._width is None else " "  # one field per cell in a pipe
+        load = "" if s.bus_load is None else f"{100 * s.bus_load:.1f}{unit}%"
         rows = [
-            ("frames", str(s.frames)), ("bytes", str(s.total_bytes)), ("duration", f"{s.duration_ns / 1e9:.3f} s"),
-            ("bus load", load), ("CRC errors", _count(s.crc_errors)), ("noise bytes", _count(s.noise_bytes)),
+            ("frames", str(s.frames)), ("bytes", str(s.total_bytes)),
+            ("duration", f"{s.duration_ns / 1e9:.3f}{unit}s"),
+            ("bus_load" if self._width is None else "bus load", load), ("crc_errors" if self._width is None
+                                                                         else "CRC errors", str(s.crc_errors)),
+            ("noise_bytes" if self._width is None else "noise bytes", str(s.noise_bytes)),
         ]
-        rows += [(f"role {role}", str(n)) for role, n in sorted(s.roles.items())]
-        rows += [(f"flag {flag}", _count(n, "yellow")) for flag, n in sorted(s.flags.items())]
-        for row in rows:
-            table.add_row(*row)
-        return table
+        joint = "_" if self._width is None else " "
+        rows += [(f"role{joint}{role}", str(n)) for role, n in sorted(s.roles.items())]
+        rows += [(f"flag{joint}{flag}", str(n)) for flag, n in sorted(s.flags.items())]
+        layout = Layout(BUS_COLUMNS, self._width, self._colors)
+        cells = {"what": Cells([r[0] for r in rows]), "value": Cells([r[1] for r in rows])}
+        return layout.lines(cells, len(rows))
 
-    def _function_table(self, s: Statistics) -> Table:
-        table = Table(title="per slave and function (latency and poll period in ms)", title_justify="left")
-        headers = ["slave", "function", "req", "resp", "exc", "CRC", "timeout", "retry", "unexp", "gap1.5",
-                   "short", "lat min", "p50", "p95", "p99", "max", "poll p50"]
-        for header in headers:
-            table.add_column(header, justify="left" if header == "function" else "right")
+    def _function_lines(self, s: Statistics) -> str:
+        keys = [c.key for c in FUNCTION_COLUMNS]
+        texts: dict[str, list[str]] = {key: [] for key in keys}
+        styles: dict[str, list[str]] = {key: [] for key in keys}
         for (slave, function), stats in sorted(s.per_function.items()):
-            name = f"{function} {function_name(function)}"
-            table.add_row(str(slave), name, *self._cells(stats, self._latency_measured))
-        return table
+            row = self._cells(slave, function, stats)
+            for key in keys:
+                text = row.get(key, "")
+                texts[key].append(text)
+                styles[key].append(_STYLES.get(key, "") if text not in ("", "0") else "")
+        layout = Layout(FUNCTION_COLUMNS, self._width, self._colors)
+        cells = {key: Cells(texts[key], styles[key] if self._colors else None) for key in keys}
+        count = len(s.per_function)
+        layout.measure(cells)
+        header = layout.header()
+        if self._width is None:
+            header = "#" + header[1:] if header.startswith(" ") else header
+        lines = header + layout.lines(cells, count)
+        if layout.hidden():
+            note = f"(no room at {self._width} columns for: {', '.join(layout.hidden())}; --format json has all)"
+            lines += "".join(f"{line}\n" for line in textwrap.wrap(note, self._width or len(note)))
+        return lines
 
-    @staticmethod
-    def _cells(f: FunctionStats, latency_measured: bool) -> list[str]:
-        exceptions = " ".join(f"{code:02X}×{n}" for code, n in sorted(f.exceptions.items()))
-        return [
-            str(f.requests + f.broadcasts), str(f.responses), f"[red]{exceptions}[/]" if exceptions else "",
-            _count(f.crc_errors), _count(f.timeouts), _count(f.retries, "yellow"), _count(f.unexpected, "yellow"),
-            _count(f.gap_1_5, "yellow"), _count(f.short_idle, "yellow"),
-            *_latency_cells(f.latency, latency_measured), _ms(f.poll_period.percentile(50)),
-        ]
+    def _cells(self, slave: int, function: int, f: FunctionStats) -> dict[str, str]:
+        exceptions = (" " if self._width else ",").join(f"{code:02X}×{n}" for code, n in sorted(f.exceptions.items()))
+        latency = _latency_cells(f.latency, self._latency_measured)
+        return {
+            "slave": str(slave), "function": str(function), "requests": str(f.requests + f.broadcasts),
+            "responses": str(f.responses), "exceptions": exceptions, "crc": str(f.crc_errors),
+            "timeouts": str(f.timeouts), "retries": str(f.retries), "unexpected": str(f.unexpected),
+            "gap_1_5": str(f.gap_1_5), "short_idle": str(f.short_idle), "min": latency[0], "p50": latency[1],
+            "p95": latency[2], "p99": latency[3], "max": latency[4], "poll": _ms(f.poll_period.percentile(50)),
+            "name": function_name(function),
+        }
+
+
+_STYLES = {"exceptions": "red", "crc": "red", "timeouts": "red", "retries": "yellow", "unexpected": "yellow",
+           "gap_1_5": "yellow", "short_idle": "yellow"}

@@ -1,135 +1,127 @@
-"""The terminal table view of ``analyze``.
+"""The table view of ``analyze``: a frame a row, on a terminal or down a pipe.
 
-Rows are printed in blocks as they are decoded, each block a rich table with the
-same fixed column widths, so that memory does not grow with the capture and the
-output reads as one table.
+On a terminal the columns fit its width and long summaries wrap at whole words
+(:mod:`sniffer.views.layout`); to a pipe or a file every frame is one line with one
+field per column (an empty one written ``-``) and the summary last, so that ``grep``,
+``awk`` and ``less -S`` work; the heading and footing lines there start with ``#``.
+Rows are laid out a block at a time from columns, so memory does not grow with the capture.
 """
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
+import itertools
+import textwrap
+from typing import TextIO
 
-from rich.console import Console
-from rich.table import Table
-from rich.text import Text
+import numpy as np
+from rich.color import ColorSystem
 
 from decoders.capture import CaptureInfo, TimingQuality
+from decoders.damage import RetryDiff
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch, Message, Role
+from decoders.message import AnnotatedBatch
 from decoders.stats import Statistics
 from sniffer.sinks import Sink
+from sniffer.views.clock import Clock
+from sniffer.views.frame_cells import NARROW, SummaryOf, decoding_summary, frame_cells, frame_columns
+from sniffer.views.layout import Layout
 
-ROWS_PER_BLOCK = 200
-#: (header, width, justify); the hex column takes the rest of the width.
-COLUMNS: list[tuple[str, int, str]] = [
-    ("#", 6, "right"),
-    ("time (UTC)", 15, "left"),
-    ("Δt ms", 9, "right"),
-    ("slave", 5, "right"),
-    ("fc", 3, "right"),
-    ("role", 9, "left"),
-    ("req", 6, "right"),
-    ("len", 4, "right"),
-    ("CRC", 4, "left"),
-    ("flags", 12, "left"),
-]
-ROLE_STYLES = {
-    Role.REQUEST: "cyan",
-    Role.RESPONSE: "green",
-    Role.EXCEPTION: "bold red",
-    Role.BROADCAST: "magenta",
-    Role.NOISE: "dim",
-    Role.UNKNOWN: "yellow",
-}
-
-
-def format_clock(t_ns: int) -> str:
-    """``HH:MM:SS.ffffff`` in UTC."""
-    seconds, nanos = divmod(t_ns, 1_000_000_000)
-    clock = datetime.fromtimestamp(seconds, UTC).strftime("%H:%M:%S")
-    return f"{clock}.{nanos // 1000:06d}"
+#: Rows laid out at once: bounds memory, and on a terminal the first rows appear at once.
+ROWS_PER_BLOCK = 2000
+HOST_NOTE = ("host timing: times are when the PC read the bytes (USB adapters deliver them in bursts, "
+             "up to their latency timer late); frames are found from their content, and silences and "
+             "latencies are between reads, not measured on the wire (no gap_1_5 / short_idle).")
 
 
 class TableView(Sink):
-    """Prints a heading, the frames in blocks, and a closing count."""
+    """Prints a heading, the frames a block at a time, and a closing count.
 
-    def __init__(self, console: Console) -> None:
-        self._console = console
-        self._header_shown = False
+    ``width``: the terminal's (``None``: plain lines for a pipe or a file); ``color_system``:
+    the terminal's colours, ``None`` for none."""
 
     wants_messages = True
     wants_statistics = True
 
+    def __init__(self, out: TextIO, *, width: int | None, color_system: ColorSystem | None = None,
+                 clock: Clock | None = None, hex_shown: bool | None = None,
+                 summary_of: SummaryOf = decoding_summary) -> None:
+        self._out = out
+        self._clock = clock or Clock()
+        plain = width is None
+        self._layout = Layout(frame_columns(self._clock, plain=plain, hex_shown=None if hex_shown is None and not plain
+                                            else bool(hex_shown)), width, color_system)
+        self._summary_of = summary_of
+        self._retries = RetryDiff()
+        self._header_shown = False
+        self._day: int | None = None
+        self.shown = 0
+
+    @property
+    def _plain(self) -> bool:
+        return self._layout.plain
+
+    def _note(self, text: str, style: str = "") -> None:
+        if self._plain:
+            self._out.write(f"# {text}\n")
+            return
+        assert self._layout.width is not None
+        for line in textwrap.wrap(text, self._layout.width, break_on_hyphens=False):
+            self._out.write(self._layout.styled(line, style) + "\n")
+
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
-        self._console.print(
-            f"[bold]{source}[/]  line {line.format()}  timing [bold]{info.timing.value}[/]"
-            f"  t1.5 {line.t1_5_ns / 1e3:.0f} µs  t3.5 {line.t3_5_ns / 1e3:.0f} µs",
-            highlight=False,
-        )
+        self._note(f"{source}  line {line.format()}  timing {info.timing.value}  "
+                   f"t1.5 {line.t1_5_ns / 1e3:.0f} µs  t3.5 {line.t3_5_ns / 1e3:.0f} µs", "bold")
         if info.timing is TimingQuality.HOST:
-            self._console.print(
-                "[yellow]host timing[/]: times are when the PC read the bytes (USB adapters deliver "
-                "them in bursts, up to their latency timer late); frames are found from their content, "
-                "and silences inside or between them are not measured (no gap_1_5 / short_idle).",
-                highlight=False,
-            )
-        self._date_shown = False
+            self._note(HOST_NOTE, "yellow")
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        messages = list(batch)
-        for start in range(0, len(messages), ROWS_PER_BLOCK):
-            self._print_block(messages[start : start + ROWS_PER_BLOCK])
-
-    def _print_block(self, messages: list[Message]) -> None:
-        if not messages:
+        notes = self._retries.notes(batch.messages)
+        if not len(batch):
             return
-        if not self._date_shown:
-            first = datetime.fromtimestamp(messages[0].frame.t_start_ns // 1_000_000_000, UTC)
-            self._console.print(f"capture starts {first:%Y-%m-%d %H:%M:%S} UTC", highlight=False)
-            self._date_shown = True
-        table = Table(show_header=not self._header_shown, box=None, pad_edge=False, expand=True)
-        for header, width, justify in COLUMNS:
-            table.add_column(header, width=width, no_wrap=header != "flags", justify=justify)  # type: ignore[arg-type]
-        table.add_column("summary", ratio=3, overflow="fold")
-        table.add_column("hex", ratio=2, overflow="fold")
-        for message in messages:
-            table.add_row(*self._cells(message))
-        self._header_shown = True
-        self._console.print(table)
+        rows = np.arange(len(batch.decodings), dtype=np.int64) if batch.rows is None else batch.rows
+        for start in range(0, len(rows), ROWS_PER_BLOCK):
+            self._block(batch, rows[start : start + ROWS_PER_BLOCK], notes)
 
-    def _cells(self, message: Message) -> list[Text | str]:
-        frame = message.frame
-        idle = "" if frame.idle_before_ns is None else f"{frame.idle_before_ns / 1e6:.3f}"
-        crc = Text("ok", "green") if frame.crc_ok else Text("BAD", "bold red")
-        if message.role is Role.NOISE:
-            crc = Text("")
-        return [
-            str(frame.index),
-            format_clock(frame.t_start_ns),
-            idle,
-            "" if message.slave is None else str(message.slave),
-            "" if message.function is None else str(message.function),
-            Text(message.role.value, ROLE_STYLES[message.role]),
-            "" if message.request_index is None else f"#{message.request_index}",
-            str(len(frame.data)),
-            crc,
-            Text(" ".join(message.flags.names), "yellow"),
-            _summary_cell(message),
-            frame.data.hex(" "),
-        ]
+    def _block(self, batch: AnnotatedBatch, rows: np.ndarray, notes: dict[int, str]) -> None:
+        times = batch.messages.frames.t_start_ns[rows]
+        days = self._clock.days(times)
+        # Cut the block where the date changes: the new date goes on a line of its own.
+        cuts = [0, *(np.flatnonzero(np.diff(days)) + 1).tolist(), len(rows)]
+        for begin, end in itertools.pairwise(cuts):
+            if begin == end:
+                continue
+            day = int(days[begin])
+            if self._clock.mode != "relative" and day != self._day:
+                stamp = self._clock.date(int(times[begin]))
+                words = "capture starts" if self._day is None else "date"
+                self._note(f"{words} {stamp if self._day is None else stamp[:10]} ({self._clock.zone})", "bold")
+                self._day = day
+            part = AnnotatedBatch(batch.messages, batch.decodings, rows[begin:end])
+            cells = frame_cells(part, self._clock, plain=self._plain, summary_of=self._summary_of, notes=notes,
+                                styled=self._layout.color_system is not None,
+                                short_roles=self._layout.width is not None and self._layout.width < NARROW)
+            self._layout.measure(cells)
+            if not self._header_shown:
+                header = self._layout.header()
+                if self._plain:  # "#" first, as on the heading lines: one pattern skips them all
+                    header = "#" + header[1:].replace("#", " ", 1) if header[0] != "#" else header
+                self._out.write(header)
+                self._header_shown = True
+            self._out.write(self._layout.lines(cells, end - begin))
+            self.shown += end - begin
 
     def finish(self, statistics: Statistics) -> None:
         roles, flags = statistics.roles, statistics.flags
         order = ["request", "response", "exception", "broadcast", "unknown", "noise"]
-        parts = [f"{statistics.frames} frames"] + [f"{roles[r]} {r}" for r in order if roles[r]]
+        shown = f"{self.shown} of {statistics.frames} frames shown" if self.shown != statistics.frames \
+            else f"{statistics.frames} frames"
+        parts = [shown] + [f"{roles[r]} {r}" for r in order if roles[r]]
         if statistics.crc_errors:
             parts.append(f"{statistics.crc_errors} CRC errors")
         parts += [f"{n} {flag}" for flag, n in sorted(flags.items())]
-        self._console.print(", ".join(parts), highlight=False)
-
-
-def _summary_cell(message: Message) -> Text:
-    text = Text(message.summary)
-    for remark in message.remarks:
-        text.append(f" ⚠ {remark}", "yellow")
-    return text
+        self._note(", ".join(parts))
+        hidden = self._layout.hidden() if self.shown else []
+        if hidden:
+            self._note(f"(no room at {self._layout.width} columns for: {', '.join(hidden)}; "
+                       "see --width, --hex, or a pipe)", "dim")
+        self._out.flush()

@@ -33,6 +33,8 @@ MAX_TIME_NS = 2**63 - 1
 _TIME = re.compile(r"\d+(?:\.\d{1,9})?")
 _HEADER_KEY = re.compile(r"#\s*(line|timing)\s*:\s*(.*)$", re.IGNORECASE)
 NS_PER_S = 1_000_000_000
+#: Bytes read from the end of a file to find its last time (progress).
+TAIL_BYTES = 65536
 #: Chunks per batch handed to the framer.
 BATCH_CHUNKS = 8192
 
@@ -67,6 +69,22 @@ class TextCaptureReader:
     def close(self) -> None:
         if self._stream is not sys.stdin.buffer:
             self._stream.close()
+
+    def last_time_ns(self) -> int | None:
+        """The time of the last data line, read from the file's tail."""
+        if self.path == STDIO:
+            return None
+        try:
+            with open(self.path, "rb") as tail:
+                tail.seek(max(os.fstat(tail.fileno()).st_size - TAIL_BYTES, 0))
+                lines = tail.read().split(b"\n")
+        except OSError:
+            return None
+        for raw in reversed(lines[1:] if len(lines) > 1 else lines):
+            text = raw.decode("ascii", "replace").strip()
+            if text and not text.startswith("#"):
+                return parse_time_ns(text.split(maxsplit=1)[0])
+        return None
 
     def _error(self, kind: ErrorKind, message: str, line_number: int | None = None) -> CaptureFormatError:
         number = self._line_number if line_number is None else line_number

@@ -1,0 +1,106 @@
+"""A progress bar on standard error for long commands, when standard error is a terminal.
+
+Progress is measured in capture time: how far the frames decoded so far reach between the
+first frame and the capture's end (``CaptureReader.last_time_ns``, from the file's tail or
+index). It shows the share of the file that is (about) done, frames per second, the time
+elapsed and the time left; where the end is unknown (standard input), a count and a rate.
+The bar is a sink (it gets the framed batches, before annotation) and vanishes when done,
+leaving the closing line that says what was written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from types import TracebackType
+
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TaskID,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+
+from decoders.message import MessageBatch
+from sniffer.io.base import CaptureReader
+from sniffer.sinks import Sink
+
+#: The bar counts in thousandths of the capture's span.
+STEPS = 1000
+
+
+class ProgressSink(Sink):
+    """Moves a rich progress bar as framed batches go by."""
+
+    wants_frames = True
+
+    def __init__(self, progress: Progress | None, task: TaskID | None, end_ns: int | None,
+                 size: int | None) -> None:
+        self._progress, self._task, self._end_ns, self._size = progress, task, end_ns, size
+        self._first_ns: int | None = None
+        self._started = time.monotonic()
+        self.frame_count = 0
+
+    def frames(self, batch: MessageBatch) -> None:
+        self.frame_count += len(batch)
+        if self._progress is None or self._task is None or not len(batch):
+            return
+        reached = int(batch.frames.t_end_ns[-1])
+        if self._first_ns is None:
+            self._first_ns = int(batch.frames.t_start_ns[0])
+        done = None
+        if self._end_ns is not None and self._end_ns > self._first_ns:
+            done = min(STEPS, round(STEPS * (reached - self._first_ns) / (self._end_ns - self._first_ns)))
+        elapsed = time.monotonic() - self._started
+        rate = f"{self.frame_count / elapsed:,.0f} frames/s" if elapsed > 0 else ""
+        self._progress.update(self._task, completed=done if done is not None else self.frame_count,
+                              frames=self.frame_count, size=self._size_text(done), rate=rate)
+
+    def _size_text(self, done: int | None) -> str:
+        if self._size is None or done is None:
+            return ""
+        return f"≈ {self._size * done / STEPS / 1e6:,.1f} of {self._size / 1e6:,.1f} MB"
+
+
+class ProgressBar:
+    """A context: the bar while the command runs (or nothing), and its :attr:`sink`."""
+
+    def __init__(self, reader: CaptureReader | None, path: str, show: bool) -> None:
+        self._progress: Progress | None = None
+        task = end_ns = size = None
+        if show and reader is not None:
+            end_ns = reader.last_time_ns()
+            size = os.path.getsize(path) if path != "-" and os.path.isfile(path) else None
+            columns = [TextColumn("{task.description}"), BarColumn(),
+                       TextColumn("{task.percentage:>3.0f} %") if end_ns else MofNCompleteColumn(),
+                       TextColumn("{task.fields[size]}"), TextColumn("{task.fields[frames]:,} frames"),
+                       TextColumn("{task.fields[rate]}"), TimeElapsedColumn()]
+            if end_ns:
+                columns.append(TimeRemainingColumn())
+            self._progress = Progress(*columns, console=Console(file=sys.stderr), transient=True)
+            task = self._progress.add_task(os.path.basename(path), total=STEPS if end_ns else None,
+                                           frames=0, size="", rate="")
+        self.sink = ProgressSink(self._progress, task, end_ns, size)
+
+    def __enter__(self) -> ProgressBar:
+        if self._progress is not None:
+            self._progress.start()
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+
+
+def progress_for(args: argparse.Namespace, reader: CaptureReader, *, to_terminal: bool) -> ProgressBar:
+    """The bar for a command reading ``args.capture``: shown when standard error is a terminal,
+    the output does not go to that terminal too, and ``--quiet`` is not given."""
+    show = sys.stderr.isatty() and not getattr(args, "quiet", False) and not (to_terminal and sys.stdout.isatty())
+    return ProgressBar(reader, args.capture, show)

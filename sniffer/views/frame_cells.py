@@ -1,0 +1,140 @@
+"""The cells of the frame tables (``analyze``, the live view), built a column at a time from an
+annotated batch: the numbers by one conversion per column, the rest by lookups."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import numpy.typing as npt
+
+from decoders.damage import crc_note
+from decoders.frame import _NAMES_BY_VALUE, NO_IDLE
+from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding, Role
+from sniffer.views.clock import Clock
+from sniffer.views.layout import ALWAYS, Cells, Column
+
+ROLE_STYLES = {
+    Role.REQUEST: "cyan",
+    Role.RESPONSE: "green",
+    Role.EXCEPTION: "bold red",
+    Role.BROADCAST: "magenta",
+    Role.NOISE: "dim",
+    Role.UNKNOWN: "yellow",
+}
+_ROLE_NAMES = [role.value for role in ROLE_ORDER]
+#: On a narrow terminal (under ``NARROW`` columns) roles are abbreviated, to leave the summary room.
+_SHORT_ROLES = {"request": "req", "response": "resp", "exception": "exc", "broadcast": "bcast", "noise": "noise",
+                "unknown": "unk"}
+_SHORT_ROLE_NAMES = [_SHORT_ROLES[name] for name in _ROLE_NAMES]
+NARROW = 100
+_ROLE_STYLE_LIST = [ROLE_STYLES[role] for role in ROLE_ORDER]
+_NOISE = ROLE_ORDER.index(Role.NOISE)
+#: Flag names per flag value, as the terminal (spaces: wraps) and a pipe (commas: one field) write them.
+_FLAGS_SPACED = [" ".join(names) for names in _NAMES_BY_VALUE]
+_FLAGS_JOINED = [",".join(names) for names in _NAMES_BY_VALUE]
+
+#: Summary of a decoding in a table cell: its own summary, or the ``--registers`` reading of it.
+SummaryOf = Callable[[Decoding], str]
+
+
+def frame_columns(clock: Clock, *, plain: bool, hex_shown: bool | None, live: bool = False) -> list[Column]:
+    """The columns of a frame table. ``hex_shown``: ``True`` always (``--hex``), ``None`` when
+    there is room (a terminal), ``False`` never. What matters (index, time, Δt, slave, function,
+    role, CRC, flags, summary) is never dropped; request, latency and length go first, then hex.
+    The ``live`` view keeps the latency instead of Δt (between host reads, it says little)."""
+    columns = [
+        Column("index", "#", right=True),
+        Column("time", clock.header),
+        Column("idle", "Δt ms", right=True, keep=25 if live else ALWAYS),
+        Column("slave", "slave", right=True),
+        Column("function", "fc", right=True),
+        Column("role", "role"),
+        Column("request", "req", right=True, keep=20),
+        Column("latency", "lat ms", right=True, keep=ALWAYS if live else 30),
+        Column("length", "len", right=True, keep=10),
+        Column("crc", "CRC"),
+        Column("flags", "flags", flexible=True, min_width=7, max_width=18),
+    ]
+    summary = Column("summary", "summary", flexible=True, min_width=20)
+    hex_column = Column("hex", "hex", flexible=True, keep=ALWAYS if hex_shown else 5, min_width=23, max_width=47)
+    if plain:
+        # One field per column for awk: the summary, with its spaces, last.
+        return columns + ([hex_column] if hex_shown else []) + [summary]
+    return columns + [summary] + ([hex_column] if hex_shown is not False else [])
+
+
+def frame_cells(batch: AnnotatedBatch, clock: Clock, *, plain: bool, summary_of: SummaryOf,
+                notes: dict[int, str], styled: bool, short_roles: bool = False,
+                latencies: list[str] | None = None) -> dict[str, Cells]:
+    """Every column's cells for the kept messages of ``batch`` (``notes``: more to say, by
+    position; ``latencies``: the latency column's texts, if not the published latencies)."""
+    messages, frames = batch.messages, batch.messages.frames
+    rows = np.arange(len(batch.decodings), dtype=np.int64) if batch.rows is None else batch.rows
+    roles = batch.messages.role[rows]
+    role_codes = roles.tolist()
+    crc_ok = frames.crc_ok[rows].tolist()
+    noise = [code == _NOISE for code in role_codes]
+    offsets = frames.offsets
+    lengths = (offsets[rows + 1] - offsets[rows]).tolist()
+    flag_names = _FLAGS_JOINED if plain else _FLAGS_SPACED
+    cells = {
+        "index": Cells(list(map(str, (rows + frames.first_index).tolist()))),
+        "time": Cells(clock.texts(frames.t_start_ns[rows])),
+        "idle": Cells(_milliseconds(frames.idle_before_ns[rows], NO_IDLE)),
+        "slave": Cells(_integers(messages.slave[rows])),
+        "function": Cells(_integers(messages.function[rows])),
+        "role": Cells([(_SHORT_ROLE_NAMES if short_roles else _ROLE_NAMES)[code] for code in role_codes],
+                      [_ROLE_STYLE_LIST[code] for code in role_codes] if styled else None),
+        "request": Cells([f"#{r}" if r != NONE else "" for r in messages.request_index[rows].tolist()]),
+        "latency": Cells(latencies if latencies is not None else _milliseconds(messages.latency_ns[rows], NONE)),
+        "length": Cells(list(map(str, lengths))),
+        "crc": Cells(["" if n else ("ok" if ok else "BAD") for ok, n in zip(crc_ok, noise, strict=True)],
+                     ["" if ok else "bold red" for ok in crc_ok] if styled else None),
+        "flags": Cells([flag_names[value] for value in messages.flags[rows].tolist()],
+                       ["yellow"] * len(rows) if styled else None),
+        "summary": Cells(_summaries(batch, rows, summary_of, notes, crc_ok=crc_ok, noise=noise)),
+        "hex": Cells(_hex(frames.data, offsets, rows, spaced=not plain)),
+    }
+    return cells
+
+
+def _integers(column: npt.NDArray[np.integer]) -> list[str]:
+    return [str(v) if v != NONE else "" for v in column.tolist()]
+
+
+def _milliseconds(column: npt.NDArray[np.int64], none: int) -> list[str]:
+    return [f"{v / 1e6:.3f}" if v != none else "" for v in column.tolist()]
+
+
+def _summaries(batch: AnnotatedBatch, rows: npt.NDArray[np.int64], summary_of: SummaryOf,
+               notes: dict[int, str], *, crc_ok: list[bool], noise: list[bool]) -> list[str]:
+    decodings = batch.decodings_at(rows.tolist())
+    texts = list(map(summary_of, decodings))
+    frames = batch.messages.frames
+    for row, position in enumerate(rows.tolist()):
+        extra = []
+        if not crc_ok[row] and not noise[row]:
+            note = crc_note(frames.data[frames.offsets[position] : frames.offsets[position + 1]])
+            if note:
+                extra.append(note)
+        if position in notes:
+            extra.append(notes[position])
+        if extra:
+            texts[row] = " ⚠ ".join([texts[row], *extra])
+    return texts
+
+
+def _hex(data: bytes, offsets: npt.NDArray[np.int64], rows: npt.NDArray[np.int64], *, spaced: bool) -> list[str]:
+    text = data.hex(" ") if spaced else data.hex()
+    step = 3 if spaced else 2
+    trim = 1 if spaced else 0
+    starts, ends = (offsets[rows] * step).tolist(), (offsets[rows + 1] * step - trim).tolist()
+    return [text[s:e] for s, e in zip(starts, ends, strict=True)]
+
+
+def decoding_summary(decoding: Decoding) -> str:
+    """The decoding's summary with the device profile's remarks."""
+    if not decoding.remarks:
+        return decoding.summary
+    return " ⚠ ".join([decoding.summary, *decoding.remarks])

@@ -1,0 +1,217 @@
+"""Columns laid out for a width: what every table of rtusniff (``analyze``, ``stats``, the live
+view) prints through.
+
+Two modes, one column model:
+
+* **terminal** (:class:`Layout` with a width): the columns that fit, in the order given; when
+  they do not all fit, the ones with the lowest ``keep`` go first (never one with ``keep`` of
+  ``ALWAYS``). Fixed columns are as wide as their widest cell (never cut: a number longer than
+  its column widens the column); the flexible columns share what is left, and their cells wrap
+  at whole words onto continuation lines. Styles (ANSI, through rich's :class:`~rich.style.Style`)
+  only when the console has colour.
+* **plain** (width ``None``: a pipe, a file): one line per row, every column padded to the widest
+  cell seen so far, no wrapping, no styles, an empty cell written ``-`` so that ``awk`` counts the
+  same fields on every line; the last column is not padded.
+
+Rows come in columns (one list of cell texts per column) so that a block of thousands of rows
+costs one ``%`` format per line in plain mode.
+"""
+
+from __future__ import annotations
+
+import argparse
+import textwrap
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from rich.color import ColorSystem
+from rich.console import Console
+from rich.style import Style
+
+#: ``keep`` of a column that is never dropped.
+ALWAYS = 1_000
+
+
+#: rich's names of the colour systems that take ANSI styles ("windows", the legacy console, takes none).
+_ANSI_SYSTEMS = {"standard": ColorSystem.STANDARD, "256": ColorSystem.EIGHT_BIT, "truecolor": ColorSystem.TRUECOLOR}
+
+
+def terminal_colors(console: Console) -> ColorSystem | None:
+    """The colours to style with on ``console``: ``None`` off a terminal, with ``NO_COLOR``,
+    or on a console that takes no ANSI codes."""
+    if not console.is_terminal or console.color_system is None:
+        return None
+    return _ANSI_SYSTEMS.get(console.color_system)
+
+
+def terminal_width(args: argparse.Namespace, console: Console) -> int | None:
+    """The width to lay a table out for: ``--width`` (0: plain lines), else the terminal's,
+    else ``None`` (plain lines for a pipe or a file)."""
+    if args.width is not None:
+        return int(args.width) or None
+    return console.width if console.is_terminal else None
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column: its header, alignment, whether it takes the room left (and wraps), and how
+    much it matters when the width runs out (higher stays longer)."""
+
+    key: str
+    header: str
+    right: bool = False
+    flexible: bool = False
+    keep: int = ALWAYS
+    #: A flexible column is shown only with at least this much room.
+    min_width: int = 12
+    #: A flexible column takes no more than this (0: no limit).
+    max_width: int = 0
+
+
+#: A column's cells; styles (rich style strings, "" for none) optional, one per cell.
+@dataclass
+class Cells:
+    texts: list[str]
+    styles: list[str] | None = None
+
+
+@dataclass
+class Layout:
+    """Lays out blocks of rows; keeps the widths it has used so that blocks line up."""
+
+    columns: Sequence[Column]
+    #: Terminal width; ``None`` for plain output.
+    width: int | None = None
+    color_system: ColorSystem | None = None
+    widths: dict[str, int] = field(default_factory=dict)
+    _styles: dict[tuple[str, str], str] = field(default_factory=dict)
+
+    @property
+    def plain(self) -> bool:
+        return self.width is None
+
+    def gap(self) -> str:
+        return "  " if self.width is None or self.width >= 120 else " "
+
+    def shown(self) -> list[tuple[Column, int]]:
+        """The columns shown and their widths, from the widths seen so far."""
+        columns = [(c, max(len(c.header), self.widths.get(c.key, 0))) for c in self.columns]
+        if self.width is None:
+            return columns
+        return _fit(columns, self.width, len(self.gap()))
+
+    def hidden(self) -> list[str]:
+        """The headers of the columns this width has no room for."""
+        shown = {column.key for column, _ in self.shown()}
+        return [column.header for column in self.columns if column.key not in shown and column.header]
+
+    def header(self) -> str:
+        """The header line(s)."""
+        shown = self.shown()
+        return self._join(shown, [[column.header] for column, _ in shown], [""] * len(shown), header=True)
+
+    def measure(self, cells: dict[str, Cells]) -> None:
+        """Widen the columns to what ``cells`` hold (a flexible one on a terminal then takes no
+        more than that, up to its ``max_width``)."""
+        for column in self.columns:
+            texts = cells[column.key].texts
+            if texts:
+                widest = max(map(len, texts))
+                if widest > self.widths.get(column.key, 0):
+                    self.widths[column.key] = widest
+
+    def lines(self, cells: dict[str, Cells], count: int) -> str:
+        """``count`` rows as text, each ending in a newline."""
+        self.measure(cells)
+        if self.plain:
+            return self._plain_lines(cells, count)
+        shown = self.shown()
+        out = []
+        for row in range(count):
+            texts, styles = [], []
+            for column, width in shown:
+                column_cells = cells[column.key]
+                text = column_cells.texts[row]
+                texts.append(_wrap(text, width) if column.flexible else [text])
+                styles.append(column_cells.styles[row] if column_cells.styles else "")
+            out.append(self._join(shown, texts, styles))
+        return "".join(out)
+
+    def _plain_lines(self, cells: dict[str, Cells], count: int) -> str:
+        columns = self.shown()
+        last = len(columns) - 1
+        pattern = self.gap().join(
+            ("%s" if place == last else f"%{'' if column.right else '-'}{width}s")
+            for place, (column, width) in enumerate(columns)
+        ) + "\n"
+        lists = [[text or "-" for text in cells[column.key].texts] for column, _ in columns]
+        return "".join([pattern % row for row in zip(*lists, strict=True)][:count])
+
+    def _join(self, shown: list[tuple[Column, int]], texts: list[list[str]], styles: list[str],
+              header: bool = False) -> str:
+        height = max(map(len, texts))
+        gap = self.gap()
+        lines = []
+        for line in range(height):
+            parts = []
+            for (column, width), cell_lines, style in zip(shown, texts, styles, strict=True):
+                text = cell_lines[line] if line < len(cell_lines) else ""
+                padded = text.rjust(width) if column.right else text.ljust(width)
+                parts.append(self.styled(padded, "bold" if header else style) if text else padded)
+            lines.append(gap.join(parts).rstrip() + "\n")
+        return "".join(lines)
+
+    def styled(self, text: str, style: str) -> str:
+        if not style or self.color_system is None:
+            return text
+        key = (style, text)
+        styled = self._styles.get(key)
+        if styled is None:
+            styled = Style.parse(style).render(text, color_system=self.color_system)
+            if len(self._styles) < 4096:
+                self._styles[key] = styled
+        return styled
+
+
+def _fit(columns: list[tuple[Column, int]], width: int, gap: int) -> list[tuple[Column, int]]:
+    """Drop the least needed columns until the rest fit ``width``; share what is left among the
+    flexible ones (each up to its ``max_width``, the last one the rest)."""
+    kept = list(columns)
+    natural = {c.key: w for c, w in columns}
+
+    def room() -> int:
+        fixed = sum(w for c, w in kept if not c.flexible)
+        return width - fixed - gap * (len(kept) - 1)
+
+    while True:
+        flexible = [c for c, _ in kept if c.flexible]
+        if room() >= sum(c.min_width for c in flexible):
+            break
+        droppable = [pair for pair in kept if pair[0].keep < ALWAYS]
+        if not droppable:
+            break
+        kept.remove(min(droppable, key=lambda pair: pair[0].keep))
+    left = room()
+    flexible = [c for c, _ in kept if c.flexible]
+    shares: dict[str, int] = {}
+    # Capped columns (hex) first, leaving the others their minimum; the uncapped share the rest.
+    uncapped = [c for c in flexible if not c.max_width]
+    for column in flexible:
+        if column.max_width:
+            reserve = sum(c.min_width for c in uncapped)
+            # A quarter of the room at most while an uncapped column (the summary) wants it.
+            share = min(column.max_width, natural[column.key], max(column.min_width, left // 4) if uncapped else left)
+            shares[column.key] = max(min(share, left - reserve), 1)
+            left -= shares[column.key]
+    for position, column in enumerate(uncapped):
+        shares[column.key] = max(left // (len(uncapped) - position), 1)
+        left -= shares[column.key]
+    return [(c, shares[c.key] if c.flexible else w) for c, w in kept]
+
+
+def _wrap(text: str, width: int) -> list[str]:
+    """``text`` in lines of at most ``width``, broken between words (a word longer than the
+    line is the only thing ever broken)."""
+    if len(text) <= width:
+        return [text]
+    return textwrap.wrap(text, width, break_on_hyphens=False) or [""]

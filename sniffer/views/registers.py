@@ -1,0 +1,57 @@
+"""``--registers``, ``--word-order``, ``--addressing``: register values and addresses in the
+tables as a device's manual writes them, for slaves without a profile
+(:mod:`decoders.modbus.register_format`). Frames a profile decodes keep its names and units."""
+
+from __future__ import annotations
+
+import argparse
+
+from decoders.message import Decoding
+from decoders.modbus.register_format import ADDRESSINGS, KINDS, WORD_ORDERS, RegisterFormat
+from sniffer.views.frame_cells import SummaryOf, decoding_summary
+
+CRC_ERROR = "CRC error: "
+#: Summaries remembered per decoding (repeats share one decoding).
+KEPT_SUMMARIES = 65536
+
+
+def add_register_options(parser: argparse._ArgumentGroup) -> None:
+    parser.add_argument("--registers", choices=KINDS, metavar="KIND",
+                        help="register values of slaves without a profile as u16, s16, hex (the default view "
+                        "writes hex words), or two registers at a time as u32, s32, f32")
+    parser.add_argument("--word-order", choices=WORD_ORDERS, default="big",
+                        help="for u32/s32/f32: big = high word first (ABCD, default), little = low word first (CDAB)")
+    parser.add_argument("--addressing", choices=ADDRESSINGS, default="wire",
+                        help="register addresses as sent (wire, from 0; default), from 1, or as Modicon 4x "
+                        "references (40001 for holding register 0, 30001 input registers, 00001 coils)")
+
+
+def summary_reader(args: argparse.Namespace) -> SummaryOf:
+    """What the table writes for a decoding under these options."""
+    if args.registers is None and args.addressing == "wire":
+        return decoding_summary
+    registers = RegisterFormat(args.registers or "hex", args.word_order, args.addressing)
+    known: dict[Decoding, str] = {}
+
+    def summary(decoding: Decoding) -> str:
+        text = known.get(decoding)
+        if text is None:
+            text = _summary(registers, decoding)
+            if len(known) >= KEPT_SUMMARIES:
+                known.clear()
+            known[decoding] = text
+        return text
+
+    return summary
+
+
+def _summary(registers: RegisterFormat, decoding: Decoding) -> str:
+    if any(param.code is not None for param in decoding.params):
+        return decoding_summary(decoding)
+    start = decoding.params[0].address if decoding.params else None
+    text = registers.summary(decoding.pdu, start)
+    if text is None:
+        return decoding_summary(decoding)
+    if decoding.summary.startswith(CRC_ERROR):
+        text = CRC_ERROR + text
+    return " ⚠ ".join([text, *decoding.remarks])

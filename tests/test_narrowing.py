@@ -1,0 +1,187 @@
+"""Narrowed to what matters: windows, limits and filters on every command that reads a capture,
+damaged frames explained, register values as manuals write them."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from decoders.damage import byte_diff, crc_note
+from decoders.modbus.pdu import ReadRequest, RegistersResponse, WriteSingle
+from decoders.modbus.register_format import RegisterFormat
+from tests.conftest import SAMPLE_LOG, SAMPLE_MCAP, CliResult
+
+Cli = Callable[..., CliResult]
+
+
+def frames(result: CliResult) -> list[dict[str, object]]:
+    assert result.code == 0, result.err
+    return [record for record in result.jsonl() if record["kind"] == "frame"]
+
+
+def shown_indexes(result: CliResult) -> list[int]:
+    assert result.code == 0, result.err
+    return [int(line.split()[0]) for line in result.out.splitlines() if not line.startswith("#")]
+
+
+def test_time_window_offsets_and_clock_times(cli: Cli) -> None:
+    everything = frames(cli("analyze", str(SAMPLE_LOG), "--format", "jsonl"))
+    start = float(str(everything[0]["t"]))
+    # Frames from 1 s to 2 s after the first frame's start.
+    window = frames(cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--from", "1s", "--to", "2000ms"))
+    expected = [f["index"] for f in everything if 1 <= float(str(f["t"])) - start <= 2]
+    assert [f["index"] for f in window] == expected and 10 < len(expected) < 40
+    # The same window as times of day (UTC) and as dates.
+    by_clock = frames(cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--from", "22:13:21", "--to", "22:13:22"))
+    assert [f["index"] for f in by_clock] == expected
+    by_date = frames(cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--from", "2023-11-14 22:13:21",
+                         "--to", "2023-11-14T22:13:22Z"))
+    assert [f["index"] for f in by_date] == expected
+    # The summary counts the window only.
+    summary = cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--from", "1s", "--to", "2s").jsonl()[-1]
+    assert summary["frames"] == len(expected)
+
+
+def test_answers_in_a_window_keep_their_request(cli: Cli) -> None:
+    """A window that starts between a request and its answer: the answer is still paired and
+    decoded with the request's addresses."""
+    window = frames(cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--around", "7", "--context", "0",
+                        "--profile", "atv71"))
+    assert [f["index"] for f in window] == [7]
+    assert window[0]["request_index"] == 6 and "SFr = 4.0 kHz" in str(window[0]["summary"])
+
+
+def test_around_limit_and_stats(cli: Cli) -> None:
+    assert shown_indexes(cli("analyze", str(SAMPLE_LOG), "--around", "25", "--context", "2")) == [23, 24, 25, 26, 27]
+    assert shown_indexes(cli("analyze", str(SAMPLE_LOG), "--around", "3")) == list(range(0, 14))
+    assert shown_indexes(cli("analyze", str(SAMPLE_MCAP), "--limit", "3")) == [0, 1, 2]
+    limited = cli("analyze", str(SAMPLE_LOG), "--limit", "2", "--filter", "role=exception")
+    assert shown_indexes(limited) == [31, 41]
+    assert "# 2 of 42 frames shown" in limited.out  # read up to the second exception
+    stats = json.loads(cli("stats", str(SAMPLE_LOG), "--format", "json", "--around", "25", "--context", "2").out)
+    assert stats["frames"] == 5 and stats["crc_errors"] == 1
+
+
+def test_windowed_export_holds_the_window_only(cli: Cli, tmp_path: Path) -> None:
+    """The MCAP export of a window is a capture of that window: analysing it gives the same frames,
+    at the same times (raw chunks cut with the frames)."""
+    out = tmp_path / "window.mcap"
+    assert cli("export", str(SAMPLE_LOG), "--mcap", str(out), "--from", "1s", "--to", "2s", "--jobs", "2").code == 0
+    original = frames(cli("analyze", str(SAMPLE_LOG), "--format", "jsonl", "--from", "1s", "--to", "2s"))
+    again = frames(cli("analyze", str(out), "--format", "jsonl"))
+    assert [(f["t_ns"], f["hex"]) for f in again] == [(f["t_ns"], f["hex"]) for f in original]
+    pcap = tmp_path / "three.pcap"
+    assert cli("export", str(SAMPLE_LOG), "--pcap", str(pcap), "--limit", "3").code == 0
+    assert pcap.stat().st_size == 24 + sum(16 + n for n in (7, 55, 8))
+
+
+@pytest.mark.parametrize(("options", "error"), [
+    (["--from", "yesterday"], "--from yesterday: give an offset"),
+    (["--to", "25:00"], "--to 25:00: give an offset"),
+    (["--from", "5s", "--to", "1s"], "--to 1s is before --from 5s"),
+    (["--context", "3"], "--context goes with --around"),
+])
+def test_bad_windows_are_one_line(cli: Cli, options: list[str], error: str) -> None:
+    result = cli("analyze", str(SAMPLE_LOG), *options)
+    assert result.code == 2 and error in result.err and len(result.err.strip().splitlines()) == 1
+
+
+def test_empty_window_says_so(cli: Cli) -> None:
+    result = cli("analyze", str(SAMPLE_LOG), "--from", "1h")
+    assert result.code == 0 and "# 0 frames" in result.out
+
+
+@pytest.mark.parametrize(("spec", "expected"), [
+    (["crc=bad"], [25]),
+    (["exception=2"], [31]),
+    (["exception=0x04"], [41]),
+    (["address=3201"], [40, 41]),
+    (["address=8400-8401", "role=exception"], [31]),
+    (["param=hsp", "role=response"], [7, 14, 25, 27, 34, 45]),
+    (["latency>5.5", "slave=2"], [7, 25]),
+    (["latency<=2.1"], [3, 47]),
+])
+def test_filters(cli: Cli, spec: list[str], expected: list[int]) -> None:
+    options = [a for s in spec for a in ("--filter", s)]
+    result = cli("analyze", str(SAMPLE_LOG), "--profile", "atv71", *options)
+    assert shown_indexes(result) == expected
+    assert f"# {len(expected)} of 52 frames shown" in result.out
+
+
+@pytest.mark.parametrize(("spec", "error"), [
+    ("crc=maybe", "crc is one of ok, bad"),
+    ("address=9-3", "the range ends before it starts"),
+    ("latency>soon", "give milliseconds"),
+    ("colour=red", "use KEY=VALUE with KEY one of"),
+])
+def test_bad_filters_are_one_line(cli: Cli, spec: str, error: str) -> None:
+    result = cli("analyze", str(SAMPLE_LOG), "--filter", spec)
+    assert result.code == 2 and error in result.err
+
+
+def test_damaged_answer_shows_crc_and_its_difference_from_the_good_retry(cli: Cli) -> None:
+    out = cli("analyze", str(SAMPLE_LOG), "--around", "26", "--context", "1").out
+    damaged = next(line for line in out.splitlines() if line.split()[0] == "25")
+    assert "CRC 52 b0 on the wire, b3 71 computed" in damaged
+    good = next(line for line in out.splitlines() if line.split()[0] == "27")
+    assert "good retry of damaged #25: byte 6 50, good 58 (one bit, 0x08)" in good
+
+
+def test_crc_note() -> None:
+    assert crc_note(bytes.fromhex("02030c1e0004276c")) is None
+    assert crc_note(bytes.fromhex("02030c1e0004276d")) == "CRC 27 6d on the wire, 27 6c computed"
+    assert crc_note(b"\x02\x03") is None
+
+
+@given(st.binary(min_size=1, max_size=40), st.data())
+def test_byte_diff_names_exactly_the_differing_bytes(good: bytes, data: st.DataObject) -> None:
+    flips = data.draw(st.lists(st.integers(0, len(good) - 1), min_size=1, max_size=3, unique=True))
+    damaged = bytearray(good)
+    for place in flips:
+        damaged[place] ^= data.draw(st.integers(1, 255))
+    text = byte_diff(bytes(damaged), good)
+    for place in sorted(flips):
+        assert f"byte {place} {damaged[place]:02x}, good {good[place]:02x}" in text
+    assert text.count("byte ") == len(flips)
+
+
+def test_register_formats() -> None:
+    words = (0x4048, 0xF5C3, 0xFFFF)
+    assert RegisterFormat("u16").values(words) == "16456 62915 65535"
+    assert RegisterFormat("s16").values(words) == "16456 -2621 -1"
+    assert RegisterFormat("hex").values(words) == "0x4048 0xF5C3 0xFFFF"
+    assert RegisterFormat("f32").values(words) == "3.14 +65535"
+    assert RegisterFormat("f32", "little").values((0xF5C3, 0x4048)) == "3.14"
+    assert RegisterFormat("u32").values((0x0001, 0x0002)) == "65538"
+    assert RegisterFormat("s32", "little").values((0xFFFE, 0xFFFF)) == "-2"
+    one, modicon = RegisterFormat(addressing="1"), RegisterFormat(addressing="4x")
+    assert one.summary(ReadRequest(3, 0, 2), None) == "read HR 1..2 (2)"
+    assert modicon.summary(ReadRequest(4, 9, 1), None) == "read IR 30010 (1)"
+    assert modicon.summary(ReadRequest(1, 0, 8), None) == "read coils 00001..00008 (8)"
+    assert modicon.summary(ReadRequest(3, 65535, 1), None) == "read HR 465536 (1)"
+    assert RegisterFormat("f32").summary(RegistersResponse(3, 4, (0x4048, 0xF5C3)), 100) == "HR 100..101 = 3.14"
+    assert RegisterFormat("s16").summary(WriteSingle(6, 7, 0xFFFF), None) == "write HR 7 = -1"
+    with pytest.raises(ValueError, match="register format"):
+        RegisterFormat("f64")
+
+
+def test_registers_on_the_command_line(cli: Cli) -> None:
+    out = cli("analyze", str(SAMPLE_LOG), "--registers", "u16", "--addressing", "4x", "--filter", "slave=12").out
+    assert "read HR 48401..48403 (3)" in out and "HR 48401..48403 = 32768 3 2" in out
+    profiled = cli("analyze", str(SAMPLE_LOG), "--registers", "u16", "--profile", "atv71", "--around", "7",
+                   "--context", "0").out
+    assert "SFr = 4.0 kHz" in profiled  # a profile's names and units win over raw registers
+
+
+def test_quiet_and_what_was_written(cli: Cli, tmp_path: Path) -> None:
+    out = tmp_path / "table.txt"
+    told = cli("analyze", str(SAMPLE_LOG), "-o", str(out), "--filter", "role=exception")
+    assert told.code == 0 and told.err.startswith(f"wrote {out}: table, 2 frames, ")
+    assert cli("analyze", str(SAMPLE_LOG), "-o", str(out), "--force", "-q").err == ""
+    stats = tmp_path / "stats.json"
+    assert "json statistics of 52 frames" in cli("stats", str(SAMPLE_LOG), "--format", "json", "-o", str(stats)).err

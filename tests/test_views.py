@@ -1,0 +1,197 @@
+"""The terminal views as engineers use them: every width, a pipe, dates, time modes.
+
+Golden screens (tests/golden/screens/) are the shipped sample laid out for 80, 120 and 200
+columns: ``RTUSNIFF_REGENERATE_GOLDEN=1`` rewrites them after a deliberate change (review the diff).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from rich.console import Console
+
+from decoders.capture import TimingQuality
+from sniffer.io.registry import open_reader
+from sniffer.pipeline import Analysis, analyze
+from sniffer.views.live import LiveState, LiveView
+from tests.conftest import ROOT, SAMPLE_LOG, CliResult
+
+GOLDEN = ROOT / "tests" / "golden" / "screens"
+REGENERATE = os.environ.get("RTUSNIFF_REGENERATE_GOLDEN") == "1"
+SCREENS = [(80, 24), (120, 40), (200, 50)]
+Cli = Callable[..., CliResult]
+#: A plain line: index, time, Δt, slave, fc, role, req, lat, len, CRC, flags, then the summary.
+PLAIN_FIELDS = 11
+
+
+def check_golden(name: str, text: str) -> None:
+    path = GOLDEN / name
+    if REGENERATE:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    assert path.read_text() == text, f"{name} differs; RTUSNIFF_REGENERATE_GOLDEN=1 rewrites it"
+
+
+def fixed_cells(line: str) -> list[str]:
+    return line.split()
+
+
+@pytest.mark.parametrize(("width", "height"), SCREENS)
+def test_analyze_screens(cli: Cli, width: int, height: int) -> None:
+    result = cli("analyze", str(SAMPLE_LOG), "--width", str(width))
+    assert result.code == 0, result.err
+    lines = result.out.splitlines()
+    assert max(map(len, lines[2:])) <= width  # the heading lines wrap as the terminal wraps them
+    header = next(line for line in lines if "time (UTC)" in line)
+    for title in ("#", "time (UTC)", "Δt ms", "slave", "fc", "role", "CRC", "flags", "summary"):
+        assert title in header, (width, title)
+    assert ("hex" in header) == (width >= 200)
+    # Numbers are never cut, words never broken where a space was near: every frame's time,
+    # Δt and CRC appear whole on its first line.
+    assert "…" not in result.out.replace("… (+", "")
+    frame_lines = [line for line in lines if re.match(r"^\s*\d+ \s*\d\d:\d\d:\d\d\.\d{6}", line)]
+    assert len(frame_lines) == 52
+    assert any("1000.000" in line for line in frame_lines)
+    check_golden(f"analyze-{width}.txt", result.out)
+
+
+def test_summary_wraps_at_whole_words(cli: Cli) -> None:
+    out = cli("analyze", str(SAMPLE_LOG), "--width", "120").out
+    summary_at = out.splitlines()[2].index("summary")
+    pieces = [line[summary_at:] for line in out.splitlines()[3:] if len(line) > summary_at]
+    words = set(" ".join(pieces).split())
+    # "LSP = 0.0 Hz" is written in words that each stay whole on some line.
+    for word in ("SFr", "4.0", "kHz,", "LSP", "Hz"):
+        assert word in words
+
+
+def test_pipe_is_one_line_per_frame_with_fixed_fields(cli: Cli) -> None:
+    result = cli("analyze", str(SAMPLE_LOG))
+    lines = result.out.splitlines()
+    rows = [line for line in lines if not line.startswith("#")]
+    assert len(rows) == 52
+    for row in rows:
+        fields = row.split(None, PLAIN_FIELDS)
+        assert len(fields) == PLAIN_FIELDS + 1, row
+        assert re.fullmatch(r"\d\d:\d\d:\d\d\.\d{6}", fields[1])
+        assert fields[9] in ("ok", "BAD", "-")
+    # awk picks a column: the slaves of every request.
+    requests = [row.split()[3] for row in rows if row.split()[5] == "request"]
+    assert requests[:3] == ["2", "20", "20"]
+    hexed = [line for line in cli("analyze", str(SAMPLE_LOG), "--hex").out.splitlines() if not line.startswith("#")]
+    assert all(re.fullmatch(r"[0-9a-f]+", row.split(None, PLAIN_FIELDS + 1)[11]) for row in hexed)
+
+
+@pytest.mark.parametrize(("width", "height"), SCREENS)
+def test_stats_screens(cli: Cli, width: int, height: int) -> None:
+    result = cli("stats", str(SAMPLE_LOG), "--width", str(width))
+    assert result.code == 0, result.err
+    assert max(map(len, result.out.splitlines())) <= width
+    for title in ("slave", "fc", "req", "resp", "exc", "CRC", "timeout", "p50", "max"):
+        assert title in result.out
+    check_golden(f"stats-{width}.txt", result.out)
+
+
+def test_stats_pipe_rows_split_into_fields(cli: Cli) -> None:
+    out = cli("stats", str(SAMPLE_LOG)).out
+    bus = dict(line.split() for line in out.split("\n\n")[0].splitlines()[1:])
+    assert bus["frames"] == "52" and bus["crc_errors"] == "1" and bus["flag_timeout"] == "4"
+
+
+def live_screen(width: int, height: int) -> str:
+    reader = open_reader(str(SAMPLE_LOG))
+    assert reader.info.line is not None
+    view = LiveView(LiveState("/dev/ttyUSB0", "19200 8E1", "site.mcap", "timing host"))
+    statistics = analyze(reader, "live", Analysis(reader.info.line, TimingQuality.HOST), [view])
+    reader.close()
+    out = io.StringIO()
+    Console(file=out, width=width, height=height, color_system=None).print(view.render(statistics))
+    # The elapsed seconds change from run to run.
+    return re.sub(r"^\d+ s, ", "N s, ", out.getvalue(), flags=re.MULTILINE)
+
+
+@pytest.mark.parametrize(("width", "height"), SCREENS)
+def test_live_screens_fill_the_terminal(width: int, height: int) -> None:
+    screen = live_screen(width, height)
+    lines = screen.splitlines()
+    assert max(map(len, lines)) <= width
+    # Fills the screen: a frame row more would not fit (rich keeps one line for the cursor).
+    assert height - 4 <= len(lines) <= height - 1
+    assert "lat ms" in screen and "~" in screen  # latency per frame, marked as read-time
+    assert "51 " in lines[-1] or "51 " in screen.splitlines()[-1]  # the newest frame is last
+    check_golden(f"live-{width}x{height}.txt", screen)
+
+
+def midnight_capture(path: Path) -> Path:
+    day = 1_700_006_399  # 2023-11-14 23:59:59 UTC
+    lines = ["# rtu-capture v1", "# line: 19200 8E1", "# timing: exact",
+             f"{day}.500000000 02 03 0C 1E 00 04 27 6C",
+             f"{day + 1}.100000000 02 03 0C 1E 00 04 27 6C"]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_dates_appear_where_the_capture_crosses_midnight(cli: Cli, tmp_path: Path) -> None:
+    capture = midnight_capture(tmp_path / "midnight.log")
+    out = cli("analyze", str(capture)).out
+    assert "# capture starts 2023-11-14 23:59:59 (UTC)" in out
+    assert "# date 2023-11-15 (UTC)" in out
+    assert out.index("23:59:59.49") < out.index("# date 2023-11-15") < out.index("00:00:00.09")
+
+
+def test_time_modes(cli: Cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    relative = cli("analyze", str(SAMPLE_LOG), "--time", "relative").out
+    rows = [line.split() for line in relative.splitlines() if not line.startswith("#")]
+    assert rows[0][1] == "0.000000" and rows[1][1] == "0.007305"
+    assert "capture starts" not in relative
+    monkeypatch.setenv("TZ", "America/New_York")
+    time.tzset()
+    try:
+        local = cli("analyze", str(midnight_capture(tmp_path / "m.log")), "--time", "local").out
+    finally:
+        monkeypatch.delenv("TZ")
+        time.tzset()
+    assert "# capture starts 2023-11-14 18:59:59 (local time)" in local and "# date" not in local
+    assert "18:59:59.49" in local
+
+
+def test_wrong_view_options_are_one_line(cli: Cli) -> None:
+    with pytest.raises(SystemExit) as stopped:
+        cli("analyze", str(SAMPLE_LOG), "--time", "mars")
+    assert stopped.value.code == 2
+
+
+@pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed")
+@pytest.mark.parametrize(("width", "height"), SCREENS)
+def test_real_terminal_in_tmux(tmp_path: Path, width: int, height: int) -> None:
+    """The table in a real terminal (tmux): as wide as the pane, in colour, nothing past the edge."""
+    session = f"rtusniff-{os.getpid()}-{width}"
+    done = tmp_path / "done"
+    # env -u: a COLUMNS inherited from the test run would override the pane's size.
+    command = (f"env -u COLUMNS -u LINES {sys.executable} -m sniffer analyze {SAMPLE_LOG} --limit 8; "
+               f"touch {done}; sleep 30")
+    subprocess.run(["tmux", "-L", session, "new-session", "-d", "-x", str(width), "-y", str(height),
+                    "-e", "TERM=xterm-256color", "-e", f"PYTHONPATH={ROOT}", command], check=True)
+    try:
+        deadline = time.monotonic() + 20
+        while not done.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        screen = subprocess.run(["tmux", "-L", session, "capture-pane", "-p", "-e", "-S", "-"], check=True,
+                                capture_output=True, text=True).stdout
+    finally:
+        subprocess.run(["tmux", "-L", session, "kill-server"], check=False)
+    plain = re.sub(r"\x1b\[[0-9;]*m", "", screen)
+    assert "\x1b[" in screen  # colours on a terminal
+    assert "time (UTC)" in plain and "# 8 frames" not in plain and "8 frames, " in plain
+    assert all(len(line) <= width for line in plain.splitlines())
+    header = next(line for line in plain.splitlines() if "time (UTC)" in line)
+    assert ("hex" in header) == (width >= 200)
