@@ -27,6 +27,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
+from decoders.capture import ChunkBatch
 from decoders.message import MessageBatch
 from sniffer.io.base import CaptureReader
 from sniffer.sinks import Sink
@@ -48,19 +49,28 @@ class ProgressSink(Sink):
         self.frame_count = 0
 
     def frames(self, batch: MessageBatch) -> None:
-        self.frame_count += len(batch)
-        if self._progress is None or self._task is None or not len(batch):
+        if len(batch):
+            self.advance(int(batch.frames.t_start_ns[0]), int(batch.frames.t_end_ns[-1]), len(batch))
+
+    def chunks(self, batch: ChunkBatch) -> None:
+        """For commands that copy chunks (``convert``): progress in chunks."""
+        if len(batch):
+            self.advance(int(batch.t_end_ns[0]), int(batch.t_end_ns[-1]), len(batch), unit="chunks")
+
+    def advance(self, first_ns: int, reached: int, count: int, unit: str = "frames") -> None:
+        """``count`` more frames (or chunks) decoded, the last ending at ``reached``."""
+        self.frame_count += count
+        if self._progress is None or self._task is None:
             return
-        reached = int(batch.frames.t_end_ns[-1])
         if self._first_ns is None:
-            self._first_ns = int(batch.frames.t_start_ns[0])
+            self._first_ns = first_ns
         done = None
         if self._end_ns is not None and self._end_ns > self._first_ns:
             done = min(STEPS, round(STEPS * (reached - self._first_ns) / (self._end_ns - self._first_ns)))
         elapsed = time.monotonic() - self._started
-        rate = f"{self.frame_count / elapsed:,.0f} frames/s" if elapsed > 0 else ""
+        rate = f"{self.frame_count / elapsed:,.0f} {unit}/s" if elapsed > 0 else ""
         self._progress.update(self._task, completed=done if done is not None else self.frame_count,
-                              frames=self.frame_count, size=self._size_text(done), rate=rate)
+                              frames=f"{self.frame_count:,} {unit}", size=self._size_text(done), rate=rate)
 
     def _size_text(self, done: int | None) -> str:
         if self._size is None or done is None:
@@ -79,13 +89,13 @@ class ProgressBar:
             size = os.path.getsize(path) if path != "-" and os.path.isfile(path) else None
             columns = [TextColumn("{task.description}"), BarColumn(),
                        TextColumn("{task.percentage:>3.0f} %") if end_ns else MofNCompleteColumn(),
-                       TextColumn("{task.fields[size]}"), TextColumn("{task.fields[frames]:,} frames"),
+                       TextColumn("{task.fields[size]}"), TextColumn("{task.fields[frames]}"),
                        TextColumn("{task.fields[rate]}"), TimeElapsedColumn()]
             if end_ns:
                 columns.append(TimeRemainingColumn())
             self._progress = Progress(*columns, console=Console(file=sys.stderr), transient=True)
             task = self._progress.add_task(os.path.basename(path), total=STEPS if end_ns else None,
-                                           frames=0, size="", rate="")
+                                           frames="", size="", rate="")
         self.sink = ProgressSink(self._progress, task, end_ns, size)
 
     def __enter__(self) -> ProgressBar:
@@ -99,8 +109,9 @@ class ProgressBar:
             self._progress.stop()
 
 
-def progress_for(args: argparse.Namespace, reader: CaptureReader, *, to_terminal: bool) -> ProgressBar:
-    """The bar for a command reading ``args.capture``: shown when standard error is a terminal,
-    the output does not go to that terminal too, and ``--quiet`` is not given."""
+def progress_for(args: argparse.Namespace, reader: CaptureReader, *, to_terminal: bool,
+                 path: str | None = None) -> ProgressBar:
+    """The bar for a command reading ``path`` (``args.capture``): shown when standard error is a
+    terminal, the output does not go to that terminal too, and ``--quiet`` is not given."""
     show = sys.stderr.isatty() and not getattr(args, "quiet", False) and not (to_terminal and sys.stdout.isatty())
-    return ProgressBar(reader, args.capture, show)
+    return ProgressBar(reader, path or args.capture, show)

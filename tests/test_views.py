@@ -195,3 +195,47 @@ def test_real_terminal_in_tmux(tmp_path: Path, width: int, height: int) -> None:
     assert all(len(line) <= width for line in plain.splitlines())
     header = next(line for line in plain.splitlines() if "time (UTC)" in line)
     assert ("hex" in header) == (width >= 200)
+
+
+def run_on_pty(argv: list[str]) -> str:
+    """Run rtusniff with standard error on a pseudo-terminal (standard output to nowhere); what
+    the terminal got, without escape codes."""
+    import pty
+    import select
+
+    master, slave = pty.openpty()
+    process = subprocess.Popen([sys.executable, "-m", "sniffer", *argv], stderr=slave, stdout=subprocess.DEVNULL,
+                               env={**os.environ, "COLUMNS": "150", "PYTHONPATH": str(ROOT)})
+    os.close(slave)
+    received = b""
+    while True:
+        ready, _, _ = select.select([master], [], [], 0.5)
+        if ready:
+            try:
+                data = os.read(master, 65536)
+            except OSError:  # the child closed the terminal
+                break
+            if not data:
+                break
+            received += data
+        elif process.poll() is not None:
+            break
+    process.wait(timeout=60)
+    os.close(master)
+    assert process.returncode == 0, received
+    return re.sub(r"\x1b\[[0-9;?]*[a-zA-Z]", "", received.decode(errors="replace"))
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+def test_progress_bar_on_a_terminal(tmp_path: Path) -> None:
+    from benchmarks.bench_memory import write_capture
+
+    capture = tmp_path / "long.mcap"
+    write_capture(capture, 60_000)
+    shown = run_on_pty(["stats", str(capture), "-o", str(tmp_path / "stats.txt")])
+    assert "long.mcap" in shown and " %" in shown and "frames/s" in shown and "MB" in shown
+    assert f"wrote {tmp_path / 'stats.txt'}: table statistics of 60,000 frames" in shown
+    copied = run_on_pty(["convert", str(capture), str(tmp_path / "long.log")])
+    assert "chunks/s" in copied and "wrote" in copied
+    quiet = run_on_pty(["export", str(capture), "--pcap", str(tmp_path / "long.pcap"), "-q"])
+    assert quiet.strip() == ""

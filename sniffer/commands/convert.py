@@ -10,6 +10,7 @@ from dataclasses import replace
 from sniffer.commands.common import (
     add_input_format_option,
     add_line_options,
+    add_quiet_option,
     check_outputs,
     close_reader,
     human_size,
@@ -17,6 +18,7 @@ from sniffer.commands.common import (
 )
 from sniffer.io.base import ReaderOptions
 from sniffer.io.registry import format_help, formats_for, open_reader, open_writer
+from sniffer.progress import progress_for
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -33,6 +35,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                         help=f"default: from the suffix. {format_help('write')}")
     add_line_options(parser)
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    add_quiet_option(parser)
     parser.set_defaults(run=run)
 
 
@@ -46,11 +49,14 @@ def run(args: argparse.Namespace) -> int:
             info = replace(info, line=override)
         writer = open_writer(args.output, info, args.output_format)
         chunks = size = 0
+        progress = progress_for(args, reader, to_terminal=args.output == "-", path=args.input)
         try:
-            for batch in reader.batches():
-                writer.write_batch(batch)
-                chunks += len(batch)
-                size += len(batch.data)
+            with progress:
+                for batch in reader.batches():
+                    writer.write_batch(batch)
+                    progress.sink.chunks(batch)
+                    chunks += len(batch)
+                    size += len(batch.data)
             writer.add_notes(reader.late_notes)
         except BaseException:
             writer.close()
@@ -61,6 +67,8 @@ def run(args: argparse.Namespace) -> int:
         writer.close()
     finally:
         close_reader(reader)
+    if args.quiet:
+        return 0
     target = "standard output" if args.output == "-" else f"{args.output} ({human_size(os.path.getsize(args.output))})"
     print(f"wrote {chunks:,} chunks, {size:,} bytes of line data to {target}", file=sys.stderr)
     return 0

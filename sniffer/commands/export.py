@@ -11,11 +11,19 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
-from sniffer.commands.common import add_decoding_options, add_jobs_option, check_outputs, human_size, open_analysis
+from sniffer.commands.common import (
+    add_decoding_options,
+    add_jobs_option,
+    add_quiet_option,
+    check_outputs,
+    human_size,
+    open_analysis,
+)
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.outputs import McapSink, PcapSink, RerunSink
 from sniffer.pipeline import Analysis, analyze
+from sniffer.progress import progress_for
 from sniffer.sinks import FileSink
 
 
@@ -34,6 +42,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("--force", action="store_true", help="overwrite existing output files")
     add_decoding_options(parser)
     add_jobs_option(parser)
+    add_quiet_option(parser)
     parser.set_defaults(run=run)
 
 
@@ -52,8 +61,11 @@ def run(args: argparse.Namespace) -> int:
     with ExitStack() as stack:
         reader, analysis = open_analysis(args, stack)
         sinks = output_sinks(args, analysis, stack)
-        analyze(reader, args.capture, analysis, [sink for _, sink in sinks], jobs=decoding_jobs(args.jobs))
-    _tell_written(args, sinks)
+        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.pcap == "-"))
+        analyze(reader, args.capture, analysis, [*(sink for _, sink in sinks), progress.sink],
+                jobs=decoding_jobs(args.jobs))
+    if not args.quiet:
+        _tell_written(args, sinks)
     return 0
 
 
