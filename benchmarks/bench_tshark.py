@@ -1,12 +1,13 @@
 """rtusniff against Wireshark's tshark on the same frames, side by side in one run; prints a table.
 
-    python -m benchmarks.bench_tshark [--frames 1000000] [--keep DIR]
+    python -m benchmarks.bench_tshark [--frames 1000000] [--keep DIR] [--traffic polling|mixed|steady]
 
 The capture is FC 3 polling at 115200 8N1 (benchmarks/bench_memory.py). rtusniff writes it as
 pcap (`export --pcap`, frames already split), and tshark decodes that pcap with its Modbus RTU
 dissector (DLT 147 mapped to mbrtu on its command line, CRC check on) into ``-T fields``: the
 fairest like-for-like, since tshark cannot split a raw byte stream into RTU frames itself.
-Every command runs in its own process; times are wall clock, RSS the process's peak.
+Every command runs in its own process; times are wall clock, RSS the process's peak. The
+table against tshark's default one-line summary is the terminal view against the terminal view.
 """
 
 from __future__ import annotations
@@ -56,10 +57,14 @@ def main() -> None:
         jobs = [
             ("rtusniff stats --format json", [*rtusniff, "stats", str(capture), "--format", "json"]),
             ("rtusniff analyze --format jsonl", [*rtusniff, "analyze", str(capture), "--format", "jsonl"]),
+            ("rtusniff analyze (table, a line a frame)", [*rtusniff, "analyze", str(capture)]),
             ("rtusniff export --pcap", [*rtusniff, "export", str(capture), "--pcap", str(pcap), "--force"]),
             ("tshark -T fields (mbrtu, on that pcap)",
              [tshark, "-n", "-o", f"uat:user_dlts:{WIRESHARK_USER_DLT}", "-o", "mbrtu.crc_verification:TRUE",
               "-r", str(pcap), "-T", "fields", *fields]),
+            ("tshark one-line summary (its default)",
+             [tshark, "-n", "-o", f"uat:user_dlts:{WIRESHARK_USER_DLT}", "-o", "mbrtu.crc_verification:TRUE",
+              "-r", str(pcap)]),
         ]
         wire_mb = wire_megabytes(capture)
         print(f"{args.frames:,} frames, {wire_mb:.1f} MB on the wire, {capture.stat().st_size / 1e6:.1f} MB capture")
@@ -74,9 +79,11 @@ def main() -> None:
             seconds_by_job[name] = seconds
             print(f"{name:<40} {seconds:>8.1f} {args.frames / seconds:>10,.0f} {wire_mb / seconds:>10.2f} "
                   f"{rss:>12.1f} {lines:>13,}")
-        tshark_seconds = seconds_by_job[jobs[-1][0]]
+        fields_seconds, line_seconds = seconds_by_job[jobs[-2][0]], seconds_by_job[jobs[-1][0]]
         for name in ("rtusniff stats --format json", "rtusniff analyze --format jsonl"):
-            print(f"tshark time / {name} time: {tshark_seconds / seconds_by_job[name]:.2f}")
+            print(f"tshark -T fields time / {name} time: {fields_seconds / seconds_by_job[name]:.2f}")
+        table = "rtusniff analyze (table, a line a frame)"
+        print(f"tshark one-line time / {table} time: {line_seconds / seconds_by_job[table]:.2f}")
 
 
 if __name__ == "__main__":

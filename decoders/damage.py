@@ -65,31 +65,55 @@ class RetryDiff:
         """Notes by position in ``batch`` for the good answers that follow a damaged one."""
         frames = batch.frames
         broken = ~frames.crc_ok & (batch.role != _NOISE)
-        if not broken.any() and not self._damaged:
-            return {}
-        return self._walk(batch, broken)
+        # Only frames within RETRY_FRAMES after a damaged one (or after one still waiting) matter.
+        near = np.zeros(len(batch) + RETRY_FRAMES + 1, np.int64)
+        if self._damaged:
+            near[0] += 1
+            near[max(self._damaged[-1][0] + RETRY_FRAMES - frames.first_index + 1, 0)] -= 1
+        starts = np.flatnonzero(broken)
+        np.add.at(near, starts, 1)
+        np.add.at(near, starts + RETRY_FRAMES + 1, -1)
+        wanted = np.flatnonzero(np.cumsum(near)[: len(batch)] > 0)
+        notes = self._walk(batch, broken, wanted) if len(wanted) else {}
+        self._remember_requests(batch)
+        return notes
 
-    def _walk(self, batch: MessageBatch, broken: np.ndarray) -> dict[int, str]:
+    def _remember_requests(self, batch: MessageBatch) -> None:
+        """The bytes of the batch's last requests, for answers in the next batch."""
+        frames = batch.frames
+        for position in np.flatnonzero(np.isin(batch.role, _REQUESTS))[-RETRY_FRAMES:].tolist():
+            self._requests[frames.first_index + position] = frames.data[frames.offsets[position]:
+                                                                        frames.offsets[position + 1]]
+        while len(self._requests) > KEPT_DAMAGED:
+            self._requests.popitem(last=False)
+
+    def _walk(self, batch: MessageBatch, broken: np.ndarray, wanted: np.ndarray) -> dict[int, str]:
         frames, notes = batch.frames, {}
-        offsets, data, first = frames.offsets.tolist(), frames.data, frames.first_index
-        requests = batch.request_index.tolist()
-        for position, (role, bad) in enumerate(zip(batch.role.tolist(), broken.tolist(), strict=True)):
+        offsets, data, first = frames.offsets, frames.data, frames.first_index
+        roles, requests = batch.role[wanted].tolist(), batch.request_index[wanted].tolist()
+        for position, role, request, is_bad in zip(wanted.tolist(), roles, requests, broken[wanted].tolist(),
+                                                   strict=True):
             index = first + position
             self._damaged = [d for d in self._damaged if index - d[0] <= RETRY_FRAMES]
-            if role == _NOISE or not (bad or self._damaged or role in _REQUESTS):
+            if role == _NOISE or role in _REQUESTS:
                 continue
+            self._remember_request(batch, request)
             payload = data[offsets[position] : offsets[position + 1]]
-            if role in _REQUESTS:
-                self._requests[index] = payload
-                if len(self._requests) > KEPT_DAMAGED:
-                    self._requests.popitem(last=False)
-            elif bad:
-                self._damaged.append((index, requests[position], payload))
-            else:
-                note = self._compare(payload, requests[position])
+            if is_bad:
+                self._damaged.append((index, request, payload))
+            elif self._damaged:
+                note = self._compare(payload, request)
                 if note:
                     notes[position] = note
         return notes
+
+    def _remember_request(self, batch: MessageBatch, request: int) -> None:
+        position = request - batch.frames.first_index
+        if 0 <= position < len(batch):
+            frames = batch.frames
+            self._requests[request] = frames.data[frames.offsets[position] : frames.offsets[position + 1]]
+            if len(self._requests) > KEPT_DAMAGED:
+                self._requests.popitem(last=False)
 
     def _compare(self, good: bytes, request: int) -> str | None:
         for entry in self._damaged:

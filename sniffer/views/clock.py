@@ -46,11 +46,12 @@ class Clock:
                 self.origin_ns = int(t_ns[0])
             micros = (t_ns - self.origin_ns) // 1000
             return [f"{value / 1e6:.6f}" for value in micros.tolist()]
-        seconds = self._wall_seconds(t_ns)
-        of_day = seconds % SECONDS_PER_DAY
-        micros = (t_ns % NS_PER_S) // 1000
-        return [f"{s // 3600:02d}:{s // 60 % 60:02d}:{s % 60:02d}.{u:06d}"
-                for s, u in zip(of_day.tolist(), micros.tolist(), strict=True)]
+        # A batch spans few distinct seconds: "HH:MM:SS" once per second, the microseconds per row.
+        seconds, where = np.unique(self._wall_seconds(t_ns) % SECONDS_PER_DAY, return_inverse=True)
+        clocks = [f"{s // 3600:02d}:{s // 60 % 60:02d}:{s % 60:02d}" for s in seconds.tolist()]
+        micros = ((t_ns % NS_PER_S) // 1000).tolist()
+        return list(map("%s.%06d".__mod__, zip(map(clocks.__getitem__, where.reshape(-1).tolist()), micros,
+                                                  strict=True)))
 
     def days(self, t_ns: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
         """The day number of each time in the mode's zone (all 0 for ``relative``)."""

@@ -93,9 +93,16 @@ class Layout:
     def gap(self) -> str:
         return "  " if self.width is None or self.width >= 120 else " "
 
+    def _header_text(self, position: int, column: Column) -> str:
+        """A plain table's heading line starts with ``#``, as its other comment lines do."""
+        if self.plain and position == 0 and not column.header.startswith("#"):
+            return "#" + column.header
+        return column.header
+
     def shown(self) -> list[tuple[Column, int]]:
         """The columns shown and their widths, from the widths seen so far."""
-        columns = [(c, max(len(c.header), self.widths.get(c.key, 0))) for c in self.columns]
+        columns = [(c, max(len(self._header_text(p, c)), self.widths.get(c.key, 0)))
+                   for p, c in enumerate(self.columns)]
         if self.width is None:
             return columns
         return _fit(columns, self.width, len(self.gap()))
@@ -108,7 +115,8 @@ class Layout:
     def header(self) -> str:
         """The header line(s)."""
         shown = self.shown()
-        return self._join(shown, [[column.header] for column, _ in shown], [""] * len(shown), header=True)
+        texts = [[self._header_text(p, column)] for p, (column, _) in enumerate(shown)]
+        return self._join(shown, texts, [""] * len(shown), header=True)
 
     def measure(self, cells: dict[str, Cells]) -> None:
         """Widen the columns to what ``cells`` hold (a flexible one on a terminal then takes no
@@ -153,10 +161,11 @@ class Layout:
         gap = self.gap()
         lines = []
         for line in range(height):
-            parts = []
+            parts: list[str] = []
             for (column, width), cell_lines, style in zip(shown, texts, styles, strict=True):
                 text = cell_lines[line] if line < len(cell_lines) else ""
-                padded = text.rjust(width) if column.right else text.ljust(width)
+                first_heading = header and self.plain and not parts
+                padded = text.rjust(width) if column.right and not first_heading else text.ljust(width)
                 parts.append(self.styled(padded, "bold" if header else style) if text else padded)
             lines.append(gap.join(parts).rstrip() + "\n")
         return "".join(lines)

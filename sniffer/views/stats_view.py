@@ -129,10 +129,7 @@ class StatsView(Sink):
         cells = {key: Cells(texts[key], styles[key] if self._colors else None) for key in keys}
         count = len(s.per_function)
         layout.measure(cells)
-        header = layout.header()
-        if self._width is None:
-            header = "#" + header[1:] if header.startswith(" ") else header
-        lines = header + layout.lines(cells, count)
+        lines = layout.header() + layout.lines(cells, count)
         if layout.hidden():
             note = f"(no room at {self._width} columns for: {', '.join(layout.hidden())}; --format json has all)"
             lines += "".join(f"{line}\n" for line in textwrap.wrap(note, self._width or len(note)))

@@ -102,10 +102,7 @@ class TableView(Sink):
                                 short_roles=self._layout.width is not None and self._layout.width < NARROW)
             self._layout.measure(cells)
             if not self._header_shown:
-                header = self._layout.header()
-                if self._plain:  # "#" first, as on the heading lines: one pattern skips them all
-                    header = "#" + header[1:].replace("#", " ", 1) if header[0] != "#" else header
-                self._out.write(header)
+                self._out.write(self._layout.header())
                 self._header_shown = True
             self._out.write(self._layout.lines(cells, end - begin))
             self.shown += end - begin
