@@ -86,7 +86,8 @@ def frame_cells(batch: AnnotatedBatch, clock: Clock, *, plain: bool, summary_of:
         "function": Cells(_integers(messages.function[rows])),
         "role": Cells([(_SHORT_ROLE_NAMES if short_roles else _ROLE_NAMES)[code] for code in role_codes],
                       [_ROLE_STYLE_LIST[code] for code in role_codes] if styled else None),
-        "request": Cells([f"#{r}" if r != NONE else "" for r in messages.request_index[rows].tolist()]),
+        "request": Cells(_blank(list(map("#%d".__mod__, messages.request_index[rows].tolist())),
+                                messages.request_index[rows] == NONE)),
         "latency": Cells(latencies if latencies is not None else _milliseconds(messages.latency_ns[rows], NONE)),
         "length": Cells(list(map(str, lengths))),
         "crc": Cells(["" if n else ("ok" if ok else "BAD") for ok, n in zip(crc_ok, noise, strict=True)],
@@ -100,11 +101,22 @@ def frame_cells(batch: AnnotatedBatch, clock: Clock, *, plain: bool, summary_of:
 
 
 def _integers(column: npt.NDArray[np.integer]) -> list[str]:
-    return [str(v) if v != NONE else "" for v in column.tolist()]
+    texts = list(map(str, column.tolist()))
+    return _blank(texts, column == NONE)
 
 
 def _milliseconds(column: npt.NDArray[np.int64], none: int) -> list[str]:
-    return [f"{v / 1e6:.3f}" if v != none else "" for v in column.tolist()]
+    """``12.345``: milliseconds with three decimals, from whole microseconds (``%`` in C, per row)."""
+    empty = column == none
+    micros = (np.where(empty, 0, column) + 500) // 1000  # to the nearest microsecond
+    texts = list(map("%d.%03d".__mod__, zip((micros // 1000).tolist(), (micros % 1000).tolist(), strict=True)))
+    return _blank(texts, empty)
+
+
+def _blank(texts: list[str], empty: npt.NDArray[np.bool_]) -> list[str]:
+    for row in np.flatnonzero(empty).tolist():
+        texts[row] = ""
+    return texts
 
 
 def _summaries(batch: AnnotatedBatch, rows: npt.NDArray[np.int64], summary_of: SummaryOf,

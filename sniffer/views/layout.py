@@ -123,14 +123,17 @@ class Layout:
         more than that, up to its ``max_width``)."""
         for column in self.columns:
             texts = cells[column.key].texts
-            if texts:
+            # A flexible column without a cap takes what is left whatever its cells hold.
+            if texts and not (column.flexible and not column.max_width):
                 widest = max(map(len, texts))
                 if widest > self.widths.get(column.key, 0):
                     self.widths[column.key] = widest
 
-    def lines(self, cells: dict[str, Cells], count: int) -> str:
-        """``count`` rows as text, each ending in a newline."""
-        self.measure(cells)
+    def lines(self, cells: dict[str, Cells], count: int, *, measured: bool = False) -> str:
+        """``count`` rows as text, each ending in a newline (``measured``: :meth:`measure` has
+        seen these cells already)."""
+        if not measured:
+            self.measure(cells)
         if self.plain:
             return self._plain_lines(cells, count)
         shown = self.shown()
@@ -152,7 +155,8 @@ class Layout:
             ("%s" if place == last else f"%{'' if column.right else '-'}{width}s")
             for place, (column, width) in enumerate(columns)
         ) + "\n"
-        lists = [[text or "-" for text in cells[column.key].texts] for column, _ in columns]
+        lists = [texts if "" not in texts else [text or "-" for text in texts]
+                 for texts in (cells[column.key].texts for column, _ in columns)]
         return "".join([pattern % row for row in zip(*lists, strict=True)][:count])
 
     def _join(self, shown: list[tuple[Column, int]], texts: list[list[str]], styles: list[str],

@@ -104,7 +104,7 @@ class TableView(Sink):
             if not self._header_shown:
                 self._out.write(self._layout.header())
                 self._header_shown = True
-            self._out.write(self._layout.lines(cells, end - begin))
+            self._out.write(self._layout.lines(cells, end - begin, measured=True))
             self.shown += end - begin
 
     def finish(self, statistics: Statistics) -> None:
