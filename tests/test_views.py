@@ -239,3 +239,22 @@ def test_progress_bar_on_a_terminal(tmp_path: Path) -> None:
     assert "chunks/s" in copied and "wrote" in copied
     quiet = run_on_pty(["export", str(capture), "--pcap", str(tmp_path / "long.pcap"), "-q"])
     assert quiet.strip() == ""
+
+
+def test_live_screen_is_a_snapshot() -> None:
+    """rich redraws in its own thread while the capture thread goes on adding frames: a screen
+    shows what there was when it was made, and never iterates what is being changed."""
+    reader = open_reader(str(SAMPLE_LOG))
+    assert reader.info.line is not None
+    view = LiveView(LiveState("/dev/ttyUSB0", "19200 8E1", None, "timing host"))
+    statistics = analyze(reader, "live", Analysis(reader.info.line, TimingQuality.HOST), [view])
+    reader.close()
+    screen = view.render(statistics)
+    recent = list(view._recent)
+    for _ in range(40):  # what the capture thread does meanwhile: the deque turns over
+        for batch, _latencies in recent:
+            view.messages(batch)
+    statistics.per_function.clear()
+    out = io.StringIO()
+    Console(file=out, width=120, height=40, color_system=None).print(screen)
+    assert "51 " in out.getvalue() and "requests" in out.getvalue()

@@ -94,6 +94,10 @@ class LiveView(Sink):
                 texts[position] = f"~{max(latency, 0) / 1e6:.1f}"
         return texts
 
+    def recent_frames(self) -> list[tuple[AnnotatedBatch, list[str]]]:
+        """The kept batches and their latency texts, as they are now."""
+        return list(self._recent)
+
     def render(self, statistics: Statistics) -> LiveScreen:
         return LiveScreen(self, statistics)
 
@@ -115,14 +119,15 @@ class LiveView(Sink):
                         "yellow")
         return text
 
-    def frame_lines(self, width: int, height: int, console: Console) -> str:
-        """The latest frames that fit ``height`` lines (a header first), newest last."""
+    def frame_lines(self, recent: list[tuple[AnnotatedBatch, list[str]]], width: int, height: int,
+                    console: Console) -> str:
+        """The latest frames of ``recent`` that fit ``height`` lines (a header first), newest last."""
         layout = Layout(frame_columns(self.clock, plain=False, hex_shown=None, live=True), width,
                         terminal_colors(console))
         blocks = [frame_cells(batch, self.clock, plain=False, summary_of=decoding_summary, notes={},
                               styled=layout.color_system is not None, short_roles=width < NARROW,
                               latencies=latencies)
-                  for batch, latencies in self._recent]
+                  for batch, latencies in recent]
         for cells in blocks:
             layout.measure(cells)
         rows = [line for cells in blocks for line in _row_texts(layout, cells)]
@@ -144,8 +149,8 @@ def _row_texts(layout: Layout, cells: dict[str, Cells]) -> list[str]:
                           for key, c in cells.items()}, 1) for row in range(count)]
 
 
-def slave_lines(statistics: Statistics, width: int, console: Console) -> str:
-    """Counters and latency per slave, the busiest first."""
+def slave_cells(statistics: Statistics) -> tuple[dict[str, Cells], int, int]:
+    """Counters and latency per slave, the busiest first: the cells, the rows, the slaves."""
     per_slave: dict[int, list[int]] = {}
     latency: dict[int, Histogram] = {}
     for (slave, _), stats in statistics.per_function.items():
@@ -170,27 +175,35 @@ def slave_lines(statistics: Statistics, width: int, console: Console) -> str:
             # Host timing: latencies between reads, not on the wire; still the best the tap knows.
             texts[key].append("" if value is None else f"{value / 1e6:.1f}")
         texts["fill"].append("")
+    return {key: Cells(values) for key, values in texts.items()}, min(len(order), SHOWN_SLAVES), len(order)
+
+
+def slave_lines(cells: dict[str, Cells], rows: int, slaves: int, width: int, console: Console) -> str:
     layout = Layout(SLAVE_COLUMNS, width, terminal_colors(console))
-    cells = {key: Cells(values) for key, values in texts.items()}
-    more = f"… and {len(order) - SHOWN_SLAVES} more slaves\n" if len(order) > SHOWN_SLAVES else ""
-    return layout.header() + layout.lines(cells, min(len(order), SHOWN_SLAVES)) + more
+    more = f"… and {slaves - rows} more slaves\n" if slaves > rows else ""
+    return layout.header() + layout.lines(cells, rows) + more
 
 
 class LiveScreen:
-    """One redraw: sized when rich renders it, to the terminal as it is then."""
+    """One redraw: what it shows is taken when it is made (in the capture's thread, which goes
+    on changing the statistics and the recent frames), and laid out when rich renders it (in
+    rich's refresh thread), to the terminal's size then."""
 
     def __init__(self, view: LiveView, statistics: Statistics) -> None:
-        self.view, self.statistics = view, statistics
+        self.view = view
+        self.status = view.status(statistics)
+        self.slaves = slave_cells(statistics)
+        self.recent = view.recent_frames()
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
         width = options.max_width
         height = options.height or console.size.height
-        status = self.view.status(self.statistics)
+        status = self.status
         status_lines = len(status.wrap(console, width))
-        slaves = Text.from_ansi(slave_lines(self.statistics, width, console).rstrip("\n"))
+        slaves = Text.from_ansi(slave_lines(*self.slaves, width, console).rstrip("\n"))
         # One line stays free: rich's live display keeps the cursor below the last line.
         room = int(height) - status_lines - len(slaves.plain.splitlines()) - 2
-        frames = Text.from_ansi(self.view.frame_lines(width, max(room, 2), console).rstrip("\n"))
+        frames = Text.from_ansi(self.view.frame_lines(self.recent, width, max(room, 2), console).rstrip("\n"))
         yield status
         yield slaves
         yield frames
