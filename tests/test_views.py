@@ -257,4 +257,6 @@ def test_live_screen_is_a_snapshot() -> None:
     statistics.per_function.clear()
     out = io.StringIO()
     Console(file=out, width=120, height=40, color_system=None).print(screen)
-    assert "51 " in out.getvalue() and "requests" in out.getvalue()
+    # The counters of when it was made (the statistics were cleared since), the frames of then.
+    assert re.search(r"^\s+20\s+7\s+7\s", out.getvalue(), re.MULTILINE), out.getvalue()
+    assert out.getvalue().rstrip().splitlines()[-1].split()[0] == "51"
