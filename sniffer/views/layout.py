@@ -30,6 +30,8 @@ from rich.style import Style
 
 #: ``keep`` of a column that is never dropped.
 ALWAYS = 1_000
+#: Indent of a summary written below its row, on a terminal too narrow to give it a column.
+BELOW_INDENT = 4
 
 
 #: rich's names of the colour systems that take ANSI styles ("windows", the legacy console, takes none).
@@ -85,6 +87,8 @@ class Layout:
     color_system: ColorSystem | None = None
     widths: dict[str, int] = field(default_factory=dict)
     _styles: dict[tuple[str, str], str] = field(default_factory=dict)
+    #: Columns written below each row (a terminal too narrow for them), as the last layout found.
+    below: list[tuple[Column, int]] = field(default_factory=list)
 
     @property
     def plain(self) -> bool:
@@ -105,11 +109,12 @@ class Layout:
                    for p, c in enumerate(self.columns)]
         if self.width is None:
             return columns
-        return _fit(columns, self.width, len(self.gap()))
+        shown, self.below = _fit(columns, self.width, len(self.gap()))
+        return shown
 
     def hidden(self) -> list[str]:
         """The headers of the columns this width has no room for."""
-        shown = {column.key for column, _ in self.shown()}
+        shown = {column.key for column, _ in self.shown()} | {column.key for column, _ in self.below}
         return [column.header for column in self.columns if column.key not in shown and column.header]
 
     def header(self) -> str:
@@ -146,6 +151,9 @@ class Layout:
                 texts.append(_wrap(text, width) if column.flexible else [text])
                 styles.append(column_cells.styles[row] if column_cells.styles else "")
             out.append(self._join(shown, texts, styles))
+            for column, width in self.below:
+                text = cells[column.key].texts[row]
+                out.extend(f"{' ' * BELOW_INDENT}{line}\n" for line in _wrap(text, width) if text)
         return "".join(out)
 
     def _plain_lines(self, cells: dict[str, Cells], count: int) -> str:
@@ -186,9 +194,12 @@ class Layout:
         return styled
 
 
-def _fit(columns: list[tuple[Column, int]], width: int, gap: int) -> list[tuple[Column, int]]:
+def _fit(columns: list[tuple[Column, int]], width: int,
+         gap: int) -> tuple[list[tuple[Column, int]], list[tuple[Column, int]]]:
     """Drop the least needed columns until the rest fit ``width``; share what is left among the
-    flexible ones (each up to its ``max_width``, the last one the rest)."""
+    flexible ones (each up to its ``max_width``, the last one the rest). Where even then the
+    uncapped flexible columns (the summary) have less than their minimum, they go below the
+    row, indented, as wide as the terminal allows: the second list."""
     kept = list(columns)
     natural = {c.key: w for c, w in columns}
 
@@ -204,6 +215,10 @@ def _fit(columns: list[tuple[Column, int]], width: int, gap: int) -> list[tuple[
         if not droppable:
             break
         kept.remove(min(droppable, key=lambda pair: pair[0].keep))
+    below: list[tuple[Column, int]] = []
+    if room() < sum(c.min_width for c, _ in kept if c.flexible):
+        below = [(c, max(width - BELOW_INDENT, 1)) for c, _ in kept if c.flexible and not c.max_width]
+        kept = [(c, w) for c, w in kept if (c, max(width - BELOW_INDENT, 1)) not in below]
     left = room()
     flexible = [c for c, _ in kept if c.flexible]
     shares: dict[str, int] = {}
@@ -219,7 +234,7 @@ def _fit(columns: list[tuple[Column, int]], width: int, gap: int) -> list[tuple[
     for position, column in enumerate(uncapped):
         shares[column.key] = max(left // (len(uncapped) - position), 1)
         left -= shares[column.key]
-    return [(c, shares[c.key] if c.flexible else w) for c, w in kept]
+    return [(c, shares[c.key] if c.flexible else w) for c, w in kept], below
 
 
 def _wrap(text: str, width: int) -> list[str]:
