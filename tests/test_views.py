@@ -260,3 +260,17 @@ def test_live_screen_is_a_snapshot() -> None:
     # The counters of when it was made (the statistics were cleared since), the frames of then.
     assert re.search(r"^\s+20\s+7\s+7\s", out.getvalue(), re.MULTILINE), out.getvalue()
     assert out.getvalue().rstrip().splitlines()[-1].split()[0] == "51"
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="--jobs 2 forks")
+@pytest.mark.parametrize("options", [[], ["--hex"], ["--filter", "role=response", "--filter", "slave=2"],
+                                     ["--from", "1s", "--limit", "9"], ["--around", "26", "--context", "3"],
+                                     ["--time", "relative", "--filter", "crc=bad"]])
+def test_plain_table_is_the_same_in_one_process_and_two(cli: Cli, options: list[str]) -> None:
+    """The plain table is laid out where frames are paired (the decoding process with --jobs 2)
+    and finished with the summaries here: the same lines either way."""
+    for capture in (SAMPLE_LOG, ROOT / "captures" / "atv71-plc-poll-usb.mcap"):
+        one = cli("analyze", str(capture), "--jobs", "1", *options)
+        two = cli("analyze", str(capture), "--jobs", "2", *options)
+        assert one.code == two.code == 0, one.err + two.err
+        assert one.out == two.out

@@ -28,7 +28,7 @@ from sniffer.views.clock import Clock
 from sniffer.views.jsonl import JsonlView
 from sniffer.views.layout import terminal_colors, terminal_width
 from sniffer.views.registers import add_register_options, summary_reader
-from sniffer.views.table import TableView
+from sniffer.views.table import PlainTableView, TableView
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -61,8 +61,9 @@ def table_sink(out: TextIO, args: argparse.Namespace) -> Sink:
     """The table: laid out for the terminal ``out`` is (its width and colours), else one line a frame."""
     console = Console(file=out, highlight=False)
     width = terminal_width(args, console)
-    colors = terminal_colors(console) if width is not None else None
-    return TableView(out, width=width, color_system=colors, clock=Clock(args.time),
+    if width is None:
+        return PlainTableView(out, clock=Clock(args.time), hex_shown=args.hex, summary_of=summary_reader(args))
+    return TableView(out, width=width, color_system=terminal_colors(console), clock=Clock(args.time),
                      hex_shown=args.hex, summary_of=summary_reader(args))
 
 

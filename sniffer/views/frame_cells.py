@@ -10,7 +10,7 @@ import numpy.typing as npt
 
 from decoders.damage import crc_note
 from decoders.frame import _NAMES_BY_VALUE, NO_IDLE
-from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding, Role
+from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding, MessageBatch, Role
 from sniffer.views.clock import Clock
 from sniffer.views.layout import ALWAYS, Cells, Column
 
@@ -64,21 +64,19 @@ def frame_columns(clock: Clock, *, plain: bool, hex_shown: bool | None, live: bo
     return columns + [summary] + ([hex_column] if hex_shown is not False else [])
 
 
-def frame_cells(batch: AnnotatedBatch, clock: Clock, *, plain: bool, summary_of: SummaryOf,
-                notes: dict[int, str], styled: bool, short_roles: bool = False,
-                latencies: list[str] | None = None) -> dict[str, Cells]:
-    """Every column's cells for the kept messages of ``batch`` (``notes``: more to say, by
-    position; ``latencies``: the latency column's texts, if not the published latencies)."""
-    messages, frames = batch.messages, batch.messages.frames
-    rows = np.arange(len(batch.decodings), dtype=np.int64) if batch.rows is None else batch.rows
-    roles = batch.messages.role[rows]
-    role_codes = roles.tolist()
+def frame_cells(messages: MessageBatch, rows: npt.NDArray[np.int64], clock: Clock, *, plain: bool,
+                styled: bool, short_roles: bool = False, latencies: list[str] | None = None) -> dict[str, Cells]:
+    """The cells of every column but the summary for the messages of ``messages`` at ``rows``
+    (``latencies``: the latency column's texts, if not the published latencies). Needs no
+    decoding: it may run where the frames are paired (a sink's ``prepare``)."""
+    frames = messages.frames
+    role_codes = messages.role[rows].tolist()
     crc_ok = frames.crc_ok[rows].tolist()
     noise = [code == _NOISE for code in role_codes]
     offsets = frames.offsets
     lengths = (offsets[rows + 1] - offsets[rows]).tolist()
     flag_names = _FLAGS_JOINED if plain else _FLAGS_SPACED
-    cells = {
+    return {
         "index": Cells(list(map(str, (rows + frames.first_index).tolist()))),
         "time": Cells(clock.texts(frames.t_start_ns[rows])),
         "idle": Cells(_milliseconds(frames.idle_before_ns[rows], NO_IDLE)),
@@ -94,10 +92,42 @@ def frame_cells(batch: AnnotatedBatch, clock: Clock, *, plain: bool, summary_of:
                      ["" if ok else "bold red" for ok in crc_ok] if styled else None),
         "flags": Cells([flag_names[value] for value in messages.flags[rows].tolist()],
                        ["yellow"] * len(rows) if styled else None),
-        "summary": Cells(_summaries(batch, rows, summary_of, notes, crc_ok=crc_ok, noise=noise)),
         "hex": Cells(_hex(frames.data, offsets, rows, spaced=not plain)),
     }
-    return cells
+
+
+def kept_rows(batch: AnnotatedBatch) -> npt.NDArray[np.int64]:
+    return np.arange(len(batch.decodings), dtype=np.int64) if batch.rows is None else batch.rows
+
+
+def frame_notes(messages: MessageBatch, rows: npt.NDArray[np.int64], retries: dict[int, str]) -> dict[int, str]:
+    """What the summary of a frame at ``rows`` adds after its own, by position: a damaged frame's
+    CRC, a good retry's difference (``retries``). Needs no decoding."""
+    frames, notes = messages.frames, {}
+    broken = np.flatnonzero(~frames.crc_ok[rows] & (messages.role[rows] != _NOISE))
+    positions = set(rows[broken].tolist()) | (set(retries) & set(rows.tolist()))
+    for position in sorted(positions):
+        extra = []
+        if not frames.crc_ok[position]:
+            note = crc_note(frames.data[frames.offsets[position] : frames.offsets[position + 1]])
+            if note:
+                extra.append(note)
+        if position in retries:
+            extra.append(retries[position])
+        if extra:
+            notes[position] = "".join(f" ⚠ {text}" for text in extra)
+    return notes
+
+
+def summary_cells(batch: AnnotatedBatch, rows: npt.NDArray[np.int64], summary_of: SummaryOf,
+                  notes: dict[int, str]) -> Cells:
+    """The summary of the messages at ``rows`` with ``notes`` (:func:`frame_notes`) after them."""
+    texts = list(map(summary_of, batch.decodings_at(rows.tolist())))
+    if notes:
+        for row, position in enumerate(rows.tolist()):
+            if position in notes:
+                texts[row] += notes[position]
+    return Cells(texts)
 
 
 def _integers(column: npt.NDArray[np.integer]) -> list[str]:
@@ -116,24 +146,6 @@ def _milliseconds(column: npt.NDArray[np.int64], none: int) -> list[str]:
 def _blank(texts: list[str], empty: npt.NDArray[np.bool_]) -> list[str]:
     for row in np.flatnonzero(empty).tolist():
         texts[row] = ""
-    return texts
-
-
-def _summaries(batch: AnnotatedBatch, rows: npt.NDArray[np.int64], summary_of: SummaryOf,
-               notes: dict[int, str], *, crc_ok: list[bool], noise: list[bool]) -> list[str]:
-    decodings = batch.decodings_at(rows.tolist())
-    texts = list(map(summary_of, decodings))
-    frames = batch.messages.frames
-    for row, position in enumerate(rows.tolist()):
-        extra = []
-        if not crc_ok[row] and not noise[row]:
-            note = crc_note(frames.data[frames.offsets[position] : frames.offsets[position + 1]])
-            if note:
-                extra.append(note)
-        if position in notes:
-            extra.append(notes[position])
-        if extra:
-            texts[row] = " ⚠ ".join([texts[row], *extra])
     return texts
 
 

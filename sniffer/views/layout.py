@@ -127,9 +127,11 @@ class Layout:
         """Widen the columns to what ``cells`` hold (a flexible one on a terminal then takes no
         more than that, up to its ``max_width``)."""
         for column in self.columns:
-            texts = cells[column.key].texts
             # A flexible column without a cap takes what is left whatever its cells hold.
-            if texts and not (column.flexible and not column.max_width):
+            if (column.flexible and not column.max_width) or column.key not in cells:
+                continue
+            texts = cells[column.key].texts
+            if texts:
                 widest = max(map(len, texts))
                 if widest > self.widths.get(column.key, 0):
                     self.widths[column.key] = widest
@@ -155,6 +157,16 @@ class Layout:
                 text = cells[column.key].texts[row]
                 out.extend(f"{' ' * BELOW_INDENT}{line}\n" for line in _wrap(text, width) if text)
         return "".join(out)
+
+    def plain_prefixes(self, cells: dict[str, Cells], count: int) -> list[str]:
+        """Plain rows of every column but the last, each with the gap after it: the last
+        column's cell (the summary) is added by whoever knows it (:mod:`sniffer.views.table`)."""
+        columns = self.shown()[:-1]
+        gap = self.gap()
+        pattern = "".join(f"%{'' if column.right else '-'}{width}s{gap}" for column, width in columns)
+        lists = [texts if "" not in texts else [text or "-" for text in texts]
+                 for texts in (cells[column.key].texts for column, _ in columns)]
+        return [pattern % row for row in zip(*lists, strict=True)][:count]
 
     def _plain_lines(self, cells: dict[str, Cells], count: int) -> str:
         columns = self.shown()

@@ -16,7 +16,14 @@ from decoders.message import ROLE_CODE, AnnotatedBatch, MessageBatch, Role
 from decoders.stats import Histogram, Statistics
 from sniffer.sinks import Sink
 from sniffer.views.clock import Clock
-from sniffer.views.frame_cells import NARROW, decoding_summary, frame_cells, frame_columns
+from sniffer.views.frame_cells import (
+    NARROW,
+    decoding_summary,
+    frame_cells,
+    frame_columns,
+    kept_rows,
+    summary_cells,
+)
 from sniffer.views.layout import ALWAYS, Cells, Column, Layout, terminal_colors
 
 #: Frames kept for the view: more than any terminal is tall.
@@ -124,10 +131,13 @@ class LiveView(Sink):
         """The latest frames of ``recent`` that fit ``height`` lines (a header first), newest last."""
         layout = Layout(frame_columns(self.clock, plain=False, hex_shown=None, live=True), width,
                         terminal_colors(console))
-        blocks = [frame_cells(batch, self.clock, plain=False, summary_of=decoding_summary, notes={},
-                              styled=layout.color_system is not None, short_roles=width < NARROW,
-                              latencies=latencies)
-                  for batch, latencies in recent]
+        blocks = []
+        for batch, latencies in recent:
+            kept = kept_rows(batch)
+            cells = frame_cells(batch.messages, kept, self.clock, plain=False, styled=layout.color_system is not None,
+                                short_roles=width < NARROW, latencies=latencies)
+            cells["summary"] = summary_cells(batch, kept, decoding_summary, {})
+            blocks.append(cells)
         for cells in blocks:
             layout.measure(cells)
         rows = [line for cells in blocks for line in _row_texts(layout, cells)]

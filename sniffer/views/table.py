@@ -1,29 +1,43 @@
 """The table view of ``analyze``: a frame a row, on a terminal or down a pipe.
 
-On a terminal the columns fit its width and long summaries wrap at whole words
-(:mod:`sniffer.views.layout`); to a pipe or a file every frame is one line with one
-field per column (an empty one written ``-``) and the summary last, so that ``grep``,
-``awk`` and ``less -S`` work; the heading and footing lines there start with ``#``.
+On a terminal (:class:`TableView` with a width) the columns fit its width and long summaries
+wrap at whole words (:mod:`sniffer.views.layout`). To a pipe or a file (:class:`PlainTableView`)
+every frame is one line with one field per column (an empty one written ``-``) and the summary
+last, so that ``grep``, ``awk`` and ``less -S`` work; the heading and closing lines start with
+``#``. There everything but the summary is laid out by the sink's ``prepare`` — where frames are
+paired, in the decoding process with ``--jobs 2`` — and this process only adds the summaries.
 Rows are laid out a block at a time from columns, so memory does not grow with the capture.
 """
 
 from __future__ import annotations
 
 import itertools
+import operator
 import textwrap
+from dataclasses import dataclass
 from typing import TextIO
 
 import numpy as np
+import numpy.typing as npt
 from rich.color import ColorSystem
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.damage import RetryDiff
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch
+from decoders.message import AnnotatedBatch, MessageBatch
 from decoders.stats import Statistics
 from sniffer.sinks import Sink
 from sniffer.views.clock import Clock
-from sniffer.views.frame_cells import NARROW, SummaryOf, decoding_summary, frame_cells, frame_columns
+from sniffer.views.frame_cells import (
+    NARROW,
+    SummaryOf,
+    decoding_summary,
+    frame_cells,
+    frame_columns,
+    frame_notes,
+    kept_rows,
+    summary_cells,
+)
 from sniffer.views.layout import Layout
 
 #: Rows laid out at once: bounds memory, and on a terminal the first rows appear at once.
@@ -31,75 +45,101 @@ ROWS_PER_BLOCK = 2000
 HOST_NOTE = ("host timing: times are when the PC read the bytes (USB adapters deliver them in bursts, "
              "up to their latency timer late); frames are found from their content, and silences and "
              "latencies are between reads, not measured on the wire (no gap_1_5 / short_idle).")
+ROLE_ORDER_NAMES = ["request", "response", "exception", "broadcast", "unknown", "noise"]
 
 
-class TableView(Sink):
-    """Prints a heading, the frames a block at a time, and a closing count.
-
-    ``width``: the terminal's (``None``: plain lines for a pipe or a file); ``color_system``:
-    the terminal's colours, ``None`` for none."""
+class _FrameTable(Sink):
+    """What both tables share: the heading, the date lines, the closing count."""
 
     wants_messages = True
     wants_statistics = True
 
-    def __init__(self, out: TextIO, *, width: int | None, color_system: ColorSystem | None = None,
-                 clock: Clock | None = None, hex_shown: bool | None = None,
-                 summary_of: SummaryOf = decoding_summary) -> None:
+    def __init__(self, out: TextIO, layout: Layout, clock: Clock, summary_of: SummaryOf) -> None:
         self._out = out
-        self._clock = clock or Clock()
-        plain = width is None
-        self._layout = Layout(frame_columns(self._clock, plain=plain, hex_shown=None if hex_shown is None and not plain
-                                            else bool(hex_shown)), width, color_system)
+        self._layout = layout
+        self._clock = clock
         self._summary_of = summary_of
         self._retries = RetryDiff()
-        self._header_shown = False
         self._day: int | None = None
+        #: Frames shown so far.
         self.shown = 0
 
-    @property
-    def _plain(self) -> bool:
-        return self._layout.plain
-
-    def _note(self, text: str, style: str = "") -> None:
-        if self._plain:
-            self._out.write(f"# {text}\n")
-            return
+    def _note_lines(self, text: str, style: str = "") -> str:
+        if self._layout.plain:
+            return f"# {text}\n"
         assert self._layout.width is not None
-        for line in textwrap.wrap(text, self._layout.width, break_on_hyphens=False):
-            self._out.write(self._layout.styled(line, style) + "\n")
+        return "".join(self._layout.styled(line, style) + "\n"
+                       for line in textwrap.wrap(text, self._layout.width, break_on_hyphens=False))
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
-        self._note(f"{source}  line {line.format()}  timing {info.timing.value}  "
-                   f"t1.5 {line.t1_5_ns / 1e3:.0f} µs  t3.5 {line.t3_5_ns / 1e3:.0f} µs", "bold")
+        self._out.write(self._note_lines(f"{source}  line {line.format()}  timing {info.timing.value}  "
+                                         f"t1.5 {line.t1_5_ns / 1e3:.0f} µs  t3.5 {line.t3_5_ns / 1e3:.0f} µs",
+                                         "bold"))
         if info.timing is TimingQuality.HOST:
-            self._note(HOST_NOTE, "yellow")
+            self._out.write(self._note_lines(HOST_NOTE, "yellow"))
 
-    def messages(self, batch: AnnotatedBatch) -> None:
-        notes = self._retries.notes(batch.messages)
-        if not len(batch):
-            return
-        rows = np.arange(len(batch.decodings), dtype=np.int64) if batch.rows is None else batch.rows
-        for start in range(0, len(rows), ROWS_PER_BLOCK):
-            self._block(batch, rows[start : start + ROWS_PER_BLOCK], notes)
-
-    def _block(self, batch: AnnotatedBatch, rows: np.ndarray, notes: dict[int, str]) -> None:
-        times = batch.messages.frames.t_start_ns[rows]
+    def _date_cuts(self, times: npt.NDArray[np.int64]) -> list[tuple[int, int, str]]:
+        """The rows cut where the date changes: ``(begin, end, the date line before begin or "")``."""
         days = self._clock.days(times)
-        # Cut the block where the date changes: the new date goes on a line of its own.
-        cuts = [0, *(np.flatnonzero(np.diff(days)) + 1).tolist(), len(rows)]
+        cuts = [0, *(np.flatnonzero(np.diff(days)) + 1).tolist(), len(times)]
+        parts = []
         for begin, end in itertools.pairwise(cuts):
             if begin == end:
                 continue
+            line = ""
             day = int(days[begin])
             if self._clock.mode != "relative" and day != self._day:
                 stamp = self._clock.date(int(times[begin]))
                 words = "capture starts" if self._day is None else "date"
-                self._note(f"{words} {stamp if self._day is None else stamp[:10]} ({self._clock.zone})", "bold")
+                line = self._note_lines(f"{words} {stamp if self._day is None else stamp[:10]} ({self._clock.zone})",
+                                        "bold")
                 self._day = day
-            part = AnnotatedBatch(batch.messages, batch.decodings, rows[begin:end])
-            cells = frame_cells(part, self._clock, plain=self._plain, summary_of=self._summary_of, notes=notes,
+            parts.append((begin, end, line))
+        return parts
+
+    def finish(self, statistics: Statistics) -> None:
+        roles, flags = statistics.roles, statistics.flags
+        shown = f"{self.shown} of {statistics.frames} frames shown" if self.shown != statistics.frames \
+            else f"{statistics.frames} frames"
+        parts = [shown] + [f"{roles[r]} {r}" for r in ROLE_ORDER_NAMES if roles[r]]
+        if statistics.crc_errors:
+            parts.append(f"{statistics.crc_errors} CRC errors")
+        parts += [f"{n} {flag}" for flag, n in sorted(flags.items())]
+        self._out.write(self._note_lines(", ".join(parts)))
+        hidden = self._layout.hidden() if self.shown else []
+        if hidden:
+            self._out.write(self._note_lines(f"(no room at {self._layout.width} columns for: {', '.join(hidden)}; "
+                                             "see --width, --hex, or a pipe)", "dim"))
+        self._out.flush()
+
+
+class TableView(_FrameTable):
+    """The table on a terminal ``width`` columns wide, in ``color_system``'s colours (``None``:
+    none); rows are laid out here, with their summaries."""
+
+    def __init__(self, out: TextIO, *, width: int, color_system: ColorSystem | None = None,
+                 clock: Clock | None = None, hex_shown: bool | None = None,
+                 summary_of: SummaryOf = decoding_summary) -> None:
+        clock = clock or Clock()
+        layout = Layout(frame_columns(clock, plain=False, hex_shown=hex_shown), width, color_system)
+        super().__init__(out, layout, clock, summary_of)
+        self._header_shown = False
+
+    def messages(self, batch: AnnotatedBatch) -> None:
+        retries = self._retries.notes(batch.messages)
+        rows = kept_rows(batch)
+        for start in range(0, len(rows), ROWS_PER_BLOCK):
+            self._block(batch, rows[start : start + ROWS_PER_BLOCK], retries)
+
+    def _block(self, batch: AnnotatedBatch, rows: npt.NDArray[np.int64], retries: dict[int, str]) -> None:
+        width = self._layout.width
+        for begin, end, date_line in self._date_cuts(batch.messages.frames.t_start_ns[rows]):
+            self._out.write(date_line)
+            part = rows[begin:end]
+            cells = frame_cells(batch.messages, part, self._clock, plain=False,
                                 styled=self._layout.color_system is not None,
-                                short_roles=self._layout.width is not None and self._layout.width < NARROW)
+                                short_roles=width is not None and width < NARROW)
+            cells["summary"] = summary_cells(batch, part, self._summary_of, frame_notes(batch.messages, part, retries))
             self._layout.measure(cells)
             if not self._header_shown:
                 self._out.write(self._layout.header())
@@ -107,18 +147,88 @@ class TableView(Sink):
             self._out.write(self._layout.lines(cells, end - begin, measured=True))
             self.shown += end - begin
 
-    def finish(self, statistics: Statistics) -> None:
-        roles, flags = statistics.roles, statistics.flags
-        order = ["request", "response", "exception", "broadcast", "unknown", "noise"]
-        shown = f"{self.shown} of {statistics.frames} frames shown" if self.shown != statistics.frames \
-            else f"{statistics.frames} frames"
-        parts = [shown] + [f"{roles[r]} {r}" for r in order if roles[r]]
-        if statistics.crc_errors:
-            parts.append(f"{statistics.crc_errors} CRC errors")
-        parts += [f"{n} {flag}" for flag, n in sorted(flags.items())]
-        self._note(", ".join(parts))
-        hidden = self._layout.hidden() if self.shown else []
-        if hidden:
-            self._note(f"(no room at {self._layout.width} columns for: {', '.join(hidden)}; "
-                       "see --width, --hex, or a pipe)", "dim")
-        self._out.flush()
+
+@dataclass(frozen=True)
+class PlainRows:
+    """A framed batch laid out but for the summaries: per position the fields before the
+    summary (padded, with the gap after them) and what follows the summary (notes, a newline);
+    comment lines (the heading, dates) by the position they go before."""
+
+    prefixes: list[str]
+    suffixes: list[str]
+    marks: list[tuple[int, str]]
+
+
+class PlainTableView(_FrameTable):
+    """The table into a pipe or a file: a line per frame. ``prepare`` lays out every frame of a
+    framed batch but the summary; ``messages`` and ``prepared`` write the frames kept, each with
+    its summary."""
+
+    def __init__(self, out: TextIO, *, clock: Clock | None = None, hex_shown: bool | None = None,
+                 summary_of: SummaryOf = decoding_summary) -> None:
+        clock = clock or Clock()
+        super().__init__(out, Layout(frame_columns(clock, plain=True, hex_shown=bool(hex_shown)), None),
+                         clock, summary_of)
+        self._header_laid = False
+        self._kept: AnnotatedBatch | None = None
+        #: Comment lines waiting for the next frame shown.
+        self._marks: list[str] = []
+        self.prepare = self._lay_out
+
+    def _lay_out(self, batch: MessageBatch) -> PlainRows:
+        """Where frames are paired: every column but the summary, and the notes after it."""
+        rows = np.arange(len(batch), dtype=np.int64)
+        retries = self._retries.notes(batch)
+        notes = frame_notes(batch, rows, retries)
+        prefixes: list[str] = []
+        marks: list[tuple[int, str]] = []
+        for begin, end, date_line in self._date_cuts(batch.frames.t_start_ns):
+            if date_line:
+                marks.append((begin, date_line))
+            cells = frame_cells(batch, rows[begin:end], self._clock, plain=True, styled=False)
+            self._layout.measure(cells)
+            if not self._header_laid:
+                marks.append((begin, self._layout.header()))
+                self._header_laid = True
+            prefixes += self._layout.plain_prefixes(cells, end - begin)
+        suffixes = ["\n"] * len(batch)
+        for position, note in notes.items():
+            suffixes[position] = note + "\n"
+        return PlainRows(prefixes, suffixes, marks)
+
+    def messages(self, batch: AnnotatedBatch) -> None:
+        self._kept = batch
+
+    def prepared(self, value: PlainRows) -> None:
+        batch, self._kept = self._kept, None
+        if batch is None:
+            return
+        rows = kept_rows(batch).tolist()
+        marks, reached = value.marks, 0
+        for begin, end in _runs_between_marks(rows, [position for position, _ in marks]):
+            while reached < len(marks) and marks[reached][0] <= rows[begin]:
+                self._marks.append(marks[reached][1])
+                reached += 1
+            self._write(batch, value, rows[begin:end])
+        self._marks += [line for _, line in marks[reached:]]
+
+    def _write(self, batch: AnnotatedBatch, value: PlainRows, rows: list[int]) -> None:
+        if self._marks:
+            self._out.write("".join(self._marks))
+            self._marks = []
+        summaries = map(self._summary_of, batch.decodings_at(rows))
+        if len(rows) == len(value.prefixes):
+            prefixes, suffixes = value.prefixes, value.suffixes
+        else:
+            prefixes, suffixes = [value.prefixes[r] for r in rows], [value.suffixes[r] for r in rows]
+        self._out.write("".join(map(operator.add, map(operator.add, prefixes, summaries), suffixes)))
+        self.shown += len(rows)
+
+
+def _runs_between_marks(rows: list[int], marks: list[int]) -> list[tuple[int, int]]:
+    """``rows`` (positions, ascending) cut before each row that a mark's position reaches:
+    ``(begin, end)`` indexes into ``rows``; none when there are no rows."""
+    if not rows:
+        return []
+    cuts = sorted({0, len(rows), *np.searchsorted(np.array(rows, np.int64), marks, "left").tolist()})
+    return [(begin, end) for begin, end in itertools.pairwise(cuts) if begin < end]
