@@ -45,9 +45,18 @@ def fixed_cells(line: str) -> list[str]:
     return line.split()
 
 
+#: The sample as the README names it (the golden screens show the name: no checkout's path).
+SAMPLE = str(SAMPLE_LOG.relative_to(ROOT))
+
+
+@pytest.fixture
+def in_checkout(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(ROOT)
+
+
 @pytest.mark.parametrize(("width", "height"), SCREENS)
-def test_analyze_screens(cli: Cli, width: int, height: int) -> None:
-    result = cli("analyze", str(SAMPLE_LOG), "--width", str(width))
+def test_analyze_screens(cli: Cli, width: int, height: int, in_checkout: None) -> None:
+    result = cli("analyze", SAMPLE, "--width", str(width))
     assert result.code == 0, result.err
     lines = result.out.splitlines()
     assert max(map(len, lines[2:])) <= width  # the heading lines wrap as the terminal wraps them
@@ -92,8 +101,8 @@ def test_pipe_is_one_line_per_frame_with_fixed_fields(cli: Cli) -> None:
 
 
 @pytest.mark.parametrize(("width", "height"), SCREENS)
-def test_stats_screens(cli: Cli, width: int, height: int) -> None:
-    result = cli("stats", str(SAMPLE_LOG), "--width", str(width))
+def test_stats_screens(cli: Cli, width: int, height: int, in_checkout: None) -> None:
+    result = cli("stats", SAMPLE, "--width", str(width))
     assert result.code == 0, result.err
     assert max(map(len, result.out.splitlines())) <= width
     for title in ("slave", "fc", "req", "resp", "exc", "CRC", "timeout", "p50", "max"):

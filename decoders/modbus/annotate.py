@@ -16,15 +16,27 @@ again, never answered from before.
 from __future__ import annotations
 
 from collections import OrderedDict
+from typing import Any
 
 from decoders.frame import USS
 from decoders.memo import Memo
-from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, Message, MessageBatch, ParamValue, Role
+from decoders.message import (
+    NONE,
+    ROLE_CODE,
+    ROLE_ORDER,
+    AnnotatedBatch,
+    Decoding,
+    Message,
+    MessageBatch,
+    ParamValue,
+    Role,
+)
 from decoders.modbus.codes import function_name
 from decoders.modbus.layouts import fits_request
 from decoders.modbus.pdu import (
     COIL_ON,
     BitsResponse,
+    DeviceIdResponse,
     ExceptionPdu,
     MaskWrite,
     Pdu,
@@ -48,6 +60,7 @@ KEPT_REQUESTS = 1024
 KEPT_DECODINGS = 8192
 _AS_REQUEST = {Role.REQUEST, Role.BROADCAST}
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
+_NOISE_CODE = ROLE_CODE[Role.NOISE]
 #: What of a request decoding its answer reads (see :func:`answer_context`).
 AnswerContext = tuple[object, ...] | None
 _NO_REQUEST: tuple[AnswerContext, Pdu | None] = (None, None)
@@ -82,7 +95,9 @@ class Annotator:
             if known is None:
                 known = memo.get(key)
                 if known is None:
-                    decoding = self._decode(messages[position], request).decoding
+                    decoding = self._lean(key[2], role, protocol, batch, position=position, request=request)
+                    if decoding is None:
+                        decoding = self._decode(messages[position], request).decoding
                     known = decoding, answer_context(decoding.pdu)
                     memo.put(key, known)
                 recent, version = memo.recent(), self._version()
@@ -90,6 +105,28 @@ class Annotator:
                 self._keep_request(first + position, known[1], known[0].pdu)
             decodings.append(known[0])
         return AnnotatedBatch(batch, decodings)
+
+    def _lean(self, data: bytes, role: int, protocol: int, batch: MessageBatch, *, position: int,
+              request: Pdu | None) -> Decoding | None:
+        """A Modbus frame of a slave whose profile adds nothing, decoded without message objects,
+        its params named when first read (a table reads summaries only); ``None`` for the rest
+        (noise, USS, profiled slaves, identifications), which :meth:`_decode` decodes."""
+        if protocol == USS or role == _NOISE_CODE:
+            return None
+        profiles = self._profiles
+        if profiles is not None and not profiles.adds_nothing(int(batch.slave[position])):
+            return None
+        kind = ROLE_ORDER[role]
+        is_request = kind in _AS_REQUEST or (kind is Role.UNKNOWN and fits_request(data))
+        pdu = parse_pdu(data, is_request=is_request)
+        if profiles is not None and isinstance(pdu, DeviceIdResponse):
+            return None  # an identification may choose the slave's profile
+        summary = pdu.summary()
+        if isinstance(pdu, ExceptionPdu):
+            summary += f" ({function_name(pdu.function)})"
+        if not batch.frames.crc_ok[position]:
+            summary = f"CRC error: {summary}"
+        return LazyParams(summary, pdu, request)
 
     def _version(self) -> int:
         return 0 if self._profiles is None else self._profiles.version
@@ -197,3 +234,37 @@ def _read_start(request: Pdu | None) -> int | None:
     if isinstance(request, ReadWriteRequest):
         return request.read_address
     return None
+
+
+#: Where a :class:`Decoding` keeps its params (the slot :class:`LazyParams` fills when read).
+_PARAMS_SLOT: Any = Decoding.__dict__["params"]
+
+
+class LazyParams(Decoding):
+    """A decoding whose params are named when first read, from its PDU and its request's:
+    the same tuple :func:`named_registers` gives, built only for outputs that read params
+    (a table reads the summary alone, and building a param per register is most of the cost
+    of a frame never seen before)."""
+
+    __slots__ = ("_request",)
+
+    def __init__(self, summary: str, pdu: Pdu, request: Pdu | None) -> None:
+        # Not Decoding.__init__: its dataclass code would assign ``params`` through this
+        # class's property; the other fields are plain slots.
+        self.summary = summary
+        self.pdu = pdu
+        self.remarks = ()
+        self.device = None
+        self.uss = None
+        self._request = request
+
+    @property
+    def params(self) -> tuple[ParamValue, ...]:  # type: ignore[override]
+        try:
+            named: tuple[ParamValue, ...] = _PARAMS_SLOT.__get__(self, Decoding)
+        except AttributeError:
+            assert self.pdu is not None
+            named = named_registers(self.pdu, self._request)
+            _PARAMS_SLOT.__set__(self, named)
+            self._request = None
+        return named

@@ -23,6 +23,8 @@ from decoders.modbus.pdu import (
 from decoders.profiles.model import Indirection, Parameter, Profile
 
 BROADCAST_ADDRESS = 0
+#: The slave column's value for a frame without a slave (noise).
+NO_SLAVE = -1
 KEPT_NAMED_PARAMS = 65536
 PRODUCT_CODE_OBJECT = 1
 
@@ -83,6 +85,17 @@ class ProfileApplier:
         #: ``_named_version``: a drive reports the same values again and again.
         self._named: dict[tuple[str, int | None, int, int | None, bool], ParamValue] = {}
         self._named_version = 0
+        #: :func:`_knows_nothing` by profile (profiles do not change once loaded).
+        self._adds_nothing: dict[int, bool] = {}
+
+    def adds_nothing(self, slave: int | None) -> bool:
+        """Whether the profile in force for ``slave`` leaves a Modbus message as it is (a slave
+        identifying itself aside: :meth:`apply` may then choose its profile)."""
+        profile = self.book.profile_for(None if slave == NO_SLAVE else slave)
+        known = self._adds_nothing.get(id(profile))
+        if known is None:
+            known = self._adds_nothing[id(profile)] = _knows_nothing(profile)
+        return known
 
     def apply(self, message: Message, request: Pdu | None) -> Message:
         """``message`` with named params, remarks and, for identifications, the device."""
