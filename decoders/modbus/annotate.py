@@ -88,6 +88,8 @@ class Annotator:
         decodings, messages, requests, memo = [], batch.rows(), self._requests, self._decodings
         # Only decoding a frame teaches the profiles (a new version) or fills the memo.
         recent, version = memo.recent(), self._version()
+        slaves: list[int] | None = None
+        crc: list[bool] = []
         for position, (role, protocol, request_index) in enumerate(rows):
             context, request = _NO_REQUEST if request_index == NONE else requests.pop(request_index, _NO_REQUEST)
             key = (role, protocol, data[offsets[position] : offsets[position + 1]], context, version)
@@ -95,7 +97,10 @@ class Annotator:
             if known is None:
                 known = memo.get(key)
                 if known is None:
-                    decoding = self._lean(key[2], role, protocol, batch, position=position, request=request)
+                    if slaves is None:
+                        slaves, crc = batch.slave.tolist(), frames.crc_ok.tolist()
+                    decoding = self._lean(key[2], role, protocol, slaves[position], crc_ok=crc[position],
+                                          request=request)
                     if decoding is None:
                         decoding = self._decode(messages[position], request).decoding
                     known = decoding, answer_context(decoding.pdu)
@@ -106,7 +111,7 @@ class Annotator:
             decodings.append(known[0])
         return AnnotatedBatch(batch, decodings)
 
-    def _lean(self, data: bytes, role: int, protocol: int, batch: MessageBatch, *, position: int,
+    def _lean(self, data: bytes, role: int, protocol: int, slave: int, *, crc_ok: bool,
               request: Pdu | None) -> Decoding | None:
         """A Modbus frame of a slave whose profile adds nothing, decoded without message objects,
         its params named when first read (a table reads summaries only); ``None`` for the rest
@@ -114,7 +119,7 @@ class Annotator:
         if protocol == USS or role == _NOISE_CODE:
             return None
         profiles = self._profiles
-        if profiles is not None and not profiles.adds_nothing(int(batch.slave[position])):
+        if profiles is not None and not profiles.adds_nothing(slave):
             return None
         kind = ROLE_ORDER[role]
         is_request = kind in _AS_REQUEST or (kind is Role.UNKNOWN and fits_request(data))
@@ -124,7 +129,7 @@ class Annotator:
         summary = pdu.summary()
         if isinstance(pdu, ExceptionPdu):
             summary += f" ({function_name(pdu.function)})"
-        if not batch.frames.crc_ok[position]:
+        if not crc_ok:
             summary = f"CRC error: {summary}"
         return LazyParams(summary, pdu, request)
 

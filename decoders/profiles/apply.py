@@ -85,16 +85,20 @@ class ProfileApplier:
         #: ``_named_version``: a drive reports the same values again and again.
         self._named: dict[tuple[str, int | None, int, int | None, bool], ParamValue] = {}
         self._named_version = 0
-        #: :func:`_knows_nothing` by profile (profiles do not change once loaded).
+        #: :func:`_knows_nothing` of each slave's profile, while the version stays.
         self._adds_nothing: dict[int, bool] = {}
+        self._adds_nothing_version = 0
 
-    def adds_nothing(self, slave: int | None) -> bool:
+    def adds_nothing(self, slave: int) -> bool:
         """Whether the profile in force for ``slave`` leaves a Modbus message as it is (a slave
         identifying itself aside: :meth:`apply` may then choose its profile)."""
-        profile = self.book.profile_for(None if slave == NO_SLAVE else slave)
-        known = self._adds_nothing.get(id(profile))
+        if self._adds_nothing_version != self.version:  # an identification may have changed a profile
+            self._adds_nothing.clear()
+            self._adds_nothing_version = self.version
+        known = self._adds_nothing.get(slave)
         if known is None:
-            known = self._adds_nothing[id(profile)] = _knows_nothing(profile)
+            known = self._adds_nothing[slave] = _knows_nothing(self.book.profile_for(None if slave == NO_SLAVE
+                                                                                      else slave))
         return known
 
     def apply(self, message: Message, request: Pdu | None) -> Message:
