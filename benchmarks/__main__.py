@@ -4,8 +4,9 @@
 
 For each kind of traffic (steady, mixed, polling): ``bench_tshark`` (stats, analyze, export
 --pcap and tshark on the same frames) and ``bench_exports`` (MCAP, Rerun); then ``bench_stages``
-(what bounds analyze, on a fifth of the frames) and ``bench_stats`` on the frames and five times
-as many (growth of time and memory). About 15 minutes at 1 M frames on the machines here.
+(what bounds analyze, on a fifth of the frames), ``bench_stats`` on the frames and five times
+as many (growth of time and memory), and ``bench_views`` (the tables' own cost). About 15
+minutes at 1 M frames on the machines here.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ def main() -> None:
                 for traffic in TRAFFIC for name in ("bench_tshark", "bench_exports")]
         runs.append(["bench_stages", "--frames", str(max(args.frames // 5, 1000)), *keep])
         runs.append(["bench_stats", "--frames", str(args.frames), str(5 * args.frames), *keep])
+        runs.append(["bench_views", "--frames", str(max(args.frames // 5, 1000)), *keep])
         for name, *options in runs:
             print(f"\n## python -m benchmarks.{name} {' '.join(options)}", flush=True)
             subprocess.run([sys.executable, "-m", f"benchmarks.{name}", *options], check=True)

@@ -22,7 +22,9 @@ from rich.console import Console
 from decoders.capture import TimingQuality
 from sniffer.io.registry import open_reader
 from sniffer.pipeline import Analysis, analyze
+from sniffer.views.clock import Clock
 from sniffer.views.live import LiveState, LiveView
+from sniffer.views.table import PlainTableView
 from tests.conftest import ROOT, SAMPLE_LOG, CliResult
 
 GOLDEN = ROOT / "tests" / "golden" / "screens"
@@ -283,3 +285,29 @@ def test_plain_table_is_the_same_in_one_process_and_two(cli: Cli, options: list[
         two = cli("analyze", str(capture), "--jobs", "2", *options)
         assert one.code == two.code == 0, one.err + two.err
         assert one.out == two.out
+
+
+@pytest.mark.parametrize("mode", ["utc", "relative", "local"])
+def test_plain_rows_by_numpy_are_the_plain_path(tmp_path: Path, mode: str) -> None:
+    """The plain table's fields laid out by numpy (sniffer/views/fixed_width.py) are what the
+    row-by-row path writes, on every sample and on generated traffic of every kind."""
+    from benchmarks import generate_capture
+    from benchmarks.bench_framing import LINE
+
+    captures = sorted((ROOT / "captures").glob("*.mcap"))
+    for values in ("random", "steady"):
+        generated = tmp_path / f"{values}.mcap"
+        generate_capture.write(generated, 6000, 3, LINE, "exact", values=values)
+        captures.append(generated)
+    for capture in captures:
+        outputs = []
+        for fast in (True, False):
+            reader = open_reader(str(capture))
+            assert reader.info.line is not None
+            out = io.StringIO()
+            view = PlainTableView(out, clock=Clock(mode), fast=fast)
+            analyze(reader, capture.name, Analysis(reader.info.line, reader.info.timing), [view])
+            reader.close()
+            outputs.append(out.getvalue())
+        assert outputs[0] == outputs[1], capture.name
+        assert outputs[0].count("\n") > 10

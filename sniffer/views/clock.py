@@ -59,6 +59,10 @@ class Clock:
             return np.zeros(len(t_ns), np.int64)
         return self._wall_seconds(t_ns) // SECONDS_PER_DAY
 
+    def seconds_of_day(self, t_ns: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+        """Seconds since midnight in the mode's zone (``utc`` or ``local``)."""
+        return self._wall_seconds(t_ns) % SECONDS_PER_DAY
+
     def date(self, t_ns: int) -> str:
         """``2026-11-24 22:13:20`` in the mode's zone."""
         seconds = t_ns // NS_PER_S

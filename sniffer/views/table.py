@@ -24,9 +24,10 @@ from rich.color import ColorSystem
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.damage import RetryDiff
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch, MessageBatch
+from decoders.message import AnnotatedBatch, MessageBatch, slice_messages
 from decoders.stats import Statistics
 from sniffer.sinks import Sink
+from sniffer.views import fixed_width
 from sniffer.views.clock import Clock
 from sniffer.views.frame_cells import (
     NARROW,
@@ -165,8 +166,10 @@ class PlainTableView(_FrameTable):
     its summary."""
 
     def __init__(self, out: TextIO, *, clock: Clock | None = None, hex_shown: bool | None = None,
-                 summary_of: SummaryOf = decoding_summary) -> None:
+                 summary_of: SummaryOf = decoding_summary, fast: bool = True) -> None:
         clock = clock or Clock()
+        #: Rows laid out by numpy (:mod:`sniffer.views.fixed_width`); without the hex column only.
+        self._fast = fast and not hex_shown
         super().__init__(out, Layout(frame_columns(clock, plain=True, hex_shown=bool(hex_shown)), None),
                          clock, summary_of)
         self._header_laid = False
@@ -185,12 +188,16 @@ class PlainTableView(_FrameTable):
         for begin, end, date_line in self._date_cuts(batch.frames.t_start_ns):
             if date_line:
                 marks.append((begin, date_line))
-            cells = frame_cells(batch, rows[begin:end], self._clock, plain=True, styled=False)
-            self._layout.measure(cells)
+            if self._fast:
+                laid = fixed_width.prefixes(self._layout, slice_messages(batch, begin, end), self._clock)
+            else:
+                cells = frame_cells(batch, rows[begin:end], self._clock, plain=True, styled=False)
+                self._layout.measure(cells)
+                laid = self._layout.plain_prefixes(cells, end - begin)
             if not self._header_laid:
                 marks.append((begin, self._layout.header()))
                 self._header_laid = True
-            prefixes += self._layout.plain_prefixes(cells, end - begin)
+            prefixes += laid
         suffixes = ["\n"] * len(batch)
         for position, note in notes.items():
             suffixes[position] = note + "\n"
