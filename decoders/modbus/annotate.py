@@ -18,6 +18,9 @@ from __future__ import annotations
 from collections import OrderedDict
 from typing import Any
 
+import numpy as np
+import numpy.typing as npt
+
 from decoders.frame import USS
 from decoders.memo import Memo
 from decoders.message import (
@@ -50,6 +53,7 @@ from decoders.modbus.pdu import (
     parse_pdu,
     quantity_allowed,
 )
+from decoders.modbus.quick import register_reads
 from decoders.profiles.apply import ProfileApplier
 from decoders.uss import parse_uss
 
@@ -90,6 +94,7 @@ class Annotator:
         recent, version = memo.recent(), self._version()
         slaves: list[int] | None = None
         crc: list[bool] = []
+        reads: dict[int, tuple[str, Pdu]] = {}
         for position, (role, protocol, request_index) in enumerate(rows):
             context, request = _NO_REQUEST if request_index == NONE else requests.pop(request_index, _NO_REQUEST)
             key = (role, protocol, data[offsets[position] : offsets[position + 1]], context, version)
@@ -97,19 +102,33 @@ class Annotator:
             if known is None:
                 known = memo.get(key)
                 if known is None:
-                    if slaves is None:
+                    if slaves is None:  # the first frame not seen before: columns for the rest
                         slaves, crc = batch.slave.tolist(), frames.crc_ok.tolist()
-                    decoding = self._lean(key[2], role, protocol, slaves[position], crc_ok=crc[position],
-                                          request=request)
+                        reads = register_reads(batch, self._lean_rows(batch))
+                    read = reads.get(position)
+                    decoding = LazyParams(read[0], read[1], request) if read is not None else \
+                        self._lean(key[2], role, protocol, slaves[position], crc_ok=crc[position], request=request)
                     if decoding is None:
                         decoding = self._decode(messages[position], request).decoding
                     known = decoding, answer_context(decoding.pdu)
                     memo.put(key, known)
+                if self._version() != version:  # the profiles learnt: which slaves are lean may change
+                    slaves = None
                 recent, version = memo.recent(), self._version()
             if role == _REQUEST_CODE:
                 self._keep_request(first + position, known[1], known[0].pdu)
             decodings.append(known[0])
         return AnnotatedBatch(batch, decodings)
+
+    def _lean_rows(self, batch: MessageBatch) -> npt.NDArray[np.bool_]:
+        """The Modbus frames of slaves whose profile adds nothing (see :meth:`_lean`)."""
+        lean = batch.frames.protocols() != USS
+        if self._profiles is not None:
+            slaves = np.unique(batch.slave).tolist()
+            profiled = [slave for slave in slaves if not self._profiles.adds_nothing(slave)]
+            if profiled:
+                lean &= ~np.isin(batch.slave, profiled)
+        return np.asarray(lean, np.bool_)
 
     def _lean(self, data: bytes, role: int, protocol: int, slave: int, *, crc_ok: bool,
               request: Pdu | None) -> Decoding | None:
