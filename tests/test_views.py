@@ -162,7 +162,7 @@ def test_dates_appear_where_the_capture_crosses_midnight(cli: Cli, tmp_path: Pat
 def test_time_modes(cli: Cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     relative = cli("analyze", str(SAMPLE_LOG), "--time", "relative").out
     rows = [line.split() for line in relative.splitlines() if not line.startswith("#")]
-    assert rows[0][1] == "0.000000" and rows[1][1] == "0.007305"
+    assert rows[0][1] == "0.000000" and rows[1][1] == "0.007305"  # from the first frame read
     assert "capture starts" not in relative
     monkeypatch.setenv("TZ", "America/New_York")
     time.tzset()
@@ -311,3 +311,12 @@ def test_plain_rows_by_numpy_are_the_plain_path(tmp_path: Path, mode: str) -> No
             outputs.append(out.getvalue())
         assert outputs[0] == outputs[1], capture.name
         assert outputs[0].count("\n") > 10
+
+
+def test_relative_times_count_from_the_first_frame_read(cli: Cli) -> None:
+    """A filter does not move relative times, on a terminal or down a pipe; a window starts them."""
+    for width in ("0", "120"):
+        out = cli("analyze", str(SAMPLE_LOG), "--time", "relative", "--filter", "role=exception", "--width", width).out
+        assert "1.441608" in out and "2.550759" in out
+    windowed = cli("analyze", str(SAMPLE_LOG), "--time", "relative", "--around", "31", "--context", "1").out
+    assert [line.split()[1] for line in windowed.splitlines() if not line.startswith("#")][0] == "0.000000"

@@ -107,7 +107,7 @@ def add_filter_option(parser: argparse.ArgumentParser) -> None:
 
 def add_time_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time", choices=list(MODES), default="utc",
-                        help="times in UTC (default), local time, or seconds since the first frame shown; "
+                        help="times in UTC (default), local time, or seconds since the first frame read (of the window); "
                         "also the zone of --from/--to")
 
 

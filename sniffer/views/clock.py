@@ -2,7 +2,8 @@
 
 ``utc`` and ``local`` write ``HH:MM:SS.ffffff`` (the date goes on a line of its own at the
 start and wherever the capture crosses midnight); ``relative`` writes seconds since the first
-frame shown, ``12.345678``, and needs no dates.
+frame of the part of the capture read (its first frame, or the window's), ``12.345678``, and
+needs no dates.
 """
 
 from __future__ import annotations

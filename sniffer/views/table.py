@@ -127,6 +127,9 @@ class TableView(_FrameTable):
         self._header_shown = False
 
     def messages(self, batch: AnnotatedBatch) -> None:
+        frames = batch.messages.frames
+        if self._clock.origin_ns is None and len(frames):  # relative times count from the window's first frame
+            self._clock.origin_ns = int(frames.t_start_ns[0])
         retries = self._retries.notes(batch.messages)
         rows = kept_rows(batch)
         for start in range(0, len(rows), ROWS_PER_BLOCK):
