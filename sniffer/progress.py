@@ -81,12 +81,13 @@ class ProgressSink(Sink):
 class ProgressBar:
     """A context: the bar while the command runs (or nothing), and its :attr:`sink`."""
 
-    def __init__(self, reader: CaptureReader | None, path: str, show: bool) -> None:
+    def __init__(self, reader: CaptureReader | None, paths: list[str], show: bool) -> None:
         self._progress: Progress | None = None
         task = end_ns = size = None
         if show and reader is not None:
             end_ns = reader.last_time_ns()
-            size = os.path.getsize(path) if path != "-" and os.path.isfile(path) else None
+            files = [path for path in paths if path != "-" and os.path.isfile(path)]
+            size = sum(map(os.path.getsize, files)) if len(files) == len(paths) else None
             columns = [TextColumn("{task.description}"), BarColumn(),
                        TextColumn("{task.percentage:>3.0f} %") if end_ns else MofNCompleteColumn(),
                        TextColumn("{task.fields[size]}"), TextColumn("{task.fields[frames]}"),
@@ -94,7 +95,8 @@ class ProgressBar:
             if end_ns:
                 columns.append(TimeRemainingColumn())
             self._progress = Progress(*columns, console=Console(file=sys.stderr), transient=True)
-            task = self._progress.add_task(os.path.basename(path), total=STEPS if end_ns else None,
+            name = os.path.basename(paths[0]) + (f" + {len(paths) - 1}" if len(paths) > 1 else "")
+            task = self._progress.add_task(name, total=STEPS if end_ns else None,
                                            frames="", size="", rate="")
         self.sink = ProgressSink(self._progress, task, end_ns, size)
 
@@ -111,7 +113,8 @@ class ProgressBar:
 
 def progress_for(args: argparse.Namespace, reader: CaptureReader, *, to_terminal: bool,
                  path: str | None = None) -> ProgressBar:
-    """The bar for a command reading ``path`` (``args.capture``): shown when standard error is a
-    terminal, the output does not go to that terminal too, and ``--quiet`` is not given."""
+    """The bar for a command reading ``path`` (else the files of ``args.capture``): shown when
+    standard error is a terminal, the output does not go to that terminal too, and ``--quiet``
+    is not given."""
     show = sys.stderr.isatty() and not getattr(args, "quiet", False) and not (to_terminal and sys.stdout.isatty())
-    return ProgressBar(reader, path or args.capture, show)
+    return ProgressBar(reader, [path] if path else list(args.capture), show)

@@ -319,4 +319,4 @@ def test_relative_times_count_from_the_first_frame_read(cli: Cli) -> None:
         out = cli("analyze", str(SAMPLE_LOG), "--time", "relative", "--filter", "role=exception", "--width", width).out
         assert "1.441608" in out and "2.550759" in out
     windowed = cli("analyze", str(SAMPLE_LOG), "--time", "relative", "--around", "31", "--context", "1").out
-    assert [line.split()[1] for line in windowed.splitlines() if not line.startswith("#")][0] == "0.000000"
+    assert next(line.split()[1] for line in windowed.splitlines() if not line.startswith("#")) == "0.000000"

@@ -10,14 +10,17 @@ from typing import TextIO
 from rich.console import Console
 
 from sniffer.commands.common import (
+    add_capture_argument,
     add_decoding_options,
     add_filter_option,
     add_force_option,
     add_jobs_option,
     add_quiet_option,
+    capture_paths,
     check_outputs,
     open_analysis,
     open_output,
+    source_name,
     tell_written,
 )
 from sniffer.decoding_process import decoding_jobs
@@ -39,7 +42,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "the request it answers and its latency, length, CRC, flags, decoded summary and bytes. "
         "On a terminal the table fits its width; into a pipe or a file every frame is one line.",
     )
-    parser.add_argument("capture", help="capture file (.log/.txt text, .mcap native), or - for text on stdin")
+    add_capture_argument(parser)
     parser.add_argument("--format", choices=list(FORMATS), default="table", help="output format (default: table)")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
     add_force_option(parser)
@@ -76,13 +79,13 @@ FORMATS: dict[str, Callable[[TextIO, argparse.Namespace], Sink]] = {"table": tab
 
 
 def run(args: argparse.Namespace) -> int:
-    check_outputs([args.output], [args.capture], force=args.force)
+    check_outputs([args.output], capture_paths(args), force=args.force)
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)
         sink = FORMATS[args.format](out, args)
         progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
-        statistics = analyze(reader, args.capture, analysis, [sink, progress.sink],
+        statistics = analyze(reader, source_name(args), analysis, [sink, progress.sink],
                              jobs=decoding_jobs(args.jobs))
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format}, {shown_frames(sink, statistics.frames):,} frames")])

@@ -14,11 +14,28 @@ from decoders.line import LineSettings
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.filters import parse_filters
 from sniffer.io.base import CaptureReader, ReaderOptions
-from sniffer.io.registry import format_help, formats_for, open_reader
+from sniffer.io.chain import open_capture
+from sniffer.io.registry import format_help, formats_for
 from sniffer.pipeline import Analysis, effective_line
 from sniffer.profiles_io import profile_book
 from sniffer.selection import add_selection_options, selection_from
 from sniffer.views.clock import MODES
+
+
+def add_capture_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("capture", nargs="+", metavar="CAPTURE",
+                        help="capture file (.log/.txt text, .mcap native), or - for text on stdin; several files "
+                        "(rotated recordings) are read as one capture, in time order")
+
+
+def capture_paths(args: argparse.Namespace) -> list[str]:
+    paths: list[str] = args.capture
+    return paths
+
+
+def source_name(args: argparse.Namespace) -> str:
+    """What the outputs call the capture: its file, or its files joined by ``+``."""
+    return " + ".join(capture_paths(args))
 
 
 def add_line_options(parser: argparse.ArgumentParser) -> None:
@@ -107,8 +124,8 @@ def add_filter_option(parser: argparse.ArgumentParser) -> None:
 
 def add_time_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time", choices=list(MODES), default="utc",
-                        help="times in UTC (default), local time, or seconds since the first frame read (of the window); "
-                        "also the zone of --from/--to")
+                        help="times in UTC (default), local time, or seconds since the first frame read (of the "
+                        "window); also the zone of --from/--to")
 
 
 def add_quiet_option(parser: argparse.ArgumentParser) -> None:
@@ -144,12 +161,12 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
     book = profile_book(args.profile, args.profile_file)
     override = line_override(args)
     options = ReaderOptions(line=override, timing=TimingQuality(args.timing) if args.timing else None)
-    reader = open_reader(args.capture, args.input_format, options)
+    reader = open_capture(capture_paths(args), args.input_format, options)
     stack.callback(close_reader, reader)
     if override is not None and reader.info.line is not None and override.format() != reader.info.line.format():
-        reader.warnings.append(f"{args.capture}: --line {override.format()} overrides the capture's own "
+        reader.warnings.append(f"{source_name(args)}: --line {override.format()} overrides the capture's own "
                                f"{reader.info.line.format()}")
-    line = apply_char_timing(effective_line(reader.info, override, args.capture), args)
+    line = apply_char_timing(effective_line(reader.info, override, source_name(args)), args)
     analysis = Analysis(line, effective_timing(reader.info, args), response_timeout_ns(args), profiles=book)
     if hasattr(args, "start"):
         analysis = replace(analysis, selection=selection_from(args))

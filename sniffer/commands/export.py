@@ -12,12 +12,15 @@ from pathlib import Path
 from typing import Any
 
 from sniffer.commands.common import (
+    add_capture_argument,
     add_decoding_options,
     add_jobs_option,
     add_quiet_option,
+    capture_paths,
     check_outputs,
     human_size,
     open_analysis,
+    source_name,
 )
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -34,7 +37,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         description="Decode a capture and export it: --mcap for Foxglove (raw chunks, frames, transactions, "
         "parameter values per slave, a log), --rrd for the Rerun viewer (a timeline with plots and logs).",
     )
-    parser.add_argument("capture", help="capture file (.log/.txt text, .mcap native), or - for text on stdin")
+    add_capture_argument(parser)
     parser.add_argument("--mcap", metavar="OUT.mcap", help="write decoded MCAP (also a capture analyze can read)")
     parser.add_argument("--rrd", metavar="OUT.rrd", help="write a Rerun recording")
     parser.add_argument("--pcap", metavar="OUT.pcap", help="write a pcap for Wireshark: one packet per frame")
@@ -55,14 +58,14 @@ def run(args: argparse.Namespace) -> int:
     if args.pcap == "-" and sys.stdout.isatty():
         raise RtuSniffError(ErrorKind.USAGE, "--pcap -: binary pcap to a terminal; pipe it (| wireshark -k -i -) "
                             "or redirect it to a file")
-    check_outputs([args.mcap, args.rrd, args.pcap], [args.capture], force=args.force)
+    check_outputs([args.mcap, args.rrd, args.pcap], capture_paths(args), force=args.force)
     if args.spawn:
         check_viewer_can_start()
     with ExitStack() as stack:
         reader, analysis = open_analysis(args, stack)
         sinks = output_sinks(args, analysis, stack)
         progress = stack.enter_context(progress_for(args, reader, to_terminal=args.pcap == "-"))
-        analyze(reader, args.capture, analysis, [*(sink for _, sink in sinks), progress.sink],
+        analyze(reader, source_name(args), analysis, [*(sink for _, sink in sinks), progress.sink],
                 jobs=decoding_jobs(args.jobs))
     if not args.quiet:
         _tell_written(args, sinks)

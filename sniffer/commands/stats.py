@@ -8,12 +8,15 @@ from contextlib import ExitStack
 from rich.console import Console
 
 from sniffer.commands.common import (
+    add_capture_argument,
     add_decoding_options,
     add_force_option,
     add_quiet_option,
+    capture_paths,
     check_outputs,
     open_analysis,
     open_output,
+    source_name,
     tell_written,
 )
 from sniffer.pipeline import analyze
@@ -31,7 +34,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "min/p50/p95/p99/max and poll period; bus load and totals. On a terminal the table fits its width "
         "(the least needed columns go first); into a pipe or a file every row is one line.",
     )
-    parser.add_argument("capture", help="capture file (.log/.txt text, .mcap native), or - for text on stdin")
+    add_capture_argument(parser)
     parser.add_argument("--format", choices=["table", "json"], default="table", help="output format (default: table)")
     parser.add_argument("-o", "--output", help="write to this file instead of standard output")
     parser.add_argument("--width", type=int, metavar="COLUMNS",
@@ -44,7 +47,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run(args: argparse.Namespace) -> int:
-    check_outputs([args.output], [args.capture], force=args.force)
+    check_outputs([args.output], capture_paths(args), force=args.force)
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)
@@ -53,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         view = StatsView(out, width=width, color_system=terminal_colors(console) if width else None,
                          as_json=args.format == "json")
         progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
-        statistics = analyze(reader, args.capture, analysis, [view, progress.sink])
+        statistics = analyze(reader, source_name(args), analysis, [view, progress.sink])
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format} statistics of {statistics.frames:,} frames")])
     return 0

@@ -118,8 +118,9 @@ def _metadata(args: argparse.Namespace, analysis: Analysis) -> dict[str, str]:
         [f"default {book.default.id}", *(f"slave {s}: {p.id}" for s, p in sorted(book.per_slave.items()))]
     )
     return {
-        "source": args.capture,
-        "source_sha256": _sha256(args.capture),
+        "source": " + ".join(args.capture),
+        # One digest per file, in the order named (a rotated recording: every part).
+        "source_sha256": " ".join(_sha256(path) for path in args.capture),
         "command": shlex.join(args.command_line),
         "profiles": profiles,
     }
