@@ -142,6 +142,7 @@ def add_decoding_options(parser: argparse.ArgumentParser) -> None:
     add_response_timeout_option(parser)
     add_profile_options(parser)
     add_input_format_option(parser)
+    add_channel_option(parser)
 
 
 def add_jobs_option(parser: argparse.ArgumentParser) -> None:
@@ -160,7 +161,8 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
     """Open ``args.capture`` and settle how to decode it."""
     book = profile_book(args.profile, args.profile_file)
     override = line_override(args)
-    options = ReaderOptions(line=override, timing=TimingQuality(args.timing) if args.timing else None)
+    options = ReaderOptions(line=override, timing=TimingQuality(args.timing) if args.timing else None,
+                            channels=tuple(getattr(args, "channel", None) or ()))
     reader = open_capture(capture_paths(args), args.input_format, options)
     stack.callback(close_reader, reader)
     if override is not None and reader.info.line is not None and override.format() != reader.info.line.format():
@@ -233,6 +235,13 @@ def open_output(path: str | None, stack: ExitStack) -> TextIO:
         return stack.enter_context(open(path, "w", encoding="utf-8"))
     except OSError as exc:
         raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot write: {exc.strerror}", path=path) from None
+
+
+def add_channel_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--channel", action="append", metavar="NAME|NUMBER",
+                        help="for a logic analyzer's recording (.sr): the probe the bus is on, by name or number "
+                        "from 1; twice for RX and TX on two probes (merged in time order). Default: the only "
+                        "probe that changes")
 
 
 def add_input_format_option(parser: argparse.ArgumentParser) -> None:

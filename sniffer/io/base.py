@@ -59,8 +59,9 @@ class ReaderOptions:
     line: LineSettings | None = None
     #: ``--timing``: the timing quality the user gave, if any.
     timing: TimingQuality | None = None
-    #: Which channel of a multi-channel recording carries the bus, if the user said.
-    channel: str | None = None
+    #: Which channels of a multi-channel recording carry the bus (``--channel``, by name or
+    #: number; RX and TX may be two), if the user said.
+    channels: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

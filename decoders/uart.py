@@ -1,0 +1,167 @@
+"""UART characters from a logic analyzer's samples of one line, decoded with numpy.
+
+As sigrok's UART decoder does it: the line idles high (``inverted``: low); a character starts at a
+falling edge; each bit is read at the middle of its slot (``start + (k + ½) × bit width``, slot 0
+the start bit); a start bit that is high again at its middle was a glitch, and the search goes on
+from there; a stop bit that is low at its middle is a framing error, a parity bit that does not
+match a parity error — the character is kept either way, with its error. The next character is
+looked for from the middle of the (first) stop bit. Each character ends at the end of its last
+stop bit: ``start + (1 + data + parity + stop) × bit width``.
+
+The search is vectorised: every falling edge is a candidate start; where each candidate's next
+search begins is computed for all at once, and only the chain of starts actually taken is
+walked, one step per character. Samples come in pieces (:class:`UartDecoder` keeps what a
+character cut by the end of a piece needs).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from decoders.line import LineSettings, Parity
+
+Samples = npt.NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class UartCharacters:
+    """Characters in columns: value, first and end sample (absolute, as floats), errors."""
+
+    values: npt.NDArray[np.uint16]
+    start_samples: npt.NDArray[np.float64]
+    end_samples: npt.NDArray[np.float64]
+    framing_errors: npt.NDArray[np.bool_]
+    parity_errors: npt.NDArray[np.bool_]
+
+    def __len__(self) -> int:
+        return len(self.values)
+
+    def slice(self, start: int, stop: int) -> UartCharacters:
+        return UartCharacters(self.values[start:stop], self.start_samples[start:stop], self.end_samples[start:stop],
+                              self.framing_errors[start:stop], self.parity_errors[start:stop])
+
+
+def merge_characters(parts: list[UartCharacters]) -> UartCharacters:
+    """The characters of several lines (RX and TX) as one stream in order of their ends."""
+    parts = [part for part in parts if len(part)]
+    if not parts:
+        return _empty()
+    joined = UartCharacters(*(np.concatenate([getattr(part, name) for part in parts])
+                              for name in ("values", "start_samples", "end_samples", "framing_errors",
+                                           "parity_errors")))
+    order = np.argsort(joined.end_samples, kind="stable")
+    return UartCharacters(joined.values[order], joined.start_samples[order], joined.end_samples[order],
+                          joined.framing_errors[order], joined.parity_errors[order])
+
+
+def _empty() -> UartCharacters:
+    return UartCharacters(np.zeros(0, np.uint16), np.zeros(0), np.zeros(0), np.zeros(0, np.bool_),
+                          np.zeros(0, np.bool_))
+
+
+@dataclass
+class UartDecoder:
+    """Decodes a line's samples piece by piece (``feed``), in order; ``samplerate`` in Hz."""
+
+    line: LineSettings
+    samplerate: float
+    inverted: bool = False
+    #: Samples kept from the last piece (a character may start there) and the absolute number
+    #: of the first of them.
+    _kept: Samples = field(default_factory=lambda: np.zeros(0, np.bool_))
+    _kept_from: int = 0
+    #: The absolute sample from which the next start bit is looked for.
+    _search_from: int = 0
+
+    @property
+    def bit_width(self) -> float:
+        return self.samplerate / self.line.baud
+
+    @property
+    def _slots(self) -> int:
+        return 1 + self.line.data_bits + (0 if self.line.parity is Parity.NONE else 1) + self.line.stop_bits
+
+    def feed(self, samples: Samples) -> UartCharacters:
+        """The characters whose stop bit's middle lies in what was fed so far."""
+        level = np.concatenate([self._kept, samples != self.inverted])
+        base = self._kept_from
+        width = self.bit_width
+        # A falling edge: high before, low at the sample (a line that starts low starts nothing).
+        edges = np.flatnonzero(level[1:] < level[:-1]) + 1
+        edges = edges[edges + base >= self._search_from]
+        stop_middle = (self._slots - self.line.stop_bits + 0.5) * width
+        reach = np.floor(edges + stop_middle).astype(np.int64)
+        complete = reach < len(level)
+        edges, reach = edges[complete], reach[complete]
+        start_ok = ~level[np.floor(edges + width / 2).astype(np.int64)]
+        resume = np.where(start_ok, reach, np.floor(edges + width / 2).astype(np.int64))
+        following = np.searchsorted(edges, resume, "left")
+        taken = _chain(following, start_ok, len(edges))
+        starts = edges[taken]
+        characters = self._read(level, starts, base)
+        # Keep from where the search goes on: after the last character, or the last edge looked at.
+        if len(taken):
+            search = int(reach[taken[-1]])
+        elif len(edges):
+            search = int(resume[-1])
+        else:
+            search = max(self._search_from - base, 0)
+        search = max(search, 0)
+        # Only the samples a start not yet complete needs go on to the next piece (one more before
+        # it, for its edge): a long idle line is not carried along.
+        keep_from = min(max(search, len(level) - int(np.ceil(stop_middle)) - 2, 0), len(level))
+        self._search_from = base + search
+        self._kept, self._kept_from = level[keep_from:], base + keep_from
+        return characters
+
+    def _read(self, level: Samples, starts: npt.NDArray[np.int64], base: int) -> UartCharacters:
+        if not len(starts):
+            return _empty()
+        width, line = self.bit_width, self.line
+        data_slots = np.arange(1, 1 + line.data_bits)
+        bits = level[np.floor(starts[:, None] + (data_slots + 0.5) * width).astype(np.int64)]
+        weights = (1 << np.arange(line.data_bits)).astype(np.uint16)  # least significant bit first
+        values = (bits * weights).sum(axis=1).astype(np.uint16)
+        slot = 1 + line.data_bits
+        parity_errors = np.zeros(len(starts), np.bool_)
+        if line.parity is not Parity.NONE:
+            parity_bit = level[np.floor(starts + (slot + 0.5) * width).astype(np.int64)]
+            ones = bits.sum(axis=1) % 2 == 1
+            expected = {Parity.EVEN: ones, Parity.ODD: ~ones, Parity.MARK: np.ones_like(ones),
+                        Parity.SPACE: np.zeros_like(ones)}[line.parity]
+            parity_errors = parity_bit != expected
+            slot += 1
+        framing_errors = ~level[np.floor(starts + (slot + 0.5) * width).astype(np.int64)]
+        absolute = (starts + base).astype(np.float64)
+        return UartCharacters(values, absolute, absolute + self._slots * width, framing_errors, parity_errors)
+
+
+def _chain(following: npt.NDArray[np.int64], start_ok: npt.NDArray[np.bool_], count: int) -> npt.NDArray[np.int64]:
+    """The candidate starts taken, following ``following`` from the first: only real starts
+    (``start_ok``) are characters; a glitch moves the search on without one."""
+    taken: list[int] = []
+    nexts, oks = following.tolist(), start_ok.tolist()
+    at = 0
+    while at < count:
+        if oks[at]:
+            taken.append(at)
+        at = nexts[at] if nexts[at] > at else at + 1
+    return np.array(taken, np.int64)
+
+
+def shortest_pulse_baud(level: Samples, samplerate: float) -> int | None:
+    """The standard baud rate the shortest pulses of ``level`` suggest (a bit is the shortest
+    time the line holds a level), or ``None`` without enough edges."""
+    edges = np.flatnonzero(level[1:] != level[:-1])
+    if len(edges) < 20:
+        return None
+    runs = np.diff(edges)
+    bit = float(np.percentile(runs, 2))
+    measured = samplerate / max(bit, 1.0)
+    standard = [300, 600, 1200, 2400, 4800, 9600, 14400, 19200, 28800, 38400, 57600, 76800, 115200, 230400,
+                250000, 460800, 500000, 921600, 1000000]
+    best = min(standard, key=lambda baud: abs(baud - measured) / baud)
+    return best if abs(best - measured) / best < 0.08 else None

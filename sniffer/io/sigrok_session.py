@@ -1,0 +1,195 @@
+"""sigrok / PulseView sessions (``.sr``): a logic analyzer's samples, decoded as UART here.
+
+A session is a zip: ``metadata`` (an INI text: sample rate, unit size, the probes' names) and
+``logic-1-1``, ``logic-1-2``, … (the samples, ``unitsize`` bytes each, bit ``k`` for probe
+``k + 1``). The line's probe is ``--channel`` (a name or a number from 1), or the only one that
+changes; a line that idles low is read inverted. The UART settings come from ``--line`` (a
+session does not say them; the error suggests the baud rate its shortest pulses show). Each
+character becomes a chunk stamped with the end of its stop bit: exact timing. The session has no
+clock time: sample 0 is the time the zip stores for its ``metadata`` (to the second, its zone
+unknown, read as UTC). Characters with a framing or parity error are kept, and counted in a warning.
+"""
+
+from __future__ import annotations
+
+import configparser
+import re
+import zipfile
+from calendar import timegm
+from collections.abc import Iterator
+
+import numpy as np
+
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.line import LineSettings
+from decoders.uart import UartCharacters, UartDecoder, merge_characters, shortest_pulse_baud
+from sniffer.errors import CaptureFormatError, ErrorKind
+from sniffer.io.base import ReaderOptions
+
+NS_PER_S = 1_000_000_000
+_RATE = re.compile(r"([\d.]+)\s*([kMG]?)Hz", re.IGNORECASE)
+_SCALE = {"": 1.0, "k": 1e3, "m": 1e6, "g": 1e9}
+
+
+class SigrokSessionReader:
+    """Reads a ``.sr`` session's chosen probe as UART characters."""
+
+    def __init__(self, path: str, options: ReaderOptions) -> None:
+        self.path = path
+        self.late_notes: list[str] = []
+        self.warnings: list[str] = []
+        try:
+            self._zip = zipfile.ZipFile(path)
+        except Exception as exc:
+            raise self._error(f"not a readable sigrok session (a zip): {exc}") from None
+        try:
+            self._read_metadata()
+            self._probes_used = self._choose_probes(options.channels)
+            self._inverted = [self._idles_low(probe) for probe in self._probes_used]
+            self._line = self._line_settings(options)
+        except BaseException:
+            self._zip.close()
+            raise
+        self._framing = self._parity = 0
+        self._first_error: float | None = None
+        probes = ", ".join(f"{self._probes[probe]}{' (inverted)' if inverted else ''}"
+                           for probe, inverted in zip(self._probes_used, self._inverted, strict=True))
+        self.info = CaptureInfo(self._line, TimingQuality.EXACT, (
+            f"sigrok session {path}: probe {probes} at {self._rate:,.0f} Hz, decoded as UART "
+            f"{self._line.format()} by rtusniff",))
+
+    def _error(self, message: str, kind: ErrorKind = ErrorKind.BAD_DATA) -> CaptureFormatError:
+        return CaptureFormatError(kind, message, path=self.path, location="session")
+
+    def _read_metadata(self) -> None:
+        try:
+            text = self._zip.read("metadata").decode("utf-8", "replace")
+            stamp = self._zip.getinfo("metadata").date_time
+        except Exception as exc:
+            raise self._error(f"no readable metadata in the zip: {exc}", ErrorKind.BAD_HEADER) from None
+        parser = configparser.ConfigParser(interpolation=None, strict=False)
+        try:
+            parser.read_string(text)
+            device = parser["device 1"]
+        except (configparser.Error, KeyError):
+            raise self._error("metadata has no [device 1] section", ErrorKind.BAD_HEADER) from None
+        rate = _RATE.fullmatch(device.get("samplerate", "").strip())
+        if rate is None:
+            raise self._error(f"metadata: samplerate {device.get('samplerate')!r} is not a rate", ErrorKind.BAD_HEADER)
+        self._rate = float(rate[1]) * _SCALE[rate[2].lower()]
+        self._unit = int(device.get("unitsize", "1"))
+        self._capturefile = device.get("capturefile", "logic-1")
+        self._probes = {int(key[5:]): value for key, value in device.items() if re.fullmatch(r"probe\d+", key)}
+        if not self._probes:
+            analog = device.get("total analog", "0")
+            raise self._error("no logic probes (rtusniff decodes digital samples; this session has "
+                              f"{analog} analog channels only)", ErrorKind.UNKNOWN_FORMAT)
+        self._t0_ns = timegm(stamp) * NS_PER_S
+        names = sorted((name for name in self._zip.namelist() if name.startswith(self._capturefile + "-")),
+                       key=lambda name: int(name.rsplit("-", 1)[1]) if name.rsplit("-", 1)[1].isdigit() else 0)
+        if not names:
+            raise self._error(f"no sample files ({self._capturefile}-1, …) in the zip")
+        self._chunks = names
+
+    def _samples(self, name: str) -> np.ndarray:
+        try:
+            raw = self._zip.read(name)
+        except Exception as exc:
+            raise CaptureFormatError(ErrorKind.BAD_DATA, f"cannot read {name}: {exc}", path=self.path,
+                                     location=name) from None
+        usable = len(raw) - len(raw) % self._unit
+        words = np.frombuffer(raw[:usable], dtype=f"<u{self._unit}" if self._unit in (1, 2, 4, 8) else np.uint8)
+        return words
+
+    def _level(self, words: np.ndarray, probe: int) -> np.ndarray:
+        return ((words >> (probe - 1)) & 1).astype(np.bool_)
+
+    def _choose_probes(self, channels: tuple[str, ...]) -> list[int]:
+        if channels:
+            probes = []
+            for channel in channels:
+                # A probe's name first (sigrok names probes "0", "1", …), then its number from 1.
+                wanted = [index for index, name in self._probes.items() if name == channel] or \
+                    [index for index in self._probes if str(index) == channel]
+                if not wanted:
+                    listed = ", ".join(f"{index}={name}" for index, name in sorted(self._probes.items()))
+                    raise self._error(f"--channel {channel}: no such probe (this session has {listed})",
+                                      ErrorKind.USAGE)
+                probes.append(wanted[0])
+            return probes
+        # The probes that change anywhere: the first sample files may hold an idle line only.
+        changing: set[int] = set()
+        for name in self._chunks:
+            words = self._samples(name)
+            changing |= {index for index in self._probes if np.any(np.diff(self._level(words, index)))}
+        if len(changing) != 1:
+            listed = ", ".join(f"{index}={self._probes[index]}" for index in sorted(changing or self._probes))
+            raise self._error(f"{'several' if changing else 'no'} probes change ({listed}); choose the line's "
+                              "with --channel NAME or NUMBER (twice for RX and TX)", ErrorKind.USAGE)
+        return sorted(changing)
+
+    def _idles_low(self, probe: int) -> bool:
+        """A line that is low where the recording starts idles low: read it inverted (a logic
+        analyzer is started on a quiet line; the levels during traffic say nothing: a string of
+        characters can hold the line low longer than any pause)."""
+        return not bool(self._level(self._samples(self._chunks[0]), probe)[0])
+
+    def _line_settings(self, options: ReaderOptions) -> LineSettings:
+        if options.line is not None:
+            return options.line
+        words = self._samples(self._chunks[0])
+        baud = shortest_pulse_baud(self._level(words, self._probes_used[0]), self._rate)
+        hint = f"; its shortest pulses suggest {baud} Bd" if baud else ""
+        raise self._error(f"a sigrok session does not say its UART settings: give --line, e.g. --line 9600 8N1{hint}",
+                          ErrorKind.NO_LINE_SETTINGS)
+
+    def batches(self) -> Iterator[ChunkBatch]:
+        decoders = [UartDecoder(self._line, self._rate, inverted) for inverted in self._inverted]
+        pending: list[UartCharacters] = []
+        read = 0
+        for name in self._chunks:
+            words = self._samples(name)
+            pending += [decoder.feed(self._level(words, probe))
+                        for decoder, probe in zip(decoders, self._probes_used, strict=True)]
+            read += len(words)
+            # Characters decoded later end after this piece: what ends before it is final in order.
+            ready, pending = _merged(pending, before=float(read))
+            if ready is not None:
+                yield self._chunk_batch(ready)
+        ready, _ = _merged(pending, before=float("inf"))
+        if ready is not None:
+            yield self._chunk_batch(ready)
+        if self._framing or self._parity:
+            self.warnings.append(f"{self.path}: {self._framing} characters with a framing error, {self._parity} "
+                                 f"with a parity error (the first {self._first_error:.6f} s into the session); "
+                                 "kept as sampled")
+
+    def _chunk_batch(self, characters: UartCharacters) -> ChunkBatch:
+        errors = characters.framing_errors | characters.parity_errors
+        self._framing += int(characters.framing_errors.sum())
+        self._parity += int(characters.parity_errors.sum())
+        if self._first_error is None and errors.any():
+            self._first_error = float(characters.end_samples[np.argmax(errors)]) / self._rate
+        ends = self._t0_ns + np.round(characters.end_samples / self._rate * NS_PER_S).astype(np.int64)
+        data = (characters.values & 0xFF).astype(np.uint8).tobytes()
+        return ChunkBatch(data, np.arange(1, len(data) + 1, dtype=np.int64), ends)
+
+    def last_time_ns(self) -> int | None:
+        total = 0
+        for name in self._chunks:
+            total += self._zip.getinfo(name).file_size // self._unit
+        return self._t0_ns + round(total / self._rate * NS_PER_S)
+
+    def close(self) -> None:
+        self._zip.close()
+
+
+def _merged(parts: list[UartCharacters], *, before: float) -> tuple[UartCharacters | None, list[UartCharacters]]:
+    """The characters of ``parts`` (probes decoded alike) ending before sample ``before``, in time
+    order, and the rest, kept for the next round."""
+    merged = merge_characters(parts)
+    if not len(merged):
+        return None, []
+    cut = int(np.searchsorted(merged.end_samples, before, "left"))
+    ready, rest = merged.slice(0, cut), merged.slice(cut, len(merged))
+    return (ready if len(ready) else None), ([rest] if len(rest) else [])

@@ -1,0 +1,167 @@
+"""sigrok sessions (.sr) read as captures: the UART decoded from the samples is what sigrok's own
+test suite expects (../shared/real/sigrok-test/uart: every character's value, first sample, end
+and error state, per test.conf's decoder options), and the Modbus recordings give the frames of
+their sigrok-cli text conversions (../shared/real/sigrok-cli-text)."""
+
+from __future__ import annotations
+
+import ast
+import configparser
+import json
+import re
+import shutil
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from decoders.line import LineSettings
+from sniffer.io.base import ReaderOptions
+from sniffer.io.sigrok_session import SigrokSessionReader
+from tests.conftest import ROOT, CliResult
+from tests.real_recordings import REAL as SHARED_REAL
+
+SIGROK = SHARED_REAL / "sigrok"
+EXPECTED = SHARED_REAL / "sigrok-test" / "uart"
+TEXT = SHARED_REAL / "sigrok-cli-text"
+Cli = Callable[..., CliResult]
+PARITY = {"none": "N", "even": "E", "odd": "O", "mark": "M", "space": "S"}
+#: sigrok's UART decoder options rtusniff's capture model has no room for.
+UNSUPPORTED = {"parity=ignore", "data_bits=9", "invert_rx=yes", "invert_tx=yes"}
+
+pytestmark = pytest.mark.skipif(not SIGROK.exists(), reason="../shared/real is not beside the checkout")
+
+
+def uart_tests() -> list[tuple[str, str, int, str, dict[str, str]]]:
+    """(name, input, sigrok channel index, expected .python, options) of each single-line UART
+    test in sigrok-test's test.conf whose recording is here."""
+    tests, current = [], None
+    for line in (EXPECTED / "test.conf").read_text().splitlines():
+        if line.startswith("test "):
+            current = {"name": line.split()[1], "python": None}
+            tests.append(current)
+        elif current is not None and "protocol-decoder uart" in line:
+            current["channels"] = re.findall(r"channel (\w+)=(\d+)", line)
+            current["options"] = dict(re.findall(r"option (\w+)=(\S+)", line))
+            current["flags"] = set(re.findall(r"option (\w+=\S+)", line))
+        elif current is not None and line.strip().startswith("input "):
+            current["input"] = line.split()[1]
+        elif current is not None and "output uart python match" in line:
+            current["python"] = line.split()[-1]
+    found = []
+    for test in tests:
+        source = SIGROK / str(test.get("input", ""))
+        if not source.is_file() or test["python"] is None or len(test.get("channels", [])) != 1:
+            continue
+        if test["flags"] & UNSUPPORTED:
+            continue
+        found.append((str(test["name"]), str(source), int(test["channels"][0][1]), str(test["python"]),
+                      dict(test["options"])))
+    return found
+
+
+def expected_frames(python: str) -> list[tuple[int, int, int, bool]]:
+    """(first sample, end sample, value, valid) of each FRAME sigrok expects."""
+    frames = []
+    for line in (EXPECTED / python).read_text().splitlines():
+        match = re.match(r"(\d+)-(\d+) uart: \['FRAME', \d+, (.*)\]$", line)
+        if match:
+            value, valid = ast.literal_eval(match[3])
+            frames.append((int(match[1]), int(match[2]), value, valid))
+    return frames
+
+
+def probe_name(session: str, index: int) -> str:
+    parser = configparser.ConfigParser(interpolation=None, strict=False)
+    parser.read_string(zipfile.ZipFile(session).read("metadata").decode())
+    return parser["device 1"][f"probe{index + 1}"]
+
+
+TESTS = uart_tests()
+
+
+def test_the_suite_is_here() -> None:
+    names = {name for name, *_ in TESTS}
+    assert len(TESTS) >= 17, names
+    assert {"hello_world_8n1_1200", "hello_world_8n1_921600", "hello_world_7e1_115200", "hello_world_8o1_115200",
+            "hello_world_7o1_115200_parity_err"} <= names
+
+
+@pytest.mark.parametrize(("name", "session", "channel", "python", "options"), TESTS, ids=[t[0] for t in TESTS])
+def test_uart_decodes_as_sigrok_expects(name: str, session: str, channel: int, python: str,
+                                        options: dict[str, str]) -> None:
+    line = LineSettings.parse(f"{options.get('baudrate', '115200')} {options.get('data_bits', '8')}"
+                              f"{PARITY[options.get('parity', 'none')]}{int(float(options.get('stop_bits', '1')))}")
+    reader = SigrokSessionReader(session, ReaderOptions(line=line, channels=(probe_name(session, channel),)))
+    values, ends = [], []
+    for batch in reader.batches():
+        values += list(batch.data)
+        ends += batch.t_end_ns.tolist()
+    reader.close()
+    expected = expected_frames(python)
+    assert values == [value for _, _, value, _ in expected], name
+    rate = reader._rate
+    t0 = reader._t0_ns
+    # Each character ends where sigrok's frame ends, to a sample and a half (sigrok rounds the
+    # frame's end to a whole sample after its own rounding of the start bit's).
+    got_ends = (np.array(ends) - t0) * rate / 1e9
+    assert np.all(np.abs(got_ends - np.array([end for _, end, _, _ in expected])) <= 1.5)
+    errors = sum(1 for *_, valid in expected if not valid)
+    said = " ".join(reader.warnings)
+    assert (errors == 0) == (said == ""), said
+    if errors:
+        assert re.search(r"(\d+) characters with a framing error, (\d+) with a parity error", said)
+        framing, parity = map(int, re.search(r"(\d+) characters with a framing error, (\d+)", said).groups())
+        assert framing + parity >= errors
+
+
+MODBUS = [("flowmeter/flowmeter_target0_val0.sr", "9600 8N1", [], "sr_flowmeter_target0_val0.log"),
+          ("flowmeter/flowmeter_graph_tool.sr", "9600 8N1", [], "sr_flowmeter_graph_tool.log"),
+          ("brainchild_io_16do/brainchild-io-16do.sr", "19200 8E1", ["0", "1"], "sr_brainchild-io-16do.log")]
+
+
+@pytest.mark.parametrize(("session", "line", "channels", "text"), MODBUS, ids=[m[0] for m in MODBUS])
+def test_modbus_sessions_give_the_frames_of_their_text_conversions(cli: Cli, session: str, line: str,
+                                                                    channels: list[str], text: str) -> None:
+    options = [a for channel in channels for a in ("--channel", channel)]
+    got = cli("analyze", str(SIGROK / "uart" / "modbus_rtu" / session), "--line", line, *options, "--format", "jsonl")
+    want = cli("analyze", str(TEXT / text), "--format", "jsonl")
+    assert got.code == 0 and want.code == 0, got.err + want.err
+    frames = [json.loads(r) for r in got.out.splitlines() if '"kind":"frame"' in r]
+    expected = [json.loads(r) for r in want.out.splitlines() if '"kind":"frame"' in r]
+    said = [(f["hex"], f["role"], f["crc_ok"]) for f in frames]
+    assert said == [(f["hex"], f["role"], f["crc_ok"]) for f in expected]
+    assert len(frames) >= 18
+    # The same times from the first frame on, to a sample (sigrok-cli's stamps are rounded).
+    for f, e in zip(frames, expected, strict=True):
+        assert abs((f["t_end_ns"] - frames[0]["t_end_ns"]) - (e["t_end_ns"] - expected[0]["t_end_ns"])) < 1000
+
+
+def test_session_errors_are_one_line(cli: Cli, tmp_path: Path) -> None:
+    flowmeter = SIGROK / "uart" / "modbus_rtu" / "flowmeter" / "flowmeter_target0_val0.sr"
+    no_line = cli("analyze", str(flowmeter))
+    assert no_line.code == 10 and "give --line" in no_line.err and "suggest 9600 Bd" in no_line.err
+    wrong = cli("analyze", str(flowmeter), "--line", "9600 8N1", "--channel", "MOSI")
+    assert wrong.code == 2 and "--channel MOSI: no such probe" in wrong.err
+    both = cli("analyze", str(SIGROK / "uart" / "modbus_rtu" / "brainchild_io_16do" / "brainchild-io-16do.sr"),
+               "--line", "19200 8E1")
+    assert both.code == 2 and "several probes change" in both.err
+    truncated = tmp_path / "cut.sr"
+    truncated.write_bytes(flowmeter.read_bytes()[:4000])
+    cut = cli("analyze", str(truncated), "--line", "9600 8N1")
+    assert cut.code in (6, 7) and str(truncated) in cut.err and len(cut.err.strip().splitlines()) == 1
+    analog = tmp_path / "analog.sr"
+    with zipfile.ZipFile(analog, "w") as session:
+        session.writestr("version", "2")
+        session.writestr("metadata", "[device 1]\nsamplerate=1 MHz\ntotal analog=2\nanalog1=A0\n")
+    only_analog = cli("analyze", str(analog), "--line", "9600 8N1")
+    assert only_analog.code == 5 and "analog channels only" in only_analog.err
+
+
+def test_sessions_are_sniffed_without_their_suffix(cli: Cli, tmp_path: Path) -> None:
+    copy = tmp_path / "recording.bin"
+    shutil.copy(SIGROK / "uart" / "modbus_rtu" / "flowmeter" / "flowmeter_graph_tool.sr", copy)
+    assert cli("analyze", str(copy), "--line", "9600 8N1").code == 0
+    assert ROOT.exists()
