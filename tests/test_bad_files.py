@@ -37,7 +37,7 @@ BAD_FILES: list[tuple[str, str, Content, int, str]] = [
     ("corrupted MCAP", "c.mcap", corrupted_mcap, 9, "c.mcap:byte 334: damaged MCAP"),
     ("not an MCAP", "c.mcap", HEADER.encode(), 9, "c.mcap:byte 0"),
     ("MCAP from another tool", "c.mcap", write_foreign_mcap, 9, "c.mcap:byte 138: not an rtusniff capture"),
-    ("unknown format", "c.pcapng", b"\x0a\x0d\x0d\x0a\x1c\x00\x00\x00", 5, "c.pcapng: cannot tell the capture format"),
+    ("unknown format", "c.erf", b"\x00\x11\x22\x33\x1c\x00\x00\x00", 5, "c.erf: cannot tell the capture format"),
 ]
 
 

@@ -1,0 +1,210 @@
+"""pcap and pcapng files of serial lines, read as captures.
+
+Serial sniffers that feed Wireshark (SerialPCAP, alerighi/modbus-sniffer, extcap serial adapters)
+write one record per read or per frame with a user link type (147–162, the bytes as they came)
+or RTAC serial (250: a 12-byte header — arrival time, event type, control lines, footer — before
+the bytes); rtusniff's own ``export --pcap`` writes link type 147 too. Each record becomes a
+chunk at the record's time: ``host`` timing, since a record's time is when software got the
+bytes (rtusniff's own export stamps a frame's start: its times read back a frame early, its
+frames the same). A pcap does not say the line's settings: ``--line`` gives them. Records out of
+time order, other link types and damaged files are one error naming the file and the record.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator
+from typing import BinaryIO
+
+import numpy as np
+
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from sniffer.errors import CaptureFormatError, ErrorKind
+from sniffer.io.base import ReaderOptions
+
+USER_LINK_TYPES = range(147, 163)
+LINKTYPE_RTAC_SERIAL = 250
+RTAC_HEADER_BYTES = 12
+#: Classic pcap magic numbers (as read little-endian) → (byte order, nanosecond times).
+CLASSIC = {0xA1B2C3D4: ("<", False), 0xD4C3B2A1: (">", False), 0xA1B23C4D: ("<", True), 0x4D3CB2A1: (">", True)}
+PCAPNG_SECTION = 0x0A0D0D0A
+_BYTE_ORDER_MAGIC = 0x1A2B3C4D
+_INTERFACE, _ENHANCED, _SIMPLE, _OBSOLETE_PACKET = 1, 6, 3, 2
+BATCH_CHUNKS = 4096
+NS_PER_S = 1_000_000_000
+
+
+class PcapCaptureReader:
+    """Reads a pcap or pcapng file's records as chunks (see the module docstring)."""
+
+    def __init__(self, path: str, options: ReaderOptions) -> None:
+        self.path = path
+        self.late_notes: list[str] = []
+        self.warnings: list[str] = []
+        try:
+            self._file: BinaryIO = open(path, "rb")  # noqa: SIM115 - closed by close()
+        except OSError as exc:
+            raise CaptureFormatError(ErrorKind.FILE_UNREADABLE, f"cannot read: {exc.strerror}", path=path) from None
+        self._record = 0
+        try:
+            head = self._file.read(12)
+            self._pcapng = len(head) >= 4 and struct.unpack("<I", head[:4])[0] == PCAPNG_SECTION
+            if self._pcapng and (len(head) < 12 or struct.unpack("<I", head[8:12])[0] not in
+                                 (_BYTE_ORDER_MAGIC, 0x4D3C2B1A)):
+                raise self._error("not a pcapng (no byte-order magic)", ErrorKind.BAD_HEADER, where="header")
+            self._file.seek(0)
+            self._records = self._pcapng_records() if self._pcapng else self._classic_records()
+            if options.line is None:
+                raise self._error("a pcap does not say the line's settings: give --line, e.g. --line 19200 8E1",
+                                  ErrorKind.NO_LINE_SETTINGS, where="header")
+        except BaseException:
+            self._file.close()
+            raise
+        kind = "pcapng" if self._pcapng else "pcap"
+        self.info = CaptureInfo(options.line, TimingQuality.HOST, (f"{kind} {path}: a chunk per record, "
+                                                                    "at the record's time",))
+
+    def _error(self, message: str, kind: ErrorKind = ErrorKind.BAD_DATA, where: str | None = None
+               ) -> CaptureFormatError:
+        return CaptureFormatError(kind, message, path=self.path, location=where or f"record {self._record}")
+
+    def _read(self, size: int, what: str) -> bytes:
+        data = self._file.read(size)
+        if len(data) != size:
+            raise self._error(f"cut short in {what} ({len(data)} of {size} bytes)")
+        return data
+
+    # Classic pcap.
+
+    def _classic_records(self) -> Iterator[tuple[int, bytes]]:
+        header = self._read(24, "the file header")
+        magic = struct.unpack("<I", header[:4])[0]
+        if magic not in CLASSIC:
+            raise self._error(f"not a pcap (magic 0x{magic:08X})", ErrorKind.BAD_HEADER, where="header")
+        order, nanos = CLASSIC[magic]
+        link_type = struct.unpack(order + "I", header[20:24])[0] & 0x0FFFFFFF
+        self._check_link_type(link_type, "header")
+        record = struct.Struct(order + "IIII")
+        scale = 1 if nanos else 1000
+        return self._classic_body(record, scale, link_type)
+
+    def _classic_body(self, record: struct.Struct, scale: int, link_type: int) -> Iterator[tuple[int, bytes]]:
+        while True:
+            head = self._file.read(record.size)
+            if not head:
+                return
+            self._record += 1
+            if len(head) != record.size:
+                raise self._error(f"cut short in a record header ({len(head)} of {record.size} bytes)")
+            seconds, fraction, captured, _ = record.unpack(head)
+            yield seconds * NS_PER_S + fraction * scale, self._payload(self._read(captured, "a record"), link_type)
+
+    # pcapng.
+
+    def _pcapng_records(self) -> Iterator[tuple[int, bytes]]:
+        order = "<"
+        interfaces: list[tuple[int, int]] = []  # per interface: (link type, picoseconds per tick)
+
+        def blocks() -> Iterator[tuple[int, bytes]]:
+            nonlocal order, interfaces
+            while True:
+                head = self._file.read(8)
+                if not head:
+                    return
+                if len(head) != 8:
+                    raise self._error("cut short in a block header")
+                kind = struct.unpack("<I", head[:4])[0]
+                if kind == PCAPNG_SECTION:
+                    magic = self._read(4, "a section header")
+                    order = "<" if struct.unpack("<I", magic)[0] == _BYTE_ORDER_MAGIC else ">"
+                    length = struct.unpack(order + "I", head[4:])[0]
+                    if length < 28 or length % 4:  # noqa: PLR2004 - the smallest section header
+                        raise self._error(f"section header length {length} is not a pcapng one's")
+                    body = magic + self._read(length - 16, "a section header")
+                    interfaces = []
+                else:
+                    kind, length = struct.unpack(order + "II", head)
+                    if length < 12 or length % 4:
+                        raise self._error(f"block length {length} is not a pcapng block's")
+                    body = self._read(length - 12, "a block")
+                self._read(4, "a block's closing length")
+                yield kind, body
+
+        def records() -> Iterator[tuple[int, bytes]]:
+            for kind, body in blocks():
+                if kind == _INTERFACE:
+                    link_type = struct.unpack(order + "H", body[:2])[0]
+                    interfaces.append((link_type, _tick_ps(body[8:], order)))
+                elif kind == _ENHANCED:
+                    self._record += 1
+                    if len(body) < 20:  # noqa: PLR2004 - interface, time (two words), two lengths
+                        raise self._error("an enhanced packet block shorter than its fields")
+                    interface, high, low, captured, _ = struct.unpack(order + "IIIII", body[:20])
+                    if interface >= len(interfaces):
+                        raise self._error(f"names interface {interface}, which no interface block described")
+                    link_type, tick = interfaces[interface]
+                    self._check_link_type(link_type, f"record {self._record}")
+                    yield ((high << 32) | low) * tick // 1000, self._payload(body[20 : 20 + captured], link_type)
+                elif kind in (_SIMPLE, _OBSOLETE_PACKET):
+                    self._record += 1
+                    raise self._error("a packet block without a time (simple or obsolete): not a serial capture's")
+
+        return records()
+
+    def _check_link_type(self, link_type: int, where: str) -> None:
+        if link_type not in USER_LINK_TYPES and link_type != LINKTYPE_RTAC_SERIAL:
+            raise self._error(f"link type {link_type} is not a serial line's (rtusniff reads 147-162, user DLT, "
+                              "and 250, RTAC serial)", ErrorKind.UNKNOWN_FORMAT, where=where)
+
+    def _payload(self, data: bytes, link_type: int) -> bytes:
+        if link_type == LINKTYPE_RTAC_SERIAL:
+            if len(data) < RTAC_HEADER_BYTES:
+                raise self._error(f"an RTAC serial record of {len(data)} bytes, shorter than its header")
+            return data[RTAC_HEADER_BYTES:]
+        return data
+
+    def batches(self) -> Iterator[ChunkBatch]:
+        times: list[int] = []
+        parts: list[bytes] = []
+        previous = -1
+        for t_ns, data in self._records:
+            if t_ns < previous:
+                raise self._error("goes back in time from the record before", ErrorKind.DECREASING_TIME)
+            previous = t_ns
+            if not data:
+                continue
+            times.append(t_ns)
+            parts.append(data)
+            if len(parts) >= BATCH_CHUNKS:
+                yield _batch(times, parts)
+                times, parts = [], []
+        if parts:
+            yield _batch(times, parts)
+
+    def last_time_ns(self) -> int | None:
+        return None
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def _batch(times: list[int], parts: list[bytes]) -> ChunkBatch:
+    lengths = np.fromiter(map(len, parts), np.int64, len(parts))
+    return ChunkBatch(b"".join(parts), np.cumsum(lengths), np.array(times, np.int64))
+
+
+def _tick_ps(options: bytes, order: str) -> int:
+    """Picoseconds per timestamp tick of an interface, from its ``if_tsresol`` option (default:
+    microseconds)."""
+    at = 0
+    while at + 4 <= len(options):
+        code, length = struct.unpack(order + "HH", options[at : at + 4])
+        if code == 0:
+            break
+        if code == 9 and length >= 1:
+            resolution = options[at + 4]
+            power = resolution & 0x7F
+            seconds = 2.0 ** -power if resolution & 0x80 else 10.0 ** -power
+            return round(seconds * 1e12)
+        at += 4 + (length + 3) // 4 * 4
+    return 1_000_000  # a microsecond
