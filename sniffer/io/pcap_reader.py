@@ -118,7 +118,7 @@ class PcapCaptureReader:
                     magic = self._read(4, "a section header")
                     order = "<" if struct.unpack("<I", magic)[0] == _BYTE_ORDER_MAGIC else ">"
                     length = struct.unpack(order + "I", head[4:])[0]
-                    if length < 28 or length % 4:  # noqa: PLR2004 - the smallest section header
+                    if length < 28 or length % 4:
                         raise self._error(f"section header length {length} is not a pcapng one's")
                     body = magic + self._read(length - 16, "a section header")
                     interfaces = []
@@ -137,7 +137,7 @@ class PcapCaptureReader:
                     interfaces.append((link_type, _tick_ps(body[8:], order)))
                 elif kind == _ENHANCED:
                     self._record += 1
-                    if len(body) < 20:  # noqa: PLR2004 - interface, time (two words), two lengths
+                    if len(body) < 20:
                         raise self._error("an enhanced packet block shorter than its fields")
                     interface, high, low, captured, _ = struct.unpack(order + "IIIII", body[:20])
                     if interface >= len(interfaces):
