@@ -75,6 +75,10 @@ def sample_of(name: str) -> bytes:
     shipped = {"text": SAMPLE_LOG, "mcap": SAMPLE_MCAP, "sigrok": SIGROK_SAMPLE}
     if name in shipped:
         return shipped[name].read_bytes()
+    if name == "saleae":  # read only: the sample's characters as a Logic 2 data table
+        from tests.test_saleae_input import logic2
+
+        return logic2(SCRATCH / "sample.csv").read_bytes()
     if name == "pcap":  # read only here: rtusniff's export writes it
         target = SCRATCH / "sample.pcap"
         assert main(["export", str(SAMPLE_LOG), "--pcap", str(target), "--force", "-q"]) == 0

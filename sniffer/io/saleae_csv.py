@@ -1,0 +1,166 @@
+"""Saleae Logic's Async Serial analyzer exports (CSV), read as captures.
+
+Two layouts, told apart by their header line:
+
+* **Logic 2** data table (``File → Export Data Table``, Logic 2.x; the layout its Python
+  automation API's ``export_data_table`` writes too): ``name,type,start_time,duration,data``,
+  one ``data`` row per character, ``start_time`` and ``duration`` in seconds from the capture's
+  start, ``data`` as ``0xC8`` (or the character itself with ASCII display), an optional
+  ``error`` column (``framing``, ``parity``) — each character ends at ``start_time + duration``;
+* **Logic 1.x** serial export: ``Time [s],Value,Parity Error,Framing Error``, the time of each
+  character's start bit, ``Value`` as ``0x48`` (or ``'H'``, or a number) — each character ends a
+  character time (``--line``) after it starts.
+
+A logic analyzer's times: ``exact`` timing. The exports carry no date: times are seconds from
+the capture's start, on 1970-01-01 (the notes say so). They carry no line settings either:
+``--line`` gives them. Characters with an error are kept, counted in a warning. A row that cannot
+be read is one error naming the file and its line.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Iterator
+from typing import TextIO
+
+import numpy as np
+
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from sniffer.errors import CaptureFormatError, ErrorKind
+from sniffer.io.base import ReaderOptions
+
+LOGIC2 = ("name", "type", "start_time", "duration", "data")
+LOGIC1 = ("Time [s]", "Value", "Parity Error", "Framing Error")
+BATCH_CHUNKS = 4096
+NS_PER_S = 1_000_000_000
+_ESCAPES = {"\\0": 0, "\\t": 9, "\\n": 10, "\\r": 13, "\\\\": 92, "' '": 32}
+
+
+class SaleaeCsvReader:
+    """Reads a Logic 2 data table or a Logic 1.x serial export (see the module docstring)."""
+
+    def __init__(self, path: str, options: ReaderOptions) -> None:
+        self.path = path
+        self.late_notes: list[str] = []
+        self.warnings: list[str] = []
+        try:
+            self._file: TextIO = open(path, encoding="utf-8-sig", newline="")  # noqa: SIM115 - closed by close()
+        except OSError as exc:
+            raise CaptureFormatError(ErrorKind.FILE_UNREADABLE, f"cannot read: {exc.strerror}", path=path) from None
+        self._reader = csv.reader(self._file)
+        self._rows = self._read_rows()
+        try:
+            header = [cell.strip() for cell in next(self._rows, [])]
+            if tuple(header[: len(LOGIC2)]) == LOGIC2:
+                self._logic2, self._error_column = True, header.index("error") if "error" in header else None
+            elif tuple(header[: len(LOGIC1)]) == LOGIC1:
+                self._logic2, self._error_column = False, None
+            else:
+                raise self._error(f"header {','.join(header)!r} is neither a Logic 2 data table "
+                                  f"({','.join(LOGIC2)}) nor a Logic 1.x serial export ({','.join(LOGIC1)})",
+                                  ErrorKind.BAD_HEADER, 1)
+            if options.line is None:
+                raise self._error("a Saleae export does not say the line's settings: give --line, e.g. "
+                                  "--line 19200 8E1", ErrorKind.NO_LINE_SETTINGS, 1)
+        except BaseException:
+            self._file.close()
+            raise
+        self._char_ns = round(options.line.bits_per_char * NS_PER_S / options.line.baud)
+        version = "Logic 2 data table" if self._logic2 else "Logic 1.x serial export"
+        self.info = CaptureInfo(options.line, TimingQuality.EXACT, (
+            f"Saleae {version} {path}: times are seconds from the capture's start (the export has no date)",))
+
+    def _error(self, message: str, kind: ErrorKind = ErrorKind.BAD_DATA, line: int | None = None
+               ) -> CaptureFormatError:
+        return CaptureFormatError(kind, message, path=self.path, location=f"line {line or self._reader.line_num}")
+
+    def _read_rows(self) -> Iterator[list[str]]:
+        """The CSV's rows; what is not UTF-8 text or not CSV is an error naming the line."""
+        while True:
+            try:
+                row = next(self._reader, None)
+            except UnicodeDecodeError as exc:
+                raise self._error(f"not text: byte 0x{exc.object[exc.start]:02X}",
+                                  line=self._reader.line_num + 1) from None
+            except csv.Error as exc:
+                raise self._error(f"not CSV: {exc}") from None
+            if row is None:
+                return
+            yield row
+
+    def _characters(self) -> Iterator[tuple[int, int, str]]:
+        """(end time, value, error or "") of each character, in file order."""
+        for row in self._rows:
+            if not row or not any(cell.strip() for cell in row):
+                continue
+            if self._logic2:
+                if len(row) < len(LOGIC2):
+                    raise self._error(f"{len(row)} columns where the header has {len(LOGIC2)} or more")
+                if row[1].strip() != "data":
+                    continue  # the analyzer's other rows (errors of its own, markers) carry no character
+                start, duration = self._seconds(row[2]), self._seconds(row[3])
+                error = row[self._error_column].strip() if self._error_column is not None and \
+                    self._error_column < len(row) else ""
+                yield start + duration, self._value(row[4]), error
+            else:
+                if len(row) < 2:
+                    raise self._error("a row needs a time and a value")
+                errors = [name for name, cell in zip(("parity", "framing"), row[2:4], strict=False)
+                          if cell.strip() not in ("", "0")]
+                yield self._seconds(row[0]) + self._char_ns, self._value(row[1]), " ".join(errors)
+
+    def _seconds(self, text: str) -> int:
+        try:
+            seconds = float(text)
+        except ValueError:
+            raise self._error(f"{text.strip()!r} is not a time in seconds") from None
+        if not 0 <= seconds < 2**33:
+            raise self._error(f"time {seconds} s is outside the capture")
+        return round(seconds * NS_PER_S)
+
+    def _value(self, text: str) -> int:
+        cell = text.strip()
+        value: int | None = None
+        if cell in _ESCAPES:
+            value = _ESCAPES[cell]
+        elif len(cell) == 3 and cell[0] == cell[2] == "'":
+            value = ord(cell[1])
+        elif len(cell) == 1:
+            value = ord(cell)
+        else:
+            try:
+                value = int(cell, 0)
+            except ValueError:
+                value = None
+        if value is None or not 0 <= value <= 0xFF:
+            raise self._error(f"{cell!r} is not a byte (0x48, 72, 'H')")
+        return value
+
+    def batches(self) -> Iterator[ChunkBatch]:
+        times: list[int] = []
+        values = bytearray()
+        previous, errors = -1, 0
+        for end, value, error in self._characters():
+            if end < previous:
+                raise self._error("goes back in time from the character before", ErrorKind.DECREASING_TIME)
+            previous = end
+            errors += bool(error)
+            times.append(end)
+            values.append(value)
+            if len(values) >= BATCH_CHUNKS:
+                yield _batch(times, values)
+                times, values = [], bytearray()
+        if values:
+            yield _batch(times, values)
+        if errors:
+            self.warnings.append(f"{self.path}: {errors} characters with a framing or parity error; kept as read")
+
+    def last_time_ns(self) -> int | None:
+        return None
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def _batch(times: list[int], values: bytearray) -> ChunkBatch:
+    return ChunkBatch(bytes(values), np.arange(1, len(values) + 1, dtype=np.int64), np.array(times, np.int64))
