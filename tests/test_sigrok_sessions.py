@@ -141,8 +141,8 @@ def test_modbus_sessions_give_the_frames_of_their_text_conversions(cli: Cli, ses
 
 def test_session_errors_are_one_line(cli: Cli, tmp_path: Path) -> None:
     flowmeter = SIGROK / "uart" / "modbus_rtu" / "flowmeter" / "flowmeter_target0_val0.sr"
-    no_line = cli("analyze", str(flowmeter))
-    assert no_line.code == 10 and "give --line" in no_line.err and "suggest 9600 Bd" in no_line.err
+    idle = cli("analyze", str(flowmeter), "--channel", "0")  # a probe on nothing
+    assert idle.code == 10 and "give --line" in idle.err
     wrong = cli("analyze", str(flowmeter), "--line", "9600 8N1", "--channel", "MOSI")
     assert wrong.code == 2 and "--channel MOSI: no such probe" in wrong.err
     both = cli("analyze", str(SIGROK / "uart" / "modbus_rtu" / "brainchild_io_16do" / "brainchild-io-16do.sr"),
@@ -158,6 +158,18 @@ def test_session_errors_are_one_line(cli: Cli, tmp_path: Path) -> None:
         session.writestr("metadata", "[device 1]\nsamplerate=1 MHz\ntotal analog=2\nanalog1=A0\n")
     only_analog = cli("analyze", str(analog), "--line", "9600 8N1")
     assert only_analog.code == 5 and "analog channels only" in only_analog.err
+
+
+def test_line_settings_told_by_the_samples(cli: Cli) -> None:
+    """Without --line: the baud rate of the shortest pulses, the format that reads best."""
+    for session, line, channels in [("flowmeter/flowmeter_target0_val0.sr", "9600 8N1", []),
+                                    ("brainchild_io_16do/brainchild-io-16do.sr", "19200 8E1", ["0", "1"])]:
+        path = str(SIGROK / "uart" / "modbus_rtu" / session)
+        options = [a for channel in channels for a in ("--channel", channel)]
+        told = cli("analyze", path, *options, "--format", "jsonl")
+        given = cli("analyze", path, *options, "--line", line, "--format", "jsonl")
+        assert told.code == 0 and f"read best as {line}" in told.err and "give --line to be sure" in told.err
+        assert told.out == given.out
 
 
 def test_sessions_are_sniffed_without_their_suffix(cli: Cli, tmp_path: Path) -> None:

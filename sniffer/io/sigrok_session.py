@@ -3,8 +3,9 @@
 A session is a zip: ``metadata`` (an INI text: sample rate, unit size, the probes' names) and
 ``logic-1-1``, ``logic-1-2``, … (the samples, ``unitsize`` bytes each, bit ``k`` for probe
 ``k + 1``). The line's probe is ``--channel`` (a name or a number from 1), or the only one that
-changes; a line that idles low is read inverted. The UART settings come from ``--line`` (a
-session does not say them; the error suggests the baud rate its shortest pulses show). Each
+changes; a line that idles low is read inverted. The UART settings come from ``--line``; a
+session does not say them, so without it the baud rate is read from the shortest pulses and the
+format is the one of 8E1, 8N1, 8O1, 8N2 that decodes with the fewest errors (a warning says so). Each
 character becomes a chunk stamped with the end of its stop bit: exact timing. The session has no
 clock time: sample 0 is the time the zip stores for its ``metadata`` (to the second, its zone
 unknown, read as UTC). Characters with a framing or parity error are kept, and counted in a warning.
@@ -27,6 +28,10 @@ from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ReaderOptions
 
 NS_PER_S = 1_000_000_000
+#: Samples looked at (whole sample files) to tell the line's settings when ``--line`` does not.
+DETECTION_SAMPLES = 4_000_000
+#: The character formats tried then, the likelier first (Modbus RTU's default is 8E1).
+DETECTED_FORMATS = ("8E1", "8N1", "8O1", "8N2")
 _RATE = re.compile(r"([\d.]+)\s*([kMG]?)Hz", re.IGNORECASE)
 _SCALE = {"": 1.0, "k": 1e3, "m": 1e6, "g": 1e9}
 
@@ -135,13 +140,36 @@ class SigrokSessionReader:
         return not bool(self._level(self._samples(self._chunks[0]), probe)[0])
 
     def _line_settings(self, options: ReaderOptions) -> LineSettings:
+        """``--line``, else what the samples show: the baud rate of the shortest pulses, and of
+        the character formats a Modbus line uses the one that reads with the fewest framing and
+        parity errors (said in a warning: ``--line`` makes it sure)."""
         if options.line is not None:
             return options.line
-        words = self._samples(self._chunks[0])
-        baud = shortest_pulse_baud(self._level(words, self._probes_used[0]), self._rate)
-        hint = f"; its shortest pulses suggest {baud} Bd" if baud else ""
-        raise self._error(f"a sigrok session does not say its UART settings: give --line, e.g. --line 9600 8N1{hint}",
-                          ErrorKind.NO_LINE_SETTINGS)
+        pieces, count = [], 0
+        for name in self._chunks:
+            pieces.append(self._level(self._samples(name), self._probes_used[0]))
+            count += len(pieces[-1])
+            if count >= DETECTION_SAMPLES:
+                break
+        level = np.concatenate(pieces)
+        baud = shortest_pulse_baud(level, self._rate)
+        if baud is None:
+            raise self._error("a sigrok session does not say its UART settings, and its samples show too few "
+                              "pulses to tell: give --line, e.g. --line 9600 8N1", ErrorKind.NO_LINE_SETTINGS)
+        scores = []
+        for spelled in DETECTED_FORMATS:
+            line = LineSettings.parse(f"{baud} {spelled}")
+            characters = UartDecoder(line, self._rate, self._inverted[0]).feed(level)
+            errors = int((characters.framing_errors | characters.parity_errors).sum())
+            scores.append((errors / max(len(characters), 1), DETECTED_FORMATS.index(spelled), line, errors,
+                           len(characters)))
+        _, _, line, errors, count = min(scores, key=lambda score: score[:2])
+        if count == 0:
+            raise self._error(f"no UART characters at {baud} Bd in the first samples: give --line",
+                              ErrorKind.NO_LINE_SETTINGS)
+        self.warnings.append(f"{self.path}: no --line; the samples read best as {line.format()} ({errors} of "
+                             f"{count} characters with an error in the first {count and len(level):,} samples); give --line to be sure")
+        return line
 
     def batches(self) -> Iterator[ChunkBatch]:
         decoders = [UartDecoder(self._line, self._rate, inverted) for inverted in self._inverted]
