@@ -168,7 +168,8 @@ class SigrokSessionReader:
             raise self._error(f"no UART characters at {baud} Bd in the first samples: give --line",
                               ErrorKind.NO_LINE_SETTINGS)
         self.warnings.append(f"{self.path}: no --line; the samples read best as {line.format()} ({errors} of "
-                             f"{count} characters with an error in the first {count and len(level):,} samples); give --line to be sure")
+                             f"{count} characters with an error in the first {len(level):,} samples); give --line "
+                             "to be sure")
         return line
 
     def batches(self) -> Iterator[ChunkBatch]:
