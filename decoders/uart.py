@@ -165,3 +165,42 @@ def shortest_pulse_baud(level: Samples, samplerate: float) -> int | None:
                 250000, 460800, 500000, 921600, 1000000]
     best = min(standard, key=lambda baud: abs(baud - measured) / baud)
     return best if abs(best - measured) / best < 0.08 else None
+
+
+def decode_transitions(times_s: npt.NDArray[np.float64], levels: npt.NDArray[np.bool_], line: LineSettings,
+                       *, inverted: bool = False) -> UartCharacters:
+    """UART characters of a line given as its transitions (``levels[i]`` from ``times_s[i]`` on,
+    the first row the level where the recording starts), as a logic analyzer exports them
+    instead of samples. The rules are :class:`UartDecoder`'s, read on times; the characters'
+    ``start_samples`` and ``end_samples`` are in seconds."""
+    if len(times_s) < 2:
+        return _empty()
+    level = levels != inverted
+    width = 1.0 / line.baud
+    slots = 1 + line.data_bits + (0 if line.parity is Parity.NONE else 1) + line.stop_bits
+
+    def at(moments: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+        return np.asarray(level[np.maximum(np.searchsorted(times_s, moments, "right") - 1, 0)], np.bool_)
+
+    edges = times_s[1:][level[:-1] & ~level[1:]]
+    stop_middle = (slots - line.stop_bits + 0.5) * width
+    edges = edges[edges + stop_middle <= times_s[-1] + stop_middle]  # the recording's last level holds on
+    start_ok = ~at(edges + width / 2)
+    resume = np.where(start_ok, edges + stop_middle, edges + width / 2)
+    following = np.searchsorted(edges, resume, "left")
+    starts = edges[_chain(following, start_ok, len(edges))]
+    if not len(starts):
+        return _empty()
+    data_slots = np.arange(1, 1 + line.data_bits)
+    bits = at((starts[:, None] + (data_slots + 0.5) * width).ravel()).reshape(len(starts), line.data_bits)
+    values = (bits * (1 << np.arange(line.data_bits)).astype(np.uint16)).sum(axis=1).astype(np.uint16)
+    slot = 1 + line.data_bits
+    parity_errors = np.zeros(len(starts), np.bool_)
+    if line.parity is not Parity.NONE:
+        ones = bits.sum(axis=1) % 2 == 1
+        expected = {Parity.EVEN: ones, Parity.ODD: ~ones, Parity.MARK: np.ones_like(ones),
+                    Parity.SPACE: np.zeros_like(ones)}[line.parity]
+        parity_errors = at(starts + (slot + 0.5) * width) != expected
+        slot += 1
+    framing_errors = ~at(starts + (slot + 0.5) * width)
+    return UartCharacters(values, starts, starts + slots * width, framing_errors, parity_errors)

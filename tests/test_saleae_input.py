@@ -10,6 +10,7 @@ import pytest
 
 from sniffer.io.registry import open_reader
 from tests.conftest import SAMPLE_LOG, CliResult
+from tests.real_recordings import REAL
 
 Cli = Callable[..., CliResult]
 LINE = ["--line", "19200", "8E1"]
@@ -92,3 +93,36 @@ def test_other_csv_and_no_line(cli: Cli, tmp_path: Path) -> None:
     other.write_text("a,b,c\n1,2,3\n")
     assert cli("analyze", str(other), *LINE).code in (5, 6)
     assert cli("analyze", str(logic1(tmp_path / "l1.csv"))).code == 10
+
+
+def digital_export(session: Path, path: Path, probes: list[int], names: list[str]) -> Path:
+    """A real sigrok session's samples as Saleae's raw digital export: a row per change."""
+    import zipfile
+
+    import numpy as np
+
+    with zipfile.ZipFile(session) as archive:
+        chunks = sorted((n for n in archive.namelist() if n.startswith("logic-1-")), key=lambda n: int(n[8:]))
+        words = np.concatenate([np.frombuffer(archive.read(n), np.uint8) for n in chunks])
+    rate = 4e6 if "flowmeter" in session.name else 1e6
+    levels = np.stack([(words >> (probe - 1)) & 1 for probe in probes], axis=1)
+    changes = np.concatenate([[0], np.flatnonzero(np.any(levels[1:] != levels[:-1], axis=1)) + 1])
+    rows = [f"{index / rate:.9f}," + ",".join(map(str, levels[index])) for index in changes.tolist()]
+    path.write_text("\n".join(["Time [s]," + ",".join(names), *rows]) + "\n")
+    return path
+
+
+@pytest.mark.skipif(not (REAL / "sigrok").exists(), reason="../shared/real is not beside the checkout")
+def test_raw_digital_export_decodes_as_the_session(cli: Cli, tmp_path: Path) -> None:
+    session = REAL / "sigrok" / "uart" / "modbus_rtu" / "flowmeter" / "flowmeter_target0_val0.sr"
+    csv = digital_export(session, tmp_path / "digital.csv", [2, 3], ["Channel 1", "RXTX"])
+    from_csv = said(cli, str(csv), "--line", "9600", "8N1", "--channel", "RXTX")
+    assert from_csv == said(cli, str(session), "--line", "9600", "8N1") and len(from_csv) == 74
+    # The only channel that changes is found without --channel; a wrong one is one line.
+    alone = digital_export(session, tmp_path / "one.csv", [3], ["Channel 0"])
+    assert said(cli, str(alone), "--line", "9600", "8N1") == from_csv
+    wrong = cli("analyze", str(csv), "--line", "9600", "8N1", "--channel", "Channel 7")
+    assert wrong.code == 2 and "no such channel" in wrong.err
+    csv.write_text(csv.read_text().replace("\n0.", "\nlater,", 1))
+    bad = cli("analyze", str(csv), "--line", "9600", "8N1", "--channel", "RXTX")
+    assert bad.code == 7 and f"{csv}:line 2" in bad.err

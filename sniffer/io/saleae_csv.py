@@ -26,6 +26,7 @@ from typing import TextIO
 import numpy as np
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.uart import decode_transitions
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ReaderOptions
 
@@ -164,3 +165,88 @@ class SaleaeCsvReader:
 
 def _batch(times: list[int], values: bytearray) -> ChunkBatch:
     return ChunkBatch(bytes(values), np.arange(1, len(values) + 1, dtype=np.int64), np.array(times, np.int64))
+
+
+class SaleaeDigitalReader:
+    """Saleae Logic's raw digital export (CSV: ``Time [s],<channel>,<channel>…``, a row where a
+    channel changes, ``0``/``1``), decoded as UART by :func:`decoders.uart.decode_transitions`:
+    the bus's channel is ``--channel`` (a name, or a number from 1) or the only one that changes;
+    a line low where the export starts is read inverted; ``--line`` gives the UART settings."""
+
+    def __init__(self, path: str, options: ReaderOptions) -> None:
+        self.path = path
+        self.late_notes: list[str] = []
+        self.warnings: list[str] = []
+        with open(path, encoding="utf-8-sig", newline="") as file:
+            rows = csv.reader(file)
+            try:
+                names = [cell.strip() for cell in next(rows, [])][1:]
+                times, states = [], []
+                for row in rows:
+                    if row:
+                        times.append(float(row[0]))
+                        states.append([cell.strip() == "1" for cell in row[1 : 1 + len(names)]])
+                        if len(states[-1]) != len(names):
+                            raise ValueError(f"{len(row)} columns where the header has {len(names) + 1}")
+            except (UnicodeDecodeError, csv.Error, ValueError) as exc:
+                raise CaptureFormatError(ErrorKind.BAD_DATA, f"not a digital export row: {exc}", path=path,
+                                         location=f"line {rows.line_num}") from None
+        if options.line is None:
+            raise CaptureFormatError(ErrorKind.NO_LINE_SETTINGS, "a Saleae export does not say the line's "
+                                     "settings: give --line, e.g. --line 19200 8E1", path=path, location="line 1")
+        self._times = np.array(times, np.float64)
+        if len(self._times) and np.any(np.diff(self._times) < 0):
+            raise CaptureFormatError(ErrorKind.DECREASING_TIME, "rows go back in time", path=path,
+                                     location=f"line {int(np.argmax(np.diff(self._times) < 0)) + 3}")
+        matrix = np.array(states, np.bool_).reshape(len(times), len(names))
+        column = self._channel(names, matrix, options.channels)
+        self._levels = matrix[:, column]
+        self._line = options.line
+        self._inverted = bool(len(self._levels)) and not bool(self._levels[0])
+        self.info = CaptureInfo(options.line, TimingQuality.EXACT, (
+            f"Saleae digital export {path}: channel {names[column]}{' (inverted)' if self._inverted else ''}, "
+            f"decoded as UART {options.line.format()} by rtusniff; times are seconds from the capture's start",))
+
+    def _channel(self, names: list[str], matrix: np.ndarray, channels: tuple[str, ...]) -> int:
+        if channels:
+            wanted = [i for i, name in enumerate(names) if name == channels[0]] or \
+                [i for i in range(len(names)) if str(i + 1) == channels[0]]
+            if not wanted:
+                raise CaptureFormatError(ErrorKind.USAGE, f"--channel {channels[0]}: no such channel (this export "
+                                         f"has {', '.join(names)})", path=self.path, location="line 1")
+            return wanted[0]
+        changing = [i for i in range(len(names)) if len(matrix) and np.any(matrix[:, i] != matrix[0, i])]
+        if len(changing) != 1:
+            listed = ", ".join(names[i] for i in (changing or range(len(names))))
+            raise CaptureFormatError(ErrorKind.USAGE, f"{'several' if changing else 'no'} channels change ({listed}); "
+                                     "choose the line's with --channel NAME", path=self.path, location="line 1")
+        return changing[0]
+
+    def batches(self) -> Iterator[ChunkBatch]:
+        characters = decode_transitions(self._times, self._levels, self._line, inverted=self._inverted)
+        errors = int((characters.framing_errors | characters.parity_errors).sum())
+        if len(characters):
+            ends = np.round(characters.end_samples * NS_PER_S).astype(np.int64)
+            data = (characters.values & 0xFF).astype(np.uint8).tobytes()
+            yield ChunkBatch(data, np.arange(1, len(data) + 1, dtype=np.int64), ends)
+        if errors:
+            self.warnings.append(f"{self.path}: {errors} characters with a framing or parity error; kept as sampled")
+
+    def last_time_ns(self) -> int | None:
+        return None
+
+    def close(self) -> None:
+        """Read whole when opened: nothing is held."""
+
+
+def open_saleae(path: str, options: ReaderOptions) -> SaleaeCsvReader | SaleaeDigitalReader:
+    """The reader for the layout the header names: a serial export or a raw digital one."""
+    try:
+        with open(path, encoding="utf-8-sig", errors="replace") as file:
+            header = file.readline()
+    except OSError as exc:
+        raise CaptureFormatError(ErrorKind.FILE_UNREADABLE, f"cannot read: {exc.strerror}", path=path) from None
+    cells = [cell.strip() for cell in header.split(",")]
+    if len(cells) >= 2 and cells[0].startswith("Time") and cells[1] != "Value":
+        return SaleaeDigitalReader(path, options)
+    return SaleaeCsvReader(path, options)
