@@ -50,6 +50,8 @@ def uart_tests() -> list[tuple[str, str, int, str, dict[str, str]]]:
             current["input"] = line.split()[1]
         elif current is not None and "output uart python match" in line:
             current["python"] = line.split()[-1]
+        elif current is not None and line.strip().startswith("output uart annotation match"):
+            current["annotations"] = line.split()[-1]
     found = []
     for test in tests:
         source = SIGROK / str(test.get("input", ""))
@@ -59,7 +61,13 @@ def uart_tests() -> list[tuple[str, str, int, str, dict[str, str]]]:
             continue
         found.append((str(test["name"]), str(source), int(test["channels"][0][1]), str(test["python"]),
                       dict(test["options"])))
+        ANNOTATIONS[(str(test["name"]), test["options"].get("format", "hex"))] = str(test.get("annotations", ""))
     return found
+
+
+#: The sigrok-cli annotation text each test expects (its .output file), by test name and format
+#: (sigrok-test runs some recordings once per format under one name).
+ANNOTATIONS: dict[tuple[str, str], str] = {}
 
 
 def expected_frames(python: str) -> list[tuple[int, int, int, bool]]:
@@ -177,3 +185,26 @@ def test_sessions_are_sniffed_without_their_suffix(cli: Cli, tmp_path: Path) -> 
     shutil.copy(SIGROK / "uart" / "modbus_rtu" / "flowmeter" / "flowmeter_graph_tool.sr", copy)
     assert cli("analyze", str(copy), "--line", "9600 8N1").code == 0
     assert ROOT.exists()
+
+
+ANNOTATED = [test for test in TESTS if test[4].get("format", "hex") in ("hex", "ascii")
+             and ANNOTATIONS.get((test[0], test[4].get("format", "hex")))]
+
+
+@pytest.mark.parametrize(("name", "session", "channel", "python", "options"), ANNOTATED,
+                         ids=[f"{t[0]}-{t[4].get('format', 'hex')}" for t in ANNOTATED])
+def test_sigrok_cli_annotations_read_as_captures(cli: Cli, tmp_path: Path, *, name: str, session: str,
+                                                 channel: int, python: str, options: dict[str, str]) -> None:
+    """sigrok-cli's own annotation output of each recording (sigrok-test's .output), saved as
+    .txt: the characters sigrok decoded, at its frames' ends to about a sample."""
+    text = tmp_path / f"{name}.txt"
+    shutil.copy(EXPECTED / ANNOTATIONS[(name, options.get("format", "hex"))], text)
+    line = f"{options.get('baudrate', '115200')} {options.get('data_bits', '8')}" \
+        f"{PARITY[options.get('parity', 'none')]}{int(float(options.get('stop_bits', '1')))}"
+    result = cli("analyze", str(text), "--line", *line.split(), "--format", "jsonl")
+    assert result.code == 0, result.err
+    frames = [record for record in result.jsonl() if record["kind"] == "frame"]
+    expected = expected_frames(python)
+    assert bytes.fromhex("".join(str(f["hex"]) for f in frames)) == bytes(v & 0xFF for _, _, v, _ in expected)
+    errors = sum(1 for *_, valid in expected if not valid)
+    assert (errors > 0) == ("error annotations" in result.err)

@@ -48,6 +48,10 @@ def _can(fmt: CaptureFormat, purpose: Purpose) -> bool:
     return (fmt.open_reader if purpose == "read" else fmt.open_writer) is not None
 
 
+#: Suffixes that say "text", not which text: the first bytes decide among the formats.
+GENERIC_SUFFIXES = frozenset({".txt", ".log", ".csv"})
+
+
 def find_format(
     path: str, name: str | None = None, head: bytes = b"", *, option: str = "--input-format",
     purpose: Purpose = "read",
@@ -65,12 +69,14 @@ def find_format(
     if path == STDIO:
         return known[STDIO_FORMAT]
     suffix = Path(path).suffix.lower()
+    sniffed = [fmt for fmt in known.values() if head and fmt.sniff(head)]
     for fmt in known.values():
-        if suffix in fmt.suffixes:
+        # The suffix decides; a suffix any tool's text may have (sigrok-cli's output saved as
+        # .txt, a CSV) only while the first bytes are not another format's.
+        if suffix in fmt.suffixes and (suffix not in GENERIC_SUFFIXES or fmt in sniffed or not sniffed):
             return fmt
-    for fmt in known.values():
-        if head and fmt.sniff(head):
-            return fmt
+    if sniffed:
+        return sniffed[0]
     suffixes = ", ".join(s for fmt in known.values() for s in fmt.suffixes)
     raise RtuSniffError(
         ErrorKind.UNKNOWN_FORMAT,

@@ -27,6 +27,8 @@ from tests.real_recordings import REAL
 
 #: A real logic analyzer's session (3.7 kB), from ../shared/real.
 SIGROK_SAMPLE = REAL / "sigrok" / "uart" / "modbus_rtu" / "flowmeter" / "flowmeter_graph_tool.sr"
+#: sigrok-cli's own UART annotations of a real recording (sigrok-test).
+SIGROK_CLI_SAMPLE = REAL / "sigrok-test" / "uart" / "hello_world_8e1_115200.output"
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "150"))
 FUZZ = settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -72,7 +74,7 @@ def read_all(data: bytes, suffix: str) -> int:
 @cache
 def sample_of(name: str) -> bytes:
     """The shipped sample in format ``name``: as shipped, or written by that format's writer."""
-    shipped = {"text": SAMPLE_LOG, "mcap": SAMPLE_MCAP, "sigrok": SIGROK_SAMPLE}
+    shipped = {"text": SAMPLE_LOG, "mcap": SAMPLE_MCAP, "sigrok": SIGROK_SAMPLE, "sigrok-cli": SIGROK_CLI_SAMPLE}
     if name in shipped:
         return shipped[name].read_bytes()
     if name == "saleae":  # read only: the sample's characters as a Logic 2 data table
@@ -98,7 +100,7 @@ def sample_of(name: str) -> bytes:
 @given(data=st.data())
 def test_reader_on_damaged_captures(name: str, data: st.DataObject) -> None:
     """Every registered reader, on mutations of a capture in its own format."""
-    if name == "sigrok" and not SIGROK_SAMPLE.exists():
+    if name in ("sigrok", "sigrok-cli") and not SIGROK_SAMPLE.exists():
         pytest.skip("../shared/real is not beside the checkout")
     read_all(data.draw(mutated(sample_of(name))), all_formats()[name].suffixes[0])
 

@@ -1,0 +1,119 @@
+"""sigrok-cli's UART annotations, read as a capture: for people who already decode with sigrok.
+
+The text ``sigrok-cli -i REC.sr -P uart:baudrate=…:rx=…:tx=… -A uart --protocol-decoder-samplenum``
+prints (with ``--protocol-decoder-ann-class``, the class after the decoder's name)::
+
+    14-84 uart: tx-data: "48"
+    83-92 uart: tx-stop: "Stop bit" "Stop" "T"
+
+Each ``rx-data`` / ``tx-data`` line is a character, its value as sigrok's ``format`` writes it:
+``hex`` (the default: ``48``) or ``ascii`` (``H``, ``[0D]`` for what is not printable); RX and TX
+lines merge in time order. The text has sample numbers, not times: the sample rate is read from
+the data annotations, which span the data bits (``--line`` says how many, and the baud rate), and
+each character ends its parity and stop bits after its data. Times are seconds from the
+recording's start (no date). ``*-parity-err`` and ``*-frame-err`` lines are counted in a warning.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from typing import TextIO
+
+import numpy as np
+
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.line import Parity
+from sniffer.errors import CaptureFormatError, ErrorKind
+from sniffer.io.base import ReaderOptions
+
+#: START-END decoder: class: "text" ... (greedy: sigrok's ascii format writes a quote unescaped: """).
+LINE = re.compile(r"(\d+)-(\d+) [\w.-]+: ([\w-]+): \"(.*)\"\s*$")
+NS_PER_S = 1_000_000_000
+#: Data annotations looked at to tell the sample rate.
+RATE_SAMPLE = 256
+
+
+class SigrokAnnotationsReader:
+    """Reads sigrok-cli's UART annotation text (see the module docstring)."""
+
+    def __init__(self, path: str, options: ReaderOptions) -> None:
+        self.path = path
+        self.late_notes: list[str] = []
+        self.warnings: list[str] = []
+        try:
+            with open(path, encoding="utf-8") as text:
+                starts, ends, values, self._errors = self._read(text)
+        except UnicodeDecodeError as exc:
+            raise CaptureFormatError(ErrorKind.BAD_DATA, f"not text: byte 0x{exc.object[exc.start]:02X}",
+                                     path=path, location=f"byte {exc.start}") from None
+        if not values:
+            raise CaptureFormatError(ErrorKind.NO_DATA, "no rx-data or tx-data annotations (run sigrok-cli with "
+                                     "-A uart and --protocol-decoder-samplenum)", path=path, location="line 1")
+        if options.line is None:
+            raise CaptureFormatError(ErrorKind.NO_LINE_SETTINGS, "sigrok-cli's annotations do not say the UART "
+                                     "settings: give --line, e.g. --line 9600 8N1", path=path, location="line 1")
+        self._line = options.line
+        spans = np.array(ends[:RATE_SAMPLE], np.float64) - np.array(starts[:RATE_SAMPLE], np.float64)
+        bit_samples = float(np.median(spans)) / self._line.data_bits
+        self._rate = bit_samples * self._line.baud
+        tail = (0 if self._line.parity is Parity.NONE else 1) + self._line.stop_bits
+        order = np.argsort(np.array(ends, np.float64), kind="stable")
+        self._ends = np.round((np.array(ends, np.float64)[order] + tail * bit_samples) / self._rate
+                              * NS_PER_S).astype(np.int64)
+        self._values = np.array(values, np.uint8)[order]
+        self.info = CaptureInfo(options.line, TimingQuality.EXACT, (
+            f"sigrok-cli UART annotations {path}: sample rate {self._rate:,.0f} Hz read from the data bits' spans; "
+            "times are seconds from the recording's start",))
+
+    def _read(self, text: TextIO) -> tuple[list[int], list[int], list[int], int]:
+        starts: list[int] = []
+        ends: list[int] = []
+        values: list[int] = []
+        errors = 0
+        for number, raw in enumerate(text, start=1):
+            line = raw.strip()
+            if not line:
+                continue
+            match = LINE.match(line)
+            if match is None:
+                raise CaptureFormatError(ErrorKind.BAD_DATA, "not a sigrok-cli annotation line with sample numbers "
+                                         "and class (START-END uart: CLASS: \"TEXT\")", path=self.path,
+                                         location=f"line {number}")
+            kind = match[3]
+            if kind.endswith("-data"):
+                starts.append(int(match[1]))
+                ends.append(int(match[2]))
+                values.append(self._value(match[4], number))
+            elif kind.endswith(("-err", "-error")):
+                errors += 1
+        return starts, ends, values, errors
+
+    def _value(self, text: str, number: int) -> int:
+        if len(text) == 4 and text[0] == "[" and text[3] == "]":
+            text = text[1:3]
+        elif len(text) == 1:
+            return ord(text)
+        elif len(text) == 2 and text[0] == "\\":
+            return ord(text[1])
+        try:
+            value = int(text, 16)
+        except ValueError:
+            value = -1
+        if not 0 <= value <= 0xFF:
+            raise CaptureFormatError(ErrorKind.BAD_DATA, f"{text!r} is not a byte as sigrok's hex or ascii format "
+                                     "writes it", path=self.path, location=f"line {number}")
+        return value
+
+    def batches(self) -> Iterator[ChunkBatch]:
+        if len(self._values):
+            yield ChunkBatch(self._values.tobytes(), np.arange(1, len(self._values) + 1, dtype=np.int64), self._ends)
+        if self._errors:
+            self.warnings.append(f"{self.path}: {self._errors} parity or framing error annotations; the characters "
+                                 "are kept as decoded")
+
+    def last_time_ns(self) -> int | None:
+        return int(self._ends[-1]) if len(self._ends) else None
+
+    def close(self) -> None:
+        """Read whole when opened: nothing is held."""
