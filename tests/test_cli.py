@@ -141,14 +141,14 @@ def test_missing_line_settings_say_how_to_fix(cli: Cli, tmp_path: Path) -> None:
     [
         (["analyze", "/nonexistent/x.log"], 3, "/nonexistent/x.log: no such file"),
         (["analyze", "{tmp}"], 4, "is a directory"),
-        (["analyze", "{tmp}/capture.pcapng"], 5, "cannot tell the capture format"),
+        (["analyze", "{tmp}/capture.erf"], 5, "cannot tell the capture format"),
         (["analyze", str(SAMPLE_LOG), "--line", "19200", "8Q1"], 2, "--line: line settings '19200 8Q1'"),
         (["analyze", str(SAMPLE_LOG), "--line", "7", "8E1"], 2, "--line: baud rate 7 is outside 50..4000000"),
         (["analyze", str(SAMPLE_LOG), "--response-timeout", "-5"], 2, "give milliseconds from 0 (no limit) to 600000"),
     ],
 )
 def test_errors_are_one_line_without_traceback(tmp_path: Path, args: list[str], code: int, words: str) -> None:
-    (tmp_path / "capture.pcapng").write_bytes(b"\x0a\x0d\x0d\x0a")
+    (tmp_path / "capture.erf").write_bytes(b"\x00\x11\x22\x33")
     argv = [a.replace("{tmp}", str(tmp_path)) for a in args]
     result = subprocess.run(
         [sys.executable, "-m", "sniffer", *argv], capture_output=True, text=True, check=False,
