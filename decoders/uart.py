@@ -16,11 +16,13 @@ character cut by the end of a piece needs).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
+from decoders.capture import ChunkBatch
 from decoders.line import LineSettings, Parity
 
 Samples = npt.NDArray[np.bool_]
@@ -42,6 +44,14 @@ class UartCharacters:
     def slice(self, start: int, stop: int) -> UartCharacters:
         return UartCharacters(self.values[start:stop], self.start_samples[start:stop], self.end_samples[start:stop],
                               self.framing_errors[start:stop], self.parity_errors[start:stop])
+
+
+def character_chunks(characters: UartCharacters, *, t0_ns: int, unit_s: float) -> ChunkBatch:
+    """A chunk per character (its byte: at most 8 data bits) at the end of its stop bit:
+    ``t0_ns`` plus its end in units of ``unit_s`` seconds (a sample's time, or 1.0)."""
+    ends = t0_ns + np.round(characters.end_samples * (unit_s * 1e9)).astype(np.int64)
+    data = (characters.values & 0xFF).astype(np.uint8).tobytes()
+    return ChunkBatch(data, np.arange(1, len(data) + 1, dtype=np.int64), ends)
 
 
 def merge_characters(parts: list[UartCharacters]) -> UartCharacters:
@@ -118,25 +128,35 @@ class UartDecoder:
         return characters
 
     def _read(self, level: Samples, starts: npt.NDArray[np.int64], base: int) -> UartCharacters:
-        if not len(starts):
-            return _empty()
-        width, line = self.bit_width, self.line
-        data_slots = np.arange(1, 1 + line.data_bits)
-        bits = level[np.floor(starts[:, None] + (data_slots + 0.5) * width).astype(np.int64)]
-        weights = (1 << np.arange(line.data_bits)).astype(np.uint16)  # least significant bit first
-        values = (bits * weights).sum(axis=1).astype(np.uint16)
-        slot = 1 + line.data_bits
-        parity_errors = np.zeros(len(starts), np.bool_)
-        if line.parity is not Parity.NONE:
-            parity_bit = level[np.floor(starts + (slot + 0.5) * width).astype(np.int64)]
-            ones = bits.sum(axis=1) % 2 == 1
-            expected = {Parity.EVEN: ones, Parity.ODD: ~ones, Parity.MARK: np.ones_like(ones),
-                        Parity.SPACE: np.zeros_like(ones)}[line.parity]
-            parity_errors = parity_bit != expected
-            slot += 1
-        framing_errors = ~level[np.floor(starts + (slot + 0.5) * width).astype(np.int64)]
+        width = self.bit_width
+
+        def at(slot: float) -> Samples:
+            """The line at the middle of ``slot`` of every character (0: the start bit)."""
+            return np.asarray(level[np.floor(starts + (slot + 0.5) * width).astype(np.int64)], np.bool_)
+
         absolute = (starts + base).astype(np.float64)
-        return UartCharacters(values, absolute, absolute + self._slots * width, framing_errors, parity_errors)
+        return read_characters(self.line, at, absolute, absolute + self._slots * width)
+
+
+def read_characters(line: LineSettings, at: Callable[[float], Samples], starts: npt.NDArray[np.float64],
+                    ends: npt.NDArray[np.float64]) -> UartCharacters:
+    """The characters whose start bits begin at ``starts``: their data bits (least significant
+    first), parity and stop bits read by ``at(slot)``, the line at the middle of a bit slot of
+    every character. One reading for samples and for transitions."""
+    if not len(starts):
+        return _empty()
+    bits = np.stack([at(slot) for slot in range(1, 1 + line.data_bits)], axis=1)
+    weights = (1 << np.arange(line.data_bits)).astype(np.uint16)
+    values = (bits * weights).sum(axis=1).astype(np.uint16)
+    slot = 1 + line.data_bits
+    parity_errors = np.zeros(len(starts), np.bool_)
+    if line.parity is not Parity.NONE:
+        ones = bits.sum(axis=1) % 2 == 1
+        expected = {Parity.EVEN: ones, Parity.ODD: ~ones, Parity.MARK: np.ones_like(ones),
+                    Parity.SPACE: np.zeros_like(ones)}[line.parity]
+        parity_errors = at(slot) != expected
+        slot += 1
+    return UartCharacters(values, starts, ends, ~at(slot), parity_errors)
 
 
 def _chain(following: npt.NDArray[np.int64], start_ok: npt.NDArray[np.bool_], count: int) -> npt.NDArray[np.int64]:
@@ -184,23 +204,9 @@ def decode_transitions(times_s: npt.NDArray[np.float64], levels: npt.NDArray[np.
 
     edges = times_s[1:][level[:-1] & ~level[1:]]
     stop_middle = (slots - line.stop_bits + 0.5) * width
-    edges = edges[edges + stop_middle <= times_s[-1] + stop_middle]  # the recording's last level holds on
+    # Every edge's character is complete: the recording's last level holds on after its last row.
     start_ok = ~at(edges + width / 2)
     resume = np.where(start_ok, edges + stop_middle, edges + width / 2)
     following = np.searchsorted(edges, resume, "left")
     starts = edges[_chain(following, start_ok, len(edges))]
-    if not len(starts):
-        return _empty()
-    data_slots = np.arange(1, 1 + line.data_bits)
-    bits = at((starts[:, None] + (data_slots + 0.5) * width).ravel()).reshape(len(starts), line.data_bits)
-    values = (bits * (1 << np.arange(line.data_bits)).astype(np.uint16)).sum(axis=1).astype(np.uint16)
-    slot = 1 + line.data_bits
-    parity_errors = np.zeros(len(starts), np.bool_)
-    if line.parity is not Parity.NONE:
-        ones = bits.sum(axis=1) % 2 == 1
-        expected = {Parity.EVEN: ones, Parity.ODD: ~ones, Parity.MARK: np.ones_like(ones),
-                    Parity.SPACE: np.zeros_like(ones)}[line.parity]
-        parity_errors = at(starts + (slot + 0.5) * width) != expected
-        slot += 1
-    framing_errors = ~at(starts + (slot + 0.5) * width)
-    return UartCharacters(values, starts, starts + slots * width, framing_errors, parity_errors)
+    return read_characters(line, lambda slot: at(starts + (slot + 0.5) * width), starts, starts + slots * width)

@@ -26,7 +26,7 @@ from typing import TextIO
 import numpy as np
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
-from decoders.uart import decode_transitions
+from decoders.uart import character_chunks, decode_transitions
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ReaderOptions
 
@@ -226,9 +226,7 @@ class SaleaeDigitalReader:
         characters = decode_transitions(self._times, self._levels, self._line, inverted=self._inverted)
         errors = int((characters.framing_errors | characters.parity_errors).sum())
         if len(characters):
-            ends = np.round(characters.end_samples * NS_PER_S).astype(np.int64)
-            data = (characters.values & 0xFF).astype(np.uint8).tobytes()
-            yield ChunkBatch(data, np.arange(1, len(data) + 1, dtype=np.int64), ends)
+            yield character_chunks(characters, t0_ns=0, unit_s=1.0)
         if errors:
             self.warnings.append(f"{self.path}: {errors} characters with a framing or parity error; kept as sampled")
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
-from decoders.uart import UartCharacters, UartDecoder, merge_characters, shortest_pulse_baud
+from decoders.uart import UartCharacters, UartDecoder, character_chunks, merge_characters, shortest_pulse_baud
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ReaderOptions
 
@@ -199,9 +199,7 @@ class SigrokSessionReader:
         self._parity += int(characters.parity_errors.sum())
         if self._first_error is None and errors.any():
             self._first_error = float(characters.end_samples[np.argmax(errors)]) / self._rate
-        ends = self._t0_ns + np.round(characters.end_samples / self._rate * NS_PER_S).astype(np.int64)
-        data = (characters.values & 0xFF).astype(np.uint8).tobytes()
-        return ChunkBatch(data, np.arange(1, len(data) + 1, dtype=np.int64), ends)
+        return character_chunks(characters, t0_ns=self._t0_ns, unit_s=1.0 / self._rate)
 
     def last_time_ns(self) -> int | None:
         total = 0
