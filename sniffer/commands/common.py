@@ -24,8 +24,9 @@ from sniffer.views.clock import MODES
 
 def add_capture_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("capture", nargs="+", metavar="CAPTURE",
-                        help="capture file (.log/.txt text, .mcap native), or - for text on stdin; several files "
-                        "(rotated recordings) are read as one capture, in time order")
+                        help="capture file: text .log, native .mcap, sigrok .sr, sigrok-cli annotations, Saleae "
+                        ".csv, .pcap/.pcapng (see --input-format), or - for text on stdin; several files (rotated "
+                        "recordings) are read as one capture, in time order")
 
 
 def capture_paths(args: argparse.Namespace) -> list[str]:
