@@ -80,3 +80,28 @@ def test_bad_pcaps_are_one_line(cli: Cli, tmp_path: Path, change: str, code: int
     result = cli("analyze", str(pcap), *([] if change == "no-line" else LINE))
     assert result.code == code and said in result.err and str(pcap) in result.err
     assert len(result.err.strip().splitlines()) == 1
+
+
+@pytest.mark.skipif(shutil.which("tshark") is None, reason="tshark is not installed")
+def test_wireshark_tells_queries_from_responses_with_the_udp_link(cli: Cli, tmp_path: Path) -> None:
+    """With link type 147 Wireshark cannot tell an FC 43 or FC 23 query from its response (same
+    shape both ways); in UDP packets from and to port 502 it can, for every function, with one
+    preference. pcapng carries each packet's direction and rtusniff's comment."""
+    user, udp = tmp_path / "user.pcapng", tmp_path / "udp.pcapng"
+    assert cli("export", str(SAMPLE_LOG), "--pcap", str(user), "-q").code == 0
+    assert cli("export", str(SAMPLE_LOG), "--pcap", str(udp), "--pcap-link", "udp", "-q").code == 0
+
+    def tshark(path: Path, *options: str) -> str:
+        return subprocess.run(["tshark", "-n", "-r", str(path), *options], check=True, capture_output=True,
+                              text=True).stdout
+
+    mapped = tshark(user, "-o", 'uat:user_dlts:"User 0 (DLT=147)","mbrtu","0","","0",""')
+    assert "Unable to classify" in mapped
+    by_port = tshark(udp, "-o", "mbrtu.udp.port:502")
+    assert "Unable to classify" not in by_port and by_port.count("Modbus RTU") == 51  # all but the noise
+    assert "Query: Unit:   2, Func:  43" in by_port and "Response: Unit:  20, Func:  23" in by_port
+    fields = tshark(user, "-T", "fields", "-e", "frame.comment", "-e", "frame.packet_flags_direction").splitlines()
+    assert fields[1] == "rtusniff #1: response to #0, latency 3.295 ms\t0x00000001"
+    assert fields[0].endswith("\t0x00000002")  # a request goes out from the master
+    # rtusniff reads both back to the frames it wrote.
+    assert frames(cli, str(udp), *LINE) == frames(cli, str(user), *LINE) == frames(cli, str(SAMPLE_LOG))

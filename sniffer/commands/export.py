@@ -40,7 +40,12 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     add_capture_argument(parser)
     parser.add_argument("--mcap", metavar="OUT.mcap", help="write decoded MCAP (also a capture analyze can read)")
     parser.add_argument("--rrd", metavar="OUT.rrd", help="write a Rerun recording")
-    parser.add_argument("--pcap", metavar="OUT.pcap", help="write a pcap for Wireshark: one packet per frame")
+    parser.add_argument("--pcap", metavar="OUT.pcap", help="write a pcap for Wireshark: one packet per frame "
+                        "(OUT.pcapng: pcapng, with each packet's direction and a comment of what rtusniff found)")
+    parser.add_argument("--pcap-link", choices=["user", "udp"], default="user",
+                        help="user: link type 147 (Wireshark maps it to Modbus RTU with one DLT_USER line); udp: each "
+                        "frame in a UDP packet, master to slave port 502, so that Wireshark tells queries from "
+                        "responses for every function (one preference: mbrtu.udp.port:502)")
     parser.add_argument("--spawn", action="store_true", help="also open the Rerun viewer (needs a display)")
     parser.add_argument("--force", action="store_true", help="overwrite existing output files")
     add_decoding_options(parser)
@@ -78,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
 OUTPUTS: list[tuple[str, str, Callable[[str, argparse.Namespace, Analysis], FileSink[Any]]]] = [
     ("mcap", "MCAP", McapSink),
     ("rrd", "Rerun recording", lambda path, args, analysis: RerunSink(path, rerun_viewer() if args.spawn else None)),
-    ("pcap", "pcap", lambda path, args, analysis: PcapSink(path)),
+    ("pcap", "pcap", lambda path, args, analysis: PcapSink(path, udp=args.pcap_link == "udp")),
 ]
 
 

@@ -100,10 +100,10 @@ class PcapSink(FileSink[PcapExporter]):
 
     wants_frames = True
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, *, udp: bool = False) -> None:
         super().__init__(path)
         with self.writing():
-            self.exporter = PcapExporter(path)
+            self.exporter = PcapExporter(path, udp=udp)
 
     def frames(self, batch: MessageBatch) -> None:
         self.frames_written += len(batch)

@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import struct
 import sys
+from dataclasses import replace
 from typing import BinaryIO
 
 import numpy as np
 
-from decoders.message import MessageBatch
+from decoders.frame import flag_set
+from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
 
 LINKTYPE_USER0 = 147
 _NANOSECOND_MAGIC = 0xA1B23C4D
@@ -29,16 +31,26 @@ WIRESHARK_USER_DLT = '"User 0 (DLT=147)","mbrtu","0","","0",""'
 
 
 class PcapExporter:
-    """Writes frames as they are framed: it needs no decoding, so it takes whole batches."""
+    """Writes frames as they are framed: it needs no decoding, so it takes whole batches.
+    A path ending in ``.pcapng`` gets pcapng, with each packet's direction and a comment."""
 
-    def __init__(self, path: str) -> None:
-        """``path`` ``-``: standard output (``| wireshark -k -i -``)."""
+    def __init__(self, path: str, *, udp: bool = False) -> None:
+        """``path`` ``-``: standard output (``| wireshark -k -i -``), classic pcap. ``udp``: each
+        frame in an IPv4/UDP packet (:func:`udp_packets`) instead of link type 147."""
         self._to_stdout = path == "-"
+        self._pcapng = path.lower().endswith(".pcapng")
+        self._udp = udp
+        link = LINKTYPE_RAW_IP if udp else LINKTYPE_USER0
         self._file: BinaryIO = sys.stdout.buffer if self._to_stdout else open(path, "wb")  # noqa: SIM115
-        self._file.write(_HEADER.pack(_NANOSECOND_MAGIC, 2, 4, 0, 0, SNAPLEN, LINKTYPE_USER0))
+        if self._pcapng:
+            self._file.write(pcapng_header(link))
+        else:
+            self._file.write(_HEADER.pack(_NANOSECOND_MAGIC, 2, 4, 0, 0, SNAPLEN, link))
 
     def batch(self, batch: MessageBatch) -> None:
-        self._file.write(pcap_records(batch))
+        if self._udp:
+            batch = udp_packets(batch)
+        self._file.write(pcapng_blocks(batch) if self._pcapng else pcap_records(batch))
 
     def close(self) -> None:
         if self._to_stdout:
@@ -63,3 +75,90 @@ def pcap_records(batch: MessageBatch) -> bytes:
     data_positions = np.arange(len(frames.data)) + _RECORD.itemsize * np.repeat(np.arange(1, count + 1), lengths)
     out[data_positions] = np.frombuffer(frames.data, np.uint8)
     return out.tobytes()
+
+
+# pcapng: a section, one interface (nanosecond times), an enhanced packet block per frame.
+_SHB, _IDB, _EPB = 0x0A0D0D0A, 1, 6
+_OPT_COMMENT, _EPB_FLAGS, _SHB_USERAPPL, _IF_TSRESOL = 1, 2, 4, 9
+#: epb_flags direction bits (pcapng): as the master sees the line.
+INBOUND, OUTBOUND = 1, 2
+_DIRECTIONS = {ROLE_CODE[Role.REQUEST]: OUTBOUND, ROLE_CODE[Role.BROADCAST]: OUTBOUND,
+               ROLE_CODE[Role.RESPONSE]: INBOUND, ROLE_CODE[Role.EXCEPTION]: INBOUND}
+
+
+def _option(code: int, value: bytes) -> bytes:
+    return struct.pack("<HH", code, len(value)) + value + bytes(-len(value) % 4)
+
+
+def _block(kind: int, body: bytes) -> bytes:
+    length = 12 + len(body)
+    return struct.pack("<II", kind, length) + body + struct.pack("<I", length)
+
+
+def pcapng_header(link_type: int = LINKTYPE_USER0) -> bytes:
+    """The section header (written by rtusniff) and the one interface: its link type,
+    nanosecond timestamps."""
+    section = struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1) + _option(_SHB_USERAPPL, b"rtusniff") + _option(0, b"")
+    interface = struct.pack("<HHI", link_type, 0, SNAPLEN) + _option(_IF_TSRESOL, b"\x09") + _option(0, b"")
+    return _block(_SHB, section) + _block(_IDB, interface)
+
+
+def pcapng_blocks(batch: MessageBatch) -> bytes:
+    """An enhanced packet block per frame: its bytes at its start time, its direction (a request
+    goes out from the master, an answer comes in) and a comment saying what rtusniff made of it."""
+    frames = batch.frames
+    blocks = []
+    data, offsets = frames.data, frames.offsets.tolist()
+    columns = zip(frames.t_start_ns.tolist(), batch.role.tolist(), batch.request_index.tolist(),
+                  batch.latency_ns.tolist(), batch.flags.tolist(), strict=True)
+    for position, (t_ns, role, request, latency, flags) in enumerate(columns):
+        payload = data[offsets[position] : offsets[position + 1]]
+        comment = f"rtusniff #{frames.first_index + position}: {ROLE_ORDER[role].value}"
+        if request != NONE:
+            comment += f" to #{request}" + (f", latency {latency / 1e6:.3f} ms" if latency != NONE else "")
+        if flags:
+            comment += ", " + ", ".join(flag_set(flags).names)
+        body = struct.pack("<IIIII", 0, t_ns >> 32, t_ns & 0xFFFFFFFF, len(payload), len(payload))
+        body += payload + bytes(-len(payload) % 4)
+        body += _option(_EPB_FLAGS, struct.pack("<I", _DIRECTIONS.get(role, 0))) + \
+            _option(_OPT_COMMENT, comment.encode()) + _option(0, b"")
+        blocks.append(_block(_EPB, body))
+    return b"".join(blocks)
+
+
+#: Raw IPv4 packets: the ``udp`` link.
+LINKTYPE_RAW_IP = 101
+MODBUS_PORT, MASTER_PORT, NOISE_PORT = 502, 40000, 40001
+#: The master, and slave N as 198.19.0.N (RFC 2544's benchmarking range: never a real host).
+MASTER_ADDRESS = bytes([198, 18, 0, 1])
+
+
+def udp_packets(batch: MessageBatch) -> MessageBatch:
+    """The batch with each frame wrapped in an IPv4/UDP packet: a request (or broadcast) from
+    the master's port 40000 to its slave's port 502, an answer back, noise from port 40001 (not
+    Modbus: Wireshark shows its bytes as data). Wireshark's Modbus RTU over UDP then knows a
+    query from a response by the ports, for every function code."""
+    frames = batch.frames
+    packets = []
+    offsets, data = frames.offsets.tolist(), frames.data
+    for position, (role, slave) in enumerate(zip(batch.role.tolist(), batch.slave.tolist(), strict=True)):
+        payload = data[offsets[position] : offsets[position + 1]]
+        slave_address = bytes([198, 19, 0, max(slave, 0)])
+        if role in (ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.EXCEPTION]):
+            packets.append(_udp(slave_address, MASTER_ADDRESS, MODBUS_PORT, MASTER_PORT, payload))
+        elif role == ROLE_CODE[Role.NOISE]:
+            packets.append(_udp(MASTER_ADDRESS, MASTER_ADDRESS, NOISE_PORT, NOISE_PORT, payload))
+        else:
+            packets.append(_udp(MASTER_ADDRESS, slave_address, MASTER_PORT, MODBUS_PORT, payload))
+    lengths = np.fromiter(map(len, packets), np.int64, len(packets))
+    offsets_out = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+    return replace(batch, frames=replace(frames, data=b"".join(packets), offsets=offsets_out))
+
+
+def _udp(source: bytes, destination: bytes, source_port: int, destination_port: int, payload: bytes) -> bytes:
+    udp = struct.pack("!HHHH", source_port, destination_port, 8 + len(payload), 0) + payload
+    header = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(udp), 0, 0, 64, 17, 0, source, destination)
+    words = sum(struct.unpack("!10H", header))
+    words = (words >> 16) + (words & 0xFFFF)
+    checksum = ~(words + (words >> 16)) & 0xFFFF
+    return header[:10] + struct.pack("!H", checksum) + header[12:] + udp

@@ -24,6 +24,8 @@ from sniffer.io.base import ReaderOptions
 
 USER_LINK_TYPES = range(147, 163)
 LINKTYPE_RTAC_SERIAL = 250
+#: Raw IPv4: ``export --pcap-link udp`` wraps each frame in a UDP packet.
+LINKTYPE_RAW_IP = 101
 RTAC_HEADER_BYTES = 12
 #: Classic pcap magic numbers (as read little-endian) → (byte order, nanosecond times).
 CLASSIC = {0xA1B2C3D4: ("<", False), 0xD4C3B2A1: (">", False), 0xA1B23C4D: ("<", True), 0x4D3CB2A1: (">", True)}
@@ -152,11 +154,16 @@ class PcapCaptureReader:
         return records()
 
     def _check_link_type(self, link_type: int, where: str) -> None:
-        if link_type not in USER_LINK_TYPES and link_type != LINKTYPE_RTAC_SERIAL:
+        if link_type not in USER_LINK_TYPES and link_type not in (LINKTYPE_RTAC_SERIAL, LINKTYPE_RAW_IP):
             raise self._error(f"link type {link_type} is not a serial line's (rtusniff reads 147-162, user DLT, "
-                              "and 250, RTAC serial)", ErrorKind.UNKNOWN_FORMAT, where=where)
+                              "250, RTAC serial, and 101, its own UDP export)", ErrorKind.UNKNOWN_FORMAT, where=where)
 
     def _payload(self, data: bytes, link_type: int) -> bytes:
+        if link_type == LINKTYPE_RAW_IP:
+            # IPv4 (its header's length in words) carrying UDP (8 bytes of header): the frame follows.
+            if len(data) < 28 or data[0] >> 4 != 4 or data[9] != 17:
+                raise self._error("a raw IP record that is not an IPv4 UDP packet")
+            return data[(data[0] & 0x0F) * 4 + 8 :]
         if link_type == LINKTYPE_RTAC_SERIAL:
             if len(data) < RTAC_HEADER_BYTES:
                 raise self._error(f"an RTAC serial record of {len(data)} bytes, shorter than its header")
