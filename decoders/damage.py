@@ -80,12 +80,8 @@ class RetryDiff:
 
     def _remember_requests(self, batch: MessageBatch) -> None:
         """The bytes of the batch's last requests, for answers in the next batch."""
-        frames = batch.frames
         for position in np.flatnonzero(np.isin(batch.role, _REQUESTS))[-RETRY_FRAMES:].tolist():
-            self._requests[frames.first_index + position] = frames.data[frames.offsets[position]:
-                                                                        frames.offsets[position + 1]]
-        while len(self._requests) > KEPT_DAMAGED:
-            self._requests.popitem(last=False)
+            self._remember_request(batch, batch.frames.first_index + position)
 
     def _walk(self, batch: MessageBatch, broken: np.ndarray, wanted: np.ndarray) -> dict[int, str]:
         frames, notes = batch.frames, {}

@@ -95,10 +95,6 @@ class Selection:
     limit: int | None = None
 
     @property
-    def everything(self) -> bool:
-        return self == EVERYTHING
-
-    @property
     def windowed(self) -> bool:
         return (self.start, self.stop, self.first_index, self.last_index) != (None, None, None, None)
 

@@ -64,6 +64,15 @@ class ReaderOptions:
     channels: tuple[str, ...] = ()
 
 
+def channel_number(requested: str, names: dict[int, str]) -> int | None:
+    """The channel ``--channel`` names among ``names`` (number from 1 → name): a name first
+    (sigrok names probes "0", "1", …), then a number; ``None`` if neither."""
+    by_name = [number for number, name in names.items() if name == requested]
+    if by_name:
+        return by_name[0]
+    return next((number for number in names if str(number) == requested), None)
+
+
 @dataclass(frozen=True)
 class CaptureFormat:
     """One capture format, declared by its module in :mod:`sniffer.io.formats` as ``FORMAT``.

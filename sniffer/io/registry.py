@@ -69,12 +69,14 @@ def find_format(
     if path == STDIO:
         return known[STDIO_FORMAT]
     suffix = Path(path).suffix.lower()
+    by_suffix = next((fmt for fmt in known.values() if suffix in fmt.suffixes), None)
+    if by_suffix is not None and suffix not in GENERIC_SUFFIXES:
+        return by_suffix
+    # A suffix any tool's text may have (sigrok-cli's output saved as .txt, a CSV) decides only
+    # while the first bytes are not another format's; no known suffix: the first bytes alone.
     sniffed = [fmt for fmt in known.values() if head and fmt.sniff(head)]
-    for fmt in known.values():
-        # The suffix decides; a suffix any tool's text may have (sigrok-cli's output saved as
-        # .txt, a CSV) only while the first bytes are not another format's.
-        if suffix in fmt.suffixes and (suffix not in GENERIC_SUFFIXES or fmt in sniffed or not sniffed):
-            return fmt
+    if by_suffix is not None and (by_suffix in sniffed or not sniffed):
+        return by_suffix
     if sniffed:
         return sniffed[0]
     suffixes = ", ".join(s for fmt in known.values() for s in fmt.suffixes)

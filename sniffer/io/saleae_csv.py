@@ -28,7 +28,7 @@ import numpy as np
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.uart import character_chunks, decode_transitions
 from sniffer.errors import CaptureFormatError, ErrorKind
-from sniffer.io.base import ReaderOptions
+from sniffer.io.base import ReaderOptions, channel_number
 
 LOGIC2 = ("name", "type", "start_time", "duration", "data")
 LOGIC1 = ("Time [s]", "Value", "Parity Error", "Framing Error")
@@ -209,12 +209,11 @@ class SaleaeDigitalReader:
 
     def _channel(self, names: list[str], matrix: np.ndarray, channels: tuple[str, ...]) -> int:
         if channels:
-            wanted = [i for i, name in enumerate(names) if name == channels[0]] or \
-                [i for i in range(len(names)) if str(i + 1) == channels[0]]
-            if not wanted:
+            number = channel_number(channels[0], {i + 1: name for i, name in enumerate(names)})
+            if number is None:
                 raise CaptureFormatError(ErrorKind.USAGE, f"--channel {channels[0]}: no such channel (this export "
                                          f"has {', '.join(names)})", path=self.path, location="line 1")
-            return wanted[0]
+            return number - 1
         changing = [i for i in range(len(names)) if len(matrix) and np.any(matrix[:, i] != matrix[0, i])]
         if len(changing) != 1:
             listed = ", ".join(names[i] for i in (changing or range(len(names))))

@@ -25,7 +25,7 @@ from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from decoders.uart import UartCharacters, UartDecoder, character_chunks, merge_characters, shortest_pulse_baud
 from sniffer.errors import CaptureFormatError, ErrorKind
-from sniffer.io.base import ReaderOptions
+from sniffer.io.base import ReaderOptions, channel_number
 
 NS_PER_S = 1_000_000_000
 #: Samples looked at (whole sample files) to tell the line's settings when ``--line`` does not.
@@ -113,14 +113,12 @@ class SigrokSessionReader:
         if channels:
             probes = []
             for channel in channels:
-                # A probe's name first (sigrok names probes "0", "1", …), then its number from 1.
-                wanted = [index for index, name in self._probes.items() if name == channel] or \
-                    [index for index in self._probes if str(index) == channel]
-                if not wanted:
+                probe = channel_number(channel, self._probes)
+                if probe is None:
                     listed = ", ".join(f"{index}={name}" for index, name in sorted(self._probes.items()))
                     raise self._error(f"--channel {channel}: no such probe (this session has {listed})",
                                       ErrorKind.USAGE)
-                probes.append(wanted[0])
+                probes.append(probe)
             return probes
         # The probes that change anywhere: the first sample files may hold an idle line only.
         changing: set[int] = set()
