@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import Enum, IntFlag
 
 import numpy as np
 import numpy.typing as npt
@@ -29,12 +29,41 @@ class TimingQuality(Enum):
     HOST = "host"
 
 
+class UartError(IntFlag):
+    """What the receiver found wrong with one character (a logic analyzer sees it; a serial
+    driver may mark it). The character's byte is kept as it was read."""
+
+    NONE = 0
+    #: The stop bit was low at its middle: a glitch, a break, or the wrong baud rate.
+    FRAMING = 1
+    #: The parity bit does not match the data bits.
+    PARITY = 2
+
+
+UART_ERROR_NAMES = {UartError.FRAMING: "framing", UartError.PARITY: "parity"}
+#: Every kind a byte can carry, by its name in text formats and JSONL ("framing+parity").
+UART_ERROR_KINDS = {"framing": 1, "parity": 2, "framing+parity": 3}
+
+
+def uart_error_name(kind: int) -> str:
+    """``framing``, ``parity`` or ``framing+parity``."""
+    return "+".join(name for flag, name in UART_ERROR_NAMES.items() if kind & flag)
+
+
+#: Byte positions (within a chunk, a frame...) with a UART error, and its kind.
+UartErrorMarks = tuple[tuple[int, int], ...]
+UInt8Array = npt.NDArray[np.uint8]
+
+
 @dataclass(frozen=True, slots=True)
 class Chunk:
-    """Bytes that arrived together; ``t_end_ns`` is when the last one was complete."""
+    """Bytes that arrived together; ``t_end_ns`` is when the last one was complete.
+    ``uart_errors``: (position in ``data``, :class:`UartError` kind) of characters the
+    receiver found wrong."""
 
     t_end_ns: int
     data: bytes
+    uart_errors: UartErrorMarks = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,12 +86,17 @@ class ChunkBatch:
     data: bytes
     ends: Int64Array
     t_end_ns: Int64Array = field(repr=False)
+    #: The :class:`UartError` kind of every byte of ``data``; ``None`` when no byte has one
+    #: (the common case costs nothing).
+    uart_errors: UInt8Array | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.ends.shape != self.t_end_ns.shape:
             raise ValueError("ends and t_end_ns must have the same length")
         if len(self.ends) and int(self.ends[-1]) != len(self.data):
             raise ValueError("the last chunk end must equal the data length")
+        if self.uart_errors is not None and len(self.uart_errors) != len(self.data):
+            raise ValueError("uart_errors must have one entry per byte")
 
     def __len__(self) -> int:
         return len(self.ends)
@@ -76,22 +110,74 @@ class ChunkBatch:
             starts[1:] = self.ends[:-1]
         return starts
 
+    def error_kinds(self) -> UInt8Array:
+        """:attr:`uart_errors`, zeros when there are none."""
+        return self.uart_errors if self.uart_errors is not None else np.zeros(len(self.data), np.uint8)
+
     def chunks(self) -> Iterator[Chunk]:
         """The batch as individual chunks."""
         start = 0
+        kinds = self.uart_errors
         for end, t_end in zip(self.ends.tolist(), self.t_end_ns.tolist(), strict=True):
-            yield Chunk(t_end, self.data[start:end])
+            marks = _marks(kinds[start:end]) if kinds is not None else ()
+            yield Chunk(t_end, self.data[start:end], marks)
             start = end
+
+    def slice(self, start: int, stop: int) -> ChunkBatch:
+        """Chunks ``start..stop-1`` (positions within the batch)."""
+        if start == 0 and stop >= len(self):
+            return self
+        stop = min(stop, len(self))
+        first = int(self.ends[start - 1]) if start else 0
+        last = int(self.ends[stop - 1]) if stop > start else first
+        kinds = self.uart_errors
+        return ChunkBatch(self.data[first:last], self.ends[start:stop] - first, self.t_end_ns[start:stop],
+                          _none_if_clean(kinds[first:last]) if kinds is not None else None)
 
     @classmethod
     def from_chunks(cls, chunks: Sequence[Chunk]) -> ChunkBatch:
         lengths = np.fromiter((len(c.data) for c in chunks), dtype=np.int64, count=len(chunks))
         times = np.fromiter((c.t_end_ns for c in chunks), dtype=np.int64, count=len(chunks))
-        return cls(b"".join(c.data for c in chunks), np.cumsum(lengths), times)
+        ends = np.cumsum(lengths)
+        kinds = None
+        if any(c.uart_errors for c in chunks):
+            kinds = np.zeros(int(ends[-1]), np.uint8)
+            for chunk, end in zip(chunks, ends.tolist(), strict=True):
+                for position, kind in chunk.uart_errors:
+                    kinds[end - len(chunk.data) + position] |= kind
+        return cls(b"".join(c.data for c in chunks), ends, times, kinds)
+
+    @classmethod
+    def concat(cls, batches: Sequence[ChunkBatch]) -> ChunkBatch:
+        """Consecutive batches as one."""
+        if len(batches) == 1:
+            return batches[0]
+        if not batches:
+            return cls.empty()
+        bases = np.cumsum([0] + [len(b.data) for b in batches[:-1]])
+        ends = np.concatenate([b.ends + base for b, base in zip(batches, bases.tolist(), strict=True)])
+        kinds = None
+        if any(b.uart_errors is not None for b in batches):
+            kinds = np.concatenate([b.error_kinds() for b in batches])
+        return cls(b"".join(b.data for b in batches), ends, np.concatenate([b.t_end_ns for b in batches]), kinds)
 
     @classmethod
     def empty(cls) -> ChunkBatch:
         return cls(b"", np.zeros(0, np.int64), np.zeros(0, np.int64))
+
+
+def _marks(kinds: UInt8Array) -> UartErrorMarks:
+    positions = np.flatnonzero(kinds)
+    return tuple(zip(positions.tolist(), kinds[positions].tolist(), strict=True))
+
+
+def _none_if_clean(kinds: UInt8Array) -> UInt8Array | None:
+    return kinds if kinds.any() else None
+
+
+def uart_error_marks(kinds: UInt8Array | None) -> UartErrorMarks:
+    """(position, kind) of every byte with a UART error in a per-byte kinds column."""
+    return () if kinds is None else _marks(kinds)
 
 
 def batch_chunks(chunks: Iterable[Chunk], max_chunks: int = 4096) -> Iterator[ChunkBatch]:

@@ -13,6 +13,7 @@ from collections import OrderedDict
 
 import numpy as np
 
+from decoders.capture import uart_error_name
 from decoders.crc import crc_bytes
 from decoders.message import ROLE_CODE, MessageBatch, Role
 
@@ -35,6 +36,14 @@ def crc_note(data: bytes) -> str | None:
     if received == expected:
         return None
     return f"CRC {received.hex(' ')} on the wire, {expected.hex(' ')} computed"
+
+
+def uart_error_note(marks: tuple[tuple[int, int], ...]) -> str:
+    """``UART framing error at byte 1, parity error at byte 4`` (positions from 0, as in
+    ``byte_diff``) for a frame with characters the receiver found wrong."""
+    parts = [f"{uart_error_name(kind)} error at byte {position}" for position, kind in marks[:LISTED_BYTES]]
+    more = f" and {len(marks) - LISTED_BYTES} more" if len(marks) > LISTED_BYTES else ""
+    return f"UART {', '.join(parts)}{more}"
 
 
 def byte_diff(damaged: bytes, good: bytes) -> str:

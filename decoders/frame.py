@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from decoders.capture import uart_error_marks
+
 MODBUS = 0
 USS = 1
 PROTOCOL_NAMES = {MODBUS: "modbus", USS: "uss"}
@@ -40,6 +42,8 @@ class FrameFlag(IntFlag):
     RETRY = 32
     #: On a response: no open request matches it.
     UNEXPECTED = 64
+    #: A character of the frame had a framing or parity error (``Frame.uart_errors`` says which).
+    UART_ERROR = 128
 
     @property
     def names(self) -> list[str]:
@@ -84,6 +88,9 @@ class Frame:
     idle_before_ns: int | None = None
     #: ``MODBUS`` or ``USS``.
     protocol: int = 0
+    #: (position in ``data``, :class:`decoders.capture.UartError` kind) of characters the
+    #: receiver found wrong.
+    uart_errors: tuple[tuple[int, int], ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,6 +109,9 @@ class FrameBatch:
     idle_before_ns: npt.NDArray[np.int64]
     #: ``MODBUS`` or ``USS`` per frame; ``None`` when every frame is Modbus.
     protocol: npt.NDArray[np.uint8] | None = None
+    #: The :class:`decoders.capture.UartError` kind of every byte of ``data``; ``None`` when no
+    #: byte has one.
+    uart_errors: npt.NDArray[np.uint8] | None = None
 
     def __len__(self) -> int:
         return len(self.t_start_ns)
@@ -117,6 +127,10 @@ class FrameBatch:
     def protocols(self) -> npt.NDArray[np.uint8]:
         """The protocol of every frame."""
         return self.protocol if self.protocol is not None else np.zeros(len(self), np.uint8)
+
+    def error_kinds(self) -> npt.NDArray[np.uint8]:
+        """:attr:`uart_errors`, zeros when there are none."""
+        return self.uart_errors if self.uart_errors is not None else np.zeros(len(self.data), np.uint8)
 
 
 class FrameRows:
@@ -134,6 +148,9 @@ class FrameRows:
                                                             batch.crc_ok, batch.flags, batch.is_noise,
                                                             batch.idle_before_ns, batch.protocols())]
         offsets, start, end, ok, flags, noise, idle, protocol = self._columns
+        kinds = self._batch.uart_errors
+        marks = () if kinds is None or not flags[position] & FrameFlag.UART_ERROR else \
+            uart_error_marks(kinds[offsets[position] : offsets[position + 1]])
         return Frame(
             index=self._batch.first_index + position,
             t_start_ns=start[position],
@@ -144,6 +161,7 @@ class FrameRows:
             is_noise=noise[position],
             idle_before_ns=None if idle[position] == NO_IDLE else idle[position],
             protocol=protocol[position],
+            uart_errors=marks,
         )
 
 
@@ -158,6 +176,7 @@ def slice_frames(batch: FrameBatch, start: int, stop: int) -> FrameBatch:
         batch.data[begin:end],
         batch.offsets[start : stop + 1] - begin,
         protocol=None if batch.protocol is None else batch.protocol[start:stop],
+        uart_errors=None if batch.uart_errors is None else batch.uart_errors[begin:end],
         **{name: getattr(batch, name)[start:stop] for name in _COLUMNS},
     )
 
@@ -173,11 +192,13 @@ def concat_frames(batches: list[FrameBatch]) -> FrameBatch:
         offsets.append(batch.offsets[1:] + base)
         base += int(batch.offsets[-1])
     mixed = any(b.protocol is not None for b in batches)
+    marked = any(b.uart_errors is not None for b in batches)
     return FrameBatch(
         batches[0].first_index,
         b"".join(b.data for b in batches),
         np.concatenate(offsets),
         protocol=np.concatenate([b.protocols() for b in batches]) if mixed else None,
+        uart_errors=np.concatenate([b.error_kinds() for b in batches]) if marked else None,
         **{name: np.concatenate([getattr(b, name) for b in batches]) for name in _COLUMNS},
     )
 
@@ -188,6 +209,12 @@ def frames_to_batch(frames: list[Frame]) -> FrameBatch:
     lengths = np.fromiter((len(f.data) for f in frames), np.int64, count)
     offsets = np.zeros(count + 1, np.int64)
     offsets[1:] = np.cumsum(lengths)
+    kinds = None
+    if any(f.uart_errors for f in frames):
+        kinds = np.zeros(int(offsets[-1]), np.uint8)
+        for frame, start in zip(frames, offsets.tolist(), strict=False):
+            for position, kind in frame.uart_errors:
+                kinds[start + position] = kind
     return FrameBatch(
         frames[0].index if frames else 0,
         b"".join(f.data for f in frames),
@@ -199,4 +226,5 @@ def frames_to_batch(frames: list[Frame]) -> FrameBatch:
         np.fromiter((f.is_noise for f in frames), np.bool_, count),
         np.fromiter((NO_IDLE if f.idle_before_ns is None else f.idle_before_ns for f in frames), np.int64, count),
         protocol=np.fromiter((f.protocol for f in frames), np.uint8, count),
+        uart_errors=kinds,
     )

@@ -16,7 +16,9 @@ frame or noise record.
 
 Flags: ``gap_1_5`` on a silence > t1.5 inside a frame and ``short_idle`` on a frame
 whose silence before it was < t3.5, both only where timing is ``exact``;
-``truncated`` and ``bad_length`` come from the content pass.
+``truncated`` and ``bad_length`` come from the content pass; ``uart_error`` on a frame with
+a character the receiver found wrong (the capture says which: a logic analyzer's decode),
+whose framing errors the content pass weighs too (:mod:`decoders.framing.evidence`).
 
 Timestamps have 1 ns resolution and byte times are rounded to it, so thresholds
 are compared with 1 ns of allowance.
@@ -28,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.byte_times import byte_times
-from decoders.capture import ChunkBatch, Int64Array, TimingQuality
+from decoders.capture import ChunkBatch, Int64Array, TimingQuality, UartError, UInt8Array
 from decoders.crc import crc_ok_many
 from decoders.frame import NO_IDLE, FrameBatch, FrameFlag
 from decoders.framing.best_parse import Pieces, clean_frame_end, parse_segment
@@ -75,6 +77,8 @@ class Framer:
         self._data = b""
         self._starts: Int64Array = np.zeros(0, np.int64)
         self._ends: Int64Array = np.zeros(0, np.int64)
+        #: UART error kinds of the held bytes; ``None`` while the capture has shown none.
+        self._kinds: UInt8Array | None = None
         self._at_capture_start = True
         self._open_request: OpenRequest = None
         self._next_index = 0
@@ -92,37 +96,50 @@ class Framer:
         data = self._data + batch.data
         starts = np.concatenate([self._starts, new_starts])
         ends = np.concatenate([self._ends, new_ends])
+        if batch.uart_errors is not None or self._kinds is not None:
+            held = self._kinds if self._kinds is not None else np.zeros(len(self._data), np.uint8)
+            self._kinds = np.concatenate([held, batch.error_kinds()])
+        kinds = self._kinds
         cuts = np.flatnonzero(starts[1:] - ends[:-1] >= self._boundary_ns) + 1
         bounds = np.concatenate([np.zeros(1, np.int64), cuts])
-        parts = [self._closed_segments(data, starts, ends, bounds)]
+        parts = [self._closed_segments(data, (starts, ends, kinds), bounds)]
         open_start = int(bounds[-1])
         kept_from = open_start
         if len(data) > open_start:
-            open_pieces = self._parse(data, starts, ends, open_start, len(data), closed=False)
+            open_pieces = self._parse(data, starts, ends, open_start, len(data), closed=False, kinds=kinds)
             parts.append(open_pieces)
             kept_from = int(open_pieces.last[-1]) if len(open_pieces) else open_start
         self._data, self._starts, self._ends = data[kept_from:], starts[kept_from:], ends[kept_from:]
-        return self._assemble(data, starts, ends, Pieces.join(parts))
+        self._kinds = None if kinds is None or not kinds[kept_from:].any() else kinds[kept_from:]
+        return self._assemble(data, starts, ends, Pieces.join(parts), kinds)
 
     def close_idle(self, now_ns: int) -> FrameBatch:
         """Live capture: the open segment is closed once the line has been quiet for t3.5
         (exact) or ``LIVE_IDLE_NS`` (host), without waiting for a next byte."""
         if not self._data or now_ns - int(self._ends[-1]) < self._idle_ns:
-            return self._assemble(b"", self._starts[:0], self._ends[:0], Pieces.of([]))
-        data, starts, ends = self._data, self._starts, self._ends
-        self._data, self._starts, self._ends = b"", np.zeros(0, np.int64), np.zeros(0, np.int64)
-        return self._assemble(data, starts, ends, self._parse(data, starts, ends, 0, len(data), closed=True))
+            return self._assemble(b"", self._starts[:0], self._ends[:0], Pieces.of([]), None)
+        data, starts, ends, kinds = self._take_held()
+        pieces = self._parse(data, starts, ends, 0, len(data), closed=True, kinds=kinds)
+        return self._assemble(data, starts, ends, pieces, kinds)
 
     def flush(self) -> FrameBatch:
         """Everything still held, at the end of the capture."""
-        data, starts, ends = self._data, self._starts, self._ends
-        self._data, self._starts, self._ends = b"", np.zeros(0, np.int64), np.zeros(0, np.int64)
-        pieces = self._parse(data, starts, ends, 0, len(data), closed=True, at_end=True) if data else Pieces.of([])
-        return self._assemble(data, starts, ends, pieces)
+        data, starts, ends, kinds = self._take_held()
+        pieces = self._parse(data, starts, ends, 0, len(data), closed=True, at_end=True, kinds=kinds) if data \
+            else Pieces.of([])
+        return self._assemble(data, starts, ends, pieces, kinds)
 
-    def _closed_segments(self, data: bytes, starts: Int64Array, ends: Int64Array, bounds: Int64Array) -> Pieces:
+    def _take_held(self) -> tuple[bytes, Int64Array, Int64Array, UInt8Array | None]:
+        held = self._data, self._starts, self._ends, self._kinds
+        self._data, self._starts, self._ends = b"", np.zeros(0, np.int64), np.zeros(0, np.int64)
+        self._kinds = None
+        return held
+
+    def _closed_segments(self, data: bytes, times: tuple[Int64Array, Int64Array, UInt8Array | None],
+                         bounds: Int64Array) -> Pieces:
         """Pieces of the segments ``data[bounds[i]:bounds[i+1]]``: whole frames in bulk,
-        the rest through the content parser."""
+        the rest through the content parser (``times``: the bytes' starts, ends and UART errors)."""
+        starts, ends, kinds = times
         seg_starts, seg_ends = bounds[:-1], bounds[1:]
         count = len(seg_starts)
         single = single_frame_segments(data, seg_starts, seg_ends, crc_ok_many(data, bounds))
@@ -141,7 +158,8 @@ class Framer:
                 self._at_capture_start = False  # whole frames came before it
             self._open_request = replayed_open_request(data, (seg_starts, seg_ends), range(done, index),
                                                        self._open_request)
-            parsed.append(self._parse(data, starts, ends, int(seg_starts[index]), int(seg_ends[index]), closed=True))
+            parsed.append(self._parse(data, starts, ends, int(seg_starts[index]), int(seg_ends[index]), closed=True,
+                                      kinds=kinds))
             done = index + 1
         self._open_request = replayed_open_request(data, (seg_starts, seg_ends), range(done, count),
                                                    self._open_request)
@@ -152,21 +170,25 @@ class Framer:
 
     def _parse(
         self, data: bytes, starts: Int64Array, ends: Int64Array, begin: int, stop: int, *, closed: bool,
-        at_end: bool = False,
+        at_end: bool = False, kinds: UInt8Array | None = None,
     ) -> Pieces:
         pauses: tuple[int, ...] = ()
         if self.timing is TimingQuality.EXACT and stop - begin > 1:
             silences = starts[begin + 1 : stop] - ends[begin : stop - 1]
             pauses = tuple((np.flatnonzero(silences > self.line.t1_5_ns + TOLERANCE_NS) + 1).tolist())
+        framing_errors: tuple[int, ...] = ()
+        if kinds is not None:
+            framing_errors = tuple(np.flatnonzero(kinds[begin:stop] & UartError.FRAMING).tolist())
         context = Context(pauses, closed=closed, at_capture_start=self._at_capture_start, at_capture_end=at_end,
-                          timed=closed)
+                          timed=closed, framing_errors=framing_errors)
         parse = parse_segment(data[begin:stop], context, self._open_request, fast=self.fast)
         if len(parse.pieces):
             self._at_capture_start = False
             self._open_request = parse.open_request
         return parse.pieces.shifted(begin)
 
-    def _assemble(self, data: bytes, starts: Int64Array, ends: Int64Array, pieces: Pieces) -> FrameBatch:
+    def _assemble(self, data: bytes, starts: Int64Array, ends: Int64Array, pieces: Pieces,
+                  kinds: UInt8Array | None) -> FrameBatch:
         first, last, is_noise, flags = pieces.first, pieces.last, pieces.is_noise, pieces.flags.copy()
         count = len(first)
         if count:
@@ -198,6 +220,13 @@ class Framer:
         offsets = np.zeros(count + 1, np.int64)
         offsets[1:] = np.cumsum(last - first)
         frame_data = data[int(first[0]) : int(last[-1])] if count else b""
+        frame_kinds = None
+        if kinds is not None and count:
+            frame_kinds = kinds[int(first[0]) : int(last[-1])]
+            marked = np.zeros(len(frame_kinds) + 1, np.int64)
+            np.cumsum(frame_kinds != 0, out=marked[1:])
+            flags |= np.where(marked[offsets[1:]] > marked[offsets[:-1]], FrameFlag.UART_ERROR, 0).astype(np.uint16)
+            frame_kinds = frame_kinds if frame_kinds.any() else None
         batch = FrameBatch(
             first_index=self._next_index,
             data=frame_data,
@@ -209,6 +238,7 @@ class Framer:
             is_noise=is_noise,
             idle_before_ns=idle,
             protocol=pieces.protocol if pieces.protocol.any() else None,
+            uart_errors=frame_kinds,
         )
         self._next_index += count
         return batch

@@ -20,7 +20,7 @@ FIXED_T3_5_NS = 1_750_000.0
 MIN_BAUD = 50
 MAX_BAUD = 4_000_000
 
-_LINE_RE = re.compile(r"^\s*(\d+)\s+([5-8])([NEOMS])([12])\s*$", re.IGNORECASE)
+_LINE_RE = re.compile(r"^\s*(\d+)\s+([5-9])([NEOMS])([12])\s*$", re.IGNORECASE)
 
 
 class Parity(Enum):
@@ -50,6 +50,9 @@ class LineSettings:
     def __post_init__(self) -> None:
         if not MIN_BAUD <= self.baud <= MAX_BAUD:
             raise ValueError(f"baud rate {self.baud} is outside {MIN_BAUD}..{MAX_BAUD}")
+        if self.data_bits == 9:
+            raise ValueError("9 data bits: a 9-bit character does not fit the bytes rtusniff captures "
+                             "(Modbus RTU uses 8 data bits)")
         if not 5 <= self.data_bits <= 8:
             raise ValueError(f"data bits {self.data_bits} is outside 5..8")
         if self.stop_bits not in (1, 2):

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from decoders.capture import UartError
 from decoders.frame import FrameBatch, FrameFlag
 from decoders.framing.fast import padded_bytes
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
@@ -148,6 +149,9 @@ class Statistics:
     total_bytes: int = 0
     noise_bytes: int = 0
     crc_errors: int = 0
+    #: Characters the receiver found wrong, by kind (a character may have both).
+    uart_framing_errors: int = 0
+    uart_parity_errors: int = 0
     wire_ns: int = 0
     first_ns: int | None = None
     last_ns: int | None = None
@@ -163,6 +167,9 @@ class Statistics:
         self.total_bytes += int(lengths.sum())
         self.noise_bytes += int(lengths[noise].sum())
         self.crc_errors += int(np.count_nonzero(~frames.crc_ok & ~noise))
+        if frames.uart_errors is not None:
+            self.uart_framing_errors += int(np.count_nonzero(frames.uart_errors & UartError.FRAMING))
+            self.uart_parity_errors += int(np.count_nonzero(frames.uart_errors & UartError.PARITY))
         self.wire_ns += int((frames.t_end_ns - frames.t_start_ns).sum())
         self.first_ns = int(frames.t_start_ns[0]) if self.first_ns is None else self.first_ns
         self.last_ns = int(frames.t_end_ns[-1])
@@ -249,6 +256,7 @@ class Statistics:
             "flags": dict(sorted(self.flags.items())),
             "crc_errors": self.crc_errors,
             "noise_bytes": self.noise_bytes,
+            "uart_errors": {"framing": self.uart_framing_errors, "parity": self.uart_parity_errors},
             "per_slave_function": [
                 {"slave": slave, "function": function, **stats.to_dict()}
                 for (slave, function), stats in sorted(self.per_function.items())

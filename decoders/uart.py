@@ -18,14 +18,44 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
 
-from decoders.capture import ChunkBatch
-from decoders.line import LineSettings, Parity
+from decoders.capture import ChunkBatch, UartError
+from decoders.line import Parity
 
 Samples = npt.NDArray[np.bool_]
+
+
+class CharacterShape(Protocol):
+    """What the decoder reads of a line's settings: :class:`LineSettings` (5-8 data bits, what a
+    capture's bytes hold) or a :class:`CharacterFormat` (5-9)."""
+
+    @property
+    def baud(self) -> int: ...
+    @property
+    def data_bits(self) -> int: ...
+    @property
+    def parity(self) -> Parity: ...
+    @property
+    def stop_bits(self) -> int: ...
+
+
+@dataclass(frozen=True)
+class CharacterFormat:
+    """A UART character format of 5 to 9 data bits (9: a character's value does not fit a byte,
+    so only the decoder takes it, never a capture)."""
+
+    baud: int
+    data_bits: int
+    parity: Parity = Parity.NONE
+    stop_bits: int = 1
+
+    def __post_init__(self) -> None:
+        if not 5 <= self.data_bits <= 9:
+            raise ValueError(f"data bits {self.data_bits} is outside 5..9")
 
 
 @dataclass(frozen=True)
@@ -48,10 +78,13 @@ class UartCharacters:
 
 def character_chunks(characters: UartCharacters, *, t0_ns: int, unit_s: float) -> ChunkBatch:
     """A chunk per character (its byte: at most 8 data bits) at the end of its stop bit:
-    ``t0_ns`` plus its end in units of ``unit_s`` seconds (a sample's time, or 1.0)."""
+    ``t0_ns`` plus its end in units of ``unit_s`` seconds (a sample's time, or 1.0), with its
+    framing and parity errors."""
     ends = t0_ns + np.round(characters.end_samples * (unit_s * 1e9)).astype(np.int64)
     data = (characters.values & 0xFF).astype(np.uint8).tobytes()
-    return ChunkBatch(data, np.arange(1, len(data) + 1, dtype=np.int64), ends)
+    kinds = (characters.framing_errors * np.uint8(UartError.FRAMING)
+             | characters.parity_errors * np.uint8(UartError.PARITY)).astype(np.uint8)
+    return ChunkBatch(data, np.arange(1, len(data) + 1, dtype=np.int64), ends, kinds if kinds.any() else None)
 
 
 def merge_characters(parts: list[UartCharacters]) -> UartCharacters:
@@ -76,7 +109,7 @@ def _empty() -> UartCharacters:
 class UartDecoder:
     """Decodes a line's samples piece by piece (``feed``), in order; ``samplerate`` in Hz."""
 
-    line: LineSettings
+    line: CharacterShape
     samplerate: float
     inverted: bool = False
     #: Samples kept from the last piece (a character may start there) and the absolute number
@@ -138,7 +171,7 @@ class UartDecoder:
         return read_characters(self.line, at, absolute, absolute + self._slots * width)
 
 
-def read_characters(line: LineSettings, at: Callable[[float], Samples], starts: npt.NDArray[np.float64],
+def read_characters(line: CharacterShape, at: Callable[[float], Samples], starts: npt.NDArray[np.float64],
                     ends: npt.NDArray[np.float64]) -> UartCharacters:
     """The characters whose start bits begin at ``starts``: their data bits (least significant
     first), parity and stop bits read by ``at(slot)``, the line at the middle of a bit slot of
@@ -187,7 +220,7 @@ def shortest_pulse_baud(level: Samples, samplerate: float) -> int | None:
     return best if abs(best - measured) / best < 0.08 else None
 
 
-def decode_transitions(times_s: npt.NDArray[np.float64], levels: npt.NDArray[np.bool_], line: LineSettings,
+def decode_transitions(times_s: npt.NDArray[np.float64], levels: npt.NDArray[np.bool_], line: CharacterShape,
                        *, inverted: bool = False) -> UartCharacters:
     """UART characters of a line given as its transitions (``levels[i]`` from ``times_s[i]`` on,
     the first row the level where the recording starts), as a logic analyzer exports them

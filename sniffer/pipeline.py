@@ -265,14 +265,7 @@ class ChunkSpan:
             begin = 0 if self._skipped_ns is None else int(np.searchsorted(times, self._skipped_ns, "right"))
             end = begin if self.last_ns is None else max(int(np.searchsorted(times, self.last_ns, "right")), begin)
             if end > begin:
-                released.append(_chunk_slice(chunks, begin, end))
+                released.append(chunks.slice(begin, end))
             if end < len(chunks) and not final:
-                self._pending.append(_chunk_slice(chunks, end, len(chunks)))
+                self._pending.append(chunks.slice(end, len(chunks)))
         return released
-
-
-def _chunk_slice(chunks: ChunkBatch, start: int, stop: int) -> ChunkBatch:
-    starts = chunks.starts
-    begin = int(starts[start]) if start < len(chunks) else len(chunks.data)
-    end = int(chunks.ends[stop - 1]) if stop > start else begin
-    return ChunkBatch(chunks.data[begin:end], chunks.ends[start:stop] - begin, chunks.t_end_ns[start:stop])

@@ -74,6 +74,17 @@ def test_ascii_values_errors_and_other_rows(cli: Cli, tmp_path: Path) -> None:
     frames = [r for r in result.jsonl() if r["kind"] == "frame"]
     assert "".join(f["hex"] for f in frames) == "480d41"
     assert "1 characters with a framing or parity error" in result.err
+    marked = [(f["hex"], f["uart_errors"]) for f in frames if "uart_errors" in f]
+    assert marked and marked[-1][1][-1] == {"at": len(marked[-1][0]) // 2 - 1, "error": "framing"}
+
+
+def test_logic1_error_columns_mark_their_characters(cli: Cli, tmp_path: Path) -> None:
+    csv = tmp_path / "logic1.csv"
+    csv.write_text("Time [s],Value,Parity Error,Framing Error\n0.001,0x01,,\n0.0016,0x03,1,\n"
+                   "0.0022,0x00,,1\n0.0028,0x01,1,1\n")
+    frames = [r for r in cli("analyze", str(csv), *LINE, "--format", "jsonl").jsonl() if r["kind"] == "frame"]
+    marks = [m["error"] for f in frames for m in f.get("uart_errors", [])]
+    assert marks == ["parity", "framing", "framing+parity"]
 
 
 @pytest.mark.parametrize(("rows", "code", "words"), [

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from decoders.line import LineSettings
+from decoders.uart import CharacterFormat, UartDecoder
 from sniffer.io.base import ReaderOptions
 from sniffer.io.sigrok_session import SigrokSessionReader
 from tests.conftest import ROOT, CliResult
@@ -28,7 +29,8 @@ EXPECTED = SHARED_REAL / "sigrok-test" / "uart"
 TEXT = SHARED_REAL / "sigrok-cli-text"
 Cli = Callable[..., CliResult]
 PARITY = {"none": "N", "even": "E", "odd": "O", "mark": "M", "space": "S"}
-#: sigrok's UART decoder options rtusniff's capture model has no room for.
+#: sigrok's UART decoder options rtusniff's capture model has no room for (9 data bits: the
+#: decoder alone, test_nine_data_bits_decode_as_sigrok_expects).
 UNSUPPORTED = {"parity=ignore", "data_bits=9", "invert_rx=yes", "invert_tx=yes"}
 
 pytestmark = pytest.mark.skipif(not SIGROK.exists(), reason="../shared/real is not beside the checkout")
@@ -103,13 +105,16 @@ def test_uart_decodes_as_sigrok_expects(name: str, session: str, channel: int, p
     line = LineSettings.parse(f"{options.get('baudrate', '115200')} {options.get('data_bits', '8')}"
                               f"{PARITY[options.get('parity', 'none')]}{int(float(options.get('stop_bits', '1')))}")
     reader = SigrokSessionReader(session, ReaderOptions(line=line, channels=(probe_name(session, channel),)))
-    values, ends = [], []
+    values, ends, kinds = [], [], []
     for batch in reader.batches():
         values += list(batch.data)
         ends += batch.t_end_ns.tolist()
+        kinds += batch.error_kinds().tolist()
     reader.close()
     expected = expected_frames(python)
     assert values == [value for _, _, value, _ in expected], name
+    # Each character sigrok calls invalid (parity or stop bit wrong) carries its error in the capture.
+    assert [kind != 0 for kind in kinds] == [not valid for *_, valid in expected], name
     rate = reader._rate
     t0 = reader._t0_ns
     # Each character ends where sigrok's frame ends, to a sample and a half (sigrok rounds the
@@ -208,3 +213,83 @@ def test_sigrok_cli_annotations_read_as_captures(cli: Cli, tmp_path: Path, *, na
     assert bytes.fromhex("".join(str(f["hex"]) for f in frames)) == bytes(v & 0xFF for _, _, v, _ in expected)
     errors = sum(1 for *_, valid in expected if not valid)
     assert (errors > 0) == ("error annotations" in result.err)
+    # Each invalid character is marked where sigrok's annotations say it failed.
+    assert sum(len(f.get("uart_errors", [])) for f in frames) == errors
+
+
+def test_nine_data_bits_decode_as_sigrok_expects(cli: Cli) -> None:
+    """9 data bits: the decoder reads what sigrok expects; a capture of bytes cannot hold them,
+    which --line says in one line."""
+    session = SIGROK / "uart" / "counter" / "uart_count_19200_9n1.sr"
+    with zipfile.ZipFile(session) as archive:
+        parts = sorted((n for n in archive.namelist() if n.startswith("logic-1")),
+                       key=lambda n: int(n.rsplit("-", 1)[1]))
+        samples = np.concatenate([np.frombuffer(archive.read(n), "<u2") for n in parts])  # unitsize=2
+        assert "samplerate=500 kHz" in archive.read("metadata").decode()
+    decoder = UartDecoder(CharacterFormat(19200, 9), 500e3)
+    characters = decoder.feed((samples & 1).astype(np.bool_))
+    expected = expected_frames("uart_count_19200_9n1.python")
+    assert characters.values.tolist() == [value for _, _, value, _ in expected]
+    assert max(characters.values) > 0xFF
+    assert np.all(np.abs(characters.end_samples - [end for _, end, _, _ in expected]) <= 1.5)
+    refused = cli("analyze", str(session), "--line", "19200 9N1")
+    assert refused.code == 2 and refused.err.count("\n") == 1 and "9 data bits" in refused.err
+
+
+FRAME_ERRORS = SIGROK / "uart" / "errors" / "ampel64_4800_8n1_frame_errors.sr"
+
+
+def test_framing_errors_reach_frames_stats_and_captures(cli: Cli, tmp_path: Path) -> None:
+    """A real line with framing errors: each character with one marks its frame (flag, byte
+    position), stats count them, and the text and MCAP captures carry them both ways."""
+    reader = SigrokSessionReader(str(FRAME_ERRORS), ReaderOptions(line=LineSettings.parse("4800 8N1")))
+    kinds = np.concatenate([batch.error_kinds() for batch in reader.batches()])
+    reader.close()
+    assert int(np.count_nonzero(kinds)) == 3
+    analyzed = cli("analyze", str(FRAME_ERRORS), "--line", "4800 8N1", "--format", "jsonl")
+    frames = [r for r in analyzed.jsonl() if r["kind"] == "frame"]
+    marks = [(f["index"], m["at"], m["error"]) for f in frames for m in f.get("uart_errors", [])]
+    assert len(marks) == 3 and {error for *_, error in marks} == {"framing"}
+    assert all("uart_error" in f["flags"] for f in frames if f.get("uart_errors"))
+    assert all("uart_error" not in f["flags"] for f in frames if not f.get("uart_errors"))
+    # The marked bytes are the ones the session marks, wherever the framer put them.
+    joined = bytes.fromhex("".join(f["hex"] for f in frames))
+    offsets = np.cumsum([0] + [len(f["hex"]) // 2 for f in frames])
+    assert sorted(int(offsets[i]) + at for i, at, _ in marks) == np.flatnonzero(kinds).tolist()
+    assert len(joined) == len(kinds)
+    summary = analyzed.jsonl()[-1]
+    assert summary["uart_errors"] == {"framing": 3, "parity": 0} and summary["flags"]["uart_error"] >= 1
+    table = cli("analyze", str(FRAME_ERRORS), "--line", "4800 8N1")
+    assert "UART framing error at byte" in table.out
+    stats = cli("stats", str(FRAME_ERRORS), "--line", "4800 8N1")
+    assert re.search(r"uart_framing_errors\s+3", stats.out)
+    text, mcap, back = tmp_path / "errors.log", tmp_path / "errors.mcap", tmp_path / "back.log"
+    assert cli("convert", str(FRAME_ERRORS), str(text), "--line", "4800 8N1").code == 0
+    assert text.read_text().count("# uart-errors: ") == 3
+    assert cli("convert", str(text), str(mcap)).code == 0
+    assert cli("convert", str(mcap), str(back)).code == 0
+    assert back.read_text().splitlines()[3:] == text.read_text().splitlines()[3:]
+    exported = tmp_path / "exported.mcap"
+    assert cli("export", str(FRAME_ERRORS), "--line", "4800 8N1", "--mcap", str(exported)).code == 0
+    for capture in (text, mcap, exported):
+        again = cli("analyze", str(capture), "--format", "jsonl")
+        assert [f.get("uart_errors") for f in again.jsonl() if f["kind"] == "frame"] == \
+            [f.get("uart_errors") for f in frames]
+
+
+GLITCHES = sorted((SIGROK / "uart" / "errors").glob("glitch_*.sr"))
+
+
+@pytest.mark.parametrize("session", GLITCHES, ids=[g.stem for g in GLITCHES])
+def test_glitches_on_a_real_line_leave_the_characters(cli: Cli, session: Path) -> None:
+    """Recordings of characters (named in the file) with spikes on the line, at 115200 Bd: a
+    spike before a start bit starts nothing; one at a bit's middle sample flips that bit, as
+    in any UART that samples once per bit (two of the sixteen)."""
+    result = cli("analyze", str(session), "--line", "115200 8N1", "--format", "jsonl")
+    assert result.code == 0, result.err
+    got = bytes.fromhex("".join(r["hex"] for r in result.jsonl() if r["kind"] == "frame"))
+    named = bytes(int(part, 16) for part in re.findall(r"0x([0-9a-f]{2})", session.stem))
+    assert len(got) == len(named)
+    flipped = [bin(a ^ b).count("1") for a, b in zip(got, named, strict=True)]
+    assert all(bits <= 1 for bits in flipped)
+    assert (sum(flipped) == 1) == (session.stem in ("glitch_0x4f_2", "glitch_0x53"))

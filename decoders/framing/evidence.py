@@ -31,6 +31,15 @@ damaged frame          -10     a plausible header whose frame fails its CRC; all
                                much as a pause inside it costs), +3 when it is the answer
                                the open request awaits (same slave and function)
 USS telegram           +12     BCC (8 bits) plus STX and a NORD PPO length (4 bits)
+framing error, noise   +2      a character the receiver saw with a framing error (a logic
+                               analyzer's capture): a spike or a break on an idle line reads
+                               as one, so as noise it costs 2 bits less, and the byte after
+                               it is a supported boundary (a damaged frame may start there)
+framing error at a     -4      a damaged frame whose first byte had a framing error: likelier
+damaged frame's start          a glitch before the frame than its slave address (a CRC-valid
+                               reading is not weighed: its CRC proves its bytes, and RS485
+                               drivers that turn off early give valid frames a last byte
+                               with a framing error)
 =====================  ======  ===============================================================
 
 A length found by CRC search counts only between supported boundaries too: its
@@ -77,6 +86,8 @@ PAUSE_INSIDE = -4.0
 DAMAGED = -10.0
 DAMAGED_FITS_RULE = 4.0
 USS_MATCH = 12.0
+FRAMING_ERROR_NOISE = 2.0
+FRAMING_ERROR_HEADER = -4.0
 
 #: Functions a master may send to address 0 (every slave acts, none answers).
 BROADCAST_FUNCTIONS = frozenset({5, 6, 8, 15, 16, 21, 22, 23})

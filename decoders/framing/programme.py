@@ -44,6 +44,8 @@ class Context:
     at_capture_end: bool = False
     #: Timing closes the segment on both sides (a hard cut before and after it).
     timed: bool = False
+    #: Positions (relative to the segment) of characters the receiver saw with a framing error.
+    framing_errors: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,9 +64,11 @@ class Region:
     #: More bytes may follow ``stop`` (only what every best path agrees on is kept).
     open_end: bool = False
     pause_set: frozenset[int] = field(init=False)
+    framing_error_set: frozenset[int] = field(init=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "pause_set", frozenset(self.context.pauses))
+        object.__setattr__(self, "framing_error_set", frozenset(self.context.framing_errors))
 
     @property
     def closed_at_stop(self) -> bool:
@@ -158,6 +162,7 @@ class _Programme:
         open_request = self.requests[s - begin]
         starts_supported = (
             (s == begin and (region.after_frame or begin == 0)) or s in region.pause_set or s in self.frame_ends
+            or s - 1 in region.framing_error_set
         )
         header = (data[s], data[s + 1]) if s + 1 < stop else (0, 0)
         pauses = region.context.pauses
@@ -173,7 +178,10 @@ class _Programme:
         after = (previous is not None and previous.kind != _NOISE) or (s == begin and region.after_frame)
         before = (s + 1 < stop and bool(self.readings[s + 1 - begin])) or (s + 1 == stop and region.before_frame)
         glitch = (after and s not in region.pause_set) or (before and s + 1 not in region.pause_set)
-        self._offer(_Edge(s, s + 1, _NOISE), here + (ev.GLITCH_BYTE if glitch else ev.NOISE_BYTE))
+        noise = ev.GLITCH_BYTE if glitch else ev.NOISE_BYTE
+        if s in region.framing_error_set:
+            noise += ev.FRAMING_ERROR_NOISE
+        self._offer(_Edge(s, s + 1, _NOISE), here + noise)
         # Where a valid frame starts, no damaged one does: its bytes pass the CRC.
         if starts_supported and not self.readings[s - begin]:
             for edge, score in self._damaged_at(s, open_request):
@@ -202,9 +210,11 @@ class _Programme:
         ends = boundaries | {b - 1 for b in boundaries}
         at_capture_end = region.context.at_capture_end and region.context.closed
         edges = []
+        header = ev.FRAMING_ERROR_HEADER if s in region.framing_error_set else 0.0
         for end in sorted(e for e in ends if e - s >= MIN_ADU):
             flags, fits = ev.damaged_flags(data[s:end], open_request=open_request, at_capture_end=at_capture_end)
             score = ev.DAMAGED + (ev.DAMAGED_FITS_RULE if fits else 0.0) + pauses_in(pauses, s, end) * ev.PAUSE_INSIDE
+            score += header
             if open_request == (data[s], data[s + 1]):
                 score += ev.EXPECTED_DIRECTION  # the answer the open request awaits, damaged or cut short
             edges.append((_Edge(s, end, _DAMAGED, flags), score))

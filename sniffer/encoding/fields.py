@@ -22,6 +22,8 @@ class Field:
     #: The JSON schema types the value may have.
     types: tuple[str, ...]
     meaning: str
+    #: Only in some records (after the others, in this order), absent from the rest.
+    optional: bool = False
 
 
 FRAME_FIELDS: tuple[Field, ...] = (
@@ -44,6 +46,10 @@ FRAME_FIELDS: tuple[Field, ...] = (
     Field("summary", ("string",), "one human-readable line"),
     Field("protocol", ("string",), "modbus or uss"),
     Field("remarks", ("array",), "what the device profile says about the frame"),
+    Field("uart_errors", ("array",), "characters the receiver found wrong: byte position and error", optional=True),
 )
 
-FRAME_FIELD_NAMES = tuple(field.name for field in FRAME_FIELDS)
+#: The fields every frame record has, in order.
+FRAME_FIELD_NAMES = tuple(field.name for field in FRAME_FIELDS if not field.optional)
+#: The fields some frame records add after those.
+OPTIONAL_FRAME_FIELD_NAMES = tuple(field.name for field in FRAME_FIELDS if field.optional)

@@ -9,8 +9,8 @@ import numpy as np
 import numpy.typing as npt
 import orjson
 
-from decoders.capture import CaptureInfo
-from decoders.frame import PROTOCOL_NAMES, FrameFlag, flag_set
+from decoders.capture import CaptureInfo, uart_error_name
+from decoders.frame import PROTOCOL_NAMES, FrameBatch, FrameFlag, flag_set
 from decoders.line import LineSettings
 from decoders.memo import Memo
 from decoders.message import (
@@ -92,7 +92,29 @@ def frame_record(message: Message) -> dict[str, Any]:
         "summary": message.summary,
         "protocol": PROTOCOL_NAMES[frame.protocol],
         "remarks": list(message.remarks),
+        **({"uart_errors": uart_error_records(frame.uart_errors)} if frame.uart_errors else {}),
     }
+
+
+def uart_error_records(marks: tuple[tuple[int, int], ...]) -> list[dict[str, Any]]:
+    """``uart_errors`` of a frame record: each character the receiver found wrong, by its
+    byte's position in ``hex``."""
+    return [{"at": position, "error": uart_error_name(kind)} for position, kind in marks]
+
+
+def uart_error_column(frames: FrameBatch, kept: npt.NDArray[np.int64]) -> list[Column]:
+    """The ``,"uart_errors":[...]`` member of each kept frame's record (empty for frames
+    without) as a column; no column when no kept frame has one (a capture without UART errors)."""
+    if frames.uart_errors is None:
+        return []
+    marked = (frames.flags[kept] & FrameFlag.UART_ERROR) != 0
+    if not marked.any():
+        return []
+    rows = frames.rows()
+    return [[
+        b',"uart_errors":' + encode_json(uart_error_records(rows[position].uart_errors)) if flagged else b""
+        for position, flagged in zip(kept.tolist(), marked.tolist(), strict=True)
+    ]]
 
 
 _PROTOCOL_JSON = {code: f'"{name}"' for code, name in PROTOCOL_NAMES.items()}
@@ -139,7 +161,7 @@ class FrameRecordEncoder:
             b',"flags":', _FLAGS_JSON.column(messages.flags[kept]),
             b',"request_index":', or_null(number_texts(requests), requests, NONE),
             b',"latency_s":', *self._seconds(latencies, NONE),
-            b",", tails, b"}" + end,
+            b",", tails, *uart_error_column(frames, kept), b"}" + end,
         ]  # fmt: skip
         return join_rows(columns, len(positions), reserved)
 
@@ -168,9 +190,9 @@ class FrameRecordEncoder:
         )  # fmt: skip
         decodings, facts = batch.decodings_at(positions), _FrameFacts(batch.messages)
         tails = self._tails.get_all(
-            decodings, lambda row: b",".join(self._frame_parts(facts, positions[row], decodings[row])) + b"}"
+            decodings, lambda row: b",".join(self._frame_parts(facts, positions[row], decodings[row]))
         )
-        return join_rows([rows, tails] + ([end] if end else []), len(positions), reserved)
+        return join_rows([rows, tails, *uart_error_column(frames, kept), b"}" + end], len(positions), reserved)
 
     def _times(self, t_start: npt.NDArray[np.int64], t_end: npt.NDArray[np.int64]) -> list[Column]:
         return [

@@ -1,6 +1,6 @@
 """What the exported logs (Foxglove's and Rerun's) say about each frame beyond its summary: a
 level — ERROR for CRC errors, timeouts and exceptions; WARNING for noise, timing and retry
-flags and unexpected answers; INFO for the rest (numbers are ``foxglove.Log`` levels) — and
+flags, unexpected answers and UART errors; INFO for the rest (numbers are ``foxglove.Log`` levels) — and
 its flags as a suffix of the log text."""
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ from decoders.message import ROLE_CODE, MessageBatch, Role
 INFO, WARNING, ERROR = 2, 3, 4
 #: Flags come as ints from the columns: no enum arithmetic on the hot path.
 TIMEOUT = int(FrameFlag.TIMEOUT)
-WARNING_FLAGS = int(FrameFlag.GAP_1_5 | FrameFlag.SHORT_IDLE | FrameFlag.RETRY | FrameFlag.UNEXPECTED)
+WARNING_FLAGS = int(FrameFlag.GAP_1_5 | FrameFlag.SHORT_IDLE | FrameFlag.RETRY | FrameFlag.UNEXPECTED
+                    | FrameFlag.UART_ERROR)
 #: `` [gap_1_5 retry]`` by flag value; empty without flags.
 FLAG_SUFFIXES = [f" [{' '.join(FrameFlag(value).names)}]" if value else "" for value in range(1 << len(FrameFlag))]
 

@@ -46,12 +46,17 @@ from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, Message
 from sniffer.exports.published import PublishedValues, plotted
 from sniffer.exports.transactions import OUTCOMES, TransactionEncoder
 from sniffer.io.mcap_native import (
+    ERRORS_ENCODING,
+    ERRORS_LAYOUT_DOC,
+    ERRORS_TOPIC,
     LAYOUT_DOC,
     MESSAGE_ENCODING,
     METADATA_NAME,
     PROFILE,
     TOPIC,
-    encode_blocks,
+    block_batches,
+    encode_block,
+    encode_errors,
     info_metadata,
 )
 
@@ -82,6 +87,9 @@ FRAME_SCHEMA: dict[str, Any] = {
     },
 }  # fmt: skip
 FRAME_SCHEMA["required"] = list(FRAME_SCHEMA["properties"])
+#: Only on a frame with a character the receiver found wrong (optional: not required).
+FRAME_SCHEMA["properties"]["uart_errors"] = {"type": "array", "items": {"type": "object", "properties": {
+    "at": {"type": "integer"}, "error": {"type": "string", "enum": ["framing", "parity", "framing+parity"]}}}}
 TRANSACTION_SCHEMA: dict[str, Any] = {
     "title": "rtusniff.Transaction",
     "type": "object",
@@ -128,6 +136,7 @@ class McapExporter:
             export = {**metadata, "line": line.format(), "timing": info.timing.value, "tool": tool}
             self._writer.add_metadata("rtusniff.export", export)
             self._raw = self._writer.add_channel(TOPIC, MESSAGE_ENCODING, 0, {"layout": LAYOUT_DOC})
+            self._errors_channel: int | None = None
             self._frames = self._json_channel("/modbus/frames", FRAME_SCHEMA)
             self._transactions = self._json_channel("/modbus/transactions", TRANSACTION_SCHEMA)
             log_schema = self._writer.add_schema(
@@ -154,9 +163,23 @@ class McapExporter:
         return self._writer.add_channel(topic, "json", schema_id, {})
 
     def raw(self, batch: ChunkBatch) -> None:
-        blocks = list(encode_blocks(batch))
-        rows = join_rows([[payload for _, payload in blocks]], len(blocks), HEADER_SIZE)
-        self._write(rows, self._raw, np.array([t_first for t_first, _ in blocks], np.int64))
+        """The capture's chunks as the native capture has them (so the export reads back as a
+        capture), each block's UART errors just before it on their own channel."""
+        payloads, channels, times = [], [], []
+        for block in block_batches(batch):
+            t_first = int(block.t_end_ns[0])
+            if block.uart_errors is not None:
+                if self._errors_channel is None:
+                    self._errors_channel = self._writer.add_channel(ERRORS_TOPIC, ERRORS_ENCODING, 0,
+                                                                    {"layout": ERRORS_LAYOUT_DOC})
+                payloads.append(encode_errors(block.uart_errors))
+                channels.append(self._errors_channel)
+                times.append(t_first)
+            payloads.append(encode_block(block))
+            channels.append(self._raw)
+            times.append(t_first)
+        rows = join_rows([payloads], len(payloads), HEADER_SIZE)
+        self._write(rows, np.array(channels, np.uint16), np.array(times, np.int64))
 
     def messages(self, batch: AnnotatedBatch) -> None:
         positions = batch.positions()

@@ -18,7 +18,8 @@ from typing import BinaryIO
 
 import numpy as np
 
-from decoders.frame import flag_set
+from decoders.damage import uart_error_note
+from decoders.frame import FrameFlag, flag_set
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
 
 LINKTYPE_USER0 = 147
@@ -108,7 +109,7 @@ def pcapng_blocks(batch: MessageBatch) -> bytes:
     goes out from the master, an answer comes in) and a comment saying what rtusniff made of it."""
     frames = batch.frames
     blocks = []
-    data, offsets = frames.data, frames.offsets.tolist()
+    data, offsets, frame_rows = frames.data, frames.offsets.tolist(), frames.rows()
     columns = zip(frames.t_start_ns.tolist(), batch.role.tolist(), batch.request_index.tolist(),
                   batch.latency_ns.tolist(), batch.flags.tolist(), strict=True)
     for position, (t_ns, role, request, latency, flags) in enumerate(columns):
@@ -118,6 +119,8 @@ def pcapng_blocks(batch: MessageBatch) -> bytes:
             comment += f" to #{request}" + (f", latency {latency / 1e6:.3f} ms" if latency != NONE else "")
         if flags:
             comment += ", " + ", ".join(flag_set(flags).names)
+        if flags & FrameFlag.UART_ERROR:
+            comment += f"; {uart_error_note(frame_rows[position].uart_errors)}"
         body = struct.pack("<IIIII", 0, t_ns >> 32, t_ns & 0xFFFFFFFF, len(payload), len(payload))
         body += payload + bytes(-len(payload) % 4)
         body += _option(_EPB_FLAGS, struct.pack("<I", _DIRECTIONS.get(role, 0))) + \

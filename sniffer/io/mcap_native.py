@@ -6,6 +6,14 @@ One MCAP message on topic ``/rtusniff/raw_chunks`` carries a block of up to
     u32 count | i64[count] t_end_ns | u32[count] length | bytes data
 
 so a day-long capture is a few thousand messages and reading it is numpy work.
+
+Characters the receiver found wrong (framing, parity: :class:`decoders.capture.UartError`)
+travel on a second topic, ``/rtusniff/uart_errors``, registered only when a capture has
+some: a message there, written just before the block it belongs to, carries::
+
+    u32 count | u32[count] offset of the byte in the block's data | u8[count] kind
+
+A reader that knows only the first topic reads every byte as before (it skips the channel).
 Line settings, timing quality and notes are the MCAP metadata record
 ``rtusniff.capture``, written before any block, so that a file cut short still
 says how to read it. The file is read as a stream (no seeking), which also reads
@@ -19,10 +27,12 @@ import json
 import os
 import struct
 from collections.abc import Iterator
+from dataclasses import replace
 from importlib.metadata import version
 from typing import BinaryIO
 
 import numpy as np
+import numpy.typing as npt
 from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata
@@ -43,6 +53,10 @@ FORMAT_VERSION = "1"
 BLOCK_CHUNKS = 4096
 _COUNT = struct.Struct("<I")
 LAYOUT_DOC = "u32 count | i64[count] t_end_ns | u32[count] length | bytes data (little-endian)"
+ERRORS_TOPIC = "/rtusniff/uart_errors"
+ERRORS_ENCODING = "rtusniff.uart-errors.v1"
+ERRORS_LAYOUT_DOC = ("u32 count | u32[count] byte offset in the next block's data | u8[count] kind "
+                     "(1 framing, 2 parity; little-endian)")
 
 
 def encode_block(batch: ChunkBatch) -> bytes:
@@ -69,6 +83,29 @@ def decode_block(payload: bytes) -> ChunkBatch:
     if count and (np.any(np.diff(times) < 0)):
         raise ValueError("chunk times decrease inside a block")
     return ChunkBatch(payload[data_start:], ends, times)
+
+
+def encode_errors(kinds: npt.NDArray[np.uint8]) -> bytes:
+    """The ``/rtusniff/uart_errors`` payload for a block's per-byte kinds."""
+    offsets = np.flatnonzero(kinds)
+    return b"".join([_COUNT.pack(len(offsets)), offsets.astype("<u4").tobytes(), kinds[offsets].tobytes()])
+
+
+def decode_errors(payload: bytes, size: int) -> npt.NDArray[np.uint8]:
+    """Per-byte kinds of a block of ``size`` bytes from its errors payload; ``ValueError`` if
+    it is inconsistent."""
+    if len(payload) < _COUNT.size:
+        raise ValueError("errors message shorter than its header")
+    (count,) = _COUNT.unpack_from(payload)
+    if len(payload) != _COUNT.size + 5 * count:
+        raise ValueError(f"errors message announces {count} bytes but is {len(payload)} bytes long")
+    offsets = np.frombuffer(payload, "<u4", count, _COUNT.size).astype(np.int64)
+    marks = np.frombuffer(payload, np.uint8, count, _COUNT.size + 4 * count)
+    if count and (int(offsets.max()) >= size or int(marks.min()) == 0 or int(marks.max()) > 3):
+        raise ValueError("errors message names a byte outside its block or an unknown kind")
+    kinds = np.zeros(size, np.uint8)
+    kinds[offsets] = marks
+    return kinds
 
 
 def info_metadata(info: CaptureInfo) -> dict[str, str]:
@@ -100,14 +137,27 @@ class McapCaptureWriter:
         self._channel = self._writer.register_channel(
             topic=TOPIC, message_encoding=MESSAGE_ENCODING, schema_id=0, metadata={"layout": LAYOUT_DOC}
         )
+        self._errors_channel: int | None = None
         self._sequence = 0
 
     def write_batch(self, batch: ChunkBatch) -> None:
-        for t_first, payload in encode_blocks(batch):
-            self._writer.add_message(
-                channel_id=self._channel, log_time=t_first, publish_time=t_first, data=payload, sequence=self._sequence
-            )
-            self._sequence += 1
+        for block in block_batches(batch):
+            t_first = int(block.t_end_ns[0])
+            if block.uart_errors is not None:
+                self._add(self._errors_channel_id(), t_first, encode_errors(block.uart_errors))
+            self._add(self._channel, t_first, encode_block(block))
+
+    def _add(self, channel: int, t_ns: int, payload: bytes) -> None:
+        self._writer.add_message(channel_id=channel, log_time=t_ns, publish_time=t_ns, data=payload,
+                                 sequence=self._sequence)
+        self._sequence += 1
+
+    def _errors_channel_id(self) -> int:
+        if self._errors_channel is None:
+            self._errors_channel = self._writer.register_channel(
+                topic=ERRORS_TOPIC, message_encoding=ERRORS_ENCODING, schema_id=0,
+                metadata={"layout": ERRORS_LAYOUT_DOC})
+        return self._errors_channel
 
     def add_notes(self, notes: list[str]) -> None:
         if notes:
@@ -131,19 +181,10 @@ class McapCaptureWriter:
             self._file.close()
 
 
-def encode_blocks(batch: ChunkBatch) -> Iterator[tuple[int, bytes]]:
-    """The message payloads for a batch of chunks, with their time (the first chunk's end)."""
+def block_batches(batch: ChunkBatch) -> Iterator[ChunkBatch]:
+    """A batch of chunks in blocks of at most ``BLOCK_CHUNKS``, one message each."""
     for start in range(0, len(batch), BLOCK_CHUNKS):
-        block = _slice(batch, start, start + BLOCK_CHUNKS)
-        yield int(block.t_end_ns[0]), encode_block(block)
-
-
-def _slice(batch: ChunkBatch, start: int, stop: int) -> ChunkBatch:
-    if start == 0 and stop >= len(batch):
-        return batch
-    ends = batch.ends[start:stop]
-    first = int(batch.ends[start - 1]) if start else 0
-    return ChunkBatch(batch.data[first : int(ends[-1])], ends - first, batch.t_end_ns[start:stop])
+        yield batch.slice(start, start + BLOCK_CHUNKS)
 
 
 class McapCaptureReader:
@@ -157,6 +198,7 @@ class McapCaptureReader:
         # longer than the file.
         self._records = StreamReader(self._file, record_size_limit=max(self._size, 1)).records
         self._channel_ids: set[int] = set()
+        self._errors_channel_ids: set[int] = set()
         self._good = 0
         self.late_notes: list[str] = []
         #: Said once reading is done: e.g. a recording that was cut short.
@@ -229,16 +271,26 @@ class McapCaptureReader:
         return CaptureInfo(line=line, timing=timing, notes=notes)
 
     def batches(self) -> Iterator[ChunkBatch]:
+        errors: Message | None = None  # the UART errors of the next block
         for record in self._iter:
             if isinstance(record, Channel) and record.topic == TOPIC:
                 if record.message_encoding != MESSAGE_ENCODING:
                     raise self._error(f"channel {TOPIC} has unknown encoding {record.message_encoding!r}")
                 self._channel_ids.add(record.id)
+            elif isinstance(record, Channel) and record.topic == ERRORS_TOPIC:
+                if record.message_encoding != ERRORS_ENCODING:
+                    raise self._error(f"channel {ERRORS_TOPIC} has unknown encoding {record.message_encoding!r}")
+                self._errors_channel_ids.add(record.id)
+            elif isinstance(record, Message) and record.channel_id in self._errors_channel_ids:
+                errors = record
             elif isinstance(record, Message) and record.channel_id in self._channel_ids:
                 try:
                     batch = decode_block(record.data)
+                    if errors is not None:
+                        batch = replace(batch, uart_errors=decode_errors(errors.data, len(batch.data)))
                 except ValueError as exc:
                     raise self._error(f"bad chunk block (sequence {record.sequence}): {exc}") from None
+                errors = None
                 if len(batch):
                     yield batch
             elif isinstance(record, Metadata) and record.name == NOTES_METADATA_NAME:

@@ -13,8 +13,10 @@ Two layouts, told apart by their header line:
 
 A logic analyzer's times: ``exact`` timing. The exports carry no date: times are seconds from
 the capture's start, on 1970-01-01 (the notes say so). They carry no line settings either:
-``--line`` gives them. Characters with an error are kept, counted in a warning. A row that cannot
-be read is one error naming the file and its line.
+``--line`` gives them. Characters with an error are kept with it (a parity error where the text
+names parity, a framing error where it names framing or anything else the analyzer reports: the
+character cannot be trusted) and counted in a warning. A row that cannot be read is one error
+naming the file and its line.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from typing import TextIO
 
 import numpy as np
 
-from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality, UartError
 from decoders.uart import character_chunks, decode_transitions
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ReaderOptions, channel_number
@@ -139,7 +141,7 @@ class SaleaeCsvReader:
 
     def batches(self) -> Iterator[ChunkBatch]:
         times: list[int] = []
-        values = bytearray()
+        values, kinds = bytearray(), bytearray()
         previous, errors = -1, 0
         for end, value, error in self._characters():
             if end < previous:
@@ -148,11 +150,12 @@ class SaleaeCsvReader:
             errors += bool(error)
             times.append(end)
             values.append(value)
+            kinds.append(error_kind(error))
             if len(values) >= BATCH_CHUNKS:
-                yield _batch(times, values)
-                times, values = [], bytearray()
+                yield _batch(times, values, kinds)
+                times, values, kinds = [], bytearray(), bytearray()
         if values:
-            yield _batch(times, values)
+            yield _batch(times, values, kinds)
         if errors:
             self.warnings.append(f"{self.path}: {errors} characters with a framing or parity error; kept as read")
 
@@ -163,8 +166,19 @@ class SaleaeCsvReader:
         self._file.close()
 
 
-def _batch(times: list[int], values: bytearray) -> ChunkBatch:
-    return ChunkBatch(bytes(values), np.arange(1, len(values) + 1, dtype=np.int64), np.array(times, np.int64))
+def error_kind(text: str) -> int:
+    """The :class:`UartError` kind of an analyzer's error text (see the module docstring)."""
+    if not text:
+        return UartError.NONE
+    lowered = text.lower()
+    kind = (UartError.PARITY if "parity" in lowered else 0) | (UartError.FRAMING if "fram" in lowered else 0)
+    return int(kind or UartError.FRAMING)
+
+
+def _batch(times: list[int], values: bytearray, kinds: bytearray) -> ChunkBatch:
+    marks = np.frombuffer(bytes(kinds), np.uint8)
+    return ChunkBatch(bytes(values), np.arange(1, len(values) + 1, dtype=np.int64), np.array(times, np.int64),
+                      marks if marks.any() else None)
 
 
 class SaleaeDigitalReader:

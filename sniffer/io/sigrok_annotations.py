@@ -11,7 +11,10 @@ Each ``rx-data`` / ``tx-data`` line is a character, its value as sigrok's ``form
 lines merge in time order. The text has sample numbers, not times: the sample rate is read from
 the data annotations, which span the data bits (``--line`` says how many, and the baud rate), and
 each character ends its parity and stop bits after its data. Times are seconds from the
-recording's start (no date). ``*-parity-err`` and ``*-frame-err`` lines are counted in a warning.
+recording's start (no date). A ``*-parity-err`` line marks the character of its direction just
+read with a parity error; a ``*-warning`` line saying "Frame error" (sigrok's stop-bit check),
+a ``*-frame-err`` or a ``*-break`` line marks it with a framing error; all are counted in a
+warning. An error line with no character of its direction before it is counted only.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from typing import TextIO
 
 import numpy as np
 
-from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality, UartError
 from decoders.line import Parity
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ReaderOptions
@@ -43,7 +46,7 @@ class SigrokAnnotationsReader:
         self.warnings: list[str] = []
         try:
             with open(path, encoding="utf-8") as text:
-                starts, ends, values, self._errors = self._read(text)
+                starts, ends, values, kinds = self._read(text)
         except UnicodeDecodeError as exc:
             raise CaptureFormatError(ErrorKind.BAD_DATA, f"not text: byte 0x{exc.object[exc.start]:02X}",
                                      path=path, location=f"byte {exc.start}") from None
@@ -62,15 +65,20 @@ class SigrokAnnotationsReader:
         self._ends = np.round((np.array(ends, np.float64)[order] + tail * bit_samples) / self._rate
                               * NS_PER_S).astype(np.int64)
         self._values = np.array(values, np.uint8)[order]
+        marks = np.array(kinds, np.uint8)[order]
+        self._kinds = marks if marks.any() else None
         self.info = CaptureInfo(options.line, TimingQuality.EXACT, (
             f"sigrok-cli UART annotations {path}: sample rate {self._rate:,.0f} Hz read from the data bits' spans; "
             "times are seconds from the recording's start",))
 
-    def _read(self, text: TextIO) -> tuple[list[int], list[int], list[int], int]:
+    def _read(self, text: TextIO) -> tuple[list[int], list[int], list[int], list[int]]:
         starts: list[int] = []
         ends: list[int] = []
         values: list[int] = []
-        errors = 0
+        kinds: list[int] = []
+        #: The last character read per direction (``rx``, ``tx``): what an error line marks.
+        last: dict[str, int] = {}
+        self._errors = 0
         for number, raw in enumerate(text, start=1):
             line = raw.strip()
             if not line:
@@ -81,13 +89,18 @@ class SigrokAnnotationsReader:
                                          "and class (START-END uart: CLASS: \"TEXT\")", path=self.path,
                                          location=f"line {number}")
             kind = match[3]
+            direction = kind.split("-", 1)[0]
             if kind.endswith("-data"):
+                last[direction] = len(values)
                 starts.append(int(match[1]))
                 ends.append(int(match[2]))
                 values.append(self._value(match[4], number))
-            elif kind.endswith(("-err", "-error")):
-                errors += 1
-        return starts, ends, values, errors
+                kinds.append(0)
+            elif (error := _error_kind(kind, match[4])) is not None:
+                self._errors += 1
+                if direction in last:
+                    kinds[last[direction]] |= error
+        return starts, ends, values, kinds
 
     def _value(self, text: str, number: int) -> int:
         if len(text) == 4 and text[0] == "[" and text[3] == "]":
@@ -107,13 +120,24 @@ class SigrokAnnotationsReader:
 
     def batches(self) -> Iterator[ChunkBatch]:
         if len(self._values):
-            yield ChunkBatch(self._values.tobytes(), np.arange(1, len(self._values) + 1, dtype=np.int64), self._ends)
+            yield ChunkBatch(self._values.tobytes(), np.arange(1, len(self._values) + 1, dtype=np.int64), self._ends,
+                             self._kinds)
         if self._errors:
             self.warnings.append(f"{self.path}: {self._errors} parity or framing error annotations; the characters "
-                                 "are kept as decoded")
+                                 "are kept as decoded, marked with their errors")
 
     def last_time_ns(self) -> int | None:
         return int(self._ends[-1]) if len(self._ends) else None
 
     def close(self) -> None:
         """Read whole when opened: nothing is held."""
+
+
+def _error_kind(kind: str, text: str) -> int | None:
+    """The :class:`UartError` an annotation line reports; ``None`` for the other classes."""
+    if kind.endswith("-parity-err"):
+        return int(UartError.PARITY)
+    if kind.endswith(("-frame-err", "-frame-error", "-break")) or (
+            kind.endswith(("-warning", "-warnings")) and "frame" in text.lower()):
+        return int(UartError.FRAMING)
+    return None

@@ -189,7 +189,7 @@ class SigrokSessionReader:
         if self._framing or self._parity:
             self.warnings.append(f"{self.path}: {self._framing} characters with a framing error, {self._parity} "
                                  f"with a parity error (the first {self._first_error:.6f} s into the session); "
-                                 "kept as sampled")
+                                 "kept as sampled, each marked with its error")
 
     def _chunk_batch(self, characters: UartCharacters) -> ChunkBatch:
         errors = characters.framing_errors | characters.parity_errors

@@ -8,8 +8,8 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
-from decoders.damage import crc_note
-from decoders.frame import _NAMES_BY_VALUE, NO_IDLE
+from decoders.damage import crc_note, uart_error_note
+from decoders.frame import _NAMES_BY_VALUE, NO_IDLE, FrameFlag
 from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding, MessageBatch, Role
 from sniffer.views.clock import Clock
 from sniffer.views.layout import ALWAYS, Cells, Column
@@ -102,16 +102,22 @@ def kept_rows(batch: AnnotatedBatch) -> npt.NDArray[np.int64]:
 
 def frame_notes(messages: MessageBatch, rows: npt.NDArray[np.int64], retries: dict[int, str]) -> dict[int, str]:
     """What the summary of a frame at ``rows`` adds after its own, by position: a damaged frame's
-    CRC, a good retry's difference (``retries``). Needs no decoding."""
+    CRC, the characters the receiver found wrong, a good retry's difference (``retries``).
+    Needs no decoding."""
     frames, notes = messages.frames, {}
     broken = np.flatnonzero(~frames.crc_ok[rows] & (messages.role[rows] != _NOISE))
     positions = set(rows[broken].tolist()) | (set(retries) & set(rows.tolist()))
+    if frames.uart_errors is not None:
+        positions |= set(rows[np.flatnonzero(frames.flags[rows] & FrameFlag.UART_ERROR)].tolist())
+    frame_rows = frames.rows()
     for position in sorted(positions):
         extra = []
-        if not frames.crc_ok[position]:
+        if not frames.crc_ok[position] and messages.role[position] != _NOISE:
             note = crc_note(frames.data[frames.offsets[position] : frames.offsets[position + 1]])
             if note:
                 extra.append(note)
+        if frames.flags[position] & FrameFlag.UART_ERROR:
+            extra.append(uart_error_note(frame_rows[position].uart_errors))
         if position in retries:
             extra.append(retries[position])
         if extra:

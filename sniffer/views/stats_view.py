@@ -109,6 +109,9 @@ class StatsView(Sink):
             ("noise_bytes" if self._width is None else "noise bytes", str(s.noise_bytes)),
         ]
         joint = "_" if self._width is None else " "
+        # Only a capture that carries them (a logic analyzer's) can show UART errors.
+        rows += [(f"uart{joint}{kind}{joint}errors", str(count)) for kind, count in
+                 (("framing", s.uart_framing_errors), ("parity", s.uart_parity_errors)) if count]
         rows += [(f"role{joint}{role}", str(n)) for role, n in sorted(s.roles.items())]
         rows += [(f"flag{joint}{flag}", str(n)) for flag, n in sorted(s.flags.items())]
         layout = Layout(BUS_COLUMNS, self._width, self._colors)

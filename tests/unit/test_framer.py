@@ -122,3 +122,35 @@ def test_close_idle_emits_the_last_frame_once_the_line_is_quiet() -> None:
     assert len(framer.close_idle(end + round(line.t3_5_ns) - 10)) == 0
     assert [f.data for f in framer.close_idle(end + round(line.t3_5_ns) + 10)] == [REQUEST]
     assert len(framer.flush()) == 0
+
+
+def byte_chunks(line: LineSettings, pieces: list[tuple[bytes, float, tuple[int, ...]]]) -> list[Chunk]:
+    """A chunk per byte, back to back inside a piece; each piece after ``gap`` characters of
+    silence, its bytes at ``framing`` positions marked with a framing error."""
+    chunks, t = [], T0
+    for data, gap, framing in pieces:
+        t += round(gap * line.char_time_ns)
+        for position, byte in enumerate(data):
+            t += round(line.char_time_ns)
+            chunks.append(Chunk(t, bytes([byte]), ((0, 1),) if position in framing else ()))
+    return chunks
+
+
+@pytest.mark.parametrize("fast", [True, False])
+def test_a_glitch_with_a_framing_error_is_noise_before_a_damaged_answer(fast: bool) -> None:
+    """A spike read as a character with a framing error half a character before a damaged
+    answer: without the error the glitch would be the answer's slave address; with it, it is
+    noise and the damaged answer starts after it (README, "Framing")."""
+    line = LineSettings.parse("19200 8E1")
+    request = bytes.fromhex("010300000002") + crc_bytes(bytes.fromhex("010300000002"))
+    body = bytes.fromhex("010304000A000B")
+    damaged = bytearray(body + crc_bytes(body))
+    damaged[4] ^= 0x10
+    results = []
+    for framing in ((), (0,)):
+        chunks = byte_chunks(line, [(request, 10, ()), (b"\x00", 5, framing), (bytes(damaged), 0.5, ())])
+        framer = Framer(line, fast=fast)
+        frames = [*framer.feed(ChunkBatch.from_chunks(chunks)), *framer.flush()]
+        results.append([(f.data, f.is_noise, FrameFlag.UART_ERROR in f.flags) for f in frames])
+    assert results[0][1] == (b"\x00" + bytes(damaged), False, False)
+    assert results[1][1:] == [(b"\x00", True, True), (bytes(damaged), False, False)]

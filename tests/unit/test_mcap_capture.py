@@ -96,3 +96,42 @@ def test_not_an_mcap_at_all(tmp_path: Path) -> None:
         McapCaptureReader(str(path))
     assert caught.value.kind is ErrorKind.BAD_MCAP
     assert str(caught.value).startswith(f"{path}:byte ")
+
+
+def marked_batch(count: int) -> ChunkBatch:
+    """:func:`sample_batch` with a UART error on about one byte in fifty."""
+    batch = sample_batch(count)
+    kinds = np.random.default_rng(6).choice(np.array([0, 1, 2, 3], np.uint8), len(batch.data),
+                                            p=[0.98, 0.01, 0.005, 0.005])
+    return ChunkBatch(batch.data, batch.ends, batch.t_end_ns, kinds)
+
+
+def test_uart_errors_round_trip_and_a_plain_reader_still_reads_every_byte(tmp_path: Path) -> None:
+    path = tmp_path / "c.mcap"
+    batch = marked_batch(10_000)
+    write(path, batch)
+    reader = McapCaptureReader(str(path))
+    chunks = [c for b in reader.batches() for c in b.chunks()]
+    reader.close()
+    assert chunks == list(batch.chunks())
+    assert sum(len(c.uart_errors) for c in chunks) == int(np.count_nonzero(batch.uart_errors))
+    with path.open("rb") as f:  # a reader that knows only the chunk topic, as rtusniff's before
+        blocks = [decode_block(m.data) for _, channel, m in make_reader(f).iter_messages()
+                  if channel.topic == mcap_native.TOPIC]
+    assert b"".join(b.data for b in blocks) == batch.data
+
+
+def test_a_capture_without_uart_errors_has_no_errors_channel(tmp_path: Path) -> None:
+    path = tmp_path / "c.mcap"
+    write(path, sample_batch(100))
+    with path.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and [c.topic for c in summary.channels.values()] == [mcap_native.TOPIC]
+
+
+@pytest.mark.parametrize(("payload", "size"), [(b"", 4), (b"\x01\x00\x00\x00\x05\x00\x00\x00\x01", 4),
+                                               (b"\x01\x00\x00\x00\x00\x00\x00\x00\x09", 4),
+                                               (b"\x01\x00\x00\x00\x00\x00\x00\x00", 4)])
+def test_inconsistent_uart_errors_are_refused(payload: bytes, size: int) -> None:
+    with pytest.raises(ValueError):
+        mcap_native.decode_errors(payload, size)

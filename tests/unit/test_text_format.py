@@ -89,6 +89,9 @@ ERRORS = [
     ("# rtu-capture v1\n1.0 010 2\n", ErrorKind.BAD_DATA, 2, "two digits each"),
     ("# rtu-capture v1\n1.0\n", ErrorKind.BAD_DATA, 2, "at least one byte"),
     ("# rtu-capture v1\n1,5 01\n", ErrorKind.BAD_DATA, 2, "bad time '1,5'"),
+    ("# rtu-capture v1\n# uart-errors: 0 framing\n1.0 01\n", ErrorKind.BAD_DATA, 2, "must follow the data line"),
+    ("# rtu-capture v1\n1.0 01 02\n# uart-errors: 2 framing\n", ErrorKind.BAD_DATA, 3, "byte 2 of a line of 2 bytes"),
+    ("# rtu-capture v1\n1.0 01\n# uart-errors: 0 overrun\n", ErrorKind.BAD_DATA, 3, "bad UART error '0 overrun'"),
     (
         "# rtu-capture v1\n2.0 01\n\n1.999999999 02\n",
         ErrorKind.DECREASING_TIME,
@@ -124,3 +127,46 @@ def test_reads_nothing_after_an_error(tmp_path: Path) -> None:
     reader = TextCaptureReader(str(path))
     with pytest.raises(CaptureFormatError):
         list(reader.batches())
+
+
+MARKED = """# rtu-capture v1
+# line: 19200 8E1
+# timing: exact
+1700000000.011173964 02 03 0C 1E 00 04 27 6C
+# uart-errors: 0 framing, 7 framing+parity
+# a note between
+1700000000.022376060 02 03
+# uart-errors: 1 Parity
+"""
+
+
+def test_uart_errors_mark_the_line_above(tmp_path: Path) -> None:
+    info, batches = read(tmp_path, MARKED)
+    [batch] = batches
+    assert [c.uart_errors for c in batch.chunks()] == [((0, 1), (7, 3)), ((1, 2),)]
+    assert info.notes == ()
+
+
+def test_uart_errors_round_trip_and_plain_files_stay_plain(tmp_path: Path) -> None:
+    from sniffer.io.formats.text import TextCaptureWriter
+
+    _, [batch] = read(tmp_path, MARKED)
+    out = tmp_path / "out.log"
+    writer = TextCaptureWriter(str(out), CaptureInfo(LineSettings.parse("19200 8E1"), TimingQuality.EXACT))
+    writer.write_batch(batch)
+    writer.close()
+    assert out.read_text() == MARKED.replace("# a note between\n", "").replace("Parity", "parity")
+    plain = tmp_path / "plain.log"
+    writer = TextCaptureWriter(str(plain), CaptureInfo(LineSettings.parse("19200 8E1"), TimingQuality.EXACT))
+    _, [good] = read(tmp_path, GOOD)
+    writer.write_batch(good)
+    writer.close()
+    assert "uart-errors" not in plain.read_text()
+
+
+def test_a_batch_boundary_keeps_the_mark_with_its_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from sniffer.io.formats import text
+
+    monkeypatch.setattr(text, "BATCH_CHUNKS", 1)
+    _, batches = read(tmp_path, MARKED)
+    assert [c.uart_errors for b in batches for c in b.chunks()] == [((0, 1), (7, 3)), ((1, 2),)]

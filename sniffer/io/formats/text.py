@@ -6,6 +6,9 @@
 # timing: exact
 1700000000.011173964 02 03 0C 1E 00 04 27 6C
 ```
+A data line with characters the receiver found wrong is followed by a comment naming them
+(``# uart-errors: 3 framing, 7 parity``: 0-based byte positions in that line), which a reader
+of plain v1 keeps as a note and reads every byte as before.
 The reader stops at the first error and names the file, the line and the fault.
 """
 
@@ -20,7 +23,7 @@ from typing import BinaryIO, TextIO
 
 import numpy as np
 
-from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.capture import UART_ERROR_KINDS, CaptureInfo, ChunkBatch, TimingQuality, uart_error_name
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import CaptureFormat
@@ -32,6 +35,9 @@ _MAGIC_ANY_VERSION = re.compile(r"#\s*rtu-capture\s+v(\S+)")
 MAX_TIME_NS = 2**63 - 1
 _TIME = re.compile(r"\d+(?:\.\d{1,9})?")
 _HEADER_KEY = re.compile(r"#\s*(line|timing)\s*:\s*(.*)$", re.IGNORECASE)
+_UART_ERRORS = re.compile(r"#\s*uart-errors\s*:\s*(.*)$", re.IGNORECASE)
+_UART_MARK = re.compile(r"(\d+)\s+(framing\+parity|framing|parity)", re.IGNORECASE)
+UART_ERRORS_PREFIX = "# uart-errors: "
 NS_PER_S = 1_000_000_000
 #: Bytes read from the end of a file to find its last time (progress).
 TAIL_BYTES = 65536
@@ -121,6 +127,8 @@ class TextCaptureReader:
                 self._first_data = (self._line_number, text)
                 break
             key = _HEADER_KEY.match(text)
+            if _UART_ERRORS.match(text):
+                raise self._error(ErrorKind.BAD_DATA, "'# uart-errors:' must follow the data line it marks")
             if key is None:
                 notes.append(text[1:].strip())
             elif key.group(1).lower() == "line":
@@ -148,11 +156,12 @@ class TextCaptureReader:
             ) from None
 
     def batches(self) -> Iterator[ChunkBatch]:
-        times: list[int] = []
-        lengths: list[int] = []
-        parts: list[bytes] = []
+        lines = _Lines()
         previous_time = -1
         for line_number, text in self._data_lines():
+            if text.startswith("#"):
+                self._comment(lines, line_number, text)
+                continue
             t_ns, data = self._parse_data_line(line_number, text)
             if t_ns < previous_time:
                 raise self._error(
@@ -161,22 +170,40 @@ class TextCaptureReader:
                     line_number,
                 )
             previous_time = t_ns
-            times.append(t_ns)
-            lengths.append(len(data))
-            parts.append(data)
-            if len(times) >= BATCH_CHUNKS:
-                yield _batch(times, lengths, parts)
-                times, lengths, parts = [], [], []
-        if times:
-            yield _batch(times, lengths, parts)
+            # A full batch goes once the next data line shows no error comment can follow it.
+            if len(lines.times) >= BATCH_CHUNKS:
+                yield lines.batch()
+                lines = _Lines()
+            lines.add(t_ns, data)
+        if lines.times:
+            yield lines.batch()
+
+    def _comment(self, lines: _Lines, line_number: int, text: str) -> None:
+        """A note, or the UART errors of the data line just read."""
+        errors = _UART_ERRORS.match(text)
+        if errors is None:
+            self.late_notes.append(text[1:].strip())
+            return
+        if not lines.parts:
+            raise self._error(ErrorKind.BAD_DATA, "'# uart-errors:' must follow the data line it marks",
+                              line_number)
+        size = len(lines.parts[-1])
+        for item in errors.group(1).split(","):
+            mark = _UART_MARK.fullmatch(item.strip())
+            if mark is None:
+                raise self._error(ErrorKind.BAD_DATA, f"bad UART error {item.strip()!r}: expected 'POSITION "
+                                  "framing|parity|framing+parity'", line_number)
+            position = int(mark.group(1))
+            if position >= size:
+                raise self._error(ErrorKind.BAD_DATA, f"UART error at byte {position} of a line of {size} "
+                                  f"byte{'s' if size != 1 else ''}", line_number)
+            lines.mark(position, UART_ERROR_KINDS[mark.group(2).lower()])
 
     def _data_lines(self) -> Iterator[tuple[int, str]]:
         if self._first_data is not None:
             yield self._first_data
         for text in self._lines_iter:
-            if text.startswith("#"):
-                self.late_notes.append(text[1:].strip())
-            elif text:
+            if text:
                 yield self._line_number, text
 
     def _parse_data_line(self, line_number: int, text: str) -> tuple[int, bytes]:
@@ -208,12 +235,33 @@ def _describe_bad_hex(hex_text: str) -> str:
     return "hex bytes must be two digits each, separated by spaces or not at all"
 
 
-def _batch(times: list[int], lengths: list[int], parts: list[bytes]) -> ChunkBatch:
-    return ChunkBatch(
-        b"".join(parts),
-        np.cumsum(np.array(lengths, dtype=np.int64)),
-        np.array(times, dtype=np.int64),
-    )
+class _Lines:
+    """Data lines read for the next batch, and the UART errors their comments named."""
+
+    def __init__(self) -> None:
+        self.times: list[int] = []
+        self.parts: list[bytes] = []
+        self._size = 0
+        #: (offset in the batch's data, kind) of the bytes with an error.
+        self._marks: list[tuple[int, int]] = []
+
+    def add(self, t_ns: int, data: bytes) -> None:
+        self.times.append(t_ns)
+        self.parts.append(data)
+        self._size += len(data)
+
+    def mark(self, position: int, kind: int) -> None:
+        """``position`` of the last line added."""
+        self._marks.append((self._size - len(self.parts[-1]) + position, kind))
+
+    def batch(self) -> ChunkBatch:
+        kinds = None
+        if self._marks:
+            kinds = np.zeros(self._size, np.uint8)
+            for offset, kind in self._marks:
+                kinds[offset] |= kind
+        lengths = np.fromiter(map(len, self.parts), np.int64, len(self.parts))
+        return ChunkBatch(b"".join(self.parts), np.cumsum(lengths), np.array(self.times, dtype=np.int64), kinds)
 
 
 class TextCaptureWriter:
@@ -234,6 +282,9 @@ class TextCaptureWriter:
             if not chunk.data:
                 raise ValueError("the text format cannot hold a chunk without bytes")
             lines.append(f"{format_time_ns(chunk.t_end_ns)} {chunk.data.hex(' ').upper()}\n")
+            if chunk.uart_errors:
+                marks = ", ".join(f"{position} {uart_error_name(kind)}" for position, kind in chunk.uart_errors)
+                lines.append(f"{UART_ERRORS_PREFIX}{marks}\n")
         self._stream.write("".join(lines))
 
     def add_notes(self, notes: list[str]) -> None:
