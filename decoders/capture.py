@@ -59,11 +59,13 @@ UInt8Array = npt.NDArray[np.uint8]
 class Chunk:
     """Bytes that arrived together; ``t_end_ns`` is when the last one was complete.
     ``uart_errors``: (position in ``data``, :class:`UartError` kind) of characters the
-    receiver found wrong."""
+    receiver found wrong; ``channel``: the line they came from (:attr:`CaptureInfo.channels`)."""
 
     t_end_ns: int
     data: bytes
     uart_errors: UartErrorMarks = ()
+    #: Which of the capture's ``channels`` the bytes came from (1-based); 0: not said.
+    channel: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,6 +75,10 @@ class CaptureInfo:
     line: LineSettings | None
     timing: TimingQuality
     notes: tuple[str, ...] = ()
+    #: The names of the lines a capture's chunks came from (``("RX", "TX")``: a logic analyzer's
+    #: probes; ``("inbound", "outbound")``: pcapng directions); a chunk's ``channel`` k >= 1 is
+    #: ``channels[k - 1]``, 0 that the capture does not say. Empty: one line, nothing said.
+    channels: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,6 +95,8 @@ class ChunkBatch:
     #: The :class:`UartError` kind of every byte of ``data``; ``None`` when no byte has one
     #: (the common case costs nothing).
     uart_errors: UInt8Array | None = field(default=None, repr=False)
+    #: The channel (:attr:`Chunk.channel`) of every chunk; ``None`` when the capture says none.
+    channels: UInt8Array | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.ends.shape != self.t_end_ns.shape:
@@ -97,6 +105,8 @@ class ChunkBatch:
             raise ValueError("the last chunk end must equal the data length")
         if self.uart_errors is not None and len(self.uart_errors) != len(self.data):
             raise ValueError("uart_errors must have one entry per byte")
+        if self.channels is not None and len(self.channels) != len(self.ends):
+            raise ValueError("channels must have one entry per chunk")
 
     def __len__(self) -> int:
         return len(self.ends)
@@ -114,13 +124,20 @@ class ChunkBatch:
         """:attr:`uart_errors`, zeros when there are none."""
         return self.uart_errors if self.uart_errors is not None else np.zeros(len(self.data), np.uint8)
 
+    def byte_channels(self) -> UInt8Array | None:
+        """:attr:`channels` per byte (each chunk's for its bytes), or ``None``."""
+        if self.channels is None:
+            return None
+        return np.repeat(self.channels, np.diff(self.ends, prepend=0))
+
     def chunks(self) -> Iterator[Chunk]:
         """The batch as individual chunks."""
         start = 0
         kinds = self.uart_errors
-        for end, t_end in zip(self.ends.tolist(), self.t_end_ns.tolist(), strict=True):
+        channels = self.channels.tolist() if self.channels is not None else [0] * len(self)
+        for end, t_end, channel in zip(self.ends.tolist(), self.t_end_ns.tolist(), channels, strict=True):
             marks = _marks(kinds[start:end]) if kinds is not None else ()
-            yield Chunk(t_end, self.data[start:end], marks)
+            yield Chunk(t_end, self.data[start:end], marks, channel)
             start = end
 
     def slice(self, start: int, stop: int) -> ChunkBatch:
@@ -130,9 +147,10 @@ class ChunkBatch:
         stop = min(stop, len(self))
         first = int(self.ends[start - 1]) if start else 0
         last = int(self.ends[stop - 1]) if stop > start else first
-        kinds = self.uart_errors
+        kinds, channels = self.uart_errors, self.channels
         return ChunkBatch(self.data[first:last], self.ends[start:stop] - first, self.t_end_ns[start:stop],
-                          _none_if_clean(kinds[first:last]) if kinds is not None else None)
+                          _none_if_clean(kinds[first:last]) if kinds is not None else None,
+                          channels[start:stop] if channels is not None else None)
 
     @classmethod
     def from_chunks(cls, chunks: Sequence[Chunk]) -> ChunkBatch:
@@ -145,7 +163,10 @@ class ChunkBatch:
             for chunk, end in zip(chunks, ends.tolist(), strict=True):
                 for position, kind in chunk.uart_errors:
                     kinds[end - len(chunk.data) + position] |= kind
-        return cls(b"".join(c.data for c in chunks), ends, times, kinds)
+        channels = None
+        if any(c.channel for c in chunks):
+            channels = np.fromiter((c.channel for c in chunks), np.uint8, len(chunks))
+        return cls(b"".join(c.data for c in chunks), ends, times, kinds, channels)
 
     @classmethod
     def concat(cls, batches: Sequence[ChunkBatch]) -> ChunkBatch:
@@ -159,7 +180,12 @@ class ChunkBatch:
         kinds = None
         if any(b.uart_errors is not None for b in batches):
             kinds = np.concatenate([b.error_kinds() for b in batches])
-        return cls(b"".join(b.data for b in batches), ends, np.concatenate([b.t_end_ns for b in batches]), kinds)
+        channels = None
+        if any(b.channels is not None for b in batches):
+            channels = np.concatenate([b.channels if b.channels is not None else np.zeros(len(b), np.uint8)
+                                      for b in batches])
+        return cls(b"".join(b.data for b in batches), ends, np.concatenate([b.t_end_ns for b in batches]), kinds,
+                   channels)
 
     @classmethod
     def empty(cls) -> ChunkBatch:

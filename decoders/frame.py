@@ -91,6 +91,8 @@ class Frame:
     #: (position in ``data``, :class:`decoders.capture.UartError` kind) of characters the
     #: receiver found wrong.
     uart_errors: tuple[tuple[int, int], ...] = ()
+    #: The line the frame came from (:attr:`decoders.capture.CaptureInfo.channels`, 1-based); 0: not said.
+    channel: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -112,6 +114,8 @@ class FrameBatch:
     #: The :class:`decoders.capture.UartError` kind of every byte of ``data``; ``None`` when no
     #: byte has one.
     uart_errors: npt.NDArray[np.uint8] | None = None
+    #: The channel of every frame (:attr:`Frame.channel`); ``None`` when the capture says none.
+    channels: npt.NDArray[np.uint8] | None = None
 
     def __len__(self) -> int:
         return len(self.t_start_ns)
@@ -148,7 +152,7 @@ class FrameRows:
                                                             batch.crc_ok, batch.flags, batch.is_noise,
                                                             batch.idle_before_ns, batch.protocols())]
         offsets, start, end, ok, flags, noise, idle, protocol = self._columns
-        kinds = self._batch.uart_errors
+        kinds, channels = self._batch.uart_errors, self._batch.channels
         marks = () if kinds is None or not flags[position] & FrameFlag.UART_ERROR else \
             uart_error_marks(kinds[offsets[position] : offsets[position + 1]])
         return Frame(
@@ -162,6 +166,7 @@ class FrameRows:
             idle_before_ns=None if idle[position] == NO_IDLE else idle[position],
             protocol=protocol[position],
             uart_errors=marks,
+            channel=0 if channels is None else int(channels[position]),
         )
 
 
@@ -177,6 +182,7 @@ def slice_frames(batch: FrameBatch, start: int, stop: int) -> FrameBatch:
         batch.offsets[start : stop + 1] - begin,
         protocol=None if batch.protocol is None else batch.protocol[start:stop],
         uart_errors=None if batch.uart_errors is None else batch.uart_errors[begin:end],
+        channels=None if batch.channels is None else batch.channels[start:stop],
         **{name: getattr(batch, name)[start:stop] for name in _COLUMNS},
     )
 
@@ -199,6 +205,8 @@ def concat_frames(batches: list[FrameBatch]) -> FrameBatch:
         np.concatenate(offsets),
         protocol=np.concatenate([b.protocols() for b in batches]) if mixed else None,
         uart_errors=np.concatenate([b.error_kinds() for b in batches]) if marked else None,
+        channels=np.concatenate([b.channels if b.channels is not None else np.zeros(len(b), np.uint8)
+                                for b in batches]) if any(b.channels is not None for b in batches) else None,
         **{name: np.concatenate([getattr(b, name) for b in batches]) for name in _COLUMNS},
     )
 
@@ -227,4 +235,5 @@ def frames_to_batch(frames: list[Frame]) -> FrameBatch:
         np.fromiter((NO_IDLE if f.idle_before_ns is None else f.idle_before_ns for f in frames), np.int64, count),
         protocol=np.fromiter((f.protocol for f in frames), np.uint8, count),
         uart_errors=kinds,
+        channels=np.fromiter((f.channel for f in frames), np.uint8, count) if any(f.channel for f in frames) else None,
     )

@@ -19,6 +19,8 @@ whose silence before it was < t3.5, both only where timing is ``exact``;
 ``truncated`` and ``bad_length`` come from the content pass; ``uart_error`` on a frame with
 a character the receiver found wrong (the capture says which: a logic analyzer's decode),
 whose framing errors the content pass weighs too (:mod:`decoders.framing.evidence`).
+Where the capture says which line bytes came from (a logic analyzer's RX and TX probes,
+pcapng directions), bytes of two lines never share a frame: a change of line is a cut.
 
 Timestamps have 1 ns resolution and byte times are rounded to it, so thresholds
 are compared with 1 ns of allowance.
@@ -45,6 +47,8 @@ TOLERANCE_NS = 1.0
 #: On host-timed capture files, the silence that certainly separates frames: longer
 #: than any read loop's delivery delay (see the module docstring).
 HOST_GAP_NS = 3_000_000_000
+#: Per byte: UART error kinds and channels (``None``: the capture says none).
+ByteMarks = tuple[UInt8Array | None, UInt8Array | None]
 #: Live capture through rtusniff's own reader: quiet this long means the line is idle
 #: (above a USB adapter's 16 ms latency timer and the host's jitter).
 LIVE_IDLE_NS = 100_000_000
@@ -77,8 +81,9 @@ class Framer:
         self._data = b""
         self._starts: Int64Array = np.zeros(0, np.int64)
         self._ends: Int64Array = np.zeros(0, np.int64)
-        #: UART error kinds of the held bytes; ``None`` while the capture has shown none.
+        #: UART error kinds and channels of the held bytes; ``None`` while the capture has shown none.
         self._kinds: UInt8Array | None = None
+        self._channels: UInt8Array | None = None
         self._at_capture_start = True
         self._open_request: OpenRequest = None
         self._next_index = 0
@@ -99,8 +104,16 @@ class Framer:
         if batch.uart_errors is not None or self._kinds is not None:
             held = self._kinds if self._kinds is not None else np.zeros(len(self._data), np.uint8)
             self._kinds = np.concatenate([held, batch.error_kinds()])
-        kinds = self._kinds
-        cuts = np.flatnonzero(starts[1:] - ends[:-1] >= self._boundary_ns) + 1
+        new_channels = batch.byte_channels()
+        if new_channels is not None or self._channels is not None:
+            held = self._channels if self._channels is not None else np.zeros(len(self._data), np.uint8)
+            fed = new_channels if new_channels is not None else np.zeros(len(batch.data), np.uint8)
+            self._channels = np.concatenate([held, fed])
+        kinds, channels = self._kinds, self._channels
+        cut = starts[1:] - ends[:-1] >= self._boundary_ns
+        if channels is not None:
+            cut |= channels[1:] != channels[:-1]  # bytes of two lines never share a frame
+        cuts = np.flatnonzero(cut) + 1
         bounds = np.concatenate([np.zeros(1, np.int64), cuts])
         parts = [self._closed_segments(data, (starts, ends, kinds), bounds)]
         open_start = int(bounds[-1])
@@ -111,28 +124,29 @@ class Framer:
             kept_from = int(open_pieces.last[-1]) if len(open_pieces) else open_start
         self._data, self._starts, self._ends = data[kept_from:], starts[kept_from:], ends[kept_from:]
         self._kinds = None if kinds is None or not kinds[kept_from:].any() else kinds[kept_from:]
-        return self._assemble(data, starts, ends, Pieces.join(parts), kinds)
+        self._channels = None if channels is None else channels[kept_from:]
+        return self._assemble(data, starts, ends, Pieces.join(parts), (kinds, channels))
 
     def close_idle(self, now_ns: int) -> FrameBatch:
         """Live capture: the open segment is closed once the line has been quiet for t3.5
         (exact) or ``LIVE_IDLE_NS`` (host), without waiting for a next byte."""
         if not self._data or now_ns - int(self._ends[-1]) < self._idle_ns:
-            return self._assemble(b"", self._starts[:0], self._ends[:0], Pieces.of([]), None)
-        data, starts, ends, kinds = self._take_held()
-        pieces = self._parse(data, starts, ends, 0, len(data), closed=True, kinds=kinds)
-        return self._assemble(data, starts, ends, pieces, kinds)
+            return self._assemble(b"", self._starts[:0], self._ends[:0], Pieces.of([]), (None, None))
+        data, starts, ends, marks = self._take_held()
+        pieces = self._parse(data, starts, ends, 0, len(data), closed=True, kinds=marks[0])
+        return self._assemble(data, starts, ends, pieces, marks)
 
     def flush(self) -> FrameBatch:
         """Everything still held, at the end of the capture."""
-        data, starts, ends, kinds = self._take_held()
-        pieces = self._parse(data, starts, ends, 0, len(data), closed=True, at_end=True, kinds=kinds) if data \
+        data, starts, ends, marks = self._take_held()
+        pieces = self._parse(data, starts, ends, 0, len(data), closed=True, at_end=True, kinds=marks[0]) if data \
             else Pieces.of([])
-        return self._assemble(data, starts, ends, pieces, kinds)
+        return self._assemble(data, starts, ends, pieces, marks)
 
-    def _take_held(self) -> tuple[bytes, Int64Array, Int64Array, UInt8Array | None]:
-        held = self._data, self._starts, self._ends, self._kinds
+    def _take_held(self) -> tuple[bytes, Int64Array, Int64Array, ByteMarks]:
+        held = self._data, self._starts, self._ends, (self._kinds, self._channels)
         self._data, self._starts, self._ends = b"", np.zeros(0, np.int64), np.zeros(0, np.int64)
-        self._kinds = None
+        self._kinds = self._channels = None
         return held
 
     def _closed_segments(self, data: bytes, times: tuple[Int64Array, Int64Array, UInt8Array | None],
@@ -188,7 +202,9 @@ class Framer:
         return parse.pieces.shifted(begin)
 
     def _assemble(self, data: bytes, starts: Int64Array, ends: Int64Array, pieces: Pieces,
-                  kinds: UInt8Array | None) -> FrameBatch:
+                  marks: ByteMarks) -> FrameBatch:
+        """``marks``: the UART error kinds and the channels of ``data``'s bytes (or ``None``)."""
+        kinds, channels = marks
         first, last, is_noise, flags = pieces.first, pieces.last, pieces.is_noise, pieces.flags.copy()
         count = len(first)
         if count:
@@ -239,6 +255,7 @@ class Framer:
             idle_before_ns=idle,
             protocol=pieces.protocol if pieces.protocol.any() else None,
             uart_errors=frame_kinds,
+            channels=channels[first] if channels is not None and count and channels[first].any() else None,
         )
         self._next_index += count
         return batch

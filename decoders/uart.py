@@ -40,22 +40,25 @@ class CharacterShape(Protocol):
     @property
     def parity(self) -> Parity: ...
     @property
-    def stop_bits(self) -> int: ...
+    def stop_bits(self) -> float: ...
 
 
 @dataclass(frozen=True)
 class CharacterFormat:
-    """A UART character format of 5 to 9 data bits (9: a character's value does not fit a byte,
-    so only the decoder takes it, never a capture)."""
+    """A UART character format of 5 to 9 data bits and 1, 1.5 or 2 stop bits: what sigrok's
+    decoder reads. A capture's :class:`LineSettings` holds 5-8 data bits (a byte) and 1 or 2 stop
+    bits (Modbus RTU's); this is for the decoder alone."""
 
     baud: int
     data_bits: int
     parity: Parity = Parity.NONE
-    stop_bits: int = 1
+    stop_bits: float = 1
 
     def __post_init__(self) -> None:
         if not 5 <= self.data_bits <= 9:
             raise ValueError(f"data bits {self.data_bits} is outside 5..9")
+        if self.stop_bits not in (1, 1.5, 2):
+            raise ValueError(f"stop bits {self.stop_bits} must be 1, 1.5 or 2")
 
 
 @dataclass(frozen=True)
@@ -67,13 +70,16 @@ class UartCharacters:
     end_samples: npt.NDArray[np.float64]
     framing_errors: npt.NDArray[np.bool_]
     parity_errors: npt.NDArray[np.bool_]
+    #: The line (1-based: RX, TX...) of each character, when several are decoded; else ``None``.
+    channels: npt.NDArray[np.uint8] | None = None
 
     def __len__(self) -> int:
         return len(self.values)
 
     def slice(self, start: int, stop: int) -> UartCharacters:
         return UartCharacters(self.values[start:stop], self.start_samples[start:stop], self.end_samples[start:stop],
-                              self.framing_errors[start:stop], self.parity_errors[start:stop])
+                              self.framing_errors[start:stop], self.parity_errors[start:stop],
+                              None if self.channels is None else self.channels[start:stop])
 
 
 def character_chunks(characters: UartCharacters, *, t0_ns: int, unit_s: float) -> ChunkBatch:
@@ -84,7 +90,8 @@ def character_chunks(characters: UartCharacters, *, t0_ns: int, unit_s: float) -
     data = (characters.values & 0xFF).astype(np.uint8).tobytes()
     kinds = (characters.framing_errors * np.uint8(UartError.FRAMING)
              | characters.parity_errors * np.uint8(UartError.PARITY)).astype(np.uint8)
-    return ChunkBatch(data, np.arange(1, len(data) + 1, dtype=np.int64), ends, kinds if kinds.any() else None)
+    return ChunkBatch(data, np.arange(1, len(data) + 1, dtype=np.int64), ends, kinds if kinds.any() else None,
+                      characters.channels)
 
 
 def merge_characters(parts: list[UartCharacters]) -> UartCharacters:
@@ -95,9 +102,11 @@ def merge_characters(parts: list[UartCharacters]) -> UartCharacters:
     joined = UartCharacters(*(np.concatenate([getattr(part, name) for part in parts])
                               for name in ("values", "start_samples", "end_samples", "framing_errors",
                                            "parity_errors")))
+    on_channels = [part.channels for part in parts if part.channels is not None]
     order = np.argsort(joined.end_samples, kind="stable")
     return UartCharacters(joined.values[order], joined.start_samples[order], joined.end_samples[order],
-                          joined.framing_errors[order], joined.parity_errors[order])
+                          joined.framing_errors[order], joined.parity_errors[order],
+                          np.concatenate(on_channels)[order] if len(on_channels) == len(parts) else None)
 
 
 def _empty() -> UartCharacters:
@@ -124,7 +133,7 @@ class UartDecoder:
         return self.samplerate / self.line.baud
 
     @property
-    def _slots(self) -> int:
+    def _slots(self) -> float:
         return 1 + self.line.data_bits + (0 if self.line.parity is Parity.NONE else 1) + self.line.stop_bits
 
     def feed(self, samples: Samples) -> UartCharacters:

@@ -105,3 +105,20 @@ def test_wireshark_tells_queries_from_responses_with_the_udp_link(cli: Cli, tmp_
     assert fields[0].endswith("\t0x00000002")  # a request goes out from the master
     # rtusniff reads both back to the frames it wrote.
     assert frames(cli, str(udp), *LINE) == frames(cli, str(user), *LINE) == frames(cli, str(SAMPLE_LOG))
+
+
+def test_pcapng_directions_are_kept_as_channels(cli: Cli, tmp_path: Path) -> None:
+    """rtusniff's pcapng says each packet's direction (requests out, answers in); read back, the
+    direction is each frame's channel, and bytes of two directions never share a frame."""
+    pcapng = tmp_path / "sample.pcapng"
+    assert cli("export", str(SAMPLE_LOG), "--pcap", str(pcapng), "-q").code == 0
+    records = cli("analyze", str(pcapng), *LINE, "--format", "jsonl").jsonl()
+    assert records[0]["channels"] == ["inbound", "outbound"]
+    said = {(r["role"], r.get("channel")) for r in records if r["kind"] == "frame"}
+    assert {("request", "outbound"), ("response", "inbound")} <= said
+    assert not {channel for role, channel in said if role in ("response", "exception")} - {"inbound"}
+    # A classic pcap has no directions: no channel.
+    classic = tmp_path / "sample.pcap"
+    assert cli("export", str(SAMPLE_LOG), "--pcap", str(classic), "-q").code == 0
+    plain = cli("analyze", str(classic), *LINE, "--format", "jsonl").jsonl()
+    assert "channels" not in plain[0] and all("channel" not in r for r in plain if r["kind"] == "frame")

@@ -24,24 +24,28 @@ DOCS = Path(__file__).resolve().parent.parent / "docs" / "jsonl-output.md"
 MARKED_CAPTURE = """# rtu-capture v1
 # line: 19200 8E1
 # timing: exact
+# channels: TX RX
 1700000000.000000000 00
 # uart-errors: 0 framing
+# channel: TX
 1700000000.008000000 02 03 00 00 00 02 C4 38
+# channel: RX
 1700000000.020000000 02 03 04 00 2A 00 07 79 37
 # uart-errors: 3 parity
 """
 
 
-def annotated_batches(path: Path = SAMPLE_LOG) -> list[AnnotatedBatch]:
+def annotated_batches(path: Path = SAMPLE_LOG) -> list[tuple[AnnotatedBatch, tuple[str, ...]]]:
+    """The capture's annotated batches, each with the capture's channel names."""
     reader = open_reader(str(path))
     assert reader.info.line is not None
     decoder, annotator = Decoder(reader.info.line, reader.info.timing), Annotator()
     batches = [m for chunks in reader.batches() for m in decoder.feed(chunks)] + decoder.flush()
     reader.close()
-    return [annotator.annotate_batch(b) for b in batches if len(b)]
+    return [(annotator.annotate_batch(b), reader.info.channels) for b in batches if len(b)]
 
 
-def every_batch(tmp_path: Path) -> list[AnnotatedBatch]:
+def every_batch(tmp_path: Path) -> list[tuple[AnnotatedBatch, tuple[str, ...]]]:
     marked = tmp_path / "marked.log"
     marked.write_text(MARKED_CAPTURE)
     return annotated_batches() + annotated_batches(marked)
@@ -49,9 +53,9 @@ def every_batch(tmp_path: Path) -> list[AnnotatedBatch]:
 
 def test_the_dict_has_the_fields_in_order(tmp_path: Path) -> None:
     optional_seen = set()
-    for batch in every_batch(tmp_path):
+    for batch, channels in every_batch(tmp_path):
         for message in batch:
-            names = tuple(frame_record(message))
+            names = tuple(frame_record(message, channels))
             assert names[: len(FRAME_FIELD_NAMES)] == FRAME_FIELD_NAMES
             extra = names[len(FRAME_FIELD_NAMES) :]
             assert extra == tuple(name for name in OPTIONAL_FRAME_FIELD_NAMES if name in extra)
@@ -60,12 +64,14 @@ def test_the_dict_has_the_fields_in_order(tmp_path: Path) -> None:
 
 
 def test_the_jsonl_encoder_and_the_mcap_rows_have_the_fields(tmp_path: Path) -> None:
-    for batch in every_batch(tmp_path):
-        reference = [frame_record(message) for message in batch]
-        exact = bytes(FrameRecordEncoder().rows(batch, end=b"\n").data).decode().splitlines()
+    for batch, channels in every_batch(tmp_path):
+        reference = [frame_record(message, channels) for message in batch]
+        encoder, fixed_encoder = FrameRecordEncoder(), FrameRecordEncoder(exact=False)
+        encoder.channels = fixed_encoder.channels = channels
+        exact = bytes(encoder.rows(batch, end=b"\n").data).decode().splitlines()
         assert [json.loads(line) for line in exact] == reference
         assert [tuple(json.loads(line)) for line in exact] == [tuple(record) for record in reference]
-        fixed = bytes(FrameRecordEncoder(exact=False).rows(batch, end=b"\n").data).decode().splitlines()
+        fixed = bytes(fixed_encoder.rows(batch, end=b"\n").data).decode().splitlines()
         assert [sorted(json.loads(line)) for line in fixed] == [sorted(record) for record in reference]
 
 

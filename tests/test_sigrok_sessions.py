@@ -150,6 +150,26 @@ def test_modbus_sessions_give_the_frames_of_their_text_conversions(cli: Cli, ses
     # The same times from the first frame on, to a sample (sigrok-cli's stamps are rounded).
     for f, e in zip(frames, expected, strict=True):
         assert abs((f["t_end_ns"] - frames[0]["t_end_ns"]) - (e["t_end_ns"] - expected[0]["t_end_ns"])) < 1000
+    if channels:  # RX and TX on two probes: the master's requests on one, the answers on the other
+        by_role = {(f["role"], f["channel"]) for f in frames}
+        assert by_role == {("request", "1"), ("response", "0")}, by_role
+        assert got.jsonl()[0]["channels"] == ["0", "1"]
+    else:
+        assert all("channel" not in f for f in frames)
+
+
+def test_two_probe_sessions_convert_with_their_channels(cli: Cli, tmp_path: Path) -> None:
+    session = SIGROK / "uart" / "modbus_rtu" / "brainchild_io_16do" / "brainchild-io-16do.sr"
+    text, mcap, back = tmp_path / "io.log", tmp_path / "io.mcap", tmp_path / "back.log"
+    probes = ["--channel", "0", "--channel", "1"]
+    assert cli("convert", str(session), str(text), "--line", "19200 8E1", *probes).code == 0
+    lines = text.read_text().splitlines()
+    assert "# channels: 0 1" in lines and lines.count("# channel: 1") == 15
+    assert cli("convert", str(text), str(mcap)).code == 0 and cli("convert", str(mcap), str(back)).code == 0
+    assert back.read_text() == text.read_text()
+    direct = cli("analyze", str(session), "--line", "19200 8E1", *probes, "--format", "jsonl").jsonl()[1:]
+    for capture in (text, mcap):
+        assert cli("analyze", str(capture), "--format", "jsonl").jsonl()[1:] == direct
 
 
 def test_session_errors_are_one_line(cli: Cli, tmp_path: Path) -> None:

@@ -8,6 +8,7 @@ import sys
 from dataclasses import replace
 
 from sniffer.commands.common import (
+    add_channel_option,
     add_input_format_option,
     add_line_options,
     add_quiet_option,
@@ -34,6 +35,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("--output-format", choices=sorted(formats_for("write")),
                         help=f"default: from the suffix. {format_help('write')}")
     add_line_options(parser)
+    add_channel_option(parser)
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
     add_quiet_option(parser)
     parser.set_defaults(run=run)
@@ -42,7 +44,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def run(args: argparse.Namespace) -> int:
     check_outputs([args.output], [args.input], force=args.force)
     override = line_override(args)
-    reader = open_reader(args.input, args.input_format, ReaderOptions(line=override))
+    reader = open_reader(args.input, args.input_format,
+                         ReaderOptions(line=override, channels=tuple(args.channel or ())))
     try:
         info = reader.info
         if override is not None:

@@ -46,6 +46,7 @@ FRAME_FIELDS: tuple[Field, ...] = (
     Field("summary", ("string",), "one human-readable line"),
     Field("protocol", ("string",), "modbus or uss"),
     Field("remarks", ("array",), "what the device profile says about the frame"),
+    Field("channel", ("string",), "the line the frame came from (RX, TX; inbound, outbound)", optional=True),
     Field("uart_errors", ("array",), "characters the receiver found wrong: byte position and error", optional=True),
 )
 

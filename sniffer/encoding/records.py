@@ -66,11 +66,13 @@ def capture_record(source: str, info: CaptureInfo, line: LineSettings) -> dict[s
         "t1_5_s": line.t1_5_ns / NS_PER_S,
         "t3_5_s": line.t3_5_ns / NS_PER_S,
         "notes": list(info.notes),
+        **({"channels": list(info.channels)} if info.channels else {}),
     }
 
 
-def frame_record(message: Message) -> dict[str, Any]:
-    """One frame record; ``t_ns``/``t_end_ns`` add the exact integer times."""
+def frame_record(message: Message, channels: tuple[str, ...] = ()) -> dict[str, Any]:
+    """One frame record; ``t_ns``/``t_end_ns`` add the exact integer times; ``channels``: the
+    capture's line names (:attr:`CaptureInfo.channels`), for ``channel``."""
     frame = message.frame
     return {
         "kind": "frame",
@@ -92,8 +94,23 @@ def frame_record(message: Message) -> dict[str, Any]:
         "summary": message.summary,
         "protocol": PROTOCOL_NAMES[frame.protocol],
         "remarks": list(message.remarks),
+        **({"channel": channel_name(channels, frame.channel)} if frame.channel else {}),
         **({"uart_errors": uart_error_records(frame.uart_errors)} if frame.uart_errors else {}),
     }
+
+
+def channel_name(channels: tuple[str, ...], channel: int) -> str:
+    """The name of a frame's line (1-based into ``channels``; a number if the capture names none)."""
+    return channels[channel - 1] if channel <= len(channels) else str(channel)
+
+
+def channel_column(frames: FrameBatch, kept: npt.NDArray[np.int64], channels: tuple[str, ...]) -> list[Column]:
+    """The ``,"channel":"TX"`` member of each kept frame's record as a column; none when the
+    capture says no frame's line."""
+    if frames.channels is None:
+        return []
+    members = [b""] + [b',"channel":' + encode_json(channel_name(channels, code)) for code in range(1, 256)]
+    return [Table(members).column(frames.channels[kept])]
 
 
 def uart_error_records(marks: tuple[tuple[int, int], ...]) -> list[dict[str, Any]]:
@@ -138,6 +155,8 @@ class FrameRecordEncoder:
         frame's own fields come first, padded to one width (:meth:`_block_rows`), several
         times faster."""
         self._exact = exact
+        #: The capture's line names (:attr:`CaptureInfo.channels`), for the ``channel`` field.
+        self.channels: tuple[str, ...] = ()
         # As many as the annotator keeps decodings: a repeat finds its parts.
         self._parts: Memo[Decoding, tuple[bytes, bytes]] = Memo(KEPT_DECODINGS)
         #: Not exact: a decoding's part of the record in one piece, from ``hex`` to the end.
@@ -161,7 +180,7 @@ class FrameRecordEncoder:
             b',"flags":', _FLAGS_JSON.column(messages.flags[kept]),
             b',"request_index":', or_null(number_texts(requests), requests, NONE),
             b',"latency_s":', *self._seconds(latencies, NONE),
-            b",", tails, *uart_error_column(frames, kept), b"}" + end,
+            b",", tails, *channel_column(frames, kept, self.channels), *uart_error_column(frames, kept), b"}" + end,
         ]  # fmt: skip
         return join_rows(columns, len(positions), reserved)
 
@@ -192,7 +211,8 @@ class FrameRecordEncoder:
         tails = self._tails.get_all(
             decodings, lambda row: b",".join(self._frame_parts(facts, positions[row], decodings[row]))
         )
-        return join_rows([rows, tails, *uart_error_column(frames, kept), b"}" + end], len(positions), reserved)
+        optional = [*channel_column(frames, kept, self.channels), *uart_error_column(frames, kept)]
+        return join_rows([rows, tails, *optional, b"}" + end], len(positions), reserved)
 
     def _times(self, t_start: npt.NDArray[np.int64], t_end: npt.NDArray[np.int64]) -> list[Column]:
         return [

@@ -46,18 +46,16 @@ from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, Message
 from sniffer.exports.published import PublishedValues, plotted
 from sniffer.exports.transactions import OUTCOMES, TransactionEncoder
 from sniffer.io.mcap_native import (
-    ERRORS_ENCODING,
-    ERRORS_LAYOUT_DOC,
-    ERRORS_TOPIC,
     LAYOUT_DOC,
     MESSAGE_ENCODING,
     METADATA_NAME,
     PROFILE,
+    SIDE_CHANNELS,
     TOPIC,
     block_batches,
     encode_block,
-    encode_errors,
     info_metadata,
+    side_messages,
 )
 
 #: Uncompressed bytes per chunk. The writer keeps every chunk's index entry (with an offset
@@ -87,6 +85,8 @@ FRAME_SCHEMA: dict[str, Any] = {
     },
 }  # fmt: skip
 FRAME_SCHEMA["required"] = list(FRAME_SCHEMA["properties"])
+#: Only on a capture that says which line a frame came from (optional: not required).
+FRAME_SCHEMA["properties"]["channel"] = {"type": "string"}
 #: Only on a frame with a character the receiver found wrong (optional: not required).
 FRAME_SCHEMA["properties"]["uart_errors"] = {"type": "array", "items": {"type": "object", "properties": {
     "at": {"type": "integer"}, "error": {"type": "string", "enum": ["framing", "parity", "framing+parity"]}}}}
@@ -136,7 +136,7 @@ class McapExporter:
             export = {**metadata, "line": line.format(), "timing": info.timing.value, "tool": tool}
             self._writer.add_metadata("rtusniff.export", export)
             self._raw = self._writer.add_channel(TOPIC, MESSAGE_ENCODING, 0, {"layout": LAYOUT_DOC})
-            self._errors_channel: int | None = None
+            self._side_channels: dict[str, int] = {}
             self._frames = self._json_channel("/modbus/frames", FRAME_SCHEMA)
             self._transactions = self._json_channel("/modbus/transactions", TRANSACTION_SCHEMA)
             log_schema = self._writer.add_schema(
@@ -154,6 +154,7 @@ class McapExporter:
         #: ``/slave/N/params`` channel ids by slave, made when a slave first carries values.
         self._param_channels = np.zeros(256, np.uint16)
         self._frame_records = FrameRecordEncoder(exact=False)
+        self._frame_records.channels = info.channels
         self._log_encoder = foxglove_log.LogEncoder(_LOG_NAMES)
         #: Per decoding: the log text after the frame index, and the numeric params as JSON members.
         self._parts: Memo[Decoding, tuple[bytes, bytes]] = Memo(KEPT_DECODINGS)
@@ -164,16 +165,16 @@ class McapExporter:
 
     def raw(self, batch: ChunkBatch) -> None:
         """The capture's chunks as the native capture has them (so the export reads back as a
-        capture), each block's UART errors just before it on their own channel."""
+        capture), each block's side messages (UART errors, channels) just before it."""
         payloads, channels, times = [], [], []
         for block in block_batches(batch):
             t_first = int(block.t_end_ns[0])
-            if block.uart_errors is not None:
-                if self._errors_channel is None:
-                    self._errors_channel = self._writer.add_channel(ERRORS_TOPIC, ERRORS_ENCODING, 0,
-                                                                    {"layout": ERRORS_LAYOUT_DOC})
-                payloads.append(encode_errors(block.uart_errors))
-                channels.append(self._errors_channel)
+            for topic, payload in side_messages(block):
+                if topic not in self._side_channels:
+                    encoding, layout = SIDE_CHANNELS[topic]
+                    self._side_channels[topic] = self._writer.add_channel(topic, encoding, 0, {"layout": layout})
+                payloads.append(payload)
+                channels.append(self._side_channels[topic])
                 times.append(t_first)
             payloads.append(encode_block(block))
             channels.append(self._raw)

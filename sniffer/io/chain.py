@@ -80,8 +80,13 @@ class ChainedReader:
                 raise RtuSniffError(ErrorKind.BAD_HEADER, f"timing {info.timing.value}, but {first.path} says "
                                     f"{expected.timing.value}: files of one capture share one timing "
                                     "(or give --timing)", path=part.path)
+            if info.channels != expected.channels:
+                raise RtuSniffError(ErrorKind.BAD_HEADER, f"channels {' '.join(info.channels) or 'none'}, but "
+                                    f"{first.path} says {' '.join(expected.channels) or 'none'}: files of one "
+                                    "capture share their channels", path=part.path)
         notes = tuple(note for part in self._parts for note in part.reader.info.notes)
-        return CaptureInfo(first.reader.info.line, first.reader.info.timing, tuple(dict.fromkeys(notes)))
+        return CaptureInfo(first.reader.info.line, first.reader.info.timing, tuple(dict.fromkeys(notes)),
+                           first.reader.info.channels)
 
     def batches(self) -> Iterator[ChunkBatch]:
         previous: _Part | None = None

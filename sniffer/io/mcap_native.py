@@ -13,7 +13,11 @@ some: a message there, written just before the block it belongs to, carries::
 
     u32 count | u32[count] offset of the byte in the block's data | u8[count] kind
 
-A reader that knows only the first topic reads every byte as before (it skips the channel).
+A capture of several lines (:attr:`decoders.capture.CaptureInfo.channels`, named in the
+metadata's ``channels``, a JSON list) says each chunk's on a third topic,
+``/rtusniff/chunk_channels``, a message just before its block: ``u32 count | u8[count] channel``.
+
+A reader that knows only the first topic reads every byte as before (it skips the channels).
 Line settings, timing quality and notes are the MCAP metadata record
 ``rtusniff.capture``, written before any block, so that a file cut short still
 says how to read it. The file is read as a stream (no seeking), which also reads
@@ -55,8 +59,16 @@ _COUNT = struct.Struct("<I")
 LAYOUT_DOC = "u32 count | i64[count] t_end_ns | u32[count] length | bytes data (little-endian)"
 ERRORS_TOPIC = "/rtusniff/uart_errors"
 ERRORS_ENCODING = "rtusniff.uart-errors.v1"
+CHANNELS_TOPIC = "/rtusniff/chunk_channels"
+CHANNELS_ENCODING = "rtusniff.chunk-channels.v1"
+CHANNELS_LAYOUT_DOC = "u32 count | u8[count] channel of each chunk of the next block (1-based into 'channels'; 0 none)"
 ERRORS_LAYOUT_DOC = ("u32 count | u32[count] byte offset in the next block's data | u8[count] kind "
                      "(1 framing, 2 parity; little-endian)")
+#: The side topics: encoding and layout.
+SIDE_CHANNELS = {ERRORS_TOPIC: (ERRORS_ENCODING, ERRORS_LAYOUT_DOC),
+                 CHANNELS_TOPIC: (CHANNELS_ENCODING, CHANNELS_LAYOUT_DOC)}
+#: The topics a reader reads, and their encodings.
+_ENCODINGS = {TOPIC: MESSAGE_ENCODING, ERRORS_TOPIC: ERRORS_ENCODING, CHANNELS_TOPIC: CHANNELS_ENCODING}
 
 
 def encode_block(batch: ChunkBatch) -> bytes:
@@ -91,6 +103,32 @@ def encode_errors(kinds: npt.NDArray[np.uint8]) -> bytes:
     return b"".join([_COUNT.pack(len(offsets)), offsets.astype("<u4").tobytes(), kinds[offsets].tobytes()])
 
 
+def side_messages(block: ChunkBatch) -> list[tuple[str, bytes]]:
+    """What the side topics say about a block (written just before it): its UART errors and
+    its chunks' channels, where it has them."""
+    side = []
+    if block.uart_errors is not None:
+        side.append((ERRORS_TOPIC, encode_errors(block.uart_errors)))
+    if block.channels is not None:
+        side.append((CHANNELS_TOPIC, encode_channels(block.channels)))
+    return side
+
+
+def encode_channels(channels: npt.NDArray[np.uint8]) -> bytes:
+    """The ``/rtusniff/chunk_channels`` payload for a block's chunk channels."""
+    return _COUNT.pack(len(channels)) + channels.astype(np.uint8).tobytes()
+
+
+def decode_channels(payload: bytes, count: int, names: int) -> npt.NDArray[np.uint8]:
+    """The channels of a block of ``count`` chunks; ``ValueError`` if inconsistent."""
+    if len(payload) != _COUNT.size + count or _COUNT.unpack_from(payload)[0] != count:
+        raise ValueError(f"channels message does not hold one channel for each of the block's {count} chunks")
+    channels = np.frombuffer(payload, np.uint8, count, _COUNT.size).copy()
+    if count and int(channels.max()) > names:
+        raise ValueError(f"channels message names channel {int(channels.max())} of {names}")
+    return channels
+
+
 def decode_errors(payload: bytes, size: int) -> npt.NDArray[np.uint8]:
     """Per-byte kinds of a block of ``size`` bytes from its errors payload; ``ValueError`` if
     it is inconsistent."""
@@ -118,6 +156,8 @@ def info_metadata(info: CaptureInfo) -> dict[str, str]:
     }
     if info.line is not None:
         fields["line"] = info.line.format()
+    if info.channels:
+        fields["channels"] = json.dumps(list(info.channels))
     return fields
 
 
@@ -137,14 +177,15 @@ class McapCaptureWriter:
         self._channel = self._writer.register_channel(
             topic=TOPIC, message_encoding=MESSAGE_ENCODING, schema_id=0, metadata={"layout": LAYOUT_DOC}
         )
-        self._errors_channel: int | None = None
+        #: The side topics' channels, registered when first needed (a plain capture has none).
+        self._side_channels: dict[str, int] = {}
         self._sequence = 0
 
     def write_batch(self, batch: ChunkBatch) -> None:
         for block in block_batches(batch):
             t_first = int(block.t_end_ns[0])
-            if block.uart_errors is not None:
-                self._add(self._errors_channel_id(), t_first, encode_errors(block.uart_errors))
+            for topic, payload in side_messages(block):
+                self._add(self._side_channel(topic), t_first, payload)
             self._add(self._channel, t_first, encode_block(block))
 
     def _add(self, channel: int, t_ns: int, payload: bytes) -> None:
@@ -152,12 +193,12 @@ class McapCaptureWriter:
                                  sequence=self._sequence)
         self._sequence += 1
 
-    def _errors_channel_id(self) -> int:
-        if self._errors_channel is None:
-            self._errors_channel = self._writer.register_channel(
-                topic=ERRORS_TOPIC, message_encoding=ERRORS_ENCODING, schema_id=0,
-                metadata={"layout": ERRORS_LAYOUT_DOC})
-        return self._errors_channel
+    def _side_channel(self, topic: str) -> int:
+        if topic not in self._side_channels:
+            encoding, layout = SIDE_CHANNELS[topic]
+            self._side_channels[topic] = self._writer.register_channel(
+                topic=topic, message_encoding=encoding, schema_id=0, metadata={"layout": layout})
+        return self._side_channels[topic]
 
     def add_notes(self, notes: list[str]) -> None:
         if notes:
@@ -197,8 +238,8 @@ class McapCaptureReader:
         # A damaged length field must not make the reader allocate gigabytes: no record is
         # longer than the file.
         self._records = StreamReader(self._file, record_size_limit=max(self._size, 1)).records
-        self._channel_ids: set[int] = set()
-        self._errors_channel_ids: set[int] = set()
+        #: The topics read (``_ENCODINGS``) by channel id.
+        self._topics: dict[int, str] = {}
         self._good = 0
         self.late_notes: list[str] = []
         #: Said once reading is done: e.g. a recording that was cut short.
@@ -266,35 +307,43 @@ class McapCaptureReader:
             line = LineSettings.parse(fields["line"]) if "line" in fields else None
             timing = TimingQuality(fields.get("timing", ""))
             notes = tuple(json.loads(fields.get("notes", "[]")))
+            channels = tuple(str(name) for name in json.loads(fields.get("channels", "[]")))
         except (ValueError, TypeError) as exc:
             raise self._error(f"bad '{METADATA_NAME}' metadata: {exc}") from None
-        return CaptureInfo(line=line, timing=timing, notes=notes)
+        return CaptureInfo(line=line, timing=timing, notes=notes, channels=channels)
 
     def batches(self) -> Iterator[ChunkBatch]:
-        errors: Message | None = None  # the UART errors of the next block
+        #: What the side topics say about the next block, by topic.
+        pending: dict[str, bytes] = {}
         for record in self._iter:
-            if isinstance(record, Channel) and record.topic == TOPIC:
-                if record.message_encoding != MESSAGE_ENCODING:
-                    raise self._error(f"channel {TOPIC} has unknown encoding {record.message_encoding!r}")
-                self._channel_ids.add(record.id)
-            elif isinstance(record, Channel) and record.topic == ERRORS_TOPIC:
-                if record.message_encoding != ERRORS_ENCODING:
-                    raise self._error(f"channel {ERRORS_TOPIC} has unknown encoding {record.message_encoding!r}")
-                self._errors_channel_ids.add(record.id)
-            elif isinstance(record, Message) and record.channel_id in self._errors_channel_ids:
-                errors = record
-            elif isinstance(record, Message) and record.channel_id in self._channel_ids:
-                try:
-                    batch = decode_block(record.data)
-                    if errors is not None:
-                        batch = replace(batch, uart_errors=decode_errors(errors.data, len(batch.data)))
-                except ValueError as exc:
-                    raise self._error(f"bad chunk block (sequence {record.sequence}): {exc}") from None
-                errors = None
+            if isinstance(record, Channel) and record.topic in _ENCODINGS:
+                if record.message_encoding != _ENCODINGS[record.topic]:
+                    raise self._error(f"channel {record.topic} has unknown encoding {record.message_encoding!r}")
+                self._topics[record.id] = record.topic
+            elif isinstance(record, Message) and record.channel_id in self._topics:
+                topic = self._topics[record.channel_id]
+                if topic != TOPIC:
+                    pending[topic] = record.data
+                    continue
+                batch = self._block(record, pending)
+                pending = {}
                 if len(batch):
                     yield batch
             elif isinstance(record, Metadata) and record.name == NOTES_METADATA_NAME:
                 self.late_notes.extend(json.loads(record.metadata.get("notes", "[]")))
+
+    def _block(self, record: Message, side: dict[str, bytes]) -> ChunkBatch:
+        """A block's chunks, with the UART errors and channels its side messages give."""
+        try:
+            batch = decode_block(record.data)
+            if ERRORS_TOPIC in side:
+                batch = replace(batch, uart_errors=decode_errors(side[ERRORS_TOPIC], len(batch.data)))
+            if CHANNELS_TOPIC in side:
+                channels = decode_channels(side[CHANNELS_TOPIC], len(batch), len(self.info.channels))
+                batch = replace(batch, channels=channels)
+        except ValueError as exc:
+            raise self._error(f"bad chunk block (sequence {record.sequence}): {exc}") from None
+        return batch
 
 
 def _damage(exc: Exception, *, at_end: bool) -> str:

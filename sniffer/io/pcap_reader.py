@@ -63,8 +63,10 @@ class PcapCaptureReader:
             self._file.close()
             raise
         kind = "pcapng" if self._pcapng else "pcap"
+        # pcapng packets may say their direction (epb_flags): kept as the chunk's channel.
         self.info = CaptureInfo(options.line, TimingQuality.HOST, (f"{kind} {path}: a chunk per record, "
-                                                                    "at the record's time",))
+                                                                    "at the record's time",),
+                                DIRECTIONS if self._pcapng else ())
 
     def _error(self, message: str, kind: ErrorKind = ErrorKind.BAD_DATA, where: str | None = None
                ) -> CaptureFormatError:
@@ -78,7 +80,7 @@ class PcapCaptureReader:
 
     # Classic pcap.
 
-    def _classic_records(self) -> Iterator[tuple[int, bytes]]:
+    def _classic_records(self) -> Iterator[tuple[int, bytes, int]]:
         header = self._read(24, "the file header")
         magic = struct.unpack("<I", header[:4])[0]
         if magic not in CLASSIC:
@@ -90,7 +92,7 @@ class PcapCaptureReader:
         scale = 1 if nanos else 1000
         return self._classic_body(record, scale, link_type)
 
-    def _classic_body(self, record: struct.Struct, scale: int, link_type: int) -> Iterator[tuple[int, bytes]]:
+    def _classic_body(self, record: struct.Struct, scale: int, link_type: int) -> Iterator[tuple[int, bytes, int]]:
         while True:
             head = self._file.read(record.size)
             if not head:
@@ -99,11 +101,11 @@ class PcapCaptureReader:
             if len(head) != record.size:
                 raise self._error(f"cut short in a record header ({len(head)} of {record.size} bytes)")
             seconds, fraction, captured, _ = record.unpack(head)
-            yield seconds * NS_PER_S + fraction * scale, self._payload(self._read(captured, "a record"), link_type)
+            yield seconds * NS_PER_S + fraction * scale, self._payload(self._read(captured, "a record"), link_type), 0
 
     # pcapng.
 
-    def _pcapng_records(self) -> Iterator[tuple[int, bytes]]:
+    def _pcapng_records(self) -> Iterator[tuple[int, bytes, int]]:
         order = "<"
         interfaces: list[tuple[int, int]] = []  # per interface: (link type, picoseconds per tick)
 
@@ -132,7 +134,7 @@ class PcapCaptureReader:
                 self._read(4, "a block's closing length")
                 yield kind, body
 
-        def records() -> Iterator[tuple[int, bytes]]:
+        def records() -> Iterator[tuple[int, bytes, int]]:
             for kind, body in blocks():
                 if kind == _INTERFACE:
                     link_type = struct.unpack(order + "H", body[:2])[0]
@@ -146,7 +148,9 @@ class PcapCaptureReader:
                         raise self._error(f"names interface {interface}, which no interface block described")
                     link_type, tick = interfaces[interface]
                     self._check_link_type(link_type, f"record {self._record}")
-                    yield ((high << 32) | low) * tick // 1000, self._payload(body[20 : 20 + captured], link_type)
+                    channel = _direction(body[20 + (captured + 3) // 4 * 4 :], order)
+                    yield ((high << 32) | low) * tick // 1000, self._payload(body[20 : 20 + captured], link_type), \
+                        channel
                 elif kind in (_SIMPLE, _OBSOLETE_PACKET):
                     self._record += 1
                     raise self._error("a packet block without a time (simple or obsolete): not a serial capture's")
@@ -173,8 +177,9 @@ class PcapCaptureReader:
     def batches(self) -> Iterator[ChunkBatch]:
         times: list[int] = []
         parts: list[bytes] = []
+        channels: list[int] = []
         previous = -1
-        for t_ns, data in self._records:
+        for t_ns, data, channel in self._records:
             if t_ns < previous:
                 raise self._error("goes back in time from the record before", ErrorKind.DECREASING_TIME)
             previous = t_ns
@@ -182,11 +187,12 @@ class PcapCaptureReader:
                 continue
             times.append(t_ns)
             parts.append(data)
+            channels.append(channel)
             if len(parts) >= BATCH_CHUNKS:
-                yield _batch(times, parts)
-                times, parts = [], []
+                yield _batch(times, parts, channels)
+                times, parts, channels = [], [], []
         if parts:
-            yield _batch(times, parts)
+            yield _batch(times, parts, channels)
 
     def last_time_ns(self) -> int | None:
         return None
@@ -195,9 +201,28 @@ class PcapCaptureReader:
         self._file.close()
 
 
-def _batch(times: list[int], parts: list[bytes]) -> ChunkBatch:
+def _batch(times: list[int], parts: list[bytes], channels: list[int]) -> ChunkBatch:
     lengths = np.fromiter(map(len, parts), np.int64, len(parts))
-    return ChunkBatch(b"".join(parts), np.cumsum(lengths), np.array(times, np.int64))
+    said = np.array(channels, np.uint8) if any(channels) else None
+    return ChunkBatch(b"".join(parts), np.cumsum(lengths), np.array(times, np.int64), channels=said)
+
+
+#: The channels of a pcapng capture: its packets' directions (epb_flags bits 0-1: 1, 2).
+DIRECTIONS = ("inbound", "outbound")
+_EPB_FLAGS = 2
+
+
+def _direction(options: bytes, order: str) -> int:
+    """1 inbound, 2 outbound from an enhanced packet block's ``epb_flags`` option; 0 unsaid."""
+    at = 0
+    while at + 4 <= len(options):
+        code, length = struct.unpack(order + "HH", options[at : at + 4])
+        if code == 0:
+            break
+        if code == _EPB_FLAGS and length == 4 and at + 8 <= len(options):
+            return int(struct.unpack(order + "I", options[at + 4 : at + 8])[0] & 0b11) % 3
+        at += 4 + (length + 3) // 4 * 4
+    return 0
 
 
 def _tick_ps(options: bytes, order: str) -> int:

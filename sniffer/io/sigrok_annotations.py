@@ -8,10 +8,11 @@ prints (with ``--protocol-decoder-ann-class``, the class after the decoder's nam
 
 Each ``rx-data`` / ``tx-data`` line is a character, its value as sigrok's ``format`` writes it:
 ``hex`` (the default: ``48``) or ``ascii`` (``H``, ``[0D]`` for what is not printable); RX and TX
-lines merge in time order. The text has sample numbers, not times: the sample rate is read from
-the data annotations, which span the data bits (``--line`` says how many, and the baud rate), and
-each character ends its parity and stop bits after its data. Times are seconds from the
-recording's start (no date). A ``*-parity-err`` line marks the character of its direction just
+lines merge in time order, each character keeping its direction as its channel (``rx``, ``tx``).
+The text has sample numbers, not times: the sample rate is read from the data annotations,
+which span the data bits (``--line`` says how many, and the baud rate), and each character
+ends its parity and stop bits after its data. Times are seconds from the recording's start
+(no date). A ``*-parity-err`` line marks the character of its direction just
 read with a parity error; a ``*-warning`` line saying "Frame error" (sigrok's stop-bit check),
 a ``*-frame-err`` or a ``*-break`` line marks it with a framing error; all are counted in a
 warning. An error line with no character of its direction before it is counted only.
@@ -46,7 +47,7 @@ class SigrokAnnotationsReader:
         self.warnings: list[str] = []
         try:
             with open(path, encoding="utf-8") as text:
-                starts, ends, values, kinds = self._read(text)
+                starts, ends, values, kinds, directions = self._read(text)
         except UnicodeDecodeError as exc:
             raise CaptureFormatError(ErrorKind.BAD_DATA, f"not text: byte 0x{exc.object[exc.start]:02X}",
                                      path=path, location=f"byte {exc.start}") from None
@@ -67,12 +68,17 @@ class SigrokAnnotationsReader:
         self._values = np.array(values, np.uint8)[order]
         marks = np.array(kinds, np.uint8)[order]
         self._kinds = marks if marks.any() else None
+        # RX and TX both there: each character says which (its channel).
+        names = tuple(sorted(set(directions)))
+        self._channels = np.array([names.index(d) + 1 for d in directions], np.uint8)[order] if len(names) > 1 \
+            else None
         self.info = CaptureInfo(options.line, TimingQuality.EXACT, (
             f"sigrok-cli UART annotations {path}: sample rate {self._rate:,.0f} Hz read from the data bits' spans; "
-            "times are seconds from the recording's start",))
+            "times are seconds from the recording's start",), names if len(names) > 1 else ())
 
-    def _read(self, text: TextIO) -> tuple[list[int], list[int], list[int], list[int]]:
+    def _read(self, text: TextIO) -> tuple[list[int], list[int], list[int], list[int], list[str]]:
         starts: list[int] = []
+        directions: list[str] = []
         ends: list[int] = []
         values: list[int] = []
         kinds: list[int] = []
@@ -96,11 +102,12 @@ class SigrokAnnotationsReader:
                 ends.append(int(match[2]))
                 values.append(self._value(match[4], number))
                 kinds.append(0)
+                directions.append(direction)
             elif (error := _error_kind(kind, match[4])) is not None:
                 self._errors += 1
                 if direction in last:
                     kinds[last[direction]] |= error
-        return starts, ends, values, kinds
+        return starts, ends, values, kinds, directions
 
     def _value(self, text: str, number: int) -> int:
         if len(text) == 4 and text[0] == "[" and text[3] == "]":
@@ -121,7 +128,7 @@ class SigrokAnnotationsReader:
     def batches(self) -> Iterator[ChunkBatch]:
         if len(self._values):
             yield ChunkBatch(self._values.tobytes(), np.arange(1, len(self._values) + 1, dtype=np.int64), self._ends,
-                             self._kinds)
+                             self._kinds, self._channels)
         if self._errors:
             self.warnings.append(f"{self.path}: {self._errors} parity or framing error annotations; the characters "
                                  "are kept as decoded, marked with their errors")

@@ -18,6 +18,7 @@ import re
 import zipfile
 from calendar import timegm
 from collections.abc import Iterator
+from dataclasses import replace
 
 import numpy as np
 
@@ -59,9 +60,11 @@ class SigrokSessionReader:
         self._first_error: float | None = None
         probes = ", ".join(f"{self._probes[probe]}{' (inverted)' if inverted else ''}"
                            for probe, inverted in zip(self._probes_used, self._inverted, strict=True))
+        # Two probes (RX and TX): each character says which one it came from.
+        channels = tuple(self._probes[probe] for probe in self._probes_used) if len(self._probes_used) > 1 else ()
         self.info = CaptureInfo(self._line, TimingQuality.EXACT, (
             f"sigrok session {path}: probe {probes} at {self._rate:,.0f} Hz, decoded as UART "
-            f"{self._line.format()} by rtusniff",))
+            f"{self._line.format()} by rtusniff",), channels)
 
     def _error(self, message: str, kind: ErrorKind = ErrorKind.BAD_DATA) -> CaptureFormatError:
         return CaptureFormatError(kind, message, path=self.path, location="session")
@@ -176,8 +179,8 @@ class SigrokSessionReader:
         read = 0
         for name in self._chunks:
             words = self._samples(name)
-            pending += [decoder.feed(self._level(words, probe))
-                        for decoder, probe in zip(decoders, self._probes_used, strict=True)]
+            pending += [self._on_channel(decoder.feed(self._level(words, probe)), channel)
+                        for channel, (decoder, probe) in enumerate(zip(decoders, self._probes_used, strict=True), 1)]
             read += len(words)
             # Characters decoded later end after this piece: what ends before it is final in order.
             ready, pending = _merged(pending, before=float(read))
@@ -190,6 +193,12 @@ class SigrokSessionReader:
             self.warnings.append(f"{self.path}: {self._framing} characters with a framing error, {self._parity} "
                                  f"with a parity error (the first {self._first_error:.6f} s into the session); "
                                  "kept as sampled, each marked with its error")
+
+    def _on_channel(self, characters: UartCharacters, channel: int) -> UartCharacters:
+        """``characters`` of the ``channel``-th probe, marked with it when there are several."""
+        if not self.info.channels:
+            return characters
+        return replace(characters, channels=np.full(len(characters), channel, np.uint8))
 
     def _chunk_batch(self, characters: UartCharacters) -> ChunkBatch:
         errors = characters.framing_errors | characters.parity_errors

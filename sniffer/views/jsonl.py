@@ -26,6 +26,7 @@ class JsonlView(Sink):
     wants_statistics = True
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        self._frames.channels = info.channels
         self._write(capture_record(source, info, line))
 
     def messages(self, batch: AnnotatedBatch) -> None:

@@ -129,3 +129,38 @@ def test_whole_command_on_damaged_captures(data: bytes, suffix: str) -> None:
     said = err.getvalue().splitlines()
     assert all(line.startswith(("error: ", "warning: ")) for line in said), said
     assert sum(line.startswith("error: ") for line in said) == (code != 0)
+
+
+@cache
+def extended_sample(name: str) -> bytes:
+    """The shipped sample with rtusniff's extensions: UART errors and two channels (text, MCAP)."""
+    import numpy as np
+
+    from decoders.capture import ChunkBatch
+
+    reader = open_reader(str(SAMPLE_LOG))
+    batch = ChunkBatch.concat(list(reader.batches()))
+    reader.close()
+    kinds = np.zeros(len(batch.data), np.uint8)
+    kinds[::37] = 1
+    kinds[5::53] = 2
+    channels = (np.arange(len(batch)) % 2 + 1).astype(np.uint8)
+    from dataclasses import replace
+
+    info = replace(reader.info, channels=("TX", "RX"))
+    target = SCRATCH / f"extended{all_formats()[name].suffixes[0]}"
+    writer = open_writer(str(target), info, name)
+    writer.write_batch(ChunkBatch(batch.data, batch.ends, batch.t_end_ns, kinds, channels))
+    writer.close()
+    return target.read_bytes()
+
+
+@pytest.mark.parametrize("name", ["text", "mcap"])
+@FUZZ
+@given(data=st.data())
+def test_readers_on_damaged_extended_captures(name: str, data: st.DataObject) -> None:
+    """The capture formats' extensions (``# uart-errors:``, ``# channel:``; MCAP side topics),
+    damaged: read, or one line naming the file."""
+    sample = extended_sample(name)
+    assert read_all(sample, all_formats()[name].suffixes[0]) > 0
+    read_all(data.draw(mutated(sample)), all_formats()[name].suffixes[0])

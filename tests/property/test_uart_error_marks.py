@@ -1,5 +1,6 @@
-"""Hypothesis: UART error marks travel with their bytes — through chunks and batches (split,
-sliced, joined), and through the framer (fast and plain paths), whatever the chunking."""
+"""Hypothesis: UART error marks and channels travel with their bytes — through chunks and
+batches (split, sliced, joined), and through the framer (fast and plain paths), whatever the
+chunking; bytes of two channels never share a frame."""
 
 from __future__ import annotations
 
@@ -23,14 +24,12 @@ def marked(draw: st.DrawFn) -> tuple[LineSettings, list[Chunk]]:
     for chunk in chunks:
         positions = draw(st.lists(st.integers(0, len(chunk.data) - 1), max_size=2, unique=True))
         marks = tuple(sorted((p, draw(KINDS)) for p in positions))
+        channel = draw(st.integers(0, 2))
         if draw(st.booleans()):  # a glitch character just before the chunk, framing error
             out.append(Chunk(chunk.t_end_ns - round(len(chunk.data) * line.char_time_ns) - 1,
-                             bytes([draw(st.integers(0, 255))]), ((0, 1),)))
-        out.append(Chunk(chunk.t_end_ns, chunk.data, marks))
-    times = [c.t_end_ns for c in out]
-    if times != sorted(times):
-        out = [Chunk(c.t_end_ns, c.data, c.uart_errors) for c in sorted(out, key=lambda c: c.t_end_ns)]
-    return line, out
+                             bytes([draw(st.integers(0, 255))]), ((0, 1),), channel))
+        out.append(Chunk(chunk.t_end_ns, chunk.data, marks, channel))
+    return line, sorted(out, key=lambda c: c.t_end_ns)
 
 
 def stream_marks(chunks: list[Chunk]) -> list[tuple[int, int]]:
@@ -64,12 +63,15 @@ def test_frames_hold_every_mark_at_its_byte(capture: tuple[LineSettings, list[Ch
     for start in range(0, len(chunks), size):
         frames.extend(framer.feed(ChunkBatch.from_chunks(chunks[start : start + size])))
     frames.extend(framer.flush())
-    found, offset = [], 0
+    found, offset, channels = [], 0, []
     for frame in frames:
         found += [(offset + position, kind) for position, kind in frame.uart_errors]
         assert bool(frame.uart_errors) == ("uart_error" in frame.flags.names)
         offset += len(frame.data)
+        channels += [frame.channel] * len(frame.data)
     assert found == stream_marks(chunks)
+    # Each frame's bytes came from its channel (so none holds bytes of two).
+    assert channels == [c.channel for c in chunks for _ in c.data]
 
 
 @settings(max_examples=100, deadline=None)
@@ -80,5 +82,5 @@ def test_fast_and_plain_framers_agree_with_marks(capture: tuple[LineSettings, li
     for fast in (True, False):
         framer = Framer(line, fast=fast)
         frames = [*framer.feed(ChunkBatch.from_chunks(chunks)), *framer.flush()]
-        results.append([(f.data, f.is_noise, f.crc_ok, f.flags, f.uart_errors) for f in frames])
+        results.append([(f.data, f.is_noise, f.crc_ok, f.flags, f.uart_errors, f.channel) for f in frames])
     assert results[0] == results[1]

@@ -135,3 +135,25 @@ def test_a_capture_without_uart_errors_has_no_errors_channel(tmp_path: Path) -> 
 def test_inconsistent_uart_errors_are_refused(payload: bytes, size: int) -> None:
     with pytest.raises(ValueError):
         mcap_native.decode_errors(payload, size)
+
+
+def test_channels_round_trip(tmp_path: Path) -> None:
+    path = tmp_path / "c.mcap"
+    plain = marked_batch(6000)
+    channels = np.random.default_rng(7).integers(0, 3, len(plain)).astype(np.uint8)
+    batch = ChunkBatch(plain.data, plain.ends, plain.t_end_ns, plain.uart_errors, channels)
+    info = CaptureInfo(INFO.line, INFO.timing, INFO.notes, ("RX", "TX"))
+    write(path, batch, info)
+    reader = McapCaptureReader(str(path))
+    assert reader.info == info
+    chunks = [c for b in reader.batches() for c in b.chunks()]
+    reader.close()
+    assert chunks == list(batch.chunks())
+    assert [c.channel for c in chunks] == channels.tolist()
+
+
+def test_a_channel_beyond_the_names_is_refused() -> None:
+    with pytest.raises(ValueError):
+        mcap_native.decode_channels(mcap_native.encode_channels(np.array([1, 3], np.uint8)), 2, 2)
+    with pytest.raises(ValueError):
+        mcap_native.decode_channels(mcap_native.encode_channels(np.array([1], np.uint8)), 2, 2)

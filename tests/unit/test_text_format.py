@@ -92,6 +92,11 @@ ERRORS = [
     ("# rtu-capture v1\n# uart-errors: 0 framing\n1.0 01\n", ErrorKind.BAD_DATA, 2, "must follow the data line"),
     ("# rtu-capture v1\n1.0 01 02\n# uart-errors: 2 framing\n", ErrorKind.BAD_DATA, 3, "byte 2 of a line of 2 bytes"),
     ("# rtu-capture v1\n1.0 01\n# uart-errors: 0 overrun\n", ErrorKind.BAD_DATA, 3, "bad UART error '0 overrun'"),
+    ("# rtu-capture v1\n# channels: RX TX\n1.0 01\n# channel: MISO\n", ErrorKind.BAD_DATA, 4,
+     "channel 'MISO' is not one of the header's: RX TX"),
+    ("# rtu-capture v1\n# channel: RX\n1.0 01\n", ErrorKind.BAD_DATA, 2, "none (no '# channels:' header)"),
+    ("# rtu-capture v1\n# channels: RX RX\n", ErrorKind.BAD_HEADER, 2, "must name up to 255 different"),
+    ("# rtu-capture v1\n# channels: RX\n# channels: TX\n", ErrorKind.BAD_HEADER, 3, "second '# channels:'"),
     (
         "# rtu-capture v1\n2.0 01\n\n1.999999999 02\n",
         ErrorKind.DECREASING_TIME,
@@ -170,3 +175,31 @@ def test_a_batch_boundary_keeps_the_mark_with_its_line(tmp_path: Path, monkeypat
     monkeypatch.setattr(text, "BATCH_CHUNKS", 1)
     _, batches = read(tmp_path, MARKED)
     assert [c.uart_errors for b in batches for c in b.chunks()] == [((0, 1), (7, 3)), ((1, 2),)]
+
+
+CHANNELS = """# rtu-capture v1
+# line: 19200 8E1
+# timing: exact
+# channels: TX RX
+1700000000.000000000 00
+# channel: TX
+1700000000.011173964 02 03 0C 1E 00 04 27 6C
+1700000000.015000000 05
+# channel: RX
+1700000000.022376060 02 03
+# channel: -
+1700000000.032376060 04
+"""
+
+
+def test_channels_name_the_lines_that_follow_and_round_trip(tmp_path: Path) -> None:
+    from sniffer.io.formats.text import TextCaptureWriter
+
+    info, [batch] = read(tmp_path, CHANNELS)
+    assert info.channels == ("TX", "RX") and info.notes == ()
+    assert [c.channel for c in batch.chunks()] == [0, 1, 1, 2, 0]
+    out = tmp_path / "out.log"
+    writer = TextCaptureWriter(str(out), info)
+    writer.write_batch(batch)
+    writer.close()
+    assert out.read_text() == CHANNELS

@@ -7,8 +7,10 @@
 1700000000.011173964 02 03 0C 1E 00 04 27 6C
 ```
 A data line with characters the receiver found wrong is followed by a comment naming them
-(``# uart-errors: 3 framing, 7 parity``: 0-based byte positions in that line), which a reader
-of plain v1 keeps as a note and reads every byte as before.
+(``# uart-errors: 3 framing, 7 parity``: 0-based byte positions in that line); a capture of
+several lines names them in its header (``# channels: RX TX``) and says before a data line
+which one the following lines came from (``# channel: TX``). A reader of plain v1 keeps these
+comments as notes and reads every byte as before.
 The reader stops at the first error and names the file, the line and the fault.
 """
 
@@ -36,6 +38,10 @@ MAX_TIME_NS = 2**63 - 1
 _TIME = re.compile(r"\d+(?:\.\d{1,9})?")
 _HEADER_KEY = re.compile(r"#\s*(line|timing)\s*:\s*(.*)$", re.IGNORECASE)
 _UART_ERRORS = re.compile(r"#\s*uart-errors\s*:\s*(.*)$", re.IGNORECASE)
+_CHANNELS = re.compile(r"#\s*channels\s*:\s*(.*)$", re.IGNORECASE)
+_CHANNEL = re.compile(r"#\s*channel\s*:\s*(\S+)\s*$", re.IGNORECASE)
+#: ``# channel: -``: the following lines' channel is not said.
+NO_CHANNEL = "-"
 _UART_MARK = re.compile(r"(\d+)\s+(framing\+parity|framing|parity)", re.IGNORECASE)
 UART_ERRORS_PREFIX = "# uart-errors: "
 NS_PER_S = 1_000_000_000
@@ -67,6 +73,9 @@ class TextCaptureReader:
         self._stream: BinaryIO = sys.stdin.buffer if path == STDIO else open(path, "rb")  # noqa: SIM115
         self._line_number = 0
         self._first_data: tuple[int, str] | None = None
+        #: The capture's line names, and the channel of the data lines that follow.
+        self._channels: tuple[str, ...] = ()
+        self._channel = 0
         #: Comment lines found among the data lines, known once :meth:`batches` is done.
         self.late_notes: list[str] = []
         self.warnings: list[str] = []
@@ -118,6 +127,7 @@ class TextCaptureReader:
             raise self._error(ErrorKind.BAD_HEADER, f"missing header: the first line must be {MAGIC!r}")
         line: LineSettings | None = None
         timing: TimingQuality | None = None
+        channels: tuple[str, ...] = ()
         notes: list[str] = []
         self._lines_iter = lines
         for text in lines:
@@ -129,13 +139,36 @@ class TextCaptureReader:
             key = _HEADER_KEY.match(text)
             if _UART_ERRORS.match(text):
                 raise self._error(ErrorKind.BAD_DATA, "'# uart-errors:' must follow the data line it marks")
-            if key is None:
+            if (named := _CHANNELS.match(text)) is not None:
+                channels = self._header_channels(channels, named.group(1))
+            elif (channel := _CHANNEL.match(text)) is not None:
+                self._channel = self._channel_code(channels, channel.group(1))
+            elif key is None:
                 notes.append(text[1:].strip())
             elif key.group(1).lower() == "line":
                 line = self._header_line(line, key.group(2))
             else:
                 timing = self._header_timing(timing, key.group(2))
-        return CaptureInfo(line=line, timing=timing or TimingQuality.HOST, notes=tuple(notes))
+        self._channels = channels
+        return CaptureInfo(line=line, timing=timing or TimingQuality.HOST, notes=tuple(notes), channels=channels)
+
+    def _header_channels(self, previous: tuple[str, ...], value: str) -> tuple[str, ...]:
+        names = tuple(value.split())
+        if previous:
+            raise self._error(ErrorKind.BAD_HEADER, "second '# channels:' header")
+        if not names or len(set(names)) != len(names) or NO_CHANNEL in names or len(names) > 255:
+            raise self._error(ErrorKind.BAD_HEADER, f"'# channels: {value.strip()}' must name up to 255 different "
+                              "lines, e.g. '# channels: RX TX'")
+        return names
+
+    def _channel_code(self, channels: tuple[str, ...], name: str, line_number: int | None = None) -> int:
+        """The 1-based code of a ``# channel:`` line's name (0 for ``-``)."""
+        if name == NO_CHANNEL:
+            return 0
+        if name not in channels:
+            said = " ".join(channels) if channels else "none (no '# channels:' header)"
+            raise self._error(ErrorKind.BAD_DATA, f"channel {name!r} is not one of the header's: {said}", line_number)
+        return channels.index(name) + 1
 
     def _header_line(self, previous: LineSettings | None, value: str) -> LineSettings:
         if previous is not None:
@@ -174,7 +207,7 @@ class TextCaptureReader:
             if len(lines.times) >= BATCH_CHUNKS:
                 yield lines.batch()
                 lines = _Lines()
-            lines.add(t_ns, data)
+            lines.add(t_ns, data, self._channel)
         if lines.times:
             yield lines.batch()
 
@@ -182,7 +215,11 @@ class TextCaptureReader:
         """A note, or the UART errors of the data line just read."""
         errors = _UART_ERRORS.match(text)
         if errors is None:
-            self.late_notes.append(text[1:].strip())
+            channel = _CHANNEL.match(text)
+            if channel is not None:
+                self._channel = self._channel_code(self._channels, channel.group(1), line_number)
+            else:
+                self.late_notes.append(text[1:].strip())
             return
         if not lines.parts:
             raise self._error(ErrorKind.BAD_DATA, "'# uart-errors:' must follow the data line it marks",
@@ -241,13 +278,15 @@ class _Lines:
     def __init__(self) -> None:
         self.times: list[int] = []
         self.parts: list[bytes] = []
+        self.channels: list[int] = []
         self._size = 0
         #: (offset in the batch's data, kind) of the bytes with an error.
         self._marks: list[tuple[int, int]] = []
 
-    def add(self, t_ns: int, data: bytes) -> None:
+    def add(self, t_ns: int, data: bytes, channel: int) -> None:
         self.times.append(t_ns)
         self.parts.append(data)
+        self.channels.append(channel)
         self._size += len(data)
 
     def mark(self, position: int, kind: int) -> None:
@@ -261,7 +300,9 @@ class _Lines:
             for offset, kind in self._marks:
                 kinds[offset] |= kind
         lengths = np.fromiter(map(len, self.parts), np.int64, len(self.parts))
-        return ChunkBatch(b"".join(self.parts), np.cumsum(lengths), np.array(self.times, dtype=np.int64), kinds)
+        channels = np.array(self.channels, np.uint8) if any(self.channels) else None
+        return ChunkBatch(b"".join(self.parts), np.cumsum(lengths), np.array(self.times, dtype=np.int64), kinds,
+                          channels)
 
 
 class TextCaptureWriter:
@@ -273,14 +314,22 @@ class TextCaptureWriter:
         if info.line is not None:
             header.append(f"# line: {info.line.format()}")
         header.append(f"# timing: {info.timing.value}")
+        if info.channels:
+            header.append(f"# channels: {' '.join(info.channels)}")
         header.extend(f"# {note}" if note else "#" for note in info.notes)
         self._stream.write("\n".join(header) + "\n")
+        self._channels = info.channels
+        self._channel = 0
 
     def write_batch(self, batch: ChunkBatch) -> None:
         lines = []
         for chunk in batch.chunks():
             if not chunk.data:
                 raise ValueError("the text format cannot hold a chunk without bytes")
+            if chunk.channel != self._channel:
+                self._channel = chunk.channel
+                name = self._channels[chunk.channel - 1] if 0 < chunk.channel <= len(self._channels) else NO_CHANNEL
+                lines.append(f"# channel: {name}\n")
             lines.append(f"{format_time_ns(chunk.t_end_ns)} {chunk.data.hex(' ').upper()}\n")
             if chunk.uart_errors:
                 marks = ", ".join(f"{position} {uart_error_name(kind)}" for position, kind in chunk.uart_errors)
