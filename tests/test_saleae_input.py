@@ -114,7 +114,8 @@ def digital_export(session: Path, path: Path, probes: list[int], names: list[str
 
     with zipfile.ZipFile(session) as archive:
         chunks = sorted((n for n in archive.namelist() if n.startswith("logic-1-")), key=lambda n: int(n[8:]))
-        words = np.concatenate([np.frombuffer(archive.read(n), np.uint8) for n in chunks])
+        unit = "<u2" if "unitsize=2" in archive.read("metadata").decode() else np.uint8
+        words = np.concatenate([np.frombuffer(archive.read(n), unit) for n in chunks])
     rate = 4e6 if "flowmeter" in session.name else 1e6
     levels = np.stack([(words >> (probe - 1)) & 1 for probe in probes], axis=1)
     changes = np.concatenate([[0], np.flatnonzero(np.any(levels[1:] != levels[:-1], axis=1)) + 1])
@@ -137,3 +138,21 @@ def test_raw_digital_export_decodes_as_the_session(cli: Cli, tmp_path: Path) -> 
     csv.write_text(csv.read_text().replace("\n0.", "\nlater,", 1))
     bad = cli("analyze", str(csv), "--line", "9600", "8N1", "--channel", "RXTX")
     assert bad.code == 7 and f"{csv}:line 2" in bad.err
+
+
+@pytest.mark.skipif(not (REAL / "sigrok").exists(), reason="../shared/real is not beside the checkout")
+def test_raw_digital_export_with_rx_and_tx(cli: Cli, tmp_path: Path) -> None:
+    """Two channels (a real two-probe session's RX and TX): merged in time order, each frame on
+    its channel, the same frames as the session read with both probes."""
+    session = REAL / "sigrok" / "uart" / "modbus_rtu" / "brainchild_io_16do" / "brainchild-io-16do.sr"
+    csv = digital_export(session, tmp_path / "two.csv", [1, 2], ["RX", "TX"])
+    line = ["--line", "19200", "8E1"]
+    from_csv = cli("analyze", str(csv), *line, "--channel", "RX", "--channel", "TX", "--format", "jsonl").jsonl()
+    from_session = cli("analyze", str(session), *line, "--channel", "0", "--channel", "1", "--format",
+                       "jsonl").jsonl()
+    frames = [(r["hex"], r["role"], r["channel"]) for r in from_csv if r["kind"] == "frame"]
+    assert frames == [(r["hex"], r["role"], {"0": "RX", "1": "TX"}[r["channel"]]) for r in from_session
+                      if r["kind"] == "frame"]
+    assert len(frames) == 30 and from_csv[0]["channels"] == ["RX", "TX"]
+    three = cli("analyze", str(csv), *line, "--channel", "RX", "--channel", "TX", "--channel", "1")
+    assert three.code == 2 and "a bus has one line, or two" in three.err

@@ -23,12 +23,13 @@ from __future__ import annotations
 
 import csv
 from collections.abc import Iterator
+from dataclasses import replace
 from typing import TextIO
 
 import numpy as np
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality, UartError
-from decoders.uart import character_chunks, decode_transitions
+from decoders.uart import character_chunks, decode_transitions, merge_characters
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ReaderOptions, channel_number
 
@@ -184,7 +185,8 @@ def _batch(times: list[int], values: bytearray, kinds: bytearray) -> ChunkBatch:
 class SaleaeDigitalReader:
     """Saleae Logic's raw digital export (CSV: ``Time [s],<channel>,<channel>…``, a row where a
     channel changes, ``0``/``1``), decoded as UART by :func:`decoders.uart.decode_transitions`:
-    the bus's channel is ``--channel`` (a name, or a number from 1) or the only one that changes;
+    the bus's channel is ``--channel`` (a name, or a number from 1) or the only one that changes,
+    ``--channel`` twice for RX and TX (merged in time order, each character keeping its channel);
     a line low where the export starts is read inverted; ``--line`` gives the UART settings."""
 
     def __init__(self, path: str, options: ReaderOptions) -> None:
@@ -213,21 +215,34 @@ class SaleaeDigitalReader:
             raise CaptureFormatError(ErrorKind.DECREASING_TIME, "rows go back in time", path=path,
                                      location=f"line {int(np.argmax(np.diff(self._times) < 0)) + 3}")
         matrix = np.array(states, np.bool_).reshape(len(times), len(names))
-        column = self._channel(names, matrix, options.channels)
-        self._levels = matrix[:, column]
+        columns = self._columns(names, matrix, options.channels)
+        self._levels = [matrix[:, column] for column in columns]
         self._line = options.line
-        self._inverted = bool(len(self._levels)) and not bool(self._levels[0])
-        self.info = CaptureInfo(options.line, TimingQuality.EXACT, (
-            f"Saleae digital export {path}: channel {names[column]}{' (inverted)' if self._inverted else ''}, "
-            f"decoded as UART {options.line.format()} by rtusniff; times are seconds from the capture's start",))
+        self._inverted = [bool(len(levels)) and not bool(levels[0]) for levels in self._levels]
+        said = ", ".join(f"{names[column]}{' (inverted)' if inverted else ''}"
+                         for column, inverted in zip(columns, self._inverted, strict=True))
+        notes = (f"Saleae digital export {path}: channel {said}, decoded as UART {options.line.format()} by "
+                 "rtusniff; times are seconds from the capture's start",)
+        self.info = CaptureInfo(options.line, TimingQuality.EXACT, notes,
+                                tuple(names[c] for c in columns) if len(columns) > 1 else ())
 
-    def _channel(self, names: list[str], matrix: np.ndarray, channels: tuple[str, ...]) -> int:
+    def _columns(self, names: list[str], matrix: np.ndarray, channels: tuple[str, ...]) -> list[int]:
+        """The columns of ``--channel`` (at most two: RX and TX), else of the only one that changes."""
+        if len(channels) > 2:
+            raise CaptureFormatError(ErrorKind.USAGE, f"{len(channels)} --channel options: a bus has one line, or "
+                                     "two (RX and TX)", path=self.path, location="line 1")
         if channels:
-            number = channel_number(channels[0], {i + 1: name for i, name in enumerate(names)})
-            if number is None:
-                raise CaptureFormatError(ErrorKind.USAGE, f"--channel {channels[0]}: no such channel (this export "
-                                         f"has {', '.join(names)})", path=self.path, location="line 1")
-            return number - 1
+            return [self._named(names, channel) for channel in channels]
+        return [self._changing(names, matrix)]
+
+    def _named(self, names: list[str], channel: str) -> int:
+        number = channel_number(channel, {i + 1: name for i, name in enumerate(names)})
+        if number is None:
+            raise CaptureFormatError(ErrorKind.USAGE, f"--channel {channel}: no such channel (this export "
+                                     f"has {', '.join(names)})", path=self.path, location="line 1")
+        return number - 1
+
+    def _changing(self, names: list[str], matrix: np.ndarray) -> int:
         changing = [i for i in range(len(names)) if len(matrix) and np.any(matrix[:, i] != matrix[0, i])]
         if len(changing) != 1:
             listed = ", ".join(names[i] for i in (changing or range(len(names))))
@@ -236,7 +251,12 @@ class SaleaeDigitalReader:
         return changing[0]
 
     def batches(self) -> Iterator[ChunkBatch]:
-        characters = decode_transitions(self._times, self._levels, self._line, inverted=self._inverted)
+        parts = [decode_transitions(self._times, levels, self._line, inverted=inverted)
+                 for levels, inverted in zip(self._levels, self._inverted, strict=True)]
+        if len(parts) > 1:
+            parts = [replace(part, channels=np.full(len(part), channel, np.uint8))
+                     for channel, part in enumerate(parts, start=1)]
+        characters = merge_characters(parts)
         errors = int((characters.framing_errors | characters.parity_errors).sum())
         if len(characters):
             yield character_chunks(characters, t0_ns=0, unit_s=1.0)
