@@ -109,7 +109,14 @@ class _Programme:
     def __init__(self, region: Region, open_request: OpenRequest) -> None:
         self.region = region
         begin, stop = region.begin, region.stop
-        self.readings = [self._readings_at(s) for s in range(begin, stop)]
+        #: Ends of the readings found so far (left to right) by a length rule: a frame may end
+        #: there, so a length found by CRC search may start there (as after an anchor).
+        self._rule_ends: set[int] = set()
+        self.readings = []
+        for s in range(begin, stop):
+            found = self._readings_at(s)
+            self._rule_ends.update(end for end, *_, direction in found if direction != ev.SEARCHED)
+            self.readings.append(found)
         self.frame_starts = [s for s in range(begin, stop) if self.readings[s - begin]]
         self.starts_of_frames = set(self.frame_starts)
         size = stop - begin
@@ -131,7 +138,7 @@ class _Programme:
     def _readings_at(self, s: int) -> list[ev.Reading]:
         region = self.region
         data, stop, context = region.data, region.stop, region.context
-        supported = s == region.begin or s in region.pause_set
+        supported = s == region.begin or s in region.pause_set or s in self._rule_ends
         found = ev.valid_frames_at(data, s, stop, search_unknown=supported, search=region.search)
         whole = context.timed and context.closed and s == 0 and stop == len(data)
         if whole and ev.whole_run_frame(data, 0, stop) and not any(reading[0] == stop for reading in found):

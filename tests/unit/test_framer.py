@@ -154,3 +154,16 @@ def test_a_glitch_with_a_framing_error_is_noise_before_a_damaged_answer(fast: bo
         results.append([(f.data, f.is_noise, FrameFlag.UART_ERROR in f.flags) for f in frames])
     assert results[0][1] == (b"\x00" + bytes(damaged), False, False)
     assert results[1][1:] == [(b"\x00", True, True), (bytes(damaged), False, False)]
+
+
+@pytest.mark.parametrize("fast", [True, False])
+def test_a_length_by_crc_search_may_start_where_a_frame_ends(fast: bool) -> None:
+    """An FC 11 request and, with no silence after it, a 4-byte CRC-valid run of an unknown
+    function (found by CRC search): the request's end supports the search on both paths (the
+    plain programme once searched only at segment starts and pauses; hypothesis found it)."""
+    line = LineSettings.parse("9600 8E1")
+    chunks = [Chunk(1_600_000_000_004_583_333, b"\x01\x0bA\xe7"), Chunk(1_600_000_000_009_166_666, b"\x00\r\xc0u")]
+    framer = Framer(line, fast=fast)
+    frames = [*framer.feed(ChunkBatch.from_chunks(chunks)), *framer.flush()]
+    assert [(f.data.hex(), f.is_noise, f.crc_ok) for f in frames] == [("010b41e7", False, True),
+                                                                      ("000dc075", False, True)]
