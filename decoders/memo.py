@@ -30,6 +30,13 @@ class Memo(Generic[Key, Value]):
                 self.put(key, value)
         return value
 
+    def older(self, key: Key) -> Value | None:
+        """:meth:`get` for a key the young generation was just asked for (through :meth:`recent`)."""
+        value = self._old.get(key)
+        if value is not None:
+            self.put(key, value)
+        return value
+
     def recent(self) -> Callable[[Key], Value | None]:
         """The young generation's lookup, to ``map`` over a batch in C: what it misses (``None``),
         ``get`` answers. Valid until the next ``put``."""

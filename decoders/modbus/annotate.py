@@ -53,7 +53,7 @@ from decoders.modbus.pdu import (
     parse_pdu,
     quantity_allowed,
 )
-from decoders.modbus.quick import register_reads
+from decoders.modbus.quick import QuickRead, register_reads
 from decoders.profiles.apply import ProfileApplier
 from decoders.uss import parse_uss
 
@@ -89,34 +89,25 @@ class Annotator:
         frames = batch.frames
         data, offsets, first = frames.data, frames.offsets.tolist(), frames.first_index
         rows = zip(batch.role.tolist(), frames.protocols().tolist(), batch.request_index.tolist(), strict=True)
-        decodings, messages, requests, memo = [], batch.rows(), self._requests, self._decodings
+        decodings, requests, memo = [], self._requests, self._decodings
         # Only decoding a frame teaches the profiles (a new version) or fills the memo.
         recent, version = memo.recent(), self._version()
-        slaves: list[int] | None = None
-        crc: list[bool] = []
-        reads: dict[int, tuple[str, Pdu]] = {}
+        fresh = _Fresh(self, batch)
         for position, (role, protocol, request_index) in enumerate(rows):
             context, request = _NO_REQUEST if request_index == NONE else requests.pop(request_index, _NO_REQUEST)
             key = (role, protocol, data[offsets[position] : offsets[position + 1]], context, version)
             known = recent(key)
             if known is None:
-                known = memo.get(key)
+                known = memo.older(key)
                 if known is None:
-                    if slaves is None:  # the first frame not seen before: columns for the rest
-                        slaves, crc = batch.slave.tolist(), frames.crc_ok.tolist()
-                        reads = register_reads(batch, self._lean_rows(batch))
-                    read = reads.get(position)
-                    decoding = LazyParams(read[0], read[1], request) if read is not None else \
-                        self._lean(key[2], role, protocol, slaves[position], crc_ok=crc[position], request=request)
-                    if decoding is None:
-                        decoding = self._decode(messages[position], request).decoding
-                    known = decoding, answer_context(decoding.pdu)
+                    known = fresh.decode(position, key, request)
                     memo.put(key, known)
-                if self._version() != version:  # the profiles learnt: which slaves are lean may change
-                    slaves = None
-                recent, version = memo.recent(), self._version()
-            if role == _REQUEST_CODE:
-                self._keep_request(first + position, known[1], known[0].pdu)
+                    version = self._version()
+                recent = memo.recent()
+            if role == _REQUEST_CODE and known[0].pdu is not None:
+                requests[first + position] = (known[1], known[0].pdu)
+                if len(requests) > KEPT_REQUESTS:
+                    requests.popitem(last=False)
             decodings.append(known[0])
         return AnnotatedBatch(batch, decodings)
 
@@ -199,6 +190,37 @@ class Annotator:
         telegram = parse_uss(message.frame.data)
         annotated = message.decoded(summary=telegram.summary(), uss=telegram)
         return annotated if self._profiles is None else self._profiles.apply(annotated, None)
+
+
+class _Fresh:
+    """Decodes the frames of a batch its annotator has not seen before: register reads of slaves
+    no profile speaks for from :func:`register_reads` (the whole batch at once, when the first
+    such frame comes), other frames of those slaves by :meth:`Annotator._lean`, the rest by
+    :meth:`Annotator._decode` -- the one path that may teach the profiles something, after
+    which which slaves are lean is asked again."""
+
+    def __init__(self, annotator: Annotator, batch: MessageBatch) -> None:
+        self._annotator, self._batch = annotator, batch
+        self._reads: dict[int, QuickRead] | None = None
+        self._messages = batch.rows()
+
+    def decode(self, position: int, key: DecodingKey, request: Pdu | None) -> tuple[Decoding, AnswerContext]:
+        annotator, batch = self._annotator, self._batch
+        if self._reads is None:
+            self._slaves, self._crc = batch.slave.tolist(), batch.frames.crc_ok.tolist()
+            self._reads = register_reads(batch, annotator._lean_rows(batch))
+        read = self._reads.get(position)
+        if read is not None:
+            return LazyParams(read[0], read[1], request), read[2]
+        role, protocol, data = key[0], key[1], key[2]
+        decoding = annotator._lean(data, role, protocol, self._slaves[position], crc_ok=self._crc[position],
+                                   request=request)
+        if decoding is None:
+            version = annotator._version()
+            decoding = annotator._decode(self._messages[position], request).decoding
+            if annotator._version() != version:  # the profiles learnt: which slaves are lean may change
+                self._reads = None
+        return decoding, answer_context(decoding.pdu)
 
 
 def answer_context(request: Pdu | None) -> AnswerContext:

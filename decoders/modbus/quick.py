@@ -26,9 +26,14 @@ _REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
 READ_REQUEST_BYTES = 8
 
 
-def register_reads(batch: MessageBatch, eligible: npt.NDArray[np.bool_]) -> dict[int, tuple[str, Pdu]]:
-    """Summary and PDU of each FC 3/4 read request and register answer of ``batch`` at an
-    ``eligible`` position, by position."""
+#: Summary, PDU and answer context (:func:`decoders.modbus.annotate.answer_context`) of a frame.
+QuickRead = tuple[str, Pdu, tuple[object, ...]]
+_ANSWER_CONTEXT = (RegistersResponse, None)
+
+
+def register_reads(batch: MessageBatch, eligible: npt.NDArray[np.bool_]) -> dict[int, QuickRead]:
+    """Summary, PDU and answer context of each FC 3/4 read request and register answer of
+    ``batch`` at an ``eligible`` position, by position."""
     frames = batch.frames
     starts, lengths = frames.offsets[:-1], np.diff(frames.offsets)
     raw = np.frombuffer(frames.data, np.uint8)
@@ -36,7 +41,7 @@ def register_reads(batch: MessageBatch, eligible: npt.NDArray[np.bool_]) -> dict
     reads = eligible & frames.crc_ok & ((function == 3) | (function == 4))
     requests = np.flatnonzero(reads & (batch.role == _REQUEST) & (lengths == READ_REQUEST_BYTES))
     answers = np.flatnonzero(reads & (batch.role == _RESPONSE) & (lengths >= 7))
-    decoded: dict[int, tuple[str, Pdu]] = {}
+    decoded: dict[int, QuickRead] = {}
     if len(requests):
         at = starts[requests]
         address = (raw[at + 2].astype(np.int64) << 8) | raw[at + 3]
@@ -45,7 +50,8 @@ def register_reads(batch: MessageBatch, eligible: npt.NDArray[np.bool_]) -> dict
         for position, code, first, number in zip(requests[fine].tolist(), function[requests][fine].tolist(),
                                                  address[fine].tolist(), count[fine].tolist(), strict=True):
             span = f"{first}" if number == 1 else f"{first}..{first + number - 1}"
-            decoded[position] = (f"read {_TABLE[code]} {span} ({number})", ReadRequest(code, first, number))
+            decoded[position] = (f"read {_TABLE[code]} {span} ({number})", ReadRequest(code, first, number),
+                                 (ReadRequest, code, first, number))
     if len(answers):
         byte_count = raw[starts[answers] + 2].astype(np.int64)
         fine = (byte_count == lengths[answers] - 5) & (byte_count % 2 == 0) & (byte_count > 0)
@@ -60,5 +66,5 @@ def register_reads(batch: MessageBatch, eligible: npt.NDArray[np.bool_]) -> dict
                 shown += f" … (+{words - SHOWN_WORDS})"
             values = struct.unpack(f">{words}H", payload)
             decoded[position] = (f"{_TABLE[code]} = {shown} ({words} registers)",
-                                 RegistersResponse(code, size, values))
+                                 RegistersResponse(code, size, values), _ANSWER_CONTEXT)
     return decoded

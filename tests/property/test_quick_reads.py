@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from decoders.crc import crc_bytes, crc_ok
 from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
+from decoders.modbus.annotate import answer_context
 from decoders.modbus.pdu import parse_pdu
 from decoders.modbus.quick import register_reads
 
@@ -40,11 +41,11 @@ def test_quick_reads_are_parse_pdu(frames: list[tuple[bytes, Role]]) -> None:
                             np.array([data[1] for data, _ in frames], np.int16), np.full(count, NONE, np.int16),
                             np.zeros(count, np.uint16), np.full(count, NONE, np.int64), np.full(count, NONE, np.int64))
     decoded = register_reads(messages, np.ones(count, np.bool_))
-    for position, (summary, pdu) in decoded.items():
+    for position, (summary, pdu, context) in decoded.items():
         data, role = frames[position]
         assert crc_ok(data)
         expected = parse_pdu(data, is_request=role is Role.REQUEST)
-        assert pdu == expected and summary == expected.summary()
+        assert pdu == expected and summary == expected.summary() and context == answer_context(expected)
     # What is left out is what the quick path does not cover, never a frame it could have read.
     for position, (data, role) in enumerate(frames):
         if position not in decoded and crc_ok(data) and data[1] in (3, 4):
