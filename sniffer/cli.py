@@ -13,10 +13,10 @@ import sys
 from collections.abc import Sequence
 from importlib.metadata import version
 
-from sniffer.commands import analyze, capture, convert, export, ports, profiles, stats
+from sniffer.commands import analyze, capture, compare, convert, cut, export, ports, profiles, stats, values
 from sniffer.errors import ErrorKind, RtuSniffError
 
-COMMANDS = [analyze, stats, export, capture, ports, convert, profiles]
+COMMANDS = [analyze, stats, values, compare, cut, export, capture, ports, convert, profiles]
 INTERRUPTED_EXIT = 130
 #: Objects allocated between young-generation collections. Decoding builds millions of
 #: short-lived objects next to long-lived caches of decodings; at Python's default (700)

@@ -162,9 +162,7 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
     """Open ``args.capture`` and settle how to decode it."""
     book = profile_book(args.profile, args.profile_file)
     override = line_override(args)
-    options = ReaderOptions(line=override, timing=TimingQuality(args.timing) if args.timing else None,
-                            channels=tuple(getattr(args, "channel", None) or ()))
-    reader = open_capture(capture_paths(args), args.input_format, options)
+    reader = open_capture(capture_paths(args), args.input_format, reader_options(args))
     stack.callback(close_reader, reader)
     if override is not None and reader.info.line is not None and override.format() != reader.info.line.format():
         reader.warnings.append(f"{source_name(args)}: --line {override.format()} overrides the capture's own "
@@ -176,6 +174,12 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
     if getattr(args, "filter", None):
         analysis = replace(analysis, keep=parse_filters(args.filter))
     return reader, analysis
+
+
+def reader_options(args: argparse.Namespace) -> ReaderOptions:
+    """What the command's options tell a capture reader: ``--line``, ``--timing``, ``--channel``."""
+    return ReaderOptions(line=line_override(args), timing=TimingQuality(args.timing) if args.timing else None,
+                         channels=tuple(getattr(args, "channel", None) or ()))
 
 
 def close_reader(reader: CaptureReader) -> None:

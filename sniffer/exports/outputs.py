@@ -120,13 +120,14 @@ def _metadata(args: argparse.Namespace, analysis: Analysis) -> dict[str, str]:
     return {
         "source": " + ".join(args.capture),
         # One digest per file, in the order named (a rotated recording: every part).
-        "source_sha256": " ".join(_sha256(path) for path in args.capture),
+        "source_sha256": " ".join(sha256_of(path) for path in args.capture),
         "command": shlex.join(args.command_line),
         "profiles": profiles,
     }
 
 
-def _sha256(path: str) -> str:
+def sha256_of(path: str) -> str:
+    """The SHA-256 of a file, in hex (``-``: standard input, which cannot be read twice)."""
     if path == "-":
         return "(standard input)"
     digest = hashlib.sha256()

@@ -1,0 +1,86 @@
+"""``rtusniff compare BEFORE AFTER``: what changed per slave and function between two captures."""
+
+from __future__ import annotations
+
+import argparse
+from contextlib import ExitStack
+
+from rich.console import Console
+
+from decoders.capture import CaptureInfo
+from decoders.compare import compare
+from decoders.line import LineSettings
+from decoders.stats import Statistics
+from sniffer.commands.common import (
+    add_decoding_options,
+    add_force_option,
+    add_quiet_option,
+    check_outputs,
+    open_analysis,
+    open_output,
+    tell_written,
+)
+from sniffer.pipeline import analyze
+from sniffer.progress import progress_for
+from sniffer.sinks import Sink
+from sniffer.views.compare_view import Side, write_comparison
+from sniffer.views.layout import terminal_colors, terminal_width
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = subparsers.add_parser(
+        "compare",
+        help="two captures side by side: what changed per slave and function (did the fix help?)",
+        description="Count both captures as stats does and put them side by side, per slave and function: "
+        "requests, error and timeout rates, latency p50/p95/max and poll period, before→after, with a verdict "
+        "(worse: the error rate rose by more than half a percentage point or the latency p95 by more than 20 %% "
+        "and 0.5 ms; better: the same falls; new, gone, same). The decoding options apply to both captures.",
+    )
+    parser.add_argument("before", metavar="BEFORE", help="the capture before the change")
+    parser.add_argument("after", metavar="AFTER", help="the capture after it")
+    parser.add_argument("--format", choices=["table", "json"], default="table", help="output format (default: table)")
+    parser.add_argument("-o", "--output", help="write to this file instead of standard output")
+    parser.add_argument("--width", type=int, metavar="COLUMNS",
+                        help="lay the table out for a terminal this wide, also into a pipe or a file (0: one line "
+                        "per row, as into a pipe)")
+    add_force_option(parser)
+    add_decoding_options(parser)
+    add_quiet_option(parser)
+    parser.set_defaults(run=run)
+
+
+class _Counted(Sink):
+    """Asks for the statistics, and remembers how the capture was read."""
+
+    wants_statistics = True
+    timing = ""
+    line = ""
+
+    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        self.timing = info.timing.value
+        self.line = line.format()
+
+
+def run(args: argparse.Namespace) -> int:
+    check_outputs([args.output], [args.before, args.after], force=args.force)
+    sides = [_counted(args, path) for path in (args.before, args.after)]
+    with ExitStack() as stack:
+        out = open_output(args.output, stack)
+        console = Console(file=out)
+        width = terminal_width(args, console) if args.format == "table" else None
+        write_comparison(out, sides[0], sides[1], compare(sides[0].statistics, sides[1].statistics),
+                         as_json=args.format == "json", width=width,
+                         colors=terminal_colors(console) if width else None)
+    if args.output not in (None, "-"):
+        tell_written(args, [(args.output, f"{args.format}, {args.before} vs {args.after}")])
+    return 0
+
+
+def _counted(args: argparse.Namespace, path: str) -> Side:
+    one = argparse.Namespace(**{**vars(args), "capture": [path]})
+    with ExitStack() as stack:
+        reader, analysis = open_analysis(one, stack)
+        counted = _Counted()
+        progress = stack.enter_context(progress_for(one, reader, to_terminal=args.output in (None, "-")))
+        statistics: Statistics = analyze(reader, path, analysis, [counted, progress.sink])
+    return Side(path, counted.line, counted.timing, statistics)

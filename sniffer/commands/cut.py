@@ -1,0 +1,106 @@
+"""``rtusniff cut CAPTURE -o OUT``: a window of a capture as a small capture that reproduces it."""
+
+from __future__ import annotations
+
+import argparse
+import os
+from contextlib import ExitStack, suppress
+from dataclasses import replace
+
+from decoders.capture import CaptureInfo
+from sniffer.commands.common import (
+    add_capture_argument,
+    add_channel_option,
+    add_force_option,
+    add_input_format_option,
+    add_line_options,
+    add_quiet_option,
+    add_time_option,
+    add_timing_option,
+    capture_paths,
+    check_outputs,
+    close_reader,
+    open_analysis,
+    reader_options,
+    source_name,
+    tell_written,
+)
+from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.capture_cut import PastWindow, WindowFinder, WindowPlace, window_chunks
+from sniffer.exports.outputs import sha256_of
+from sniffer.io.chain import open_capture
+from sniffer.io.registry import format_help, formats_for, open_writer
+from sniffer.pipeline import analyze
+from sniffer.selection import EVERYTHING, add_selection_options
+from sniffer.views.clock import Clock
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = subparsers.add_parser(
+        "cut",
+        help="a window of a capture as a small capture (--from/--to, --around/--context) that reproduces it",
+        description="Write the frames of a window (--from/--to, --around INDEX --context N, --limit N) as a "
+        "capture of its own: the same line settings, timing and notes, and a note saying where it came from "
+        "(the source's SHA-256, frames, times and byte offsets). The cut follows frame boundaries: never "
+        "inside a frame.",
+    )
+    add_capture_argument(parser)
+    parser.add_argument("-o", "--output", required=True, help="the capture to write (its suffix names the format)")
+    parser.add_argument("--output-format", choices=sorted(formats_for("write")),
+                        help=f"default: from the suffix. {format_help('write')}")
+    add_selection_options(parser)
+    add_time_option(parser)
+    add_line_options(parser)
+    add_timing_option(parser)
+    add_input_format_option(parser)
+    add_channel_option(parser)
+    add_force_option(parser)
+    add_quiet_option(parser)
+    parser.set_defaults(run=run, profile=[], profile_file=[], response_timeout=None)
+
+
+def run(args: argparse.Namespace) -> int:
+    check_outputs([args.output], capture_paths(args), force=args.force)
+    with ExitStack() as stack:
+        reader, analysis = open_analysis(args, stack)
+        if not analysis.selection.windowed and analysis.selection.limit is None:
+            raise RtuSniffError(ErrorKind.USAGE, "cut needs a window: --from/--to, --around INDEX or --limit N")
+        finder = WindowFinder(analysis.selection)
+        with suppress(PastWindow):  # the window is complete: the rest need not be read
+            analyze(reader, source_name(args), replace(analysis, selection=EVERYTHING), [finder])
+        info, line, timing = reader.info, analysis.line, analysis.timing
+    place = finder.place
+    if place.first_index is None:
+        raise RtuSniffError(ErrorKind.NO_DATA, "no frame in the window: nothing to cut", path=source_name(args))
+    note = _provenance(args, place, Clock(args.time))
+    info = CaptureInfo(line, timing, (*info.notes, note), info.channels)
+    chunks = 0
+    writer = open_writer(args.output, info, args.output_format)
+    try:
+        second = open_capture(capture_paths(args), args.input_format, reader_options(args))
+        try:
+            for batch in window_chunks(second.batches(), place, line, timing):
+                writer.write_batch(batch)
+                chunks += len(batch)
+        finally:
+            close_reader(second)
+    except BaseException:
+        writer.close()
+        os.remove(args.output)  # a cut that stops where reading broke would pass for the window
+        raise
+    writer.close()
+    what = (f"frames #{place.first_index}..#{place.last_index} ({place.frames:,}), "
+            f"{place.byte_end - place.byte_start:,} bytes of line data in {chunks:,} chunks")
+    tell_written(args, [(args.output, what)])
+    return 0
+
+
+def _provenance(args: argparse.Namespace, place: WindowPlace, clock: Clock) -> str:
+    digests = " ".join(sha256_of(path) for path in capture_paths(args))
+    return (f"cut from {source_name(args)} (sha256 {digests}): frames #{place.first_index}..#{place.last_index}, "
+            f"{_moment(clock, place.t_first_ns)} to {_moment(clock, place.t_last_ns)} ({clock.zone}), bytes "
+            f"{place.byte_start:,}..{place.byte_end:,} of its line data")
+
+
+def _moment(clock: Clock, t_ns: int) -> str:
+    return f"{clock.date(t_ns)}.{t_ns % 1_000_000_000 // 1000:06d}"

@@ -1,0 +1,109 @@
+"""``rtusniff cut``: the cut of a window reads back to the window's frames with their times
+unchanged (exact and host captures, text and MCAP, a logic analyzer's session with two probes),
+never starts or ends inside a frame, and says where it came from."""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import ROOT, CliResult
+from tests.real_recordings import REAL
+
+Cli = Callable[..., CliResult]
+CAPTURES = ROOT / "captures"
+
+
+def frames(cli: Cli, *argv: str) -> list[tuple[str, int, int, bool]]:
+    result = cli("analyze", *argv, "--format", "jsonl")
+    assert result.code == 0, result.err
+    return [(r["hex"], r["t_ns"], r["t_end_ns"], r["crc_ok"]) for r in result.jsonl() if r["kind"] == "frame"]
+
+
+CASES = [
+    ("atv71-plc-poll.log", ["--around", "25", "--context", "3"], ".log"),
+    ("atv71-plc-poll.mcap", ["--from", "1s", "--to", "2s"], ".mcap"),
+    ("atv71-plc-poll-usb.log", ["--around", "30", "--context", "5"], ".log"),
+    ("xbt-hmi.log", ["--limit", "9"], ".mcap"),
+    ("nord-uss.log", ["--around", "4", "--context", "2"], ".log"),
+]
+
+
+@pytest.mark.parametrize(("sample", "window", "suffix"), CASES, ids=[c[0] for c in CASES])
+def test_a_cut_reads_back_to_the_window(cli: Cli, tmp_path: Path, sample: str, window: list[str],
+                                        suffix: str) -> None:
+    out = tmp_path / f"cut{suffix}"
+    result = cli("cut", str(CAPTURES / sample), *window, "-o", str(out))
+    assert result.code == 0, result.err
+    expected = frames(cli, str(CAPTURES / sample), *window)
+    got = frames(cli, str(out))
+    assert [f[0] for f in got] == [f[0] for f in expected] and len(got) >= 5
+    timed = cli("analyze", str(out), "--format", "jsonl").jsonl()[0]["timing"] == "exact"
+    if timed:  # exact timing: every time unchanged
+        assert got == expected
+    digest = hashlib.sha256((CAPTURES / sample).read_bytes()).hexdigest()
+    notes = cli("analyze", str(out), "--format", "jsonl").jsonl()[0]["notes"]
+    assert any(f"sha256 {digest}" in note and "frames #" in note for note in notes)
+    assert f"wrote {out}: frames #" in result.err
+
+
+def test_a_cut_inside_a_read_keeps_whole_frames(cli: Cli, tmp_path: Path) -> None:
+    """Host reads that hold the end of one frame and the start of the next are cut between them."""
+    text = "\n".join(["# rtu-capture v1", "# line: 19200 8E1", "# timing: host",
+                      "1700000000.010000000 02 03 0C 1E 00 04 27 6C 02 03",
+                      "1700000000.020000000 08 00 28 02 58 01 F4 00 00 52 B0 02 03 0C",
+                      "1700000000.030000000 1E 00 04 27 6C",
+                      "1700000000.200000000 02 03 08 00 28 02 58 01 F4 00 00 52 B0",
+                      ""])
+    source = tmp_path / "reads.log"
+    source.write_text(text)
+    answer, request = "0203080028025801f4000052b0", "02030c1e0004276c"
+    for around, context, expected in [("1", "0", [answer]), ("2", "1", [answer, request, answer])]:
+        out = tmp_path / f"cut-{around}.log"
+        assert cli("cut", str(source), "--around", around, "--context", context, "-o", str(out)).code == 0
+        got = frames(cli, str(out))
+        assert [f[0] for f in got] == expected and all(f[3] for f in got)
+    # The reads at the edges were cut between frames, each part keeping its read's time (host timing).
+    lines = [line for line in (tmp_path / "cut-1.log").read_text().splitlines() if not line.startswith("#")]
+    assert lines == ["1700000000.010000000 02 03", "1700000000.020000000 08 00 28 02 58 01 F4 00 00 52 B0"]
+
+
+@pytest.mark.skipif(not (REAL / "sigrok").exists(), reason="../shared/real is not beside the checkout")
+def test_a_cut_of_a_two_probe_session(cli: Cli, tmp_path: Path) -> None:
+    session = REAL / "sigrok" / "uart" / "modbus_rtu" / "brainchild_io_16do" / "brainchild-io-16do.sr"
+    options = ["--line", "19200", "8E1", "--channel", "0", "--channel", "1"]
+    out = tmp_path / "cut.log"
+    assert cli("cut", str(session), *options, "--around", "10", "--context", "4", "-o", str(out)).code == 0
+    assert frames(cli, str(out)) == frames(cli, str(session), *options, "--around", "10", "--context", "4")
+    assert "# channels: 0 1" in out.read_text()
+
+
+def test_cut_refuses_what_it_cannot_do(cli: Cli, tmp_path: Path) -> None:
+    sample = str(CAPTURES / "atv71-plc-poll.log")
+    no_window = cli("cut", sample, "-o", str(tmp_path / "a.log"))
+    assert no_window.code == 2 and "cut needs a window" in no_window.err
+    empty = cli("cut", sample, "--from", "23:59:59", "-o", str(tmp_path / "b.log"))
+    assert empty.code != 0 and "no frame in the window" in empty.err and not (tmp_path / "b.log").exists()
+    existing = tmp_path / "c.log"
+    existing.write_text("keep")
+    refused = cli("cut", sample, "--limit", "3", "-o", str(existing))
+    assert refused.code != 0 and existing.read_text() == "keep"
+    into_itself = cli("cut", sample, "--limit", "3", "-o", sample, "--force")
+    assert into_itself.code != 0 and (CAPTURES / "atv71-plc-poll.log").read_text().startswith("# rtu-capture v1")
+
+
+def test_an_exact_chunk_cut_ends_its_characters_earlier(cli: Cli, tmp_path: Path) -> None:
+    """Two frames back to back in one exact chunk: the cut keeps the first, ending 13 character
+    times (19200 8E1: 572 917 ns each) before the chunk, its times as in the whole."""
+    source = tmp_path / "joined.log"
+    source.write_text("# rtu-capture v1\n# line: 19200 8E1\n# timing: exact\n"
+                      "1700000000.020000000 02 03 0C 1E 00 04 27 6C 02 03 08 00 28 02 58 01 F4 00 00 52 B0\n"
+                      "1700000000.100000000 02 03 0C 1E 00 04 27 6C\n")
+    out = tmp_path / "first.log"
+    assert cli("cut", str(source), "--limit", "1", "-o", str(out)).code == 0
+    [line] = [line for line in out.read_text().splitlines() if not line.startswith("#")]
+    assert line == f"1700000000.{20_000_000 - round(13 * 1e9 * 11 / 19200):09d} 02 03 0C 1E 00 04 27 6C"
+    assert frames(cli, str(out)) == frames(cli, str(source), "--limit", "1")
