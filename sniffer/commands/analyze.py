@@ -15,7 +15,9 @@ from sniffer.commands.common import (
     add_filter_option,
     add_force_option,
     add_jobs_option,
+    add_output_option,
     add_quiet_option,
+    add_width_option,
     capture_paths,
     check_outputs,
     open_analysis,
@@ -44,15 +46,13 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     add_capture_argument(parser)
     parser.add_argument("--format", choices=list(FORMATS), default="table", help="output format (default: table)")
-    parser.add_argument("-o", "--output", help="write to this file instead of standard output")
+    add_output_option(parser)
     add_force_option(parser)
     add_filter_option(parser)
     view = parser.add_argument_group("the table")
     view.add_argument("--hex", action=argparse.BooleanOptionalAction, default=None,
                       help="show the frame's bytes (default: on a terminal when there is room; not into a pipe)")
-    view.add_argument("--width", type=int, metavar="COLUMNS",
-                      help="lay the table out for a terminal this wide, also into a pipe or a file (0: one line per "
-                      "frame, as into a pipe)")
+    add_width_option(view, "frame")
     add_register_options(view)
     add_decoding_options(parser)
     add_jobs_option(parser)

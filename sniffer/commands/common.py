@@ -228,6 +228,16 @@ def human_size(count: int) -> str:
     return f"{value:.1f} TB"
 
 
+def add_output_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    parser.add_argument("-o", "--output", help="write to this file instead of standard output")
+
+
+def add_width_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup, row: str = "row") -> None:
+    parser.add_argument("--width", type=int, metavar="COLUMNS",
+                        help=f"lay the table out for a terminal this wide, also into a pipe or a file (0: one line "
+                        f"per {row}, as into a pipe)")
+
+
 def add_force_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file (never the input)")
 

@@ -11,7 +11,9 @@ from sniffer.commands.common import (
     add_capture_argument,
     add_decoding_options,
     add_force_option,
+    add_output_option,
     add_quiet_option,
+    add_width_option,
     capture_paths,
     check_outputs,
     open_analysis,
@@ -36,10 +38,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     add_capture_argument(parser)
     parser.add_argument("--format", choices=["table", "json"], default="table", help="output format (default: table)")
-    parser.add_argument("-o", "--output", help="write to this file instead of standard output")
-    parser.add_argument("--width", type=int, metavar="COLUMNS",
-                        help="lay the table out for a terminal this wide, also into a pipe or a file (0: one line "
-                        "per row, as into a pipe)")
+    add_output_option(parser)
+    add_width_option(parser)
     add_force_option(parser)
     add_decoding_options(parser)
     add_quiet_option(parser)

@@ -10,6 +10,7 @@ from sniffer.commands.common import (
     add_decoding_options,
     add_force_option,
     add_jobs_option,
+    add_output_option,
     add_quiet_option,
     capture_paths,
     check_outputs,
@@ -42,7 +43,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("--wide", action="store_true",
                         help="one row per frame, a column per parameter (SLAVE:CODE); held in memory until the end")
     parser.add_argument("--format", choices=["csv", "jsonl"], default="csv", help="output format (default: csv)")
-    parser.add_argument("-o", "--output", help="write to this file instead of standard output")
+    add_output_option(parser)
     add_force_option(parser)
     add_decoding_options(parser)
     add_jobs_option(parser)
