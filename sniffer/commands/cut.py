@@ -86,7 +86,9 @@ def run(args: argparse.Namespace) -> int:
             close_reader(second)
     except BaseException:
         writer.close()
-        os.remove(args.output)  # a cut that stops where reading broke would pass for the window
+        # A cut that stops where reading broke would pass for the window; a device or a link stays.
+        if os.path.isfile(args.output) and not os.path.islink(args.output):
+            os.remove(args.output)
         raise
     writer.close()
     what = (f"frames #{place.first_index}..#{place.last_index} ({place.frames:,}), "
