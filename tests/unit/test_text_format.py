@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.formats.text import TextCaptureReader, format_time_ns, parse_time_ns
@@ -203,3 +203,27 @@ def test_channels_name_the_lines_that_follow_and_round_trip(tmp_path: Path) -> N
     writer.write_batch(batch)
     writer.close()
     assert out.read_text() == CHANNELS
+
+
+@pytest.mark.parametrize(("note", "lines"), [
+    ("site: Grüße", ["# site: Gr\\xfc\\xdfe"]),
+    ("two\n1700000000.0 01 03 00 00 00 01 84 0A", ["# two", "# 1700000000.0 01 03 00 00 00 01 84 0A"]),
+    ("line: 9600 8N1", ["# (note) line: 9600 8N1"]),
+    ("uart-errors: 0 framing", ["# (note) uart-errors: 0 framing"]),
+    ("tab\there", ["# tab\\x09here"]),
+    ("", ["#"]),
+])
+def test_notes_never_become_data_or_headers(tmp_path: Path, note: str, lines: list[str]) -> None:
+    """A note from another capture (an MCAP's, anything) is written as comment lines only: a
+    newline cannot start a data line, a note cannot pass for a header or an extension line, and
+    what is not ASCII is escaped (the format is ASCII)."""
+    from sniffer.io.formats.text import TextCaptureWriter, comment_lines
+
+    assert comment_lines(note) == lines
+    path = tmp_path / "notes.log"
+    writer = TextCaptureWriter(str(path), CaptureInfo(LineSettings.parse("19200 8E1"), TimingQuality.EXACT, (note,)))
+    writer.write_batch(ChunkBatch.from_chunks([Chunk(1_700_000_000_000_000_000, b"\x01")]))
+    writer.add_notes([note])
+    writer.close()
+    info, [batch] = read(tmp_path, path.read_text())
+    assert batch.data == b"\x01" and info.line == LineSettings.parse("19200 8E1")

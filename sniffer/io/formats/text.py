@@ -305,6 +305,23 @@ class _Lines:
                           channels)
 
 
+#: A note line that would read as a header or an extension line gets this in front.
+NOTE_MARK = "(note) "
+_DIRECTIVE = re.compile(r"\s*(rtu-capture|line|timing|channels?|uart-errors)\b", re.IGNORECASE)
+
+
+def comment_lines(note: str) -> list[str]:
+    """A capture note as comment lines a reader keeps as notes: one per line of the note (a
+    newline must not start a data line), outside ASCII as ``\\xe9``-style escapes (the format
+    is ASCII), and a line that would read as a header or extension line marked ``(note)``."""
+    lines = []
+    for line in note.splitlines() or [""]:
+        ascii_text = line.encode("ascii", "backslashreplace").decode("ascii")
+        text = "".join(char if char.isprintable() else f"\\x{ord(char):02x}" for char in ascii_text)
+        lines.append(f"# {NOTE_MARK if _DIRECTIVE.match(text) else ''}{text}" if text else "#")
+    return lines
+
+
 class TextCaptureWriter:
     """Writes the header at once, then one line per chunk."""
 
@@ -316,7 +333,7 @@ class TextCaptureWriter:
         header.append(f"# timing: {info.timing.value}")
         if info.channels:
             header.append(f"# channels: {' '.join(info.channels)}")
-        header.extend(f"# {note}" if note else "#" for note in info.notes)
+        header.extend(line for note in info.notes for line in comment_lines(note))
         self._stream.write("\n".join(header) + "\n")
         self._channels = info.channels
         self._channel = 0
@@ -337,7 +354,7 @@ class TextCaptureWriter:
         self._stream.write("".join(lines))
 
     def add_notes(self, notes: list[str]) -> None:
-        self._stream.write("".join(f"# {note}\n" for note in notes))
+        self._stream.write("".join(f"{line}\n" for note in notes for line in comment_lines(note)))
 
     def flush(self) -> None:
         self._stream.flush()
