@@ -240,6 +240,8 @@ class McapCaptureReader:
         self._records = StreamReader(self._file, record_size_limit=max(self._size, 1)).records
         #: The topics read (``_ENCODINGS``) by channel id.
         self._topics: dict[int, str] = {}
+        #: The last chunk's time so far: times never decrease, and none is before 1970.
+        self._last_ns = 0
         self._good = 0
         self.late_notes: list[str] = []
         #: Said once reading is done: e.g. a recording that was cut short.
@@ -306,8 +308,8 @@ class McapCaptureReader:
         try:
             line = LineSettings.parse(fields["line"]) if "line" in fields else None
             timing = TimingQuality(fields.get("timing", ""))
-            notes = tuple(json.loads(fields.get("notes", "[]")))
-            channels = tuple(str(name) for name in json.loads(fields.get("channels", "[]")))
+            notes = self._texts(fields.get("notes", "[]"), f"'{METADATA_NAME}' notes")
+            channels = self._texts(fields.get("channels", "[]"), f"'{METADATA_NAME}' channels")
         except (ValueError, TypeError) as exc:
             raise self._error(f"bad '{METADATA_NAME}' metadata: {exc}") from None
         return CaptureInfo(line=line, timing=timing, notes=notes, channels=channels)
@@ -330,7 +332,17 @@ class McapCaptureReader:
                 if len(batch):
                     yield batch
             elif isinstance(record, Metadata) and record.name == NOTES_METADATA_NAME:
-                self.late_notes.extend(json.loads(record.metadata.get("notes", "[]")))
+                self.late_notes.extend(self._texts(record.metadata.get("notes", "[]"), f"'{NOTES_METADATA_NAME}'"))
+
+    def _texts(self, text: str, what: str) -> tuple[str, ...]:
+        """A metadata field that holds a JSON list of strings (notes, channel names)."""
+        try:
+            values = json.loads(text)
+        except ValueError:
+            values = None
+        if not isinstance(values, list) or not all(isinstance(value, str) for value in values):
+            raise self._error(f"bad {what}: not a JSON list of strings")
+        return tuple(values)
 
     def _block(self, record: Message, side: dict[str, bytes]) -> ChunkBatch:
         """A block's chunks, with the UART errors and channels its side messages give."""
@@ -341,8 +353,15 @@ class McapCaptureReader:
             if CHANNELS_TOPIC in side:
                 channels = decode_channels(side[CHANNELS_TOPIC], len(batch), len(self.info.channels))
                 batch = replace(batch, channels=channels)
+            if len(batch) and int(batch.t_end_ns[0]) < 0:
+                raise ValueError("a time before 1970 (negative)")
+            if len(batch) and int(batch.t_end_ns[0]) < self._last_ns:
+                raise ValueError("its first chunk is earlier than the last chunk of the block before "
+                                 "(times must not decrease)")
         except ValueError as exc:
             raise self._error(f"bad chunk block (sequence {record.sequence}): {exc}") from None
+        if len(batch):
+            self._last_ns = int(batch.t_end_ns[-1])
         return batch
 
 

@@ -157,3 +157,50 @@ def test_a_channel_beyond_the_names_is_refused() -> None:
         mcap_native.decode_channels(mcap_native.encode_channels(np.array([1, 3], np.uint8)), 2, 2)
     with pytest.raises(ValueError):
         mcap_native.decode_channels(mcap_native.encode_channels(np.array([1], np.uint8)), 2, 2)
+
+
+def crafted(path: Path, fields: dict[str, str], blocks: list[ChunkBatch], late_notes: str | None = None) -> Path:
+    """An MCAP written with the standard writer: rtusniff's metadata as given, the blocks, and a
+    late notes record."""
+    from mcap.writer import Writer
+
+    with path.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="rtusniff", library="test")
+        writer.add_metadata(mcap_native.METADATA_NAME, fields)
+        channel = writer.register_channel(topic=mcap_native.TOPIC, message_encoding=mcap_native.MESSAGE_ENCODING,
+                                          schema_id=0)
+        for block in blocks:
+            t = int(block.t_end_ns[0]) if int(block.t_end_ns[0]) >= 0 else 0
+            writer.add_message(channel_id=channel, log_time=t, publish_time=t, data=encode_block(block))
+        if late_notes is not None:
+            writer.add_metadata(mcap_native.NOTES_METADATA_NAME, {"notes": late_notes})
+        writer.finish()
+    return path
+
+
+FIELDS = {"format_version": "1", "timing": "exact", "line": "19200 8E1", "notes": "[]"}
+T0 = 1_700_000_000_000_000_000
+
+
+def block_at(*times: int) -> ChunkBatch:
+    return ChunkBatch.from_chunks([Chunk(t, b"\x01\x03") for t in times])
+
+
+@pytest.mark.parametrize(("fields", "blocks", "late", "said"), [
+    ({**FIELDS, "notes": '{"a": 1}'}, [block_at(T0)], None, "'rtusniff.capture' notes: not a JSON list of strings"),
+    ({**FIELDS, "notes": "[1, 2]"}, [block_at(T0)], None, "'rtusniff.capture' notes: not a JSON list of strings"),
+    (FIELDS, [block_at(T0)], "nope", "'rtusniff.notes': not a JSON list of strings"),
+    (FIELDS, [block_at(T0, T0 + 10), block_at(T0 + 5)], None, "times must not decrease"),
+    (FIELDS, [block_at(-5, 0)], None, "a time before 1970"),
+])
+def test_crafted_metadata_and_times_are_one_error(tmp_path: Path, fields: dict[str, str], blocks: list[ChunkBatch],
+                                                  late: str | None, said: str) -> None:
+    path = crafted(tmp_path / "crafted.mcap", fields, blocks, late)
+    with pytest.raises(CaptureFormatError) as caught:
+        reader = McapCaptureReader(str(path))
+        try:
+            list(reader.batches())
+        finally:
+            reader.close()
+    assert caught.value.kind is ErrorKind.BAD_MCAP and said in str(caught.value) and str(path) in str(caught.value)
