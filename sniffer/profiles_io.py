@@ -64,7 +64,7 @@ def profile_book(choices: list[str], files_: list[str]) -> ProfileBook:
         if not sep:
             default = profile
             continue
-        if not slave_text.isdigit() or not 0 <= int(slave_text) <= 247:
+        if not (slave_text.isascii() and slave_text.isdigit()) or not 0 <= int(slave_text) <= 247:
             raise RtuSniffError(ErrorKind.USAGE, f"--profile {choice}: the slave must be a number from 0 to 247")
         per_slave[int(slave_text)] = profile
     # A profile chosen for every slave is the user's word: identification does not override it.

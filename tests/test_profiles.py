@@ -194,7 +194,8 @@ def test_cli_profile_options(cli: Callable[..., CliResult], tmp_path: Path) -> N
 @pytest.mark.parametrize(
     ("args", "words"),
     [(["--profile", "atv99"], "unknown profile 'atv99'; known: atv312, atv71, generic, nord-sk, xbt"),
-     (["--profile", "300=atv71"], "the slave must be a number from 0 to 247")],
+     (["--profile", "300=atv71"], "the slave must be a number from 0 to 247"),
+     (["--profile", "\u00b2=atv71"], "the slave must be a number from 0 to 247")],  # a digit to isdigit()
 )
 def test_bad_profile_options(cli: Callable[..., CliResult], args: list[str], words: str) -> None:
     from tests.conftest import SAMPLE_LOG
@@ -209,3 +210,13 @@ def test_profiles_command(cli: Callable[..., CliResult]) -> None:
     shown = cli("profiles", "show", "atv71")
     assert "HSP" in shown.out and "16#8000 in a read: non-existent or protected parameter" in shown.out
     assert cli("profiles", "show", "nope").code == 2
+
+
+@pytest.mark.parametrize("scale", ["nan", "inf", "-inf", "0"])
+def test_a_scale_must_be_a_finite_number(cli: Callable[..., CliResult], tmp_path: Path, scale: str) -> None:
+    """NaN would be written into JSON (not JSON), inf and 0 lose the value."""
+    shipped = Path(__file__).resolve().parent.parent / "decoders" / "profiles" / "data" / "atv312.toml"
+    broken = tmp_path / "scaled.toml"
+    broken.write_text(shipped.read_text().replace("scale = 0.1", f"scale = {scale}", 1))
+    checked = cli("profiles", "check", str(broken))
+    assert checked.code == 12 and ".scale: must be a finite number other than 0" in checked.err

@@ -7,6 +7,7 @@ references that exist, sane limits and indirection tables.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from typing import Any
 
@@ -138,8 +139,8 @@ def _parameters(
         if bitfield is not None and bitfield not in bitfields:
             raise reader.fail(f"{where}.bitfield", f"no [bitfield.{bitfield}] in this profile")
         scale = float(reader.get(entry, "scale", (int, float), where, 1.0))
-        if scale == 0:
-            raise reader.fail(f"{where}.scale", "must not be 0")
+        if scale == 0 or not math.isfinite(scale):
+            raise reader.fail(f"{where}.scale", "must be a finite number other than 0 (nan and inf are no scale)")
         access = reader.get(entry, "access", str, where, "rw")
         if access not in ACCESS:
             raise reader.fail(f"{where}.access", f"{access!r} is not one of {', '.join(ACCESS)}")
