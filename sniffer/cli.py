@@ -7,6 +7,7 @@ Data goes to standard output, errors to standard error as one ``error: …`` lin
 from __future__ import annotations
 
 import argparse
+import errno
 import gc
 import re
 import sys
@@ -18,6 +19,8 @@ from sniffer.errors import ErrorKind, RtuSniffError
 
 COMMANDS = [analyze, stats, values, compare, cut, export, capture, ports, convert, profiles]
 INTERRUPTED_EXIT = 130
+#: Errors that only writing raises: a full disk, a quota, a file too large.
+WRITE_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 #: Objects allocated between young-generation collections. Decoding builds millions of
 #: short-lived objects next to long-lived caches of decodings; at Python's default (700)
 #: the collector walks the caches again and again: 9.9 s instead of 6.0 s for `analyze`
@@ -92,6 +95,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         # The reader of our output (e.g. `head`) has gone; that is not an error.
         sys.stderr.close()
         return 0
+    except OSError as exc:
+        if exc.errno not in WRITE_FAILURES or args.debug:
+            raise
+        # Standard output on a full disk (or /dev/full): the files rtusniff opens say their own name.
+        print(f"error: cannot write the output: {exc.strerror}", file=sys.stderr)
+        return ErrorKind.OUTPUT_FAILED.exit_code
 
 
 def entry_point() -> None:

@@ -109,3 +109,32 @@ def test_every_format_refuses_a_broken_file_in_one_line(cli: Cli, tmp_path: Path
         return
     assert result.code in (5, 6, 7, 8, 9, 14), result.err
     assert len(error_lines) == 1 and str(path) in error_lines[0], result.err
+
+
+def test_a_time_of_thousands_of_digits_is_one_short_line(cli: Cli, tmp_path: Path) -> None:
+    path = tmp_path / "long.log"
+    path.write_text(f"# rtu-capture v1\n# line: 19200 8E1\n{'9' * 5000}.5 01 03\n")
+    result = cli("analyze", str(path))
+    assert result.code == 7 and f"{path}:line 3: bad time" in result.err and len(result.err) < 300
+
+
+def test_standard_input_takes_text_only(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, "-m", "sniffer", "analyze", "-", "--input-format", "mcap"],
+                            stdin=SAMPLE_MCAP.open("rb"), capture_output=True, text=True, check=False)
+    assert result.returncode == 2 and "standard input carries the text format only" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+def test_a_full_disk_on_standard_output_is_exit_11() -> None:
+    import subprocess
+    import sys
+
+    with open("/dev/full", "w") as full:
+        result = subprocess.run([sys.executable, "-m", "sniffer", "analyze", str(SAMPLE_MCAP)], stdout=full,
+                                stderr=subprocess.PIPE, text=True, check=False)
+    assert result.returncode == 11
+    assert result.stderr.strip() == "error: cannot write the output: No space left on device"

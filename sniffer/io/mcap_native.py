@@ -237,7 +237,8 @@ class McapCaptureReader:
         self._size = os.fstat(self._file.fileno()).st_size
         # A damaged length field must not make the reader allocate gigabytes: no record is
         # longer than the file.
-        self._records = StreamReader(self._file, record_size_limit=max(self._size, 1)).records
+        # CRCs checked: a bit flipped in a chunk is an error, never different frames read as good.
+        self._records = StreamReader(self._file, validate_crcs=True, record_size_limit=max(self._size, 1)).records
         #: The topics read (``_ENCODINGS``) by channel id.
         self._topics: dict[int, str] = {}
         #: The last chunk's time so far: times never decrease, and none is before 1970.

@@ -93,6 +93,9 @@ def open_reader(path: str, format_name: str | None = None, options: ReaderOption
     head = b"" if path == STDIO else _read_head(path)
     fmt = find_format(path, format_name, head)
     assert fmt.open_reader is not None  # formats_for("read") has only readable ones
+    if path == STDIO and fmt.name != STDIO_FORMAT:
+        raise RtuSniffError(ErrorKind.USAGE, f"standard input carries the {STDIO_FORMAT} format only, not "
+                            f"{fmt.name}: give the file's name")
     return fmt.open_reader(path, options or ReaderOptions())
 
 

@@ -35,7 +35,8 @@ MAGIC = "# rtu-capture v1"
 _MAGIC_ANY_VERSION = re.compile(r"#\s*rtu-capture\s+v(\S+)")
 #: Times are kept as 64-bit nanoseconds.
 MAX_TIME_NS = 2**63 - 1
-_TIME = re.compile(r"\d+(?:\.\d{1,9})?")
+#: Seconds of up to 19 digits (more cannot be a time: 2^63 ns is 9 223 372 036 s).
+_TIME = re.compile(r"\d{1,19}(?:\.\d{1,9})?")
 _HEADER_KEY = re.compile(r"#\s*(line|timing)\s*:\s*(.*)$", re.IGNORECASE)
 _UART_ERRORS = re.compile(r"#\s*uart-errors\s*:\s*(.*)$", re.IGNORECASE)
 _CHANNELS = re.compile(r"#\s*channels\s*:\s*(.*)$", re.IGNORECASE)
@@ -248,7 +249,8 @@ class TextCaptureReader:
         t_ns = parse_time_ns(time_text)
         if t_ns is None:
             raise self._error(
-                ErrorKind.BAD_DATA, f"bad time {time_text!r}: expected seconds with up to 9 decimals", line_number
+                ErrorKind.BAD_DATA,
+                f"bad time {_shown(time_text)}: expected seconds (up to 19 digits) with up to 9 decimals", line_number,
             )
         if t_ns > MAX_TIME_NS:
             limit = f"{MAX_TIME_NS // NS_PER_S} s (the year 2262)"
@@ -260,6 +262,11 @@ class TextCaptureReader:
         if not data:
             raise self._error(ErrorKind.BAD_DATA, "a data line needs at least one byte after the time", line_number)
         return t_ns, data
+
+
+def _shown(text: str, limit: int = 40) -> str:
+    """``text`` quoted for an error line, cut to ``limit`` characters."""
+    return repr(text) if len(text) <= limit else f"{text[:limit]!r}… ({len(text)} characters)"
 
 
 def _describe_bad_hex(hex_text: str) -> str:
