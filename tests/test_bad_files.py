@@ -32,8 +32,8 @@ BAD_FILES: list[tuple[str, str, Content, int, str]] = [
     ("time beyond 2262", "c.log", (HEADER + "17004010417.0 02\n").encode(), 7,
      "c.log:line 4: time 17004010417.0 is beyond"),
     ("binary garbage", "c.log", HEADER.encode() + b"\x89PNG\r\n\x1a\n\x00\xff", 7, "c.log:line 4: not text"),
-    ("truncated MCAP", "c.mcap", SAMPLE_MCAP.read_bytes()[:800], 9,
-     "c.mcap:byte 334: damaged MCAP: a record runs past"),
+    ("MCAP cut before its first block", "c.mcap", SAMPLE_MCAP.read_bytes()[:800], 14,
+     "c.mcap: the capture holds no bytes"),
     ("corrupted MCAP", "c.mcap", corrupted_mcap, 9, "c.mcap:byte 334: damaged MCAP"),
     ("not an MCAP", "c.mcap", HEADER.encode(), 9, "c.mcap:byte 0"),
     ("MCAP from another tool", "c.mcap", write_foreign_mcap, 9, "c.mcap:byte 138: not an rtusniff capture"),
@@ -138,3 +138,30 @@ def test_a_full_disk_on_standard_output_is_exit_11() -> None:
                                 stderr=subprocess.PIPE, text=True, check=False)
     assert result.returncode == 11
     assert result.stderr.strip() == "error: cannot write the output: No space left on device"
+
+
+@pytest.mark.parametrize("suffix", [".log", ".mcap"])
+def test_a_capture_cut_short_anywhere_reads_up_to_the_cut(cli: Cli, tmp_path: Path, suffix: str) -> None:
+    """A copy or a recording cut short at any byte: what came before the cut is read, with a
+    warning naming where; only a cut inside the header is an error (README, "Capture formats")."""
+    from tests.conftest import SAMPLE_LOG
+
+    original = (SAMPLE_LOG if suffix == ".log" else SAMPLE_MCAP).read_bytes()
+    whole = len([r for r in cli("analyze", str(SAMPLE_LOG), "--format", "jsonl").jsonl() if r["kind"] == "frame"])
+    path = tmp_path / f"cut{suffix}"
+    read = 0
+    for percent in range(1, 100):
+        cut = original[: len(original) * percent // 100]
+        path.write_bytes(cut)
+        result = cli("analyze", str(path), "--format", "jsonl")
+        assert "Traceback" not in result.err
+        if result.code == 0:
+            read += 1
+            frames = [r for r in result.jsonl() if r["kind"] == "frame"]
+            # Text cut right after a newline is whole lines: nothing to tell it from a shorter capture.
+            said = "cut short" in result.err or (suffix == ".log" and cut.endswith(b"\n"))
+            assert len(frames) <= whole and said, result.err
+        else:
+            errors = [line for line in result.err.splitlines() if line.startswith("error: ")]
+            assert result.code in (6, 9, 14) and len(errors) == 1, result.err
+    assert read >= (85 if suffix == ".log" else 25)

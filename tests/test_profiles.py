@@ -215,7 +215,9 @@ def test_profiles_command(cli: Callable[..., CliResult]) -> None:
 @pytest.mark.parametrize("scale", ["nan", "inf", "-inf", "0"])
 def test_a_scale_must_be_a_finite_number(cli: Callable[..., CliResult], tmp_path: Path, scale: str) -> None:
     """NaN would be written into JSON (not JSON), inf and 0 lose the value."""
-    shipped = Path(__file__).resolve().parent.parent / "decoders" / "profiles" / "data" / "atv312.toml"
+    import decoders.profiles
+
+    shipped = Path(decoders.profiles.__file__).parent / "data" / "atv312.toml"  # the installed package's
     broken = tmp_path / "scaled.toml"
     broken.write_text(shipped.read_text().replace("scale = 0.1", f"scale = {scale}", 1))
     checked = cli("profiles", "check", str(broken))

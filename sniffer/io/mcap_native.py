@@ -55,6 +55,8 @@ NOTES_METADATA_NAME = "rtusniff.notes"
 PROFILE = "rtusniff"
 FORMAT_VERSION = "1"
 BLOCK_CHUNKS = 4096
+#: How every MCAP file begins and ends.
+MCAP_MAGIC = b"\x89MCAP0\r\n"
 _COUNT = struct.Struct("<I")
 LAYOUT_DOC = "u32 count | i64[count] t_end_ns | u32[count] length | bytes data (little-endian)"
 ERRORS_TOPIC = "/rtusniff/uart_errors"
@@ -180,6 +182,9 @@ class McapCaptureWriter:
         #: The side topics' channels, registered when first needed (a plain capture has none).
         self._side_channels: dict[str, int] = {}
         self._sequence = 0
+        # The header and the line settings are on disk at once: a capture killed before its
+        # first block still says what it is (and reads as a capture without bytes).
+        self.flush()
 
     def write_batch(self, batch: ChunkBatch) -> None:
         for block in block_batches(batch):
@@ -282,10 +287,26 @@ class McapCaptureReader:
                     "everything up to its last flush was read"
                 )
                 return
-            damage = _damage(exc, at_end=self._file.tell() >= self._size)
+            at_end = self._file.tell() >= self._size
+            if self._good > 0 and not self._ends_whole():
+                # The file ends inside a record: a copy or a download cut short, a recording
+                # killed mid-write. What came before is whole (chunk CRCs checked): read it.
+                self.warnings.append(
+                    f"{self.path}: cut short at byte {self._good} of {self._size} (the record there runs past the "
+                    "end of the file: truncated, or its length is damaged); everything before it was read"
+                )
+                return
+            damage = _damage(exc, at_end=at_end)
             raise CaptureFormatError(
                 ErrorKind.BAD_MCAP, f"damaged MCAP: {damage}", path=self.path, location=f"byte {self._good}"
             ) from None
+
+    def _ends_whole(self) -> bool:
+        """Whether the file ends as an MCAP file does (its closing magic): then damage inside it is
+        damage, not a file cut short."""
+        with open(self.path, "rb") as tail:
+            tail.seek(max(self._size - len(MCAP_MAGIC), 0))
+            return tail.read() == MCAP_MAGIC
 
     def _read_info(self) -> CaptureInfo:
         self._iter = self._next_records()
@@ -294,6 +315,11 @@ class McapCaptureReader:
                 return self._parse_info(record.metadata)
             if isinstance(record, Message):
                 break
+        else:
+            if self.warnings:  # the file ended inside a record, before the metadata
+                raise CaptureFormatError(ErrorKind.BAD_MCAP, f"cut short at byte {self._good}, before its "
+                                         f"'{METADATA_NAME}' metadata: nothing to read", path=self.path,
+                                         location=f"byte {self._good}")
         raise self._error(
             f"not an rtusniff capture: no '{METADATA_NAME}' metadata before the first message "
             "(an MCAP written by another tool?)"

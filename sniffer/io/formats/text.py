@@ -73,6 +73,7 @@ class TextCaptureReader:
         self.path = path
         self._stream: BinaryIO = sys.stdin.buffer if path == STDIO else open(path, "rb")  # noqa: SIM115
         self._line_number = 0
+        self._unterminated = False
         self._first_data: tuple[int, str] | None = None
         #: The capture's line names, and the channel of the data lines that follow.
         self._channels: tuple[str, ...] = ()
@@ -109,6 +110,8 @@ class TextCaptureReader:
     def _lines(self) -> Iterator[str]:
         for raw in self._stream:
             self._line_number += 1
+            # Only the file's last line can lack its newline: a file cut short, or written by hand.
+            self._unterminated = not raw.endswith(b"\n")
             try:
                 yield raw.decode("ascii").strip()
             except UnicodeDecodeError as exc:
@@ -193,22 +196,34 @@ class TextCaptureReader:
         lines = _Lines()
         previous_time = -1
         for line_number, text in self._data_lines():
-            if text.startswith("#"):
-                self._comment(lines, line_number, text)
-                continue
-            t_ns, data = self._parse_data_line(line_number, text)
-            if t_ns < previous_time:
-                raise self._error(
-                    ErrorKind.DECREASING_TIME,
-                    f"time {format_time_ns(t_ns)} is before the previous line's {format_time_ns(previous_time)}",
-                    line_number,
-                )
+            try:
+                if text.startswith("#"):
+                    self._comment(lines, line_number, text)
+                    continue
+                t_ns, data = self._parse_data_line(line_number, text)
+                if t_ns < previous_time:
+                    raise self._error(
+                        ErrorKind.DECREASING_TIME,
+                        f"time {format_time_ns(t_ns)} is before the previous line's {format_time_ns(previous_time)}",
+                        line_number,
+                    )
+            except CaptureFormatError as exc:
+                if not (self._unterminated and line_number == self._line_number):
+                    raise
+                # The last line, without its newline, does not read: the file was cut short there.
+                self.warnings.append(f"{self.path}: cut short at line {line_number} (its last line is incomplete: "
+                                     f"{exc.message}); everything before it was read")
+                break
             previous_time = t_ns
             # A full batch goes once the next data line shows no error comment can follow it.
             if len(lines.times) >= BATCH_CHUNKS:
                 yield lines.batch()
                 lines = _Lines()
             lines.add(t_ns, data, self._channel)
+        else:
+            if self._unterminated:
+                self.warnings.append(f"{self.path}: line {self._line_number}, the last, has no newline: the file may "
+                                     "be cut short there (what the line says was read)")
         if lines.times:
             yield lines.batch()
 
@@ -342,6 +357,7 @@ class TextCaptureWriter:
             header.append(f"# channels: {' '.join(info.channels)}")
         header.extend(line for note in info.notes for line in comment_lines(note))
         self._stream.write("\n".join(header) + "\n")
+        self.flush()  # on disk at once: a capture killed before its first line still says what it is
         self._channels = info.channels
         self._channel = 0
 
