@@ -132,6 +132,8 @@ def test_uart_decodes_as_sigrok_expects(name: str, session: str, channel: int, p
 
 MODBUS = [("flowmeter/flowmeter_target0_val0.sr", "9600 8N1", [], "sr_flowmeter_target0_val0.log"),
           ("flowmeter/flowmeter_graph_tool.sr", "9600 8N1", [], "sr_flowmeter_graph_tool.log"),
+          *((f"flowmeter/flowmeter_target_{rate}.sr", "9600 8N1", [], f"sr_flowmeter_target_{rate}.log")
+            for rate in ("0liter_per_min", "15liter_per_min", "20liter_per_min")),
           ("brainchild_io_16do/brainchild-io-16do.sr", "19200 8E1", ["0", "1"], "sr_brainchild-io-16do.log")]
 
 
