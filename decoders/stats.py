@@ -70,6 +70,13 @@ class Histogram:
         return {"count": self.count, "min": _seconds(self.minimum), **seconds, "max": _seconds(self.maximum)}
 
 
+def bin_floor_ns(indices: npt.NDArray[np.int64]) -> npt.NDArray[np.float64]:
+    """The shortest duration each histogram bin holds: bin 0 everything under 1 µs, bin *i*
+    from ``1 µs × 1.01**(i-1)``; a bin ends where the next begins."""
+    floors: npt.NDArray[np.float64] = np.where(indices <= 0, 0.0, _LOWEST_NS * _RATIO ** (indices - 1.0))
+    return floors
+
+
 def _bins(values_ns: npt.NDArray[np.int64]) -> npt.NDArray[np.intp]:
     scaled = np.maximum(values_ns, 1).astype(np.float64) / _LOWEST_NS
     bins = np.where(scaled < 1.0, 0, 1 + np.floor(np.log(np.maximum(scaled, 1.0)) / _LOG_RATIO))

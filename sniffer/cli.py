@@ -14,10 +14,22 @@ import sys
 from collections.abc import Sequence
 from importlib.metadata import version
 
-from sniffer.commands import analyze, capture, compare, convert, cut, export, ports, profiles, stats, values
+from sniffer.commands import (
+    analyze,
+    capture,
+    compare,
+    convert,
+    cut,
+    export,
+    ports,
+    profiles,
+    report,
+    stats,
+    values,
+)
 from sniffer.errors import ErrorKind, RtuSniffError
 
-COMMANDS = [analyze, stats, values, compare, cut, export, capture, ports, convert, profiles]
+COMMANDS = [analyze, stats, report, values, compare, cut, export, capture, ports, convert, profiles]
 INTERRUPTED_EXIT = 130
 #: Errors that only writing raises: a full disk, a quota, a file too large.
 WRITE_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)

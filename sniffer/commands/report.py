@@ -1,0 +1,92 @@
+"""``rtusniff report CAPTURE -o report.html``: evidence for a bug report, in one file anyone can open."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from contextlib import ExitStack
+from importlib.metadata import version
+from pathlib import Path
+
+from sniffer.commands.common import (
+    add_capture_argument,
+    add_decoding_options,
+    add_force_option,
+    add_jobs_option,
+    add_quiet_option,
+    capture_paths,
+    check_outputs,
+    open_analysis,
+    open_output,
+    source_name,
+    tell_written,
+)
+from sniffer.decoding_process import decoding_jobs
+from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.pipeline import analyze
+from sniffer.progress import progress_for
+from sniffer.report.collect import Provenance, ReportCollector, source_file
+from sniffer.report.html import write_html
+from sniffer.report.markdown import write_markdown
+
+WRITERS = {"html": write_html, "md": write_markdown}
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = subparsers.add_parser(
+        "report",
+        help="a report to attach to a bug report: one self-contained HTML file, or Markdown for a ticket",
+        description="Write what a capture shows as evidence: provenance (file, size, SHA-256, times, line, "
+        "timing, profiles, this command), the bus (load, errors), the slaves' health worst first (requests, "
+        "answers, exceptions by code, CRC errors, timeouts, retries, latency p50/p95/max, poll period), charts "
+        "over time (bus load, anomalies, latency, drive values; drag to zoom) with the latency distribution per "
+        "slave, state changes, and every anomaly by kind with the frames around the first ones (hex, decoded "
+        "text, a damaged answer's bytes against its good retry). The HTML needs no network and no other file; "
+        "--format md is a summary to paste into GitHub, GitLab or Jira.",
+    )
+    add_capture_argument(parser)
+    parser.add_argument("--format", choices=list(WRITERS),
+                        help="html (default) or md; default from the -o suffix (.md: md)")
+    parser.add_argument("-o", "--output", help="the file to write (standard output: -, or leave out into a pipe)")
+    add_force_option(parser)
+    add_decoding_options(parser)
+    add_jobs_option(parser)
+    add_quiet_option(parser)
+    parser.set_defaults(run=run)
+
+
+def report_format(args: argparse.Namespace) -> str:
+    if args.format:
+        chosen: str = args.format
+        return chosen
+    return "md" if args.output and Path(args.output).suffix.lower() in (".md", ".markdown") else "html"
+
+
+def run(args: argparse.Namespace) -> int:
+    kind = report_format(args)
+    if args.output is None and kind == "html" and sys.stdout.isatty():
+        raise RtuSniffError(ErrorKind.USAGE, "report: an HTML report is a file to open in a browser; "
+                            "give -o report.html (or --format md to read it here)")
+    paths = capture_paths(args)
+    check_outputs([args.output], paths, force=args.force)
+    provenance = Provenance(files=[source_file(path) for path in paths], command=shlex.join(args.command_line),
+                            tool_version=version("rtusniff"), profiles=list(args.profile), window=_window(args))
+    collector = ReportCollector(provenance)
+    with ExitStack() as stack:
+        reader, analysis = open_analysis(args, stack)
+        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
+        analyze(reader, source_name(args), analysis, [collector, progress.sink], jobs=decoding_jobs(args.jobs))
+    # Written only once everything is read: a capture that fails leaves no half report behind.
+    with ExitStack() as stack:
+        WRITERS[kind](open_output(args.output, stack), collector)
+    if args.output not in (None, "-"):
+        tell_written(args, [(args.output, f"{kind} report of {collector.statistics.frames:,} frames")])
+    return 0
+
+
+def _window(args: argparse.Namespace) -> str:
+    parts = [f"{flag} {value}" for flag, value in (("--from", args.start), ("--to", args.stop),
+                                                  ("--around", args.around), ("--context", args.context),
+                                                  ("--limit", args.limit)) if value is not None]
+    return " ".join(parts)

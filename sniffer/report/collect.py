@@ -1,0 +1,113 @@
+"""The sink behind ``rtusniff report``: gathers, in memory that does not grow with the capture,
+what the report shows (the statistics, the charts' series, the anomalies, the drive values,
+the devices that identified themselves) and where it came from."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from decoders.capture import CaptureInfo
+from decoders.damage import RetryDiff
+from decoders.line import LineSettings
+from decoders.message import ROLE_CODE, AnnotatedBatch, DeviceIdentity, MessageBatch, Role
+from decoders.stats import Statistics
+from decoders.timeline import Timeline
+from sniffer.report.anomalies import AnomalyLog, anomaly_masks
+from sniffer.report.drive_values import DriveValues
+from sniffer.sinks import Sink
+
+_ANSWERS = (ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.EXCEPTION])
+_HASH_BLOCK = 1 << 20
+
+
+@dataclass(frozen=True)
+class SourceFile:
+    path: str
+    size: int
+    sha256: str
+
+
+def source_file(path: str) -> SourceFile:
+    """A capture file's size and SHA-256 (standard input: neither can be known)."""
+    if path == "-" or not os.path.isfile(path):
+        return SourceFile(path, 0, "")
+    digest = hashlib.sha256()
+    with open(path, "rb") as file:
+        while block := file.read(_HASH_BLOCK):
+            digest.update(block)
+    return SourceFile(path, os.path.getsize(path), digest.hexdigest())
+
+
+@dataclass
+class Provenance:
+    """Where the report came from: enough to check it and to make it again."""
+
+    files: list[SourceFile]
+    command: str
+    tool_version: str
+    profiles: list[str]
+    line: str = ""
+    timing: str = ""
+    channels: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
+    window: str = ""
+    devices: dict[int, DeviceIdentity] = field(default_factory=dict)
+
+
+class ReportCollector(Sink):
+    """Everything the report shows, gathered batch by batch."""
+
+    wants_messages = True
+    wants_statistics = True
+
+    def __init__(self, provenance: Provenance) -> None:
+        self.provenance = provenance
+        self.timeline = Timeline()
+        self.anomalies = AnomalyLog()
+        self.values = DriveValues(self.timeline)
+        self.statistics = Statistics()
+        self.slaves: set[int] = set()
+        self._retries = RetryDiff()
+
+    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        self.provenance.line = line.format()
+        self.provenance.timing = info.timing.value
+        self.provenance.channels = info.channels
+        self.provenance.notes = info.notes
+
+    def messages(self, batch: AnnotatedBatch) -> None:
+        messages = batch.messages
+        if not len(messages):
+            return
+        masks = anomaly_masks(messages)
+        self._over_time(messages, masks)
+        self.anomalies.add(batch, masks, self._retries.notes(messages))
+        self.values.add(batch)
+        for position in batch.positions():
+            device = batch.decodings[position].device
+            if device is not None:
+                self.provenance.devices[device.slave] = device
+
+    def _over_time(self, messages: MessageBatch, masks: dict[str, np.ndarray]) -> None:
+        frames, timeline = messages.frames, self.timeline
+        t_start = frames.t_start_ns
+        timeline.add("frames", "sum", t_start)
+        timeline.add_spans("wire_ns", t_start, frames.t_end_ns)
+        for kind, mask in masks.items():
+            timeline.add(f"anomaly:{kind}", "sum", t_start[mask])
+        answered = np.isin(messages.role, _ANSWERS) & frames.crc_ok & (messages.latency_ns >= 0)
+        slaves = messages.slave[answered]
+        times, latency_ms = t_start[answered], messages.latency_ns[answered] / 1e6
+        for slave in np.unique(slaves).tolist():
+            self.slaves.add(slave)
+            mine = slaves == slave
+            timeline.add(f"latency:{slave}:max", "max", times[mine], latency_ms[mine])
+            timeline.add(f"latency:{slave}:sum", "sum", times[mine], latency_ms[mine])
+            timeline.add(f"latency:{slave}:count", "sum", times[mine])
+
+    def finish(self, statistics: Statistics) -> None:
+        self.statistics = statistics

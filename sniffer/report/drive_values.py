@@ -1,0 +1,144 @@
+"""Drive values over time and state changes, for the report's charts, in bounded memory.
+
+Only what a device profile names (a code such as RFRD or ETA) is taken, from frames whose CRC
+holds: values a slave reported (its answers) and values a master sent (its write requests).
+
+* A number goes to a series per slave, code and direction on the report's :class:`Timeline`:
+  per bucket its minimum, maximum and last value. The first ``MAX_SERIES`` series are kept;
+  more are counted (``rtusniff values`` has them all).
+* A text (a state word the profile spells out, ETA "operation enabled, forward") is a state:
+  each change of a slave's code is kept, the first ``MAX_CHANGES`` of them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from decoders.message import ROLE_CODE, AnnotatedBatch, Decoding, Role
+from decoders.timeline import Merge, Timeline
+
+MAX_SERIES = 48
+MAX_CHANGES = 500
+#: Decodings remembered with what they hold (the annotator hands the same one to equal frames).
+CACHED = 4096
+_RESPONSE = ROLE_CODE[Role.RESPONSE]
+_SENT = (ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST])
+_WRITES = frozenset({5, 6, 15, 16, 23})
+_MERGES: tuple[Merge, ...] = ("min", "max", "last")
+
+
+@dataclass(frozen=True)
+class ValueSeries:
+    """What one series plots: slave, code, name, unit, and ``reported`` or ``sent``."""
+
+    slave: int
+    code: str
+    name: str
+    unit: str
+    kind: str
+
+    @property
+    def key(self) -> str:
+        return f"value:{self.slave}:{self.code}:{self.kind}"
+
+
+@dataclass(frozen=True)
+class StateChange:
+    t_ns: int
+    index: int
+    slave: int
+    code: str
+    name: str
+    before: str | None
+    after: str
+
+
+_Numbers = list[tuple[str, str, str, float]]
+_Texts = list[tuple[str, str, str]]
+
+
+class DriveValues:
+    """Feeds named values to a timeline and keeps state changes (see the module docstring)."""
+
+    def __init__(self, timeline: Timeline) -> None:
+        self._timeline = timeline
+        self.series: dict[tuple[int, str, str], ValueSeries] = {}
+        self.series_left_out = 0
+        self._left_out: set[tuple[int, str, str]] = set()
+        self.changes: list[StateChange] = []
+        self.changes_total = 0
+        self._states: dict[tuple[int, str], str] = {}
+        self._cache: dict[Decoding, tuple[_Numbers, _Texts]] = {}
+
+    def add(self, batch: AnnotatedBatch) -> None:
+        messages = batch.messages
+        crc_ok = messages.frames.crc_ok
+        answers = (messages.role == _RESPONSE) & crc_ok
+        writes = np.isin(messages.role, _SENT) & np.isin(messages.function, list(_WRITES)) & crc_ok
+        positions = np.flatnonzero(answers | writes).tolist()
+        if not positions:
+            return
+        slaves, t_start = messages.slave.tolist(), messages.frames.t_start_ns.tolist()
+        sent = writes.tolist()
+        times: dict[tuple[int, str, str], list[int]] = {}
+        values: dict[tuple[int, str, str], list[float]] = {}
+        for position in positions:
+            decoding = batch.decodings[position]
+            if not decoding.params:
+                continue
+            numbers, texts = self._named(decoding)
+            slave, kind = slaves[position], "sent" if sent[position] else "reported"
+            for code, name, unit, number in numbers:
+                key = (slave, code, kind)
+                if self._series(key, name, unit):
+                    times.setdefault(key, []).append(t_start[position])
+                    values.setdefault(key, []).append(number)
+            for code, name, text in texts:
+                self._state((t_start[position], messages.frames.first_index + position, slave), code, name, text)
+        for key, at in times.items():
+            name = self.series[key].key
+            t_ns, readings = np.array(at, np.int64), np.array(values[key])
+            for merge in _MERGES:
+                self._timeline.add(f"{name}:{merge}", merge, t_ns, readings)
+
+    def _named(self, decoding: Decoding) -> tuple[_Numbers, _Texts]:
+        """The profile-named numbers and texts of ``decoding``, cached by identity."""
+        found = self._cache.get(decoding)
+        if found is None:
+            numbers: _Numbers = []
+            texts: _Texts = []
+            for param in decoding.params:
+                if param.code is None or not param.available or param.value is None:
+                    continue
+                if isinstance(param.value, str):
+                    texts.append((param.code, param.name or param.code, param.value))
+                elif not isinstance(param.value, bool):
+                    numbers.append((param.code, param.name or param.code, param.unit or "", float(param.value)))
+            if len(self._cache) >= CACHED:
+                self._cache.clear()
+            found = self._cache[decoding] = (numbers, texts)
+        return found
+
+    def _series(self, key: tuple[int, str, str], name: str, unit: str) -> bool:
+        if key in self.series:
+            return True
+        if len(self.series) >= MAX_SERIES:
+            if key not in self._left_out:
+                self._left_out.add(key)
+                self.series_left_out += 1
+            return False
+        self.series[key] = ValueSeries(key[0], key[1], name, unit, key[2])
+        return True
+
+    def _state(self, seen: tuple[int, int, int], code: str, name: str, text: str) -> None:
+        """A state text ``seen`` (time, frame index, slave) in a frame."""
+        t_ns, index, slave = seen
+        before = self._states.get((slave, code))
+        if before == text:
+            return
+        self._states[(slave, code)] = text
+        self.changes_total += 1
+        if len(self.changes) < MAX_CHANGES:
+            self.changes.append(StateChange(t_ns, index, slave, code, name, before, text))

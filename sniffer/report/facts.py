@@ -1,0 +1,136 @@
+"""What both report formats say, as texts: provenance, the bus summary, the health table.
+
+The HTML (:mod:`sniffer.report.html`) and the Markdown (:mod:`sniffer.report.markdown`) reports
+lay these out; neither computes a figure of its own, so the two always agree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from decoders.health import SlaveHealth, slave_health
+from decoders.stats import Histogram, Statistics
+from sniffer.report.anomalies import utc_text
+from sniffer.report.collect import ReportCollector
+
+#: The health table's columns: key, heading, right-aligned.
+HEALTH_COLUMNS = (
+    ("slave", "slave", True), ("device", "device", False), ("functions", "functions", False),
+    ("requests", "requests", True), ("responses", "answers", True), ("exceptions", "exceptions", False),
+    ("crc_errors", "CRC errors", True), ("timeouts", "timeouts", True), ("retries", "retries", True),
+    ("error_rate", "error rate", True), ("p50", "lat p50 ms", True), ("p95", "p95 ms", True),
+    ("max", "max ms", True), ("poll", "poll ms", True),
+)
+#: An error rate at or above this is shown as bad, above 0 as a warning.
+BAD_RATE = 0.01
+
+
+@dataclass(frozen=True)
+class HealthRow:
+    cells: dict[str, str]
+    #: ``bad``, ``warn`` or ``good``: how the error rate looks.
+    grade: str
+
+
+def provenance_facts(collector: ReportCollector) -> list[tuple[str, str]]:
+    """Label and text of every provenance fact, in the order a reader checks them."""
+    p, s = collector.provenance, collector.statistics
+    facts = []
+    for file in p.files:
+        facts.append(("file", file.path))
+        if file.sha256:
+            facts += [("size", f"{file.size:,} bytes"), ("SHA-256", file.sha256)]
+    if s.first_ns is not None and s.last_ns is not None:
+        facts += [("first frame", f"{utc_text(s.first_ns)} UTC"), ("last frame", f"{utc_text(s.last_ns)} UTC"),
+                  ("duration", duration_text(s.duration_ns))]
+    if p.window:
+        facts.append(("part read", p.window))
+    facts += [("line", p.line), ("timing", timing_text(p.timing))]
+    if p.channels:
+        facts.append(("channels", ", ".join(p.channels)))
+    facts.append(("profiles", profiles_text(collector)))
+    facts += [("tool", f"rtusniff {p.tool_version}"), ("command", p.command)]
+    facts += [("capture note", note) for note in p.notes]
+    return facts
+
+
+def timing_text(timing: str) -> str:
+    if timing == "exact":
+        return "exact: times are when each byte was on the wire; silences and latencies are measured"
+    return (f"{timing}: times are when the PC read the bytes; frames are found from their content, latencies "
+            "are between reads")
+
+
+def profiles_text(collector: ReportCollector) -> str:
+    chosen = collector.provenance.profiles
+    devices = sorted(collector.provenance.devices.items())
+    identified = [f"slave {slave}: {device.profile} ({device.product_code}, identified)"
+                  for slave, device in devices if device.applied and device.profile]
+    parts = [f"--profile {name}" for name in chosen] + identified
+    return "; ".join(parts) if parts else "none (registers shown as numbers)"
+
+
+def duration_text(ns: int) -> str:
+    seconds = ns / 1e9
+    if seconds < 60:
+        return f"{seconds:.3f} s"
+    minutes, rest = divmod(int(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours} h {minutes:02d} min {rest:02d} s" if hours else f"{minutes} min {rest:02d} s"
+
+
+def bus_summary(collector: ReportCollector) -> list[tuple[str, str, str]]:
+    """Label, value and grade (``bad``/``warn``/``""``) of the bus's headline figures."""
+    s, counts = collector.statistics, collector.anomalies.counts
+    frames = s.frames or 1
+    load = s.bus_load
+    summary = [
+        ("frames", f"{s.frames:,}", ""),
+        ("bytes", f"{s.total_bytes:,}", ""),
+        ("bus load", "–" if load is None else f"{load * 100:.1f} %", ""),
+        ("CRC errors", f"{s.crc_errors:,} ({s.crc_errors / frames * 100:.2f} %)", _grade(s.crc_errors / frames)),
+        ("timeouts", f"{counts['timeout']:,}", _grade(counts["timeout"] / frames)),
+        ("exceptions", f"{counts['exception']:,}", _grade(counts["exception"] / frames)),
+        ("noise bytes", f"{s.noise_bytes:,}", _grade(s.noise_bytes / max(s.total_bytes, 1))),
+    ]
+    if s.uart_framing_errors or s.uart_parity_errors:
+        summary.append(("UART errors", f"{s.uart_framing_errors:,} framing, {s.uart_parity_errors:,} parity", "bad"))
+    return summary
+
+
+def _grade(rate: float) -> str:
+    return "bad" if rate >= BAD_RATE else "warn" if rate > 0 else ""
+
+
+def health_rows(statistics: Statistics, collector: ReportCollector | None = None) -> list[HealthRow]:
+    devices = collector.provenance.devices if collector else {}
+    return [_health_row(row, devices.get(row.slave)) for row in slave_health(statistics)]
+
+
+def _health_row(row: SlaveHealth, device: object | None) -> HealthRow:
+    rate = row.error_rate
+    name = getattr(device, "product_code", "") or ""
+    cells = {
+        "slave": "0 (broadcast)" if row.slave == 0 else str(row.slave),
+        "device": name,
+        "functions": ", ".join(map(str, row.functions)),
+        "requests": f"{row.requests:,}",
+        "responses": f"{row.responses:,}",
+        "exceptions": ", ".join(f"{code:02d}×{n}" for code, n in sorted(row.exceptions.items())) or "0",
+        "crc_errors": f"{row.crc_errors:,}",
+        "timeouts": f"{row.timeouts:,}",
+        "retries": f"{row.retries:,}",
+        "error_rate": "–" if rate is None else f"{rate * 100:.2f} %",
+        "p50": _ms(row.latency, 50), "p95": _ms(row.latency, 95), "max": _ms_max(row.latency),
+        "poll": _ms(row.poll_period, 50),
+    }
+    return HealthRow(cells, "" if rate is None else _grade(rate) or "good")
+
+
+def _ms(histogram: Histogram, q: float) -> str:
+    value = histogram.percentile(q)
+    return "–" if value is None else f"{value / 1e6:.2f}"
+
+
+def _ms_max(histogram: Histogram) -> str:
+    return "–" if histogram.maximum is None else f"{histogram.maximum / 1e6:.2f}"

@@ -1,0 +1,180 @@
+"""The HTML report: one self-contained file (styles, script and data inline; no request to any
+network), readable offline from a mail attachment. Charts are drawn by ``assets/report.js``
+from the data of :mod:`sniffer.report.charts`; everything else is plain HTML written here."""
+
+from __future__ import annotations
+
+import json
+import shlex
+from html import escape
+from importlib.resources import files
+from typing import TextIO
+
+from sniffer.report.anomalies import KINDS, Anomaly, FrameRow, utc_text
+from sniffer.report.charts import chart_data
+from sniffer.report.collect import ReportCollector
+from sniffer.report.drive_values import MAX_CHANGES
+from sniffer.report.facts import HEALTH_COLUMNS, bus_summary, health_rows, provenance_facts
+
+#: A kind of anomaly with no more than this many is shown unfolded.
+OPEN_UP_TO = 20
+_ROW_COLUMNS = (("index", "#", True), ("time", "time (UTC)", False), ("idle_ms", "Δt ms", True),
+                ("slave", "slave", True), ("function", "fc", True), ("role", "role", False),
+                ("latency_ms", "lat ms", True), ("crc", "CRC", False), ("flags", "flags", False),
+                ("hex", "hex", False), ("summary", "decoded", False))
+
+
+def _asset(name: str) -> str:
+    return files("sniffer.report").joinpath("assets", name).read_text(encoding="utf-8")
+
+
+def write_html(out: TextIO, collector: ReportCollector) -> None:
+    title = "Modbus RTU report: " + " + ".join(file.path for file in collector.provenance.files)
+    data = json.dumps(chart_data(collector), separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
+    parts = [
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n",
+        "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n",
+        # No network, ever: the page may only use what it carries.
+        "<meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; style-src 'unsafe-inline'; "
+        "script-src 'unsafe-inline'; img-src data:\">\n",
+        f"<title>{escape(title)}</title>\n<style>\n{_asset('report.css')}</style>\n</head>\n<body>\n",
+        f"<h1>{escape(title)}</h1>\n",
+        "<p class=\"lead\">Made by rtusniff from the capture named below; every figure can be checked with the "
+        "command it gives. Times are UTC.</p>\n",
+        _provenance(collector), _summary(collector), _health(collector), _charts(collector),
+        _state_changes(collector), _anomalies(collector),
+        f"<script type=\"application/json\" id=\"report-data\">{data}</script>\n",
+        f"<script>\n{_asset('report.js')}</script>\n</body>\n</html>\n",
+    ]
+    out.write("".join(parts))
+
+
+def _provenance(collector: ReportCollector) -> str:
+    rows = "".join(f"<tr><th>{escape(label)}</th><td>{_text(label, value)}</td></tr>\n"
+                   for label, value in provenance_facts(collector))
+    return f"<h2 id=\"provenance\">Provenance</h2>\n<table class=\"facts\">\n{rows}</table>\n"
+
+
+def _text(label: str, value: str) -> str:
+    return f"<code>{escape(value)}</code>" if label in ("SHA-256", "command") else escape(value)
+
+
+def _summary(collector: ReportCollector) -> str:
+    cards = "".join(f"<div class=\"card\"><div class=\"value {grade}\">{escape(value)}</div>"
+                    f"<div class=\"label\">{escape(label)}</div></div>\n"
+                    for label, value, grade in bus_summary(collector))
+    return f"<h2 id=\"bus\">Bus</h2>\n<div class=\"cards\">\n{cards}</div>\n"
+
+
+def _health(collector: ReportCollector) -> str:
+    rows = health_rows(collector.statistics, collector)
+    if not rows:
+        return "<h2 id=\"health\">Slaves</h2>\n<p class=\"muted\">No request or answer of any slave.</p>\n"
+    head = "".join(f"<th{_classes('num' if right else '')}>{escape(heading)}</th>"
+                   for _, heading, right in HEALTH_COLUMNS)
+    body = []
+    for row in rows:
+        cells = []
+        for key, _, right in HEALTH_COLUMNS:
+            classes = " ".join(c for c in ("num" if right else "", row.grade if key == "error_rate" else "") if c)
+            cells.append(f"<td{_classes(classes)}>{escape(row.cells[key])}</td>")
+        body.append(f"<tr data-slave=\"{escape(row.cells['slave'])}\">{''.join(cells)}</tr>\n")
+    return (f"<h2 id=\"health\">Slaves, worst first</h2>\n<p class=\"muted\">Error rate: exceptions, CRC errors and "
+            f"timeouts per request. Latency from each request's end to its answer's start.</p>\n"
+            f"<div class=\"scroll\"><table class=\"health\">\n<tr>{head}</tr>\n{''.join(body)}</table></div>\n")
+
+
+def _charts(collector: ReportCollector) -> str:
+    width = collector.timeline.width_ns / 1e9
+    series = collector.values.series
+    left_out = collector.values.series_left_out
+    values = ("<h3>Drive values</h3>\n<p class=\"muted\">What the profiles name, per slave: reported (answers) and "
+              "sent (writes); the line is each bucket's last value, the pale bar its range."
+              + (f" The first {len(series)} series; {left_out} more in <code>rtusniff values</code>." if left_out
+                 else "") + "</p>\n<div id=\"value-charts\"></div>\n") if series else ""
+    return ("<h2 id=\"over-time\">Over time</h2>\n"
+            f"<div class=\"zoom\"><button type=\"button\" id=\"zoom-reset\">whole capture</button>"
+            f"<span id=\"zoom-state\">whole capture</span><span>drag across a chart to zoom; each point is a "
+            f"bucket of {width:g} s</span></div>\n<div id=\"charts\"></div>\n"
+            f"{values}"
+            "<noscript><p class=\"muted\">The charts need JavaScript; the tables do not.</p></noscript>\n")
+
+
+def _state_changes(collector: ReportCollector) -> str:
+    values = collector.values
+    if not values.changes:
+        return ""
+    rows = "".join(f"<tr><td class=\"num\">{change.index}</td><td>{escape(_time(change.t_ns))}</td>"
+                   f"<td class=\"num\">{change.slave}</td><td>{escape(change.code)}</td>"
+                   f"<td>{escape(change.before or '(first seen)')}</td><td>{escape(change.after)}</td></tr>\n"
+                   for change in values.changes)
+    more = (f"<p class=\"muted\">The first {MAX_CHANGES} of {values.changes_total:,} changes; "
+            "<code>rtusniff values CAPTURE --changes</code> lists them all.</p>\n"
+            if values.changes_total > len(values.changes) else "")
+    return (f"<h2 id=\"states\">State changes</h2>\n<table class=\"states\">\n<tr><th class=\"num\">#</th>"
+            f"<th>time (UTC)</th><th class=\"num\">slave</th><th>code</th><th>from</th><th>to</th></tr>\n"
+            f"{rows}</table>\n{more}")
+
+
+def _time(t_ns: int) -> str:
+    return utc_text(t_ns)
+
+
+def _classes(classes: str) -> str:
+    return f' class="{classes}"' if classes else ""
+
+
+def _anomalies(collector: ReportCollector) -> str:
+    log, capture = collector.anomalies, _capture_argument(collector)
+    found = [kind for kind in KINDS if log.counts[kind]]
+    head = ("<h2 id=\"anomalies\">Anomalies</h2>\n<table class=\"anomaly-kinds\">\n<tr><th>kind</th>"
+            "<th class=\"num\">frames</th><th>meaning</th></tr>\n")
+    rows = "".join(f"<tr data-kind=\"{kind}\"><td><a href=\"#anomaly-{kind}\">{escape(KINDS[kind][0])}</a></td>"
+                   f"<td class=\"num\">{log.counts[kind]:,}</td><td>{escape(KINDS[kind][1])}</td></tr>\n"
+                   for kind in found)
+    if not found:
+        return ("<h2 id=\"anomalies\">Anomalies</h2>\n"
+                "<p class=\"good\">None: every frame good, every request answered.</p>\n")
+    sections = [_kind_section(kind, log.counts[kind], log.kept[kind], capture) for kind in found]
+    return head + rows + "</table>\n" + "".join(sections)
+
+
+def _capture_argument(collector: ReportCollector) -> str:
+    return " ".join(shlex.quote(file.path) for file in collector.provenance.files)
+
+
+def _kind_section(kind: str, count: int, kept: list[Anomaly], capture: str) -> str:
+    title = KINDS[kind][0]
+    shown = f"all {count:,}" if count == len(kept) else f"the first {len(kept):,} of {count:,}"
+    opened = " open" if count <= OPEN_UP_TO else ""
+    contexts = [a for a in kept if a.with_context]
+    blocks = "".join(_context_block(anomaly, capture) for anomaly in contexts)
+    listing = _frame_table([a.row for a in kept], focus=None)
+    return (f"<details class=\"kind\" id=\"anomaly-{kind}\" data-kind=\"{kind}\" data-count=\"{count}\"{opened}>"
+            f"<summary>{escape(title)}: {count:,}</summary>\n"
+            f"<p class=\"muted\">The first {len(contexts)} with the frames around them; then {shown} as rows. "
+            f"<code>rtusniff analyze {escape(capture)} --around INDEX --context 5</code> shows any of them "
+            f"in full.</p>\n{blocks}<details><summary>{escape(shown)} as rows</summary>\n{listing}</details>\n"
+            "</details>\n")
+
+
+def _context_block(anomaly: Anomaly, capture: str) -> str:
+    row = anomaly.row
+    return (f"<div class=\"context\" data-index=\"{row.index}\"><p class=\"muted\">#{row.index} at "
+            f"{escape(row.time)}</p>\n"
+            f"{_frame_table([*anomaly.before, row, *anomaly.after], focus=row.index)}</div>\n")
+
+
+def _frame_table(rows: list[FrameRow], focus: int | None) -> str:
+    head = "".join(f"<th{_classes('num' if right else '')}>{escape(heading)}</th>"
+                   for _, heading, right in _ROW_COLUMNS)
+    body = []
+    for row in rows:
+        cells = []
+        for key, _, right in _ROW_COLUMNS:
+            value = str(getattr(row, key))
+            classes = "num" if right else "hex" if key == "hex" else "bad" if key == "crc" and value == "BAD" else ""
+            cells.append(f"<td{_classes(classes)}>{escape(value)}</td>")
+        mark = " class=\"focus\"" if row.index == focus else ""
+        body.append(f"<tr{mark}>{''.join(cells)}</tr>\n")
+    return f"<div class=\"scroll\"><table class=\"frames\">\n<tr>{head}</tr>\n{''.join(body)}</table></div>\n"

@@ -1,0 +1,82 @@
+"""The Markdown report (``report --format md``): provenance, the bus, the health table and the
+first anomalies of each kind with their hex, to paste into a GitHub, GitLab or Jira ticket."""
+
+from __future__ import annotations
+
+import shlex
+from typing import TextIO
+
+from sniffer.report.anomalies import KINDS, Anomaly, FrameRow
+from sniffer.report.collect import ReportCollector
+from sniffer.report.facts import HEALTH_COLUMNS, bus_summary, health_rows, provenance_facts
+
+#: Anomalies of each kind written with the frames around them.
+EXAMPLES = 3
+
+
+def write_markdown(out: TextIO, collector: ReportCollector) -> None:
+    files = " + ".join(file.path for file in collector.provenance.files)
+    lines = [f"# Modbus RTU report: {_inline(files)}", "", "| | |", "|---|---|"]
+    lines += [f"| {label} | {_cell(value, code=label in ('SHA-256', 'command'))} |"
+              for label, value in provenance_facts(collector)]
+    lines += ["", "## Bus", ""]
+    lines += [f"- {label}: **{value}**" if grade == "bad" else f"- {label}: {value}"
+              for label, value, grade in bus_summary(collector)]
+    lines += ["", *_health(collector), *_anomalies(collector)]
+    out.write("\n".join(lines) + "\n")
+
+
+def _health(collector: ReportCollector) -> list[str]:
+    rows = health_rows(collector.statistics, collector)
+    if not rows:
+        return ["## Slaves", "", "No request or answer of any slave.", ""]
+    lines = ["## Slaves, worst first", "",
+             "Error rate: exceptions, CRC errors and timeouts per request.", "",
+             "| " + " | ".join(heading for _, heading, _ in HEALTH_COLUMNS) + " |",
+             "|" + "|".join("---:" if right else "---" for _, _, right in HEALTH_COLUMNS) + "|"]
+    for row in rows:
+        cells = [_cell(row.cells[key]) for key, _, _ in HEALTH_COLUMNS]
+        if row.grade == "bad":
+            cells[[key for key, _, _ in HEALTH_COLUMNS].index("error_rate")] = f"**{row.cells['error_rate']}**"
+        lines.append("| " + " | ".join(cells) + " |")
+    return [*lines, ""]
+
+
+def _anomalies(collector: ReportCollector) -> list[str]:
+    log = collector.anomalies
+    found = [kind for kind in KINDS if log.counts[kind]]
+    if not found:
+        return ["## Anomalies", "", "None: every frame good, every request answered."]
+    capture = " ".join(shlex.quote(file.path) for file in collector.provenance.files)
+    lines = ["## Anomalies", "", "| kind | frames | meaning |", "|---|---:|---|"]
+    lines += [f"| {KINDS[kind][0]} | {log.counts[kind]:,} | {KINDS[kind][1]} |" for kind in found]
+    lines += ["", f"Any of them in full: `rtusniff analyze {capture} --around INDEX --context 5`.", ""]
+    for kind in found:
+        examples = [anomaly for anomaly in log.kept[kind] if anomaly.with_context][:EXAMPLES]
+        lines += [f"### {KINDS[kind][0]}: {log.counts[kind]:,}", ""]
+        for anomaly in examples:
+            lines += _example(anomaly)
+    return lines
+
+
+def _example(anomaly: Anomaly) -> list[str]:
+    row = anomaly.row
+    rows = [*anomaly.before, row, *anomaly.after]
+    return [f"#{row.index} at {row.time} UTC:", "", "```text",
+            *[_frame_line(frame, focus=frame.index == row.index) for frame in rows], "```", ""]
+
+
+def _frame_line(row: FrameRow, *, focus: bool) -> str:
+    fields = [f"#{row.index}", row.time.split(" ")[1], f"slave {row.slave or '-'}", f"fc {row.function or '-'}",
+              row.role, f"CRC {row.crc}" if row.crc else "", row.flags, row.hex]
+    text = "  ".join(field for field in fields if field)
+    return f"{'>' if focus else ' '} {text}  | {row.summary}"
+
+
+def _inline(text: str) -> str:
+    return text.replace("`", "'")
+
+
+def _cell(text: str, *, code: bool = False) -> str:
+    escaped = text.replace("|", "\\|").replace("\n", " ")
+    return f"`{escaped.replace('`', chr(39))}`" if code else escaped

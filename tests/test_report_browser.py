@@ -1,0 +1,156 @@
+"""The HTML report in a real browser (headless Chromium from the system's packages, driven by
+Playwright): it draws every chart without a console error, asks nothing of any network, lists the
+anomalies ``stats`` counts, and zooms when dragged across. Screenshots go to the test's folder
+(``RTUSNIFF_SCREENSHOTS=DIR`` keeps them)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from benchmarks import generate_capture
+from decoders.line import LineSettings
+from tests.conftest import ROOT, CliResult
+from tests.real_recordings import TEXT
+from tests.test_report import expected_counts
+
+Cli = Callable[..., CliResult]
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+playwright_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed")
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
+#: As the probe of this machine kind starts it: no sandbox as root, nothing fetched in the background.
+FLAGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
+         "--disable-component-update", "--disable-sync"]
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    with playwright_api.sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+        yield launched
+        launched.close()
+
+
+class Opened:
+    """A report open in a page, with everything the page said and asked for."""
+
+    def __init__(self, browser: Any, path: Path, width: int = 1280) -> None:
+        self.page = browser.new_page(viewport={"width": width, "height": 900})
+        self.console: list[str] = []
+        self.requests: list[str] = []
+        self.page.on("console", lambda m: self.console.append(f"{m.type}: {m.text}")
+                     if m.type in ("error", "warning") else None)
+        self.page.on("pageerror", lambda e: self.console.append(f"pageerror: {e}"))
+        self.page.on("request", lambda r: self.requests.append(r.url))
+        self.url = path.resolve().as_uri()
+        self.page.goto(self.url)
+        self.page.wait_for_load_state("load")
+
+    def shot(self, name: str, tmp_path: Path) -> Path:
+        path = tmp_path / name
+        self.page.screenshot(path=str(path), full_page=True)
+        keep = os.environ.get("RTUSNIFF_SCREENSHOTS")
+        if keep:
+            Path(keep).mkdir(parents=True, exist_ok=True)
+            shutil.copy(path, Path(keep) / name)
+        return path
+
+
+def _report(cli: Cli, capture: Path, out: Path) -> Path:
+    result = cli("report", str(capture), "-o", str(out))
+    assert result.code == 0, result.err
+    return out
+
+
+@pytest.fixture(scope="module")
+def steady_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Half an hour of a saturated 19200 Bd line: 16 drives with values, every fault."""
+    capture = tmp_path_factory.mktemp("steady") / "steady.mcap"
+    generate_capture.write(capture, 200_000, 1, LineSettings.parse("19200 8E1"), "exact", values="steady")
+    return capture
+
+
+REAL = sorted(TEXT.glob("*.log"))[:2] if TEXT.is_dir() else []
+CAPTURES = [ROOT / "captures" / name for name in ("atv71-plc-poll.log", "xbt-hmi.log", "atv71-plc-poll-usb.mcap")]
+
+
+@pytest.mark.parametrize("capture", CAPTURES + REAL, ids=lambda path: path.name)
+def test_captures_render_offline_without_errors(browser: Any, cli: Cli, capture: Path, tmp_path: Path) -> None:
+    """The shipped samples and real recordings (sigrok's, of a flowmeter and an I/O module)."""
+    sample = capture.name
+    opened = Opened(browser, _report(cli, capture, tmp_path / "report.html"))
+    assert opened.console == []
+    assert opened.requests == [opened.url]  # the file itself, nothing else
+    stats = json.loads(cli("stats", str(capture), "--format", "json").out)
+    shown = opened.page.eval_on_selector_all(
+        "details.kind", "nodes => nodes.map(n => [n.dataset.kind, Number(n.dataset.count)])")
+    assert dict(shown) == expected_counts(stats)
+    listed = opened.page.eval_on_selector_all("table.anomaly-kinds tr[data-kind] td.num",
+                                              "cells => cells.map(c => Number(c.textContent.replace(/,/g, '')))")
+    assert listed == [count for _, count in shown]
+    charts = opened.page.eval_on_selector_all(
+        "svg.plot", "svgs => svgs.map(s => s.querySelectorAll('path').length)")
+    assert charts and all(count > 0 for count in charts)
+    assert opened.shot(f"{Path(sample).stem}.png", tmp_path).stat().st_size > 20_000
+
+
+def test_a_long_capture_draws_and_zooms(browser: Any, cli: Cli, steady_capture: Path, tmp_path: Path) -> None:
+    opened = Opened(browser, _report(cli, steady_capture, tmp_path / "steady.html"))
+    page = opened.page
+    assert opened.console == [] and opened.requests == [opened.url]
+    data = json.loads(page.text_content("#report-data") or "")
+    drawn = page.eval_on_selector_all("figure.chart", "figures => figures.map(f => f.id)")
+    ids = [f"chart-{chart['id']}" for chart in data["charts"]]
+    # The latency distribution follows the latency over time; the drive values come last, per slave.
+    assert drawn == [*ids[:4], "chart-latency-distribution", *ids[4:]]
+    assert len(ids) > 4 + 16
+    # Values of the first slaves are open, the others fold until asked for.
+    assert page.eval_on_selector_all("details.values", "d => d.map(x => x.open)")[:4] == [True, True, True, False]
+
+    def ticks() -> list[str]:
+        return page.eval_on_selector_all("#chart-load text.tick", "t => t.map(x => x.textContent)")
+
+    whole = ticks()
+    page.locator("#chart-load svg").scroll_into_view_if_needed()
+    box = page.locator("#chart-load svg").bounding_box()
+    y = box["y"] + box["height"] / 2
+    page.mouse.move(box["x"] + box["width"] * 0.40, y)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] * 0.45, y, steps=5)
+    page.mouse.up()
+    state = page.text_content("#zoom-state") or ""
+    assert state != "whole capture" and state.endswith("UTC")
+    zoomed = ticks()
+    assert zoomed != whole
+    # Every time chart follows: the latency chart shows the same span.
+    assert page.eval_on_selector_all("#chart-latency-mean text.tick", "t => t.map(x => x.textContent)")[-3:] \
+        == zoomed[-3:]
+    opened.shot("steady-zoomed.png", tmp_path)
+    page.locator("#chart-load svg").dblclick()
+    assert page.text_content("#zoom-state") == "whole capture" and ticks() == whole
+    # A legend entry hides its series, and shows it again.
+    key = page.locator("#chart-latency-mean .legend .key").first
+    paths = "#chart-latency-mean path.line"
+    before = page.locator(paths).count()
+    key.click()
+    assert page.locator(paths).count() == before - 1 and "off" in (key.get_attribute("class") or "")
+    key.click()
+    assert page.locator(paths).count() == before
+    opened.shot("steady.png", tmp_path)
+    assert opened.console == []
+
+
+def test_a_narrow_window_keeps_the_report_readable(browser: Any, cli: Cli, tmp_path: Path) -> None:
+    """At a phone's width nothing spills out of the page: wide tables scroll inside their box."""
+    report = _report(cli, ROOT / "captures" / "atv71-plc-poll.log", tmp_path / "narrow.html")
+    opened = Opened(browser, report, width=420)
+    overflow = opened.page.evaluate("document.documentElement.scrollWidth - document.documentElement.clientWidth")
+    assert overflow <= 0
+    assert opened.console == []
+    opened.shot("narrow.png", tmp_path)
