@@ -185,3 +185,25 @@ def test_the_report_format_follows_the_output_suffix(cli: Cli, tmp_path: Path) -
     out = tmp_path / "ticket.md"
     assert cli("report", str(ROOT / "captures" / "xbt-hmi.log"), "-o", str(out)).code == 0
     assert out.read_text().startswith("# Modbus RTU report: ")
+
+
+def test_a_baseline_adds_what_compare_says(cli: Cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--baseline BEFORE``: the section 'before and after' holds compare's rows and verdicts."""
+    monkeypatch.chdir(ROOT)
+    before, after = "captures/atv71-plc-poll.log", "captures/atv71-plc-poll-usb.log"
+    result = cli("report", after, "--baseline", before, "--format", "md")
+    assert result.code == 0, result.err
+    golden = GOLDEN / "atv71-plc-poll-usb.log.baseline.md"
+    if REGENERATE:
+        golden.write_text(result.out)
+    assert result.out == golden.read_text()
+    compared = json.loads(cli("compare", before, after, "--format", "json").out)
+    out = tmp_path / "r.html"
+    assert cli("report", after, "--baseline", before, "-o", str(out)).code == 0
+    verdicts = re.findall(r'<tr data-verdict="([a-z]+)">', out.read_text())
+    assert verdicts == [row["verdict"] for row in compared["per_slave_function"]]
+    # A window narrows this capture only: the baseline is read whole.
+    windowed = cli("report", after, "--baseline", before, "--format", "md", "--from", "1s").out
+    assert "| frames | 52 | 3" in windowed
+    result = cli("report", after, "--baseline", str(out), "-o", str(out), "--force")
+    assert result.code == 2 and "rtusniff never writes over a capture it reads" in result.err

@@ -250,6 +250,8 @@ def test_progress_bar_on_a_terminal(tmp_path: Path) -> None:
     assert "chunks/s" in copied and "wrote" in copied
     quiet = run_on_pty(["export", str(capture), "--pcap", str(tmp_path / "long.pcap"), "-q"])
     assert quiet.strip() == ""
+    reported = run_on_pty(["report", str(capture), "-o", str(tmp_path / "long.html")])
+    assert "frames/s" in reported and f"wrote {tmp_path / 'long.html'}: html report of 60,000 frames" in reported
 
 
 def test_live_screen_is_a_snapshot() -> None:

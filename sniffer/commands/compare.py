@@ -7,10 +7,7 @@ from contextlib import ExitStack
 
 from rich.console import Console
 
-from decoders.capture import CaptureInfo
 from decoders.compare import compare
-from decoders.line import LineSettings
-from decoders.stats import Statistics
 from sniffer.commands.common import (
     add_decoding_options,
     add_force_option,
@@ -18,14 +15,11 @@ from sniffer.commands.common import (
     add_quiet_option,
     add_width_option,
     check_outputs,
-    open_analysis,
     open_output,
     tell_written,
 )
-from sniffer.pipeline import analyze
-from sniffer.progress import progress_for
-from sniffer.sinks import Sink
-from sniffer.views.compare_view import Side, write_comparison
+from sniffer.commands.counting import counted_capture
+from sniffer.views.compare_view import write_comparison
 from sniffer.views.layout import terminal_colors, terminal_width
 
 
@@ -49,21 +43,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.set_defaults(run=run)
 
 
-class _Counted(Sink):
-    """Asks for the statistics, and remembers how the capture was read."""
-
-    wants_statistics = True
-    timing = ""
-    line = ""
-
-    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
-        self.timing = info.timing.value
-        self.line = line.format()
-
-
 def run(args: argparse.Namespace) -> int:
     check_outputs([args.output], [args.before, args.after], force=args.force)
-    sides = [_counted(args, path) for path in (args.before, args.after)]
+    sides = [counted_capture(args, path) for path in (args.before, args.after)]
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         console = Console(file=out)
@@ -74,13 +56,3 @@ def run(args: argparse.Namespace) -> int:
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format}, {args.before} vs {args.after}")])
     return 0
-
-
-def _counted(args: argparse.Namespace, path: str) -> Side:
-    one = argparse.Namespace(**{**vars(args), "capture": [path]})
-    with ExitStack() as stack:
-        reader, analysis = open_analysis(one, stack)
-        counted = _Counted()
-        progress = stack.enter_context(progress_for(one, reader, to_terminal=args.output in (None, "-")))
-        statistics: Statistics = analyze(reader, path, analysis, [counted, progress.sink])
-    return Side(path, counted.line, counted.timing, statistics)

@@ -9,6 +9,7 @@ from contextlib import ExitStack
 from importlib.metadata import version
 from pathlib import Path
 
+from decoders.compare import compare
 from sniffer.commands.common import (
     add_capture_argument,
     add_decoding_options,
@@ -22,13 +23,15 @@ from sniffer.commands.common import (
     source_name,
     tell_written,
 )
+from sniffer.commands.counting import counted_capture
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.pipeline import analyze
 from sniffer.progress import progress_for
-from sniffer.report.collect import Provenance, ReportCollector, source_file
+from sniffer.report.collect import Comparison, Provenance, ReportCollector, source_file
 from sniffer.report.html import write_html
 from sniffer.report.markdown import write_markdown
+from sniffer.views.compare_view import Side
 
 WRITERS = {"html": write_html, "md": write_markdown}
 
@@ -49,6 +52,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("--format", choices=list(WRITERS),
                         help="html (default) or md; default from the -o suffix (.md: md)")
     parser.add_argument("-o", "--output", help="the file to write (standard output: -, or leave out into a pipe)")
+    parser.add_argument("--baseline", metavar="BEFORE",
+                        help="an earlier capture to compare with, as 'rtusniff compare BEFORE CAPTURE' does: a "
+                        "section 'before and after' per slave and function (read whole, with the same decoding "
+                        "options)")
     add_force_option(parser)
     add_decoding_options(parser)
     add_jobs_option(parser)
@@ -69,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         raise RtuSniffError(ErrorKind.USAGE, "report: an HTML report is a file to open in a browser; "
                             "give -o report.html (or --format md to read it here)")
     paths = capture_paths(args)
-    check_outputs([args.output], paths, force=args.force)
+    check_outputs([args.output], [*paths, *([args.baseline] if args.baseline else [])], force=args.force)
     provenance = Provenance(files=[source_file(path) for path in paths], command=shlex.join(args.command_line),
                             tool_version=version("rtusniff"), profiles=list(args.profile), window=_window(args))
     collector = ReportCollector(provenance)
@@ -77,12 +84,21 @@ def run(args: argparse.Namespace) -> int:
         reader, analysis = open_analysis(args, stack)
         progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
         analyze(reader, source_name(args), analysis, [collector, progress.sink], jobs=decoding_jobs(args.jobs))
+    comparison = _comparison(args, collector) if args.baseline else None
     # Written only once everything is read: a capture that fails leaves no half report behind.
     with ExitStack() as stack:
-        WRITERS[kind](open_output(args.output, stack), collector)
+        WRITERS[kind](open_output(args.output, stack), collector, comparison)
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{kind} report of {collector.statistics.frames:,} frames")])
     return 0
+
+
+def _comparison(args: argparse.Namespace, collector: ReportCollector) -> Comparison:
+    whole = argparse.Namespace(**{**vars(args), "start": None, "stop": None, "around": None, "limit": None})
+    before = counted_capture(whole, args.baseline)
+    p = collector.provenance
+    after = Side(source_name(args), p.line, p.timing, collector.statistics)
+    return Comparison(source_file(args.baseline), before, after, compare(before.statistics, after.statistics))
 
 
 def _window(args: argparse.Namespace) -> str:

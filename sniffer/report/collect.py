@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from decoders.capture import CaptureInfo
+from decoders.compare import Change
 from decoders.damage import RetryDiff
 from decoders.line import LineSettings
 from decoders.message import ROLE_CODE, AnnotatedBatch, DeviceIdentity, MessageBatch, Role
@@ -19,6 +20,7 @@ from decoders.timeline import Timeline
 from sniffer.report.anomalies import AnomalyLog, anomaly_masks
 from sniffer.report.drive_values import DriveValues
 from sniffer.sinks import Sink
+from sniffer.views.compare_view import Side
 
 _ANSWERS = (ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.EXCEPTION])
 _HASH_BLOCK = 1 << 20
@@ -56,6 +58,16 @@ class Provenance:
     notes: tuple[str, ...] = ()
     window: str = ""
     devices: dict[int, DeviceIdentity] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """``--baseline``: an earlier capture (``before``) against this one (``after``), per slave and function."""
+
+    baseline: SourceFile
+    before: Side
+    after: Side
+    changes: list[Change]
 
 
 class ReportCollector(Sink):

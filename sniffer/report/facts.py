@@ -11,7 +11,9 @@ from dataclasses import dataclass
 from decoders.health import SlaveHealth, slave_health
 from decoders.stats import Histogram, Statistics
 from sniffer.report.anomalies import utc_text
-from sniffer.report.collect import ReportCollector
+from sniffer.report.collect import Comparison, ReportCollector
+from sniffer.views.compare_view import COLUMNS as COMPARISON_COLUMNS
+from sniffer.views.compare_view import comparison_cells, verdict_counts
 
 #: The health table's columns: key, heading, right-aligned.
 HEALTH_COLUMNS = (
@@ -134,3 +136,25 @@ def _ms(histogram: Histogram, q: float) -> str:
 
 def _ms_max(histogram: Histogram) -> str:
     return "–" if histogram.maximum is None else f"{histogram.maximum / 1e6:.2f}"
+
+
+def comparison_facts(comparison: Comparison) -> tuple[list[str], list[tuple[str, str, str]]]:
+    """What the section "before and after" says first: the two captures, and the totals."""
+    b, a = comparison.before, comparison.after
+    lines = [f"before: {b.source} (SHA-256 {comparison.baseline.sha256 or 'n/a'}), line {b.line}, timing {b.timing}",
+             f"after: {a.source}, line {a.line}, timing {a.timing}"]
+    totals = [("frames", f"{b.statistics.frames:,}", f"{a.statistics.frames:,}"),
+              ("CRC errors", f"{b.statistics.crc_errors:,}", f"{a.statistics.crc_errors:,}"),
+              ("bus load", _load(b.statistics), _load(a.statistics))]
+    return lines, totals
+
+
+def comparison_rows(comparison: Comparison) -> tuple[list[tuple[str, str, bool]], list[dict[str, str]], str]:
+    """The comparison's columns (key, heading, right-aligned), its rows, and the verdicts' count."""
+    columns = [(column.key, column.header, column.right) for column in COMPARISON_COLUMNS]
+    rows = [comparison_cells(change, comparison.before, comparison.after) for change in comparison.changes]
+    return columns, rows, verdict_counts(comparison.changes)
+
+
+def _load(statistics: Statistics) -> str:
+    return "–" if statistics.bus_load is None else f"{statistics.bus_load * 100:.1f} %"

@@ -12,9 +12,16 @@ from typing import TextIO
 
 from sniffer.report.anomalies import KINDS, Anomaly, FrameRow, utc_text
 from sniffer.report.charts import chart_data
-from sniffer.report.collect import ReportCollector
+from sniffer.report.collect import Comparison, ReportCollector
 from sniffer.report.drive_values import MAX_CHANGES
-from sniffer.report.facts import HEALTH_COLUMNS, bus_summary, health_rows, provenance_facts
+from sniffer.report.facts import (
+    HEALTH_COLUMNS,
+    bus_summary,
+    comparison_facts,
+    comparison_rows,
+    health_rows,
+    provenance_facts,
+)
 
 #: A kind of anomaly with no more than this many is shown unfolded.
 OPEN_UP_TO = 20
@@ -28,7 +35,7 @@ def _asset(name: str) -> str:
     return files("sniffer.report").joinpath("assets", name).read_text(encoding="utf-8")
 
 
-def write_html(out: TextIO, collector: ReportCollector) -> None:
+def write_html(out: TextIO, collector: ReportCollector, comparison: Comparison | None = None) -> None:
     title = "Modbus RTU report: " + " + ".join(file.path for file in collector.provenance.files)
     data = json.dumps(chart_data(collector), separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
     parts = [
@@ -41,7 +48,8 @@ def write_html(out: TextIO, collector: ReportCollector) -> None:
         f"<h1>{escape(title)}</h1>\n",
         "<p class=\"lead\">Made by rtusniff from the capture named below; every figure can be checked with the "
         "command it gives. Times are UTC.</p>\n",
-        _provenance(collector), _summary(collector), _health(collector), _charts(collector),
+        _provenance(collector), _summary(collector), _health(collector),
+        _comparison(comparison) if comparison else "", _charts(collector),
         _state_changes(collector), _anomalies(collector),
         f"<script type=\"application/json\" id=\"report-data\">{data}</script>\n",
         f"<script>\n{_asset('report.js')}</script>\n</body>\n</html>\n",
@@ -82,6 +90,30 @@ def _health(collector: ReportCollector) -> str:
     return (f"<h2 id=\"health\">Slaves, worst first</h2>\n<p class=\"muted\">Error rate: exceptions, CRC errors and "
             f"timeouts per request. Latency from each request's end to its answer's start.</p>\n"
             f"<div class=\"scroll\"><table class=\"health\">\n<tr>{head}</tr>\n{''.join(body)}</table></div>\n")
+
+
+def _comparison(comparison: Comparison) -> str:
+    lines, totals = comparison_facts(comparison)
+    columns, rows, verdicts = comparison_rows(comparison)
+    facts = "".join(f"<p class=\"muted\">{escape(line)}</p>\n" for line in lines)
+    total = "".join(f"<tr><th>{escape(label)}</th><td class=\"num\">{escape(b)}</td><td class=\"num\">{escape(a)}</td>"
+                    "</tr>\n" for label, b, a in totals)
+    head = "".join(f"<th{_classes('num' if right else '')}>{escape(heading)}</th>" for _, heading, right in columns)
+    body = "".join("<tr data-verdict=\"" + escape(row["verdict"]) + "\">" + "".join(
+        f"<td{_classes(_verdict_class(key, row[key]) or ('num' if right else ''))}>{escape(row[key])}</td>"
+        for key, _, right in columns) + "</tr>\n" for row in rows)
+    return (f"<h2 id=\"comparison\">Before and after</h2>\n{facts}<table class=\"facts\"><tr><th></th>"
+            f"<th class=\"num\">before</th><th class=\"num\">after</th></tr>\n{total}</table>\n"
+            f"<p class=\"muted\">Per slave and function, before→after (latency and poll period in ms); worse: the "
+            f"error rate rose by more than half a percentage point or the latency p95 by more than 20 % and 0.5 ms. "
+            f"{escape(verdicts)}.</p>\n<div class=\"scroll\"><table class=\"comparison\">\n<tr>{head}</tr>\n{body}"
+            "</table></div>\n")
+
+
+def _verdict_class(key: str, value: str) -> str:
+    if key != "verdict":
+        return ""
+    return {"worse": "bad", "better": "good", "new": "warn", "gone": "warn"}.get(value, "")
 
 
 def _charts(collector: ReportCollector) -> str:

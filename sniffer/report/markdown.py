@@ -7,14 +7,21 @@ import shlex
 from typing import TextIO
 
 from sniffer.report.anomalies import KINDS, Anomaly, FrameRow
-from sniffer.report.collect import ReportCollector
-from sniffer.report.facts import HEALTH_COLUMNS, bus_summary, health_rows, provenance_facts
+from sniffer.report.collect import Comparison, ReportCollector
+from sniffer.report.facts import (
+    HEALTH_COLUMNS,
+    bus_summary,
+    comparison_facts,
+    comparison_rows,
+    health_rows,
+    provenance_facts,
+)
 
 #: Anomalies of each kind written with the frames around them.
 EXAMPLES = 3
 
 
-def write_markdown(out: TextIO, collector: ReportCollector) -> None:
+def write_markdown(out: TextIO, collector: ReportCollector, comparison: Comparison | None = None) -> None:
     files = " + ".join(file.path for file in collector.provenance.files)
     lines = [f"# Modbus RTU report: {_inline(files)}", "", "| | |", "|---|---|"]
     lines += [f"| {label} | {_cell(value, code=label in ('SHA-256', 'command'))} |"
@@ -22,7 +29,7 @@ def write_markdown(out: TextIO, collector: ReportCollector) -> None:
     lines += ["", "## Bus", ""]
     lines += [f"- {label}: **{value}**" if grade == "bad" else f"- {label}: {value}"
               for label, value, grade in bus_summary(collector)]
-    lines += ["", *_health(collector), *_anomalies(collector)]
+    lines += ["", *_health(collector), *(_comparison(comparison) if comparison else []), *_anomalies(collector)]
     out.write("\n".join(lines) + "\n")
 
 
@@ -40,6 +47,20 @@ def _health(collector: ReportCollector) -> list[str]:
             cells[[key for key, _, _ in HEALTH_COLUMNS].index("error_rate")] = f"**{row.cells['error_rate']}**"
         lines.append("| " + " | ".join(cells) + " |")
     return [*lines, ""]
+
+
+def _comparison(comparison: Comparison) -> list[str]:
+    lines, totals = comparison_facts(comparison)
+    columns, rows, verdicts = comparison_rows(comparison)
+    text = ["## Before and after", "", *[f"- {_cell(line)}" for line in lines], "",
+            "| | before | after |", "|---|---:|---:|", *[f"| {label} | {b} | {a} |" for label, b, a in totals], "",
+            "Per slave and function, before→after (latency and poll period in ms):", "",
+            "| " + " | ".join(heading for _, heading, _ in columns) + " |",
+            "|" + "|".join("---:" if right else "---" for _, _, right in columns) + "|"]
+    for row in rows:
+        cells = [_cell(row[key]) for key, _, _ in columns]
+        text.append("| " + " | ".join(f"**{c}**" if c == "worse" else c for c in cells) + " |")
+    return [*text, "", f"{verdicts}.", ""]
 
 
 def _anomalies(collector: ReportCollector) -> list[str]:

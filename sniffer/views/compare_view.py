@@ -59,7 +59,7 @@ def write_comparison(out: TextIO, before: Side, after: Side, changes: list[Chang
                       f"{before.statistics.crc_errors}→{after.statistics.crc_errors}, bus load "
                       f"{_load(before.statistics)}→{_load(after.statistics)}")
     _note(out, width, "per slave and function, before→after (latency and poll period in ms)")
-    rows = [_cells(change, before, after) for change in changes]
+    rows = [comparison_cells(change, before, after) for change in changes]
     keys = [column.key for column in COLUMNS]
     styles = [_STYLES.get(change.verdict, "") for change in changes]
     cells = {key: Cells([row[key] for row in rows], styles if key == "verdict" and colors else None) for key in keys}
@@ -68,9 +68,7 @@ def write_comparison(out: TextIO, before: Side, after: Side, changes: list[Chang
     out.write(layout.header() + layout.lines(cells, len(rows)))
     if layout.hidden():
         _note(out, width, f"(no room at {width} columns for: {', '.join(layout.hidden())}; --format json has all)")
-    counts = {verdict: sum(change.verdict == verdict for change in changes)
-              for verdict in ("worse", "better", "same", "new", "gone")}
-    _note(out, width, ", ".join(f"{n} {verdict}" for verdict, n in counts.items() if n) or "nothing to compare")
+    _note(out, width, verdict_counts(changes))
     if not (before.latency_measured and after.latency_measured):
         _note(out, width, "latency n/a on a host-timed capture (read times do not measure it)")
     out.flush()
@@ -87,7 +85,15 @@ def _load(statistics: Statistics) -> str:
     return "-" if statistics.bus_load is None else f"{100 * statistics.bus_load:.1f}%"
 
 
-def _cells(change: Change, before: Side, after: Side) -> dict[str, str]:
+def verdict_counts(changes: list[Change]) -> str:
+    """``2 worse, 5 same``: how many pairs got each verdict."""
+    counts = {verdict: sum(change.verdict == verdict for change in changes)
+              for verdict in ("worse", "better", "same", "new", "gone")}
+    return ", ".join(f"{n} {verdict}" for verdict, n in counts.items() if n) or "nothing to compare"
+
+
+def comparison_cells(change: Change, before: Side, after: Side) -> dict[str, str]:
+    """The texts of one row, by the keys of :data:`COLUMNS`."""
     b, a = change.before, change.after
     timed = (before.latency_measured, after.latency_measured)
     return {
