@@ -89,6 +89,8 @@ def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
         target = f" to {options.output}" if options.output else ""
         err.print(f"capturing {options.port} at {options.line.format()}{target}; Ctrl-C to stop", highlight=False,
                   soft_wrap=True)
+        if status.modem_lines is not None and any(status.modem_lines.values()):
+            err.print(f"warning: {options.port}: {status.modem_note()}", highlight=False, soft_wrap=True)
         session.run(source)
     except KeyboardInterrupt:
         code = INTERRUPTED
@@ -115,6 +117,7 @@ def _recorder(options: CaptureOptions, status: PortStatus) -> Recorder | None:
         f"captured from {options.port} by rtusniff {version('rtusniff')} (passive: nothing written to the port)",
         f"low latency mode: {'on' if status.low_latency else 'not available'}; "
         f"latency timer: {status.latency_timer_ms if status.latency_timer_ms is not None else 'unknown'} ms",
+        status.modem_note(),
     ]
     return Recorder(options.output, CaptureInfo(options.line, TimingQuality.HOST, tuple(notes)), options.rotation)
 

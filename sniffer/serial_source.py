@@ -74,6 +74,19 @@ class PortStatus:
     low_latency: bool | None
     latency_timer_ms: int | None
     counters_available: bool
+    #: RTS and DTR as the driver reports them after they were cleared; ``None``: it cannot say
+    #: (a pseudo-terminal has no modem lines; Windows).
+    modem_lines: dict[str, bool] | None = None
+
+    def modem_note(self) -> str:
+        """What is known of RTS and DTR, for the recording's notes and the warnings."""
+        if self.modem_lines is None:
+            return "RTS/DTR: cleared; this port cannot report them back (no modem lines, or not POSIX)"
+        raised = [name for name, on in self.modem_lines.items() if on]
+        if raised:
+            return (f"RTS/DTR: {' and '.join(raised)} still on after clearing: an adapter that enables its "
+                    "transmitter with it would drive the line")
+        return "RTS/DTR: both off, as the driver reports them"
 
     def advice(self) -> str | None:
         if self.latency_timer_ms is not None and self.latency_timer_ms > SLOW_LATENCY_TIMER_MS:
@@ -99,15 +112,46 @@ class SerialSource:
         # Off before opening: an RS485 adapter that keys its driver on RTS/DTR stays silent.
         self._serial.rts = False
         self._serial.dtr = False
+        if os.name == "posix":
+            # An advisory lock (flock) other captures take too: two captures on one port would each
+            # get part of the bytes. Windows opens a port for one program only anyway.
+            self._serial.exclusive = True
         self._offset_ns = time.time_ns() - time.monotonic_ns()
 
     def open(self) -> PortStatus:
         try:
             self._serial.open()
         except port_errors() as exc:
+            if "exclusively lock" in str(exc):
+                raise RtuSniffError(ErrorKind.FILE_UNREADABLE, "the port is in use: another capture (or a program "
+                                    "that locks it) reads it; two readers would each get only part of the "
+                                    "bytes", path=self.port) from None
             raise RtuSniffError(ErrorKind.FILE_UNREADABLE, f"cannot open the port with {self.line.format()}: "
                                 f"{exc}", path=self.port) from None
-        return PortStatus(self._low_latency(), _latency_timer_ms(self.port), self.counters() is not None)
+        self._clear_modem_lines()
+        return PortStatus(self._low_latency(), _latency_timer_ms(self.port), self.counters() is not None,
+                          self.modem_lines())
+
+    def _clear_modem_lines(self) -> None:
+        """RTS and DTR off again, each on its own: pyserial clears them at open in one step that
+        skips RTS when clearing DTR fails (it does on a pseudo-terminal)."""
+        for name in ("dtr", "rts"):
+            try:
+                setattr(self._serial, name, False)
+            except port_errors():
+                continue
+
+    def modem_lines(self) -> dict[str, bool] | None:
+        """RTS and DTR as the driver has them (TIOCMGET); ``None`` where it cannot say."""
+        fcntl, termios = posix_module("fcntl"), posix_module("termios")
+        if fcntl is None or termios is None or not hasattr(termios, "TIOCMGET"):
+            return None
+        try:
+            raw = fcntl.ioctl(self._serial.fileno(), termios.TIOCMGET, struct.pack("I", 0))
+        except (OSError, ValueError):
+            return None
+        bits = struct.unpack("I", raw)[0]
+        return {"RTS": bool(bits & termios.TIOCM_RTS), "DTR": bool(bits & termios.TIOCM_DTR)}
 
     @property
     def rts(self) -> bool:

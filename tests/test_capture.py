@@ -12,7 +12,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import pytest
 import serial
@@ -118,11 +118,50 @@ def test_real_master_and_slave_decoded_live_and_recorded(tmp_path: Path) -> None
 def test_passive_open_keeps_rts_and_dtr_off(line_tap: tuple[Path, Path, Any]) -> None:
     _, port, _ = line_tap
     source = SerialSource(str(port), LineSettings.parse("19200 8N1"))
-    source.open()
+    status = source.open()
     try:
         assert (source.rts, source.dtr) == (False, False)
+        # A pseudo-terminal has no modem lines: the driver cannot report them back, and says so.
+        assert status.modem_lines is None and "cannot report them back" in status.modem_note()
     finally:
         source.close()
+
+
+def test_rts_is_cleared_even_when_clearing_dtr_fails() -> None:
+    """pyserial clears both in one step at open, and skips RTS when DTR fails (on a pty): each is
+    cleared again on its own."""
+
+    class Port:
+        cleared: ClassVar[list[str]] = []
+
+        @property
+        def dtr(self) -> bool:
+            return True
+
+        @dtr.setter
+        def dtr(self, value: bool) -> None:
+            raise OSError(25, "Inappropriate ioctl for device")
+
+        @property
+        def rts(self) -> bool:
+            return True
+
+        @rts.setter
+        def rts(self, value: bool) -> None:
+            self.cleared.append(f"rts={value}")
+
+    source = SerialSource("/dev/null", LineSettings.parse("19200 8N1"))
+    source._serial = Port()  # type: ignore[assignment]
+    source._clear_modem_lines()
+    assert Port.cleared == ["rts=False"]
+
+
+def test_what_the_recording_says_of_rts_and_dtr() -> None:
+    from sniffer.serial_source import PortStatus
+
+    assert PortStatus(None, None, False, {"RTS": False, "DTR": False}).modem_note() == \
+        "RTS/DTR: both off, as the driver reports them"
+    assert "RTS still on after clearing" in PortStatus(None, None, False, {"RTS": True, "DTR": False}).modem_note()
 
 
 @pytest.mark.parametrize(("stop", "exit_code", "name"), [(signal.SIGTERM, 143, "term.log"),
@@ -142,6 +181,25 @@ def test_a_stop_signal_closes_the_recording(tmp_path: Path, line_tap: tuple[Path
     code, records, _ = analyze(recording)
     assert code == 0
     assert len([f for f in frames_of(records) if f["crc_ok"]]) == 20
+
+
+@pytest.mark.skipif(os.name != "posix", reason="the lock is POSIX's flock; Windows opens a port for one program")
+def test_a_second_capture_on_one_port_is_refused(tmp_path: Path, line_tap: tuple[Path, Path, Any]) -> None:
+    """Two captures on one port would split its bytes between them: the second is refused with
+    one line, and the first records every byte."""
+    line, port, _ = line_tap
+    first = start_capture(port, "-o", str(tmp_path / "first.mcap"), "--quiet")
+    second = subprocess.run([sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1", "-o",
+                             str(tmp_path / "second.mcap")], capture_output=True, text=True, check=False, timeout=60)
+    assert second.returncode == 4, second.stderr
+    assert second.stderr.count("\n") == 1 and "the port is in use" in second.stderr
+    assert not (tmp_path / "second.mcap").exists()
+    send_exchanges(line, 10)
+    time.sleep(0.5)
+    first.send_signal(signal.SIGTERM)
+    first.communicate(timeout=HANG_S)
+    code, records, _ = analyze(tmp_path / "first.mcap")
+    assert code == 0 and len([f for f in frames_of(records) if f["crc_ok"]]) == 20
 
 
 def test_kill_9_keeps_everything_before_the_last_flush(tmp_path: Path, line_tap: tuple[Path, Path, Any]) -> None:
