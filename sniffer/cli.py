@@ -28,6 +28,7 @@ from sniffer.commands import (
     values,
 )
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.io.output_files import allow_replacing
 
 COMMANDS = [analyze, stats, report, values, compare, cut, export, capture, ports, convert, profiles]
 INTERRUPTED_EXIT = 130
@@ -92,6 +93,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 0
     args.command_line = ["rtusniff", *given]
+    allow_replacing([])  # nothing may be replaced until a command's --force says which files
     try:
         result: int = args.run(args)
         return result

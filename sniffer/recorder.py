@@ -11,6 +11,7 @@ readable, and stops the recording.
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
 import re
 import threading
@@ -52,6 +53,13 @@ def rotated_path(path: str, number: int) -> str:
     """``capture.mcap`` → ``capture-0001.mcap``."""
     target = Path(path)
     return str(target.with_name(f"{target.stem}-{number:04d}{target.suffix}"))
+
+
+def rotated_files(path: str) -> list[str]:
+    """The files of a rotation of ``path`` that exist already (``capture-0001.mcap`` …)."""
+    target = Path(path)
+    pattern = f"{glob.escape(target.stem)}-[0-9][0-9][0-9][0-9]{glob.escape(target.suffix)}"
+    return sorted(str(found) for found in target.parent.glob(pattern))
 
 
 class Recorder:
@@ -132,7 +140,12 @@ class Recorder:
         self._durable_size = writer.size
         if self._rotation_due(writer):
             writer.close()
-            self._open_next()
+            try:
+                self._open_next()
+            except RtuSniffError as exc:  # the next name was taken meanwhile: never written over
+                self._writer = None
+                self.error = exc
+                return False
         return True
 
     def _rotation_due(self, writer: CaptureWriter) -> bool:

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
-from pathlib import Path
 
 from rich.console import Console
 
@@ -15,7 +15,7 @@ from sniffer.io.registry import find_format
 from sniffer.line_probe import probe_line
 from sniffer.live_capture import CaptureOptions, run_capture
 from sniffer.profiles_io import profile_book
-from sniffer.recorder import Rotation
+from sniffer.recorder import Rotation, rotated_files
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -48,9 +48,14 @@ def run(args: argparse.Namespace) -> int:
         raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: give a file with -o")
     if args.output is not None:
         find_format(args.output, option="", purpose="write")
-        if Path(args.output).exists():
+        if os.path.lexists(args.output) and not args.rotate:
             raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; capture never overwrites a recording",
                                 path=args.output)
+        if args.rotate:
+            taken = rotated_files(args.output)
+            if taken:
+                raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"exists ({len(taken)} file(s) of an earlier rotation); "
+                                    "capture never overwrites a recording: choose another name", path=taken[0])
     book = profile_book(args.profile, args.profile_file)
     line = _line(args, err)
     options = CaptureOptions(

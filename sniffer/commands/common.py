@@ -15,6 +15,7 @@ from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.filters import parse_filters
 from sniffer.io.base import CaptureReader, ReaderOptions
 from sniffer.io.chain import open_capture
+from sniffer.io.output_files import allow_replacing, open_new_text
 from sniffer.io.registry import format_help, formats_for
 from sniffer.pipeline import Analysis, effective_line
 from sniffer.profiles_io import profile_book
@@ -195,6 +196,7 @@ def check_outputs(outputs: list[str | None], inputs: list[str], *, force: bool) 
     spelling), two outputs that are one file, and an existing output without ``--force``:
     no command ever truncates a capture it reads. ``-`` and ``None`` are standard streams."""
     files = [path for path in outputs if path is not None and path != "-"]
+    allow_replacing(files if force else [])
     for position, path in enumerate(files):
         for source in inputs:
             if source != "-" and _same_file(path, source):
@@ -247,7 +249,7 @@ def open_output(path: str | None, stack: ExitStack) -> TextIO:
     if path is None or path == "-":
         return sys.stdout
     try:
-        return stack.enter_context(open(path, "w", encoding="utf-8"))
+        return stack.enter_context(open_new_text(path))
     except OSError as exc:
         raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot write: {exc.strerror}", path=path) from None
 

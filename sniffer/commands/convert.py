@@ -18,6 +18,7 @@ from sniffer.commands.common import (
     line_override,
 )
 from sniffer.io.base import ReaderOptions
+from sniffer.io.output_files import published_whole
 from sniffer.io.registry import format_help, formats_for, open_reader, open_writer
 from sniffer.progress import progress_for
 
@@ -50,24 +51,21 @@ def run(args: argparse.Namespace) -> int:
         info = reader.info
         if override is not None:
             info = replace(info, line=override)
-        writer = open_writer(args.output, info, args.output_format)
         chunks = size = 0
-        progress = progress_for(args, reader, to_terminal=args.output == "-", path=args.input)
-        try:
-            with progress:
-                for batch in reader.batches():
-                    writer.write_batch(batch)
-                    progress.sink.chunks(batch)
-                    chunks += len(batch)
-                    size += len(batch.data)
-            writer.add_notes(reader.late_notes)
-        except BaseException:
-            writer.close()
-            if args.output != "-":
-                # A copy that stops where the input broke would pass for a whole capture.
-                os.remove(args.output)
-            raise
-        writer.close()
+        # A copy that stops where the input broke would pass for a whole capture: it appears only whole.
+        with published_whole(args.output) as target:
+            writer = open_writer(target, info, args.output_format)
+            progress = progress_for(args, reader, to_terminal=args.output == "-", path=args.input)
+            try:
+                with progress:
+                    for batch in reader.batches():
+                        writer.write_batch(batch)
+                        progress.sink.chunks(batch)
+                        chunks += len(batch)
+                        size += len(batch.data)
+                writer.add_notes(reader.late_notes)
+            finally:
+                writer.close()
     finally:
         close_reader(reader)
     if args.quiet:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 from contextlib import ExitStack, suppress
 from dataclasses import replace
 
@@ -29,6 +28,7 @@ from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.capture_cut import PastWindow, WindowFinder, WindowPlace, window_chunks
 from sniffer.exports.outputs import sha256_of
 from sniffer.io.chain import open_capture
+from sniffer.io.output_files import published_whole
 from sniffer.io.registry import format_help, formats_for, open_writer
 from sniffer.pipeline import analyze
 from sniffer.selection import EVERYTHING, add_selection_options
@@ -75,22 +75,19 @@ def run(args: argparse.Namespace) -> int:
     note = _provenance(args, place, Clock(args.time))
     info = CaptureInfo(line, timing, (*info.notes, note), info.channels)
     chunks = 0
-    writer = open_writer(args.output, info, args.output_format)
-    try:
-        second = open_capture(capture_paths(args), args.input_format, reader_options(args))
+    # A cut that stops where reading broke would pass for the window: it appears only whole.
+    with published_whole(args.output) as target:
+        writer = open_writer(target, info, args.output_format)
         try:
-            for batch in window_chunks(second.batches(), place, line, timing):
-                writer.write_batch(batch)
-                chunks += len(batch)
+            second = open_capture(capture_paths(args), args.input_format, reader_options(args))
+            try:
+                for batch in window_chunks(second.batches(), place, line, timing):
+                    writer.write_batch(batch)
+                    chunks += len(batch)
+            finally:
+                close_reader(second)
         finally:
-            close_reader(second)
-    except BaseException:
-        writer.close()
-        # A cut that stops where reading broke would pass for the window; a device or a link stays.
-        if os.path.isfile(args.output) and not os.path.islink(args.output):
-            os.remove(args.output)
-        raise
-    writer.close()
+            writer.close()
     what = (f"frames #{place.first_index}..#{place.last_index} ({place.frames:,}), "
             f"{place.byte_end - place.byte_start:,} bytes of line data in {chunks:,} chunks")
     tell_written(args, [(args.output, what)])

@@ -26,6 +26,7 @@ from sniffer.commands.common import (
 from sniffer.commands.counting import counted_capture
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.io.output_files import published_whole
 from sniffer.pipeline import analyze
 from sniffer.progress import progress_for
 from sniffer.report.collect import Comparison, Provenance, ReportCollector, source_file
@@ -86,8 +87,8 @@ def run(args: argparse.Namespace) -> int:
         analyze(reader, source_name(args), analysis, [collector, progress.sink], jobs=decoding_jobs(args.jobs))
     comparison = _comparison(args, collector) if args.baseline else None
     # Written only once everything is read: a capture that fails leaves no half report behind.
-    with ExitStack() as stack:
-        WRITERS[kind](open_output(args.output, stack), collector, comparison)
+    with published_whole(args.output or "-") as target, ExitStack() as stack:
+        WRITERS[kind](open_output(target, stack), collector, comparison)
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{kind} report of {collector.statistics.frames:,} frames")])
     return 0

@@ -57,6 +57,7 @@ from sniffer.io.mcap_native import (
     info_metadata,
     side_messages,
 )
+from sniffer.io.output_files import open_new
 
 #: Uncompressed bytes per chunk. The writer keeps every chunk's index entry (with an offset
 #: per channel) until it writes the summary: 4 MiB chunks keep that to ~0.5 MB a million frames,
@@ -127,7 +128,7 @@ class McapExporter:
     batch at a time: each channel's messages are built as columns and written as one block."""
 
     def __init__(self, path: str, info: CaptureInfo, line: LineSettings, metadata: dict[str, str]) -> None:
-        self._file: BinaryIO = open(path, "wb")  # noqa: SIM115 (closed by close)
+        self._file: BinaryIO = open_new(path)
         tool = f"rtusniff {version('rtusniff')}"
         self._writer = ColumnarMcapWriter(self._file, profile=PROFILE, library=tool, chunk_size=CHUNK_SIZE)
         try:

@@ -21,6 +21,7 @@ import numpy as np
 from decoders.damage import uart_error_note
 from decoders.frame import FrameFlag, flag_set
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
+from sniffer.io.output_files import open_new
 
 LINKTYPE_USER0 = 147
 _NANOSECOND_MAGIC = 0xA1B23C4D
@@ -42,7 +43,7 @@ class PcapExporter:
         self._pcapng = path.lower().endswith(".pcapng")
         self._udp = udp
         link = LINKTYPE_RAW_IP if udp else LINKTYPE_USER0
-        self._file: BinaryIO = sys.stdout.buffer if self._to_stdout else open(path, "wb")  # noqa: SIM115
+        self._file: BinaryIO = sys.stdout.buffer if self._to_stdout else open_new(path)
         if self._pcapng:
             self._file.write(pcapng_header(link))
         else:

@@ -47,6 +47,7 @@ from zstandard import ZstdError
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
+from sniffer.io.output_files import open_new
 
 TOPIC = "/rtusniff/raw_chunks"
 MESSAGE_ENCODING = "rtusniff.chunk-block.v1"
@@ -172,7 +173,7 @@ class McapCaptureWriter:
     """
 
     def __init__(self, path: str, info: CaptureInfo) -> None:
-        self._file: BinaryIO = open(path, "wb")  # noqa: SIM115
+        self._file: BinaryIO = open_new(path)
         self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=1)
         self._writer.start(profile=PROFILE, library=f"rtusniff {version('rtusniff')}")
         self._writer.add_metadata(METADATA_NAME, info_metadata(info))

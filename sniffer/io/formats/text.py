@@ -29,6 +29,7 @@ from decoders.capture import UART_ERROR_KINDS, CaptureInfo, ChunkBatch, TimingQu
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import CaptureFormat
+from sniffer.io.output_files import open_new_text
 from sniffer.io.registry import STDIO
 
 MAGIC = "# rtu-capture v1"
@@ -348,7 +349,7 @@ class TextCaptureWriter:
     """Writes the header at once, then one line per chunk."""
 
     def __init__(self, path: str, info: CaptureInfo) -> None:
-        self._stream: TextIO = sys.stdout if path == STDIO else open(path, "w", encoding="ascii")  # noqa: SIM115
+        self._stream: TextIO = sys.stdout if path == STDIO else open_new_text(path, encoding="ascii")
         header = [MAGIC]
         if info.line is not None:
             header.append(f"# line: {info.line.format()}")
