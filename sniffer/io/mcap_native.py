@@ -40,7 +40,8 @@ import numpy.typing as npt
 from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata
-from mcap.stream_reader import StreamReader
+from mcap.records import Chunk as McapChunk
+from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 from zstandard import ZstdError
 
@@ -56,6 +57,17 @@ NOTES_METADATA_NAME = "rtusniff.notes"
 PROFILE = "rtusniff"
 FORMAT_VERSION = "1"
 BLOCK_CHUNKS = 4096
+#: A block holds at most this much line data (a single larger read stays one block).
+BLOCK_BYTES = 16 * 2**20
+#: What a chunk may claim uncompressed, unless the environment variable says otherwise (MiB).
+MAX_BLOCK_MIB = 256
+LIMIT_VARIABLE = "RTUSNIFF_MAX_BLOCK_MB"
+
+
+def max_block_bytes() -> int:
+    """The most a chunk may hold uncompressed: ``MAX_BLOCK_MIB``, or ``$RTUSNIFF_MAX_BLOCK_MB``."""
+    given = os.environ.get(LIMIT_VARIABLE, "")
+    return (int(given) if given.isdigit() and int(given) > 0 else MAX_BLOCK_MIB) * 2**20
 #: How every MCAP file begins and ends.
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 _COUNT = struct.Struct("<I")
@@ -229,9 +241,16 @@ class McapCaptureWriter:
 
 
 def block_batches(batch: ChunkBatch) -> Iterator[ChunkBatch]:
-    """A batch of chunks in blocks of at most ``BLOCK_CHUNKS``, one message each."""
-    for start in range(0, len(batch), BLOCK_CHUNKS):
-        yield batch.slice(start, start + BLOCK_CHUNKS)
+    """A batch of chunks in blocks of at most ``BLOCK_CHUNKS`` chunks and ``BLOCK_BYTES`` bytes
+    (or one chunk, when it alone is larger), one message each."""
+    start = 0
+    while start < len(batch):
+        first_end = int(batch.ends[start - 1]) if start else 0
+        stop = min(start + BLOCK_CHUNKS, len(batch))
+        within = int(np.searchsorted(batch.ends[start:stop], first_end + BLOCK_BYTES, side="right"))
+        stop = start + max(within, 1)
+        yield batch.slice(start, stop)
+        start = stop
 
 
 class McapCaptureReader:
@@ -244,7 +263,9 @@ class McapCaptureReader:
         # A damaged length field must not make the reader allocate gigabytes: no record is
         # longer than the file.
         # CRCs checked: a bit flipped in a chunk is an error, never different frames read as good.
-        self._records = StreamReader(self._file, validate_crcs=True, record_size_limit=max(self._size, 1)).records
+        # Chunks come whole (emit_chunks): their declared size is checked before they are decompressed.
+        self._records = StreamReader(self._file, validate_crcs=True, record_size_limit=max(self._size, 1),
+                                     emit_chunks=True).records
         #: The topics read (``_ENCODINGS``) by channel id.
         self._topics: dict[int, str] = {}
         #: The last chunk's time so far: times never decrease, and none is before 1970.
@@ -277,7 +298,10 @@ class McapCaptureReader:
     def _next_records(self) -> Iterator[object]:
         try:
             for record in self._records:
-                yield record
+                if isinstance(record, McapChunk):
+                    yield from breakup_chunk(self._checked(record), validate_crc=True)
+                else:
+                    yield record
                 self._good = self._file.tell()
         except (McapError, ValueError, struct.error, EOFError, OverflowError, MemoryError, ZstdError) as exc:
             if self._good == self._size and self._good > 0:
@@ -301,6 +325,18 @@ class McapCaptureReader:
             raise CaptureFormatError(
                 ErrorKind.BAD_MCAP, f"damaged MCAP: {damage}", path=self.path, location=f"byte {self._good}"
             ) from None
+
+    def _checked(self, chunk: McapChunk) -> McapChunk:
+        """``chunk``, if what it says it holds uncompressed is within :func:`max_block_bytes`: a
+        few kilobytes of zstd can claim gigabytes (a damaged or a hostile file)."""
+        limit = max_block_bytes()
+        if chunk.uncompressed_size > limit:
+            raise CaptureFormatError(
+                ErrorKind.BAD_MCAP, f"an MCAP chunk claims {chunk.uncompressed_size:,} bytes uncompressed, more than "
+                f"rtusniff reads at once ({limit // 2**20} MiB; rtusniff writes at most {BLOCK_BYTES // 2**20} MiB "
+                f"a block): a damaged or hostile file. {LIMIT_VARIABLE}=N (MiB) raises the limit",
+                path=self.path, location=f"byte {self._good}")
+        return chunk
 
     def _ends_whole(self) -> bool:
         """Whether the file ends as an MCAP file does (its closing magic): then damage inside it is

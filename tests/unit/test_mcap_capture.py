@@ -235,3 +235,54 @@ def test_a_flipped_bit_is_an_error_or_changes_nothing(tmp_path: Path) -> None:
         if read is not None and read != good:
             silent.append(offset)
     assert silent == []
+
+
+def _first_chunk_offset(data: bytes) -> int:
+    """Where the first Chunk record (opcode 0x06) starts, walking the records after the magic."""
+    position = 8
+    while data[position] != 0x06:
+        position += 9 + int.from_bytes(data[position + 1 : position + 9], "little")
+    return position
+
+
+def test_a_chunk_claiming_gigabytes_is_refused_before_it_is_decompressed(tmp_path: Path) -> None:
+    """A few kilobytes of zstd may claim 7 GB: the claim is checked first, in one error that says
+    how to raise the limit; no memory is asked for."""
+    path = tmp_path / "bomb.mcap"
+    write(path, sample_batch(50))
+    data = bytearray(path.read_bytes())
+    size_at = _first_chunk_offset(data) + 9 + 16  # opcode, length, start and end times
+    data[size_at : size_at + 8] = (7 * 2**30).to_bytes(8, "little")
+    path.write_bytes(bytes(data))
+    with pytest.raises(CaptureFormatError) as error:
+        reader = McapCaptureReader(str(path))
+        list(reader.batches())
+    assert error.value.kind is ErrorKind.BAD_MCAP
+    assert "claims 7,516,192,768 bytes uncompressed" in str(error.value)
+    assert mcap_native.LIMIT_VARIABLE in str(error.value)
+
+
+def test_the_limit_can_be_raised(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(mcap_native.LIMIT_VARIABLE, "1")
+    path = tmp_path / "big.mcap"
+    t0 = 1_700_000_000_000_000_000
+    write(path, ChunkBatch.from_chunks([Chunk(t0, bytes(2**21))]))  # one read of 2 MiB: one block
+    with pytest.raises(CaptureFormatError, match="1 MiB"):
+        list(McapCaptureReader(str(path)).batches())
+    monkeypatch.setenv(mcap_native.LIMIT_VARIABLE, "4")
+    assert sum(len(b.data) for b in McapCaptureReader(str(path)).batches()) == 2**21
+
+
+def test_blocks_are_bounded_in_bytes_too(tmp_path: Path) -> None:
+    """Large reads make more blocks (each at most BLOCK_BYTES, or one larger read), read back whole."""
+    t0 = 1_700_000_000_000_000_000
+    rng = np.random.default_rng(7)
+    sizes = [6 << 20, 6 << 20, 6 << 20, 20 << 20, 9]
+    chunks = [Chunk(t0 + i * 1_000_000, rng.bytes(size)) for i, size in enumerate(sizes)]
+    batch = ChunkBatch.from_chunks(chunks)
+    blocks = list(mcap_native.block_batches(batch))
+    assert [len(block) for block in blocks] == [2, 1, 1, 1]
+    path = tmp_path / "large.mcap"
+    write(path, batch)
+    read = list(McapCaptureReader(str(path)).batches())
+    assert b"".join(b.data for b in read) == batch.data

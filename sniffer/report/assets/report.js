@@ -33,8 +33,16 @@
   function numberText(v) {
     if (v === 0) return "0";
     const a = Math.abs(v);
-    if (a >= 1e5 || a < 1e-3) return v.toExponential(1);
+    if (a >= 1e9) return Number((v / 1e9).toPrecision(3)) + "G";
+    if (a >= 1e6) return Number((v / 1e6).toPrecision(3)) + "M";
+    if (a >= 1e5) return Number((v / 1e3).toPrecision(3)) + "k";
+    if (a < 1e-3) return v.toExponential(1);
     return String(Number(v.toPrecision(4)));
+  }
+
+  function dateText(ms) {
+    const d = new Date(ms);
+    return d.getUTCFullYear() + "-" + pad(d.getUTCMonth() + 1, 2) + "-" + pad(d.getUTCDate(), 2);
   }
 
   function niceTicks(lo, hi, count) {
@@ -79,11 +87,19 @@
 
   function drawTimeAxis(svg, width, x) {
     const span = view[1] - view[0];
-    const step = STEPS.find(s => span / s <= (width - LEFT - RIGHT) / 95) || STEPS[STEPS.length - 1];
+    const crosses = dateText(view[0]) !== dateText(view[1]);
+    // With dates, labels are wider: fewer of them.
+    const room = (width - LEFT - RIGHT) / (crosses ? 150 : 95);
+    const step = STEPS.find(s => span / s <= room) || STEPS[STEPS.length - 1];
+    let day = "";
     for (let t = Math.ceil(view[0] / step) * step; t <= view[1]; t += step) {
       el("line", {x1: x(t), x2: x(t), y1: TOP, y2: HEIGHT - BOTTOM, class: "grid"}, svg);
-      const anchor = x(t) > width - RIGHT - 40 ? "end" : x(t) < LEFT + 40 ? "start" : "middle";
-      el("text", {x: x(t), y: HEIGHT - 8, class: "tick", "text-anchor": anchor}, svg).textContent = timeText(t, step);
+      const anchor = x(t) > width - RIGHT - 60 ? "end" : x(t) < LEFT + 60 ? "start" : "middle";
+      // The date where the day changes (and at the first tick), when the view spans two days or more.
+      const date = crosses && dateText(t) !== day ? dateText(t) + " " : "";
+      day = dateText(t);
+      el("text", {x: x(t), y: HEIGHT - 8, class: "tick", "text-anchor": anchor}, svg).textContent =
+        date + timeText(t, step);
     }
   }
 
