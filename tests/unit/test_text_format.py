@@ -227,3 +227,18 @@ def test_notes_never_become_data_or_headers(tmp_path: Path, note: str, lines: li
     writer.close()
     info, [batch] = read(tmp_path, path.read_text())
     assert batch.data == b"\x01" and info.line == LineSettings.parse("19200 8E1")
+
+
+def test_comment_lines_beyond_the_limit_are_counted_not_kept(tmp_path: Path) -> None:
+    """A stream of comments (stdin from a chatty tool) must not grow memory without end."""
+    from sniffer.io.formats import text
+
+    path = tmp_path / "chatty.log"
+    header = [f"# header note {i}" for i in range(600)]
+    body = [f"1700000000.{i:09d} 01" if i % 3 == 0 else f"# late note {i}" for i in range(3000)]
+    path.write_text("\n".join(["# rtu-capture v1", "# line: 19200 8E1", *header, *body]) + "\n")
+    reader = TextCaptureReader(str(path))
+    data = b"".join(batch.data for batch in reader.batches())
+    assert data == bytes([1]) * 1000  # every byte read
+    assert len(reader.info.notes) == 600 and len(reader.late_notes) == text.MAX_NOTES - 600
+    assert len(reader.warnings) == 1 and "the first 1,000" in reader.warnings[0]

@@ -51,6 +51,9 @@ NS_PER_S = 1_000_000_000
 TAIL_BYTES = 65536
 #: Chunks per batch handed to the framer.
 BATCH_CHUNKS = 8192
+#: Comment lines kept as notes at most, and the bytes they may hold (the rest are counted).
+MAX_NOTES = 1000
+MAX_NOTE_BYTES = 2**20
 
 
 def format_time_ns(t_ns: int) -> str:
@@ -82,6 +85,9 @@ class TextCaptureReader:
         #: Comment lines found among the data lines, known once :meth:`batches` is done.
         self.late_notes: list[str] = []
         self.warnings: list[str] = []
+        #: Notes kept so far (header and late) and the bytes they hold; comment lines past the
+        #: limits are counted, not kept (a stream of comments must not grow memory without end).
+        self._notes_kept = self._note_bytes = self._notes_dropped = 0
         self.info = self._read_header()
 
     def close(self) -> None:
@@ -149,7 +155,7 @@ class TextCaptureReader:
             elif (channel := _CHANNEL.match(text)) is not None:
                 self._channel = self._channel_code(channels, channel.group(1))
             elif key is None:
-                notes.append(text[1:].strip())
+                self._keep_note(notes, text[1:].strip())
             elif key.group(1).lower() == "line":
                 line = self._header_line(line, key.group(2))
             else:
@@ -228,6 +234,17 @@ class TextCaptureReader:
         if lines.times:
             yield lines.batch()
 
+    def _keep_note(self, notes: list[str], note: str) -> None:
+        if self._notes_kept >= MAX_NOTES or self._note_bytes + len(note) > MAX_NOTE_BYTES:
+            if not self._notes_dropped:
+                self.warnings.append(f"{self.path}: more comment lines than rtusniff keeps as notes (the first "
+                                     f"{MAX_NOTES:,}, {MAX_NOTE_BYTES // 2**20} MiB at most); the rest are not kept")
+            self._notes_dropped += 1
+            return
+        self._notes_kept += 1
+        self._note_bytes += len(note)
+        notes.append(note)
+
     def _comment(self, lines: _Lines, line_number: int, text: str) -> None:
         """A note, or the UART errors of the data line just read."""
         errors = _UART_ERRORS.match(text)
@@ -236,7 +253,7 @@ class TextCaptureReader:
             if channel is not None:
                 self._channel = self._channel_code(self._channels, channel.group(1), line_number)
             else:
-                self.late_notes.append(text[1:].strip())
+                self._keep_note(self.late_notes, text[1:].strip())
             return
         if not lines.parts:
             raise self._error(ErrorKind.BAD_DATA, "'# uart-errors:' must follow the data line it marks",
