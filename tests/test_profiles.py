@@ -16,7 +16,7 @@ from decoders.pipeline import decode
 from decoders.profiles.parse import ProfileError, parse_profile
 from decoders.synthesis import Transmission, exact_chunks
 from sniffer.profiles_io import profile_book, shipped_profiles
-from tests.conftest import CliResult
+from tests.conftest import ROOT, CliResult
 
 LINE = LineSettings.parse("19200 8E1")
 MS = 1_000_000
@@ -222,3 +222,48 @@ def test_a_scale_must_be_a_finite_number(cli: Callable[..., CliResult], tmp_path
     broken.write_text(shipped.read_text().replace("scale = 0.1", f"scale = {scale}", 1))
     checked = cli("profiles", "check", str(broken))
     assert checked.code == 12 and ".scale: must be a finite number other than 0" in checked.err
+
+
+HEAD = "[profile]\nid='x'\nname='x'\nsources=['m']\n"
+HOSTILE = [
+    (HEAD + "x = " + "[" * 500 + "]" * 500 + "\n", "nests 500 levels deep"),
+    (HEAD + "a" + ".a" * 20_000 + " = 1\n", "nests 20000 levels deep"),
+    ("parameter = [1, 2]\n" + HEAD, "parameter[0]: 1 is not a table"),  # top-level keys come first
+    (HEAD + "[exception]\ncode = 2\n", "file.exception: {'code': 2} is not a list"),
+    (HEAD + "[[exception]]\ncode = 2\nexplanation = 'e'\nsource = 's'\n[exception.addresses]\na = 1\n",
+     "exception[0].addresses: {'a': 1} is not a list"),
+    (HEAD + "[[exception]]\ncode = 2\nexplanation = 'e'\nsource = 's'\naddresses = [1, 'two']\n",
+     "exception[0].addresses[1]: 'two' is not a whole number"),
+    ("bitfield = {b = 3}\n" + HEAD, "bitfield.b: 3 is not a table"),
+    (HEAD + "[[indirection]]\nprefix = 'N'\naddress_registers = 1\nvalue_registers = 9\ncount = 300000000\n"
+     "source = 's'\n", "indirection[0].count: 300000000 is outside 1..125"),
+    (HEAD + "notes = ['" + "n" * 5000 + "', 3]\n", "profile.notes[1]: 3 is not text"),
+    (HEAD + "x = '" + "y" * (2**20) + "'\n", "a profile has at most 1,048,576"),
+]
+
+
+@pytest.mark.parametrize(("text", "words"), HOSTILE, ids=range(len(HOSTILE)))
+def test_hostile_profiles_are_one_error_in_little_memory(text: str, words: str) -> None:
+    """Each of these gave a traceback, a recursion error or gigabytes (tomllib on 20 000 dotted
+    parts, an indirection of 300 M registers): now one error naming the place."""
+    import tracemalloc
+
+    tracemalloc.start()
+    with pytest.raises(ProfileError) as caught:
+        parse_profile(text, "hostile.toml")
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert words in str(caught.value) and len(str(caught.value)) < 200, str(caught.value)
+    assert peak < 64 * 2**20
+
+
+def test_brackets_in_comments_and_strings_do_not_count() -> None:
+    text = HEAD + "# a drive's note: " + "[" * 40 + "\nnote = '" + "[" * 40 + "'\nother = \"\\\"" + "{" * 40 + "\"\n"
+    assert parse_profile(text, "fine.toml").id == "x"
+
+
+def test_a_hostile_profile_on_the_command_line_is_one_line(cli: Callable[..., CliResult], tmp_path: Path) -> None:
+    hostile = tmp_path / "deep.toml"
+    hostile.write_text(HOSTILE[0][0])
+    result = cli("analyze", str(ROOT / "captures" / "xbt-hmi.log"), "--profile-file", str(hostile))
+    assert result.code == 12 and result.err.count("\n") == 1 and "nests 500 levels deep" in result.err

@@ -27,6 +27,13 @@ ROLES = ("slave", "master")
 ACCESS = ("r", "rw", "w")
 ADDRESS_STYLES = ("plain", "xbt")
 MAX_ADDRESS = 0xFFFF
+#: A profile file is small: these bounds are checked before the TOML parser runs, so that a
+#: hostile file (a key of 20 000 dotted parts, arrays nested 500 deep) is one error, not
+#: gigabytes or a recursion error. Raise them here if a real profile ever needs more.
+MAX_PROFILE_BYTES = 2**20
+MAX_NESTING = 32
+#: Registers an indirection names at most (a Modbus read carries at most 125).
+MAX_INDIRECTION = 125
 
 
 class ProfileError(ValueError):
@@ -52,14 +59,67 @@ class _Reader:
             return default
         value = table[key]
         if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-            raise self.fail(f"{where}.{key}", f"{value!r} is not {_kind_name(kind)}")
+            raise self.fail(f"{where}.{key}", f"{_shown(value)} is not {_kind_name(kind)}")
         return value
+
+    def tables(self, table: dict[str, Any], key: str, where: str) -> list[dict[str, Any]]:
+        """An array of tables (``[[key]]``): a list whose every entry is a table."""
+        entries: list[Any] = self.get(table, key, list, where, [])
+        for i, entry in enumerate(entries):
+            if not isinstance(entry, dict):
+                raise self.fail(f"{key}[{i}]", f"{_shown(entry)} is not a table")
+        return entries
+
+    def items(self, table: dict[str, Any], key: str, kind: type, where: str) -> tuple[Any, ...]:
+        """A list whose every entry is of ``kind`` (whole numbers: not true/false)."""
+        entries: list[Any] = self.get(table, key, list, where, [])
+        for i, entry in enumerate(entries):
+            if not isinstance(entry, kind) or (kind is int and isinstance(entry, bool)):
+                raise self.fail(f"{where}.{key}[{i}]", f"{_shown(entry)} is not {_kind_name(kind)}")
+        return tuple(entries)
 
     def address(self, table: dict[str, Any], key: str, where: str) -> int:
         value: int = self.get(table, key, int, where)
         if not 0 <= value <= MAX_ADDRESS:
             raise self.fail(f"{where}.{key}", f"{value} is outside 0..65535")
         return value
+
+
+def _shown(value: Any) -> str:
+    """A value as an error shows it: never more than a line."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:57]}..."
+
+
+def _shape(reader: _Reader, text: str) -> None:
+    """Refuse what no profile needs before the TOML parser sees it (see ``MAX_NESTING``)."""
+    if len(text) > MAX_PROFILE_BYTES:
+        raise reader.fail("file", f"is {len(text):,} characters; a profile has at most {MAX_PROFILE_BYTES:,}")
+    depth = deepest = 0
+    quoted = ""
+    comment = escaped = False
+    for char in text:  # brackets outside strings and comments; an approximation is enough here
+        if comment:
+            comment = char != "\n"
+        elif quoted:
+            if escaped:
+                escaped = False
+            elif char == "\\" and quoted == '"':
+                escaped = True
+            elif char in (quoted, "\n"):
+                quoted = ""
+        elif char == "#":
+            comment = True
+        elif char in "\"'":
+            quoted = char
+        elif char in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in "]}":
+            depth -= 1
+    dots = max((line.split("=", 1)[0].count(".") for line in text.splitlines() if "=" in line), default=0)
+    if max(deepest, dots) > MAX_NESTING:
+        raise reader.fail("file", f"nests {max(deepest, dots)} levels deep; a profile nests at most {MAX_NESTING}")
 
 
 def _kind_name(kind: type | tuple[type, ...]) -> str:
@@ -71,10 +131,13 @@ def _kind_name(kind: type | tuple[type, ...]) -> str:
 def parse_profile(text: str, origin: str) -> Profile:
     """Parse and validate one profile; ``origin`` names it in errors."""
     reader = _Reader(origin)
+    _shape(reader, text)
     try:
         document = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise reader.fail("TOML", str(exc)) from None
+    except RecursionError:  # what the shape check did not foresee
+        raise reader.fail("file", f"nests too deep; a profile nests at most {MAX_NESTING}") from None
     head = reader.get(document, "profile", dict, "file")
     sources = tuple(reader.get(head, "sources", list, "profile"))
     if not sources or not all(isinstance(s, str) and s for s in sources):
@@ -87,7 +150,7 @@ def parse_profile(text: str, origin: str) -> Profile:
         raise reader.fail("profile.address_style", f"{style!r} is not one of {', '.join(ADDRESS_STYLES)}")
     bitfields = _bitfields(reader, reader.get(document, "bitfield", dict, "file", {}))
     formula = reader.get(document, "address_formula", dict, "file", {})
-    parameters = _parameters(reader, reader.get(document, "parameter", list, "file", []), bitfields, formula)
+    parameters = _parameters(reader, reader.tables(document, "parameter", "file"), bitfields, formula)
     return Profile(
         id=reader.get(head, "id", str, "profile"),
         name=reader.get(head, "name", str, "profile"),
@@ -95,15 +158,18 @@ def parse_profile(text: str, origin: str) -> Profile:
         sources=sources,
         parameters=parameters,
         bitfields=bitfields,
-        specials=tuple(_special(reader, s, f"special[{i}]") for i, s in enumerate(document.get("special", []))),
-        exceptions=tuple(_exception(reader, e, f"exception[{i}]") for i, e in enumerate(document.get("exception", []))),
+        specials=tuple(_special(reader, s, f"special[{i}]") for i, s in enumerate(reader.tables(document, "special",
+                                                                                                 "file"))),
+        exceptions=tuple(_exception(reader, e, f"exception[{i}]")
+                         for i, e in enumerate(reader.tables(document, "exception", "file"))),
         limits=_limits(reader, reader.get(document, "limits", dict, "file", {})),
         indirections=tuple(
-            _indirection(reader, t, f"indirection[{i}]") for i, t in enumerate(document.get("indirection", []))
+            _indirection(reader, t, f"indirection[{i}]") for i, t in enumerate(reader.tables(document, "indirection",
+                                                                                              "file"))
         ),
-        product_codes=tuple(reader.get(head, "product_codes", list, "profile", [])),
+        product_codes=reader.items(head, "product_codes", str, "profile"),
         address_style=style,
-        notes=tuple(reader.get(head, "notes", list, "profile", [])),
+        notes=reader.items(head, "notes", str, "profile"),
         path=origin,
         **_uss_words(reader, reader.get(document, "uss", dict, "file", {}), bitfields),
     )
@@ -198,6 +264,8 @@ def _bitfields(reader: _Reader, tables: dict[str, Any]) -> dict[str, BitField]:
     fields = {}
     for name, table in tables.items():
         where = f"bitfield.{name}"
+        if not isinstance(table, dict):
+            raise reader.fail(where, f"{_shown(table)} is not a table")
         bits = tuple(
             Bit(
                 bit=_bit_number(reader, b, f"{where}.bit[{i}]"),
@@ -205,7 +273,7 @@ def _bitfields(reader: _Reader, tables: dict[str, Any]) -> dict[str, BitField]:
                 set=reader.get(b, "set", str, f"{where}.bit[{i}]", None),
                 clear=reader.get(b, "clear", str, f"{where}.bit[{i}]", None),
             )
-            for i, b in enumerate(reader.get(table, "bit", list, where, []))
+            for i, b in enumerate(reader.tables(table, "bit", where))
         )
         states = tuple(
             State(
@@ -213,7 +281,7 @@ def _bitfields(reader: _Reader, tables: dict[str, Any]) -> dict[str, BitField]:
                 value=reader.get(s, "value", int, f"{where}.state[{i}]"),
                 name=reader.get(s, "name", str, f"{where}.state[{i}]"),
             )
-            for i, s in enumerate(reader.get(table, "state", list, where, []))
+            for i, s in enumerate(reader.tables(table, "state", where))
         )
         fields[name] = BitField(name, _source(reader, table, where), bits, states)
     return fields
@@ -237,7 +305,7 @@ def _exception(reader: _Reader, table: dict[str, Any], where: str) -> ExceptionN
         explanation=reader.get(table, "explanation", str, where),
         source=_source(reader, table, where),
         function=reader.get(table, "function", int, where, 0),
-        addresses=tuple(reader.get(table, "addresses", list, where, [])),
+        addresses=reader.items(table, "addresses", int, where),
     )
 
 
@@ -249,15 +317,17 @@ def _limits(reader: _Reader, table: dict[str, Any]) -> Limits:
         if not 0 <= value <= 125:
             raise reader.fail(f"{where}.{key}", f"{value} is outside 0..125")
     return Limits(
-        functions=tuple(reader.get(table, "functions", list, where, [])),
-        broadcast_functions=tuple(reader.get(table, "broadcast_functions", list, where, [])),
+        functions=reader.items(table, "functions", int, where),
+        broadcast_functions=reader.items(table, "broadcast_functions", int, where),
         **numbers,
     )
 
 
 def _indirection(reader: _Reader, table: dict[str, Any], where: str) -> Indirection:
     count = reader.get(table, "count", int, where)
-    defaults = tuple(reader.get(table, "defaults", list, where, [0] * count))
+    if not 1 <= count <= MAX_INDIRECTION:
+        raise reader.fail(f"{where}.count", f"{count} is outside 1..{MAX_INDIRECTION}")
+    defaults = reader.items(table, "defaults", int, where) if "defaults" in table else (0,) * count
     if len(defaults) != count:
         raise reader.fail(f"{where}.defaults", f"has {len(defaults)} entries for {count} registers")
     return Indirection(
