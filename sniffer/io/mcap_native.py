@@ -57,6 +57,8 @@ NOTES_METADATA_NAME = "rtusniff.notes"
 PROFILE = "rtusniff"
 FORMAT_VERSION = "1"
 BLOCK_CHUNKS = 4096
+#: Chunks of small blocks joined into one batch for the decoder, at most (see ``batches``).
+BATCH_CHUNKS = 8192
 #: A block holds at most this much line data (a single larger read stays one block).
 BLOCK_BYTES = 16 * 2**20
 #: What a chunk may claim uncompressed, unless the environment variable says otherwise (MiB).
@@ -379,6 +381,22 @@ class McapCaptureReader:
         return CaptureInfo(line=line, timing=timing, notes=notes, channels=channels)
 
     def batches(self) -> Iterator[ChunkBatch]:
+        """The capture's chunks in batches of whole blocks: small blocks (a recording flushes one
+        every second) are joined up to ``BATCH_CHUNKS`` chunks or ``BLOCK_BYTES`` bytes, since each
+        batch costs the decoder a fixed overhead (20 000 one-chunk blocks took 43 s, not 0.5 s)."""
+        held: list[ChunkBatch] = []
+        chunks = size = 0
+        for block in self._blocks():
+            held.append(block)
+            chunks += len(block)
+            size += len(block.data)
+            if chunks >= BATCH_CHUNKS or size >= BLOCK_BYTES:
+                yield ChunkBatch.concat(held)
+                held, chunks, size = [], 0, 0
+        if held:
+            yield ChunkBatch.concat(held)
+
+    def _blocks(self) -> Iterator[ChunkBatch]:
         #: What the side topics say about the next block, by topic.
         pending: dict[str, bytes] = {}
         for record in self._iter:

@@ -286,3 +286,18 @@ def test_blocks_are_bounded_in_bytes_too(tmp_path: Path) -> None:
     write(path, batch)
     read = list(McapCaptureReader(str(path)).batches())
     assert b"".join(b.data for b in read) == batch.data
+
+
+def test_small_blocks_are_read_as_few_batches(tmp_path: Path) -> None:
+    """A recording flushes a block a second: read back, small blocks join into batches of up to
+    BATCH_CHUNKS chunks (the decoder's cost is per batch), every byte and time as written."""
+    batch = sample_batch(3000)
+    path = tmp_path / "small-blocks.mcap"
+    writer = McapCaptureWriter(str(path), INFO)
+    for start in range(0, len(batch), 3):
+        writer.write_batch(batch.slice(start, start + 3))
+    writer.close()
+    read = list(McapCaptureReader(str(path)).batches())
+    assert len(read) == 1
+    assert read[0].data == batch.data
+    assert read[0].t_end_ns.tolist() == batch.t_end_ns.tolist() and read[0].ends.tolist() == batch.ends.tolist()
