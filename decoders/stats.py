@@ -145,6 +145,16 @@ class LastSeen:
         self._time[slots] = times
 
 
+@dataclass(frozen=True)
+class SkippedReads:
+    """Reads a live capture did not decode (its decoding fell behind; the recording has them)."""
+
+    reads: int
+    size: int
+    #: When the first read after them was taken.
+    t_ns: int
+
+
 @dataclass
 class Statistics:
     """Accumulates message batches; ``to_dict`` is the JSON form of ``stats`` and of the JSONL summary."""
@@ -159,6 +169,9 @@ class Statistics:
     #: Characters the receiver found wrong, by kind (a character may have both).
     uart_framing_errors: int = 0
     uart_parity_errors: int = 0
+    #: Live capture: reads skipped because decoding fell behind, and their bytes (the recording has them).
+    skipped_reads: int = 0
+    skipped_bytes: int = 0
     wire_ns: int = 0
     first_ns: int | None = None
     last_ns: int | None = None
@@ -254,6 +267,8 @@ class Statistics:
         return self.wire_ns / self.duration_ns if self.duration_ns > 0 else None
 
     def to_dict(self) -> dict[str, Any]:
+        skipped = {"skipped_reads": self.skipped_reads, "skipped_bytes": self.skipped_bytes} \
+            if self.skipped_reads else {}
         return {
             "frames": self.frames,
             "bytes": self.total_bytes,
@@ -264,6 +279,7 @@ class Statistics:
             "crc_errors": self.crc_errors,
             "noise_bytes": self.noise_bytes,
             "uart_errors": {"framing": self.uart_framing_errors, "parity": self.uart_parity_errors},
+            **skipped,
             "per_slave_function": [
                 {"slave": slave, "function": function, **stats.to_dict()}
                 for (slave, function), stats in sorted(self.per_function.items())

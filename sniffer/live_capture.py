@@ -26,6 +26,7 @@ from decoders.line import LineSettings
 from decoders.message import MessageBatch
 from decoders.pipeline import Decoder
 from decoders.profiles.apply import ProfileBook
+from decoders.stats import SkippedReads
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.pipeline import Delivery
 from sniffer.recorder import Recorder, Rotation
@@ -59,11 +60,22 @@ class CaptureOptions:
 
 
 @dataclass
+class _Skipped:
+    """Reads the reader thread dropped (the decoding queue was full) before the next one queued."""
+
+    reads: int = 0
+    size: int = 0
+    #: When the read after them was taken.
+    t_ns: int = 0
+
+
+@dataclass
 class _Shared:
     """What the reader thread tells the main thread."""
 
     stop: threading.Event
-    reads: queue.Queue[Chunk]
+    #: Reads for decoding, in order; a ``_Skipped`` marks where reads were dropped before the next.
+    reads: queue.Queue[Chunk | _Skipped]
     behind_reads: int = 0
     gone: str | None = None
     failure: BaseException | None = None
@@ -122,7 +134,24 @@ def _recorder(options: CaptureOptions, status: PortStatus) -> Recorder | None:
     return Recorder(options.output, CaptureInfo(options.line, TimingQuality.HOST, tuple(notes)), options.rotation)
 
 
+def _queue(shared: _Shared, chunk: Chunk, skipped: _Skipped) -> _Skipped:
+    """Queue ``chunk`` for decoding, after a mark of the reads dropped before it; a full queue
+    drops it (never blocks: the reader must keep up with the port). What is dropped still."""
+    try:
+        if skipped.reads:
+            skipped.t_ns = chunk.t_end_ns
+            shared.reads.put_nowait(skipped)
+            skipped = _Skipped()
+        shared.reads.put_nowait(chunk)
+    except queue.Full:
+        shared.behind_reads += 1
+        skipped.reads += 1
+        skipped.size += len(chunk.data)
+    return skipped
+
+
 def _read(source: SerialSource, recorder: Recorder | None, shared: _Shared, decode: bool) -> None:
+    skipped = _Skipped()
     try:
         while not shared.stop.is_set():
             chunk = source.read(READ_TIMEOUT_S)
@@ -131,10 +160,7 @@ def _read(source: SerialSource, recorder: Recorder | None, shared: _Shared, deco
             if recorder is not None:
                 recorder.add(chunk)
             if decode:
-                try:
-                    shared.reads.put_nowait(chunk)
-                except queue.Full:
-                    shared.behind_reads += 1
+                skipped = _queue(shared, chunk, skipped)
     except PortGoneError as exc:
         shared.gone = str(exc)
     except BaseException as exc:
@@ -215,19 +241,35 @@ class _Session:
     def _drain(self, source: SerialSource) -> None:
         """Once per refresh interval: decode everything read since, in one batch."""
         self.shared.stop.wait(REFRESH_S)
-        chunks = []
+        items = []
         try:
             while True:
-                chunks.append(self.shared.reads.get_nowait())
+                items.append(self.shared.reads.get_nowait())
         except queue.Empty:
             pass
         if self.options.mode == "quiet":
             return
+        chunks: list[Chunk] = []
+        for item in items:
+            if isinstance(item, _Skipped):
+                self._restart(chunks, item)
+                chunks = []
+            else:
+                chunks.append(item)
         if chunks:
             self._deliver(self.decoder.feed(ChunkBatch.from_chunks(chunks)))
         self._deliver(self.decoder.tick(source.now_ns()))
         self.state.behind_reads = self.shared.behind_reads
         self.state.recorded_bytes = self.recorder.bytes_recorded if self.recorder is not None else 0
+
+    def _restart(self, before: list[Chunk], skipped: _Skipped) -> None:
+        """Reads were skipped after ``before``: decode those, close what they leave open (a frame
+        cut by the gap is truncated there, open requests get no verdict), say so, and decode
+        what follows from a clean start instead of splicing bytes that were never adjacent."""
+        if before:
+            self._deliver(self.decoder.feed(ChunkBatch.from_chunks(before)))
+        self._deliver(self.decoder.flush())
+        self.delivery.gap(SkippedReads(skipped.reads, skipped.size, skipped.t_ns))
 
     def _deliver(self, batches: list[MessageBatch]) -> None:
         for batch in batches:
@@ -257,6 +299,11 @@ class _Session:
 
 
 def _report(code: int, options: CaptureOptions, recorder: Recorder | None, shared: _Shared, err: Console) -> int:
+    if shared.behind_reads:
+        kept = "the recording has every byte" if recorder is not None else "they are lost (no -o recording)"
+        err.print(f"warning: {options.port}: decoding fell behind and skipped {shared.behind_reads:,} reads "
+                  f"(decoding started again after each gap; in JSON Lines a gap record marks it); {kept}",
+                  highlight=False, soft_wrap=True)
     if recorder is not None:
         files = ", ".join(recorder.files)
         err.print(f"recorded {recorder.bytes_recorded:,} bytes to {files}", highlight=False)

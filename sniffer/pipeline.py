@@ -18,7 +18,7 @@ from decoders.message import AnnotatedBatch, MessageBatch, slice_messages
 from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from decoders.profiles.apply import ProfileApplier, ProfileBook
-from decoders.stats import Statistics
+from decoders.stats import SkippedReads, Statistics
 from sniffer.decoding_process import ChildDecoding, DecodingStep, decode_here
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.base import CaptureReader
@@ -197,6 +197,13 @@ class Delivery:
             rows = None if kept.rows is None else np.array(shown, np.int64)
             kept = AnnotatedBatch(batch, kept.decodings[:cut], rows)
         return batch, kept
+
+    def gap(self, skipped: SkippedReads) -> None:
+        """Reads a live capture skipped (its decoder has restarted after them): counted, and told."""
+        self.statistics.skipped_reads += skipped.reads
+        self.statistics.skipped_bytes += skipped.size
+        for sink in self.sinks:
+            sink.gap(skipped)
 
     def finish(self) -> Statistics:
         self.release_chunks(final=True)

@@ -10,6 +10,7 @@ of the list it was given,
   before annotation (``wants_frames``), then ``messages`` with the annotated
   batch (``wants_messages``: only then does the pipeline annotate), then
   ``prepared`` with what the sink's ``prepare`` made of that batch;
+* ``gap`` where a live capture skipped reads it could not decode in time;
 * ``finish`` once, with the statistics of the whole capture (counted only when
   a sink ``wants_statistics``);
 
@@ -32,7 +33,7 @@ from typing import Any, Generic, Protocol, TypeVar
 from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch, MessageBatch
-from decoders.stats import Statistics
+from decoders.stats import SkippedReads, Statistics
 from sniffer.errors import ErrorKind, RtuSniffError
 
 
@@ -60,6 +61,10 @@ class Sink:
 
     def prepared(self, value: Any) -> None:
         """What ``prepare`` made of the batch just delivered."""
+
+    def gap(self, skipped: SkippedReads) -> None:
+        """A live capture's decoding fell behind and skipped reads here (the recording has them);
+        decoding starts again after them, as at the start of a capture."""
 
     def finish(self, statistics: Statistics) -> None:
         """After the last batch."""

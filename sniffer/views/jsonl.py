@@ -7,7 +7,7 @@ from typing import Any, TextIO
 from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch
-from decoders.stats import Statistics
+from decoders.stats import SkippedReads, Statistics
 from sniffer.encoding.records import FrameRecordEncoder, capture_record, device_record, encode_record
 from sniffer.encoding.rows import Rows
 from sniffer.sinks import Sink
@@ -36,6 +36,12 @@ class JsonlView(Sink):
             self._write_with_devices(rows, batch)
         else:
             self._out.write(rows.data.decode())
+
+    def gap(self, skipped: SkippedReads) -> None:
+        """A ``gap`` record where a live capture skipped reads: what lies between the frames
+        around it was not decoded (the recording has it)."""
+        self._write({"kind": "gap", "t": skipped.t_ns / 1e9, "t_ns": skipped.t_ns, "reads": skipped.reads,
+                     "bytes": skipped.size})
 
     def finish(self, statistics: Statistics) -> None:
         """The closing ``summary`` record: statistics of every frame, filtered or not."""

@@ -1,0 +1,85 @@
+"""A live capture whose decoding falls behind: skipped reads are said (a ``gap`` record, the
+summary, standard error), and decoding starts again after them instead of splicing bytes that
+were never adjacent on the wire into invented noise and CRC errors."""
+
+from __future__ import annotations
+
+import io
+import json
+import queue
+import threading
+
+from decoders.capture import CaptureInfo, Chunk, TimingQuality
+from decoders.line import LineSettings
+from sniffer.live_capture import CaptureOptions, _queue, _Session, _Shared, _Skipped
+from sniffer.serial_source import PortStatus
+
+REQUEST = bytes.fromhex("02030C1E0004276C")
+RESPONSE = bytes.fromhex("0203080028025801F4000052B0")
+T0 = 1_700_000_000_000_000_000
+MS = 1_000_000
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = T0
+
+    def now_ns(self) -> int:
+        return self.now
+
+
+def _session(out: io.StringIO, shared: _Shared) -> _Session:
+    options = CaptureOptions("/dev/ttyTEST", LineSettings.parse("19200 8E1"), None, None, "jsonl", None, None, None)
+    session = _Session(options, PortStatus(None, None, False), None, shared, out)
+    session.delivery.start("/dev/ttyTEST", CaptureInfo(options.line, TimingQuality.HOST), options.line)
+    return session
+
+
+def test_a_full_queue_marks_what_it_dropped() -> None:
+    shared = _Shared(threading.Event(), queue.Queue(2))
+    skipped = _Skipped()
+    for k in range(5):
+        skipped = _queue(shared, Chunk(T0 + k, bytes([k]) * 3), skipped)
+    assert shared.behind_reads == 3 and (skipped.reads, skipped.size) == (3, 9)
+    shared.reads.get_nowait()
+    shared.reads.get_nowait()
+    skipped = _queue(shared, Chunk(T0 + 9, b"\x09"), skipped)  # room again: the mark, then the read
+    mark, after = shared.reads.get_nowait(), shared.reads.get_nowait()
+    assert isinstance(mark, _Skipped) and (mark.reads, mark.size, mark.t_ns) == (3, 9, T0 + 9)
+    assert isinstance(after, Chunk) and after.data == b"\x09" and skipped.reads == 0
+
+
+def test_decoding_restarts_at_a_gap() -> None:
+    out, clock = io.StringIO(), Clock()
+    shared = _Shared(threading.Event(), queue.Queue())
+    session = _session(out, shared)
+    exchanges = []
+    t = T0
+    for _ in range(3):
+        exchanges += [Chunk(t, REQUEST), Chunk(t + 12 * MS, RESPONSE)]
+        t += 100 * MS
+    # The reader dropped the second half of an answer and the next exchange's request.
+    cut = Chunk(t + 12 * MS, RESPONSE[:6])
+    later = [Chunk(t + 400 * MS, REQUEST), Chunk(t + 412 * MS, RESPONSE), Chunk(t + 500 * MS, REQUEST),
+             Chunk(t + 512 * MS, RESPONSE)]
+    for item in [*exchanges, Chunk(t, REQUEST), cut, _Skipped(2, 15, t + 400 * MS), *later]:
+        shared.reads.put(item)
+    shared.stop.set()  # _drain waits on it for the refresh interval: not here
+    clock.now = t + 2_000 * MS
+    session._drain(clock)  # type: ignore[arg-type]
+    session.finish()
+    records = [json.loads(line) for line in out.getvalue().splitlines()]
+    kinds = [r["kind"] for r in records]
+    gap = kinds.index("gap")
+    assert records[gap]["reads"] == 2 and records[gap]["bytes"] == 15 and records[gap]["t_ns"] == t + 400 * MS
+    frames = [r for r in records if r["kind"] == "frame"]
+    split = sum(1 for kind in kinds[:gap] if kind == "frame")
+    before, after = frames[:split], frames[split:]
+    # After the gap: exactly the two exchanges, paired, nothing invented.
+    expected = [("request", True, []), ("response", True, [])] * 2
+    assert [(f["role"], f["crc_ok"], f["flags"]) for f in after] == expected
+    # Before it: the whole exchanges, the request, and the answer cut by the gap marked as such.
+    assert all(f["crc_ok"] for f in before[:-1]) and "truncated" in before[-1]["flags"]
+    assert not any(f["role"] in ("noise", "unknown") for f in before[:-1] + after)
+    summary = records[-1]
+    assert summary["kind"] == "summary" and summary["skipped_reads"] == 2 and summary["skipped_bytes"] == 15
