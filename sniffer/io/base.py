@@ -2,12 +2,32 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Protocol
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
+
+#: The largest single read (chunk) a capture may hold, in MiB, unless the environment says otherwise.
+#: A serial port delivers at most 64 KiB a read; a chunk of many megabytes is a damaged or hostile
+#: file, and framing one costs about 100 bytes of memory per byte (it does not stream within a chunk).
+MAX_READ_MIB = 1
+READ_LIMIT_VARIABLE = "RTUSNIFF_MAX_READ_MB"
+
+
+def max_read_bytes() -> int:
+    """The most bytes one chunk may hold: ``MAX_READ_MIB``, or ``$RTUSNIFF_MAX_READ_MB``."""
+    given = os.environ.get(READ_LIMIT_VARIABLE, "")
+    return (int(given) if given.isdigit() and int(given) > 0 else MAX_READ_MIB) * 2**20
+
+
+def read_limit_message(size: int) -> str:
+    """The error for a chunk of ``size`` bytes over the limit, saying how to raise it."""
+    limit = max_read_bytes()
+    return (f"holds one read of {size:,} bytes or more, over the {limit // 2**20} MiB rtusniff reads at once (a serial "
+            f"port delivers at most 64 KiB a read: a damaged or hostile file). {READ_LIMIT_VARIABLE}=N (MiB) raises it")
 
 
 class CaptureReader(Protocol):

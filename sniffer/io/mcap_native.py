@@ -48,6 +48,7 @@ from zstandard import ZstdError
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
+from sniffer.io.base import max_read_bytes, read_limit_message
 from sniffer.io.output_files import open_new
 
 TOPIC = "/rtusniff/raw_chunks"
@@ -430,6 +431,8 @@ class McapCaptureReader:
         """A block's chunks, with the UART errors and channels its side messages give."""
         try:
             batch = decode_block(record.data)
+            if len(batch) and int(np.diff(batch.ends, prepend=0).max()) > max_read_bytes():
+                raise self._error(read_limit_message(int(np.diff(batch.ends, prepend=0).max())))
             if ERRORS_TOPIC in side:
                 batch = replace(batch, uart_errors=decode_errors(side[ERRORS_TOPIC], len(batch.data)))
             if CHANNELS_TOPIC in side:

@@ -263,6 +263,7 @@ def test_a_chunk_claiming_gigabytes_is_refused_before_it_is_decompressed(tmp_pat
 
 
 def test_the_limit_can_be_raised(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("RTUSNIFF_MAX_READ_MB", "4")  # a single read of 2 MiB is over the read limit too
     monkeypatch.setenv(mcap_native.LIMIT_VARIABLE, "1")
     path = tmp_path / "big.mcap"
     t0 = 1_700_000_000_000_000_000
@@ -273,8 +274,9 @@ def test_the_limit_can_be_raised(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     assert sum(len(b.data) for b in McapCaptureReader(str(path)).batches()) == 2**21
 
 
-def test_blocks_are_bounded_in_bytes_too(tmp_path: Path) -> None:
+def test_blocks_are_bounded_in_bytes_too(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Large reads make more blocks (each at most BLOCK_BYTES, or one larger read), read back whole."""
+    monkeypatch.setenv("RTUSNIFF_MAX_READ_MB", "32")
     t0 = 1_700_000_000_000_000_000
     rng = np.random.default_rng(7)
     sizes = [6 << 20, 6 << 20, 6 << 20, 20 << 20, 9]
@@ -301,3 +303,14 @@ def test_small_blocks_are_read_as_few_batches(tmp_path: Path) -> None:
     assert len(read) == 1
     assert read[0].data == batch.data
     assert read[0].t_end_ns.tolist() == batch.t_end_ns.tolist() and read[0].ends.tolist() == batch.ends.tolist()
+
+
+def test_a_read_over_the_limit_is_one_error_saying_how_to_raise_it(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    path = tmp_path / "one-big-read.mcap"
+    write(path, ChunkBatch.from_chunks([Chunk(1_700_000_000_000_000_000, bytes(3 * 2**20))]))
+    with pytest.raises(CaptureFormatError, match="RTUSNIFF_MAX_READ_MB") as error:
+        list(McapCaptureReader(str(path)).batches())
+    assert "one read of 3,145,728 bytes" in str(error.value)
+    monkeypatch.setenv("RTUSNIFF_MAX_READ_MB", "3")
+    assert sum(len(b.data) for b in McapCaptureReader(str(path)).batches()) == 3 * 2**20

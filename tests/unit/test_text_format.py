@@ -242,3 +242,15 @@ def test_comment_lines_beyond_the_limit_are_counted_not_kept(tmp_path: Path) -> 
     assert data == bytes([1]) * 1000  # every byte read
     assert len(reader.info.notes) == 600 and len(reader.late_notes) == text.MAX_NOTES - 600
     assert len(reader.warnings) == 1 and "the first 1,000" in reader.warnings[0]
+
+
+def test_a_line_longer_than_a_read_can_be_is_refused_before_it_is_held(tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """A 100 MB line cost gigabytes: a line is read only up to what one read of the limit takes."""
+    path = tmp_path / "long-line.log"
+    path.write_text("# rtu-capture v1\n# timing: host\n1700000000.0 " + "ab" * (2 * 2**20) + "\n1700000001.0 01\n")
+    with pytest.raises(CaptureFormatError, match="RTUSNIFF_MAX_READ_MB=N") as error:
+        list(TextCaptureReader(str(path)).batches())
+    assert error.value.location == "line 3"
+    monkeypatch.setenv("RTUSNIFF_MAX_READ_MB", "2")
+    assert sum(len(b.data) for b in TextCaptureReader(str(path)).batches()) == 2 * 2**20 + 1

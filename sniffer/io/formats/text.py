@@ -28,7 +28,7 @@ import numpy as np
 from decoders.capture import UART_ERROR_KINDS, CaptureInfo, ChunkBatch, TimingQuality, uart_error_name
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
-from sniffer.io.base import CaptureFormat
+from sniffer.io.base import CaptureFormat, max_read_bytes, read_limit_message
 from sniffer.io.output_files import open_new_text
 from sniffer.io.registry import STDIO
 
@@ -115,8 +115,13 @@ class TextCaptureReader:
         return CaptureFormatError(kind, message, path=self.path, location=f"line {number}")
 
     def _lines(self) -> Iterator[str]:
-        for raw in self._stream:
+        # A line holds a time and up to max_read_bytes() bytes as hex, perhaps spaced: longer is refused
+        # before it is held whole (a 100 MB line cost gigabytes).
+        limit = 3 * max_read_bytes() + 64
+        for raw in iter(lambda: self._stream.readline(limit + 1), b""):
             self._line_number += 1
+            if len(raw) > limit:
+                raise self._error(ErrorKind.BAD_DATA, read_limit_message((limit - 64) // 3))
             # Only the file's last line can lack its newline: a file cut short, or written by hand.
             self._unterminated = not raw.endswith(b"\n")
             try:
