@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from benchmarks.hostile_inputs import HEAD, HOSTILE_PROFILES
 from decoders.capture import ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.line import LineSettings
@@ -224,22 +225,7 @@ def test_a_scale_must_be_a_finite_number(cli: Callable[..., CliResult], tmp_path
     assert checked.code == 12 and ".scale: must be a finite number other than 0" in checked.err
 
 
-HEAD = "[profile]\nid='x'\nname='x'\nsources=['m']\n"
-HOSTILE = [
-    (HEAD + "x = " + "[" * 500 + "]" * 500 + "\n", "nests 500 levels deep"),
-    (HEAD + "a" + ".a" * 20_000 + " = 1\n", "nests 20000 levels deep"),
-    ("parameter = [1, 2]\n" + HEAD, "parameter[0]: 1 is not a table"),  # top-level keys come first
-    (HEAD + "[exception]\ncode = 2\n", "file.exception: {'code': 2} is not a list"),
-    (HEAD + "[[exception]]\ncode = 2\nexplanation = 'e'\nsource = 's'\n[exception.addresses]\na = 1\n",
-     "exception[0].addresses: {'a': 1} is not a list"),
-    (HEAD + "[[exception]]\ncode = 2\nexplanation = 'e'\nsource = 's'\naddresses = [1, 'two']\n",
-     "exception[0].addresses[1]: 'two' is not a whole number"),
-    ("bitfield = {b = 3}\n" + HEAD, "bitfield.b: 3 is not a table"),
-    (HEAD + "[[indirection]]\nprefix = 'N'\naddress_registers = 1\nvalue_registers = 9\ncount = 300000000\n"
-     "source = 's'\n", "indirection[0].count: 300000000 is outside 1..125"),
-    (HEAD + "notes = ['" + "n" * 5000 + "', 3]\n", "profile.notes[1]: 3 is not text"),
-    (HEAD + "x = '" + "y" * (2**20) + "'\n", "a profile has at most 1,048,576"),
-]
+HOSTILE = HOSTILE_PROFILES
 
 
 @pytest.mark.parametrize(("text", "words"), HOSTILE, ids=range(len(HOSTILE)))

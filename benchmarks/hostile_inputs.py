@@ -1,0 +1,121 @@
+"""Hostile inputs, shared by the reliability benchmark, the tests and the fuzz targets: crafted
+MCAP captures, text captures of hostile sizes and times, and hostile profiles.
+
+Each was found to break rtusniff once (a traceback, gigabytes, minutes); each must now be one
+error line with a documented exit code, in little memory and time.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from decoders.capture import Chunk, ChunkBatch
+from sniffer.io import mcap_native
+
+T0 = 1_700_000_000_000_000_000
+FIELDS = {"format_version": "1", "timing": "exact", "line": "19200 8E1", "notes": "[]"}
+
+
+def crafted_mcap(path: Path, fields: dict[str, str], blocks: list[ChunkBatch], late_notes: str | None = None) -> Path:
+    """An MCAP written with the standard writer: rtusniff's metadata as given, the blocks, and a
+    late notes record."""
+    from mcap.writer import Writer
+
+    with path.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="rtusniff", library="hostile")
+        writer.add_metadata(mcap_native.METADATA_NAME, fields)
+        channel = writer.register_channel(topic=mcap_native.TOPIC, message_encoding=mcap_native.MESSAGE_ENCODING,
+                                          schema_id=0)
+        for block in blocks:
+            t = max(int(block.t_end_ns[0]), 0)
+            writer.add_message(channel_id=channel, log_time=t, publish_time=t, data=mcap_native.encode_block(block))
+        if late_notes is not None:
+            writer.add_metadata(mcap_native.NOTES_METADATA_NAME, {"notes": late_notes})
+        writer.finish()
+    return path
+
+
+def block_at(*times: int, data: bytes = b"\x01\x03") -> ChunkBatch:
+    return ChunkBatch.from_chunks([Chunk(t, data) for t in times])
+
+
+def first_chunk_offset(data: bytes) -> int:
+    """Where the first MCAP Chunk record (opcode 0x06) starts, walking the records after the magic."""
+    position = 8
+    while data[position] != 0x06:
+        position += 9 + int.from_bytes(data[position + 1 : position + 9], "little")
+    return position
+
+
+def chunk_bomb(path: Path, claimed: int = 7 * 2**30) -> Path:
+    """A small MCAP whose first chunk claims ``claimed`` bytes uncompressed."""
+    crafted_mcap(path, FIELDS, [block_at(T0, T0 + 1_000_000)])
+    data = bytearray(path.read_bytes())
+    at = first_chunk_offset(data) + 9 + 16  # opcode, length, start and end times
+    data[at : at + 8] = claimed.to_bytes(8, "little")
+    path.write_bytes(bytes(data))
+    return path
+
+
+def crafted_mcap_files(folder: Path) -> list[Path]:
+    """Every crafted MCAP shape: claims, notes, times, sizes."""
+    shapes: list[tuple[str, dict[str, str], list[ChunkBatch], str | None]] = [
+        ("notes-table", {**FIELDS, "notes": '{"a": 1}'}, [block_at(T0)], None),
+        ("notes-numbers", {**FIELDS, "notes": "[1, 2]"}, [block_at(T0)], None),
+        ("notes-newlines", {**FIELDS, "notes": '["a\\n1700000000.0 0103", "\\u00e9t\\u00e9"]'}, [block_at(T0)], None),
+        ("late-notes", FIELDS, [block_at(T0)], "nope"),
+        ("times-back", FIELDS, [block_at(T0, T0 + 10), block_at(T0 + 5)], None),
+        ("times-negative", FIELDS, [block_at(-5, 0)], None),
+        ("times-2262", FIELDS, [block_at(2**63 - 10)], None),
+        ("no-line", {**FIELDS, "line": ""}, [block_at(T0)], None),
+        ("bad-version", {**FIELDS, "format_version": "99"}, [block_at(T0)], None),
+        ("big-read", FIELDS, [block_at(T0, data=bytes(3 * 2**20))], None),
+    ]
+    made = [crafted_mcap(folder / f"crafted-{name}.mcap", fields, blocks, late)
+            for name, fields, blocks, late in shapes]
+    return [*made, chunk_bomb(folder / "crafted-bomb.mcap")]
+
+
+def hostile_text_files(folder: Path) -> list[Path]:
+    """Text captures of hostile sizes and times."""
+    head = "# rtu-capture v1\n# line: 19200 8E1\n# timing: host\n"
+    shapes = {
+        "time-5000-digits": head + "1" * 5000 + ".0 0103\n",
+        "time-2262": head + "9223372037.0 0103\n",
+        "noise-3MB": head + "1700000000.0 " + os.urandom(3_000_000).hex() + "\n",
+        "note-newlines": head + "# note \\x0a1700000000.0 0103\n1700000000.0 0103\n",
+        "binary": head + "1700000000.0 01\x00\xff03\n",
+        "decreasing": head + "1700000001.0 01\n1700000000.0 03\n",
+    }
+    made = []
+    for name, text in shapes.items():
+        path = folder / f"hostile-{name}.log"
+        path.write_bytes(text.encode("latin-1"))
+        made.append(path)
+    return made
+
+
+HEAD = "[profile]\nid='x'\nname='x'\nsources=['m']\n"
+#: Hostile profiles and the words of their one error.
+HOSTILE_PROFILES: list[tuple[str, str]] = [
+    (HEAD + "x = " + "[" * 500 + "]" * 500 + "\n", "nests 500 levels deep"),
+    (HEAD + "a" + ".a" * 20_000 + " = 1\n", "nests 20000 levels deep"),
+    ("parameter = [1, 2]\n" + HEAD, "parameter[0]: 1 is not a table"),  # top-level keys come first
+    (HEAD + "[exception]\ncode = 2\n", "file.exception: {'code': 2} is not a list"),
+    (HEAD + "[[exception]]\ncode = 2\nexplanation = 'e'\nsource = 's'\n[exception.addresses]\na = 1\n",
+     "exception[0].addresses: {'a': 1} is not a list"),
+    (HEAD + "[[exception]]\ncode = 2\nexplanation = 'e'\nsource = 's'\naddresses = [1, 'two']\n",
+     "exception[0].addresses[1]: 'two' is not a whole number"),
+    ("bitfield = {b = 3}\n" + HEAD, "bitfield.b: 3 is not a table"),
+    (HEAD + "[[indirection]]\nprefix = 'N'\naddress_registers = 1\nvalue_registers = 9\ncount = 300000000\n"
+     "source = 's'\n", "indirection[0].count: 300000000 is outside 1..125"),
+    (HEAD + "notes = ['" + "n" * 5000 + "', 3]\n", "profile.notes[1]: 3 is not text"),
+    (HEAD + "x = '" + "y" * (2**20) + "'\n", "a profile has at most 1,048,576"),
+    (HEAD + "[[parameter]]\ncode='A'\nname='a'\naddress=1\nsource='s'\nscale = nan\n", "scale"),
+]
+
+
+def hostile_profile_texts() -> list[str]:
+    return [text for text, _ in HOSTILE_PROFILES]
