@@ -5,15 +5,18 @@
 Targets: ``text`` and ``mcap`` (bytes as a capture file: it reads cleanly or ends in one
 error naming the file), ``framer`` (bytes as timed chunks on a line: every byte comes out in
 exactly one frame, in order), ``decoders`` (bytes as frames: matcher, annotator and JSONL
-records never raise, and the cached decoding equals decoding each frame). A crash is any
+records never raise, and the cached decoding equals decoding each frame), ``profile`` (bytes as
+a profile file: a profile or one error naming the place). A crash is any
 other exception; libFuzzer then writes the input to ``crash-*`` and exits non-zero. Without a
-corpus folder, ``text`` and ``mcap`` start from the shipped sample captures.
+corpus folder, ``text``, ``mcap`` and ``profile`` start from the shipped samples and profiles and
+the hostile shapes of ``benchmarks/hostile_inputs.py``.
 The hypothesis tests in tests/property cover the same ground with shaped inputs; atheris
 finds the inputs that reach new code.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 import tempfile
@@ -32,10 +35,12 @@ with atheris.instrument_imports():
     from decoders.modbus.annotate import Annotator
     from decoders.modbus.matcher import Matcher
     from decoders.profiles.apply import ProfileApplier
+    from decoders.profiles.parse import ProfileError, parse_profile
     from sniffer.encoding.records import FrameRecordEncoder, frame_record
     from sniffer.profiles_io import profile_book
 
 # After the instrumented imports: hypothesis and pytest need no coverage counters.
+from benchmarks.hostile_inputs import crafted_mcap_files, hostile_profile_texts
 from tests.property.test_reader_fuzz import read_all
 
 SCRATCH = Path(tempfile.mkdtemp(prefix="rtusniff-atheris-"))
@@ -95,12 +100,31 @@ def decode_frames(provider: atheris.FuzzedDataProvider) -> None:
                 raise AssertionError(f"JSONL record differs from json.dumps at frame {message.frame.index}")
 
 
+def parse_any_profile(data: bytes) -> None:
+    """Bytes as a profile file: a profile, or one ProfileError naming the place; nothing else."""
+    with contextlib.suppress(ProfileError):
+        parse_profile(data.decode("utf-8", "replace"), "fuzzed.toml")
+
+
 def _seed_corpus(suffix: str) -> Path:
-    """A corpus folder holding the shipped sample captures of one format."""
+    """A corpus folder holding the shipped samples of one format, and the hostile shapes found
+    by the reliability benchmark (crafted MCAPs; hostile profiles beside the shipped ones)."""
     corpus = SCRATCH / f"corpus{suffix}"
     corpus.mkdir()
+    if suffix == ".toml":
+        for profile in (SAMPLES.parent / "decoders" / "profiles" / "data").glob("*.toml"):
+            (corpus / profile.name).write_bytes(profile.read_bytes())
+        for number, text in enumerate(hostile_profile_texts()):
+            (corpus / f"hostile-{number}.toml").write_text(text[:4096])
+        return corpus
     for sample in SAMPLES.glob(f"*{suffix}"):
         (corpus / sample.name).write_bytes(sample.read_bytes())
+    if suffix == ".mcap":
+        made = SCRATCH / "crafted"
+        made.mkdir()
+        for crafted in crafted_mcap_files(made):
+            if crafted.stat().st_size <= 65536:
+                (corpus / crafted.name).write_bytes(crafted.read_bytes())
     return corpus
 
 
@@ -110,12 +134,13 @@ def main() -> None:
         "mcap": lambda data: read_capture(data, ".mcap"),
         "framer": lambda data: frame_everything(atheris.FuzzedDataProvider(data)),
         "decoders": lambda data: decode_frames(atheris.FuzzedDataProvider(data)),
+        "profile": parse_any_profile,
     }
     if len(sys.argv) < 2 or sys.argv[1] not in targets:
         sys.exit(f"usage: {sys.argv[0]} {{{','.join(targets)}}} [libFuzzer options]")
     name = sys.argv.pop(1)
-    if name in ("text", "mcap") and all(arg.startswith("-") for arg in sys.argv[1:]):
-        sys.argv.append(str(_seed_corpus(".log" if name == "text" else ".mcap")))
+    if name in ("text", "mcap", "profile") and all(arg.startswith("-") for arg in sys.argv[1:]):
+        sys.argv.append(str(_seed_corpus({"text": ".log", "mcap": ".mcap", "profile": ".toml"}[name])))
     atheris.Setup(sys.argv, targets[name])
     atheris.Fuzz()
 
