@@ -13,7 +13,9 @@ Families (each run is ``rtusniff`` in a fresh process, as a user runs it):
   back or before 1970, a read of megabytes;
 * ``hostile sizes``: a 5 000-digit time, a noise line of megabytes, a flood of comment lines;
 * ``hostile profiles``: nesting, dotted keys, wrong types, huge counts (``profiles check``);
-* ``full disk``: every command writing to ``/dev/full`` (Linux).
+* ``full disk``: every command writing to ``/dev/full`` (Linux);
+* ``live (pty)``: on socat pseudo-terminals, two captures on one port, ``kill -9`` of a recording
+  capture, and a consumer of ``--format jsonl`` that stops reading (``reliability_live.py``).
 
 A run counts as a **traceback** when standard error holds one, a **hang** when it outlives
 ``TIMEOUT_S``, a **wrong exit** when its code is not the README's for what went wrong (anything but
@@ -231,6 +233,10 @@ def families(scratch: Path, per_family: int, seed: int, *, quick: bool = False) 
     yield hostile_sizes(scratch, quick=quick)
     yield hostile_profiles(scratch, both=not quick)
     yield full_disk(scratch, quick=quick)
+    if not quick:  # the tests run these scenarios themselves (tests/test_capture.py, test_live_gaps.py)
+        from benchmarks.reliability_live import live
+
+        yield live(scratch)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -83,3 +83,64 @@ def test_decoding_restarts_at_a_gap() -> None:
     assert not any(f["role"] in ("noise", "unknown") for f in before[:-1] + after)
     summary = records[-1]
     assert summary["kind"] == "summary" and summary["skipped_reads"] == 2 and summary["skipped_bytes"] == 15
+
+
+def test_a_stop_signal_waits_for_the_record_being_written() -> None:
+    """SIGTERM while a JSONL record is written (a consumer that reads slowly) stops the capture
+    after the write, never inside a line; a second signal stops it at once."""
+    import signal
+
+    import pytest
+
+    from sniffer.live_capture import TerminatedError, _StopRequest
+
+    shared = _Shared(threading.Event(), queue.Queue())
+    request = _StopRequest(shared)
+    with pytest.raises(TerminatedError):
+        request.handle(signal.SIGTERM, None)  # not writing: at once
+    request.writing = True
+    request.handle(signal.SIGTERM, None)  # writing: asked, not raised
+    assert request.asked == signal.SIGTERM and shared.stop.is_set()
+    with pytest.raises(KeyboardInterrupt):
+        request.handle(signal.SIGINT, None)  # again: at once
+
+
+def test_records_written_under_signals_are_whole() -> None:
+    """A stop signal that interrupts a large write to a full pipe: every byte still arrives (CPython's
+    buffered writer drops part of such a write even when the handler returns)."""
+    import os
+    import signal
+    import sys
+    import time
+
+    import pytest
+
+    from sniffer.live_capture import whole_writes
+
+    if sys.platform == "win32":
+        pytest.skip("signals interrupting writes are POSIX")
+    read_end, write_end = os.pipe()
+    received = bytearray()
+
+    def slow_reader() -> None:  # a consumer that stops reading for a while: the pipe fills
+        time.sleep(0.3)
+        while chunk := os.read(read_end, 65536):
+            received.extend(chunk)
+
+    reader = threading.Thread(target=slow_reader)
+    reader.start()
+    previous = signal.signal(signal.SIGALRM, lambda *_: None)
+    signal.setitimer(signal.ITIMER_REAL, 0.1)  # while the write waits on the full pipe
+    lines = "".join(f"{i:06d} {'x' * 500}\n" for i in range(400))
+    try:
+        with os.fdopen(write_end, "w") as stream:
+            out = whole_writes(stream)
+            for start in range(0, len(lines), 50_000):
+                out.write(lines[start : start + 50_000])
+                out.flush()
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    reader.join(timeout=60)
+    os.close(read_end)
+    assert bytes(received) == lines.encode()
