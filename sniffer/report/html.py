@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import shlex
+from collections.abc import Sequence
 from html import escape
 from importlib.resources import files
 from typing import TextIO
@@ -78,18 +79,13 @@ def _health(collector: ReportCollector) -> str:
     rows = health_rows(collector.statistics, collector)
     if not rows:
         return "<h2 id=\"health\">Slaves</h2>\n<p class=\"muted\">No request or answer of any slave.</p>\n"
-    head = "".join(f"<th{_classes('num' if right else '')}>{escape(heading)}</th>"
-                   for _, heading, right in HEALTH_COLUMNS)
-    body = []
-    for row in rows:
-        cells = []
-        for key, _, right in HEALTH_COLUMNS:
-            classes = " ".join(c for c in ("num" if right else "", row.grade if key == "error_rate" else "") if c)
-            cells.append(f"<td{_classes(classes)}>{escape(row.cells[key])}</td>")
-        body.append(f"<tr data-slave=\"{escape(row.cells['slave'])}\">{''.join(cells)}</tr>\n")
-    return (f"<h2 id=\"health\">Slaves, worst first</h2>\n<p class=\"muted\">Error rate: exceptions, CRC errors and "
-            f"timeouts per request. Latency from each request's end to its answer's start.</p>\n"
-            f"<div class=\"scroll\"><table class=\"health\">\n<tr>{head}</tr>\n{''.join(body)}</table></div>\n")
+    table = _table("health", HEALTH_COLUMNS, [
+        (f" data-slave=\"{escape(row.cells['slave'])}\"",
+         [(row.cells[key], " ".join(c for c in ("num" if right else "", row.grade if key == "error_rate" else "") if c))
+          for key, _, right in HEALTH_COLUMNS])
+        for row in rows])
+    return ("<h2 id=\"health\">Slaves, worst first</h2>\n<p class=\"muted\">Error rate: exceptions, CRC errors and "
+            "timeouts per request. Latency from each request's end to its answer's start.</p>\n" + table)
 
 
 def _comparison(comparison: Comparison) -> str:
@@ -98,16 +94,15 @@ def _comparison(comparison: Comparison) -> str:
     facts = "".join(f"<p class=\"muted\">{escape(line)}</p>\n" for line in lines)
     total = "".join(f"<tr><th>{escape(label)}</th><td class=\"num\">{escape(b)}</td><td class=\"num\">{escape(a)}</td>"
                     "</tr>\n" for label, b, a in totals)
-    head = "".join(f"<th{_classes('num' if right else '')}>{escape(heading)}</th>" for _, heading, right in columns)
-    body = "".join("<tr data-verdict=\"" + escape(row["verdict"]) + "\">" + "".join(
-        f"<td{_classes(_verdict_class(key, row[key]) or ('num' if right else ''))}>{escape(row[key])}</td>"
-        for key, _, right in columns) + "</tr>\n" for row in rows)
+    table = _table("comparison", columns, [
+        (f" data-verdict=\"{escape(row['verdict'])}\"",
+         [(row[key], _verdict_class(key, row[key]) or ("num" if right else "")) for key, _, right in columns])
+        for row in rows])
     return (f"<h2 id=\"comparison\">Before and after</h2>\n{facts}<table class=\"facts\"><tr><th></th>"
             f"<th class=\"num\">before</th><th class=\"num\">after</th></tr>\n{total}</table>\n"
             f"<p class=\"muted\">Per slave and function, before→after (latency and poll period in ms); worse: the "
             f"error rate rose by more than half a percentage point or the latency p95 by more than 20 % and 0.5 ms. "
-            f"{escape(verdicts)}.</p>\n<div class=\"scroll\"><table class=\"comparison\">\n<tr>{head}</tr>\n{body}"
-            "</table></div>\n")
+            f"{escape(verdicts)}.</p>\n{table}")
 
 
 def _verdict_class(key: str, value: str) -> str:
@@ -198,15 +193,20 @@ def _context_block(anomaly: Anomaly, capture: str) -> str:
 
 
 def _frame_table(rows: list[FrameRow], focus: int | None) -> str:
-    head = "".join(f"<th{_classes('num' if right else '')}>{escape(heading)}</th>"
-                   for _, heading, right in _ROW_COLUMNS)
-    body = []
-    for row in rows:
-        cells = []
-        for key, _, right in _ROW_COLUMNS:
-            value = str(getattr(row, key))
-            classes = "num" if right else "hex" if key == "hex" else "bad" if key == "crc" and value == "BAD" else ""
-            cells.append(f"<td{_classes(classes)}>{escape(value)}</td>")
-        mark = " class=\"focus\"" if row.index == focus else ""
-        body.append(f"<tr{mark}>{''.join(cells)}</tr>\n")
-    return f"<div class=\"scroll\"><table class=\"frames\">\n<tr>{head}</tr>\n{''.join(body)}</table></div>\n"
+    def cell(key: str, value: str, right: bool) -> tuple[str, str]:
+        return value, "num" if right else "hex" if key == "hex" else "bad" if key == "crc" and value == "BAD" else ""
+
+    return _table("frames", _ROW_COLUMNS, [
+        (" class=\"focus\"" if row.index == focus else "",
+         [cell(key, str(getattr(row, key)), right) for key, _, right in _ROW_COLUMNS])
+        for row in rows])
+
+
+def _table(css: str, columns: Sequence[tuple[str, str, bool]], rows: list[tuple[str, list[tuple[str, str]]]]) -> str:
+    """A table that scrolls on its own on a narrow screen: ``columns`` (key, heading,
+    right-aligned), ``rows`` of (the row's attributes, each cell's text and classes)."""
+    head = "".join(f"<th{_classes('num' if right else '')}>{escape(heading)}</th>" for _, heading, right in columns)
+    body = "".join(f"<tr{attributes}>" + "".join(f"<td{_classes(classes)}>{escape(text)}</td>"
+                                                  for text, classes in cells) + "</tr>\n"
+                   for attributes, cells in rows)
+    return f"<div class=\"scroll\"><table class=\"{css}\">\n<tr>{head}</tr>\n{body}</table></div>\n"

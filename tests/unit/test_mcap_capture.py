@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
+from benchmarks.hostile_inputs import crafted_mcap, first_chunk_offset
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
@@ -159,26 +160,6 @@ def test_a_channel_beyond_the_names_is_refused() -> None:
         mcap_native.decode_channels(mcap_native.encode_channels(np.array([1], np.uint8)), 2, 2)
 
 
-def crafted(path: Path, fields: dict[str, str], blocks: list[ChunkBatch], late_notes: str | None = None) -> Path:
-    """An MCAP written with the standard writer: rtusniff's metadata as given, the blocks, and a
-    late notes record."""
-    from mcap.writer import Writer
-
-    with path.open("wb") as f:
-        writer = Writer(f)
-        writer.start(profile="rtusniff", library="test")
-        writer.add_metadata(mcap_native.METADATA_NAME, fields)
-        channel = writer.register_channel(topic=mcap_native.TOPIC, message_encoding=mcap_native.MESSAGE_ENCODING,
-                                          schema_id=0)
-        for block in blocks:
-            t = int(block.t_end_ns[0]) if int(block.t_end_ns[0]) >= 0 else 0
-            writer.add_message(channel_id=channel, log_time=t, publish_time=t, data=encode_block(block))
-        if late_notes is not None:
-            writer.add_metadata(mcap_native.NOTES_METADATA_NAME, {"notes": late_notes})
-        writer.finish()
-    return path
-
-
 FIELDS = {"format_version": "1", "timing": "exact", "line": "19200 8E1", "notes": "[]"}
 T0 = 1_700_000_000_000_000_000
 
@@ -196,7 +177,7 @@ def block_at(*times: int) -> ChunkBatch:
 ])
 def test_crafted_metadata_and_times_are_one_error(tmp_path: Path, fields: dict[str, str], blocks: list[ChunkBatch],
                                                   late: str | None, said: str) -> None:
-    path = crafted(tmp_path / "crafted.mcap", fields, blocks, late)
+    path = crafted_mcap(tmp_path / "crafted.mcap", fields, blocks, late)
     with pytest.raises(CaptureFormatError) as caught:
         reader = McapCaptureReader(str(path))
         try:
@@ -237,21 +218,13 @@ def test_a_flipped_bit_is_an_error_or_changes_nothing(tmp_path: Path) -> None:
     assert silent == []
 
 
-def _first_chunk_offset(data: bytes) -> int:
-    """Where the first Chunk record (opcode 0x06) starts, walking the records after the magic."""
-    position = 8
-    while data[position] != 0x06:
-        position += 9 + int.from_bytes(data[position + 1 : position + 9], "little")
-    return position
-
-
 def test_a_chunk_claiming_gigabytes_is_refused_before_it_is_decompressed(tmp_path: Path) -> None:
     """A few kilobytes of zstd may claim 7 GB: the claim is checked first, in one error that says
     how to raise the limit; no memory is asked for."""
     path = tmp_path / "bomb.mcap"
     write(path, sample_batch(50))
     data = bytearray(path.read_bytes())
-    size_at = _first_chunk_offset(data) + 9 + 16  # opcode, length, start and end times
+    size_at = first_chunk_offset(data) + 9 + 16  # opcode, length, start and end times
     data[size_at : size_at + 8] = (7 * 2**30).to_bytes(8, "little")
     path.write_bytes(bytes(data))
     with pytest.raises(CaptureFormatError) as error:
