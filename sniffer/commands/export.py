@@ -25,6 +25,7 @@ from sniffer.commands.common import (
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.outputs import McapSink, PcapSink, RerunSink
+from sniffer.io.output_files import published_whole
 from sniffer.pipeline import Analysis, analyze
 from sniffer.progress import progress_for
 from sniffer.sinks import FileSink
@@ -67,8 +68,13 @@ def run(args: argparse.Namespace) -> int:
     if args.spawn:
         check_viewer_can_start()
     with ExitStack() as stack:
+        # Each file is written beside its name and put in place once whole: an export that fails
+        # half way (a damaged capture, times MCAP cannot hold) leaves nothing that passes for one;
+        # Ctrl-C keeps what was exported until then, closed properly.
+        parts = {option: stack.enter_context(published_whole(getattr(args, option), keep_when_interrupted=True))
+                 for option, _, _ in OUTPUTS if getattr(args, option)}
         reader, analysis = open_analysis(args, stack)
-        sinks = output_sinks(args, analysis, stack)
+        sinks = output_sinks(argparse.Namespace(**{**vars(args), **parts}), analysis, stack)
         progress = stack.enter_context(progress_for(args, reader, to_terminal=args.pcap == "-"))
         analyze(reader, source_name(args), analysis, [*(sink for _, sink in sinks), progress.sink],
                 jobs=decoding_jobs(args.jobs))
@@ -108,12 +114,14 @@ _CLOSE_ORDER = ["MCAP", "pcap", "Rerun recording"]
 
 def _tell_written(args: argparse.Namespace, sinks: list[tuple[str, FileSink[Any]]]) -> None:
     """One line per output on standard error: what was written where."""
+    names = {kind: getattr(args, option) for option, kind, _ in OUTPUTS}
     for kind, sink in sinks:
-        if sink.path == "-":
+        path = names[kind]
+        if path == "-":
             print(f"wrote {sink.frames_written:,} frames as {kind} to standard output", file=sys.stderr)
-        elif sink.path:
-            print(f"wrote {sink.path}: {kind}, {sink.frames_written:,} frames, "
-                  f"{human_size(os.path.getsize(sink.path))}", file=sys.stderr)
+        elif path:
+            print(f"wrote {path}: {kind}, {sink.frames_written:,} frames, "
+                  f"{human_size(os.path.getsize(path))}", file=sys.stderr)
     if args.spawn:
         frames = next(sink.frames_written for kind, sink in sinks if kind == "Rerun recording")
         print(f"sent {frames:,} frames to the Rerun viewer", file=sys.stderr)

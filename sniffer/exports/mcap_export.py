@@ -40,6 +40,7 @@ from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding
 from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.encoding.records import FrameRecordEncoder, encode_json
 from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
+from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports import foxglove_log
 from sniffer.exports.levels import FLAG_SUFFIXES, log_levels
 from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
@@ -128,6 +129,7 @@ class McapExporter:
     batch at a time: each channel's messages are built as columns and written as one block."""
 
     def __init__(self, path: str, info: CaptureInfo, line: LineSettings, metadata: dict[str, str]) -> None:
+        self.path = path
         self._file: BinaryIO = open_new(path)
         tool = f"rtusniff {version('rtusniff')}"
         self._writer = ColumnarMcapWriter(self._file, profile=PROFILE, library=tool, chunk_size=CHUNK_SIZE)
@@ -218,6 +220,11 @@ class McapExporter:
         self._write(rows, self._transactions, t_ns)
 
     def _write(self, rows: Rows, channels: npt.NDArray[np.uint16] | int, t_ns: npt.NDArray[np.int64]) -> None:
+        if len(t_ns) and int(t_ns.min()) < 0:
+            raise RtuSniffError(
+                ErrorKind.OUTPUT_FAILED, f"a frame starts {-int(t_ns.min()) / 1e9:.6f} s before 1970 (a capture whose "
+                "clock starts at 0, as a logic analyzer's does): MCAP times are nanoseconds since 1970 and cannot "
+                "be earlier; --pcap, --rrd and analyze --format jsonl take such times", path=self.path)
         if isinstance(channels, int):
             channels = np.full(len(rows), channels, np.uint16)
         self._writer.write(MessageBlock(rows, channels, t_ns))

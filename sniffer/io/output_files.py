@@ -76,10 +76,11 @@ def _open(path: str, *, binary: bool, encoding: str | None) -> IO[Any]:
 
 
 @contextmanager
-def published_whole(path: str) -> Iterator[str]:
+def published_whole(path: str, *, keep_when_interrupted: bool = False) -> Iterator[str]:
     """The path to write ``path``'s content to: a part file beside it, renamed to ``path`` when
     the block ends without error and removed when it fails. ``-``, a device or a pipe: ``path``
-    itself (nothing to remove)."""
+    itself (nothing to remove). ``keep_when_interrupted``: Ctrl-C puts the part in place too (an
+    export closed properly up to where the user stopped it is what they asked for)."""
     if path == "-" or is_device(path):
         yield path
         return
@@ -87,6 +88,20 @@ def published_whole(path: str) -> Iterator[str]:
     part = str(target.with_name(f".{target.stem}.{secrets.token_hex(4)}.part{target.suffix}"))
     try:
         yield part
+    except RtuSniffError as error:
+        with suppress(FileNotFoundError):
+            os.remove(part)
+        if error.path != part:
+            raise
+        # Errors name the file the user asked for, not the part file that no longer exists.
+        raise type(error)(error.kind, error.message, path=path, location=error.location) from None
+    except KeyboardInterrupt:
+        if keep_when_interrupted and os.path.exists(part):
+            _publish(part, path)
+        else:
+            with suppress(FileNotFoundError):
+                os.remove(part)
+        raise
     except BaseException:
         with suppress(FileNotFoundError):
             os.remove(part)
