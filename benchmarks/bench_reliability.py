@@ -15,7 +15,8 @@ Families (each run is ``rtusniff`` in a fresh process, as a user runs it):
 * ``hostile profiles``: nesting, dotted keys, wrong types, huge counts (``profiles check``);
 * ``full disk``: every command writing to ``/dev/full`` (Linux);
 * ``live (pty)``: on socat pseudo-terminals, two captures on one port, ``kill -9`` of a recording
-  capture, and a consumer of ``--format jsonl`` that stops reading (``reliability_live.py``).
+  capture, a consumer of ``--format jsonl`` that stops reading, and a disk that fills up during a
+  capture (``reliability_live.py``).
 
 A run counts as a **traceback** when standard error holds one, a **hang** when it outlives
 ``TIMEOUT_S``, a **wrong exit** when its code is not the README's for what went wrong (anything but

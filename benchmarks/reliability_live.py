@@ -1,5 +1,6 @@
 """The live families of the reliability benchmark, on socat pseudo-terminals: two captures on one
-port, ``kill -9`` of a recording capture, and a consumer of ``--format jsonl`` that stops reading.
+port, ``kill -9`` of a recording capture, a consumer of ``--format jsonl`` that stops reading, and
+a disk that fills up during a capture.
 
 Each scenario is one input of the family ``live``; what it checks goes in the family's problems.
 """
@@ -30,8 +31,8 @@ def live(scratch: Path) -> Family:
     if SOCAT is None:
         family.problems.append("skipped: socat is not installed")
         return family
-    for scenario in (_two_readers, _kill_9, _slow_consumer):
-        for left in ("first.mcap", "second.mcap", "killed.mcap", "slow.mcap"):  # of an earlier run
+    for scenario in (_two_readers, _kill_9, _slow_consumer, _full_disk):
+        for left in ("first.mcap", "second.mcap", "killed.mcap", "slow.mcap", "full.mcap"):  # of an earlier run
             (scratch / left).unlink(missing_ok=True)
         with pty_pair(scratch, scenario.__name__.strip("_")) as pair:
             family.runs += 1
@@ -42,9 +43,9 @@ def live(scratch: Path) -> Family:
     return family
 
 
-def _capture(port: Path, *args: str, stdout: Any = subprocess.PIPE) -> subprocess.Popen[bytes]:
+def _capture(port: Path, *args: str, stdout: Any = subprocess.PIPE, **options: Any) -> subprocess.Popen[bytes]:
     process = subprocess.Popen([sys.executable, "-m", "sniffer", "capture", str(port), "--line", "19200", "8N1", *args],
-                               stdout=stdout, stderr=subprocess.PIPE)
+                               stdout=stdout, stderr=subprocess.PIPE, **options)
     assert process.stderr is not None
     deadline = time.monotonic() + WAIT_S
     while time.monotonic() < deadline:
@@ -127,4 +128,35 @@ def _slow_consumer(family: Family, scratch: Path, line: Path, port: Path) -> Non
     invented = [f for f in frames if (f["role"] in ("noise", "unknown") or not f["crc_ok"])
                 and "truncated" not in f["flags"]]
     assert not invented, f"{len(invented)} frames never on the wire (noise, CRC errors) in the JSONL"
+    recording.unlink()
+
+
+def _small_disk() -> None:
+    """The child's files may grow to 3 000 bytes: a disk that fills up (RLIMIT_FSIZE)."""
+    import resource
+    import signal
+
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (3000, 3000))
+
+
+def _full_disk(family: Family, scratch: Path, line: Path, port: Path) -> None:
+    """The disk fills during a capture: exit 11 in one line, the recording readable up to its last flush."""
+    import os
+
+    recording = scratch / "full.mcap"
+    capture = _capture(port, "-o", str(recording), "--quiet", "--duration", "20", preexec_fn=_small_disk)
+    _send(line, 5, 0.02)
+    time.sleep(1.5)  # a flush with whole frames in it
+    with serial.Serial(str(line), 19200, timeout=0) as writer:
+        for _ in range(30):
+            writer.write(os.urandom(200))  # bytes that do not compress: the "disk" fills up
+            time.sleep(0.1)
+    _, err = capture.communicate(timeout=WAIT_S)
+    said = err.decode(errors="replace")
+    assert capture.returncode == 11 and "kept up to its last flush" in said, f"exit {capture.returncode}: {said!r}"
+    good = [f for f in _frames(recording) if f["crc_ok"]]
+    if len(good) < 10:
+        family.altered += 1
+    assert len(good) >= 10, f"the recording kept {len(good)} of the 10 frames flushed before the disk filled"
     recording.unlink()
