@@ -89,7 +89,7 @@ def probe_name(session: str, index: int) -> str:
     return parser["device 1"][f"probe{index + 1}"]
 
 
-TESTS = uart_tests()
+TESTS = uart_tests() if (EXPECTED / "test.conf").exists() else []  # skipped without ../shared
 
 
 def test_the_suite_is_here() -> None:
