@@ -147,8 +147,13 @@ def test_a_long_capture_draws_and_zooms(browser: Any, cli: Cli, steady_capture: 
 
 
 def test_a_narrow_window_keeps_the_report_readable(browser: Any, cli: Cli, tmp_path: Path) -> None:
-    """At a phone's width nothing spills out of the page: wide tables scroll inside their box."""
-    report = _report(cli, ROOT / "captures" / "atv71-plc-poll.log", tmp_path / "narrow.html")
+    """At a phone's width nothing spills out of the page: wide tables scroll inside their box, and a
+    capture's long path (in the title, the provenance, the commands) breaks instead of widening it."""
+    folder = tmp_path / "a-site-folder-with-a-rather-long-name-as-customers-make-them" / "line-2-cabinet-b"
+    folder.mkdir(parents=True)
+    capture = folder / "atv71-plc-poll-recorded-during-commissioning.log"
+    shutil.copy(ROOT / "captures" / "atv71-plc-poll.log", capture)
+    report = _report(cli, capture, tmp_path / "narrow.html")
     opened = Opened(browser, report, width=420)
     overflow = opened.page.evaluate("document.documentElement.scrollWidth - document.documentElement.clientWidth")
     assert overflow <= 0
