@@ -11,7 +11,7 @@ import os
 from pathlib import Path
 
 from decoders.capture import Chunk, ChunkBatch
-from sniffer.io import mcap_native
+from sniffer.io import mcap_blocks
 
 T0 = 1_700_000_000_000_000_000
 FIELDS = {"format_version": "1", "timing": "exact", "line": "19200 8E1", "notes": "[]"}
@@ -25,14 +25,14 @@ def crafted_mcap(path: Path, fields: dict[str, str], blocks: list[ChunkBatch], l
     with path.open("wb") as f:
         writer = Writer(f)
         writer.start(profile="rtusniff", library="hostile")
-        writer.add_metadata(mcap_native.METADATA_NAME, fields)
-        channel = writer.register_channel(topic=mcap_native.TOPIC, message_encoding=mcap_native.MESSAGE_ENCODING,
+        writer.add_metadata(mcap_blocks.METADATA_NAME, fields)
+        channel = writer.register_channel(topic=mcap_blocks.TOPIC, message_encoding=mcap_blocks.MESSAGE_ENCODING,
                                           schema_id=0)
         for block in blocks:
             t = max(int(block.t_end_ns[0]), 0)
-            writer.add_message(channel_id=channel, log_time=t, publish_time=t, data=mcap_native.encode_block(block))
+            writer.add_message(channel_id=channel, log_time=t, publish_time=t, data=mcap_blocks.encode_block(block))
         if late_notes is not None:
-            writer.add_metadata(mcap_native.NOTES_METADATA_NAME, {"notes": late_notes})
+            writer.add_metadata(mcap_blocks.NOTES_METADATA_NAME, {"notes": late_notes})
         writer.finish()
     return path
 

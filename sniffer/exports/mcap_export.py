@@ -46,7 +46,7 @@ from sniffer.exports.levels import FLAG_SUFFIXES, log_levels
 from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
 from sniffer.exports.published import PublishedValues, plotted
 from sniffer.exports.transactions import OUTCOMES, TransactionEncoder
-from sniffer.io.mcap_native import (
+from sniffer.io.mcap_blocks import (
     LAYOUT_DOC,
     MESSAGE_ENCODING,
     METADATA_NAME,
@@ -55,9 +55,9 @@ from sniffer.io.mcap_native import (
     TOPIC,
     block_batches,
     encode_block,
-    info_metadata,
     side_messages,
 )
+from sniffer.io.mcap_native import info_metadata
 from sniffer.io.output_files import open_new
 
 #: Uncompressed bytes per chunk. The writer keeps every chunk's index entry (with an offset

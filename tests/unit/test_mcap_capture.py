@@ -13,8 +13,9 @@ from benchmarks.hostile_inputs import crafted_mcap, first_chunk_offset
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
-from sniffer.io import mcap_native
-from sniffer.io.mcap_native import McapCaptureReader, McapCaptureWriter, decode_block, encode_block
+from sniffer.io import mcap_blocks
+from sniffer.io.mcap_blocks import decode_block, encode_block
+from sniffer.io.mcap_native import McapCaptureReader, McapCaptureWriter
 from tests.conftest import write_foreign_mcap
 
 INFO = CaptureInfo(LineSettings.parse("19200 8E1"), TimingQuality.EXACT, ("site: pump house", "tap on port 1"))
@@ -58,11 +59,11 @@ def test_standard_reader_sees_blocks_and_metadata(tmp_path: Path) -> None:
         summary = reader.get_summary()
         assert summary is not None
         [channel] = summary.channels.values()
-        assert channel.topic == mcap_native.TOPIC
+        assert channel.topic == mcap_blocks.TOPIC
         assert summary.statistics is not None
         assert summary.statistics.message_count == 3  # 10 000 chunks in blocks of 4096
         assert summary.chunk_indexes and summary.chunk_indexes[0].compression == "zstd"
-        [metadata] = [m for m in reader.iter_metadata() if m.name == mcap_native.METADATA_NAME]
+        [metadata] = [m for m in reader.iter_metadata() if m.name == mcap_blocks.METADATA_NAME]
         assert metadata.metadata["line"] == "19200 8E1"
         assert metadata.metadata["timing"] == "exact"
         assert json.loads(metadata.metadata["notes"]) == list(INFO.notes)
@@ -118,7 +119,7 @@ def test_uart_errors_round_trip_and_a_plain_reader_still_reads_every_byte(tmp_pa
     assert sum(len(c.uart_errors) for c in chunks) == int(np.count_nonzero(batch.uart_errors))
     with path.open("rb") as f:  # a reader that knows only the chunk topic, as rtusniff's before
         blocks = [decode_block(m.data) for _, channel, m in make_reader(f).iter_messages()
-                  if channel.topic == mcap_native.TOPIC]
+                  if channel.topic == mcap_blocks.TOPIC]
     assert b"".join(b.data for b in blocks) == batch.data
 
 
@@ -127,7 +128,7 @@ def test_a_capture_without_uart_errors_has_no_errors_channel(tmp_path: Path) -> 
     write(path, sample_batch(100))
     with path.open("rb") as f:
         summary = make_reader(f).get_summary()
-    assert summary is not None and [c.topic for c in summary.channels.values()] == [mcap_native.TOPIC]
+    assert summary is not None and [c.topic for c in summary.channels.values()] == [mcap_blocks.TOPIC]
 
 
 @pytest.mark.parametrize(("payload", "size"), [(b"", 4), (b"\x01\x00\x00\x00\x05\x00\x00\x00\x01", 4),
@@ -135,7 +136,7 @@ def test_a_capture_without_uart_errors_has_no_errors_channel(tmp_path: Path) -> 
                                                (b"\x01\x00\x00\x00\x00\x00\x00\x00", 4)])
 def test_inconsistent_uart_errors_are_refused(payload: bytes, size: int) -> None:
     with pytest.raises(ValueError):
-        mcap_native.decode_errors(payload, size)
+        mcap_blocks.decode_errors(payload, size)
 
 
 def test_channels_round_trip(tmp_path: Path) -> None:
@@ -155,9 +156,9 @@ def test_channels_round_trip(tmp_path: Path) -> None:
 
 def test_a_channel_beyond_the_names_is_refused() -> None:
     with pytest.raises(ValueError):
-        mcap_native.decode_channels(mcap_native.encode_channels(np.array([1, 3], np.uint8)), 2, 2)
+        mcap_blocks.decode_channels(mcap_blocks.encode_channels(np.array([1, 3], np.uint8)), 2, 2)
     with pytest.raises(ValueError):
-        mcap_native.decode_channels(mcap_native.encode_channels(np.array([1], np.uint8)), 2, 2)
+        mcap_blocks.decode_channels(mcap_blocks.encode_channels(np.array([1], np.uint8)), 2, 2)
 
 
 FIELDS = {"format_version": "1", "timing": "exact", "line": "19200 8E1", "notes": "[]"}
@@ -232,18 +233,18 @@ def test_a_chunk_claiming_gigabytes_is_refused_before_it_is_decompressed(tmp_pat
         list(reader.batches())
     assert error.value.kind is ErrorKind.BAD_MCAP
     assert "claims 7,516,192,768 bytes uncompressed" in str(error.value)
-    assert mcap_native.LIMIT_VARIABLE in str(error.value)
+    assert mcap_blocks.LIMIT_VARIABLE in str(error.value)
 
 
 def test_the_limit_can_be_raised(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("RTUSNIFF_MAX_READ_MB", "4")  # a single read of 2 MiB is over the read limit too
-    monkeypatch.setenv(mcap_native.LIMIT_VARIABLE, "1")
+    monkeypatch.setenv(mcap_blocks.LIMIT_VARIABLE, "1")
     path = tmp_path / "big.mcap"
     t0 = 1_700_000_000_000_000_000
     write(path, ChunkBatch.from_chunks([Chunk(t0, bytes(2**21))]))  # one read of 2 MiB: one block
     with pytest.raises(CaptureFormatError, match="1 MiB"):
         list(McapCaptureReader(str(path)).batches())
-    monkeypatch.setenv(mcap_native.LIMIT_VARIABLE, "4")
+    monkeypatch.setenv(mcap_blocks.LIMIT_VARIABLE, "4")
     assert sum(len(b.data) for b in McapCaptureReader(str(path)).batches()) == 2**21
 
 
@@ -255,7 +256,7 @@ def test_blocks_are_bounded_in_bytes_too(tmp_path: Path, monkeypatch: pytest.Mon
     sizes = [6 << 20, 6 << 20, 6 << 20, 20 << 20, 9]
     chunks = [Chunk(t0 + i * 1_000_000, rng.bytes(size)) for i, size in enumerate(sizes)]
     batch = ChunkBatch.from_chunks(chunks)
-    blocks = list(mcap_native.block_batches(batch))
+    blocks = list(mcap_blocks.block_batches(batch))
     assert [len(block) for block in blocks] == [2, 1, 1, 1]
     path = tmp_path / "large.mcap"
     write(path, batch)
