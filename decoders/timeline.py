@@ -112,10 +112,6 @@ class Timeline:
         """The used buckets of ``name`` (empty ones NaN, or 0 for a sum)."""
         return self.series[name].values[: self.used]
 
-    def starts_ns(self) -> npt.NDArray[np.int64]:
-        """The start time of each used bucket."""
-        origin = 0 if self.origin_ns is None else self.origin_ns
-        return origin + np.arange(self.used, dtype=np.int64) * self.width_ns
 
 
 def _empty(merge: Merge, length: int) -> npt.NDArray[np.float64]:

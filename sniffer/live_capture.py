@@ -142,7 +142,8 @@ def _recorder(options: CaptureOptions, status: PortStatus) -> Recorder | None:
 
 def _queue(shared: _Shared, chunk: Chunk, skipped: _Skipped) -> _Skipped:
     """Queue ``chunk`` for decoding, after a mark of the reads dropped before it; a full queue
-    drops it (never blocks: the reader must keep up with the port). What is dropped still."""
+    drops it (never blocks: the reader must keep up with the port). Returns the reads dropped and
+    not yet marked."""
     try:
         if skipped.reads:
             skipped.t_ns = chunk.t_end_ns

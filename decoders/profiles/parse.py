@@ -58,7 +58,7 @@ class _Reader:
                 raise self.fail(where, f"missing '{key}'")
             return default
         value = table[key]
-        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+        if not _is(value, kind):
             raise self.fail(f"{where}.{key}", f"{_shown(value)} is not {_kind_name(kind)}")
         return value
 
@@ -67,14 +67,14 @@ class _Reader:
         entries: list[Any] = self.get(table, key, list, where, [])
         for i, entry in enumerate(entries):
             if not isinstance(entry, dict):
-                raise self.fail(f"{key}[{i}]", f"{_shown(entry)} is not a table")
+                raise self.fail(f"{where}.{key}[{i}]", f"{_shown(entry)} is not a table")
         return entries
 
     def items(self, table: dict[str, Any], key: str, kind: type, where: str) -> tuple[Any, ...]:
         """A list whose every entry is of ``kind`` (whole numbers: not true/false)."""
         entries: list[Any] = self.get(table, key, list, where, [])
         for i, entry in enumerate(entries):
-            if not isinstance(entry, kind) or (kind is int and isinstance(entry, bool)):
+            if not _is(entry, kind):
                 raise self.fail(f"{where}.{key}[{i}]", f"{_shown(entry)} is not {_kind_name(kind)}")
         return tuple(entries)
 
@@ -83,6 +83,11 @@ class _Reader:
         if not 0 <= value <= MAX_ADDRESS:
             raise self.fail(f"{where}.{key}", f"{value} is outside 0..65535")
         return value
+
+
+def _is(value: Any, kind: type | tuple[type, ...]) -> bool:
+    """Whether ``value`` is of ``kind``; a whole number is never true/false."""
+    return isinstance(value, kind) and not (kind is int and isinstance(value, bool))
 
 
 def _shown(value: Any) -> str:

@@ -329,8 +329,9 @@ class McapCaptureReader:
         """A block's chunks, with the UART errors and channels its side messages give."""
         try:
             batch = decode_block(record.data)
-            if len(batch) and int(np.diff(batch.ends, prepend=0).max()) > max_read_bytes():
-                raise self._error(read_limit_message(int(np.diff(batch.ends, prepend=0).max())))
+            largest = int(np.diff(batch.ends, prepend=0).max()) if len(batch) else 0
+            if largest > max_read_bytes():
+                raise self._error(read_limit_message(largest))
             if ERRORS_TOPIC in side:
                 batch = replace(batch, uart_errors=decode_errors(side[ERRORS_TOPIC], len(batch.data)))
             if CHANNELS_TOPIC in side:

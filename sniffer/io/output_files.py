@@ -88,30 +88,31 @@ def published_whole(path: str, *, keep_when_interrupted: bool = False) -> Iterat
     part = str(target.with_name(f".{target.stem}.{secrets.token_hex(4)}.part{target.suffix}"))
     try:
         yield part
-    except RtuSniffError as error:
-        with suppress(FileNotFoundError):
-            os.remove(part)
-        if error.path != part:
-            raise
-        # Errors name the file the user asked for, not the part file that no longer exists.
-        raise type(error)(error.kind, error.message, path=path, location=error.location) from None
     except KeyboardInterrupt:
         if keep_when_interrupted and os.path.exists(part):
             _publish(part, path)
         else:
-            with suppress(FileNotFoundError):
-                os.remove(part)
+            _discard(part)
         raise
+    except RtuSniffError as error:
+        _discard(part)
+        if error.path != part:
+            raise
+        # Errors name the file the user asked for, not the part file that no longer exists.
+        raise type(error)(error.kind, error.message, path=path, location=error.location) from None
     except BaseException:
-        with suppress(FileNotFoundError):
-            os.remove(part)
+        _discard(part)
         raise
     try:
         _publish(part, path)
     except BaseException:
-        with suppress(FileNotFoundError):
-            os.remove(part)
+        _discard(part)
         raise
+
+
+def _discard(part: str) -> None:
+    with suppress(FileNotFoundError):
+        os.remove(part)
 
 
 def _publish(part: str, path: str) -> None:

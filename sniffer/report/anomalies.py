@@ -100,9 +100,10 @@ def frame_rows(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], retries:
     cells = frame_cells(messages, positions, Clock("utc"), plain=False, styled=False)
     summaries = summary_cells(batch, positions, decoding_summary, frame_notes(messages, positions, retries)).texts
     t_start = messages.frames.t_start_ns[positions].tolist()
+    indexes = (positions + messages.frames.first_index).tolist()
     texts = {name: cells[name].texts for name in
-             ("index", "idle", "slave", "function", "role", "request", "latency", "crc", "flags", "hex")}
-    return [FrameRow(int(texts["index"][k]), t_start[k], utc_text(t_start[k]), texts["idle"][k], texts["slave"][k],
+             ("idle", "slave", "function", "role", "request", "latency", "crc", "flags", "hex")}
+    return [FrameRow(indexes[k], t_start[k], utc_text(t_start[k]), texts["idle"][k], texts["slave"][k],
                      texts["function"][k], texts["role"][k], texts["request"][k], texts["latency"][k],
                      texts["crc"][k], texts["flags"][k], texts["hex"][k], summaries[k])
             for k in range(len(positions))]

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from decoders.health import slave_health
 from decoders.stats import Histogram, bin_floor_ns
 from sniffer.report.anomalies import KINDS
 from sniffer.report.collect import ReportCollector
@@ -80,12 +81,8 @@ def _value_charts(collector: ReportCollector) -> list[dict[str, Any]]:
 
 def _distribution(collector: ReportCollector) -> list[dict[str, Any]]:
     """Per slave, the latency distribution as bars on a logarithmic axis (ms, frames)."""
-    merged: dict[int, Histogram] = {}
-    for (slave, _), stats in collector.statistics.per_function.items():
-        latency = stats.latency
-        if latency.count and latency.minimum is not None and latency.maximum is not None:
-            merged.setdefault(slave, Histogram()).merge(latency.counts, latency.count, latency.minimum,
-                                                        latency.maximum)
+    # The slaves' latencies merged over their functions, as the health table has them.
+    merged = {row.slave: row.latency for row in slave_health(collector.statistics) if row.latency.count}
     if not merged:
         return []
     used = [np.flatnonzero(histogram.counts) for histogram in merged.values()]

@@ -4,7 +4,6 @@ the devices that identified themselves) and where it came from."""
 
 from __future__ import annotations
 
-import hashlib
 import os
 from dataclasses import dataclass, field
 
@@ -17,13 +16,13 @@ from decoders.line import LineSettings
 from decoders.message import ROLE_CODE, AnnotatedBatch, DeviceIdentity, MessageBatch, Role
 from decoders.stats import Statistics
 from decoders.timeline import Timeline
+from sniffer.exports.outputs import sha256_of
 from sniffer.report.anomalies import AnomalyLog, anomaly_masks
 from sniffer.report.drive_values import DriveValues
 from sniffer.sinks import Sink
 from sniffer.views.compare_view import Side
 
 _ANSWERS = (ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.EXCEPTION])
-_HASH_BLOCK = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -37,11 +36,7 @@ def source_file(path: str) -> SourceFile:
     """A capture file's size and SHA-256 (standard input: neither can be known)."""
     if path == "-" or not os.path.isfile(path):
         return SourceFile(path, 0, "")
-    digest = hashlib.sha256()
-    with open(path, "rb") as file:
-        while block := file.read(_HASH_BLOCK):
-            digest.update(block)
-    return SourceFile(path, os.path.getsize(path), digest.hexdigest())
+    return SourceFile(path, os.path.getsize(path), sha256_of(path))
 
 
 @dataclass
@@ -99,15 +94,13 @@ class ReportCollector(Sink):
         self._over_time(messages, masks)
         self.anomalies.add(batch, masks, self._retries.notes(messages))
         self.values.add(batch)
-        for position in batch.positions():
-            device = batch.decodings[position].device
-            if device is not None:
-                self.provenance.devices[device.slave] = device
+        for decoding in batch.decodings:
+            if decoding.device is not None:
+                self.provenance.devices[decoding.device.slave] = decoding.device
 
     def _over_time(self, messages: MessageBatch, masks: dict[str, np.ndarray]) -> None:
         frames, timeline = messages.frames, self.timeline
         t_start = frames.t_start_ns
-        timeline.add("frames", "sum", t_start)
         timeline.add_spans("wire_ns", t_start, frames.t_end_ns)
         for kind, mask in masks.items():
             timeline.add(f"anomaly:{kind}", "sum", t_start[mask])

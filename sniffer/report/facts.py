@@ -6,9 +6,11 @@ lay these out; neither computes a figure of its own, so the two always agree.
 
 from __future__ import annotations
 
+import shlex
 from dataclasses import dataclass
 
 from decoders.health import SlaveHealth, slave_health
+from decoders.message import DeviceIdentity
 from decoders.stats import Histogram, Statistics
 from sniffer.report.anomalies import utc_text
 from sniffer.report.collect import Comparison, ReportCollector
@@ -32,6 +34,10 @@ class HealthRow:
     cells: dict[str, str]
     #: ``bad``, ``warn`` or ``good``: how the error rate looks.
     grade: str
+
+
+def report_title(collector: ReportCollector) -> str:
+    return "Modbus RTU report: " + " + ".join(file.path for file in collector.provenance.files)
 
 
 def provenance_facts(collector: ReportCollector) -> list[tuple[str, str]]:
@@ -85,11 +91,10 @@ def bus_summary(collector: ReportCollector) -> list[tuple[str, str, str]]:
     """Label, value and grade (``bad``/``warn``/``""``) of the bus's headline figures."""
     s, counts = collector.statistics, collector.anomalies.counts
     frames = s.frames or 1
-    load = s.bus_load
     summary = [
         ("frames", f"{s.frames:,}", ""),
         ("bytes", f"{s.total_bytes:,}", ""),
-        ("bus load", "–" if load is None else f"{load * 100:.1f} %", ""),
+        ("bus load", _load(s), ""),
         ("CRC errors", f"{s.crc_errors:,} ({s.crc_errors / frames * 100:.2f} %)", _grade(s.crc_errors / frames)),
         ("timeouts", f"{counts['timeout']:,}", _grade(counts["timeout"] / frames)),
         ("exceptions", f"{counts['exception']:,}", _grade(counts["exception"] / frames)),
@@ -104,14 +109,14 @@ def _grade(rate: float) -> str:
     return "bad" if rate >= BAD_RATE else "warn" if rate > 0 else ""
 
 
-def health_rows(statistics: Statistics, collector: ReportCollector | None = None) -> list[HealthRow]:
-    devices = collector.provenance.devices if collector else {}
-    return [_health_row(row, devices.get(row.slave)) for row in slave_health(statistics)]
+def health_rows(collector: ReportCollector) -> list[HealthRow]:
+    devices = collector.provenance.devices
+    return [_health_row(row, devices.get(row.slave)) for row in slave_health(collector.statistics)]
 
 
-def _health_row(row: SlaveHealth, device: object | None) -> HealthRow:
+def _health_row(row: SlaveHealth, device: DeviceIdentity | None) -> HealthRow:
     rate = row.error_rate
-    name = getattr(device, "product_code", "") or ""
+    name = device.product_code if device is not None else ""
     cells = {
         "slave": "0 (broadcast)" if row.slave == 0 else str(row.slave),
         "device": name,
@@ -158,3 +163,8 @@ def comparison_rows(comparison: Comparison) -> tuple[list[tuple[str, str, bool]]
 
 def _load(statistics: Statistics) -> str:
     return "–" if statistics.bus_load is None else f"{statistics.bus_load * 100:.1f} %"
+
+
+def capture_argument(collector: ReportCollector) -> str:
+    """The capture files as a shell command takes them (the report's "show it in full" hint)."""
+    return " ".join(shlex.quote(file.path) for file in collector.provenance.files)

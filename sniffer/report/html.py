@@ -5,7 +5,6 @@ from the data of :mod:`sniffer.report.charts`; everything else is plain HTML wri
 from __future__ import annotations
 
 import json
-import shlex
 from collections.abc import Sequence
 from html import escape
 from importlib.resources import files
@@ -18,10 +17,12 @@ from sniffer.report.drive_values import MAX_CHANGES
 from sniffer.report.facts import (
     HEALTH_COLUMNS,
     bus_summary,
+    capture_argument,
     comparison_facts,
     comparison_rows,
     health_rows,
     provenance_facts,
+    report_title,
 )
 
 #: A kind of anomaly with no more than this many is shown unfolded.
@@ -37,7 +38,7 @@ def _asset(name: str) -> str:
 
 
 def write_html(out: TextIO, collector: ReportCollector, comparison: Comparison | None = None) -> None:
-    title = "Modbus RTU report: " + " + ".join(file.path for file in collector.provenance.files)
+    title = report_title(collector)
     data = json.dumps(chart_data(collector), separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
     parts = [
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n",
@@ -76,7 +77,7 @@ def _summary(collector: ReportCollector) -> str:
 
 
 def _health(collector: ReportCollector) -> str:
-    rows = health_rows(collector.statistics, collector)
+    rows = health_rows(collector)
     if not rows:
         return "<h2 id=\"health\">Slaves</h2>\n<p class=\"muted\">No request or answer of any slave.</p>\n"
     table = _table("health", HEALTH_COLUMNS, [
@@ -131,7 +132,7 @@ def _state_changes(collector: ReportCollector) -> str:
     values = collector.values
     if not values.changes:
         return ""
-    rows = "".join(f"<tr><td class=\"num\">{change.index}</td><td>{escape(_time(change.t_ns))}</td>"
+    rows = "".join(f"<tr><td class=\"num\">{change.index}</td><td>{escape(utc_text(change.t_ns))}</td>"
                    f"<td class=\"num\">{change.slave}</td><td>{escape(change.code)}</td>"
                    f"<td>{escape(change.before or '(first seen)')}</td><td>{escape(change.after)}</td></tr>\n"
                    for change in values.changes)
@@ -143,16 +144,12 @@ def _state_changes(collector: ReportCollector) -> str:
             f"{rows}</table>\n{more}")
 
 
-def _time(t_ns: int) -> str:
-    return utc_text(t_ns)
-
-
 def _classes(classes: str) -> str:
     return f' class="{classes}"' if classes else ""
 
 
 def _anomalies(collector: ReportCollector) -> str:
-    log, capture = collector.anomalies, _capture_argument(collector)
+    log, capture = collector.anomalies, capture_argument(collector)
     found = [kind for kind in KINDS if log.counts[kind]]
     head = ("<h2 id=\"anomalies\">Anomalies</h2>\n<table class=\"anomaly-kinds\">\n<tr><th>kind</th>"
             "<th class=\"num\">frames</th><th>meaning</th></tr>\n")
@@ -164,10 +161,6 @@ def _anomalies(collector: ReportCollector) -> str:
                 "<p class=\"good\">None: every frame good, every request answered.</p>\n")
     sections = [_kind_section(kind, log.counts[kind], log.kept[kind], capture) for kind in found]
     return head + rows + "</table>\n" + "".join(sections)
-
-
-def _capture_argument(collector: ReportCollector) -> str:
-    return " ".join(shlex.quote(file.path) for file in collector.provenance.files)
 
 
 def _kind_section(kind: str, count: int, kept: list[Anomaly], capture: str) -> str:

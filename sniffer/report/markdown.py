@@ -3,7 +3,6 @@ first anomalies of each kind with their hex, to paste into a GitHub, GitLab or J
 
 from __future__ import annotations
 
-import shlex
 from typing import TextIO
 
 from sniffer.report.anomalies import KINDS, Anomaly, FrameRow
@@ -11,10 +10,12 @@ from sniffer.report.collect import Comparison, ReportCollector
 from sniffer.report.facts import (
     HEALTH_COLUMNS,
     bus_summary,
+    capture_argument,
     comparison_facts,
     comparison_rows,
     health_rows,
     provenance_facts,
+    report_title,
 )
 
 #: Anomalies of each kind written with the frames around them.
@@ -22,8 +23,7 @@ EXAMPLES = 3
 
 
 def write_markdown(out: TextIO, collector: ReportCollector, comparison: Comparison | None = None) -> None:
-    files = " + ".join(file.path for file in collector.provenance.files)
-    lines = [f"# Modbus RTU report: {_inline(files)}", "", "| | |", "|---|---|"]
+    lines = [f"# {_inline(report_title(collector))}", "", "| | |", "|---|---|"]
     lines += [f"| {label} | {_cell(value, code=label in ('SHA-256', 'command'))} |"
               for label, value in provenance_facts(collector)]
     lines += ["", "## Bus", ""]
@@ -34,7 +34,7 @@ def write_markdown(out: TextIO, collector: ReportCollector, comparison: Comparis
 
 
 def _health(collector: ReportCollector) -> list[str]:
-    rows = health_rows(collector.statistics, collector)
+    rows = health_rows(collector)
     if not rows:
         return ["## Slaves", "", "No request or answer of any slave.", ""]
     lines = ["## Slaves, worst first", "",
@@ -68,7 +68,7 @@ def _anomalies(collector: ReportCollector) -> list[str]:
     found = [kind for kind in KINDS if log.counts[kind]]
     if not found:
         return ["## Anomalies", "", "None: every frame good, every request answered."]
-    capture = " ".join(shlex.quote(file.path) for file in collector.provenance.files)
+    capture = capture_argument(collector)
     lines = ["## Anomalies", "", "| kind | frames | meaning |", "|---|---:|---|"]
     lines += [f"| {KINDS[kind][0]} | {log.counts[kind]:,} | {KINDS[kind][1]} |" for kind in found]
     lines += ["", f"Any of them in full: `rtusniff analyze {capture} --around INDEX --context 5`.", ""]
