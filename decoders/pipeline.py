@@ -28,8 +28,11 @@ class Decoder:
     statistics need; :class:`Annotator` turns them into decoded messages.
     """
 
-    def __init__(self, line: LineSettings, timing: TimingQuality, *, response_timeout_ns: int | None = None) -> None:
-        self.framer = Framer(line, timing)
+    def __init__(self, line: LineSettings, timing: TimingQuality, *, response_timeout_ns: int | None = None,
+                 host_gap_ns: int | None = None) -> None:
+        """``host_gap_ns``: on host timing, the quiet between reads that certainly ends a frame
+        (a live capture that knows its port: :class:`~decoders.framer.Framer`)."""
+        self.framer = Framer(line, timing, host_gap_ns)
         self.matcher = Matcher(response_timeout_ns)
         #: Host times are when the PC read the bytes: a request and its answer often come in one
         #: read (0 ms) or an answer a read later (the read timeout). They pair frames and time

@@ -30,6 +30,7 @@ from decoders.message import MessageBatch
 from decoders.pipeline import Decoder
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.base import CaptureReader
+from sniffer.io.following import QUIET_NS
 
 #: Pipe buffer asked for (Linux; 64 KiB otherwise): about three batches, so that the child runs
 #: ahead of the parent without a context switch per 64 KiB.
@@ -64,9 +65,15 @@ class _Failed:
     warnings: list[str]
 
 
-def decoding_jobs(requested: str) -> int:
+def decoding_jobs(requested: str, *, follow: bool = False) -> int:
     """Processes to decode with: ``"1"``, ``"2"``, or ``"auto"`` (two where there are two cores
-    for this process and ``os.fork``)."""
+    for this process and ``os.fork``). Following a growing file decodes in one: the writer sets
+    the pace, and Ctrl-C (sent to this process alone by ``kill -INT``) must reach the reader."""
+    if follow:
+        if requested == "2":
+            raise RtuSniffError(ErrorKind.USAGE, "--jobs 2 with --follow: a followed recording is decoded as it is "
+                                "written, in one process; leave --jobs out")
+        return 1
     if requested == "2" and not hasattr(os, "fork"):
         raise RtuSniffError(ErrorKind.USAGE, "--jobs 2: this platform cannot fork a decoding process "
                             "(Windows); use --jobs 1 or auto")
@@ -81,8 +88,15 @@ def decoding_jobs(requested: str) -> int:
 def decode_here(
     reader: CaptureReader, decoder: Decoder, prepare: Prepare[Prepared] | None = None
 ) -> Iterator[DecodingStep[Prepared]]:
-    """The steps of decoding ``reader``, in this process."""
+    """The steps of decoding ``reader``, in this process. An empty batch says the source has been
+    quiet (a followed recording, :data:`sniffer.io.following.QUIET`): what is open is closed."""
+    last_ns: int | None = None
     for chunks in reader.batches():
+        if not len(chunks):
+            if last_ns is not None:
+                yield _step(None, decoder.tick(last_ns + QUIET_NS), prepare)
+            continue
+        last_ns = int(chunks.t_end_ns[-1])
         yield _step(chunks, decoder.feed(chunks), prepare)
     warning = decoder.line_check.warning()
     if warning is not None:

@@ -25,12 +25,14 @@ from rich.console import Console
 from rich.live import Live
 
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
+from decoders.framer import LIVE_IDLE_NS
 from decoders.line import LineSettings
 from decoders.message import MessageBatch
 from decoders.pipeline import Decoder
 from decoders.profiles.apply import ProfileBook
 from decoders.stats import SkippedReads
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.streams import StreamSink
 from sniffer.pipeline import Delivery
 from sniffer.recorder import Recorder, Rotation
 from sniffer.serial_source import ICOUNT_FIELDS, PortGoneError, PortStatus, SerialSource
@@ -40,10 +42,26 @@ from sniffer.views.live import LiveState, LiveView
 
 VIEW_QUEUE_READS = 1024
 REFRESH_S = 0.25
+#: With a live viewer: how often decoding takes the new reads (a frame's latency to the viewer;
+#: each round costs the decoding and every sink a fixed part, so not more often).
+STREAM_WAIT_S = 0.025
 READ_TIMEOUT_S = 0.1
 COUNTERS_EVERY_S = 1.0
+#: The least quiet that ends a frame live (a prompt port's reads still jitter by milliseconds).
+MIN_LIVE_GAP_NS = 20_000_000
 INTERRUPTED = 130
 TERMINATED = 143
+
+
+def live_gap_ns(line: LineSettings, status: PortStatus) -> int:
+    """The quiet between reads that certainly ends a frame on this port, so that a frame is
+    decoded (and shown, and streamed) once the line is that quiet after it: above t3.5 and twice
+    the port's delivery delay (an FTDI latency timer), at least ``MIN_LIVE_GAP_NS``; where the
+    delay is unknown (another USB adapter), the framer's 100 ms."""
+    delivery_ms = status.delivery_ms
+    if delivery_ms is None:
+        return LIVE_IDLE_NS
+    return max(MIN_LIVE_GAP_NS, int(line.t3_5_ns) + 10_000_000, 2 * delivery_ms * 1_000_000 + 10_000_000)
 
 
 class TerminatedError(Exception):
@@ -60,6 +78,8 @@ class CaptureOptions:
     duration_s: float | None
     response_timeout_ns: int | None
     profiles: ProfileBook | None
+    #: Live viewers fed beside the view (``--foxglove``, ``--rerun``): decoded as soon as read.
+    streams: tuple[Sink, ...] = ()
 
 
 @dataclass
@@ -253,14 +273,19 @@ class _Session:
                  shared: _Shared, out: TextIO, *, request: _StopRequest | None = None) -> None:
         self.options, self.recorder, self.shared = options, recorder, shared
         self.request = request or _StopRequest(shared)
-        self.decoder = Decoder(options.line, TimingQuality.HOST, response_timeout_ns=options.response_timeout_ns)
+        self.decoder = Decoder(options.line, TimingQuality.HOST, response_timeout_ns=options.response_timeout_ns,
+                               host_gap_ns=live_gap_ns(options.line, status))
         self.state = LiveState(options.port, options.line.format(), options.output,
                                "timing host (times are when the PC read the bytes)", advice=status.advice())
         self.view = LiveView(self.state) if options.mode == "view" else None
         if options.mode == "jsonl":
             out = whole_writes(out)
         sinks: list[Sink] = [JsonlView(out)] if options.mode == "jsonl" else [self.view] if self.view else []
-        self.delivery = Delivery(sinks, options.profiles)
+        self.delivery = Delivery([*sinks, *options.streams], options.profiles)
+        #: How long decoding waits for more reads: a viewer wants each frame at once, a terminal
+        #: view four times a second.
+        self._wait_s = STREAM_WAIT_S if options.streams else REFRESH_S
+        self._next_render = self._last_drain = 0.0
         self.out = out
         self._counters: dict[str, int] | None = None
 
@@ -287,7 +312,9 @@ class _Session:
                     raise self.recorder.error
                 if deadline is not None and time.monotonic() >= deadline:
                     break
-                render()
+                if time.monotonic() >= self._next_render:
+                    render()
+                    self._next_render = time.monotonic() + REFRESH_S
             self._drain(source)
         finally:
             if live is not None:
@@ -295,8 +322,9 @@ class _Session:
                 live.stop()
 
     def _drain(self, source: SerialSource) -> None:
-        """Once per refresh interval: decode everything read since, in one batch."""
-        self.shared.stop.wait(REFRESH_S)
+        """Decode everything read since the last time, in one batch, once a refresh interval
+        has passed (or, with a live viewer, as soon as something was read)."""
+        self._wait_for_reads()
         items = []
         try:
             while True:
@@ -316,7 +344,20 @@ class _Session:
             self._deliver(self.decoder.feed(ChunkBatch.from_chunks(chunks)))
         self._deliver(self.decoder.tick(source.now_ns()))
         self.state.behind_reads = self.shared.behind_reads
+        if self.options.streams:
+            self.state.streams = "; ".join(cast(StreamSink, sink).live_status() for sink in self.options.streams)
         self.state.recorded_bytes = self.recorder.bytes_recorded if self.recorder is not None else 0
+
+    def _wait_for_reads(self) -> None:
+        if self._wait_s == REFRESH_S:
+            self.shared.stop.wait(REFRESH_S)
+            return
+        # One round per interval, reads or not: the framer closes a frame the line has been quiet
+        # after on a tick.
+        wait = self._last_drain + self._wait_s - time.monotonic()
+        if wait > 0:
+            self.shared.stop.wait(wait)
+        self._last_drain = time.monotonic()
 
     def _restart(self, before: list[Chunk], skipped: _Skipped) -> None:
         """Reads were skipped after ``before``: decode those, close what they leave open (a frame
@@ -361,9 +402,13 @@ class _Session:
     def finish(self) -> None:
         if self.options.mode == "quiet":
             return
-        self._deliver(self.decoder.flush())
-        with self._writing():
-            self.delivery.finish()
+        try:
+            self._deliver(self.decoder.flush())
+            with self._writing():
+                self.delivery.finish()
+        finally:
+            for stream in self.options.streams:
+                stream.close()
 
 
 def _report(code: int, options: CaptureOptions, recorder: Recorder | None, shared: _Shared, err: Console) -> int:

@@ -153,8 +153,9 @@ class Delivery:
             kept = annotated if self._keep is None else annotated.select(self._keep(annotated))
         if self._left is not None:
             batch, kept = self._limited(batch, kept)
-        if self.selective and self.preparing:
+        if self.preparing and (self.selective or not prepared):
             # What the decoding process prepared covers whole batches: here, only the part delivered.
+            # A live capture prepares here too (one process).
             prepared = tuple(sink.prepare(batch) for sink in self.preparing if sink.prepare is not None)
         self.framed_bytes += len(batch.frames.data)
         if self.selective and len(batch):

@@ -19,8 +19,10 @@ from __future__ import annotations
 import errno
 import importlib
 import os
+import re
 import select
 import struct
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -77,6 +79,17 @@ class PortStatus:
     #: RTS and DTR as the driver reports them after they were cleared; ``None``: it cannot say
     #: (a pseudo-terminal has no modem lines; Windows).
     modem_lines: dict[str, bool] | None = None
+    #: A port whose reads return as bytes arrive (a board's own UART, a pseudo-terminal): no
+    #: USB adapter holds them back.
+    prompt: bool = False
+
+    @property
+    def delivery_ms(self) -> int | None:
+        """How late, at most, reads deliver bytes (an FTDI adapter's latency timer; 0 on a prompt
+        port); ``None``: not known (another USB adapter, Windows, macOS)."""
+        if self.latency_timer_ms is not None:
+            return self.latency_timer_ms
+        return 0 if self.prompt else None
 
     def modem_note(self) -> str:
         """What is known of RTS and DTR, for the recording's notes and the warnings."""
@@ -130,7 +143,7 @@ class SerialSource:
                                 f"{exc}", path=self.port) from None
         self._clear_modem_lines()
         return PortStatus(self._low_latency(), _latency_timer_ms(self.port), self.counters() is not None,
-                          self.modem_lines())
+                          self.modem_lines(), prompt=_is_prompt(self.port))
 
     def _clear_modem_lines(self) -> None:
         """RTS and DTR off again, each on its own: pyserial clears them at open in one step that
@@ -227,6 +240,15 @@ def _latency_timer_ms(port: str) -> int | None:
         return int(timer.read_text().strip())
     except (OSError, ValueError):
         return None
+
+
+#: Linux names of ports that are no USB adapter: board UARTs (8250, PL011, i.MX, Samsung) and
+#: pseudo-terminals.
+_PROMPT_PORTS = re.compile(r"/dev/(ttyS|ttyAMA|ttymxc|ttySAC|pts/)\d+")
+
+
+def _is_prompt(port: str) -> bool:
+    return sys.platform.startswith("linux") and _PROMPT_PORTS.fullmatch(os.path.realpath(port)) is not None
 
 
 def serial_ports() -> list[tuple[str, str, str]]:

@@ -200,14 +200,14 @@ def test_spawn_without_a_display_is_one_error_line(monkeypatch: pytest.MonkeyPat
 
 
 def test_the_rerun_viewer_is_found_beside_the_interpreter(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    from sniffer.commands import export
+    from sniffer.exports import streams
 
     beside = Path(sys.executable).parent / ("rerun.exe" if os.name == "nt" else "rerun")
     monkeypatch.setenv("PATH", str(tmp_path))  # not on PATH
     if beside.is_file():
-        assert export.rerun_viewer() == str(beside)
+        assert streams.rerun_viewer() == str(beside)
     monkeypatch.setattr(sys, "executable", str(tmp_path / "python"))
-    assert export.rerun_viewer() is None
+    assert streams.rerun_viewer() is None
 
 
 def test_a_missing_profile_folder_is_one_error_line(tmp_path: Path) -> None:

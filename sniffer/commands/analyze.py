@@ -9,10 +9,12 @@ from typing import TextIO
 
 from rich.console import Console
 
+from decoders.message import AnnotatedBatch
 from sniffer.commands.common import (
     add_capture_argument,
     add_decoding_options,
     add_filter_option,
+    add_follow_option,
     add_force_option,
     add_jobs_option,
     add_output_option,
@@ -26,6 +28,7 @@ from sniffer.commands.common import (
     tell_written,
 )
 from sniffer.decoding_process import decoding_jobs
+from sniffer.exports.streams import add_stream_options, check_streams, stream_sinks
 from sniffer.pipeline import analyze
 from sniffer.progress import progress_for
 from sniffer.sinks import Sink
@@ -55,6 +58,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     add_width_option(view, "frame")
     add_register_options(view)
     add_decoding_options(parser)
+    add_follow_option(parser)
+    add_stream_options(parser, replay=True)
     add_jobs_option(parser)
     add_quiet_option(parser)
     parser.set_defaults(run=run)
@@ -80,16 +85,34 @@ FORMATS: dict[str, Callable[[TextIO, argparse.Namespace], Sink]] = {"table": tab
 
 def run(args: argparse.Namespace) -> int:
     check_outputs([args.output], capture_paths(args), force=args.force)
+    check_streams(args)
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)
         sink = FORMATS[args.format](out, args)
+        streams = stream_sinks(args, replay=True)
+        for stream in streams:
+            stack.callback(stream.close)
+        # Following: each batch reaches a pipe (| jq, | grep) as it is decoded.
+        flushing = [FlushEachBatch(out)] if args.follow else []
         progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
-        statistics = analyze(reader, source_name(args), analysis, [sink, progress.sink],
-                             jobs=decoding_jobs(args.jobs))
+        statistics = analyze(reader, source_name(args), analysis, [sink, *flushing, *streams, progress.sink],
+                             jobs=decoding_jobs(args.jobs, follow=args.follow))
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format}, {shown_frames(sink, statistics.frames):,} frames")])
     return 0
+
+
+class FlushEachBatch(Sink):
+    """Flushes the output after each batch the view wrote."""
+
+    wants_messages = True
+
+    def __init__(self, out: TextIO) -> None:
+        self._out = out
+
+    def messages(self, batch: AnnotatedBatch) -> None:
+        self._out.flush()
 
 
 def shown_frames(sink: Sink, frames: int) -> int:

@@ -11,6 +11,7 @@ from rich.console import Console
 from decoders.line import LineSettings
 from sniffer.commands.common import add_profile_options, add_response_timeout_option, response_timeout_ns
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.streams import add_stream_options, check_streams, stream_sinks
 from sniffer.io.registry import find_format
 from sniffer.line_probe import probe_line
 from sniffer.live_capture import CaptureOptions, run_capture
@@ -39,6 +40,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("--duration", type=float, metavar="SECONDS", help="stop after SECONDS")
     add_response_timeout_option(parser)
     add_profile_options(parser)
+    add_stream_options(parser, replay=False)
     parser.set_defaults(run=run)
 
 
@@ -56,6 +58,9 @@ def run(args: argparse.Namespace) -> int:
             if taken:
                 raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"exists ({len(taken)} file(s) of an earlier rotation); "
                                     "capture never overwrites a recording: choose another name", path=taken[0])
+    if args.quiet and (args.foxglove is not None or args.rerun is not None):
+        raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: --foxglove and --rerun need the decoding")
+    check_streams(args)
     book = profile_book(args.profile, args.profile_file)
     line = _line(args, err)
     options = CaptureOptions(
@@ -67,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
         duration_s=args.duration,
         response_timeout_ns=response_timeout_ns(args),
         profiles=book,
+        streams=tuple(stream_sinks(args, replay=False)),
     )
     return run_capture(options, sys.stdout, err)
 

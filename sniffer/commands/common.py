@@ -15,7 +15,9 @@ from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.filters import parse_filters
 from sniffer.io.base import CaptureReader, ReaderOptions
 from sniffer.io.chain import open_capture
+from sniffer.io.following import FollowingReader, stopping_on_signals
 from sniffer.io.output_files import allow_replacing, open_new_text
+from sniffer.io.pacing import PacedReader, parse_speed
 from sniffer.io.registry import format_help, formats_for
 from sniffer.pipeline import Analysis, effective_line
 from sniffer.profiles_io import profile_book
@@ -159,12 +161,29 @@ def add_jobs_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_follow_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--follow", action="store_true",
+                        help="keep reading as the capture grows (a recording 'rtusniff capture -o' is still writing), "
+                        "as tail -f does; ends at the recording's end or Ctrl-C")
+
+
 def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureReader, Analysis]:
-    """Open ``args.capture`` and settle how to decode it."""
+    """Open ``args.capture`` and settle how to decode it; ``--follow`` and ``--speed`` shape
+    how its chunks come (:mod:`sniffer.io.following`, :mod:`sniffer.io.pacing`)."""
     book = profile_book(args.profile, args.profile_file)
     override = line_override(args)
-    reader = open_capture(capture_paths(args), args.input_format, reader_options(args))
+    paths = capture_paths(args)
+    if getattr(args, "follow", False) and (len(paths) != 1 or paths[0] == "-"):
+        raise RtuSniffError(ErrorKind.USAGE, "--follow follows one capture file (standard input is followed anyway)")
+    if getattr(args, "follow", False):
+        stack.enter_context(stopping_on_signals())
+    reader: CaptureReader = open_capture(paths, args.input_format, reader_options(args))
     stack.callback(close_reader, reader)
+    if getattr(args, "follow", False):
+        reader = FollowingReader(reader)
+    speed = replay_speed(args)
+    if speed is not None:
+        reader = PacedReader(reader, speed)
     if override is not None and reader.info.line is not None and override.format() != reader.info.line.format():
         reader.warnings.append(f"{source_name(args)}: --line {override.format()} overrides the capture's own "
                                f"{reader.info.line.format()}")
@@ -180,7 +199,17 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
 def reader_options(args: argparse.Namespace) -> ReaderOptions:
     """What the command's options tell a capture reader: ``--line``, ``--timing``, ``--channel``."""
     return ReaderOptions(line=line_override(args), timing=TimingQuality(args.timing) if args.timing else None,
-                         channels=tuple(getattr(args, "channel", None) or ()))
+                         channels=tuple(getattr(args, "channel", None) or ()), follow=getattr(args, "follow", False))
+
+
+def replay_speed(args: argparse.Namespace) -> float | None:
+    """How fast a file is replayed: ``--speed``, 1 when a live viewer watches a file that is
+    not followed, ``None`` (as fast as it decodes) otherwise."""
+    text = getattr(args, "speed", None)
+    if text is None:
+        watched = getattr(args, "foxglove", None) is not None or getattr(args, "rerun", None) is not None
+        return 1.0 if watched and not getattr(args, "follow", False) else None
+    return parse_speed(text)
 
 
 def close_reader(reader: CaptureReader) -> None:

@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import sys
 from collections.abc import Callable
 from contextlib import ExitStack
-from pathlib import Path
 from typing import Any
 
 from sniffer.commands.common import (
     add_capture_argument,
     add_decoding_options,
+    add_follow_option,
     add_jobs_option,
     add_quiet_option,
     capture_paths,
@@ -25,6 +24,7 @@ from sniffer.commands.common import (
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.outputs import McapSink, PcapSink, RerunSink
+from sniffer.exports.streams import RerunStreamSink, add_stream_options, check_streams, stream_sinks
 from sniffer.io.output_files import published_whole
 from sniffer.pipeline import Analysis, analyze
 from sniffer.progress import progress_for
@@ -47,17 +47,24 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                         help="user: link type 147 (Wireshark maps it to Modbus RTU with one DLT_USER line); udp: each "
                         "frame in a UDP packet, master to slave port 502, so that Wireshark tells queries from "
                         "responses for every function (one preference: mbrtu.udp.port:502)")
-    parser.add_argument("--spawn", action="store_true", help="also open the Rerun viewer (needs a display)")
+    parser.add_argument("--spawn", action="store_true", help="the same as --rerun spawn")
     parser.add_argument("--force", action="store_true", help="overwrite existing output files")
     add_decoding_options(parser)
+    add_follow_option(parser)
+    add_stream_options(parser, replay=True)
     add_jobs_option(parser)
     add_quiet_option(parser)
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    if not (args.mcap or args.rrd or args.pcap or args.spawn):
-        raise RtuSniffError(ErrorKind.USAGE, "export: give --mcap OUT.mcap, --rrd OUT.rrd, --pcap OUT.pcap or --spawn")
+    if args.spawn:
+        if args.rerun not in (None, "spawn"):
+            raise RtuSniffError(ErrorKind.USAGE, "--spawn is --rerun spawn: give one --rerun")
+        args.rerun = "spawn"
+    if not (args.mcap or args.rrd or args.pcap or args.foxglove or args.rerun):
+        raise RtuSniffError(ErrorKind.USAGE, "export: give --mcap OUT.mcap, --rrd OUT.rrd, --pcap OUT.pcap, "
+                            "--foxglove [HOST:]PORT or --rerun spawn|ADDRESS")
     for option, path in (("--mcap", args.mcap), ("--rrd", args.rrd)):
         if path == "-":
             raise RtuSniffError(ErrorKind.USAGE, f"{option} -: only --pcap writes to standard output; name a file")
@@ -65,8 +72,7 @@ def run(args: argparse.Namespace) -> int:
         raise RtuSniffError(ErrorKind.USAGE, "--pcap -: binary pcap to a terminal; pipe it (| wireshark -k -i -) "
                             "or redirect it to a file")
     check_outputs([args.mcap, args.rrd, args.pcap], capture_paths(args), force=args.force)
-    if args.spawn:
-        check_viewer_can_start()
+    check_streams(args)
     with ExitStack() as stack:
         # Each file is written beside its name and put in place once whole: an export that fails
         # half way (a damaged capture, times MCAP cannot hold) leaves nothing that passes for one;
@@ -77,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
         sinks = output_sinks(argparse.Namespace(**{**vars(args), **parts}), analysis, stack)
         progress = stack.enter_context(progress_for(args, reader, to_terminal=args.pcap == "-"))
         analyze(reader, source_name(args), analysis, [*(sink for _, sink in sinks), progress.sink],
-                jobs=decoding_jobs(args.jobs))
+                jobs=decoding_jobs(args.jobs, follow=args.follow))
     if not args.quiet:
         _tell_written(args, sinks)
     return 0
@@ -88,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
 #: order is the order the sinks get each batch in.
 OUTPUTS: list[tuple[str, str, Callable[[str, argparse.Namespace, Analysis], FileSink[Any]]]] = [
     ("mcap", "MCAP", McapSink),
-    ("rrd", "Rerun recording", lambda path, args, analysis: RerunSink(path, rerun_viewer() if args.spawn else None)),
+    ("rrd", "Rerun recording", lambda path, args, analysis: RerunSink(path)),
     ("pcap", "pcap", lambda path, args, analysis: PcapSink(path, udp=args.pcap_link == "udp")),
 ]
 
@@ -97,53 +103,37 @@ def output_sinks(
     args: argparse.Namespace, analysis: Analysis, stack: ExitStack
 ) -> list[tuple[str, FileSink[Any]]]:
     """The sinks of the outputs asked for, each closed by ``stack`` (the first whose closing
-    fails to write is the error); ``--spawn`` without ``--rrd`` is a Rerun sink without a file."""
+    fails to write is the error); ``--rerun`` with ``--rrd`` is one Rerun sink, the file and
+    the viewer fed from one recording."""
     sinks: list[tuple[str, FileSink[Any]]] = []
     for option, kind, make in OUTPUTS:
         path = getattr(args, option)
-        if path or (option == "rrd" and args.spawn):
+        if path and not (option == "rrd" and args.rerun):
             sinks.append((kind, make(path, args, analysis)))
+    for sink in stream_sinks(args, replay=True, rrd=args.rrd):
+        sinks.append(("Rerun recording" if isinstance(sink, RerunStreamSink) else "Foxglove stream", sink))
     # Closed last to first: the Rerun recording, then the pcap, then the MCAP, as always.
     for _, sink in sorted(sinks, key=lambda item: _CLOSE_ORDER.index(item[0])):
         stack.callback(sink.close)
     return sinks
 
 
-_CLOSE_ORDER = ["MCAP", "pcap", "Rerun recording"]
+_CLOSE_ORDER = ["MCAP", "pcap", "Foxglove stream", "Rerun recording"]
 
 
 def _tell_written(args: argparse.Namespace, sinks: list[tuple[str, FileSink[Any]]]) -> None:
     """One line per output on standard error: what was written where."""
     names = {kind: getattr(args, option) for option, kind, _ in OUTPUTS}
     for kind, sink in sinks:
-        path = names[kind]
+        path = names.get(kind)
         if path == "-":
             print(f"wrote {sink.frames_written:,} frames as {kind} to standard output", file=sys.stderr)
         elif path:
             print(f"wrote {path}: {kind}, {sink.frames_written:,} frames, "
                   f"{human_size(os.path.getsize(path))}", file=sys.stderr)
-    if args.spawn:
+    for kind, sink in sinks:
+        if kind == "Foxglove stream":
+            print(f"served {sink.frames_written:,} frames to Foxglove", file=sys.stderr)
+    if args.rerun:
         frames = next(sink.frames_written for kind, sink in sinks if kind == "Rerun recording")
         print(f"sent {frames:,} frames to the Rerun viewer", file=sys.stderr)
-
-
-def check_viewer_can_start() -> None:
-    """``--spawn`` starts the Rerun viewer: a window. Refuse at once where none can open (the
-    SDK would wait for a viewer that never starts) or where no ``rerun`` program is found."""
-    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise RtuSniffError(ErrorKind.USAGE, "--spawn opens the Rerun viewer, but there is no display (DISPLAY and "
-                            "WAYLAND_DISPLAY are unset); write --rrd FILE.rrd and open it with 'rerun FILE.rrd' "
-                            "where there is one")
-    if rerun_viewer() is None:
-        raise RtuSniffError(ErrorKind.USAGE, "--spawn: the Rerun viewer ('rerun') is neither beside this Python "
-                            f"({Path(sys.executable).parent}) nor on PATH; reinstall rtusniff (it brings rerun-sdk)")
-
-
-def rerun_viewer() -> str | None:
-    """The ``rerun`` program of this installation: beside the interpreter (a venv's bin or
-    Scripts folder, not always on PATH), else on PATH."""
-    name = "rerun.exe" if os.name == "nt" else "rerun"
-    beside = Path(sys.executable).parent / name
-    if beside.is_file():
-        return str(beside)
-    return shutil.which("rerun")

@@ -10,6 +10,7 @@ from rich.console import Console
 from sniffer.commands.common import (
     add_capture_argument,
     add_decoding_options,
+    add_follow_option,
     add_force_option,
     add_output_option,
     add_quiet_option,
@@ -42,6 +43,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     add_width_option(parser)
     add_force_option(parser)
     add_decoding_options(parser)
+    add_follow_option(parser)
     add_quiet_option(parser)
     parser.set_defaults(run=run)
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import contextlib
 import json
 from importlib.metadata import version
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -124,35 +124,37 @@ def numeric_params(decoding: Decoding) -> dict[str, float | int]:
     return values
 
 
-class McapExporter:
-    """Writes the decoded channels next to the raw chunks of the native capture format, a
-    batch at a time: each channel's messages are built as columns and written as one block."""
+class MessageWriter(Protocol):
+    """Where the decoded channels go: an MCAP file (:class:`ColumnarMcapWriter`) or a live
+    Foxglove server (:class:`sniffer.exports.foxglove_server.FoxgloveServerWriter`)."""
 
-    def __init__(self, path: str, info: CaptureInfo, line: LineSettings, metadata: dict[str, str]) -> None:
-        self.path = path
-        self._file: BinaryIO = open_new(path)
-        tool = f"rtusniff {version('rtusniff')}"
-        self._writer = ColumnarMcapWriter(self._file, profile=PROFILE, library=tool, chunk_size=CHUNK_SIZE)
-        try:
-            # Metadata first: a reader of the capture finds the line settings before any block.
-            self._writer.add_metadata(METADATA_NAME, info_metadata(info))
-            export = {**metadata, "line": line.format(), "timing": info.timing.value, "tool": tool}
-            self._writer.add_metadata("rtusniff.export", export)
-            self._raw = self._writer.add_channel(TOPIC, MESSAGE_ENCODING, 0, {"layout": LAYOUT_DOC})
-            self._side_channels: dict[str, int] = {}
-            self._frames = self._json_channel("/modbus/frames", FRAME_SCHEMA)
-            self._transactions = self._json_channel("/modbus/transactions", TRANSACTION_SCHEMA)
-            log_schema = self._writer.add_schema(
-                foxglove_log.SCHEMA_NAME, foxglove_log.ENCODING, foxglove_log.FILE_DESCRIPTOR_SET
-            )
-            self._log = self._writer.add_channel("/modbus/log", foxglove_log.ENCODING, log_schema, {})
-            self._params_schema = self._writer.add_schema(
-                PARAMS_SCHEMA["title"], "jsonschema", json.dumps(PARAMS_SCHEMA).encode()
-            )
-            self._writer.flush()
-        except BaseException:
-            self._abandon()
-            raise
+    def add_schema(self, name: str, encoding: str, data: bytes) -> int: ...
+
+    def add_channel(self, topic: str, message_encoding: str, schema_id: int, metadata: dict[str, str]) -> int: ...
+
+    def write(self, block: MessageBlock) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class DecodedChannels:
+    """The decoded channels (frames, transactions, params per slave, log) built a batch at a
+    time as columns and handed to a :class:`MessageWriter` as blocks: one definition for the
+    MCAP file and the live Foxglove stream, so a layout made on one works on the other."""
+
+    def __init__(self, writer: MessageWriter, info: CaptureInfo, *, target: str) -> None:
+        #: What the messages go to, as errors name it (a file, the Foxglove stream).
+        self.target = target
+        self._writer = writer
+        self._frames = self._json_channel("/modbus/frames", FRAME_SCHEMA)
+        self._transactions = self._json_channel("/modbus/transactions", TRANSACTION_SCHEMA)
+        log_schema = self._writer.add_schema(
+            foxglove_log.SCHEMA_NAME, foxglove_log.ENCODING, foxglove_log.FILE_DESCRIPTOR_SET
+        )
+        self._log = self._writer.add_channel("/modbus/log", foxglove_log.ENCODING, log_schema, {})
+        self._params_schema = self._writer.add_schema(
+            PARAMS_SCHEMA["title"], "jsonschema", json.dumps(PARAMS_SCHEMA).encode()
+        )
         self._published = PublishedValues()
         #: ``/slave/N/params`` channel ids by slave, made when a slave first carries values.
         self._param_channels = np.zeros(256, np.uint16)
@@ -165,25 +167,6 @@ class McapExporter:
     def _json_channel(self, topic: str, schema: dict[str, Any]) -> int:
         schema_id = self._writer.add_schema(schema["title"], "jsonschema", json.dumps(schema).encode())
         return self._writer.add_channel(topic, "json", schema_id, {})
-
-    def raw(self, batch: ChunkBatch) -> None:
-        """The capture's chunks as the native capture has them (so the export reads back as a
-        capture), each block's side messages (UART errors, channels) just before it."""
-        payloads, channels, times = [], [], []
-        for block in block_batches(batch):
-            t_first = int(block.t_end_ns[0])
-            for topic, payload in side_messages(block):
-                if topic not in self._side_channels:
-                    encoding, layout = SIDE_CHANNELS[topic]
-                    self._side_channels[topic] = self._writer.add_channel(topic, encoding, 0, {"layout": layout})
-                payloads.append(payload)
-                channels.append(self._side_channels[topic])
-                times.append(t_first)
-            payloads.append(encode_block(block))
-            channels.append(self._raw)
-            times.append(t_first)
-        rows = join_rows([payloads], len(payloads), HEADER_SIZE)
-        self._write(rows, np.array(channels, np.uint16), np.array(times, np.int64))
 
     def messages(self, batch: AnnotatedBatch) -> None:
         positions = batch.positions()
@@ -224,7 +207,7 @@ class McapExporter:
             raise RtuSniffError(
                 ErrorKind.OUTPUT_FAILED, f"a frame starts {-int(t_ns.min()) / 1e9:.6f} s before 1970 (a capture whose "
                 "clock starts at 0, as a logic analyzer's does): MCAP times are nanoseconds since 1970 and cannot "
-                "be earlier; --pcap, --rrd and analyze --format jsonl take such times", path=self.path)
+                "be earlier; --pcap, --rrd and analyze --format jsonl take such times", path=self.target)
         if isinstance(channels, int):
             channels = np.full(len(rows), channels, np.uint16)
         self._writer.write(MessageBlock(rows, channels, t_ns))
@@ -251,15 +234,67 @@ class McapExporter:
         found = self._parts.get_all(decodings, lambda row: _decoding_parts(decodings[row], int(roles[row])))
         return [parts[0] for parts in found], [parts[1] for parts in found]
 
+    def log_line(self, t_ns: int, level: int, text: str) -> None:
+        """One line of rtusniff's own on ``/modbus/log`` (a gap in a live capture's decoding)."""
+        times = np.array([t_ns], np.int64)
+        rows = self._log_encoder.rows(times, np.array([level], np.uint8), [[text.encode()]],
+                                      np.array([_OWN_LOG], np.int64), HEADER_SIZE)
+        self._write(rows, self._log, times)
+
+    def close(self) -> None:
+        self._writer.close()
+
+
+class McapExporter(DecodedChannels):
+    """Decoded MCAP: the decoded channels next to the raw chunks of the native capture format,
+    with the capture's and the export's metadata first."""
+
+    def __init__(self, path: str, info: CaptureInfo, line: LineSettings, metadata: dict[str, str]) -> None:
+        self.path = path
+        self._file: BinaryIO = open_new(path)
+        tool = f"rtusniff {version('rtusniff')}"
+        self._mcap = ColumnarMcapWriter(self._file, profile=PROFILE, library=tool, chunk_size=CHUNK_SIZE)
+        try:
+            # Metadata first: a reader of the capture finds the line settings before any block.
+            self._mcap.add_metadata(METADATA_NAME, info_metadata(info))
+            export = {**metadata, "line": line.format(), "timing": info.timing.value, "tool": tool}
+            self._mcap.add_metadata("rtusniff.export", export)
+            self._raw = self._mcap.add_channel(TOPIC, MESSAGE_ENCODING, 0, {"layout": LAYOUT_DOC})
+            self._side_channels: dict[str, int] = {}
+            super().__init__(self._mcap, info, target=path)
+            self._mcap.flush()
+        except BaseException:
+            self._abandon()
+            raise
+
+    def raw(self, batch: ChunkBatch) -> None:
+        """The capture's chunks as the native capture has them (so the export reads back as a
+        capture), each block's side messages (UART errors, channels) just before it."""
+        payloads, channels, times = [], [], []
+        for block in block_batches(batch):
+            t_first = int(block.t_end_ns[0])
+            for topic, payload in side_messages(block):
+                if topic not in self._side_channels:
+                    encoding, layout = SIDE_CHANNELS[topic]
+                    self._side_channels[topic] = self._mcap.add_channel(topic, encoding, 0, {"layout": layout})
+                payloads.append(payload)
+                channels.append(self._side_channels[topic])
+                times.append(t_first)
+            payloads.append(encode_block(block))
+            channels.append(self._raw)
+            times.append(t_first)
+        rows = join_rows([payloads], len(payloads), HEADER_SIZE)
+        self._write(rows, np.array(channels, np.uint16), np.array(times, np.int64))
+
     def close(self) -> None:
         try:
-            self._writer.close()
+            self._mcap.close()
         finally:
             self._file.close()
 
     def _abandon(self) -> None:
         with contextlib.suppress(OSError):
-            self._writer.close()
+            self._mcap.close()
         with contextlib.suppress(OSError):
             self._file.close()
 
@@ -275,5 +310,6 @@ def _decoding_parts(decoding: Decoding, role: int) -> tuple[bytes, bytes]:
     return f" {ROLE_ORDER[role].value}: {decoding.summary}".encode(), encode_json(values)[1:] if values else b""
 
 
-#: The log's ``name`` by slave; NONE (-1, noise) is the last.
-_LOG_NAMES = [f"slave {slave}" for slave in range(256)] + ["noise"]
+#: The log's ``name`` by slave, then rtusniff's own lines; NONE (-1, noise) is the last.
+_LOG_NAMES = [f"slave {slave}" for slave in range(256)] + ["rtusniff", "noise"]
+_OWN_LOG = 256

@@ -74,19 +74,15 @@ class McapSink(FileSink["McapExporter"]):
 
 
 class RerunSink(FileSink["RerunExporter"]):
-    """A Rerun recording (``path``) and/or the Rerun viewer (``spawn``: its program)."""
+    """A Rerun recording (``path``); a viewer too: :class:`sniffer.exports.streams.RerunStreamSink`."""
 
     wants_messages = True
-
-    def __init__(self, path: str | None, spawn: str | None) -> None:
-        super().__init__(path)
-        self._spawn = spawn
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         from sniffer.exports.rerun_export import RerunExporter  # noqa: PLC0415 - a third of a second to import
 
         with self.writing():
-            self.exporter = RerunExporter(self.path, spawn=self._spawn)
+            self.exporter = RerunExporter(self.path)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         self.frames_written += len(batch.messages)

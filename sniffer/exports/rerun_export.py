@@ -18,6 +18,7 @@ and the logs below.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from operator import attrgetter, itemgetter
 
@@ -31,9 +32,13 @@ from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, AnnotatedBatch, Decodi
 from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
 from sniffer.exports.published import PublishedValues, plotted
+from sniffer.exports.rerun_live import LiveSender
 
 APPLICATION = "rtusniff"
 ENTITY_ROWS = 32_768
+#: Live: how often what was buffered goes to the viewer (a quarter of a second behind the bus:
+#: each entity sent is a fixed cost in the SDK, so sending more often costs a core on a busy line).
+LIVE_SEND_S = 0.5
 MAX_BUFFERED_ROWS = 400_000
 #: Column pieces an entity's buffer holds before they are merged into one.
 MAX_PIECES = 32
@@ -83,21 +88,49 @@ class _Rows:
                 pieces[:] = [np.concatenate(pieces)]
 
 
+def send_rows(rec: rr.RecordingStream, path: str, style: rr.SeriesLines | rr.SeriesPoints | None,
+              rows: _Rows) -> None:
+    """One entity's buffered rows as columns (its series style first, once)."""
+    if rows.texts:
+        columns = rr.TextLog.columns(text=np.concatenate(rows.texts), level=np.concatenate(rows.levels))
+    else:
+        columns = rr.Scalars.columns(scalars=np.concatenate(rows.values))
+    indexes = [
+        rr.TimeColumn("capture_time", timestamp=np.concatenate(rows.times).astype("datetime64[ns]")),
+        rr.TimeColumn("frame", sequence=np.concatenate(rows.frames)),
+    ]
+    if style is not None:
+        rec.log(path, style, static=True)
+    rec.send_columns(path, indexes=indexes, columns=columns)
+
+
+def spawn_viewer(port: int, program: str | None) -> str:
+    """Start a Rerun viewer (``program``) listening on ``port``; its address."""
+    rr.spawn(port=port, connect=False, executable_path=program)
+    return f"rerun+http://127.0.0.1:{port}/proxy"
+
+
 class RerunExporter:
     """Buffers rows per entity and sends them in columns; ``close`` writes the file.
 
     Entities have integer ids, so that a batch's rows are sorted to their entities in columns:
     the per-frame Python work is looking up what its decoding contributes."""
 
-    def __init__(self, path: str | None, spawn: str | None = None) -> None:
-        """``spawn``: the path of a ``rerun`` viewer program to start and stream to."""
+    def __init__(self, path: str | None, viewer: str | None = None, *, live: bool = False) -> None:
+        """``path``: an ``.rrd`` file to write; ``viewer``: the gRPC address of a Rerun viewer to
+        stream to (both at once: one recording, two sinks). ``live``: every batch is sent at
+        once (a viewer watching a bus), not gathered into large columns (a file)."""
         self._rec = rr.RecordingStream(APPLICATION)
         self._rec.set_log_time_enabled(False)
         self._rec.set_log_tick_enabled(False)
-        if spawn is not None:
-            rr.spawn(executable_path=spawn, recording=self._rec)
+        #: Live: the thread that sends, so that the decoding never waits for the SDK.
+        self._sender = LiveSender(self._send_round) if live else None
+        sinks: list[rr.GrpcSink | rr.FileSink] = []
+        if viewer is not None:
+            sinks.append(rr.GrpcSink(viewer))
         if path is not None:
-            self._rec.save(path)
+            sinks.append(rr.FileSink(path))
+        self._rec.set_sinks(*sinks)
         self._paths: list[str] = []
         self._ids: dict[str, int] = {}
         #: Series styles of plotted entities not sent yet.
@@ -118,6 +151,9 @@ class RerunExporter:
         self._wire_ns = 0
         self._errors = 0
         self._rows = 0
+        #: Slaves in the blueprint sent last, and when the buffers go next (live).
+        self._blueprint_slaves = -1
+        self._next_live_send = 0.0
 
     def messages(self, batch: AnnotatedBatch) -> None:
         positions = np.asarray(batch.positions(), np.int64)
@@ -137,7 +173,22 @@ class RerunExporter:
             positions, t_start, slave = positions[keep], t_start[keep], slave[keep]
         if len(positions):
             self._frames(batch, positions, t_start, slave)
-        self._send_due()
+        if self._sender is not None:
+            self._send_live()
+        else:
+            self._send_due()
+
+    def _send_live(self) -> None:
+        """Everything buffered, at most every ``LIVE_SEND_S`` (each entity sent is a call into the
+        SDK), and the blueprint again when a slave appeared (its plot)."""
+        if time.monotonic() < self._next_live_send:
+            return
+        self._next_live_send = time.monotonic() + LIVE_SEND_S
+        slaves = len(self._slaves)
+        self._flush()
+        if slaves != self._blueprint_slaves:
+            self._rec.send_blueprint(self.blueprint(), make_active=True)
+            self._blueprint_slaves = slaves
 
     def _frames(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64], t_start: npt.NDArray[np.int64],
                 slave: npt.NDArray[np.int16]) -> None:
@@ -346,26 +397,32 @@ class RerunExporter:
 
     def _send(self, entity: int, rows: _Rows) -> None:
         del self._buffers[entity]
-        if rows.texts:
-            columns = rr.TextLog.columns(text=np.concatenate(rows.texts), level=np.concatenate(rows.levels))
-        else:
-            columns = rr.Scalars.columns(scalars=np.concatenate(rows.values))
-        indexes = [
-            rr.TimeColumn("capture_time", timestamp=np.concatenate(rows.times).astype("datetime64[ns]")),
-            rr.TimeColumn("frame", sequence=np.concatenate(rows.frames)),
-        ]
-        style = self._styles.pop(entity, None)
-        if style is not None:
-            self._rec.log(self._paths[entity], style, static=True)
-        self._rec.send_columns(self._paths[entity], indexes=indexes, columns=columns)
+        send_rows(self._rec, self._paths[entity], self._styles.pop(entity, None), rows)
         self._rows -= rows.count
 
     def _flush(self) -> None:
+        if self._sender is not None:  # live: one hand-over to the sending thread
+            items = [(self._paths[entity], self._styles.pop(entity, None), rows)
+                     for entity, rows in self._buffers.items()]
+            self._sender.submit(items, self._rows)
+            self._buffers, self._rows = {}, 0
+            return
         for entity, rows in list(self._buffers.items()):
             self._send(entity, rows)
 
+    def _send_round(self, items: list[tuple[str, rr.SeriesLines | rr.SeriesPoints | None, _Rows]]) -> None:
+        for path, style, rows in items:
+            send_rows(self._rec, path, style, rows)
+
+    @property
+    def skipped_rows(self) -> int:
+        """Live: rows not sent because the SDK fell behind (the recording has them)."""
+        return self._sender.skipped_rows if self._sender is not None else 0
+
     def close(self) -> None:
         self._flush()
+        if self._sender is not None:
+            self._sender.close()
         self._rec.send_blueprint(self.blueprint())
         self._rec.flush()
         self._rec.disconnect()

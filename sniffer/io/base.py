@@ -82,6 +82,8 @@ class ReaderOptions:
     #: Which channels of a multi-channel recording carry the bus (``--channel``, by name or
     #: number; RX and TX may be two), if the user said.
     channels: tuple[str, ...] = ()
+    #: ``--follow``: keep reading as the file grows (:mod:`sniffer.io.following`).
+    follow: bool = False
 
 
 def channel_number(requested: str, names: dict[int, str]) -> int | None:
@@ -108,3 +110,5 @@ class CaptureFormat:
     sniff: Callable[[bytes], bool]
     open_reader: Callable[[str, ReaderOptions], CaptureReader] | None = None
     open_writer: Callable[[str, CaptureInfo], CaptureWriter] | None = None
+    #: Whether its reader can follow a file still being written (``--follow``).
+    followable: bool = False

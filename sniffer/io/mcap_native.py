@@ -33,7 +33,7 @@ import struct
 from collections.abc import Iterator
 from dataclasses import replace
 from importlib.metadata import version
-from typing import BinaryIO
+from typing import BinaryIO, cast
 
 import numpy as np
 from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
@@ -48,6 +48,7 @@ from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import max_read_bytes, read_limit_message
+from sniffer.io.following import GrowingFile
 from sniffer.io.mcap_blocks import (
     BATCH_CHUNKS,
     BLOCK_BYTES,
@@ -157,15 +158,17 @@ class McapCaptureWriter:
 class McapCaptureReader:
     """Reads the metadata at open; :meth:`batches` decodes the blocks in file order."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, *, follow: bool = False) -> None:
         self.path = path
-        self._file: BinaryIO = open(path, "rb")  # noqa: SIM115
+        self._follow = follow
+        self._file: BinaryIO = cast(BinaryIO, GrowingFile(path)) if follow else open(path, "rb")  # noqa: SIM115
         self._size = os.fstat(self._file.fileno()).st_size
         # A damaged length field must not make the reader allocate gigabytes: no record is
-        # longer than the file.
+        # longer than the file (a file that grows: than a block may be).
         # CRCs checked: a bit flipped in a chunk is an error, never different frames read as good.
         # Chunks come whole (emit_chunks): their declared size is checked before they are decompressed.
-        self._records = StreamReader(self._file, validate_crcs=True, record_size_limit=max(self._size, 1),
+        size_limit = 2 * max_block_bytes() if follow else max(self._size, 1)
+        self._records = StreamReader(self._file, validate_crcs=True, record_size_limit=size_limit,
                                      emit_chunks=True).records
         #: The topics read (``ENCODINGS``) by channel id.
         self._topics: dict[int, str] = {}
@@ -205,6 +208,8 @@ class McapCaptureReader:
                     yield record
                 self._good = self._file.tell()
         except (McapError, ValueError, struct.error, EOFError, OverflowError, MemoryError, ZstdError) as exc:
+            if self._follow and cast(GrowingFile, self._file).stopped:
+                return  # following was stopped inside a record being written: read up to it
             if self._good == self._size and self._good > 0:
                 # Complete records up to the end, but no summary: a recording that was
                 # killed or lost its disk after its last flush. Everything in it is read.
@@ -289,7 +294,9 @@ class McapCaptureReader:
             held.append(block)
             chunks += len(block)
             size += len(block.data)
-            if chunks >= BATCH_CHUNKS or size >= BLOCK_BYTES:
+            # Following, each block goes at once (:class:`~sniffer.io.following.FollowingReader` joins
+            # the blocks that are there already).
+            if chunks >= BATCH_CHUNKS or size >= BLOCK_BYTES or self._follow:
                 yield ChunkBatch.concat(held)
                 held, chunks, size = [], 0, 0
         if held:

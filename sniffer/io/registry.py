@@ -96,7 +96,12 @@ def open_reader(path: str, format_name: str | None = None, options: ReaderOption
     if path == STDIO and fmt.name != STDIO_FORMAT:
         raise RtuSniffError(ErrorKind.USAGE, f"standard input carries the {STDIO_FORMAT} format only, not "
                             f"{fmt.name}: give the file's name")
-    return fmt.open_reader(path, options or ReaderOptions())
+    options = options or ReaderOptions()
+    if options.follow and not fmt.followable:
+        followable = ", ".join(sorted(name for name, found in formats_for("read").items() if found.followable))
+        raise RtuSniffError(ErrorKind.USAGE, f"--follow: a {fmt.name} capture is not written as it grows; follow "
+                            f"what 'rtusniff capture -o' records ({followable})", path=path)
+    return fmt.open_reader(path, options)
 
 
 def open_writer(path: str, info: CaptureInfo, format_name: str | None = None) -> CaptureWriter:

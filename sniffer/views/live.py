@@ -56,6 +56,8 @@ class LiveState:
     behind_reads: int = 0
     recorded_bytes: int = 0
     uart_errors: str | None = None
+    #: Where the live viewers' streams go, and what they skipped.
+    streams: str | None = None
     started: float = field(default_factory=time.monotonic)
 
 
@@ -121,6 +123,8 @@ class LiveView(Sink):
             text.append(f"\nUART errors: {state.uart_errors}", "red")
         if state.advice:
             text.append(f"\nnote: {state.advice}", "yellow")
+        if state.streams:
+            text.append(f"\nstreaming to {state.streams}")
         if state.behind_reads:
             text.append(f"\nthe view is behind: it skipped {state.behind_reads} reads (the recording has every byte)",
                         "yellow")

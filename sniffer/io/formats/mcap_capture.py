@@ -11,7 +11,7 @@ MAGIC = b"\x89MCAP"
 def _open_reader(path: str, options: ReaderOptions) -> CaptureReader:
     from sniffer.io.mcap_native import McapCaptureReader  # noqa: PLC0415 - mcap and zstandard only when used
 
-    return McapCaptureReader(path)
+    return McapCaptureReader(path, follow=options.follow)
 
 
 def _open_writer(path: str, info: CaptureInfo) -> CaptureWriter:
@@ -27,4 +27,5 @@ FORMAT = CaptureFormat(
     sniff=lambda head: head.startswith(MAGIC),
     open_reader=_open_reader,
     open_writer=_open_writer,
+    followable=True,
 )

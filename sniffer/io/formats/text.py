@@ -21,7 +21,7 @@ import os
 import re
 import sys
 from collections.abc import Iterator
-from typing import BinaryIO, TextIO
+from typing import BinaryIO, TextIO, cast
 
 import numpy as np
 
@@ -29,6 +29,7 @@ from decoders.capture import UART_ERROR_KINDS, CaptureInfo, ChunkBatch, TimingQu
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import CaptureFormat, max_read_bytes, read_limit_message
+from sniffer.io.following import GrowingFile
 from sniffer.io.output_files import open_new_text
 from sniffer.io.registry import STDIO
 
@@ -73,9 +74,11 @@ def parse_time_ns(text: str) -> int | None:
 class TextCaptureReader:
     """Reads the header at once; :meth:`batches` streams the data lines."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, *, follow: bool = False) -> None:
         self.path = path
-        self._stream: BinaryIO = sys.stdin.buffer if path == STDIO else open(path, "rb")  # noqa: SIM115
+        self._follow = follow
+        self._stream: BinaryIO = (sys.stdin.buffer if path == STDIO else cast(BinaryIO, GrowingFile(path)) if follow
+                                  else open(path, "rb"))  # noqa: SIM115
         self._line_number = 0
         self._unterminated = False
         self._first_data: tuple[int, str] | None = None
@@ -232,6 +235,9 @@ class TextCaptureReader:
                 yield lines.batch()
                 lines = _Lines()
             lines.add(t_ns, data, self._channel)
+            if self._follow and cast(GrowingFile, self._stream).caught_up():
+                yield lines.batch()  # everything written so far: decoded now, not when a batch fills
+                lines = _Lines()
         else:
             if self._unterminated:
                 self.warnings.append(f"{self.path}: line {self._line_number}, the last, has no newline: the file may "
@@ -428,6 +434,7 @@ FORMAT = CaptureFormat(
     description="rtu-capture v1 text: one line per chunk, 'SECONDS.NANOS HEX...'",
     # Any version: a file of another version is recognised, and its reader says why it cannot read it.
     sniff=lambda head: head.startswith(b"# rtu-capture"),
-    open_reader=lambda path, options: TextCaptureReader(path),
+    open_reader=lambda path, options: TextCaptureReader(path, follow=options.follow),
     open_writer=TextCaptureWriter,
+    followable=True,
 )

@@ -1,0 +1,103 @@
+"""The decoded channels served live to the Foxglove app (foxglove-sdk's WebSocket server).
+
+:class:`FoxgloveServerWriter` takes the same message blocks as the MCAP file writer, so the
+live stream has the MCAP export's channels and schemas (:class:`~sniffer.exports.mcap_export.
+DecodedChannels`): a layout made on a recorded file works live unchanged.
+
+What a slow viewer costs: ``Channel.log`` only queues (the SDK sends from its own threads),
+so neither the reader nor the decoding waits for a viewer. The SDK keeps up to ``BACKLOG``
+messages per client and drops the oldest beyond them; a client that stops reading is thus
+bounded in memory, and one that goes away is forgotten. Channels nobody has subscribed to
+are not sent at all (``has_sinks``). This module imports the SDK (a native library): it is
+imported only when a stream is asked for.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any
+
+import foxglove
+import numpy as np
+from foxglove.websocket import ServerListener, StatusLevel
+
+from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.mcap_writer import HEADER_SIZE, MessageBlock
+
+#: Messages queued per client before the oldest are dropped (about 3 per frame: 20 s of a
+#: saturated 115200 Bd line).
+BACKLOG = 65536
+#: How long the last messages get to reach the clients before the server stops.
+CLOSE_GRACE_S = 0.5
+
+
+class _Subscriptions(ServerListener):
+    """The server's listener: sets ``first`` when a client first subscribes to a channel."""
+
+    def __init__(self) -> None:
+        self.first = threading.Event()
+
+    def on_subscribe(self, client: Any, channel: Any) -> None:
+        self.first.set()
+
+
+class FoxgloveServerWriter:
+    """A :class:`~sniffer.exports.mcap_export.MessageWriter` that serves each message to the
+    Foxglove clients subscribed to its channel."""
+
+    def __init__(self, host: str, port: int, name: str) -> None:
+        self._context = foxglove.Context()
+        self.subscriptions = _Subscriptions()
+        try:
+            self._server = foxglove.start_server(name=name, host=host, port=port, context=self._context,
+                                                 server_listener=self.subscriptions, message_backlog_size=BACKLOG)
+        except Exception as exc:  # the SDK raises its own error type for a port that is taken
+            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot serve Foxglove on {host}:{port}: {exc}",
+                                path="--foxglove") from None
+        self.host, self.port = host, self._server.port
+        self._schemas: list[foxglove.Schema] = []
+        self._channels: list[foxglove.Channel] = []
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"ws://{host}:{self.port}"
+
+    def add_schema(self, name: str, encoding: str, data: bytes) -> int:
+        self._schemas.append(foxglove.Schema(name=name, encoding=encoding, data=data))
+        return len(self._schemas)
+
+    def add_channel(self, topic: str, message_encoding: str, schema_id: int, metadata: dict[str, str]) -> int:
+        schema = self._schemas[schema_id - 1]
+        channel = foxglove.Channel(topic, schema=schema, message_encoding=message_encoding,
+                                         context=self._context, metadata=metadata)
+        self._channels.append(channel)
+        return len(self._channels)
+
+    def watched(self) -> bool:
+        """Whether a client subscribes to any channel (nothing need be built for none)."""
+        return any(channel.has_sinks() for channel in self._channels)
+
+    def write(self, block: MessageBlock) -> None:
+        """Each message to its channel's subscribers, without the room reserved for MCAP's header."""
+        listened = np.array([False, *(channel.has_sinks() for channel in self._channels)])
+        rows = np.flatnonzero(listened[block.channels])
+        if not len(rows):
+            return
+        data, offsets = bytes(block.rows.data), block.rows.offsets
+        starts, ends = (offsets[:-1] + HEADER_SIZE)[rows].tolist(), offsets[1:][rows].tolist()
+        channels, times = block.channels[rows].tolist(), block.log_times[rows].tolist()
+        for start, end, channel, t_ns in zip(starts, ends, channels, times, strict=True):
+            self._channels[channel - 1].base.log(data[start:end], t_ns, None)
+
+    def status(self, text: str) -> None:
+        """A warning every connected client shows (the Foxglove app: in its problems list)."""
+        self._server.publish_status(text, StatusLevel.Warning)
+
+    def close(self) -> None:
+        """Stops serving, once the SDK's threads had a moment to send what was queued last (it
+        offers no way to wait for its queues)."""
+        if self.watched():
+            time.sleep(CLOSE_GRACE_S)
+        self._server.stop()

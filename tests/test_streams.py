@@ -1,0 +1,184 @@
+"""Live viewers: a file replayed into Foxglove (its WebSocket protocol, spoken by a test client)
+and into a receiving Rerun process, compared with the file exports of the same capture."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import select
+import signal
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mcap.reader import make_reader
+
+from tests.foxglove_client import FoxgloveClient
+
+pytestmark = pytest.mark.filterwarnings("ignore:RRD file has no footer")
+
+SAMPLE = Path(__file__).resolve().parents[1] / "captures" / "atv71-plc-poll.mcap"
+RERUN = Path(sys.executable).parent / ("rerun.exe" if os.name == "nt" else "rerun")
+#: The Rerun CLI writes no analytics files with CI set (docs/ecosystem-notes).
+QUIET_ENV = {**os.environ, "CI": "1"}
+WAIT_S = 60
+
+
+def rtusniff(*args: str) -> subprocess.Popen[str]:
+    return subprocess.Popen([sys.executable, "-m", "sniffer", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=QUIET_ENV)
+
+
+def foxglove_url(process: subprocess.Popen[str], said: list[str] | None = None) -> str:
+    """The address a process serves Foxglove on (port 0: the one it chose), from its standard error."""
+    assert process.stderr is not None
+    deadline = time.monotonic() + WAIT_S
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([process.stderr], [], [], 0.1)
+        if ready:
+            line = process.stderr.readline()
+            if said is not None:
+                said.append(line)
+            found = re.search(r"Foxglove: open (ws://\S+)", line)
+            if found:
+                return found.group(1)
+            if not line and process.poll() is not None:
+                break
+    process.kill()
+    raise AssertionError(f"no Foxglove address said: {said}")
+
+
+def mcap_messages(path: Path) -> dict[str, list[tuple[int, bytes]]]:
+    by_topic: dict[str, list[tuple[int, bytes]]] = {}
+    with open(path, "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            by_topic.setdefault(channel.topic, []).append((message.log_time, message.data))
+    return by_topic
+
+
+def test_a_replay_into_foxglove_carries_the_mcap_exports_channels(tmp_path: Path) -> None:
+    """One command writes the MCAP file and serves the same channels: a test client subscribed as
+    the Foxglove app does gets every frame, transaction, log line and parameter value the file has,
+    with the same schemas, times and payloads."""
+    exported = tmp_path / "poll.mcap"
+    process = rtusniff("export", str(SAMPLE), "--mcap", str(exported), "--foxglove", "0", "--speed", "20",
+                       "--profile", "atv71")
+    said: list[str] = []
+    with FoxgloveClient(foxglove_url(process, said)) as client:
+        _, err = process.communicate(timeout=WAIT_S)
+        assert process.returncode == 0, err
+        time.sleep(0.5)
+    assert client.error is None
+    assert "served 52 frames to Foxglove" in err
+    in_file = mcap_messages(exported)
+    for topic in ("/modbus/frames", "/modbus/transactions", "/modbus/log"):
+        assert client.messages[topic] == in_file[topic], topic
+    for topic in (t for t in in_file if t.startswith("/slave/")):
+        # A slave's channel is advertised when it first carries values; a client subscribes on
+        # the advertisement, so it may miss that first message, never a later one.
+        got, expected = client.messages[topic], in_file[topic]
+        assert got and got == expected[len(expected) - len(got):], topic
+    schemas = {channel["topic"]: (channel["schemaName"], channel["encoding"]) for channel in client.channels.values()}
+    assert schemas["/modbus/frames"] == ("rtusniff.Frame", "json")
+    assert schemas["/modbus/log"] == ("foxglove.Log", "protobuf")
+    assert "/rtusniff/raw_chunks" not in schemas  # the capture itself is for files, not viewers
+
+
+def test_a_replay_keeps_to_the_captures_time(tmp_path: Path) -> None:
+    """--speed 4: a capture of about 2.3 s arrives over about 0.6 s, frames spread over it."""
+    process = rtusniff("analyze", str(SAMPLE), "--foxglove", "0", "--speed", "4", "--format", "jsonl")
+    with FoxgloveClient(foxglove_url(process)) as client:
+        out, err = process.communicate(timeout=WAIT_S)
+        assert process.returncode == 0, err
+    times = [t for t, _ in client.messages["/modbus/frames"]]
+    arrivals = client.arrivals["/modbus/frames"]
+    assert len(times) == 52 == sum(1 for line in out.splitlines() if '"kind":"frame"' in line)
+    span = (times[-1] - times[0]) / 1e9 / 4
+    assert 0.6 * span < arrivals[-1] - arrivals[0] < span + 1.0
+
+
+def test_rerun_stream_gets_what_the_rrd_file_gets(tmp_path: Path) -> None:
+    """A receiving Rerun process (the CLI saving what it gets, sent in rounds as a live viewer
+    is) holds the entities, rows and values of a plain ``export --rrd`` of the same capture."""
+    from tests.test_exports import _rerun_rows
+
+    received, written = tmp_path / "received.rrd", tmp_path / "written.rrd"
+    port = _free_port()
+    viewer = subprocess.Popen([str(RERUN), "--save", str(received), "--port", str(port), "--bind", "127.0.0.1"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=QUIET_ENV)
+    try:
+        _wait_for_port(port)
+        plain = rtusniff("export", str(SAMPLE), "--rrd", str(written), "--profile", "atv71")
+        assert plain.wait(timeout=WAIT_S) == 0
+        process = rtusniff("export", str(SAMPLE), "--rerun", f"127.0.0.1:{port}", "--speed", "max", "--profile",
+                           "atv71")
+        _, err = process.communicate(timeout=WAIT_S)
+        assert process.returncode == 0, err
+        assert f"Rerun: streaming to rerun+http://127.0.0.1:{port}/proxy" in err
+        assert "sent 52 frames to the Rerun viewer" in err
+    finally:
+        viewer.send_signal(signal.SIGINT)  # the CLI closes its file on Ctrl-C
+        viewer.wait(timeout=WAIT_S)
+    got, expected = _rerun_rows(received), _rerun_rows(written)
+    assert _rows_by_entity(got[0]) == _rows_by_entity(expected[0])
+    assert got[1] == expected[1] and got[2] == expected[2]
+    assert "/slaves/20/params/NMA1" in got[1] and "/bus/load_percent" in got[1]
+
+
+def _rows_by_entity(chunks: list[tuple[str, int]]) -> Counter[str]:
+    rows: Counter[str] = Counter()
+    for entity, count in chunks:
+        rows[entity] += count
+    return rows
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def _wait_for_port(port: int) -> None:
+    import socket
+
+    deadline = time.monotonic() + WAIT_S
+    while time.monotonic() < deadline:
+        with socket.socket() as probe:
+            if probe.connect_ex(("127.0.0.1", port)) == 0:
+                return
+        time.sleep(0.05)
+    raise AssertionError(f"nothing listens on port {port}")
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (["--foxglove", "99999"], "--foxglove 99999: give a port"),
+    (["--rerun", "nowhere"], "--rerun nowhere: give 'spawn'"),
+    (["--speed", "0", "--foxglove", "0"], "--speed 0: give a factor above 0"),
+    (["--speed", "fast", "--rerun", "9876"], "--speed fast"),
+])
+def test_wrong_stream_options_are_one_line(args: list[str], said: str) -> None:
+    process = rtusniff("analyze", str(SAMPLE), *args)
+    _, err = process.communicate(timeout=WAIT_S)
+    assert process.returncode == 2 and err.count("\n") == 1 and said in err, err
+
+
+def test_a_taken_port_is_one_line() -> None:
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        process = rtusniff("analyze", str(SAMPLE), "--foxglove", str(taken.getsockname()[1]))
+        _, err = process.communicate(timeout=WAIT_S)
+    assert process.returncode != 0 and err.count("\n") == 1 and "cannot serve Foxglove" in err, err
+
+
+def _json_lines(text: str) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
