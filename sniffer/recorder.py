@@ -11,19 +11,18 @@ readable, and stops the recording.
 from __future__ import annotations
 
 import contextlib
-import glob
 import os
 import re
 import threading
 import time
 from collections import deque
 from dataclasses import dataclass
-from pathlib import Path
 
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.base import CaptureWriter
 from sniffer.io.registry import open_writer
+from sniffer.io.rotation import rotated_path
 
 FLUSH_INTERVAL_S = 1.0
 _SIZE_UNITS = {"": 1, "b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9}
@@ -47,19 +46,6 @@ class Rotation:
         if match and unit in _SIZE_UNITS and float(match.group(1)) > 0:
             return cls(max_bytes=int(float(match.group(1)) * _SIZE_UNITS[unit]))
         raise RtuSniffError(ErrorKind.USAGE, f"--rotate {text}: give a size (100MB, 1GB) or a duration (30m, 1h, 1d)")
-
-
-def rotated_path(path: str, number: int) -> str:
-    """``capture.mcap`` → ``capture-0001.mcap``."""
-    target = Path(path)
-    return str(target.with_name(f"{target.stem}-{number:04d}{target.suffix}"))
-
-
-def rotated_files(path: str) -> list[str]:
-    """The files of a rotation of ``path`` that exist already (``capture-0001.mcap`` …)."""
-    target = Path(path)
-    pattern = f"{glob.escape(target.stem)}-[0-9][0-9][0-9][0-9]{glob.escape(target.suffix)}"
-    return sorted(str(found) for found in target.parent.glob(pattern))
 
 
 class Recorder:

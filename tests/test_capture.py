@@ -325,7 +325,8 @@ def test_live_view_shows_slaves_and_frames(tmp_path: Path, line_tap: tuple[Path,
 
 
 def test_rotation_and_port_listing_options(cli: Any, tmp_path: Path) -> None:
-    from sniffer.recorder import Rotation, rotated_path
+    from sniffer.io.rotation import rotated_path
+    from sniffer.recorder import Rotation
 
     assert Rotation.parse("100MB") == Rotation(max_bytes=100_000_000)
     assert Rotation.parse("1.5h") == Rotation(max_seconds=5400.0)

@@ -215,3 +215,31 @@ def test_follow_option_errors(args: list[str], said: str) -> None:
     result = subprocess.run([sys.executable, "-m", "sniffer", "analyze", *args], capture_output=True, text=True,
                             check=False, cwd=Path(__file__).resolve().parents[1], timeout=HANG_S)
     assert result.returncode == 2 and result.stderr.count("\n") == 1 and said in result.stderr, result.stderr
+
+
+def test_following_a_rotation_goes_on_into_its_next_files(tmp_path: Path) -> None:
+    """``--follow site.mcap`` of ``capture -o site.mcap --rotate 2s``: the newest numbered file,
+    then each next one as the recorder opens it, frames running on; it ends when no next file
+    comes after the capture stopped."""
+    recording = tmp_path / "site.mcap"
+    sent = bytearray()
+    with pty_pair(tmp_path, "line") as line:
+        capture = start_capture(line.b, "-o", str(recording), "--quiet", "--rotate", "2s")
+        follower = subprocess.Popen([sys.executable, "-m", "sniffer", "analyze", "--follow", str(recording),
+                                     "--format", "jsonl"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for _ in range(6):
+            send_paced(line.a, 20, sent)
+            time.sleep(0.3)
+        time.sleep(1.5)
+        capture.send_signal(signal.SIGINT)
+        capture.communicate(timeout=HANG_S)
+        out, err = follower.communicate(timeout=HANG_S)
+    files = sorted(tmp_path.glob("site-*.mcap"))
+    assert len(files) >= 3
+    assert follower.returncode == 0, err
+    followed = frames_of([json.loads(text) for text in out.splitlines()])
+    result = subprocess.run([sys.executable, "-m", "sniffer", "analyze", *map(str, files), "--format", "jsonl"],
+                            capture_output=True, text=True, check=True)
+    chained = frames_of([json.loads(text) for text in result.stdout.splitlines()])
+    assert len(followed) == 240 == len(chained)
+    assert [(f["index"], f["hex"]) for f in followed] == [(f["index"], f["hex"]) for f in chained]

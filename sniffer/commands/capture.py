@@ -13,10 +13,11 @@ from sniffer.commands.common import add_profile_options, add_response_timeout_op
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.streams import add_stream_options, check_streams, stream_sinks
 from sniffer.io.registry import find_format
+from sniffer.io.rotation import rotated_files
 from sniffer.line_probe import probe_line
 from sniffer.live_capture import CaptureOptions, run_capture
 from sniffer.profiles_io import profile_book
-from sniffer.recorder import Rotation, rotated_files
+from sniffer.recorder import Rotation
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

@@ -15,7 +15,7 @@ from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.filters import parse_filters
 from sniffer.io.base import CaptureReader, ReaderOptions
 from sniffer.io.chain import open_capture
-from sniffer.io.following import FollowingReader, stopping_on_signals
+from sniffer.io.following import FollowingReader, followed_path, stopping_on_signals
 from sniffer.io.output_files import allow_replacing, open_new_text
 from sniffer.io.pacing import PacedReader, parse_speed
 from sniffer.io.registry import format_help, formats_for
@@ -173,14 +173,18 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
     book = profile_book(args.profile, args.profile_file)
     override = line_override(args)
     paths = capture_paths(args)
-    if getattr(args, "follow", False) and (len(paths) != 1 or paths[0] == "-"):
+    follow = getattr(args, "follow", False)
+    if follow and (len(paths) != 1 or paths[0] == "-"):
         raise RtuSniffError(ErrorKind.USAGE, "--follow follows one capture file (standard input is followed anyway)")
-    if getattr(args, "follow", False):
+    if follow:
         stack.enter_context(stopping_on_signals())
+        paths = [followed_path(paths[0])]
     reader: CaptureReader = open_capture(paths, args.input_format, reader_options(args))
+    if follow:
+        options = reader_options(args)
+        reader = FollowingReader(reader, path=paths[0],
+                                 open_next=lambda path: open_capture([path], args.input_format, options))
     stack.callback(close_reader, reader)
-    if getattr(args, "follow", False):
-        reader = FollowingReader(reader)
     speed = replay_speed(args)
     if speed is not None:
         reader = PacedReader(reader, speed)

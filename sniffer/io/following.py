@@ -30,6 +30,7 @@ from typing import BinaryIO
 
 from decoders.capture import CaptureInfo, ChunkBatch
 from sniffer.io.base import CaptureReader
+from sniffer.io.rotation import next_rotated, rotated_files
 
 #: How often a caught-up reader looks for more (a recorder flushes every second).
 POLL_S = 0.1
@@ -138,13 +139,34 @@ class GrowingFile:
         return self._file.closed
 
 
+#: How long a rotation's next file may take to appear after the last one closed: the recorder
+#: opens it at once; when none comes, the capture stopped.
+NEXT_FILE_S = 3.0
+
+
+def followed_path(path: str) -> str:
+    """What ``--follow PATH`` reads first: PATH, or, where PATH names a rotation that has only
+    numbered files (``site.mcap`` → ``site-0007.mcap``), its newest file."""
+    if os.path.exists(path):
+        return path
+    numbered = rotated_files(path)
+    return numbered[-1] if numbered else path
+
+
 class FollowingReader:
     """A reader of a growing recording: its batches come from a thread, so that while the file
     does not grow this one can say so (``QUIET``, an empty batch, once per quiet spell) and the
-    decoding can close the frame it holds open instead of waiting for the next bytes."""
+    decoding can close the frame it holds open instead of waiting for the next bytes. A file of
+    a rotation is followed into the next one, as ``tail -F`` follows a log: ``open_next`` opens
+    it once it appears (within ``NEXT_FILE_S`` of the last one ending)."""
 
-    def __init__(self, reader: CaptureReader, *, quiet_after_s: float = QUIET_AFTER_S) -> None:
+    def __init__(self, reader: CaptureReader, *, path: str | None = None,
+                 open_next: Callable[[str], CaptureReader] | None = None,
+                 quiet_after_s: float = QUIET_AFTER_S, next_file_s: float = NEXT_FILE_S) -> None:
         self._reader, self._quiet_after_s = reader, quiet_after_s
+        self._path, self._open_next, self._next_file_s = path, open_next, next_file_s
+        #: The files read, in order (the first one's ``info`` is the capture's).
+        self.files: list[str] = [path] if path else []
         self.info: CaptureInfo = reader.info
         self.late_notes: list[str] = reader.late_notes
         self.warnings: list[str] = reader.warnings
@@ -156,6 +178,23 @@ class FollowingReader:
 
     def close(self) -> None:
         self._reader.close()
+
+    def _next_reader(self) -> CaptureReader | None:
+        """The rotation's next file, once it appears; ``None`` when none comes (or following stopped)."""
+        following = next_rotated(self._path) if self._path and self._open_next else None
+        if following is None or self._open_next is None:
+            return None
+        deadline = time.monotonic() + self._next_file_s
+        while not os.path.exists(following):
+            if STOP.is_set() or time.monotonic() > deadline:
+                return None
+            time.sleep(POLL_S)
+        self._reader.close()
+        self._path = following
+        self.files.append(following)
+        reader = self._open_next(following)
+        self.late_notes.extend(reader.late_notes)
+        return reader
 
     def batches(self) -> Iterator[ChunkBatch]:
         self._thread.start()
@@ -196,8 +235,13 @@ class FollowingReader:
 
     def _read(self) -> None:
         try:
-            for batch in self._reader.batches():
-                self._items.put(batch)
+            reader: CaptureReader | None = self._reader
+            while reader is not None:
+                self._reader = reader
+                for batch in reader.batches():
+                    self._items.put(batch)
+                self.warnings.extend(warning for warning in reader.warnings if warning not in self.warnings)
+                reader = self._next_reader()
             self._items.put(None)
         except BaseException as exc:
             self._items.put(exc)

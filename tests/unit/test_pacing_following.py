@@ -196,3 +196,15 @@ def test_a_live_rerun_sender_skips_rounds_it_cannot_keep_up_with() -> None:
     release.set()
     sender.close()
     assert sent == list(range(MAX_PENDING))
+
+
+def test_the_names_of_a_rotation(tmp_path: Path) -> None:
+    from sniffer.io.following import followed_path
+    from sniffer.io.rotation import next_rotated
+
+    assert next_rotated(str(tmp_path / "site-0009.mcap")) == str(tmp_path / "site-0010.mcap")
+    assert next_rotated(str(tmp_path / "site.mcap")) is None
+    assert followed_path(str(tmp_path / "site.mcap")) == str(tmp_path / "site.mcap")  # none yet: as named
+    for number in (1, 2, 10):
+        (tmp_path / f"site-{number:04d}.mcap").write_bytes(b"")
+    assert followed_path(str(tmp_path / "site.mcap")) == str(tmp_path / "site-0010.mcap")
