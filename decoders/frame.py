@@ -62,6 +62,11 @@ _NAMES_BY_VALUE = [
 ]
 
 
+def flag_names_of(value: int) -> list[str]:
+    """The JSONL names of the flags set in ``value``, in their order."""
+    return list(_NAMES_BY_VALUE[value])
+
+
 def flag_set(value: int) -> FrameFlag:
     """The :class:`FrameFlag` of an integer, without the cost of an enum call."""
     return _FLAGS_BY_VALUE[value]

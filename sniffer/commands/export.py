@@ -23,7 +23,7 @@ from sniffer.commands.common import (
 )
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.exports.outputs import McapSink, PcapSink, RerunSink
+from sniffer.exports.outputs import McapSink, ParquetSink, PcapSink, RerunSink
 from sniffer.exports.streams import RerunStreamSink, add_stream_options, check_streams, stream_sinks
 from sniffer.io.output_files import published_whole
 from sniffer.pipeline import Analysis, analyze
@@ -47,6 +47,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                         help="user: link type 147 (Wireshark maps it to Modbus RTU with one DLT_USER line); udp: each "
                         "frame in a UDP packet, master to slave port 502, so that Wireshark tells queries from "
                         "responses for every function (one preference: mbrtu.udp.port:502)")
+    parser.add_argument("--parquet", metavar="DIR", help="add the decoded tables (frames, transactions, values, "
+                        "anomalies) to a Parquet dataset in DIR, partitioned by bus and date, for DuckDB, Polars, "
+                        "Spark, Trino; more captures add files, never rewrite one")
+    parser.add_argument("--bus", metavar="NAME", help="with --parquet: the bus partition's name (default: the "
+                        "capture file's name without its suffix)")
     parser.add_argument("--spawn", action="store_true", help="the same as --rerun spawn")
     parser.add_argument("--force", action="store_true", help="overwrite existing output files")
     add_decoding_options(parser)
@@ -62,9 +67,10 @@ def run(args: argparse.Namespace) -> int:
         if args.rerun not in (None, "spawn"):
             raise RtuSniffError(ErrorKind.USAGE, "--spawn is --rerun spawn: give one --rerun")
         args.rerun = "spawn"
-    if not (args.mcap or args.rrd or args.pcap or args.foxglove or args.rerun):
+    if not (args.mcap or args.rrd or args.pcap or args.parquet or args.foxglove or args.rerun):
         raise RtuSniffError(ErrorKind.USAGE, "export: give --mcap OUT.mcap, --rrd OUT.rrd, --pcap OUT.pcap, "
-                            "--foxglove [HOST:]PORT or --rerun spawn|ADDRESS")
+                            "--parquet DIR, --foxglove [HOST:]PORT or --rerun spawn|ADDRESS")
+    check_dataset(args)
     for option, path in (("--mcap", args.mcap), ("--rrd", args.rrd)):
         if path == "-":
             raise RtuSniffError(ErrorKind.USAGE, f"{option} -: only --pcap writes to standard output; name a file")
@@ -78,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         # half way (a damaged capture, times MCAP cannot hold) leaves nothing that passes for one;
         # Ctrl-C keeps what was exported until then, closed properly.
         parts = {option: stack.enter_context(published_whole(getattr(args, option), keep_when_interrupted=True))
-                 for option, _, _ in OUTPUTS if getattr(args, option)}
+                 for option, _, _ in OUTPUTS if getattr(args, option) and option != "parquet"}
         reader, analysis = open_analysis(args, stack)
         sinks = output_sinks(argparse.Namespace(**{**vars(args), **parts}), analysis, stack)
         progress = stack.enter_context(progress_for(args, reader, to_terminal=args.pcap == "-"))
@@ -96,6 +102,8 @@ OUTPUTS: list[tuple[str, str, Callable[[str, argparse.Namespace, Analysis], File
     ("mcap", "MCAP", McapSink),
     ("rrd", "Rerun recording", lambda path, args, analysis: RerunSink(path)),
     ("pcap", "pcap", lambda path, args, analysis: PcapSink(path, udp=args.pcap_link == "udp")),
+    # A folder that grows: its files are published whole by the sink itself.
+    ("parquet", "Parquet dataset", ParquetSink),
 ]
 
 
@@ -118,7 +126,7 @@ def output_sinks(
     return sinks
 
 
-_CLOSE_ORDER = ["MCAP", "pcap", "Foxglove stream", "Rerun recording"]
+_CLOSE_ORDER = ["MCAP", "pcap", "Parquet dataset", "Foxglove stream", "Rerun recording"]
 
 
 def _tell_written(args: argparse.Namespace, sinks: list[tuple[str, FileSink[Any]]]) -> None:
@@ -128,6 +136,10 @@ def _tell_written(args: argparse.Namespace, sinks: list[tuple[str, FileSink[Any]
         path = names.get(kind)
         if path == "-":
             print(f"wrote {sink.frames_written:,} frames as {kind} to standard output", file=sys.stderr)
+        elif isinstance(sink, ParquetSink):
+            size = sum(os.path.getsize(file) for file in sink.files)
+            print(f"added {len(sink.files)} files to {path}: {kind}, {sink.frames_written:,} frames, "
+                  f"{human_size(size)}", file=sys.stderr)
         elif path:
             print(f"wrote {path}: {kind}, {sink.frames_written:,} frames, "
                   f"{human_size(os.path.getsize(path))}", file=sys.stderr)
@@ -137,3 +149,15 @@ def _tell_written(args: argparse.Namespace, sinks: list[tuple[str, FileSink[Any]
     if args.rerun:
         frames = next(sink.frames_written for kind, sink in sinks if kind == "Rerun recording")
         print(f"sent {frames:,} frames to the Rerun viewer", file=sys.stderr)
+
+
+def check_dataset(args: argparse.Namespace) -> None:
+    """``--parquet DIR``: a folder (made if missing), never a file nor standard output."""
+    if args.bus is not None and not args.parquet:
+        raise RtuSniffError(ErrorKind.USAGE, "--bus names the partition of a --parquet dataset: give --parquet DIR")
+    if not args.parquet:
+        return
+    if args.parquet == "-" or (os.path.exists(args.parquet) and not os.path.isdir(args.parquet)):
+        raise RtuSniffError(ErrorKind.USAGE, "--parquet takes a folder (a dataset of many files)", path=args.parquet)
+    if args.bus is not None and (not args.bus or any(c in args.bus for c in "/\\=")):
+        raise RtuSniffError(ErrorKind.USAGE, f"--bus {args.bus!r}: a name without '/', '\\' or '='")

@@ -20,9 +20,10 @@ from sniffer.commands.common import (
     tell_written,
 )
 from sniffer.decoding_process import decoding_jobs
+from sniffer.encoding.value_rows import ValueChoice
 from sniffer.pipeline import analyze
 from sniffer.progress import progress_for
-from sniffer.views.values import ValueChoice, ValuesView
+from sniffer.views.values import ValuesView
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

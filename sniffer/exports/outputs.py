@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import hashlib
 import shlex
+from importlib.metadata import version
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -20,13 +22,16 @@ import numpy.typing as npt
 from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch, MessageBatch
+from decoders.stats import Statistics
 from sniffer.encoding.rows import Rows
 from sniffer.exports.pcap_export import PcapExporter
+from sniffer.exports.transactions import TransactionEncoder
 from sniffer.pipeline import Analysis
 from sniffer.sinks import FileSink
 
 if TYPE_CHECKING:
     from sniffer.exports.mcap_export import McapExporter  # noqa: F401 - named in a string (imported when used)
+    from sniffer.exports.parquet_export import ParquetDataset  # noqa: F401 - named in a string (imported when used)
     from sniffer.exports.rerun_export import RerunExporter  # noqa: F401 - named in a string (imported when used)
 
 
@@ -89,6 +94,85 @@ class RerunSink(FileSink["RerunExporter"]):
         if self.exporter is not None:
             with self.writing():
                 self.exporter.messages(batch)
+
+
+class ParquetSink(FileSink["ParquetDataset"]):
+    """Decoded tables added to a Parquet dataset (:mod:`sniffer.exports.parquet_export`)."""
+
+    wants_messages = True
+
+    def __init__(self, folder: str, args: argparse.Namespace, analysis: Analysis) -> None:
+        super().__init__(folder)
+        self._args, self._analysis = args, analysis
+        self._finished = False
+        self.files: list[str] = []
+        encoder = TransactionEncoder()
+        self.prepare = lambda batch: encoder.columns(batch, np.arange(len(batch)))
+
+    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        from sniffer.exports.parquet_export import ParquetDataset, ValueCollector  # noqa: PLC0415 - pyarrow
+
+        metadata = _metadata(self._args, self._analysis)
+        metadata |= {"line": line.format(), "timing": info.timing.value, "tool": f"rtusniff {version('rtusniff')}"}
+        capture_id = hashlib.sha256(metadata["source_sha256"].encode()).hexdigest()[:16]
+        bus = self._args.bus or Path(self._args.capture[0]).stem
+        self._values = ValueCollector()
+        with self.writing():
+            self.exporter = ParquetDataset(self.path or "", bus, capture_id, {f"rtusniff.{k}": v for k, v in
+                                                                                 metadata.items()})
+
+    def messages(self, batch: AnnotatedBatch) -> None:
+        from sniffer.exports.parquet_export import anomaly_columns, frame_columns  # noqa: PLC0415 - loaded already
+
+        self.frames_written += len(batch.messages)
+        if self.exporter is None:
+            return
+        positions = np.asarray(batch.positions(), np.int64)
+        frames = batch.messages.frames
+        with self.writing():
+            self.exporter.add("frames", frames.t_start_ns[positions], frame_columns(batch, positions, self._source))
+            self.exporter.add("anomalies", *anomaly_columns(batch, positions))
+            self._values.messages(batch)
+            self._add_values()
+
+    @property
+    def _source(self) -> str:
+        return " + ".join(self._args.capture)
+
+    def _add_values(self) -> None:
+        from sniffer.exports.parquet_export import value_columns  # noqa: PLC0415 - loaded already
+
+        rows = self._values.take()
+        if rows and self.exporter is not None:
+            self.exporter.add("values", *value_columns(rows))
+
+    def prepared(self, value: dict[str, npt.NDArray[np.int64]]) -> None:
+        from sniffer.exports.parquet_export import transaction_columns  # noqa: PLC0415 - loaded already
+
+        if self.exporter is not None:
+            with self.writing():
+                self.exporter.add("transactions", value["t_ns"], transaction_columns(value))
+
+    def finish(self, statistics: Statistics) -> None:
+        from sniffer.exports.parquet_export import value_columns  # noqa: PLC0415 - loaded already
+
+        with self.writing():
+            self._values.finish(statistics)
+            self._add_values()
+            if self.exporter is not None:
+                self.exporter.add("values", *value_columns([]))  # the table's columns, had it no row
+        self._finished = True
+
+    def close(self) -> None:
+        exporter, self.exporter = self.exporter, None
+        if exporter is None:
+            return
+        if not self._finished:
+            exporter.abandon()  # a failed or interrupted export adds nothing to the dataset
+            return
+        with self.writing():
+            exporter.close()
+        self.files = [str(path) for path in exporter.files]
 
 
 class PcapSink(FileSink[PcapExporter]):

@@ -42,7 +42,23 @@ class TransactionEncoder:
         self._requests: OrderedDict[int, bytes] = OrderedDict()
 
     def rows(self, messages: MessageBatch, kept: npt.NDArray[np.int64]) -> tuple[Rows, npt.NDArray[np.int64]]:
-        """The transactions that the messages at positions ``kept`` close, and their log times.
+        """The transactions that the messages at positions ``kept`` close, and their log times."""
+        return self._encode(messages, *self._closed(messages, kept))
+
+    def columns(self, messages: MessageBatch, kept: npt.NDArray[np.int64]) -> dict[str, npt.NDArray[np.int64]]:
+        """The same transactions as columns (``NONE`` where empty): ``t_ns``, ``request_index``,
+        ``answer_index``, ``slave``, ``function``, ``outcome`` (an index into :data:`OUTCOMES`),
+        ``exception_code``, ``latency_ns``."""
+        positions, lonely, _, _ = self._closed(messages, kept)
+        return {**_outcomes(messages, positions, lonely),
+                "slave": messages.slave[positions].astype(np.int64),
+                "function": messages.function[positions].astype(np.int64),
+                "exception_code": messages.exception_code[positions].astype(np.int64)}
+
+    def _closed(self, messages: MessageBatch, kept: npt.NDArray[np.int64]) -> tuple[
+            npt.NDArray[np.int64], npt.NDArray[np.bool_], Pieces, Pieces]:
+        """The positions of the messages that close a transaction, whether each is a lonely
+        request or broadcast, and the request's and the answer's hex.
 
         An answer takes its request from this batch (found by numpy) or from the requests
         kept open from earlier batches; the first answer to a request takes it, later ones
@@ -78,7 +94,7 @@ class TransactionEncoder:
             found = earlier[int(emitted[place])]
             assert found is not None
             request_hex[place], request_hex.sizes[place] = found, len(found)
-        return self._encode(messages, kept[emitted], lonely[emitted], request_hex, _kept(hexes, emitted))
+        return kept[emitted], lonely[emitted], request_hex, _kept(hexes, emitted)
 
     def _encode(
         self,
@@ -88,16 +104,9 @@ class TransactionEncoder:
         request_hex: Pieces,
         answer_hex: Pieces,
     ) -> tuple[Rows, npt.NDArray[np.int64]]:
-        frames = messages.frames
-        role = messages.role[positions]
-        indexes = positions + frames.first_index
-        outcome = np.where(
-            role == _EXCEPTION, _EXCEPTION_OUTCOME, np.where(frames.crc_ok[positions], _ANSWERED, _CRC_ERROR)
-        )
-        outcome = np.where(lonely, np.where(role == _REQUEST, _TIMEOUT_OUTCOME, _BROADCAST_OUTCOME), outcome)
-        latency = np.where(lonely, NONE, messages.latency_ns[positions])
-        request = np.where(lonely, indexes, messages.request_index[positions])
-        answer = np.where(lonely, NONE, indexes)
+        columns = _outcomes(messages, positions, lonely)
+        outcome, latency = columns["outcome"], columns["latency_ns"]
+        request, answer = columns["request_index"], columns["answer_index"]
         answer_hex.fill(np.flatnonzero(lonely), b"null")
         facts = _facts(messages.slave[positions], messages.function[positions], outcome,
                        messages.exception_code[positions])  # fmt: skip
@@ -112,7 +121,24 @@ class TransactionEncoder:
             .pieces()
         )  # fmt: skip
         rows = join_rows([block, request_hex, b',"answer":', answer_hex, b"}"], len(positions), self._reserved)
-        return rows, np.where(lonely, frames.t_end_ns[positions], frames.t_start_ns[positions])
+        return rows, columns["t_ns"]
+
+
+def _outcomes(messages: MessageBatch, positions: npt.NDArray[np.int64],
+              lonely: npt.NDArray[np.bool_]) -> dict[str, npt.NDArray[np.int64]]:
+    """Per closed transaction: its time (the answer's start; a lonely request's end), request and
+    answer index, outcome and latency."""
+    frames = messages.frames
+    role = messages.role[positions]
+    indexes = positions + frames.first_index
+    outcome = np.where(
+        role == _EXCEPTION, _EXCEPTION_OUTCOME, np.where(frames.crc_ok[positions], _ANSWERED, _CRC_ERROR)
+    )
+    outcome = np.where(lonely, np.where(role == _REQUEST, _TIMEOUT_OUTCOME, _BROADCAST_OUTCOME), outcome)
+    return {"t_ns": np.where(lonely, frames.t_end_ns[positions], frames.t_start_ns[positions]),
+            "request_index": np.where(lonely, indexes, messages.request_index[positions]),
+            "answer_index": np.where(lonely, NONE, indexes), "outcome": outcome,
+            "latency_ns": np.where(lonely, NONE, messages.latency_ns[positions])}
 
 
 def _facts(slave: Integers, function: Integers, outcome: Integers, code: Integers) -> tuple[Integers, list[bytes]]:

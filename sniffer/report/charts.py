@@ -13,9 +13,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from decoders.anomalies import KINDS
 from decoders.health import slave_health
 from decoders.stats import Histogram, bin_floor_ns
-from sniffer.report.anomalies import KINDS
 from sniffer.report.collect import ReportCollector
 
 #: Bars of a latency distribution at most.

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from decoders.anomalies import anomaly_masks
 from decoders.capture import CaptureInfo
 from decoders.compare import Change
 from decoders.damage import RetryDiff
@@ -17,7 +18,7 @@ from decoders.message import ROLE_CODE, AnnotatedBatch, DeviceIdentity, MessageB
 from decoders.stats import Statistics
 from decoders.timeline import Timeline
 from sniffer.exports.outputs import sha256_of
-from sniffer.report.anomalies import AnomalyLog, anomaly_masks
+from sniffer.report.anomalies import AnomalyLog
 from sniffer.report.drive_values import DriveValues
 from sniffer.sinks import Sink
 from sniffer.views.compare_view import Side

@@ -10,7 +10,8 @@ from html import escape
 from importlib.resources import files
 from typing import TextIO
 
-from sniffer.report.anomalies import KINDS, Anomaly, FrameRow, utc_text
+from decoders.anomalies import KINDS
+from sniffer.report.anomalies import Anomaly, FrameRow, utc_text
 from sniffer.report.charts import chart_data
 from sniffer.report.collect import Comparison, ReportCollector
 from sniffer.report.drive_values import MAX_CHANGES

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from typing import TextIO
 
-from sniffer.report.anomalies import KINDS, Anomaly, FrameRow
+from decoders.anomalies import KINDS
+from sniffer.report.anomalies import Anomaly, FrameRow
 from sniffer.report.collect import Comparison, ReportCollector
 from sniffer.report.facts import (
     HEALTH_COLUMNS,

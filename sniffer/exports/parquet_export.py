@@ -1,0 +1,299 @@
+"""Decoded traffic as a Parquet dataset for SQL engines: ``export CAPTURE --parquet DIR``.
+
+Four tables, each a folder of ``DIR`` partitioned the Hive way by bus and UTC date, so that
+DuckDB, Polars, pyarrow datasets, Spark and Trino read a table as one, whatever number of
+captures it holds::
+
+    DIR/frames/bus=line-3/date=2026-03-01/<capture id>.parquet
+    DIR/transactions/…   DIR/values/…   DIR/anomalies/…
+
+* ``frames``: a row per frame (the JSONL frame record's facts: times, slave, function, role,
+  CRC, flags, pairing, latency, the bytes, the summary);
+* ``transactions``: a row per request and what became of it (the MCAP export's transactions);
+* ``values``: a row per value a slave reported or was written (long form, the rule of
+  ``rtusniff values``: :mod:`sniffer.encoding.value_rows`), numbers in ``value``, texts (state
+  words, markers) in ``text``;
+* ``anomalies``: a row per anomaly of a frame, by kind (:mod:`decoders.anomalies`: what
+  ``stats`` counts).
+
+Times are nanosecond UTC timestamps; columns are zstd-compressed; each file's key-value metadata
+holds the capture's provenance (source files and SHA-256, line, timing, tool version, command).
+A capture's files are named by its id (the first 16 hex digits of its SHA-256) and created
+exclusively: exporting more captures adds files and never rewrites one, and a capture already
+in the dataset is refused. Files are written beside their name and put in place once whole.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from decoders.anomalies import KINDS, anomaly_masks
+from decoders.frame import flag_names_of
+from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch
+from decoders.stats import Statistics
+from sniffer.encoding.value_rows import ValueRow, ValueRows
+from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.transactions import OUTCOMES
+
+TABLES = ("frames", "transactions", "values", "anomalies")
+#: Rows gathered per file before they are written as a row group.
+ROW_GROUP_ROWS = 1 << 17
+DAY_NS = 86_400 * 1_000_000_000
+TIME = pa.timestamp("ns", tz="UTC")
+_ROLES = pa.array([role.value for role in ROLE_ORDER])
+_OUTCOMES = pa.array(OUTCOMES)
+_KINDS = pa.array(list(KINDS))
+
+
+def dictionary(codes: npt.NDArray[np.integer], names: pa.Array) -> pa.DictionaryArray:
+    return pa.DictionaryArray.from_arrays(pa.array(codes.astype(np.int32)), names)
+
+
+def nullable(values: npt.NDArray[np.integer], kind: pa.DataType) -> pa.Array:
+    """``values`` with ``NONE`` (-1) as null."""
+    return pa.array(values, kind, mask=values == NONE)
+
+
+def times(t_ns: npt.NDArray[np.int64]) -> pa.Array:
+    return pa.array(t_ns, TIME)
+
+
+@dataclass
+class _Part:
+    """One file of the dataset being written: its final name, the partial file, rows held."""
+
+    final: Path
+    partial: Path
+    writer: pq.ParquetWriter | None = None
+    held: list[pa.RecordBatch] = field(default_factory=list)
+    rows: int = 0
+
+
+class ParquetDataset:
+    """Writes one capture's rows into the dataset at ``folder`` (see the module docstring)."""
+
+    def __init__(self, folder: str, bus: str, capture_id: str, metadata: dict[str, str]) -> None:
+        self.folder, self.bus, self.capture_id = Path(folder), bus, capture_id
+        self._metadata = {key.encode(): value.encode() for key, value in metadata.items()}
+        self._parts: dict[tuple[str, int], _Part] = {}
+        #: Rows written per table.
+        self.rows = dict.fromkeys(TABLES, 0)
+        #: The files put in place by :meth:`close`, in order.
+        self.files: list[Path] = []
+        #: Each table's columns, known from its first rows (or an empty batch of them).
+        self._schemas: dict[str, pa.Schema] = {}
+
+    def add(self, table: str, t_ns: npt.NDArray[np.int64], columns: dict[str, pa.Array]) -> None:
+        """Rows of ``table`` (``t_ns``: each row's time, which chooses its date's file)."""
+        batch = pa.RecordBatch.from_pydict(columns)
+        self._schemas.setdefault(table, batch.schema)
+        if not len(t_ns):
+            return
+        days = t_ns // DAY_NS
+        first, last = int(days.min()), int(days.max())
+        for day in range(first, last + 1):
+            rows = batch if first == last else batch.filter(pa.array(days == day))
+            if rows.num_rows:
+                self._hold(table, day, rows)
+        self.rows[table] += batch.num_rows
+
+    def _hold(self, table: str, day: int, rows: pa.RecordBatch) -> None:
+        part = self._parts.get((table, day))
+        if part is None:
+            part = self._parts[(table, day)] = self._new_part(table, day)
+        part.held.append(rows)
+        part.rows += rows.num_rows
+        if part.rows >= ROW_GROUP_ROWS:
+            self._write(part)
+
+    def _new_part(self, table: str, day: int) -> _Part:
+        date = np.datetime64(day, "D").astype(str)
+        final = self.folder / table / f"bus={self.bus}" / f"date={date}" / f"{self.capture_id}.parquet"
+        if final.exists():
+            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "this capture is in the dataset already (a file of the same "
+                                "capture id); a dataset's files are never rewritten", path=str(final))
+        final.parent.mkdir(parents=True, exist_ok=True)
+        return _Part(final, final.with_name(f".{final.name}.partial"))
+
+    def _write(self, part: _Part) -> None:
+        table = pa.Table.from_batches(part.held)
+        if part.writer is None:
+            schema = table.schema.with_metadata(self._metadata)
+            part.writer = pq.ParquetWriter(part.partial, schema, compression="zstd")
+        part.writer.write_table(table.replace_schema_metadata(self._metadata))
+        part.held, part.rows = [], 0
+
+    def close(self) -> None:
+        """Writes what is held and puts every file in place (``files``). A table the capture has
+        no row for gets a file without rows on its first day: every table of a dataset can be
+        read, whatever captures it holds."""
+        days = sorted({day for _, day in self._parts})
+        for table, schema in self._schemas.items():
+            if days and not any(name == table for name, _ in self._parts):
+                self._hold(table, days[0], pa.RecordBatch.from_pylist([], schema))
+        for part in self._parts.values():
+            if part.held:
+                self._write(part)
+            assert part.writer is not None
+            part.writer.close()
+        for part in self._parts.values():
+            try:
+                os.link(part.partial, part.final)  # never over a file that appeared meanwhile
+            except FileExistsError:
+                raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "appeared while exporting (the same capture exported "
+                                    "twice at once?); left as it is", path=str(part.final)) from None
+            finally:
+                part.partial.unlink()
+        self.files = sorted(part.final for part in self._parts.values())
+
+    def abandon(self) -> None:
+        """A failed export: no file of it is left in the dataset."""
+        for part in self._parts.values():
+            with contextlib.suppress(OSError):
+                if part.writer is not None:
+                    part.writer.close()
+            with contextlib.suppress(OSError):
+                part.partial.unlink()
+
+
+def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], capture: str) -> dict[str, pa.Array]:
+    """The ``frames`` table's columns of the messages at ``positions``."""
+    messages, frames = batch.messages, batch.messages.frames
+    offsets = frames.offsets
+    starts, ends = offsets[:-1][positions], offsets[1:][positions]
+    raw = _binary(frames.data, starts, ends)
+    flags = messages.flags[positions]
+    masks, which = np.unique(flags, return_inverse=True)
+    flag_lists = pa.array([flag_names_of(int(mask)) for mask in masks], pa.list_(pa.string())).take(
+        pa.array(which.astype(np.int32)))
+    latency = messages.latency_ns[positions]
+    decodings = batch.decodings_at(positions.tolist())
+    columns = {
+        "capture": dictionary(np.zeros(len(positions), np.int32), pa.array([capture])),
+        "index": pa.array(positions + frames.first_index, pa.int64()),
+        "t": times(frames.t_start_ns[positions]),
+        "t_end": times(frames.t_end_ns[positions]),
+        "slave": nullable(messages.slave[positions], pa.int16()),
+        "function": nullable(messages.function[positions], pa.int16()),
+        "role": dictionary(messages.role[positions], _ROLES),
+        "crc_ok": pa.array(frames.crc_ok[positions], pa.bool_()),
+        "exception_code": nullable(messages.exception_code[positions], pa.int16()),
+        "flags": flag_lists,
+        "request_index": nullable(messages.request_index[positions], pa.int64()),
+        "latency_ms": pa.array(latency / 1e6, pa.float64(), mask=latency == NONE),
+        "length": pa.array((ends - starts).astype(np.int32), pa.int32()),
+        "bytes": raw,
+        "summary": pa.array([decoding.summary for decoding in decodings], pa.string()),
+        "protocol": dictionary(frames.protocols()[positions], pa.array(["modbus", "uss"])),
+    }
+    return columns
+
+
+def transaction_columns(values: dict[str, npt.NDArray[np.int64]]) -> dict[str, pa.Array]:
+    """The ``transactions`` table's columns from :meth:`TransactionEncoder.columns`."""
+    latency = values["latency_ns"]
+    return {
+        "t": times(values["t_ns"]),
+        "request_index": pa.array(values["request_index"], pa.int64()),
+        "answer_index": nullable(values["answer_index"], pa.int64()),
+        "slave": nullable(values["slave"], pa.int16()),
+        "function": nullable(values["function"], pa.int16()),
+        "outcome": dictionary(values["outcome"], _OUTCOMES),
+        "exception_code": nullable(values["exception_code"], pa.int16()),
+        "latency_ms": pa.array(latency / 1e6, pa.float64(), mask=latency == NONE),
+    }
+
+
+def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64]) -> tuple[
+        npt.NDArray[np.int64], dict[str, pa.Array]]:
+    """The ``anomalies`` table: a row per kind each message at ``positions`` shows, in frame order."""
+    messages, frames = batch.messages, batch.messages.frames
+    masks = anomaly_masks(messages)
+    rows, kinds = [], []
+    for kind_index, mask in enumerate(masks.values()):
+        found = positions[mask[positions]]
+        rows.append(found)
+        kinds.append(np.full(len(found), kind_index, np.int32))
+    row, kind = np.concatenate(rows), np.concatenate(kinds)
+    order = np.lexsort((kind, row))
+    row, kind = row[order], kind[order]
+    decodings = batch.decodings_at(row.tolist())
+    t_ns = frames.t_start_ns[row]
+    return t_ns, {
+        "t": times(t_ns),
+        "index": pa.array(row + frames.first_index, pa.int64()),
+        "slave": nullable(messages.slave[row], pa.int16()),
+        "function": nullable(messages.function[row], pa.int16()),
+        "kind": dictionary(kind, _KINDS),
+        "exception_code": nullable(messages.exception_code[row], pa.int16()),
+        "summary": pa.array([decoding.summary for decoding in decodings], pa.string()),
+    }
+
+
+def _binary(data: bytes, starts: npt.NDArray[np.int64], ends: npt.NDArray[np.int64]) -> pa.Array:
+    """The byte strings ``data[starts[i]:ends[i]]`` as one binary column, without a Python loop."""
+    lengths = ends - starts
+    offsets = np.zeros(len(starts) + 1, np.int32)
+    np.cumsum(lengths, out=offsets[1:])
+    if len(starts) and (np.diff(starts) == lengths[:-1]).all():
+        body = data[int(starts[0]) : int(ends[-1])]  # contiguous: every frame of the batch
+    else:
+        raw = np.frombuffer(data, np.uint8)
+        body = raw[np.repeat(starts - offsets[:-1], lengths) + np.arange(int(offsets[-1]))].tobytes()
+    return pa.Array.from_buffers(pa.binary(), len(starts), [None, pa.py_buffer(offsets), pa.py_buffer(body)])
+
+
+#: A value row as the ``values`` table holds it.
+ValueTuple = tuple[int, int, int, str, int, str | None, str | None, int | None, object, str | None, int | None, bool]
+
+
+class ValueCollector(ValueRows):
+    """The value rows of each batch, taken by :meth:`take` (the ``values`` table)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._rows: list[ValueTuple] = []
+
+    def output(self, row: ValueRow) -> None:
+        self._rows.extend((row.t_ns, row.index, row.slave, row.kind, p.address, p.code, p.name, p.raw, p.value,
+                           p.unit, row.request_index, valid) for p, valid in zip(row.params, row.valid, strict=True))
+
+    def take(self) -> list[ValueTuple]:
+        rows, self._rows = self._rows, []
+        return rows
+
+    def finish(self, statistics: Statistics) -> None:
+        super().finish(statistics)
+
+
+def value_columns(rows: Sequence[ValueTuple]) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:
+    """The ``values`` table from value rows: (t_ns, index, slave, kind, address, code, name, raw,
+    value, unit, request index, valid)."""
+    t_ns = np.fromiter((row[0] for row in rows), np.int64, len(rows))
+    values = [row[8] for row in rows]
+    numbers = [float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
+               for value in values]
+    return t_ns, {
+        "t": times(t_ns),
+        "index": pa.array([row[1] for row in rows], pa.int64()),
+        "slave": pa.array([row[2] for row in rows], pa.int16()),
+        "kind": pa.array([row[3] for row in rows], pa.string()).dictionary_encode(),
+        "address": pa.array([row[4] for row in rows], pa.int32()),
+        "code": pa.array([row[5] for row in rows], pa.string()),
+        "name": pa.array([row[6] for row in rows], pa.string()),
+        "raw": pa.array([row[7] for row in rows], pa.int32()),
+        "value": pa.array(numbers, pa.float64()),
+        "text": pa.array([value if isinstance(value, str) else None for value in values], pa.string()),
+        "unit": pa.array([row[9] for row in rows], pa.string()),
+        "request_index": pa.array([row[10] for row in rows], pa.int64()),
+        "valid": pa.array([row[11] for row in rows], pa.bool_()),
+    }

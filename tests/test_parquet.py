@@ -1,0 +1,182 @@
+"""``export --parquet``: a dataset DuckDB and pyarrow read as one table per kind, holding what
+``analyze``, ``values`` and ``stats`` say of the same captures; appended to, never rewritten."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections import Counter
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow.dataset as ds
+import pytest
+
+from tests.real_recordings import RECORDINGS, TEXT, available
+
+duckdb = pytest.importorskip("duckdb")
+CAPTURES = Path(__file__).resolve().parents[1] / "captures"
+SAMPLES = ["atv71-plc-poll.mcap", "xbt-hmi.mcap", "atv312-setup.mcap", "nord-uss.mcap"]
+#: The README's query: latency p95 per slave per day, across every bus of the dataset.
+P95_QUERY = """
+SELECT bus, date, slave, count(*) AS answers,
+       quantile_cont(latency_ms, 0.95) AS latency_p95_ms
+FROM read_parquet('{dataset}/transactions/*/*/*.parquet', hive_partitioning = true)
+WHERE outcome = 'answered'
+GROUP BY ALL
+ORDER BY bus, date, slave
+"""
+
+
+def table(dataset: Path, name: str) -> list[dict[str, Any]]:
+    """A table's rows, times as nanoseconds (Python's datetime stops at microseconds)."""
+    import pyarrow as pa
+
+    read = ds.dataset(dataset / name, partitioning="hive").to_table()
+    for position, column in enumerate(read.schema):
+        if pa.types.is_timestamp(column.type):
+            read = read.set_column(position, column.name, read.column(position).cast(pa.int64()))
+    rows: list[dict[str, Any]] = read.to_pylist()
+    return rows
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from sniffer.cli import main
+
+    folder = tmp_path_factory.mktemp("parquet") / "plant"
+    for sample in SAMPLES:
+        assert main(["export", str(CAPTURES / sample), "--parquet", str(folder), "--profile", "atv71", "-q"]) == 0
+    return folder
+
+
+def test_frames_are_the_frame_records(dataset: Path, cli: Callable[..., Any]) -> None:
+    for sample in SAMPLES:
+        records = [r for r in cli("analyze", str(CAPTURES / sample), "--format", "jsonl", "--profile", "atv71").jsonl()
+                   if r["kind"] == "frame"]
+        rows = sorted((r for r in table(dataset, "frames") if r["bus"] == Path(sample).stem), key=lambda r: r["index"])
+        assert [r["index"] for r in rows] == [r["index"] for r in records]
+        for row, record in zip(rows, records, strict=True):
+            assert row["bytes"].hex() == record["hex"] and row["role"] == record["role"]
+            assert row["flags"] == record["flags"] and row["summary"] == record["summary"]
+            assert (row["slave"], row["function"], row["request_index"]) == \
+                (record["slave"], record["function"], record["request_index"])
+            assert row["t"] == record["t_ns"] and row["crc_ok"] == record["crc_ok"]
+            expected = None if record["latency_s"] is None else record["latency_s"] * 1e3
+            assert row["latency_ms"] == pytest.approx(expected)
+
+
+def test_values_are_what_values_says(dataset: Path, cli: Callable[..., Any]) -> None:
+    expected = cli("values", str(CAPTURES / "atv71-plc-poll.mcap"), "--profile", "atv71", "--format", "jsonl").jsonl()
+    rows = sorted((r for r in table(dataset, "values") if r["bus"] == "atv71-plc-poll"),
+                  key=lambda r: (r["t"], r["index"], r["address"]))
+    expected.sort(key=lambda r: (r["t_ns"], r["index"], r["address"]))
+    assert len(rows) == len(expected) > 0
+    for row, record in zip(rows, expected, strict=True):
+        assert (row["slave"], row["kind"], row["address"], row["code"], row["raw"], row["valid"]) == \
+            (record["slave"], record["kind"], record["address"], record["code"], record["raw"], record["valid"])
+        if isinstance(record["value"], str):
+            assert row["text"] == record["value"] and row["value"] is None
+        else:
+            assert row["value"] == pytest.approx(record["value"])
+
+
+def test_anomalies_and_transactions_are_counted_as_stats_counts(dataset: Path, cli: Callable[..., Any]) -> None:
+    stats = json.loads(cli("stats", str(CAPTURES / "atv71-plc-poll.mcap"), "--format", "json").out)
+    kinds = Counter(r["kind"] for r in table(dataset, "anomalies") if r["bus"] == "atv71-plc-poll")
+    assert kinds["crc_error"] == stats["crc_errors"]
+    for flag, count in stats["flags"].items():
+        assert kinds[flag] == count, flag
+    outcomes = Counter(r["outcome"] for r in table(dataset, "transactions") if r["bus"] == "atv71-plc-poll")
+    assert outcomes["timeout"] == stats["flags"]["timeout"]
+    assert outcomes["exception"] == stats["roles"].get("exception", 0)
+
+
+def test_the_readme_query_runs_on_duckdb(dataset: Path) -> None:
+    """Latency p95 per slave per day across all buses, as the README shows it, against numpy."""
+    result = duckdb.sql(P95_QUERY.format(dataset=dataset)).fetchall()
+    assert {row[0] for row in result} == {Path(sample).stem for sample in SAMPLES}
+    transactions = [r for r in table(dataset, "transactions") if r["outcome"] == "answered"]
+    for bus, date, slave, answers, p95 in result:
+        mine = [r["latency_ms"] for r in transactions if (r["bus"], r["slave"]) == (bus, slave)]
+        assert answers == len(mine) and p95 == pytest.approx(np.quantile(mine, 0.95))
+        assert str(date) == "2023-11-14"
+
+
+def test_every_file_says_where_it_comes_from(dataset: Path) -> None:
+    import pyarrow.parquet as pq
+
+    files = sorted(dataset.glob("*/bus=xbt-hmi/date=*/*.parquet"))
+    assert len(files) == 4
+    for file in files:
+        metadata = pq.read_schema(file).metadata
+        assert metadata[b"rtusniff.line"] == b"19200 8N1" and len(metadata[b"rtusniff.source_sha256"]) == 64
+        assert metadata[b"rtusniff.tool"].startswith(b"rtusniff ")
+        assert pq.ParquetFile(file).metadata.row_group(0).column(0).compression == "ZSTD"
+
+
+def test_a_dataset_is_added_to_and_never_rewritten(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    folder = tmp_path / "plant"
+    assert cli("export", str(CAPTURES / "xbt-hmi.log"), "--parquet", str(folder), "--bus", "line-1").code == 0
+    before = {path: path.stat().st_mtime_ns for path in folder.rglob("*.parquet")}
+    again = cli("export", str(CAPTURES / "xbt-hmi.log"), "--parquet", str(folder), "--bus", "line-1")
+    assert again.code == 11 and "in the dataset already" in again.err and again.err.count("\n") == 1
+    assert {path: path.stat().st_mtime_ns for path in folder.rglob("*")  if path.is_file()} == before
+    other = cli("export", str(CAPTURES / "atv71-plc-poll.log"), "--parquet", str(folder), "--bus", "line-1")
+    assert other.code == 0 and "added 4 files" in other.err
+    assert len(list(folder.rglob("*.parquet"))) == 8
+    assert all(path.stat().st_mtime_ns == mtime for path, mtime in before.items())
+
+
+def test_a_capture_across_midnight_lands_in_two_dates(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    capture = tmp_path / "midnight.log"
+    lines = ["# rtu-capture v1", "# line: 19200 8N1", "# timing: exact"]
+    request, answer = "36 03 00 14 00 05 C1 8A", "36 03 0A 00 54 01 23 01 A3 1A D5 00 9E 21 4C"
+    for second in range(-2, 2):
+        t = 1_700_006_400 + second  # 2023-11-15 00:00:00 UTC
+        lines += [f"{t}.000000000 {request}", f"{t}.010000000 {answer}"]
+    capture.write_text("\n".join(lines) + "\n")
+    assert cli("export", str(capture), "--parquet", str(tmp_path / "d")).code == 0
+    dates = sorted(path.name for path in (tmp_path / "d" / "frames" / "bus=midnight").iterdir())
+    assert dates == ["date=2023-11-14", "date=2023-11-15"]
+    assert duckdb.sql(f"SELECT count(*) FROM read_parquet('{tmp_path}/d/frames/**/*.parquet')").fetchall() == [(8,)]
+
+
+def test_a_failed_export_adds_nothing(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    damaged = tmp_path / "damaged.log"
+    damaged.write_text((CAPTURES / "xbt-hmi.log").read_text() + "1700000009.000000000 zz\n")
+    result = cli("export", str(damaged), "--parquet", str(tmp_path / "d"))
+    assert result.code != 0 and result.err.count("\n") == 1
+    assert not [path for path in (tmp_path / "d").rglob("*") if path.is_file()]
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (["--parquet", "-"], "--parquet takes a folder"),
+    (["--bus", "x", "--pcap", "{tmp}/x.pcap"], "--bus names the partition"),
+    (["--parquet", "{tmp}/d", "--bus", "a/b"], "--bus 'a/b'"),
+])
+def test_wrong_dataset_options(tmp_path: Path, cli: Callable[..., Any], args: list[str], said: str) -> None:
+    args = [arg.format(tmp=tmp_path) for arg in args]
+    result = cli("export", str(CAPTURES / "xbt-hmi.log"), *args)
+    assert result.code == 2 and said in result.err
+
+
+@pytest.mark.skipif(not available(), reason="needs ../shared/real beside the checkout")
+def test_real_recordings_export_every_frame(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    """Real lines recorded by others (sigrok's test suite): each one a bus of one dataset, whose
+    tables hold as many frames and CRC errors as stats counts."""
+    folder = tmp_path / "d"
+    expected = {}
+    for name in RECORDINGS:
+        copy = tmp_path / name
+        shutil.copy(TEXT / name, copy)
+        expected[copy.stem] = json.loads(cli("stats", str(copy), "--format", "json").out)
+        assert cli("export", str(copy), "--parquet", str(folder), "-q").code == 0
+    frames = dict(duckdb.sql(f"SELECT bus, count(*) FROM read_parquet('{folder}/frames/**/*.parquet', "
+                             "hive_partitioning = true) GROUP BY bus").fetchall())
+    crc = dict(duckdb.sql(f"SELECT bus, count(*) FROM read_parquet('{folder}/anomalies/**/*.parquet', "
+                          "hive_partitioning = true) WHERE kind = 'crc_error' GROUP BY bus").fetchall())
+    assert frames == {bus: stats["frames"] for bus, stats in expected.items()}
+    assert {bus: crc.get(bus, 0) for bus in expected} == {bus: stats["crc_errors"] for bus, stats in expected.items()}
