@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -104,6 +104,15 @@ class FunctionStats:
     latency: Histogram = field(default_factory=Histogram)
     poll_period: Histogram = field(default_factory=Histogram)
 
+    def merge(self, other: FunctionStats) -> None:
+        """Add another capture's counts and histograms (exactly: the bins add up)."""
+        for name in _COUNTS:
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+        self.exceptions.update(other.exceptions)
+        for mine, theirs in ((self.latency, other.latency), (self.poll_period, other.poll_period)):
+            if theirs.minimum is not None and theirs.maximum is not None:
+                mine.merge(theirs.counts, theirs.count, theirs.minimum, theirs.maximum)
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "requests": self.requests,
@@ -119,6 +128,10 @@ class FunctionStats:
             "latency_s": self.latency.summary(),
             "poll_period_s": self.poll_period.summary(),
         }
+
+
+_COUNTS = ("requests", "responses", "broadcasts", "crc_errors", "timeouts", "retries", "unexpected", "gap_1_5",
+           "short_idle")
 
 
 class LastSeen:
@@ -143,6 +156,22 @@ class LastSeen:
         slots = signatures & (self.SLOTS - 1)
         self._signature[slots] = signatures
         self._time[slots] = times
+
+
+#: The totals :meth:`Statistics.merge` adds up.
+_TOTALS = ("frames", "total_bytes", "noise_bytes", "crc_errors", "uart_framing_errors", "uart_parity_errors",
+           "skipped_reads", "skipped_bytes", "wire_ns")
+
+
+class _NoLastSeen(LastSeen):
+    """A :class:`LastSeen` without tables, for statistics that are only merged."""
+
+    def __init__(self) -> None:
+        self._signature = np.zeros(0, np.int64)
+        self._time = np.zeros(0, np.int64)
+
+
+_NO_LAST_SEEN = _NoLastSeen()
 
 
 @dataclass(frozen=True)
@@ -176,6 +205,8 @@ class Statistics:
     first_ns: int | None = None
     last_ns: int | None = None
     _last_seen: LastSeen = field(default_factory=LastSeen)
+    #: Merged statistics of many captures: the sum of their durations (see :meth:`merge`).
+    spans_ns: int | None = None
 
     def add_batch(self, batch: MessageBatch) -> None:
         if not len(batch):
@@ -259,7 +290,30 @@ class Statistics:
 
     @property
     def duration_ns(self) -> int:
+        if self.spans_ns is not None:
+            return self.spans_ns
         return 0 if self.first_ns is None or self.last_ns is None else self.last_ns - self.first_ns
+
+    def merge(self, other: Statistics) -> None:
+        """Add the statistics of another capture (many captures at once, as ``stats --each``):
+        counters and histograms add up exactly; the duration is the captures' durations summed,
+        so that the bus load is the share of their time a wire was busy."""
+        spans = self.duration_ns + other.duration_ns
+        for key, theirs in sorted(other.per_function.items()):
+            self._function(*key).merge(theirs)
+        self.roles.update(other.roles)
+        self.flags.update(other.flags)
+        for name in _TOTALS:
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+        firsts = [t for t in (self.first_ns, other.first_ns) if t is not None]
+        lasts = [t for t in (self.last_ns, other.last_ns) if t is not None]
+        self.first_ns, self.last_ns = min(firsts, default=None), max(lasts, default=None)
+        self.spans_ns = spans
+
+    def portable(self) -> Statistics:
+        """These statistics without the per-capture state of poll periods (1 MB): what another
+        process sends back to be merged."""
+        return replace(self, _last_seen=_NO_LAST_SEEN)
 
     @property
     def bus_load(self) -> float | None:

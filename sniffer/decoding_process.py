@@ -69,6 +69,10 @@ def decoding_jobs(requested: str, *, follow: bool = False) -> int:
     """Processes to decode with: ``"1"``, ``"2"``, or ``"auto"`` (two where there are two cores
     for this process and ``os.fork``). Following a growing file decodes in one: the writer sets
     the pace, and Ctrl-C (sent to this process alone by ``kill -INT``) must reach the reader."""
+    if requested not in ("auto", "1", "2"):
+        if not requested.isdigit() or int(requested) < 1:
+            raise RtuSniffError(ErrorKind.USAGE, f"--jobs {requested}: give auto, or a number of processes")
+        requested = "2"  # one capture is decoded in two processes at most (more: --each)
     if follow:
         if requested == "2":
             raise RtuSniffError(ErrorKind.USAGE, "--jobs 2 with --follow: a followed recording is decoded as it is "

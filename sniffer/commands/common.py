@@ -154,10 +154,11 @@ def add_jobs_option(parser: argparse.ArgumentParser) -> None:
     ``stats``: there a second process only adds the pipe)."""
     parser.add_argument(
         "--jobs",
-        choices=["auto", "1", "2"],
         default="auto",
+        metavar="auto|1|2|N",
         help="processes to decode with: 2 reads, frames and pairs in a second process while this one "
-        "annotates and writes (faster on two cores, same output); default auto: 2 where there are two cores",
+        "annotates and writes (faster on two cores, same output); default auto: 2 where there are two cores. "
+        "With --each: captures decoded at once (auto: one per core)",
     )
 
 

@@ -26,6 +26,7 @@ from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.outputs import McapSink, ParquetSink, PcapSink, RerunSink
 from sniffer.exports.streams import RerunStreamSink, add_stream_options, check_streams, stream_sinks
 from sniffer.io.output_files import published_whole
+from sniffer.many_captures import add_each_options, capture_files, each_capture, jobs_for_each, tell_failures
 from sniffer.pipeline import Analysis, analyze
 from sniffer.progress import progress_for
 from sniffer.sinks import FileSink
@@ -58,11 +59,14 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     add_follow_option(parser)
     add_stream_options(parser, replay=True)
     add_jobs_option(parser)
+    add_each_options(parser, "each capture added to the --parquet dataset as its own")
     add_quiet_option(parser)
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.each:
+        return _run_each(args)
     if args.spawn:
         if args.rerun not in (None, "spawn"):
             raise RtuSniffError(ErrorKind.USAGE, "--spawn is --rerun spawn: give one --rerun")
@@ -161,3 +165,38 @@ def check_dataset(args: argparse.Namespace) -> None:
         raise RtuSniffError(ErrorKind.USAGE, "--parquet takes a folder (a dataset of many files)", path=args.parquet)
     if args.bus is not None and (not args.bus or any(c in args.bus for c in "/\\=")):
         raise RtuSniffError(ErrorKind.USAGE, f"--bus {args.bus!r}: a name without '/', '\\' or '='")
+
+
+def _run_each(args: argparse.Namespace) -> int:
+    """``--each --parquet DIR``: every capture exported as its own into one dataset, in a pool."""
+    others = [option for option in ("mcap", "rrd", "pcap", "foxglove", "rerun", "follow", "spawn")
+              if getattr(args, option)]
+    if not args.parquet or others:
+        raise RtuSniffError(ErrorKind.USAGE, "--each exports many captures into one --parquet dataset (files of one "
+                            "capture, streams and --follow take one capture)")
+    check_dataset(args)
+    files = capture_files(args.capture)
+    one = argparse.Namespace(**{**vars(args), "each": False, "quiet": True, "jobs": "1"})
+    outcomes, frames, added = [], 0, []
+    for outcome in each_capture(files, _export_one, one, jobs_for_each(args.jobs)):
+        outcomes.append(outcome)
+        if outcome.result is None:
+            print(f"error: {outcome.error}", file=sys.stderr, flush=True)
+            continue
+        frames += outcome.result[0]
+        added += outcome.result[1]
+    if not args.quiet and added:
+        size, done = sum(os.path.getsize(path) for path in added), sum(o.result is not None for o in outcomes)
+        print(f"added {len(added)} files to {args.parquet}: Parquet dataset, {frames:,} frames of {done} captures, "
+              f"{human_size(size)}", file=sys.stderr)
+    return tell_failures(outcomes)
+
+
+def _export_one(args: argparse.Namespace) -> tuple[int, list[str]]:
+    """One capture of ``--each`` into the dataset (in a process of the pool): frames, files added."""
+    with ExitStack() as stack:
+        reader, analysis = open_analysis(args, stack)
+        sink = ParquetSink(args.parquet, args, analysis)
+        stack.callback(sink.close)
+        analyze(reader, source_name(args), analysis, [sink], jobs=1)
+    return sink.frames_written, sink.files

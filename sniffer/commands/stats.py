@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from contextlib import ExitStack
+from dataclasses import replace
 
 from rich.console import Console
 
+from decoders.capture import CaptureInfo, TimingQuality
+from decoders.line import LineSettings
+from decoders.stats import Statistics
 from sniffer.commands.common import (
     add_capture_argument,
     add_decoding_options,
@@ -22,8 +27,12 @@ from sniffer.commands.common import (
     source_name,
     tell_written,
 )
+from sniffer.commands.counting import counted_capture
+from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.many_captures import add_each_options, capture_files, each_capture, jobs_for_each, tell_failures
 from sniffer.pipeline import analyze
 from sniffer.progress import progress_for
+from sniffer.views.compare_view import Side
 from sniffer.views.layout import terminal_colors, terminal_width
 from sniffer.views.stats_view import StatsView
 
@@ -44,12 +53,15 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     add_force_option(parser)
     add_decoding_options(parser)
     add_follow_option(parser)
+    add_each_options(parser, "the statistics merged: counts and histograms add up")
     add_quiet_option(parser)
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     check_outputs([args.output], capture_paths(args), force=args.force)
+    if args.each:
+        return _run_each(args)
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)
@@ -62,3 +74,39 @@ def run(args: argparse.Namespace) -> int:
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format} statistics of {statistics.frames:,} frames")])
     return 0
+
+
+def _run_each(args: argparse.Namespace) -> int:
+    """``--each``: every capture counted on its own (in a pool), the statistics merged, one table."""
+    if args.follow:
+        raise RtuSniffError(ErrorKind.USAGE, "--follow follows one capture, --each reads many: give one of them")
+    files = capture_files(args.capture)
+    merged, first, outcomes = Statistics(), None, []
+    quiet = argparse.Namespace(**{**vars(args), "quiet": True})  # no progress bars from the pool
+    for outcome in each_capture(files, _counted, quiet, jobs_for_each(args.jobs)):
+        outcomes.append(outcome)
+        if outcome.result is None:
+            print(f"error: {outcome.error}", file=sys.stderr, flush=True)
+            continue
+        first = first or outcome.result
+        merged.merge(outcome.result.statistics)
+    done = len(outcomes) - sum(outcome.result is None for outcome in outcomes)
+    with ExitStack() as stack:
+        out = open_output(args.output, stack)
+        console = Console(file=out)
+        width = terminal_width(args, console)
+        view = StatsView(out, width=width, color_system=terminal_colors(console) if width else None,
+                         as_json=args.format == "json")
+        if first is not None:
+            line = LineSettings.parse(first.line)
+            view.start(f"{done} of {len(files)} captures", CaptureInfo(line, TimingQuality(first.timing)), line)
+            view.finish(merged)
+    if args.output not in (None, "-") and first is not None:
+        tell_written(args, [(args.output, f"{args.format} statistics of {merged.frames:,} frames, {done} captures")])
+    return tell_failures(outcomes)
+
+
+def _counted(args: argparse.Namespace) -> Side:
+    """One capture of ``--each``, counted (in a process of the pool: what comes back is small)."""
+    side = counted_capture(args, args.capture[0])
+    return replace(side, statistics=side.statistics.portable())
