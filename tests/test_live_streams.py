@@ -18,26 +18,12 @@ import serial
 from tests.foxglove_client import FoxgloveClient
 from tests.ptylab import SOCAT, Relay, pty_pair, pymodbus_slave
 from tests.test_capture import HANG_S, REQUEST, RESPONSE, analyze, frames_of, start_capture
-from tests.test_streams import QUIET_ENV, RERUN, _free_port, _wait_for_port, foxglove_url
+from tests.test_streams import foxglove_url, rerun_receiver, stop_receiver
 
 pytestmark = [
     pytest.mark.skipif(SOCAT is None, reason="needs socat (apt-get install socat; .ci/run installs it)"),
     pytest.mark.filterwarnings("ignore:RRD file has no footer"),
 ]
-
-
-def rerun_receiver(path: Path) -> tuple[subprocess.Popen[bytes], int]:
-    """A Rerun process that saves what SDKs send it (the CLI, as a viewer would receive it)."""
-    port = _free_port()
-    process = subprocess.Popen([str(RERUN), "--save", str(path), "--port", str(port), "--bind", "127.0.0.1"],
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=QUIET_ENV)
-    _wait_for_port(port)
-    return process, port
-
-
-def stop_receiver(process: subprocess.Popen[bytes]) -> None:
-    process.send_signal(signal.SIGINT)  # the CLI closes its file on Ctrl-C
-    process.wait(timeout=HANG_S)
 
 
 def send_paced(port: Path, count: int, sent: bytearray, stop: threading.Event | None = None) -> None:

@@ -29,6 +29,27 @@ QUIET_ENV = {**os.environ, "CI": "1"}
 WAIT_S = 60
 
 
+def rerun_receiver(path: Path) -> tuple[subprocess.Popen[bytes], int]:
+    """A Rerun process that saves what SDKs send it (the CLI, as a viewer would receive it).
+
+    Started with SIGINT at its default: a shell's background job ignores SIGINT, an ignored
+    signal stays ignored across exec, and the CLI then never closes its file on Ctrl-C."""
+    port = _free_port()
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        process = subprocess.Popen([str(RERUN), "--save", str(path), "--port", str(port), "--bind", "127.0.0.1"],
+                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=QUIET_ENV)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    _wait_for_port(port)
+    return process, port
+
+
+def stop_receiver(process: subprocess.Popen[bytes]) -> None:
+    process.send_signal(signal.SIGINT)  # the CLI closes its file on Ctrl-C
+    process.wait(timeout=WAIT_S)
+
+
 def rtusniff(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen([sys.executable, "-m", "sniffer", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=QUIET_ENV)
@@ -108,11 +129,8 @@ def test_rerun_stream_gets_what_the_rrd_file_gets(tmp_path: Path) -> None:
     from tests.test_exports import _rerun_rows
 
     received, written = tmp_path / "received.rrd", tmp_path / "written.rrd"
-    port = _free_port()
-    viewer = subprocess.Popen([str(RERUN), "--save", str(received), "--port", str(port), "--bind", "127.0.0.1"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=QUIET_ENV)
+    viewer, port = rerun_receiver(received)
     try:
-        _wait_for_port(port)
         plain = rtusniff("export", str(SAMPLE), "--rrd", str(written), "--profile", "atv71")
         assert plain.wait(timeout=WAIT_S) == 0
         process = rtusniff("export", str(SAMPLE), "--rerun", f"127.0.0.1:{port}", "--speed", "max", "--profile",
@@ -122,8 +140,7 @@ def test_rerun_stream_gets_what_the_rrd_file_gets(tmp_path: Path) -> None:
         assert f"Rerun: streaming to rerun+http://127.0.0.1:{port}/proxy" in err
         assert "sent 52 frames to the Rerun viewer" in err
     finally:
-        viewer.send_signal(signal.SIGINT)  # the CLI closes its file on Ctrl-C
-        viewer.wait(timeout=WAIT_S)
+        stop_receiver(viewer)
     got, expected = _rerun_rows(received), _rerun_rows(written)
     assert _rows_by_entity(got[0]) == _rows_by_entity(expected[0])
     assert got[1] == expected[1] and got[2] == expected[2]
