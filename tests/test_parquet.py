@@ -83,6 +83,31 @@ def test_values_are_what_values_says(dataset: Path, cli: Callable[..., Any]) -> 
             assert row["value"] == pytest.approx(record["value"])
 
 
+@pytest.mark.parametrize("profile", [[], ["--profile", "20=atv71"]], ids=["no profile", "one slave profiled"])
+def test_values_without_a_profile_are_what_values_says(tmp_path: Path, cli: Callable[..., Any],
+                                                       profile: list[str]) -> None:
+    """Slaves no profile speaks for go to the table in columns (runs of registers and coils);
+    alone or between profiled slaves' rows, the table holds what ``values`` lists, in its order."""
+    from benchmarks.bench_framing import coil_transmissions
+    from benchmarks.bench_memory import write_capture
+
+    coils = tmp_path / "coils.mcap"
+    write_capture(coils, 3000, coil_transmissions)
+    for capture in (CAPTURES / "atv71-plc-poll.mcap", CAPTURES / "xbt-hmi.mcap", coils):
+        folder = tmp_path / f"{capture.stem}-{len(profile)}"
+        assert cli("export", str(capture), "--parquet", str(folder), *profile, "-q").code == 0
+        expected = cli("values", str(capture), *profile, "--format", "jsonl").jsonl()
+        rows = table(folder, "values")
+        assert len(rows) == len(expected) > 0
+        for row, record in zip(rows, expected, strict=True):
+            assert (row["t"], row["index"], row["slave"], row["kind"], row["address"], row["code"], row["name"],
+                    row["raw"], row["valid"], row["request_index"], row["unit"]) == \
+                (record["t_ns"], record["index"], record["slave"], record["kind"], record["address"], record["code"],
+                 record["name"], record["raw"], record["valid"], record["request_index"], record["unit"])
+            assert row["value"] == pytest.approx(record["value"]) if not isinstance(record["value"], str) else \
+                row["text"] == record["value"]
+
+
 def test_anomalies_and_transactions_are_counted_as_stats_counts(dataset: Path, cli: Callable[..., Any]) -> None:
     stats = json.loads(cli("stats", str(CAPTURES / "atv71-plc-poll.mcap"), "--format", "json").out)
     kinds = Counter(r["kind"] for r in table(dataset, "anomalies") if r["bus"] == "atv71-plc-poll")

@@ -36,22 +36,16 @@ from decoders.message import (
 )
 from decoders.modbus.codes import function_name
 from decoders.modbus.layouts import fits_request
+from decoders.modbus.param_runs import ParamRun, expand_runs, named_registers, param_runs
 from decoders.modbus.pdu import (
-    COIL_ON,
-    BitsResponse,
     DeviceIdResponse,
     ExceptionPdu,
-    MaskWrite,
     Pdu,
     ReadRequest,
     ReadWriteRequest,
-    RegistersResponse,
     WriteCoilsRequest,
-    WriteMultipleResponse,
     WriteRegistersRequest,
-    WriteSingle,
     parse_pdu,
-    quantity_allowed,
 )
 from decoders.modbus.quick import QuickRead, register_reads
 from decoders.profiles.apply import ProfileApplier
@@ -241,58 +235,18 @@ def answer_context(request: Pdu | None) -> AnswerContext:
     return (type(request), getattr(request, "address", None))
 
 
-def named_registers(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:
-    """The registers or coils ``pdu`` names, with their raw values where it carries them; none
-    for a request for more than Modbus allows (a damaged count would name thousands)."""
-    if not quantity_allowed(pdu):
-        return ()
-    match pdu:
-        case ReadRequest(address=address, count=count) | WriteMultipleResponse(address=address, count=count):
-            return tuple([ParamValue(a) for a in range(address, address + count)])
-        case RegistersResponse(values=values):
-            start = _read_start(request)
-            if start is None:
-                return ()
-            return tuple([ParamValue(start + i, None, None, v, v) for i, v in enumerate(values)])
-        case BitsResponse(bits=bits) if isinstance(request, ReadRequest):
-            asked = bits[: request.count]
-            return tuple(ParamValue(request.address + i, raw=int(b), value=int(b)) for i, b in enumerate(asked))
-        case WriteSingle(function=5, address=address, value=value):
-            bit = 1 if value == COIL_ON else 0
-            return (ParamValue(address, raw=bit, value=bit),)
-        case WriteSingle(address=address, value=value):
-            return (ParamValue(address, raw=value, value=value),)
-        case WriteRegistersRequest(address=address, values=values):
-            return tuple(ParamValue(address + i, raw=v, value=v) for i, v in enumerate(values))
-        case WriteCoilsRequest(address=address, bits=bits):
-            return tuple(ParamValue(address + i, raw=int(b), value=int(b)) for i, b in enumerate(bits))
-        case ReadWriteRequest():
-            written = tuple(ParamValue(pdu.write_address + i, raw=v, value=v) for i, v in enumerate(pdu.values))
-            return written + tuple(ParamValue(pdu.read_address + i) for i in range(pdu.read_count))
-        case MaskWrite(address=address):
-            return (ParamValue(address),)
-    return ()
-
-
-def _read_start(request: Pdu | None) -> int | None:
-    if isinstance(request, ReadRequest):
-        return request.address
-    if isinstance(request, ReadWriteRequest):
-        return request.read_address
-    return None
-
-
 #: Where a :class:`Decoding` keeps its params (the slot :class:`LazyParams` fills when read).
 _PARAMS_SLOT: Any = Decoding.__dict__["params"]
 
 
 class LazyParams(Decoding):
-    """A decoding whose params are named when first read, from its PDU and its request's:
-    the same tuple :func:`named_registers` gives, built only for outputs that read params
-    (a table reads the summary alone, and building a param per register is most of the cost
-    of a frame never seen before)."""
+    """A decoding no profile adds to, whose params are named when first read, from its PDU and
+    its request's: the same tuple :func:`named_registers` gives, built only for outputs that
+    read params (a table reads the summary alone, and building a param per register is most of
+    the cost of a frame never seen before). Outputs that write params as text or columns read
+    :attr:`runs` instead and build none."""
 
-    __slots__ = ("_request",)
+    __slots__ = ("_request", "_runs")
 
     def __init__(self, summary: str, pdu: Pdu, request: Pdu | None) -> None:
         # Not Decoding.__init__: its dataclass code would assign ``params`` through this
@@ -303,14 +257,22 @@ class LazyParams(Decoding):
         self.device = None
         self.uss = None
         self._request = request
+        self._runs: tuple[ParamRun, ...] | None = None
+
+    @property
+    def runs(self) -> tuple[ParamRun, ...]:
+        """The params as runs of consecutive addresses (:func:`param_runs`)."""
+        if self._runs is None:
+            assert self.pdu is not None
+            self._runs = param_runs(self.pdu, self._request)
+            self._request = None
+        return self._runs
 
     @property
     def params(self) -> tuple[ParamValue, ...]:  # type: ignore[override]
         try:
             named: tuple[ParamValue, ...] = _PARAMS_SLOT.__get__(self, Decoding)
         except AttributeError:
-            assert self.pdu is not None
-            named = named_registers(self.pdu, self._request)
+            named = expand_runs(self.runs)
             _PARAMS_SLOT.__set__(self, named)
-            self._request = None
         return named

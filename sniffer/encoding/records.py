@@ -23,8 +23,9 @@ from decoders.message import (
     MessageBatch,
     ParamValue,
 )
-from decoders.modbus.annotate import KEPT_DECODINGS
+from decoders.modbus.annotate import KEPT_DECODINGS, LazyParams
 from sniffer.encoding.blocks import Block, times_matrix
+from sniffer.encoding.param_text import runs_json
 from sniffer.encoding.rows import (
     Column,
     Rows,
@@ -240,9 +241,12 @@ class FrameRecordEncoder:
         """A record's parts that a decoding determines (the annotator shares a decoding only
         between frames with the same bytes, role and protocol)."""
         data, crc_ok, slave, function, role, code, protocol = facts(position)
-        record = {"params": [param_record(p) for p in decoding.params], "summary": decoding.summary}
-        text = encode_json(record).decode() if _spelt_alike(decoding.params) else encode_record(record)
-        params_summary = text[1:-1]
+        if isinstance(decoding, LazyParams):  # no profile: written from its runs, no param objects
+            params_summary = f'"params":{runs_json(decoding.runs)},"summary":{encode_json(decoding.summary).decode()}'
+        else:
+            record = {"params": [param_record(p) for p in decoding.params], "summary": decoding.summary}
+            text = encode_json(record).decode() if _spelt_alike(decoding.params) else encode_record(record)
+            params_summary = text[1:-1]
         remarks = encode_json(list(decoding.remarks)).decode()
         return (
             f'"hex":"{data.hex()}","crc_ok":{"true" if crc_ok else "false"},'

@@ -11,6 +11,9 @@ table (:mod:`sniffer.exports.parquet_export`): a row per frame that carried valu
   answer, and carry the request's time and index.
 
 :class:`ValueRows` finds the rows; a subclass says what becomes of each (:meth:`ValueRows.output`).
+A subclass that writes columns (``takes_runs``) gets the rows of slaves no profile speaks for
+as runs of consecutive addresses (:mod:`decoders.modbus.param_runs`) rather than a param object
+per value, when it takes every value.
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ from dataclasses import dataclass, field
 
 from decoders.frame import FrameFlag
 from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, ParamValue, Role
+from decoders.modbus.annotate import LazyParams
+from decoders.modbus.param_runs import ParamRun
 from decoders.stats import Statistics
 from sniffer.sinks import Sink
 
@@ -39,6 +44,11 @@ class ValueChoice:
     params: frozenset[str] = frozenset()
     changes: bool = False
 
+    @property
+    def everything(self) -> bool:
+        """Whether every value of every slave is wanted, changed or not."""
+        return not (self.slaves or self.params or self.changes)
+
     def wants(self, slave: int, param: ParamValue) -> bool:
         if self.slaves and slave not in self.slaves:
             return False
@@ -54,12 +64,17 @@ class ValueRow:
     params: tuple[ParamValue, ...]
     request_index: int | None
     valid: list[bool] = field(default_factory=list)
+    #: For a subclass that ``takes_runs``: the values as runs (``params`` is then empty), all
+    #: with the validity ``valid[0]`` (no profile marks a value as not a reading).
+    runs: tuple[ParamRun, ...] | None = None
 
 
 class ValueRows(Sink):
     """Finds the value rows of annotated batches, in capture order (written rows once answered)."""
 
     wants_messages = True
+    #: Whether :meth:`output` takes rows as runs (:attr:`ValueRow.runs`).
+    takes_runs = False
 
     def __init__(self, choice: ValueChoice | None = None) -> None:
         self._choice = choice or ValueChoice()
@@ -81,15 +96,18 @@ class ValueRows(Sink):
         role, slave, function = messages.role.tolist(), messages.slave.tolist(), messages.function.tolist()
         crc, flags, request = frames.crc_ok.tolist(), messages.flags.tolist(), messages.request_index.tolist()
         t_start = frames.t_start_ns.tolist()
+        as_runs = self.takes_runs and self._choice.everything
         for position in batch.positions():
             decoding: Decoding = batch.decodings[position]
             kind = role[position]
             if kind in (_RESPONSE, _EXCEPTION) and request[position] != NONE:
                 self._answered(request[position], valid=kind == _RESPONSE and bool(crc[position]))
-            if slave[position] == NONE or not decoding.params:
+            runs = decoding.runs if as_runs and isinstance(decoding, LazyParams) else None
+            if slave[position] == NONE or not (decoding.params if runs is None else runs):
                 continue
-            row = ValueRow(t_start[position], first + position, slave[position], "", decoding.params,
-                       None if request[position] == NONE else request[position])
+            row = ValueRow(t_start[position], first + position, slave[position], "",
+                           () if runs is not None else decoding.params,
+                           None if request[position] == NONE else request[position], runs=runs)
             if kind == _RESPONSE:
                 row.kind = "reported"
                 self._emit(row, crc_ok=bool(crc[position]))
@@ -114,6 +132,9 @@ class ValueRows(Sink):
         """Each batch's start times, before its rows (``--time relative`` counts from the first)."""
 
     def _emit(self, row: ValueRow, *, crc_ok: bool) -> None:
+        if row.runs is not None:
+            self._emit_runs(row, crc_ok=crc_ok)
+            return
         params = [p for p in row.params if p.raw is not None and self._choice.wants(row.slave, p)]
         if self._choice.changes:
             params = [p for p in params if self._changed(row, p)]
@@ -122,6 +143,16 @@ class ValueRows(Sink):
         row.params = tuple(params)
         row.valid = [crc_ok and (p.available or row.kind == "written") for p in params]
         self.shown += len(params)
+        self.output(row)
+
+    def _emit_runs(self, row: ValueRow, *, crc_ok: bool) -> None:
+        """A row of runs: the runs that carry values, each value valid as its frame is."""
+        assert row.runs is not None
+        valued = tuple(run for run in row.runs if run.values is not None and run.count > 0)
+        if not valued:
+            return
+        row.runs, row.valid = valued, [crc_ok]
+        self.shown += sum(run.count for run in valued)
         self.output(row)
 
     def _changed(self, row: ValueRow, param: ParamValue) -> bool:

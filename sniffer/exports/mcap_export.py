@@ -37,7 +37,7 @@ from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.memo import Memo
 from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding
-from decoders.modbus.annotate import KEPT_DECODINGS
+from decoders.modbus.annotate import KEPT_DECODINGS, LazyParams
 from sniffer.encoding.records import FrameRecordEncoder, encode_json
 from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -116,6 +116,9 @@ PARAMS_SCHEMA: dict[str, Any] = {
 
 def numeric_params(decoding: Decoding) -> dict[str, float | int]:
     """The values a frame carried, by code (or address), numbers only: state words give their raw value."""
+    if isinstance(decoding, LazyParams):  # no profile: every value is a reading, named by address
+        return {str(address): value for run in decoding.runs if run.values is not None
+                for address, value in zip(range(run.address, run.address + run.count), run.values, strict=True)}
     values: dict[str, float | int] = {}
     for param in plotted(decoding.params):
         assert param.raw is not None  # plotted() takes only params with a raw value

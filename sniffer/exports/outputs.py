@@ -154,13 +154,13 @@ class ParquetSink(FileSink["ParquetDataset"]):
                 self.exporter.add("transactions", value["t_ns"], transaction_columns(value))
 
     def finish(self, statistics: Statistics) -> None:
-        from sniffer.exports.parquet_export import value_columns  # noqa: PLC0415 - loaded already
+        from sniffer.exports.parquet_export import CollectedValues, value_columns  # noqa: PLC0415 - loaded already
 
         with self.writing():
             self._values.finish(statistics)
             self._add_values()
             if self.exporter is not None:
-                self.exporter.add("values", *value_columns([]))  # the table's columns, had it no row
+                self.exporter.add("values", *value_columns(CollectedValues()))  # the table's columns, had it no row
         self._finished = True
 
     def close(self) -> None:

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any, TextIO
+import os
+from typing import Any, BinaryIO, TextIO
 
 from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
@@ -19,6 +20,7 @@ class JsonlView(Sink):
     def __init__(self, out: TextIO) -> None:
         self._out = out
         self._frames = FrameRecordEncoder()
+        self._bytes_out = utf8_bytes_under(out)
         #: Frame records written.
         self.shown = 0
 
@@ -35,7 +37,16 @@ class JsonlView(Sink):
         if any(decoding.device is not None for decoding in batch.decodings):
             self._write_with_devices(rows, batch)
         else:
-            self._out.write(rows.data.decode())
+            self._write_rows(rows.data)
+
+    def _write_rows(self, data: bytes | bytearray) -> None:
+        """Records built as UTF-8 bytes, written as they are where the text stream would only
+        encode them again (megabytes a second of coil records)."""
+        if self._bytes_out is None:
+            self._out.write(data.decode())
+            return
+        self._out.flush()  # what the text layer holds goes first
+        self._bytes_out.write(data)
 
     def gap(self, skipped: SkippedReads) -> None:
         """A ``gap`` record where a live capture skipped reads: what lies between the frames
@@ -58,7 +69,15 @@ class JsonlView(Sink):
             device = decodings[position].device
             if device is not None:
                 end = int(rows.offsets[row + 1])
-                self._out.write(rows.data[written:end].decode())
+                self._write_rows(rows.data[written:end])
                 self._write(device_record(first + position, device))
                 written = end
-        self._out.write(rows.data[written:].decode())
+        self._write_rows(rows.data[written:])
+
+
+def utf8_bytes_under(out: TextIO) -> BinaryIO | None:
+    """The byte stream under ``out`` when writing to it directly writes what ``out`` would:
+    UTF-8 and no newline translation (not on Windows, where text streams write ``\r\n``)."""
+    encoding = (getattr(out, "encoding", None) or "").lower().replace("-", "").replace("_", "")
+    buffer: BinaryIO | None = getattr(out, "buffer", None)
+    return buffer if encoding == "utf8" and os.linesep == "\n" else None

@@ -9,8 +9,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from decoders.crc import crc_bytes
-from decoders.modbus.annotate import named_registers
 from decoders.modbus.codes import MAX_QUANTITY
+from decoders.modbus.param_runs import named_registers
 from decoders.modbus.pdu import parse_pdu
 
 

@@ -1,0 +1,98 @@
+"""The registers or coils a frame names, as runs of consecutive addresses: the columnar form.
+
+A register answer names ``count`` registers from its request's address, with one value each; a
+read request names them without values. Written out as one :class:`~decoders.message.ParamValue`
+per register, a coil read of 64 coils is 64 objects; as a :class:`ParamRun` it is one address,
+one count and the values as they were decoded. Outputs that know no profile applies (JSONL,
+the MCAP ``/slave/N/params`` channel) write runs straight from here, and
+:func:`named_registers` -- the one rule -- expands the same runs into params, so both forms say
+the same by construction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from decoders.message import ParamValue
+from decoders.modbus.pdu import (
+    COIL_ON,
+    BitsResponse,
+    MaskWrite,
+    Pdu,
+    ReadRequest,
+    ReadWriteRequest,
+    RegistersResponse,
+    WriteCoilsRequest,
+    WriteMultipleResponse,
+    WriteRegistersRequest,
+    WriteSingle,
+    quantity_allowed,
+)
+
+
+@dataclass(frozen=True, slots=True)
+class ParamRun:
+    """``count`` consecutive registers or coils from ``address``; ``values``: their raw values
+    (coils as 0 and 1), or ``None`` where the frame names them without values (a read request)."""
+
+    address: int
+    count: int
+    values: Sequence[int] | None = None
+
+
+def param_runs(pdu: Pdu, request: Pdu | None) -> tuple[ParamRun, ...]:
+    """The runs ``pdu`` names (read against ``request``, its answer's request); none for a
+    request for more than Modbus allows (a damaged count would name thousands)."""
+    if not quantity_allowed(pdu):
+        return ()
+    match pdu:
+        case ReadRequest(address=address, count=count) | WriteMultipleResponse(address=address, count=count):
+            return (ParamRun(address, count),)
+        case RegistersResponse(values=values):
+            start = _read_start(request)
+            return () if start is None else (ParamRun(start, len(values), values),)
+        case BitsResponse(bits=bits) if isinstance(request, ReadRequest):
+            asked = [int(bit) for bit in bits[: request.count]]
+            return (ParamRun(request.address, len(asked), asked),)
+        case WriteSingle(function=5, address=address, value=value):
+            return (ParamRun(address, 1, (1 if value == COIL_ON else 0,)),)
+        case WriteSingle(address=address, value=value):
+            return (ParamRun(address, 1, (value,)),)
+        case WriteRegistersRequest(address=address, values=values):
+            return (ParamRun(address, len(values), values),)
+        case WriteCoilsRequest(address=address, bits=bits):
+            return (ParamRun(address, len(bits), [int(bit) for bit in bits]),)
+        case ReadWriteRequest():
+            written = ParamRun(pdu.write_address, len(pdu.values), pdu.values)
+            return (written, ParamRun(pdu.read_address, pdu.read_count))
+        case MaskWrite(address=address):
+            return (ParamRun(address, 1),)
+    return ()
+
+
+def named_registers(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:
+    """The registers or coils ``pdu`` names, with their raw values where it carries them:
+    :func:`param_runs` a param each."""
+    return expand_runs(param_runs(pdu, request))
+
+
+def expand_runs(runs: tuple[ParamRun, ...]) -> tuple[ParamValue, ...]:
+    """A :class:`~decoders.message.ParamValue` per register or coil of ``runs``."""
+    params: list[ParamValue] = []
+    for run in runs:
+        addresses = range(run.address, run.address + run.count)
+        if run.values is None:
+            params += map(ParamValue, addresses)
+        else:
+            params += [ParamValue(address, None, None, value, value)
+                       for address, value in zip(addresses, run.values, strict=True)]
+    return tuple(params)
+
+
+def _read_start(request: Pdu | None) -> int | None:
+    if isinstance(request, ReadRequest):
+        return request.address
+    if isinstance(request, ReadWriteRequest):
+        return request.read_address
+    return None
