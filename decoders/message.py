@@ -131,26 +131,8 @@ class Message:
     def uss(self) -> UssTelegram | None:
         return self.decoding.uss
 
-    def decoded(
-        self,
-        *,
-        summary: str,
-        params: tuple[ParamValue, ...] | None = None,
-        pdu: Pdu | None = None,
-        remarks: tuple[str, ...] | None = None,
-        device: DeviceIdentity | None = None,
-        uss: UssTelegram | None = None,
-    ) -> Message:
-        """This message with what a decoding stage found; fields not given stay as they are."""
-        known = self.decoding
-        decoding = Decoding(
-            summary=summary,
-            params=known.params if params is None else params,
-            pdu=known.pdu if pdu is None else pdu,
-            remarks=known.remarks if remarks is None else remarks,
-            device=known.device if device is None else device,
-            uss=known.uss if uss is None else uss,
-        )
+    def with_decoding(self, decoding: Decoding) -> Message:
+        """This message with ``decoding`` in place of its own."""
         return Message(self.frame, self.role, self.slave, self.function, self.exception_code, self.flags,
                        self.request_index, self.latency_ns, decoding)
 

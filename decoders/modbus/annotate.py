@@ -16,10 +16,6 @@ again, never answered from before.
 from __future__ import annotations
 
 from collections import OrderedDict
-from typing import Any
-
-import numpy as np
-import numpy.typing as npt
 
 from decoders.frame import USS
 from decoders.memo import Memo
@@ -31,14 +27,12 @@ from decoders.message import (
     Decoding,
     Message,
     MessageBatch,
-    ParamValue,
     Role,
 )
 from decoders.modbus.codes import function_name
 from decoders.modbus.layouts import fits_request
-from decoders.modbus.param_runs import ParamRun, expand_runs, named_registers, param_runs
+from decoders.modbus.param_runs import LazyParams
 from decoders.modbus.pdu import (
-    DeviceIdResponse,
     ExceptionPdu,
     Pdu,
     ReadRequest,
@@ -48,7 +42,7 @@ from decoders.modbus.pdu import (
     parse_pdu,
 )
 from decoders.modbus.quick import QuickRead, register_reads
-from decoders.profiles.apply import ProfileApplier
+from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.uss import parse_uss
 
 #: Decoded requests kept for their responses; older ones are answered or lost.
@@ -105,38 +99,6 @@ class Annotator:
             decodings.append(known[0])
         return AnnotatedBatch(batch, decodings)
 
-    def _lean_rows(self, batch: MessageBatch) -> npt.NDArray[np.bool_]:
-        """The Modbus frames of slaves whose profile adds nothing (see :meth:`_lean`)."""
-        lean = batch.frames.protocols() != USS
-        if self._profiles is not None:
-            slaves = np.unique(batch.slave).tolist()
-            profiled = [slave for slave in slaves if not self._profiles.adds_nothing(slave)]
-            if profiled:
-                lean &= ~np.isin(batch.slave, profiled)
-        return np.asarray(lean, np.bool_)
-
-    def _lean(self, data: bytes, role: int, protocol: int, slave: int, *, crc_ok: bool,
-              request: Pdu | None) -> Decoding | None:
-        """A Modbus frame of a slave whose profile adds nothing, decoded without message objects,
-        its params named when first read (a table reads summaries only); ``None`` for the rest
-        (noise, USS, profiled slaves, identifications), which :meth:`_decode` decodes."""
-        if protocol == USS or role == _NOISE_CODE:
-            return None
-        profiles = self._profiles
-        if profiles is not None and not profiles.adds_nothing(slave):
-            return None
-        kind = ROLE_ORDER[role]
-        is_request = kind in _AS_REQUEST or (kind is Role.UNKNOWN and fits_request(data))
-        pdu = parse_pdu(data, is_request=is_request)
-        if profiles is not None and isinstance(pdu, DeviceIdResponse):
-            return None  # an identification may choose the slave's profile
-        summary = pdu.summary()
-        if isinstance(pdu, ExceptionPdu):
-            summary += f" ({function_name(pdu.function)})"
-        if not crc_ok:
-            summary = f"CRC error: {summary}"
-        return LazyParams(summary, pdu, request)
-
     def _version(self) -> int:
         return 0 if self._profiles is None else self._profiles.version
 
@@ -165,56 +127,56 @@ class Annotator:
 
     def _decode(self, message: Message, request: Pdu | None) -> Message:
         frame = message.frame
-        if message.role is Role.NOISE:
-            return message.decoded(summary=f"noise, {len(frame.data)} byte{'s' if len(frame.data) != 1 else ''}")
-        if frame.protocol == USS:
-            return self._uss(message)
-        is_request = message.role in _AS_REQUEST or (message.role is Role.UNKNOWN and fits_request(frame.data))
-        pdu = parse_pdu(frame.data, is_request=is_request)
-        summary = pdu.summary()
-        if isinstance(pdu, ExceptionPdu):
-            summary += f" ({function_name(pdu.function)})"
-        if not frame.crc_ok:
-            summary = f"CRC error: {summary}"
-        annotated = message.decoded(summary=summary, params=named_registers(pdu, request), pdu=pdu)
-        return annotated if self._profiles is None else self._profiles.apply(annotated, request)
+        facts = FrameFacts(message.slave, message.role, message.function, frame.crc_ok)
+        return message.with_decoding(self._decoding(frame.data, frame.protocol, facts, request))
 
-
-    def _uss(self, message: Message) -> Message:
-        telegram = parse_uss(message.frame.data)
-        annotated = message.decoded(summary=telegram.summary(), uss=telegram)
-        return annotated if self._profiles is None else self._profiles.apply(annotated, None)
+    def _decoding(self, data: bytes, protocol: int, facts: FrameFacts, request: Pdu | None) -> Decoding:
+        """What a frame says (``facts``: what the profiles read of it besides its bytes)."""
+        role = facts.role
+        if role is Role.NOISE:
+            return Decoding(f"noise, {len(data)} byte{'s' if len(data) != 1 else ''}")
+        if protocol == USS:
+            telegram = parse_uss(data)
+            decoding = Decoding(telegram.summary(), uss=telegram)
+            request = None
+        else:
+            is_request = role in _AS_REQUEST or (role is Role.UNKNOWN and fits_request(data))
+            pdu = parse_pdu(data, is_request=is_request)
+            summary = pdu.summary()
+            if isinstance(pdu, ExceptionPdu):
+                summary += f" ({function_name(pdu.function)})"
+            if not facts.crc_ok:
+                summary = f"CRC error: {summary}"
+            decoding = LazyParams(summary, pdu, request)
+        return decoding if self._profiles is None else self._profiles.apply_decoding(decoding, facts, request)
 
 
 class _Fresh:
-    """Decodes the frames of a batch its annotator has not seen before: register reads of slaves
-    no profile speaks for from :func:`register_reads` (the whole batch at once, when the first
-    such frame comes), other frames of those slaves by :meth:`Annotator._lean`, the rest by
-    :meth:`Annotator._decode` -- the one path that may teach the profiles something, after
-    which which slaves are lean is asked again."""
+    """Decodes the frames of a batch its annotator has not seen before: register reads and their
+    answers from :func:`register_reads` (the whole batch at once, when the first such frame
+    comes), the rest by :meth:`Annotator._decoding`; then the profiles, which may learn."""
 
     def __init__(self, annotator: Annotator, batch: MessageBatch) -> None:
         self._annotator, self._batch = annotator, batch
         self._reads: dict[int, QuickRead] | None = None
-        self._messages = batch.rows()
 
     def decode(self, position: int, key: DecodingKey, request: Pdu | None) -> tuple[Decoding, AnswerContext]:
         annotator, batch = self._annotator, self._batch
         if self._reads is None:
             self._slaves, self._crc = batch.slave.tolist(), batch.frames.crc_ok.tolist()
-            self._reads = register_reads(batch, annotator._lean_rows(batch))
-        read = self._reads.get(position)
-        if read is not None:
-            return LazyParams(read[0], read[1], request), read[2]
+            self._functions = batch.function.tolist()
+            self._reads = register_reads(batch, batch.frames.protocols() != USS)
         role, protocol, data = key[0], key[1], key[2]
-        decoding = annotator._lean(data, role, protocol, self._slaves[position], crc_ok=self._crc[position],
-                                   request=request)
-        if decoding is None:
-            version = annotator._version()
-            decoding = annotator._decode(self._messages[position], request).decoding
-            if annotator._version() != version:  # the profiles learnt: which slaves are lean may change
-                self._reads = None
-        return decoding, answer_context(decoding.pdu)
+        slave, function = self._slaves[position], self._functions[position]
+        facts = FrameFacts(None if slave == NONE else slave, ROLE_ORDER[role], None if function == NONE else function,
+                           self._crc[position])
+        read = self._reads.get(position)
+        if read is None:
+            decoding = annotator._decoding(data, protocol, facts, request)
+            return decoding, answer_context(decoding.pdu)
+        decoding = LazyParams(read[0], read[1], request)
+        profiles = annotator._profiles
+        return (decoding if profiles is None else profiles.apply_decoding(decoding, facts, request)), read[2]
 
 
 def answer_context(request: Pdu | None) -> AnswerContext:
@@ -233,46 +195,3 @@ def answer_context(request: Pdu | None) -> AnswerContext:
         case WriteRegistersRequest(address=address, count=count) | WriteCoilsRequest(address=address, count=count):
             return (type(request), address, count)
     return (type(request), getattr(request, "address", None))
-
-
-#: Where a :class:`Decoding` keeps its params (the slot :class:`LazyParams` fills when read).
-_PARAMS_SLOT: Any = Decoding.__dict__["params"]
-
-
-class LazyParams(Decoding):
-    """A decoding no profile adds to, whose params are named when first read, from its PDU and
-    its request's: the same tuple :func:`named_registers` gives, built only for outputs that
-    read params (a table reads the summary alone, and building a param per register is most of
-    the cost of a frame never seen before). Outputs that write params as text or columns read
-    :attr:`runs` instead and build none."""
-
-    __slots__ = ("_request", "_runs")
-
-    def __init__(self, summary: str, pdu: Pdu, request: Pdu | None) -> None:
-        # Not Decoding.__init__: its dataclass code would assign ``params`` through this
-        # class's property; the other fields are plain slots.
-        self.summary = summary
-        self.pdu = pdu
-        self.remarks = ()
-        self.device = None
-        self.uss = None
-        self._request = request
-        self._runs: tuple[ParamRun, ...] | None = None
-
-    @property
-    def runs(self) -> tuple[ParamRun, ...]:
-        """The params as runs of consecutive addresses (:func:`param_runs`)."""
-        if self._runs is None:
-            assert self.pdu is not None
-            self._runs = param_runs(self.pdu, self._request)
-            self._request = None
-        return self._runs
-
-    @property
-    def params(self) -> tuple[ParamValue, ...]:  # type: ignore[override]
-        try:
-            named: tuple[ParamValue, ...] = _PARAMS_SLOT.__get__(self, Decoding)
-        except AttributeError:
-            named = expand_runs(self.runs)
-            _PARAMS_SLOT.__set__(self, named)
-        return named

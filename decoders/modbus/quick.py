@@ -4,7 +4,7 @@ A polling master reads registers and its slaves answer with values that change: 
 is new to the annotator's cache, and decoding it alone (:func:`decoders.modbus.pdu.parse_pdu`,
 its summary) is most of its cost. Here the reads and answers of a batch that carry a good CRC and
 a shape Modbus allows are found with numpy and decoded into the same PDUs and summaries, with
-little Python per frame. The annotator uses them for slaves no profile speaks for; the tests hold
+little Python per frame, for every slave (a profile then names what they carry); the tests hold
 them to ``parse_pdu`` and the PDUs' own summaries (the plain path).
 """
 

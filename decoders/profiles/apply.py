@@ -9,8 +9,10 @@ profile whose product codes match, from then on.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
-from decoders.message import DeviceIdentity, Message, ParamValue, Role
+from decoders.message import Decoding, DeviceIdentity, Message, ParamValue, Role
+from decoders.modbus.param_runs import addressed_values
 from decoders.modbus.pdu import (
     DeviceIdResponse,
     ExceptionPdu,
@@ -27,6 +29,16 @@ BROADCAST_ADDRESS = 0
 NO_SLAVE = -1
 KEPT_NAMED_PARAMS = 65536
 PRODUCT_CODE_OBJECT = 1
+
+
+class FrameFacts(NamedTuple):
+    """What applying a profile reads of a frame besides its decoding (a tuple: one is built
+    per frame decoded, and a frozen dataclass costs a setattr per field)."""
+
+    slave: int | None
+    role: Role
+    function: int | None
+    crc_ok: bool
 
 
 @dataclass
@@ -103,57 +115,68 @@ class ProfileApplier:
 
     def apply(self, message: Message, request: Pdu | None) -> Message:
         """``message`` with named params, remarks and, for identifications, the device."""
-        if message.uss is not None:
-            return _uss_words(self.book.profile_for(message.slave), message)
-        slave = message.slave
-        device = self._identify(message) if isinstance(message.pdu, DeviceIdResponse) else None
+        facts = FrameFacts(message.slave, message.role, message.function, message.frame.crc_ok)
+        decoding = self.apply_decoding(message.decoding, facts, request)
+        return message if decoding is message.decoding else message.with_decoding(decoding)
+
+    def apply_decoding(self, decoding: Decoding, facts: FrameFacts, request: Pdu | None) -> Decoding:
+        """:meth:`apply` to a frame's decoding alone (``facts``: what it reads of the frame):
+        the annotator's path, which builds no message for a frame it decodes."""
+        slave = facts.slave
+        if decoding.uss is not None:
+            return _uss_words(self.book.profile_for(slave), decoding, facts.role)
+        pdu = decoding.pdu
+        device = self._identify(pdu, facts) if isinstance(pdu, DeviceIdResponse) else None
+        if device is None and self.adds_nothing(NO_SLAVE if slave is None else slave):
+            return decoding
         profile = self.book.profile_for(slave)
-        if device is None and _knows_nothing(profile):
-            return message
-        reported = message.role is Role.RESPONSE
-        params = tuple(self._named_param(profile, slave, p, reported) for p in message.params)
-        self._learn(profile, slave, message.params)
-        remarks = list(message.remarks)
-        if message.role in (Role.REQUEST, Role.BROADCAST) and message.pdu is not None:
-            remarks += _limit_remarks(profile, message, message.pdu)
-        if isinstance(message.pdu, ExceptionPdu):
-            remarks += _exception_remarks(profile, message.pdu, request)
+        reported = facts.role is Role.RESPONSE
+        values = addressed_values(decoding)
+        if self._named_version != self.version or len(self._named) >= KEPT_NAMED_PARAMS:
+            self._named.clear()
+            self._named_version = self.version
+        known, named_param, profile_id = self._named.get, self._named_param, profile.id
+        params = tuple([known((profile_id, slave, address, raw, reported))
+                        or named_param(profile, slave, address, raw, reported) for address, raw in values])
+        self._learn(profile, slave, values)
+        remarks = list(decoding.remarks)
+        if facts.role in (Role.REQUEST, Role.BROADCAST) and pdu is not None:
+            remarks += _limit_remarks(profile, facts, pdu)
+        if isinstance(pdu, ExceptionPdu):
+            remarks += _exception_remarks(profile, pdu, request)
         if device is not None:
             remarks.append(_device_remark(device))
-        summary = _summary(message.summary, params)
-        return message.decoded(params=params, remarks=tuple(remarks), summary=summary, device=device)
+        return Decoding(_summary(decoding.summary, params), params, pdu, tuple(remarks),
+                        decoding.device if device is None else device, decoding.uss)
 
-    def _identify(self, message: Message) -> DeviceIdentity | None:
-        pdu = message.pdu
-        assert isinstance(pdu, DeviceIdResponse)
-        if message.slave is None or not message.frame.crc_ok:
+    def _identify(self, pdu: DeviceIdResponse, facts: FrameFacts) -> DeviceIdentity | None:
+        slave = facts.slave
+        if slave is None or not facts.crc_ok:
             return None
         objects = {o.object_id: o.text for o in pdu.objects}
         product = objects.get(PRODUCT_CODE_OBJECT)
         if product is None:
             return None
-        before = self.book.profile_for(message.slave)
-        profile = self.book.identify(message.slave, product)
-        if self.book.profile_for(message.slave) is not before:
+        before = self.book.profile_for(slave)
+        profile = self.book.identify(slave, product)
+        if self.book.profile_for(slave) is not before:
             self.version += 1
         return DeviceIdentity(
-            slave=message.slave,
+            slave=slave,
             vendor=objects.get(0),
             product_code=product,
             revision=objects.get(2),
             profile=profile.id if profile is not None else None,
-            applied=profile is not None and self.book.profile_for(message.slave) is profile,
+            applied=profile is not None and self.book.profile_for(slave) is profile,
         )
 
-    def _named_param(self, profile: Profile, slave: int | None, param: ParamValue, reported: bool) -> ParamValue:
-        """:meth:`_param`, remembered while the applier learns nothing new."""
-        if self._named_version != self.version or len(self._named) >= KEPT_NAMED_PARAMS:
-            self._named.clear()
-            self._named_version = self.version
-        key = (profile.id, slave, param.address, param.raw, reported)
-        named = self._named.get(key)
-        if named is None:
-            named = self._named[key] = self._param(profile, slave, param, reported)
+    def _named_param(self, profile: Profile, slave: int | None, address: int, raw: int | None,
+                     reported: bool) -> ParamValue:
+        """:meth:`_param` of the register at ``address`` holding ``raw``, remembered while the
+        applier learns nothing new (:meth:`apply_decoding` looks it up first, and empties the
+        memory when the applier has learnt something or it is full)."""
+        named = self._named[(profile.id, slave, address, raw, reported)] = self._param(
+            profile, slave, ParamValue(address, None, None, raw, raw), reported)
         return named
 
     def _param(self, profile: Profile, slave: int | None, param: ParamValue, reported: bool) -> ParamValue:
@@ -181,31 +204,32 @@ class ProfileApplier:
         label = f"{code} → {parameter.name}"
         return _named(profile, parameter, param, f"{code}→{parameter.code}", label, reported=reported)
 
-    def _learn(self, profile: Profile, slave: int | None, params: tuple[ParamValue, ...]) -> None:
+    def _learn(self, profile: Profile, slave: int | None, values: list[tuple[int, int | None]]) -> None:
         """Scanner address registers seen being read or written change the table."""
         if slave is None:
             return
         for table in profile.indirections:
-            for param in params:
-                slot = param.address - table.address_registers
-                if 0 <= slot < table.count and param.raw is not None:
+            for address, raw in values:
+                slot = address - table.address_registers
+                if 0 <= slot < table.count and raw is not None:
                     mapping = self._indirections.mapping(slave, table)
-                    if mapping[slot] != param.raw:
-                        mapping[slot] = param.raw
+                    if mapping[slot] != raw:
+                        mapping[slot] = raw
                         self.version += 1
 
 
-def _uss_words(profile: Profile, message: Message) -> Message:
+def _uss_words(profile: Profile, decoding: Decoding, role: Role) -> Decoding:
     """The first process-data word read as the control word (master) or status word (drive)."""
-    telegram = message.uss
+    telegram = decoding.uss
     assert telegram is not None
-    name = profile.uss_control_word if message.role is Role.REQUEST else profile.uss_status_word
+    name = profile.uss_control_word if role is Role.REQUEST else profile.uss_status_word
     if name is None or not telegram.pzd:
-        return message
+        return decoding
     word = telegram.pzd[0]
-    label = "STW" if message.role is Role.REQUEST else "ZSW"
+    label = "STW" if role is Role.REQUEST else "ZSW"
     described = profile.bitfields[name].describe(word)
-    return message.decoded(summary=f"{message.summary}: {label} = 16#{word:04X} {described}")
+    return Decoding(f"{decoding.summary}: {label} = 16#{word:04X} {described}", decoding.params, decoding.pdu,
+                    decoding.remarks, decoding.device, telegram)
 
 
 def _named(
@@ -222,7 +246,7 @@ def _named(
 def _special(profile: Profile, raw: int | None, reported: bool) -> str | None:
     if raw is None or not reported:
         return None
-    return next((special.meaning for special in profile.specials if special.raw == raw), None)
+    return profile.special_meanings.get(raw)
 
 
 def _value(profile: Profile, parameter: Parameter, raw: int | None) -> tuple[float | int | str | None, str | None]:
@@ -257,12 +281,12 @@ def _plain(profile: Profile, param: ParamValue, reported: bool) -> ParamValue:
     return ParamValue(param.address, raw=param.raw, value=value, available=special is None)
 
 
-def _limit_remarks(profile: Profile, message: Message, pdu: Pdu) -> list[str]:
-    limits, name, function = profile.limits, profile.name, message.function
+def _limit_remarks(profile: Profile, facts: FrameFacts, pdu: Pdu) -> list[str]:
+    limits, name, function = profile.limits, profile.name, facts.function
     remarks = []
     if limits.functions and function not in limits.functions:
         remarks.append(f"{name} does not support function {function} (expect exception 01)")
-    if message.role is Role.BROADCAST and limits.broadcast_functions and function not in limits.broadcast_functions:
+    if facts.role is Role.BROADCAST and limits.broadcast_functions and function not in limits.broadcast_functions:
         allowed = ", ".join(str(f) for f in limits.broadcast_functions)
         remarks.append(f"{name} takes broadcasts only for functions {allowed}")
     checks: list[tuple[int, int, str]] = []

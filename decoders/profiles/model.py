@@ -140,3 +140,8 @@ class Profile:
     uss_control_word: str | None = None
     uss_status_word: str | None = None
     path: str = ""
+    #: :attr:`specials` by raw word (the first of each): looked up for every value a drive reports.
+    special_meanings: dict[int, str] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "special_meanings", {s.raw: s.meaning for s in reversed(self.specials)})

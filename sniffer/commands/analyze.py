@@ -9,7 +9,7 @@ from typing import TextIO
 
 from rich.console import Console
 
-from decoders.message import AnnotatedBatch
+from decoders.message import AnnotatedBatch, MessageBatch
 from sniffer.commands.common import (
     add_capture_argument,
     add_decoding_options,
@@ -104,15 +104,24 @@ def run(args: argparse.Namespace) -> int:
 
 
 class FlushEachBatch(Sink):
-    """Flushes the output after each batch the view wrote."""
+    """Flushes the output after each batch the view wrote: after its ``messages`` and, for a
+    view that writes once its ``prepare`` is back (tables to a pipe, JSONL), after that."""
 
     wants_messages = True
 
     def __init__(self, out: TextIO) -> None:
         self._out = out
+        self.prepare = _nothing
 
     def messages(self, batch: AnnotatedBatch) -> None:
         self._out.flush()
+
+    def prepared(self, value: None) -> None:
+        self._out.flush()
+
+
+def _nothing(batch: MessageBatch) -> None:
+    """``prepare`` of a sink that has nothing to prepare but wants ``prepared`` called."""
 
 
 def shown_frames(sink: Sink, frames: int) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -23,11 +24,13 @@ from decoders.message import (
     MessageBatch,
     ParamValue,
 )
-from decoders.modbus.annotate import KEPT_DECODINGS, LazyParams
+from decoders.modbus.annotate import KEPT_DECODINGS
+from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.blocks import Block, times_matrix
 from sniffer.encoding.param_text import runs_json
 from sniffer.encoding.rows import (
     Column,
+    Pieces,
     Rows,
     Table,
     join_rows,
@@ -140,6 +143,46 @@ _FLAG_TEXTS = [encode_json(list(flag_set(value).names)) for value in range(1 << 
 _FLAGS_JSON = Table(_FLAG_TEXTS)
 
 
+@dataclass(frozen=True)
+class FrameFields:
+    """The fields of frame records that no decoding says, one piece per frame: ``heads`` from
+    the record's start to the comma before ``hex`` (kind, index, times), ``middles`` from after
+    ``"flags":`` to the comma before ``params`` (flags, pairing, latency)."""
+
+    heads: Pieces
+    middles: Pieces
+
+
+def frame_fields(batch: MessageBatch) -> FrameFields:
+    """Every frame's :class:`FrameFields`: needs no decoding, so it may be made where frames are
+    paired (``prepare``, in the decoding process with ``--jobs 2``)."""
+    frames, count = batch.frames, len(batch)
+    t_start, t_end, requests = frames.t_start_ns, frames.t_end_ns, batch.request_index
+    heads: list[Column] = [
+        b'{"kind":"frame","index":', number_texts(np.arange(count, dtype=np.int64) + frames.first_index),
+        b',"t":', _seconds(t_start), b',"t_end":', _seconds(t_end),
+        b',"t_ns":', number_texts(t_start), b',"t_end_ns":', number_texts(t_end), b",",
+    ]  # fmt: skip
+    middles: list[Column] = [
+        _FLAGS_JSON.column(batch.flags),
+        b',"request_index":', or_null(number_texts(requests), requests, NONE),
+        b',"latency_s":', or_null(_seconds(batch.latency_ns), batch.latency_ns, NONE), b",",
+    ]  # fmt: skip
+    return FrameFields(_pieces(heads, count), _pieces(middles, count))
+
+
+def _seconds(ns: npt.NDArray[np.int64]) -> Pieces:
+    return number_texts(ns / NS_PER_S)
+
+
+def _pieces(columns: list[Column], count: int) -> Pieces:
+    """``columns`` joined into one piece per row (cut in C at a separator no JSON text holds)."""
+    rows = join_rows([*columns, b"\x00"], count)
+    pieces = bytes(rows.data).split(b"\x00")
+    pieces.pop()  # after the last separator
+    return Pieces(pieces, rows.lengths() - 1)
+
+
 class FrameRecordEncoder:
     """Frame records as JSON, exactly ``encode_record(frame_record(m))``, a batch at a time.
 
@@ -163,25 +206,23 @@ class FrameRecordEncoder:
         #: Not exact: a decoding's part of the record in one piece, from ``hex`` to the end.
         self._tails: Memo[Decoding, bytes] = Memo(KEPT_DECODINGS)
 
-    def rows(self, batch: AnnotatedBatch, *, reserved: int = 0, end: bytes = b"") -> Rows:
+    def rows(self, batch: AnnotatedBatch, *, reserved: int = 0, end: bytes = b"",
+             fields: FrameFields | None = None) -> Rows:
         """The kept messages' frame records, each followed by ``end`` (and preceded by
-        ``reserved`` bytes, see :func:`~sniffer.encoding.rows.join_rows`)."""
+        ``reserved`` bytes, see :func:`~sniffer.encoding.rows.join_rows`). ``fields``: the
+        batch's :func:`frame_fields`, where they were made already (in the decoding process)."""
         if not self._exact:
             return self._block_rows(batch, reserved, end)
         messages, frames = batch.messages, batch.messages.frames
         positions = batch.positions()
         kept = np.array(positions, np.int64)
-        requests, latencies = messages.request_index[kept], messages.latency_ns[kept]
-        t_start, t_end = frames.t_start_ns[kept], frames.t_end_ns[kept]
+        own = fields or frame_fields(messages)
+        if len(positions) != len(messages):
+            own = FrameFields(own.heads.take(kept), own.middles.take(kept))
         heads, tails = self._decoding_parts(batch, positions)
         columns: list[Column] = [
-            b'{"kind":"frame","index":', number_texts(kept + frames.first_index),
-            *self._times(t_start, t_end),
-            b",", heads,
-            b',"flags":', _FLAGS_JSON.column(messages.flags[kept]),
-            b',"request_index":', or_null(number_texts(requests), requests, NONE),
-            b',"latency_s":', *self._seconds(latencies, NONE),
-            b",", tails, *channel_column(frames, kept, self.channels), *uart_error_column(frames, kept), b"}" + end,
+            own.heads, heads, b',"flags":', own.middles, tails,
+            *channel_column(frames, kept, self.channels), *uart_error_column(frames, kept), b"}" + end,
         ]  # fmt: skip
         return join_rows(columns, len(positions), reserved)
 
@@ -214,16 +255,6 @@ class FrameRecordEncoder:
         )
         optional = [*channel_column(frames, kept, self.channels), *uart_error_column(frames, kept)]
         return join_rows([rows, tails, *optional, b"}" + end], len(positions), reserved)
-
-    def _times(self, t_start: npt.NDArray[np.int64], t_end: npt.NDArray[np.int64]) -> list[Column]:
-        return [
-            b',"t":', *self._seconds(t_start), b',"t_end":', *self._seconds(t_end),
-            b',"t_ns":', number_texts(t_start), b',"t_end_ns":', number_texts(t_end),
-        ]  # fmt: skip
-
-    def _seconds(self, ns: npt.NDArray[np.int64], none: int | None = None) -> list[Column]:
-        texts = number_texts(ns / NS_PER_S)
-        return [texts if none is None else or_null(texts, ns, none)]
 
     def encode_batch(self, batch: AnnotatedBatch) -> list[str]:
         """The records as text, one per kept message."""

@@ -23,8 +23,7 @@ from dataclasses import dataclass, field
 
 from decoders.frame import FrameFlag
 from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, ParamValue, Role
-from decoders.modbus.annotate import LazyParams
-from decoders.modbus.param_runs import ParamRun
+from decoders.modbus.param_runs import LazyParams, ParamRun
 from decoders.stats import Statistics
 from sniffer.sinks import Sink
 

@@ -37,7 +37,8 @@ from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.memo import Memo
 from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding
-from decoders.modbus.annotate import KEPT_DECODINGS, LazyParams
+from decoders.modbus.annotate import KEPT_DECODINGS
+from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.records import FrameRecordEncoder, encode_json
 from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
 from sniffer.errors import ErrorKind, RtuSniffError

@@ -9,18 +9,29 @@ from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch
 from decoders.stats import SkippedReads, Statistics
-from sniffer.encoding.records import FrameRecordEncoder, capture_record, device_record, encode_record
+from sniffer.encoding.records import (
+    FrameFields,
+    FrameRecordEncoder,
+    capture_record,
+    device_record,
+    encode_record,
+    frame_fields,
+)
 from sniffer.encoding.rows import Rows
 from sniffer.sinks import Sink
 
 
 class JsonlView(Sink):
-    """Writes a ``capture`` record, then one ``frame`` record per message."""
+    """Writes a ``capture`` record, then one ``frame`` record per message. What a record says
+    that no decoding says (index, times, flags, pairing, latency) is laid out by ``prepare``,
+    where frames are paired: in the decoding process with ``--jobs 2``."""
 
     def __init__(self, out: TextIO) -> None:
         self._out = out
         self._frames = FrameRecordEncoder()
         self._bytes_out = utf8_bytes_under(out)
+        self._kept: AnnotatedBatch | None = None
+        self.prepare = frame_fields
         #: Frame records written.
         self.shown = 0
 
@@ -32,8 +43,16 @@ class JsonlView(Sink):
         self._write(capture_record(source, info, line))
 
     def messages(self, batch: AnnotatedBatch) -> None:
+        self._kept = batch
+
+    def prepared(self, value: FrameFields) -> None:
+        """Writes the batch kept by :meth:`messages`, with the fields its frames' records take
+        from no decoding, made by ``prepare`` where the frames were paired."""
+        batch, self._kept = self._kept, None
+        if batch is None:
+            return
         self.shown += len(batch)
-        rows = self._frames.rows(batch, end=b"\n")
+        rows = self._frames.rows(batch, end=b"\n", fields=value)
         if any(decoding.device is not None for decoding in batch.decodings):
             self._write_with_devices(rows, batch)
         else:

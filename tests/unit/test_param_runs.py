@@ -11,8 +11,7 @@ from hypothesis import strategies as st
 
 from decoders.crc import crc_bytes
 from decoders.message import Decoding, ParamValue
-from decoders.modbus.annotate import LazyParams
-from decoders.modbus.param_runs import ParamRun, expand_runs, param_runs
+from decoders.modbus.param_runs import LazyParams, ParamRun, expand_runs, param_runs
 from decoders.modbus.pdu import (
     COIL_ON,
     BitsResponse,
