@@ -18,7 +18,7 @@ import serial
 from tests.foxglove_client import FoxgloveClient
 from tests.ptylab import SOCAT, Relay, pty_pair, pymodbus_slave
 from tests.test_capture import HANG_S, REQUEST, RESPONSE, analyze, frames_of, start_capture
-from tests.test_streams import foxglove_url, rerun_receiver, stop_receiver
+from tests.test_streams import foxglove_url, kill_receiver, rerun_receiver, stop_receiver
 
 pytestmark = [
     pytest.mark.skipif(SOCAT is None, reason="needs socat (apt-get install socat; .ci/run installs it)"),
@@ -104,8 +104,7 @@ def test_viewers_that_hang_or_leave_cost_no_byte(tmp_path: Path) -> None:
             send_paced(line.a, 40, sent)
             left_with = leaving.wait_for("/modbus/frames", 80, timeout=HANG_S)
             leaving.close()
-            viewer.kill()  # the Rerun viewer goes away mid-capture
-            viewer.wait(timeout=HANG_S)
+            kill_receiver(viewer)  # the Rerun viewer goes away mid-capture
             send_paced(line.a, 40, sent)
             with FoxgloveClient(url) as returning:
                 assert returning.subscribed.wait(HANG_S)
@@ -116,6 +115,8 @@ def test_viewers_that_hang_or_leave_cost_no_byte(tmp_path: Path) -> None:
             _, err = capture.communicate(timeout=HANG_S)
     assert capture.returncode == 130, err
     assert "Traceback" not in err and "skipped" not in err
+    assert f"warning: Rerun: the viewer at rerun+http://127.0.0.1:{port}/proxy went away" in err
+    assert "frames decoded after the viewer went away were not sent to it" in err, err
     assert recorded_bytes(recording) == bytes(sent)
     assert left_with and came_back_with
 

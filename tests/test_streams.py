@@ -37,8 +37,11 @@ def rerun_receiver(path: Path) -> tuple[subprocess.Popen[bytes], int]:
     port = _free_port()
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
+        # A group of its own: the ``rerun`` script runs the viewer binary as its child, and a
+        # signal to the group reaches both, as Ctrl-C on a terminal does.
         process = subprocess.Popen([str(RERUN), "--save", str(path), "--port", str(port), "--bind", "127.0.0.1"],
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=QUIET_ENV)
+                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=QUIET_ENV,
+                                   start_new_session=os.name != "nt")
     finally:
         signal.signal(signal.SIGINT, previous)
     _wait_for_port(port)
@@ -46,8 +49,22 @@ def rerun_receiver(path: Path) -> tuple[subprocess.Popen[bytes], int]:
 
 
 def stop_receiver(process: subprocess.Popen[bytes]) -> None:
-    process.send_signal(signal.SIGINT)  # the CLI closes its file on Ctrl-C
+    """Ctrl-C (the CLI closes its file on it)."""
+    _signal_receiver(process, signal.SIGINT)
     process.wait(timeout=WAIT_S)
+
+
+def kill_receiver(process: subprocess.Popen[bytes]) -> None:
+    """The viewer killed, the binary the script started too (no process left behind)."""
+    _signal_receiver(process, getattr(signal, "SIGKILL", signal.SIGTERM))
+    process.wait(timeout=WAIT_S)
+
+
+def _signal_receiver(process: subprocess.Popen[bytes], number: int) -> None:
+    if os.name == "nt":
+        process.send_signal(number)
+    else:
+        os.killpg(process.pid, number)
 
 
 def rtusniff(*args: str) -> subprocess.Popen[str]:

@@ -18,6 +18,7 @@ and the logs below.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass, field
 from operator import attrgetter, itemgetter
@@ -39,6 +40,8 @@ ENTITY_ROWS = 32_768
 #: Live: how often what was buffered goes to the viewer (a quarter of a second behind the bus:
 #: each entity sent is a fixed cost in the SDK, so sending more often costs a core on a busy line).
 LIVE_SEND_S = 0.5
+#: Live: how long a round's flush may wait for a slow viewer.
+LIVE_FLUSH_S = 5.0
 MAX_BUFFERED_ROWS = 400_000
 #: Column pieces an entity's buffer holds before they are merged into one.
 MAX_PIECES = 32
@@ -413,6 +416,13 @@ class RerunExporter:
     def _send_round(self, items: list[tuple[str, rr.SeriesLines | rr.SeriesPoints | None, _Rows]]) -> None:
         for path, style, rows in items:
             send_rows(self._rec, path, style, rows)
+        # The SDK takes rows for a viewer that has gone and says so only when flushed: a flush per
+        # round raises at once where the connection broke (waited for here, in the sending thread).
+        try:
+            self._rec.flush(timeout_sec=LIVE_FLUSH_S)
+        except RuntimeError as exc:
+            if "time" not in str(exc).lower():  # a slow viewer is not a gone one: its rounds get skipped
+                raise
 
     @property
     def skipped_rows(self) -> int:
@@ -426,6 +436,13 @@ class RerunExporter:
         self._rec.send_blueprint(self.blueprint())
         self._rec.flush()
         self._rec.disconnect()
+
+    def abandon(self) -> None:
+        """The viewer went away: stop sending, wait for nothing, keep no error of it."""
+        if self._sender is not None:
+            self._sender.abandon()
+        with contextlib.suppress(Exception):  # the SDK's errors for a connection that is gone
+            self._rec.disconnect()
 
     def blueprint(self) -> rrb.Blueprint:
         """Plots on top (one per slave, and the bus), logs below."""

@@ -38,6 +38,13 @@ class LiveSender:
         if items:
             self._pending.append(self._worker.submit(self._send, items))
 
+    def abandon(self) -> None:
+        """Stop: rounds not begun are dropped, the one being sent is not waited for."""
+        for pending in self._pending:
+            pending.cancel()
+        self._pending.clear()
+        self._worker.shutdown(wait=False, cancel_futures=True)
+
     def close(self) -> None:
         """Wait for what was handed over to be sent."""
         try:

@@ -17,7 +17,8 @@ import argparse
 import os
 import shutil
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -159,7 +160,11 @@ class FoxgloveSink(FileSink["DecodedChannels"]):
 
 
 class RerunStreamSink(FileSink["RerunExporter"]):
-    """The ``.rrd`` export's entities, streamed to a viewer (and written to ``path`` if given)."""
+    """The ``.rrd`` export's entities, streamed to a viewer (and written to ``path`` if given).
+
+    A viewer that goes away (closed, killed, its machine gone) is a warning, and the stream
+    stops: what is being decoded goes on (a capture records every byte whatever the viewer
+    does). Where a ``.rrd`` file is written too, a failure is an error (the file is an output)."""
 
     wants_messages = True
 
@@ -167,6 +172,8 @@ class RerunStreamSink(FileSink["RerunExporter"]):
         super().__init__(path)
         self._viewer, self._tell = viewer, tell
         self._url = viewer
+        #: Frames decoded after the viewer went away (``None``: it has not).
+        self.frames_unsent: int | None = None
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         from sniffer.exports.rerun_export import RerunExporter, spawn_viewer  # noqa: PLC0415 - a third of a second
@@ -183,17 +190,44 @@ class RerunStreamSink(FileSink["RerunExporter"]):
 
     def messages(self, batch: AnnotatedBatch) -> None:
         self.frames_written += len(batch.messages)
-        if self.exporter is not None:
-            with self.writing():
+        if self.frames_unsent is not None:
+            self.frames_unsent += len(batch.messages)
+        elif self.exporter is not None:
+            with self._viewer_may_leave():
                 self.exporter.messages(batch)
 
+    @contextmanager
+    def _viewer_may_leave(self) -> Iterator[None]:
+        if self.path is not None:
+            with self.writing():
+                yield
+            return
+        try:
+            yield
+        except (OSError, RuntimeError) as exc:  # RuntimeError: how Rerun's SDK says a connection broke
+            exporter, self.exporter, self.frames_unsent = self.exporter, None, 0
+            self._tell(f"warning: Rerun: the viewer at {self._url} went away ({str(exc).splitlines()[0]}); "
+                       "decoding goes on without it")
+            if exporter is not None:
+                exporter.abandon()
+
     def live_status(self) -> str:
+        if self.frames_unsent is not None:
+            return f"Rerun {self._url} went away ({self.frames_unsent:,} frames not sent)"
         skipped = self.exporter.skipped_rows if self.exporter is not None else 0
         return f"Rerun {self._url}" + (f", skipped {skipped:,} values (Rerun fell behind)" if skipped else "")
 
     def close(self) -> None:
         exporter = self.exporter
-        super().close()
+        if self.path is not None:
+            super().close()
+        elif exporter is not None:
+            with self._viewer_may_leave():
+                exporter.close()
+            self.exporter = None
+        if self.frames_unsent:
+            self._tell(f"warning: Rerun: {self.frames_unsent:,} frames decoded after the viewer went away were not "
+                       "sent to it (the recording has them)")
         if exporter is not None and exporter.skipped_rows:
             self._tell(f"warning: Rerun: skipped {exporter.skipped_rows:,} values the viewer stream could not keep "
                        "up with (the recording and the files have them)")
