@@ -2,11 +2,11 @@
 
     python -m benchmarks [--frames 1000000] [--keep DIR]
 
-For each kind of traffic (steady, mixed, polling): ``bench_tshark`` (stats, analyze, export
---pcap and tshark on the same frames) and ``bench_exports`` (MCAP, Rerun); then ``bench_stages``
-(what bounds analyze, on a fifth of the frames), ``bench_stats`` on the frames and five times
-as many (growth of time and memory), and ``bench_views`` (the tables' own cost). About 15
-minutes at 1 M frames on the machines here.
+For each kind of traffic (steady, mixed, polling, coils): ``bench_tshark`` (stats, analyze,
+export --pcap, --mcap, --parquet and tshark on the same frames) and ``bench_exports`` (MCAP,
+Rerun); then ``bench_stages`` (what bounds analyze, on a fifth of the frames), ``bench_stats``
+on the frames and five times as many (growth of time and memory), and ``bench_views`` (the
+tables' own cost). About 20 minutes at 1 M frames on the machines here.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-TRAFFIC = ("steady", "mixed", "polling")
+TRAFFIC = ("steady", "mixed", "polling", "coils")
 
 
 def main() -> None:

@@ -51,6 +51,29 @@ def polling_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
     return transmissions
 
 
+def coil_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
+    """Coil traffic, no two frames alike: FC 1/2 reads of 1-64 coils or inputs of 32 slaves with
+    random states, FC 5 single writes (echoed) and FC 15 writes of 1-32 coils."""
+    rng = random.Random(seed)
+    transmissions = []
+    for _ in range(frames // 2):
+        slave, start, kind = rng.randint(1, 32), rng.randrange(0, 10_000), rng.random()
+        if kind < 0.7:
+            function, count = rng.choice((1, 2)), rng.randint(1, 64)
+            request = bytes([slave, function]) + start.to_bytes(2, "big") + count.to_bytes(2, "big")
+            response = bytes([slave, function, (count + 7) // 8]) + rng.randbytes((count + 7) // 8)
+        elif kind < 0.85:
+            request = response = bytes([slave, 5]) + start.to_bytes(2, "big") + rng.choice((b"\xff\x00", b"\x00\x00"))
+        else:
+            count = rng.randint(1, 32)
+            head = bytes([slave, 15]) + start.to_bytes(2, "big") + count.to_bytes(2, "big")
+            request = head + bytes([(count + 7) // 8]) + rng.randbytes((count + 7) // 8)
+            response = head
+        transmissions.append(Transmission(request + crc_bytes(request), rng.randint(2_000_000, 4_000_000)))
+        transmissions.append(Transmission(response + crc_bytes(response), rng.randint(1_800_000, 3_000_000)))
+    return transmissions
+
+
 def batched(chunks: list[Chunk]) -> list[ChunkBatch]:
     return [ChunkBatch.from_chunks(chunks[i : i + BATCH_CHUNKS]) for i in range(0, len(chunks), BATCH_CHUNKS)]
 

@@ -28,7 +28,6 @@ import random
 import re
 import select
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -44,8 +43,7 @@ from decoders.crc import crc_bytes
 from sniffer.io.registry import open_reader
 from tests.foxglove_client import FoxgloveClient
 from tests.ptylab import pty_pair
-
-RERUN = Path(sys.executable).parent / ("rerun.exe" if os.name == "nt" else "rerun")
+from tests.test_streams import kill_receiver, rerun_receiver, stop_receiver
 
 
 @dataclass
@@ -99,22 +97,13 @@ def write_traffic(port: Path, traffic: Traffic, seconds: float) -> int:
     return written
 
 
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 def run(traffic: Traffic, mode: str, seconds: float, folder: Path) -> dict[str, object]:
     recording = folder / f"{mode}-{traffic.baud}.mcap"
     env = {**os.environ, "CI": "1"}
     rerun = rerun_port = None
     extra: list[str] = []
     if mode != "alone":
-        rerun_port = free_port()
-        rerun = subprocess.Popen([str(RERUN), "--save", str(folder / f"{mode}.rrd"), "--port", str(rerun_port),
-                                  "--bind", "127.0.0.1"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
-        time.sleep(1.0)
+        rerun, rerun_port = rerun_receiver(folder / f"{mode}.rrd")
         extra = ["--foxglove", "0", *([] if os.environ.get("BENCH_NO_RERUN") else ["--rerun", str(rerun_port)])]
     with pty_pair(folder, f"{mode}-{traffic.baud}") as pair:
         capture = subprocess.Popen([sys.executable, "-m", "sniffer", "capture", str(pair.b), "--line",
@@ -129,7 +118,7 @@ def run(traffic: Traffic, mode: str, seconds: float, folder: Path) -> dict[str, 
         cpu_before = cpu_seconds(capture.pid)
         if mode == "hanging" and rerun is not None:
             half = write_traffic(pair.a, traffic, seconds / 2)
-            rerun.kill()
+            kill_receiver(rerun)  # the viewer binary, not only the script that started it
             written = half + write_traffic(pair.a, traffic, seconds / 2)
         else:
             written = write_traffic(pair.a, traffic, seconds)
@@ -140,8 +129,7 @@ def run(traffic: Traffic, mode: str, seconds: float, folder: Path) -> dict[str, 
         if client is not None:
             client.close()
     if rerun is not None and rerun.poll() is None:
-        rerun.send_signal(signal.SIGINT)
-        rerun.wait(timeout=60)
+        stop_receiver(rerun)
     reader = open_reader(str(recording))
     recorded = sum(len(b.data) for b in reader.batches())
     reader.close()

@@ -10,15 +10,17 @@ reports its own peak RSS. Streaming means the peak does not grow with the captur
 from __future__ import annotations
 
 import argparse
+import compileall
 import subprocess
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 from benchmarks import generate_capture
-from benchmarks.bench_framing import LINE, polling_transmissions
+from benchmarks.bench_framing import LINE, coil_transmissions, polling_transmissions
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
-from decoders.synthesis import exact_chunks
+from decoders.synthesis import Transmission, exact_chunks
 from sniffer.io.registry import open_reader, open_writer
 
 CHILD = """
@@ -32,17 +34,26 @@ sys.exit(code)
 PIECE_FRAMES = 100_000
 
 
+def compile_sources() -> None:
+    """Byte-compile the project, as installing its wheel does: where PYTHONDONTWRITEBYTECODE is
+    set (these machines), every command would otherwise compile each module as it starts."""
+    root = Path(__file__).resolve().parents[1]
+    for package in ("sniffer", "decoders"):
+        compileall.compile_dir(root / package, quiet=1)
+
+
 def add_capture_options(parser: argparse.ArgumentParser) -> None:
     """``--keep`` and ``--traffic``, as every end-to-end benchmark takes them."""
     parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated captures in this folder")
-    parser.add_argument("--traffic", choices=["polling", "mixed", "steady"], default="polling",
+    parser.add_argument("--traffic", choices=["polling", "mixed", "steady", "coils"], default="polling",
                         help="FC 3 polling of random registers and values; mixed ATV traffic with faults and random "
-                             "values; the same with steady drives (benchmarks/generate_capture.py)")
+                             "values; the same with steady drives (benchmarks/generate_capture.py); coil reads and "
+                             "writes of random states")
 
 
 def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Path:
     """The benchmark capture of ``frames`` frames in ``folder``, written unless it is there:
-    ``polling`` (FC 3 only), ``mixed`` or ``steady`` (benchmarks/generate_capture.py, seed 1)."""
+    ``polling`` (FC 3 only), ``mixed`` or ``steady`` (benchmarks/generate_capture.py, seed 1), ``coils``."""
     folder.mkdir(parents=True, exist_ok=True)
     capture = folder / f"{traffic}-{frames}.mcap"
     if not capture.exists():
@@ -50,7 +61,7 @@ def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Pa
             values = "steady" if traffic == "steady" else "random"
             generate_capture.write(capture, frames, 1, LINE, "exact", values=values)
         else:
-            write_capture(capture, frames)
+            write_capture(capture, frames, coil_transmissions if traffic == "coils" else polling_transmissions)
     return capture
 
 
@@ -63,11 +74,12 @@ def wire_megabytes(capture: Path) -> float:
         reader.close()
 
 
-def write_capture(path: Path, frames: int) -> None:
+def write_capture(path: Path, frames: int,
+                  traffic: Callable[[int, int], list[Transmission]] = polling_transmissions) -> None:
     writer = open_writer(str(path), CaptureInfo(LINE, TimingQuality.EXACT))
     t0 = 1_700_000_000_000_000_000
     for piece in range(0, frames, PIECE_FRAMES):
-        chunks = list(exact_chunks(polling_transmissions(min(PIECE_FRAMES, frames - piece), seed=piece), LINE, t0))
+        chunks = list(exact_chunks(traffic(min(PIECE_FRAMES, frames - piece), piece), LINE, t0))
         writer.write_batch(ChunkBatch.from_chunks(chunks))
         t0 = chunks[-1].t_end_ns + 10_000_000
     writer.close()

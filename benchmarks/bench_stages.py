@@ -2,10 +2,11 @@
 
     python -m benchmarks.bench_stages [--frames 200000] [--keep DIR]
 
-Three captures of the same size (benchmarks/bench_memory.py): ``steady`` drives that hold their
+Four captures of the same size (benchmarks/bench_memory.py): ``steady`` drives that hold their
 state and speed (what a running plant sends: the same frames again and again), ``mixed`` ATV
-traffic whose values are drawn anew for every answer, and ``polling`` of random registers with
-random values (no two frames alike: the worst case). Stages, one process, one core:
+traffic whose values are drawn anew for every answer, ``polling`` of random registers with
+random values (no two frames alike), and ``coils`` (reads and writes of up to 64 random coils:
+no two alike, and a param per coil). Stages, one process, one core:
 
 1. read the MCAP capture, frame, pair, count statistics (all in columns);
 2. + annotate: decode each distinct frame once (a Python object per distinct frame);
@@ -52,17 +53,23 @@ from sniffer.profiles_io import profile_book
 
 STAGES = ("read, frame, pair, statistics", "+ annotate", "+ JSONL records", "+ annotate, MCAP export",
           "+ annotate, Rerun export")
-TRAFFIC = ("steady", "mixed", "polling")
+TRAFFIC = ("steady", "mixed", "polling", "coils")
 
 
 class _CountingAnnotator(Annotator):
-    """Counts the frames it decodes (the distinct ones)."""
+    """Counts the frames it decodes (the distinct ones): those its memo of decodings misses."""
 
-    decoded = 0
+    def __init__(self, profiles: ProfileApplier) -> None:
+        super().__init__(profiles)
+        self.decoded = 0
+        older = self._decodings.older
 
-    def _decode(self, *args, **kwargs):  # type: ignore[no-untyped-def]
-        self.decoded += 1
-        return super()._decode(*args, **kwargs)
+        def counting(key):  # type: ignore[no-untyped-def]
+            found = older(key)
+            self.decoded += found is None
+            return found
+
+        self._decodings.older = counting  # type: ignore[method-assign]
 
 
 def run(capture: Path, stage: int, output: Path) -> tuple[float, int, int]:
@@ -73,8 +80,8 @@ def run(capture: Path, stage: int, output: Path) -> tuple[float, int, int]:
     decoder = Decoder(line, reader.info.timing)
     annotator = _CountingAnnotator(ProfileApplier(profile_book([], [])))
     encoder, statistics, frames = FrameRecordEncoder(), Statistics(), 0
-    mcap = McapExporter(str(output / "stage.mcap"), reader.info, line, {}) if stage == 4 else None
-    rerun = RerunExporter(str(output / "stage.rrd")) if stage == 5 else None
+    mcap = McapExporter(str(output / f"{capture.stem}.mcap"), reader.info, line, {}) if stage == 4 else None
+    rerun = RerunExporter(str(output / f"{capture.stem}.rrd")) if stage == 5 else None
     start = time.perf_counter()
 
     def deliver(batches: list[MessageBatch]) -> None:
@@ -85,7 +92,7 @@ def run(capture: Path, stage: int, output: Path) -> tuple[float, int, int]:
             if stage >= 2:
                 annotated = annotator.annotate_batch(batch)
                 if stage == 3:
-                    encoder.rows(annotated, end=b"\n").data.decode()  # what the JSONL view writes
+                    encoder.rows(annotated, end=b"\n")  # what the JSONL view writes (as bytes)
                 for exporter in filter(None, (mcap, rerun)):
                     exporter.messages(annotated)
 

@@ -1,6 +1,6 @@
 """rtusniff against Wireshark's tshark on the same frames, side by side in one run; prints a table.
 
-    python -m benchmarks.bench_tshark [--frames 1000000] [--keep DIR] [--traffic polling|mixed|steady]
+    python -m benchmarks.bench_tshark [--frames 1000000] [--keep DIR] [--traffic polling|mixed|steady|coils]
 
 The capture is FC 3 polling at 115200 8N1 (benchmarks/bench_memory.py). rtusniff writes it as
 pcap (`export --pcap`, frames already split), and tshark decodes that pcap with its Modbus RTU
@@ -21,7 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks.bench_memory import add_capture_options, benchmark_capture, wire_megabytes
+from benchmarks.bench_memory import add_capture_options, benchmark_capture, compile_sources, wire_megabytes
 from sniffer.exports.pcap_export import WIRESHARK_USER_DLT
 
 TSHARK_FIELDS = ["frame.number", "frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "mbrtu.crc16.status",
@@ -50,6 +50,7 @@ def main() -> None:
     if tshark is None:
         sys.exit("bench_tshark: tshark is not installed (apt-get install tshark)")
     rtusniff = [sys.executable, "-m", "sniffer"]
+    compile_sources()
     with tempfile.TemporaryDirectory() as tmp:
         capture = benchmark_capture(args.keep or Path(tmp), args.frames, args.traffic)
         pcap = Path(tmp) / "capture.pcap"
@@ -59,6 +60,13 @@ def main() -> None:
             ("rtusniff analyze --format jsonl", [*rtusniff, "analyze", str(capture), "--format", "jsonl"]),
             ("rtusniff analyze (table, a line a frame)", [*rtusniff, "analyze", str(capture)]),
             ("rtusniff export --pcap", [*rtusniff, "export", str(capture), "--pcap", str(pcap), "--force"]),
+            ("rtusniff export --mcap", [*rtusniff, "export", str(capture), "--mcap", str(Path(tmp) / "x.mcap"),
+                                        "--force", "-q"]),
+            ("rtusniff export --parquet", [*rtusniff, "export", str(capture), "--parquet",
+                                           str(Path(tmp) / f"dataset-{time.monotonic_ns()}"), "-q"]),
+            ("tshark -T json (mbrtu, on that pcap)",
+             [tshark, "-n", "-o", f"uat:user_dlts:{WIRESHARK_USER_DLT}", "-o", "mbrtu.crc_verification:TRUE",
+              "-r", str(pcap), "-T", "json"]),
             ("tshark -T fields (mbrtu, on that pcap)",
              [tshark, "-n", "-o", f"uat:user_dlts:{WIRESHARK_USER_DLT}", "-o", "mbrtu.crc_verification:TRUE",
               "-r", str(pcap), "-T", "fields", *fields]),
@@ -82,6 +90,9 @@ def main() -> None:
         fields_seconds, line_seconds = seconds_by_job[jobs[-2][0]], seconds_by_job[jobs[-1][0]]
         for name in ("rtusniff stats --format json", "rtusniff analyze --format jsonl"):
             print(f"tshark -T fields time / {name} time: {fields_seconds / seconds_by_job[name]:.2f}")
+        json_seconds = seconds_by_job["tshark -T json (mbrtu, on that pcap)"]
+        for name in ("rtusniff analyze --format jsonl", "rtusniff export --mcap", "rtusniff export --parquet"):
+            print(f"tshark -T json time / {name} time: {json_seconds / seconds_by_job[name]:.2f}")
         table = "rtusniff analyze (table, a line a frame)"
         print(f"tshark one-line time / {table} time: {line_seconds / seconds_by_job[table]:.2f}")
 

@@ -40,7 +40,9 @@ ENTITY_ROWS = 32_768
 #: Live: how often what was buffered goes to the viewer (a quarter of a second behind the bus:
 #: each entity sent is a fixed cost in the SDK, so sending more often costs a core on a busy line).
 LIVE_SEND_S = 0.5
-#: Live: how long a round's flush may wait for a slow viewer.
+#: Live: a flush (which finds a viewer gone) every this many rounds, and how long it may wait
+#: for a slow viewer.
+FLUSH_EVERY_ROUNDS = 4
 LIVE_FLUSH_S = 5.0
 MAX_BUFFERED_ROWS = 400_000
 #: Column pieces an entity's buffer holds before they are merged into one.
@@ -128,6 +130,7 @@ class RerunExporter:
         self._rec.set_log_tick_enabled(False)
         #: Live: the thread that sends, so that the decoding never waits for the SDK.
         self._sender = LiveSender(self._send_round) if live else None
+        self._rounds_sent = 0
         sinks: list[rr.GrpcSink | rr.FileSink] = []
         if viewer is not None:
             sinks.append(rr.GrpcSink(viewer))
@@ -416,8 +419,12 @@ class RerunExporter:
     def _send_round(self, items: list[tuple[str, rr.SeriesLines | rr.SeriesPoints | None, _Rows]]) -> None:
         for path, style, rows in items:
             send_rows(self._rec, path, style, rows)
-        # The SDK takes rows for a viewer that has gone and says so only when flushed: a flush per
-        # round raises at once where the connection broke (waited for here, in the sending thread).
+        # The SDK takes rows for a viewer that has gone and says so only when flushed: a flush
+        # every few rounds raises at once where the connection broke (waited for here, in the
+        # sending thread; each flush also sends what the SDK was batching, which costs CPU).
+        self._rounds_sent += 1
+        if self._rounds_sent % FLUSH_EVERY_ROUNDS:
+            return
         try:
             self._rec.flush(timeout_sec=LIVE_FLUSH_S)
         except RuntimeError as exc:

@@ -1,0 +1,74 @@
+"""A plant's recordings into one Parquet dataset, and a query over it; prints a table.
+
+    python -m benchmarks.bench_plant [--captures 10 40] [--frames 20000] [--jobs 2] [--traffic mixed]
+
+Many captures of one kind (``--frames`` each, written once per run), exported with
+``export --each FOLDER --parquet DATASET --jobs N`` in a fresh process: wall time, frames/s, the
+peak RSS of the parent and of the largest worker (memory must not grow with the number of
+captures), the dataset's size; then the README's DuckDB query (latency p95 per slave per day
+across all buses), timed over the dataset.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from benchmarks.bench_memory import benchmark_capture, compile_sources
+
+QUERY = """
+SELECT bus, date, slave, count(*) AS answers, quantile_cont(latency_ms, 0.95) AS latency_p95_ms
+FROM read_parquet('{dataset}/transactions/*/*/*.parquet', hive_partitioning = true)
+WHERE outcome = 'answered' GROUP BY ALL ORDER BY bus, date, slave
+"""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--captures", type=int, nargs="+", default=[10, 40])
+    parser.add_argument("--frames", type=int, default=20_000)
+    parser.add_argument("--jobs", default="2")
+    parser.add_argument("--traffic", default="mixed", choices=["polling", "mixed", "steady", "coils"])
+    args = parser.parse_args()
+    import duckdb
+
+    compile_sources()
+
+    print(f"{'captures':>8} {'frames':>10} {'export s':>9} {'frames/s':>9} {'peak RSS MB':>12} "
+          f"{'dataset MB':>11} {'query s':>8}")
+    with tempfile.TemporaryDirectory() as tmp:
+        one = benchmark_capture(Path(tmp) / "one", args.frames, args.traffic)
+        for count in args.captures:
+            folder, dataset = Path(tmp) / f"plant-{count}", Path(tmp) / f"dataset-{count}"
+            folder.mkdir()
+            for number in range(count):
+                # Each its own bus (the file's name): the same traffic, another line of the plant.
+                copy = folder / f"line-{number % 8}" / f"bus-{number:04d}.mcap"
+                copy.parent.mkdir(exist_ok=True)
+                shutil.copy(one, copy)
+            before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+            start = time.perf_counter()
+            result = subprocess.run([sys.executable, "-m", "sniffer", "export", "--each", str(folder), "--parquet",
+                                     str(dataset), "--jobs", args.jobs, "-q"], capture_output=True, text=True,
+                                    check=False)
+            seconds = time.perf_counter() - start
+            if result.returncode != 0:
+                sys.exit(f"bench_plant: export failed: {result.stderr}")
+            worker = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+            size = sum(path.stat().st_size for path in dataset.rglob("*.parquet")) / 1e6
+            start = time.perf_counter()
+            duckdb.sql(QUERY.format(dataset=dataset)).fetchall()
+            query = time.perf_counter() - start
+            frames = count * args.frames
+            print(f"{count:>8} {frames:>10,} {seconds:>9.1f} {frames / seconds:>9,.0f} "
+                  f"{max(worker, before) / 1024:>12.0f} {size:>11.1f} {query:>8.3f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
