@@ -12,9 +12,8 @@ the same by construction.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from itertools import repeat
-from typing import Any
+from typing import Any, NamedTuple
 
 from decoders.message import Decoding, ParamValue
 from decoders.modbus.pdu import (
@@ -33,13 +32,14 @@ from decoders.modbus.pdu import (
 )
 
 
-@dataclass(frozen=True, slots=True)
-class ParamRun:
-    """``count`` consecutive registers or coils from ``address``; ``values``: their raw values
-    (coils as 0 and 1), or ``None`` where the frame names them without values (a read request)."""
+class ParamRun(NamedTuple):
+    """``size`` consecutive registers or coils from ``address``; ``values``: their raw values
+    (coils as 0 and 1), or ``None`` where the frame names them without values (a read request).
+    A tuple: one is built for every frame decoded anew, and a frozen dataclass costs a setattr
+    per field."""
 
     address: int
-    count: int
+    size: int
     values: Sequence[int] | None = None
 
 
@@ -83,7 +83,7 @@ def expand_runs(runs: tuple[ParamRun, ...]) -> tuple[ParamValue, ...]:
     """A :class:`~decoders.message.ParamValue` per register or coil of ``runs``."""
     params: list[ParamValue] = []
     for run in runs:
-        addresses = range(run.address, run.address + run.count)
+        addresses = range(run.address, run.address + run.size)
         if run.values is None:
             params += map(ParamValue, addresses)
         else:
@@ -148,8 +148,13 @@ def addressed_values(decoding: Decoding) -> list[tuple[int, int | None]]:
     decoding names, from its runs where it has them (no param objects built)."""
     if not isinstance(decoding, LazyParams):
         return [(param.address, param.raw) for param in decoding.params]
+    runs = decoding.runs
+    if len(runs) == 1:  # most frames: one run
+        address, size, values = runs[0]
+        # Not strict: repeat() has no end (and values are as many as the run's size).
+        return list(zip(range(address, address + size), repeat(None) if values is None else values, strict=False))
     pairs: list[tuple[int, int | None]] = []
     for run in decoding.runs:
-        addresses = range(run.address, run.address + run.count)
+        addresses = range(run.address, run.address + run.size)
         pairs += zip(addresses, repeat(None)) if run.values is None else zip(addresses, run.values, strict=True)
     return pairs

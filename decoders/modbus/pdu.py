@@ -27,6 +27,10 @@ from decoders.modbus.codes import (
 )
 from decoders.modbus.layouts import MEI_READ_DEVICE_ID
 
+# The PDU classes below are not frozen (treat PDUs as immutable: nothing assigns to one): a frozen
+# dataclass sets each field through ``object.__setattr__``, 3x slower to build, and a PDU is built
+# for every frame decoded anew. ``unsafe_hash``: hashed by value, as a frozen one would be.
+
 COIL_ON = 0xFF00
 COIL_OFF = 0x0000
 
@@ -97,7 +101,7 @@ def _bit_string(bits: tuple[bool, ...], limit: int = 32) -> str:
 _TABLES = {1: "coils", 2: "inputs", 3: "HR", 4: "IR"}
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class ReadRequest:
     """FC 1, 2, 3, 4 request."""
 
@@ -110,7 +114,7 @@ class ReadRequest:
         return f"read {_TABLES[self.function]} {_range(self.address, self.count)} ({count})"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class BitsResponse:
     """FC 1, 2 response: every bit of the data bytes, LSB of the first byte first."""
 
@@ -122,7 +126,7 @@ class BitsResponse:
         return f"{_TABLES[self.function]} = {_bit_string(self.bits)} ({self.byte_count} bytes)"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class RegistersResponse:
     """FC 3, 4, 23 response."""
 
@@ -135,7 +139,7 @@ class RegistersResponse:
         return f"{table} = {_hex_words(self.values)} ({len(self.values)} registers)"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class WriteSingle:
     """FC 5 and 6, request and (echoed) response."""
 
@@ -150,7 +154,7 @@ class WriteSingle:
         return f"write HR {self.address} = {self.value} (0x{self.value:04X})"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class NoData:
     """A request without data (FC 7, 11, 12, 17)."""
 
@@ -160,7 +164,7 @@ class NoData:
         return function_name(self.function).lower()
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class ExceptionStatus:
     """FC 7 response."""
 
@@ -170,7 +174,7 @@ class ExceptionStatus:
         return f"exception status = {self.status:08b}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class Diagnostics:
     """FC 8, request or response: a sub-function and its data."""
 
@@ -186,7 +190,7 @@ class Diagnostics:
         return f"diagnostics {self.sub_function:02X} {self.name}, data {shown}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class CommEventCounter:
     """FC 11 response."""
 
@@ -198,7 +202,7 @@ class CommEventCounter:
         return f"comm event counter = {self.event_count} ({busy})"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class CommEventLog:
     """FC 12 response."""
 
@@ -211,7 +215,7 @@ class CommEventLog:
         return f"comm events {self.event_count}, messages {self.message_count}, log {self.events.hex(' ').upper()}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class WriteCoilsRequest:
     """FC 15 request."""
 
@@ -223,7 +227,7 @@ class WriteCoilsRequest:
         return f"write coils {_range(self.address, self.count)} = {_bit_string(self.bits)}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class WriteRegistersRequest:
     """FC 16 request."""
 
@@ -235,7 +239,7 @@ class WriteRegistersRequest:
         return f"write HR {_range(self.address, self.count)} = {_hex_words(self.values)}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class WriteMultipleResponse:
     """FC 15, 16 response."""
 
@@ -249,7 +253,7 @@ class WriteMultipleResponse:
         return f"wrote {table} {_range(self.address, self.count)} ({count})"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class ServerId:
     """FC 17 response: device-specific id bytes, the run indicator last."""
 
@@ -260,7 +264,7 @@ class ServerId:
         return f"server id {self.data[:-1].hex(' ').upper() or '-'}, run indicator {run}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class FileSubRequest:
     reference_type: int
     file: int
@@ -269,7 +273,7 @@ class FileSubRequest:
     data: tuple[int, ...] = ()
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class FileRecords:
     """FC 20 and 21, request and response: a list of file sub-requests or records."""
 
@@ -282,7 +286,7 @@ class FileRecords:
         return f"{verb} file records: {'; '.join(parts) or 'none'}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class FileReadResponse:
     """FC 20 response: one group of register words per sub-request."""
 
@@ -292,7 +296,7 @@ class FileReadResponse:
         return "file records = " + "; ".join(_hex_words(g, 4) for g in self.groups[:4])
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class MaskWrite:
     """FC 22, request and (echoed) response."""
 
@@ -304,7 +308,7 @@ class MaskWrite:
         return f"mask write HR {self.address}: AND 0x{self.and_mask:04X} OR 0x{self.or_mask:04X}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class ReadWriteRequest:
     """FC 23 request."""
 
@@ -322,7 +326,7 @@ class ReadWriteRequest:
         )
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class FifoRequest:
     """FC 24 request."""
 
@@ -332,7 +336,7 @@ class FifoRequest:
         return f"read FIFO at HR {self.address}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class FifoResponse:
     """FC 24 response."""
 
@@ -342,7 +346,7 @@ class FifoResponse:
         return f"FIFO = {_hex_words(self.values)} ({len(self.values)} entries)"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class DeviceIdRequest:
     """FC 43 / MEI 14 request."""
 
@@ -354,7 +358,7 @@ class DeviceIdRequest:
         return f"read device identification ({kind}) from object {self.object_id}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class DeviceIdObject:
     object_id: int
     value: bytes
@@ -368,7 +372,7 @@ class DeviceIdObject:
         return self.value.decode("latin-1")
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class DeviceIdResponse:
     """FC 43 / MEI 14 response."""
 
@@ -384,7 +388,7 @@ class DeviceIdResponse:
         return f"device identification: {shown}{more}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class MeiRaw:
     """FC 43 with an MEI type other than 14 (e.g. 13, CANopen general reference)."""
 
@@ -396,7 +400,7 @@ class MeiRaw:
         return f"{name}: {self.data.hex(' ').upper() or 'no data'}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class ExceptionPdu:
     """An exception response: function code with bit 7 set, and an exception code."""
 
@@ -411,7 +415,7 @@ class ExceptionPdu:
         return f"exception {self.code:02X} {self.name}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class AltivarMeiError:
     """The Altivar's non-standard negative answer to FC 43: ``AB 0E code`` (MEI echoed)."""
 
@@ -422,7 +426,7 @@ class AltivarMeiError:
         return f"device identification refused (Altivar AB 0E {self.code:02X}: {meaning})"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class RawPdu:
     """A function code without a layout (user-defined or unknown): its data as it is."""
 
@@ -437,7 +441,7 @@ class RawPdu:
         return f"{function_name(self.function)}, data {self.data.hex(' ').upper() or 'none'}"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True, unsafe_hash=True)
 class Malformed:
     """Bytes that do not fit their function code's layout."""
 

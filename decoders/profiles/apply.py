@@ -333,10 +333,10 @@ def _device_remark(device: DeviceIdentity) -> str:
 
 
 def _summary(summary: str, params: tuple[ParamValue, ...]) -> str:
-    named = [p for p in params if p.code is not None or isinstance(p.value, str)]
+    named = [p for p in params if p.code is not None or type(p.value) is str]
     if not named:
         return summary
-    return f"{summary}: {', '.join(_show(p) for p in named[:12])}" + (" …" if len(named) > 12 else "")
+    return f"{summary}: {', '.join([_show(p) for p in named[:12]])}" + (" …" if len(named) > 12 else "")
 
 
 def _show(param: ParamValue) -> str:

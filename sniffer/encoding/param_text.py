@@ -34,7 +34,7 @@ def runs_json(runs: tuple[ParamRun, ...]) -> str:
     """The ``params`` array of the registers or coils of ``runs``, no profile naming them."""
     pieces: list[str] = []
     for run in runs:
-        count = run.count
+        count = run.size
         if count <= 0:
             continue
         pieces += _run_pieces(run.address, count, run.values)

@@ -147,11 +147,11 @@ class ValueRows(Sink):
     def _emit_runs(self, row: ValueRow, *, crc_ok: bool) -> None:
         """A row of runs: the runs that carry values, each value valid as its frame is."""
         assert row.runs is not None
-        valued = tuple(run for run in row.runs if run.values is not None and run.count > 0)
+        valued = tuple(run for run in row.runs if run.values is not None and run.size > 0)
         if not valued:
             return
         row.runs, row.valid = valued, [crc_ok]
-        self.shown += sum(run.count for run in valued)
+        self.shown += sum(run.size for run in valued)
         self.output(row)
 
     def _changed(self, row: ValueRow, param: ParamValue) -> bool:

@@ -343,8 +343,8 @@ def _tuple_columns(rows: Sequence[ValueTuple]) -> tuple[npt.NDArray[np.int64], d
 def _run_columns(rows: list[ValueRow]) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array], npt.NDArray[np.int64]]:
     """The columns of rows of runs, laid out by numpy; and the values per row."""
     runs = [run for row in rows for run in row.runs or ()]
-    run_counts = np.array([run.count for run in runs], np.int64)
-    counts = np.array([sum(run.count for run in row.runs or ()) for row in rows], np.int64)
+    run_counts = np.array([run.size for run in runs], np.int64)
+    counts = np.array([sum(run.size for run in row.runs or ()) for row in rows], np.int64)
     total = int(run_counts.sum())
     first_of_run = np.repeat(np.cumsum(run_counts) - run_counts, run_counts)
     address = np.repeat(np.array([run.address for run in runs], np.int64), run_counts) + np.arange(total) - first_of_run
