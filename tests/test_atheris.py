@@ -3,6 +3,7 @@ run is by hand (README, "Fuzzing")."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 
@@ -24,4 +25,6 @@ def test_atheris_target_runs_clean(target: str, tmp_path: object) -> None:
     result = subprocess.run([sys.executable, str(HARNESS), target, f"-runs={runs}", "-max_len=4096", "-seed=1"],
                             capture_output=True, text=True, check=False, timeout=300, cwd=str(tmp_path))
     assert result.returncode == 0, result.stderr[-3000:]
-    assert f"Done {runs} runs" in result.stderr
+    # libFuzzer may report one run more than -runs asked for (seen in CI: "Done 801 runs" for 800).
+    done = re.search(r"Done (\d+) runs", result.stderr)
+    assert done is not None and int(done.group(1)) >= runs, result.stderr[-3000:]
