@@ -148,6 +148,10 @@ class Annotator:
             if not facts.crc_ok:
                 summary = f"CRC error: {summary}"
             decoding = LazyParams(summary, pdu, request)
+        return self._profiled(decoding, facts, request)
+
+    def _profiled(self, decoding: Decoding, facts: FrameFacts, request: Pdu | None) -> Decoding:
+        """``decoding`` as the profiles name it (as it is, without profiles)."""
         return decoding if self._profiles is None else self._profiles.apply_decoding(decoding, facts, request)
 
 
@@ -174,9 +178,7 @@ class _Fresh:
         if read is None:
             decoding = annotator._decoding(data, protocol, facts, request)
             return decoding, answer_context(decoding.pdu)
-        decoding = LazyParams(read[0], read[1], request)
-        profiles = annotator._profiles
-        return (decoding if profiles is None else profiles.apply_decoding(decoding, facts, request)), read[2]
+        return annotator._profiled(LazyParams(read[0], read[1], request), facts, request), read[2]
 
 
 def answer_context(request: Pdu | None) -> AnswerContext:

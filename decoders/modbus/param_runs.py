@@ -42,6 +42,9 @@ class ParamRun(NamedTuple):
     size: int
     values: Sequence[int] | None = None
 
+    def addresses(self) -> range:
+        return range(self.address, self.address + self.size)
+
 
 def param_runs(pdu: Pdu, request: Pdu | None) -> tuple[ParamRun, ...]:
     """The runs ``pdu`` names (read against ``request``, its answer's request); none for a
@@ -83,12 +86,11 @@ def expand_runs(runs: tuple[ParamRun, ...]) -> tuple[ParamValue, ...]:
     """A :class:`~decoders.message.ParamValue` per register or coil of ``runs``."""
     params: list[ParamValue] = []
     for run in runs:
-        addresses = range(run.address, run.address + run.size)
         if run.values is None:
-            params += map(ParamValue, addresses)
+            params += map(ParamValue, run.addresses())
         else:
             params += [ParamValue(address, None, None, value, value)
-                       for address, value in zip(addresses, run.values, strict=True)]
+                       for address, value in zip(run.addresses(), run.values, strict=True)]
     return tuple(params)
 
 
@@ -150,11 +152,11 @@ def addressed_values(decoding: Decoding) -> list[tuple[int, int | None]]:
         return [(param.address, param.raw) for param in decoding.params]
     runs = decoding.runs
     if len(runs) == 1:  # most frames: one run
-        address, size, values = runs[0]
+        run = runs[0]
         # Not strict: repeat() has no end (and values are as many as the run's size).
-        return list(zip(range(address, address + size), repeat(None) if values is None else values, strict=False))
+        return list(zip(run.addresses(), repeat(None) if run.values is None else run.values, strict=False))
     pairs: list[tuple[int, int | None]] = []
-    for run in decoding.runs:
-        addresses = range(run.address, run.address + run.size)
+    for run in runs:
+        addresses = run.addresses()
         pairs += zip(addresses, repeat(None)) if run.values is None else zip(addresses, run.values, strict=True)
     return pairs

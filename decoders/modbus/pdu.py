@@ -27,10 +27,6 @@ from decoders.modbus.codes import (
 )
 from decoders.modbus.layouts import MEI_READ_DEVICE_ID
 
-# The PDU classes below are not frozen (treat PDUs as immutable: nothing assigns to one): a frozen
-# dataclass sets each field through ``object.__setattr__``, 3x slower to build, and a PDU is built
-# for every frame decoded anew. ``unsafe_hash``: hashed by value, as a frozen one would be.
-
 COIL_ON = 0xFF00
 COIL_OFF = 0x0000
 
@@ -101,6 +97,9 @@ def _bit_string(bits: tuple[bool, ...], limit: int = 32) -> str:
 _TABLES = {1: "coils", 2: "inputs", 3: "HR", 4: "IR"}
 
 
+# The PDU classes below are not frozen (treat PDUs as immutable: nothing assigns to one): a frozen
+# dataclass sets each field through ``object.__setattr__``, 3x slower to build, and a PDU is built
+# for every frame decoded anew. ``unsafe_hash``: hashed by value, as a frozen one would be.
 @dataclass(slots=True, unsafe_hash=True)
 class ReadRequest:
     """FC 1, 2, 3, 4 request."""

@@ -216,7 +216,7 @@ class FrameRecordEncoder:
         messages, frames = batch.messages, batch.messages.frames
         positions = batch.positions()
         kept = np.array(positions, np.int64)
-        own = fields or frame_fields(messages)
+        own = fields if fields is not None else frame_fields(messages)
         if len(positions) != len(messages):
             own = FrameFields(own.heads.take(kept), own.middles.take(kept))
         heads, tails = self._decoding_parts(batch, positions)

@@ -119,7 +119,7 @@ def numeric_params(decoding: Decoding) -> dict[str, float | int]:
     """The values a frame carried, by code (or address), numbers only: state words give their raw value."""
     if isinstance(decoding, LazyParams):  # no profile: every value is a reading, named by address
         return {str(address): value for run in decoding.runs if run.values is not None
-                for address, value in zip(range(run.address, run.address + run.size), run.values, strict=True)}
+                for address, value in zip(run.addresses(), run.values, strict=True)}
     values: dict[str, float | int] = {}
     for param in plotted(decoding.params):
         assert param.raw is not None  # plotted() takes only params with a raw value

@@ -206,8 +206,8 @@ class RerunStreamSink(FileSink["RerunExporter"]):
             yield
         except (OSError, RuntimeError) as exc:  # RuntimeError: how Rerun's SDK says a connection broke
             exporter, self.exporter, self.frames_unsent = self.exporter, None, 0
-            self._tell(f"warning: Rerun: the viewer at {self._url} went away ({str(exc).splitlines()[0]}); "
-                       "decoding goes on without it")
+            reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+            self._tell(f"warning: Rerun: the viewer at {self._url} went away ({reason}); decoding goes on without it")
             if exporter is not None:
                 exporter.abandon()
 
