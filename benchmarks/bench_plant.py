@@ -6,7 +6,8 @@ Many captures of one kind (``--frames`` each, written once per run), exported wi
 ``export --each FOLDER --parquet DATASET --jobs N`` in a fresh process: wall time, frames/s, the
 peak RSS of the parent and of the largest worker (memory must not grow with the number of
 captures), the dataset's size; then the README's DuckDB query (latency p95 per slave per day
-across all buses), timed over the dataset.
+across all buses), timed over the dataset; then ``report --each FOLDER --jobs N`` of the same
+captures into one HTML report: wall time and peak RSS of it and its pool.
 """
 
 from __future__ import annotations
@@ -21,6 +22,21 @@ import time
 from pathlib import Path
 
 from benchmarks.bench_memory import benchmark_capture, compile_sources
+
+#: Runs the command given as its arguments and prints its peak RSS (KiB) with that of its pool.
+_MEASURED = ("import resource, subprocess, sys; code = subprocess.call(sys.argv[1:]); "
+             "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); sys.exit(code)")
+
+
+def measured(command: list[str]) -> tuple[float, float]:
+    """Wall seconds and peak RSS in MB of ``command`` and every process it waited for."""
+    start = time.perf_counter()
+    result = subprocess.run([sys.executable, "-c", _MEASURED, *command], capture_output=True, text=True, check=False)
+    seconds = time.perf_counter() - start
+    if result.returncode != 0:
+        sys.exit(f"bench_plant: {' '.join(command[2:4])} failed: {result.stderr}")
+    return seconds, int(result.stdout.split()[-1]) / 1024
+
 
 QUERY = """
 SELECT bus, date, slave, count(*) AS answers, quantile_cont(latency_ms, 0.95) AS latency_p95_ms
@@ -41,7 +57,7 @@ def main() -> None:
     compile_sources()
 
     print(f"{'captures':>8} {'frames':>10} {'export s':>9} {'frames/s':>9} {'peak RSS MB':>12} "
-          f"{'dataset MB':>11} {'query s':>8}")
+          f"{'dataset MB':>11} {'query s':>8} {'report s':>9} {'frames/s':>9} {'peak RSS MB':>12}")
     with tempfile.TemporaryDirectory() as tmp:
         one = benchmark_capture(Path(tmp) / "one", args.frames, args.traffic)
         for count in args.captures:
@@ -66,8 +82,11 @@ def main() -> None:
             duckdb.sql(QUERY.format(dataset=dataset)).fetchall()
             query = time.perf_counter() - start
             frames = count * args.frames
+            report, report_rss = measured([sys.executable, "-m", "sniffer", "report", "--each", str(folder), "-o",
+                                           str(Path(tmp) / f"report-{count}.html"), "--jobs", args.jobs, "-q"])
             print(f"{count:>8} {frames:>10,} {seconds:>9.1f} {frames / seconds:>9,.0f} "
-                  f"{max(worker, before) / 1024:>12.0f} {size:>11.1f} {query:>8.3f}", flush=True)
+                  f"{max(worker, before) / 1024:>12.0f} {size:>11.1f} {query:>8.3f} {report:>9.1f} "
+                  f"{frames / report:>9,.0f} {report_rss:>12.0f}", flush=True)
 
 
 if __name__ == "__main__":

@@ -1,10 +1,16 @@
 """Quantities over time in a fixed number of buckets, for charts of a capture of any length.
 
-A :class:`Timeline` holds ``buckets`` equal time buckets from the first time it is given,
-each ``width_ns`` wide. When a time falls past the last bucket, neighbouring buckets merge in
-pairs and the width doubles, until it fits: memory stays fixed whatever the capture's length,
-every bucket covers the same span, and nothing added is ever lost (a count merged is a count
-kept). Each series says how its buckets merge:
+A :class:`Timeline` holds ``buckets`` equal time buckets, each ``width_ns`` wide, from the
+first time it is given rounded down to a multiple of the width (from the epoch). When a time
+falls past the last bucket, neighbouring buckets merge in pairs and the width doubles, until it
+fits: memory stays fixed whatever the capture's length, every bucket covers the same span, and
+nothing added is ever lost (a count merged is a count kept).
+
+Bucket edges are multiples of the width since the epoch, and widths are the first width times
+a power of two: a bucket of one timeline lies inside exactly one bucket of any wider one. So
+the timelines of separate captures (``report --each``) merge exactly (:meth:`Timeline.merge`):
+the result is what one timeline given every time would hold. Each series says how its buckets
+merge:
 
 * ``sum`` (counts, wire time): added;
 * ``max`` and ``min``: the larger and the smaller;
@@ -50,24 +56,56 @@ class Timeline:
     def add(self, name: str, merge: Merge, t_ns: npt.NDArray[np.int64],
             values: npt.NDArray[np.float64] | None = None) -> None:
         """Add ``values`` (1 each when ``None``: a count) at times ``t_ns`` to the series ``name``."""
+        series = self._series(name, merge)
+        if not len(t_ns):
+            return
+        where = self._buckets(t_ns)
+        _put(series, where, np.ones(len(where)) if values is None else np.asarray(values, np.float64))
+
+    def _series(self, name: str, merge: Merge) -> Series:
         series = self.series.get(name)
         if series is None:
             series = self.series[name] = Series(merge, _empty(merge, self.buckets))
         elif series.merge != merge:
             raise ValueError(f"series {name!r} merges by {series.merge}, not {merge}")
-        if not len(t_ns):
+        return series
+
+    def merge(self, other: Timeline) -> None:
+        """Add ``other``'s buckets (another capture's, same number of buckets): exactly, as if
+        every time given to it had been given to this one. A ``last`` bucket takes ``other``'s
+        value where it has one: merge captures in time order."""
+        if other.buckets != self.buckets:
+            raise ValueError(f"a timeline of {other.buckets} buckets does not merge into one of {self.buckets}")
+        for name, theirs in other.series.items():
+            self._series(name, theirs.merge)
+        if other.origin_ns is None or not other.used:
             return
-        where = self._buckets(t_ns)
-        data = np.ones(len(where)) if values is None else np.asarray(values, np.float64)
-        if merge == "sum":
-            np.add.at(series.values, where, data)
-        elif merge == "max":
-            np.fmax.at(series.values, where, data)
-        elif merge == "min":
-            np.fmin.at(series.values, where, data)
-        else:  # the last one given of each bucket (fancy assignment does not promise an order)
-            buckets, first_from_end = np.unique(where[::-1], return_index=True)
-            series.values[buckets] = data[len(where) - 1 - first_from_end]
+        while self.width_ns < other.width_ns:
+            self._widen()
+        starts = other.origin_ns + np.arange(other.used, dtype=np.int64) * other.width_ns
+        if self.origin_ns is not None:
+            self._start_at(int(starts[0]))
+        self._buckets(starts[[0, -1]])  # the origin (this one empty) and the width that holds both
+        assert self.origin_ns is not None
+        where = (starts - self.origin_ns) // self.width_ns
+        for name, theirs in other.series.items():
+            _put(self.series[name], where, theirs.values[: other.used], skip_empty=True)
+
+    def _start_at(self, t_ns: int) -> None:
+        """Move the origin back to hold ``t_ns`` (a capture earlier than the ones merged so far),
+        widening while the buckets used would not fit."""
+        assert self.origin_ns is not None
+        while True:
+            origin = t_ns - t_ns % self.width_ns
+            shift = (self.origin_ns - origin) // self.width_ns
+            if shift <= 0:
+                return
+            if self.used + shift <= self.buckets:
+                break
+            self._widen()
+        for series in self.series.values():
+            series.values = np.concatenate([_empty(series.merge, shift), series.values[: self.buckets - shift]])
+        self.origin_ns, self.used = origin, self.used + shift
 
     def add_spans(self, name: str, t_start_ns: npt.NDArray[np.int64], t_end_ns: npt.NDArray[np.int64]) -> None:
         """Add the time each span [start, end) covers of each bucket to the sum series ``name``
@@ -90,28 +128,53 @@ class Timeline:
 
     def _buckets(self, t_ns: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
         if self.origin_ns is None:
-            self.origin_ns = int(t_ns.min())
-        top = int(t_ns.max()) - self.origin_ns
-        while top >= self.buckets * self.width_ns:
+            first = int(t_ns.min())
+            self.origin_ns = first - first % self.width_ns
+        last = int(t_ns.max())
+        while last - self.origin_ns >= self.buckets * self.width_ns:  # widening may move the origin back
             self._widen()
         where = np.maximum(t_ns - self.origin_ns, 0) // self.width_ns
         self.used = max(self.used, int(where.max()) + 1)
         return where
 
     def _widen(self) -> None:
-        """Merge neighbouring buckets in pairs: twice the width, the second half empty."""
-        half = self.buckets // 2
+        """Merge neighbouring buckets in pairs: twice the width, the second half empty. Pairs
+        start at multiples of the new width: where the origin is an odd multiple of the old one,
+        the first bucket pairs with an empty one before it."""
+        odd = 0 if self.origin_ns is None else (self.origin_ns // self.width_ns) % 2
         for series in self.series.values():
-            pairs = series.values.reshape(half, 2)
-            merged = _merge_pairs(series.merge, pairs)
-            series.values = np.concatenate([merged, _empty(series.merge, half)])
+            values = series.values
+            if odd:
+                values = np.concatenate([_empty(series.merge, 1), values, _empty(series.merge, 1)])
+            merged = _merge_pairs(series.merge, values.reshape(-1, 2))
+            series.values = np.concatenate([merged, _empty(series.merge, self.buckets - len(merged))])
+        if self.origin_ns is not None:
+            self.origin_ns -= odd * self.width_ns
         self.width_ns *= 2
-        self.used = (self.used + 1) // 2
+        self.used = (self.used + odd + 1) // 2
 
     def values(self, name: str) -> npt.NDArray[np.float64]:
         """The used buckets of ``name`` (empty ones NaN, or 0 for a sum)."""
         return self.series[name].values[: self.used]
 
+
+
+def _put(series: Series, where: npt.NDArray[np.int64], data: npt.NDArray[np.float64], *,
+         skip_empty: bool = False) -> None:
+    """Add ``data`` at buckets ``where`` as the series merges (``skip_empty``: NaN is no value)."""
+    merge = series.merge
+    if merge == "sum":
+        np.add.at(series.values, where, data)
+    elif merge == "max":
+        np.fmax.at(series.values, where, data)
+    elif merge == "min":
+        np.fmin.at(series.values, where, data)
+    else:  # the last one given of each bucket (fancy assignment does not promise an order)
+        if skip_empty:
+            given = ~np.isnan(data)
+            where, data = where[given], data[given]
+        buckets, first_from_end = np.unique(where[::-1], return_index=True)
+        series.values[buckets] = data[len(where) - 1 - first_from_end]
 
 
 def _empty(merge: Merge, length: int) -> npt.NDArray[np.float64]:

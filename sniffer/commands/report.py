@@ -27,6 +27,14 @@ from sniffer.commands.counting import counted_capture
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import published_whole
+from sniffer.many_captures import (
+    Outcome,
+    add_each_options,
+    capture_files,
+    each_capture,
+    jobs_for_each,
+    tell_failures,
+)
 from sniffer.pipeline import analyze
 from sniffer.progress import progress_for
 from sniffer.report.collect import Comparison, Provenance, ReportCollector, source_file
@@ -60,6 +68,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     add_force_option(parser)
     add_decoding_options(parser)
     add_jobs_option(parser)
+    add_each_options(parser, "one report of them all: counts and histograms add up, charts and state changes "
+                     "join in the order named, anomalies keep the first of each kind with their file")
     add_quiet_option(parser)
     parser.set_defaults(run=run)
 
@@ -76,22 +86,58 @@ def run(args: argparse.Namespace) -> int:
     if args.output is None and kind == "html" and sys.stdout.isatty():
         raise RtuSniffError(ErrorKind.USAGE, "report: an HTML report is a file to open in a browser; "
                             "give -o report.html (or --format md to read it here)")
-    paths = capture_paths(args)
+    paths = capture_files(args.capture) if args.each else capture_paths(args)
     check_outputs([args.output], [*paths, *([args.baseline] if args.baseline else [])], force=args.force)
-    provenance = Provenance(files=[source_file(path) for path in paths], command=shlex.join(args.command_line),
-                            tool_version=version("rtusniff"), profiles=list(args.profile), window=_window(args))
-    collector = ReportCollector(provenance)
-    with ExitStack() as stack:
-        reader, analysis = open_analysis(args, stack)
-        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
-        analyze(reader, source_name(args), analysis, [collector, progress.sink], jobs=decoding_jobs(args.jobs))
+    if args.each:
+        collector, outcomes = _gathered_each(args, paths)
+        if collector is None:
+            return tell_failures(outcomes)
+    else:
+        collector, outcomes = _gathered(args, paths, jobs=decoding_jobs(args.jobs)), []
     comparison = _comparison(args, collector) if args.baseline else None
     # Written only once everything is read: a capture that fails leaves no half report behind.
     with published_whole(args.output or "-") as target, ExitStack() as stack:
         WRITERS[kind](open_output(target, stack), collector, comparison)
     if args.output not in (None, "-"):
-        tell_written(args, [(args.output, f"{kind} report of {collector.statistics.frames:,} frames")])
-    return 0
+        captures = f", {len(collector.provenance.files)} captures" if args.each else ""
+        tell_written(args, [(args.output, f"{kind} report of {collector.statistics.frames:,} frames{captures}")])
+    return tell_failures(outcomes)
+
+
+def _gathered(args: argparse.Namespace, paths: list[str], jobs: int, *, part: bool = False) -> ReportCollector:
+    """What the report shows of ``paths``, read as one capture (``part``: of ``--each``)."""
+    collector = ReportCollector(_provenance(args, paths), part=part)
+    with ExitStack() as stack:
+        reader, analysis = open_analysis(args, stack)
+        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
+        analyze(reader, source_name(args), analysis, [collector, progress.sink], jobs=jobs)
+    return collector
+
+
+def _gathered_each(args: argparse.Namespace,
+                   paths: list[str]) -> tuple[ReportCollector | None, list[Outcome[ReportCollector]]]:
+    """``--each``: every capture gathered on its own (in a pool), merged in the order named;
+    ``None`` when every capture failed."""
+    one = argparse.Namespace(**{**vars(args), "each": False, "quiet": True})  # no progress bars from the pool
+    merged = ReportCollector(_provenance(args, []))
+    outcomes = []
+    for outcome in each_capture(paths, _gathered_one, one, jobs_for_each(args.jobs)):
+        outcomes.append(outcome)
+        if outcome.result is None:
+            print(f"error: {outcome.error}", file=sys.stderr, flush=True)
+        else:
+            merged.merge(outcome.result)
+    return (merged if merged.provenance.files else None), outcomes
+
+
+def _gathered_one(args: argparse.Namespace) -> ReportCollector:
+    """One capture of ``--each`` (in a process of the pool: one process decodes it)."""
+    return _gathered(args, args.capture, jobs=1, part=True).portable()
+
+
+def _provenance(args: argparse.Namespace, paths: list[str]) -> Provenance:
+    return Provenance(files=[source_file(path) for path in paths], command=shlex.join(args.command_line),
+                      tool_version=version("rtusniff"), profiles=list(args.profile), window=_window(args))
 
 
 def _comparison(args: argparse.Namespace, collector: ReportCollector) -> Comparison:

@@ -10,7 +10,7 @@ batches where they lie across a batch's edge); the rest are counted.
 from __future__ import annotations
 
 from collections import Counter, deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 
 import numpy as np
@@ -47,6 +47,8 @@ class FrameRow:
     flags: str
     hex: str
     summary: str
+    #: The capture file the frame is in, where the report merges several (``report --each``).
+    capture: str = ""
 
 
 @dataclass
@@ -141,3 +143,27 @@ class AnomalyLog:
             if len(anomaly.after) < self.context:
                 still.append(anomaly)
         self._waiting = still
+
+    def portable(self) -> AnomalyLog:
+        """This log as another process sends it back: the anomalies still short of frames after
+        them stay so (the next frames are in another capture)."""
+        self._waiting = []
+        return self
+
+    def merge(self, other: AnomalyLog, capture: str) -> None:
+        """Add the counts and kept anomalies of ``other`` (a capture read on its own), its rows
+        labelled with ``capture``: still the first of each kind, in the order merged."""
+        self.counts.update(other.counts)
+        for kind, theirs in other.kept.items():
+            kept = self.kept.setdefault(kind, [])
+            for anomaly in theirs[: max(self.listed - len(kept), 0)]:
+                contexts = sum(a.with_context for a in kept)
+                with_context = anomaly.with_context and contexts < self.with_context
+                kept.append(Anomaly(kind, _labelled(anomaly.row, capture),
+                                    [_labelled(row, capture) for row in anomaly.before] if with_context else [],
+                                    [_labelled(row, capture) for row in anomaly.after] if with_context else [],
+                                    with_context))
+
+
+def _labelled(row: FrameRow, capture: str) -> FrameRow:
+    return replace(row, capture=capture)

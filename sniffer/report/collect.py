@@ -1,10 +1,17 @@
 """The sink behind ``rtusniff report``: gathers, in memory that does not grow with the capture,
 what the report shows (the statistics, the charts' series, the anomalies, the drive values,
-the devices that identified themselves) and where it came from."""
+the devices that identified themselves) and where it came from.
+
+``report --each`` gathers every capture on its own (in a process pool) and merges what came
+back in the order the files were named (:meth:`ReportCollector.merge`): counts and histograms
+add up, the charts' buckets merge exactly (:meth:`decoders.timeline.Timeline.merge`), the
+anomalies and state changes keep the first of each kind, labelled with their file.
+"""
 
 from __future__ import annotations
 
 import os
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,7 +26,7 @@ from decoders.stats import Statistics
 from decoders.timeline import Timeline
 from sniffer.exports.outputs import sha256_of
 from sniffer.report.anomalies import AnomalyLog
-from sniffer.report.drive_values import DriveValues
+from sniffer.report.drive_values import MAX_SERIES, PART_SERIES, DriveValues
 from sniffer.sinks import Sink
 from sniffer.views.compare_view import Side
 
@@ -54,6 +61,10 @@ class Provenance:
     notes: tuple[str, ...] = ()
     window: str = ""
     devices: dict[int, DeviceIdentity] = field(default_factory=dict)
+    #: Whether the files were read one by one and merged (``--each``): rows name their file.
+    merged: bool = False
+    #: ``--each``: in how many captures each slave identified itself (each starts knowing none).
+    identified_in: Counter[int] = field(default_factory=Counter)
 
 
 @dataclass(frozen=True)
@@ -72,11 +83,12 @@ class ReportCollector(Sink):
     wants_messages = True
     wants_statistics = True
 
-    def __init__(self, provenance: Provenance) -> None:
+    def __init__(self, provenance: Provenance, *, part: bool = False) -> None:
+        """``part``: a capture of ``report --each``, gathered to be merged (more value series kept)."""
         self.provenance = provenance
         self.timeline = Timeline()
         self.anomalies = AnomalyLog()
-        self.values = DriveValues(self.timeline)
+        self.values = DriveValues(self.timeline, PART_SERIES if part else MAX_SERIES)
         self.statistics = Statistics()
         self.slaves: set[int] = set()
         self._retries = RetryDiff()
@@ -117,3 +129,36 @@ class ReportCollector(Sink):
 
     def finish(self, statistics: Statistics) -> None:
         self.statistics = statistics
+
+    def portable(self) -> ReportCollector:
+        """What a process of the pool sends back (``report --each``): no caches, no state of
+        decoding on (the poll periods' last times, the retries awaited)."""
+        self.statistics = self.statistics.portable()
+        self.anomalies.portable()
+        self.values.portable()
+        self._retries = RetryDiff()
+        return self
+
+    def merge(self, other: ReportCollector) -> None:
+        """Add ``other``, the next capture gathered on its own, its rows labelled with its file."""
+        capture = other.provenance.files[0].path if len(other.provenance.files) == 1 else ""
+        self.statistics.merge(other.statistics)
+        self.timeline.merge(other.timeline)
+        self.anomalies.merge(other.anomalies, capture)
+        self.values.merge(other.values, capture)
+        self.slaves |= other.slaves
+        mine, theirs = self.provenance, other.provenance
+        mine.merged = True
+        mine.files += theirs.files
+        mine.devices.update(theirs.devices)
+        mine.identified_in.update(theirs.devices.keys())
+        mine.line = _joined(mine.line, theirs.line)
+        mine.timing = _joined(mine.timing, theirs.timing)
+        mine.channels = tuple(dict.fromkeys([*mine.channels, *theirs.channels]))
+        mine.notes = tuple(dict.fromkeys([*mine.notes, *theirs.notes]))
+
+
+def _joined(known: str, more: str) -> str:
+    """``115200 8N1`` and ``19200 8E1``: each text said once, in the order met."""
+    parts = [part for part in known.split(", ") if part]
+    return ", ".join(parts if more in parts or not more else [*parts, more])

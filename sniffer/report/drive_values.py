@@ -8,11 +8,15 @@ holds: values a slave reported (its answers) and values a master sent (its write
   more are counted (``rtusniff values`` has them all).
 * A text (a state word the profile spells out, ETA "operation enabled, forward") is a state:
   each change of a slave's code is kept, the first ``MAX_CHANGES`` of them.
+
+Separate captures of one bus (``report --each``) merge in time order (:meth:`DriveValues.merge`):
+a capture's first state of a code is a change only where it differs from the last state the
+captures before it left.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -20,6 +24,9 @@ from decoders.message import ROLE_CODE, AnnotatedBatch, Decoding, Role
 from decoders.timeline import Merge, Timeline
 
 MAX_SERIES = 48
+#: Series a capture of ``report --each`` keeps: the merge keeps the first ``MAX_SERIES`` of all
+#: captures, which may be any of a capture's own (a capture's 60th may be the plant's 3rd).
+PART_SERIES = 1024
 MAX_CHANGES = 500
 #: Decodings remembered with what they hold (the annotator hands the same one to equal frames).
 CACHED = 4096
@@ -53,6 +60,8 @@ class StateChange:
     name: str
     before: str | None
     after: str
+    #: The capture file the frame is in, where the report merges several (``report --each``).
+    capture: str = ""
 
 
 _Numbers = list[tuple[str, str, str, float]]
@@ -62,14 +71,17 @@ _Texts = list[tuple[str, str, str]]
 class DriveValues:
     """Feeds named values to a timeline and keeps state changes (see the module docstring)."""
 
-    def __init__(self, timeline: Timeline) -> None:
+    def __init__(self, timeline: Timeline, max_series: int = MAX_SERIES) -> None:
         self._timeline = timeline
+        self._max_series = max_series
         self.series: dict[tuple[int, str, str], ValueSeries] = {}
         self.series_left_out = 0
         self._left_out: set[tuple[int, str, str]] = set()
         self.changes: list[StateChange] = []
         self.changes_total = 0
         self._states: dict[tuple[int, str], str] = {}
+        #: The first state seen of each slave's code (what a capture before this one is compared with).
+        self._firsts: dict[tuple[int, str], str] = {}
         self._cache: dict[Decoding, tuple[_Numbers, _Texts]] = {}
 
     def add(self, batch: AnnotatedBatch) -> None:
@@ -124,7 +136,7 @@ class DriveValues:
     def _series(self, key: tuple[int, str, str], name: str, unit: str) -> bool:
         if key in self.series:
             return True
-        if len(self.series) >= MAX_SERIES:
+        if len(self.series) >= self._max_series:
             if key not in self._left_out:
                 self._left_out.add(key)
                 self.series_left_out += 1
@@ -138,7 +150,39 @@ class DriveValues:
         before = self._states.get((slave, code))
         if before == text:
             return
+        if before is None:
+            self._firsts[(slave, code)] = text
         self._states[(slave, code)] = text
         self.changes_total += 1
         if len(self.changes) < MAX_CHANGES:
             self.changes.append(StateChange(t_ns, index, slave, code, name, before, text))
+
+    def portable(self) -> DriveValues:
+        """These values without the cache of decodings: what another process sends back."""
+        self._cache = {}
+        return self
+
+    def merge(self, other: DriveValues, capture: str) -> None:
+        """Add the series and state changes of ``other``, a later capture of the same bus read
+        on its own. The timeline has merged ``other``'s buckets already (:meth:`Timeline.merge`):
+        the series left out here leave it, as they would never have entered one timeline."""
+        for series_key, series in other.series.items():
+            if series_key not in self.series and len(self.series) < self._max_series:
+                self.series[series_key] = series
+        seen = other.series.keys() | other._left_out
+        self._left_out |= {series_key for series_key in seen if series_key not in self.series}
+        self.series_left_out = len(self._left_out)
+        for series_key in other.series.keys() - self.series.keys():
+            for merge in _MERGES:
+                self._timeline.series.pop(f"{other.series[series_key].key}:{merge}", None)
+        for change in other.changes:
+            key = (change.slave, change.code)
+            before = change.before if change.before is not None else self._states.get(key)
+            if before != change.after and len(self.changes) < MAX_CHANGES:
+                self.changes.append(replace(change, before=before, capture=capture))
+        # A first state equal to the last one before it is no change (kept or not).
+        same = sum(self._states.get(key) == text for key, text in other._firsts.items())
+        self.changes_total += other.changes_total - same
+        for state_key, text in other._firsts.items():
+            self._firsts.setdefault(state_key, text)
+        self._states.update(other._states)

@@ -36,15 +36,29 @@ class HealthRow:
     grade: str
 
 
+#: More capture files than this are listed one line each, and the title names the first and last.
+MANY_FILES = 4
+
+
 def report_title(collector: ReportCollector) -> str:
-    return "Modbus RTU report: " + " + ".join(file.path for file in collector.provenance.files)
+    files = collector.provenance.files
+    if len(files) > MANY_FILES:
+        return f"Modbus RTU report: {len(files):,} captures, {files[0].path} … {files[-1].path}"
+    return "Modbus RTU report: " + " + ".join(file.path for file in files)
 
 
 def provenance_facts(collector: ReportCollector) -> list[tuple[str, str]]:
     """Label and text of every provenance fact, in the order a reader checks them."""
     p, s = collector.provenance, collector.statistics
     facts = []
+    if p.merged:
+        facts.append(("captures", f"{len(p.files):,} files, each read on its own and merged (--each); rows name "
+                      "their file"))
     for file in p.files:
+        if len(p.files) > MANY_FILES:
+            facts.append(("file", f"{file.path}: {file.size:,} bytes, SHA-256 {file.sha256}" if file.sha256
+                          else file.path))
+            continue
         facts.append(("file", file.path))
         if file.sha256:
             facts += [("size", f"{file.size:,} bytes"), ("SHA-256", file.sha256)]
@@ -57,12 +71,18 @@ def provenance_facts(collector: ReportCollector) -> list[tuple[str, str]]:
     if p.channels:
         facts.append(("channels", ", ".join(p.channels)))
     facts.append(("profiles", profiles_text(collector)))
+    unnamed = _identified_in_some(collector)
+    if unnamed:
+        facts.append(("identification", unnamed))
     facts += [("tool", f"rtusniff {p.tool_version}"), ("command", p.command)]
     facts += [("capture note", note) for note in p.notes]
     return facts
 
 
 def timing_text(timing: str) -> str:
+    if ", " in timing:
+        return (f"{timing}: the captures differ (exact: times of bytes on the wire; host: times the PC read "
+                "them)")
     if timing == "exact":
         return "exact: times are when each byte was on the wire; silences and latencies are measured"
     return (f"{timing}: times are when the PC read the bytes; frames are found from their content, latencies "
@@ -165,6 +185,26 @@ def _load(statistics: Statistics) -> str:
     return "–" if statistics.bus_load is None else f"{statistics.bus_load * 100:.1f} %"
 
 
+def _identified_in_some(collector: ReportCollector) -> str:
+    """``--each``: the slaves that identified themselves in some captures only. Each capture is
+    read knowing nothing, so in the others their values went unnamed; the remedy is the option."""
+    p = collector.provenance
+    if not p.merged or any("=" not in choice for choice in p.profiles):
+        return ""
+    chosen = {int(choice.split("=")[0]) for choice in p.profiles}
+    some = {slave: count for slave, count in sorted(p.identified_in.items())
+            if count < len(p.files) and slave not in chosen and p.devices[slave].profile is not None}
+    if not some:
+        return ""
+    slaves = ", ".join(f"{slave} (in {count} of {len(p.files)} captures)" for slave, count in some.items())
+    options = " ".join(f"--profile {slave}={p.devices[slave].profile}" for slave in some)
+    return (f"slaves {slaves} identified themselves (FC 43) in some captures only; each capture is read on its "
+            f"own, so elsewhere their values are not named. To name them in every capture: {options}")
+
+
 def capture_argument(collector: ReportCollector) -> str:
-    """The capture files as a shell command takes them (the report's "show it in full" hint)."""
+    """The capture files as a shell command takes them (the report's "show it in full" hint);
+    ``FILE`` where the files were read one by one (each row names its own)."""
+    if collector.provenance.merged:
+        return "FILE"
     return " ".join(shlex.quote(file.path) for file in collector.provenance.files)

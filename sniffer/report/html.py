@@ -133,16 +133,27 @@ def _state_changes(collector: ReportCollector) -> str:
     values = collector.values
     if not values.changes:
         return ""
-    rows = "".join(f"<tr><td class=\"num\">{change.index}</td><td>{escape(utc_text(change.t_ns))}</td>"
-                   f"<td class=\"num\">{change.slave}</td><td>{escape(change.code)}</td>"
+    merged = collector.provenance.merged
+    rows = "".join(f"<tr>{_capture_cell(change.capture, merged)}<td class=\"num\">{change.index}</td>"
+                   f"<td>{escape(utc_text(change.t_ns))}</td><td class=\"num\">{change.slave}</td>"
+                   f"<td>{escape(change.code)}</td>"
                    f"<td>{escape(change.before or '(first seen)')}</td><td>{escape(change.after)}</td></tr>\n"
                    for change in values.changes)
     more = (f"<p class=\"muted\">The first {MAX_CHANGES} of {values.changes_total:,} changes; "
             "<code>rtusniff values CAPTURE --changes</code> lists them all.</p>\n"
             if values.changes_total > len(values.changes) else "")
-    return (f"<h2 id=\"states\">State changes</h2>\n<table class=\"states\">\n<tr><th class=\"num\">#</th>"
+    return (f"<h2 id=\"states\">State changes</h2>\n<table class=\"states\">\n<tr>"
+            f"{'<th>file</th>' if merged else ''}<th class=\"num\">#</th>"
             f"<th>time (UTC)</th><th class=\"num\">slave</th><th>code</th><th>from</th><th>to</th></tr>\n"
             f"{rows}</table>\n{more}")
+
+
+def _file_hint(capture: str) -> str:
+    return " (FILE: the file a row names)" if capture == "FILE" else ""
+
+
+def _capture_cell(capture: str, merged: bool) -> str:
+    return f"<td>{escape(capture)}</td>" if merged else ""
 
 
 def _classes(classes: str) -> str:
@@ -169,30 +180,33 @@ def _kind_section(kind: str, count: int, kept: list[Anomaly], capture: str) -> s
     shown = f"all {count:,}" if count == len(kept) else f"the first {len(kept):,} of {count:,}"
     opened = " open" if count <= OPEN_UP_TO else ""
     contexts = [a for a in kept if a.with_context]
-    blocks = "".join(_context_block(anomaly, capture) for anomaly in contexts)
-    listing = _frame_table([a.row for a in kept], focus=None)
+    blocks = "".join(_context_block(anomaly) for anomaly in contexts)
+    listing = _frame_table([a.row for a in kept], focus=None, files=capture == "FILE")
     return (f"<details class=\"kind\" id=\"anomaly-{kind}\" data-kind=\"{kind}\" data-count=\"{count}\"{opened}>"
             f"<summary>{escape(title)}: {count:,}</summary>\n"
             f"<p class=\"muted\">The first {len(contexts)} with the frames around them; then {shown} as rows. "
             f"<code>rtusniff analyze {escape(capture)} --around INDEX --context 5</code> shows any of them "
-            f"in full.</p>\n{blocks}<details><summary>{escape(shown)} as rows</summary>\n{listing}</details>\n"
+            f"in full{_file_hint(capture)}.</p>\n{blocks}"
+            f"<details><summary>{escape(shown)} as rows</summary>\n{listing}</details>\n"
             "</details>\n")
 
 
-def _context_block(anomaly: Anomaly, capture: str) -> str:
+def _context_block(anomaly: Anomaly) -> str:
     row = anomaly.row
-    return (f"<div class=\"context\" data-index=\"{row.index}\"><p class=\"muted\">#{row.index} at "
+    where = f" of {row.capture}" if row.capture else ""
+    return (f"<div class=\"context\" data-index=\"{row.index}\"><p class=\"muted\">#{row.index}{escape(where)} at "
             f"{escape(row.time)}</p>\n"
             f"{_frame_table([*anomaly.before, row, *anomaly.after], focus=row.index)}</div>\n")
 
 
-def _frame_table(rows: list[FrameRow], focus: int | None) -> str:
+def _frame_table(rows: list[FrameRow], focus: int | None, *, files: bool = False) -> str:
     def cell(key: str, value: str, right: bool) -> tuple[str, str]:
         return value, "num" if right else "hex" if key == "hex" else "bad" if key == "crc" and value == "BAD" else ""
 
-    return _table("frames", _ROW_COLUMNS, [
+    columns = ((("capture", "file", False),) if files else ()) + _ROW_COLUMNS
+    return _table("frames", columns, [
         (" class=\"focus\"" if row.index == focus else "",
-         [cell(key, str(getattr(row, key)), right) for key, _, right in _ROW_COLUMNS])
+         [cell(key, str(getattr(row, key)), right) for key, _, right in columns])
         for row in rows])
 
 

@@ -72,7 +72,8 @@ def _anomalies(collector: ReportCollector) -> list[str]:
     capture = capture_argument(collector)
     lines = ["## Anomalies", "", "| kind | frames | meaning |", "|---|---:|---|"]
     lines += [f"| {KINDS[kind][0]} | {log.counts[kind]:,} | {KINDS[kind][1]} |" for kind in found]
-    lines += ["", f"Any of them in full: `rtusniff analyze {capture} --around INDEX --context 5`.", ""]
+    lines += ["", f"Any of them in full: `rtusniff analyze {capture} --around INDEX --context 5`"
+              + (" (FILE: the file an example names)." if capture == "FILE" else "."), ""]
     for kind in found:
         examples = [anomaly for anomaly in log.kept[kind] if anomaly.with_context][:EXAMPLES]
         lines += [f"### {KINDS[kind][0]}: {log.counts[kind]:,}", ""]
@@ -84,7 +85,8 @@ def _anomalies(collector: ReportCollector) -> list[str]:
 def _example(anomaly: Anomaly) -> list[str]:
     row = anomaly.row
     rows = [*anomaly.before, row, *anomaly.after]
-    return [f"#{row.index} at {row.time} UTC:", "", "```text",
+    where = f" of {_inline(row.capture)}" if row.capture else ""
+    return [f"#{row.index}{where} at {row.time} UTC:", "", "```text",
             *[_frame_line(frame, focus=frame.index == row.index) for frame in rows], "```", ""]
 
 

@@ -1,5 +1,6 @@
 """Hypothesis: what the report gathers does not depend on how the capture is cut into batches,
-and its timeline equals a direct count at the width it ends with.
+and its timeline equals a direct count at the width it ends with; timelines of separate
+captures merged equal one timeline given every time.
 
 The anomalies keep the frames around them from the neighbouring batches; the timeline's buckets
 merge in pairs as times run past its end. Both are checked against one batch holding the whole
@@ -69,8 +70,12 @@ def test_timeline_equals_a_direct_count(points: list[tuple[int, float]], pieces:
         for merge in ("sum", "max", "min", "last"):
             timeline.add(merge, merge, times[chunk], values[chunk])  # type: ignore[arg-type]
     width = timeline.width_ns
-    assert times[-1] - times[0] < 16 * width and (width == 1000 or times[-1] - times[0] >= 8 * width)
-    where = (times - times[0]) // width
+    origin = times[0] - times[0] % width
+    assert timeline.origin_ns == origin
+    # The narrowest width (a power of two times the first) whose buckets from an aligned origin hold every time.
+    assert times[-1] - origin < 16 * width
+    assert width == 1000 or times[-1] - (times[0] - times[0] % (width // 2)) >= 16 * (width // 2)
+    where = (times - origin) // width
     assert timeline.used == where[-1] + 1
     sums = np.zeros(timeline.used)
     np.add.at(sums, where, values)
@@ -102,3 +107,51 @@ def test_spans_fill_each_bucket_with_what_it_covers(spans: list[tuple[int, int]]
         single.add_spans("one", np.array([start]), np.array([end]))
         assert np.all(single.values("one") <= single.width_ns + 1e-6)
         single = Timeline(buckets=8, width_ns=10_000)
+
+
+def _timeline_of(times: np.ndarray, values: np.ndarray, names: tuple[str, ...]) -> Timeline:
+    timeline = Timeline(buckets=16, width_ns=1000)
+    for merge in names:
+        timeline.add(merge, merge, times, values)  # type: ignore[arg-type]
+    return timeline
+
+
+def _assert_same(merged: Timeline, whole: Timeline) -> None:
+    assert (merged.origin_ns, merged.width_ns, merged.used) == (whole.origin_ns, whole.width_ns, whole.used)
+    assert merged.series.keys() == whole.series.keys()
+    for name in whole.series:
+        np.testing.assert_allclose(merged.series[name].values, whole.series[name].values, rtol=1e-9, atol=1e-6,
+                                   equal_nan=True, err_msg=name)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 10**7), st.floats(-1e6, 1e6, allow_nan=False)), min_size=1,
+                max_size=120),
+       st.lists(st.integers(0, 120), max_size=6), st.integers(0, 10**12))
+def test_timelines_of_captures_in_time_order_merge_into_one(points: list[tuple[int, float]], cuts: list[int],
+                                                             start: int) -> None:
+    """Captures one after the other (``report --each``): each its own timeline, merged in order."""
+    points.sort()
+    times = np.array([t for t, _ in points], np.int64) + start
+    values = np.array([v for _, v in points])
+    names = ("sum", "max", "min", "last")
+    merged = Timeline(buckets=16, width_ns=1000)
+    for part in np.split(np.arange(len(points)), sorted({min(cut, len(points)) for cut in cuts})):
+        merged.merge(_timeline_of(times[part], values[part], names))
+    _assert_same(merged, _timeline_of(times, values, names))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.lists(st.tuples(st.integers(0, 10**8), st.floats(-1e6, 1e6, allow_nan=False)), min_size=1,
+                         max_size=40), min_size=1, max_size=5))
+def test_timelines_merge_in_any_order(captures: list[list[tuple[int, float]]]) -> None:
+    """Captures that overlap or come out of order: sums, maxima and minima are still exact."""
+    names = ("sum", "max", "min")
+    merged = Timeline(buckets=16, width_ns=1000)
+    for points in captures:
+        points.sort()
+        merged.merge(_timeline_of(np.array([t for t, _ in points], np.int64), np.array([v for _, v in points]),
+                                  names))
+    every = sorted(point for points in captures for point in points)
+    _assert_same(merged, _timeline_of(np.array([t for t, _ in every], np.int64), np.array([v for _, v in every]),
+                                      names))
