@@ -115,14 +115,14 @@ def _gathered(args: argparse.Namespace, paths: list[str], jobs: int, *, part: bo
 
 
 def _gathered_each(args: argparse.Namespace,
-                   paths: list[str]) -> tuple[ReportCollector | None, list[Outcome[ReportCollector]]]:
+                   paths: list[str]) -> tuple[ReportCollector | None, list[Outcome[None]]]:
     """``--each``: every capture gathered on its own (in a pool), merged in the order named;
     ``None`` when every capture failed."""
     one = argparse.Namespace(**{**vars(args), "each": False, "quiet": True})  # no progress bars from the pool
     merged = ReportCollector(_provenance(args, []))
-    outcomes = []
+    outcomes: list[Outcome[None]] = []
     for outcome in each_capture(paths, _gathered_one, one, jobs_for_each(args.jobs)):
-        outcomes.append(outcome)
+        outcomes.append(Outcome(outcome.path, None, outcome.error))  # not the part: memory stays flat
         if outcome.result is None:
             print(f"error: {outcome.error}", file=sys.stderr, flush=True)
         else:
