@@ -5,7 +5,9 @@ first frame and the capture's end (``CaptureReader.last_time_ns``, from the file
 index). It shows the share of the file that is (about) done, frames per second, the time
 elapsed and the time left; where the end is unknown (standard input), a count and a rate.
 The bar is a sink (it gets the framed batches, before annotation) and vanishes when done,
-leaving the closing line that says what was written.
+leaving the closing line that says what was written. Many captures at once (``--each``) get a
+bar over the captures instead (:func:`over_captures`): captures done, megabytes of them, the
+time elapsed and left.
 """
 
 from __future__ import annotations
@@ -14,7 +16,9 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Iterator
 from types import TracebackType
+from typing import TypeVar
 
 from rich.console import Console
 from rich.progress import (
@@ -34,6 +38,8 @@ from sniffer.sinks import Sink
 
 #: The bar counts in thousandths of the capture's span.
 STEPS = 1000
+
+Item = TypeVar("Item")
 
 
 class ProgressSink(Sink):
@@ -116,5 +122,31 @@ def progress_for(args: argparse.Namespace, reader: CaptureReader, *, to_terminal
     """The bar for a command reading ``path`` (else the files of ``args.capture``): shown when
     standard error is a terminal, the output does not go to that terminal too, and ``--quiet``
     is not given."""
-    show = sys.stderr.isatty() and not getattr(args, "quiet", False) and not (to_terminal and sys.stdout.isatty())
-    return ProgressBar(reader, [path] if path else list(args.capture), show)
+    return ProgressBar(reader, [path] if path else list(args.capture), shown(args, to_terminal=to_terminal))
+
+
+def shown(args: argparse.Namespace, *, to_terminal: bool) -> bool:
+    """Whether a bar is shown: standard error is a terminal, the output does not go to that
+    terminal too, and ``--quiet`` is not given."""
+    return sys.stderr.isatty() and not getattr(args, "quiet", False) and not (to_terminal and sys.stdout.isatty())
+
+
+def over_captures(outcomes: Iterator[Item], paths: list[str], show: bool) -> Iterator[Item]:
+    """``outcomes`` (one per path, in order) passed on, with a bar over the captures while they
+    come (``--each``); error lines printed meanwhile appear above it."""
+    if not show:
+        yield from outcomes
+        return
+    sizes = [os.path.getsize(path) if os.path.isfile(path) else 0 for path in paths]
+    total = sum(sizes)
+    progress = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f} %"),
+                        TextColumn("{task.fields[size]}"), TimeElapsedColumn(), TimeRemainingColumn(),
+                        console=Console(file=sys.stderr), transient=True)
+    task = progress.add_task(f"0 of {len(paths):,} captures", total=total or len(paths), size="")
+    read = 0
+    with progress:
+        for done, outcome in enumerate(outcomes, 1):
+            read += sizes[done - 1] if done <= len(sizes) else 0
+            progress.update(task, completed=read if total else done, description=f"{done:,} of {len(paths):,} "
+                            "captures", size=f"{read / 1e6:,.1f} of {total / 1e6:,.1f} MB")
+            yield outcome

@@ -254,6 +254,24 @@ def test_progress_bar_on_a_terminal(tmp_path: Path) -> None:
     assert "frames/s" in reported and f"wrote {tmp_path / 'long.html'}: html report of 60,000 frames" in reported
 
 
+def test_a_bar_over_many_captures_on_a_terminal(tmp_path: Path) -> None:
+    """``--each``: a bar over the captures (done of all, their megabytes) for stats, report and
+    export; nothing of it with --quiet."""
+    from benchmarks.bench_memory import write_capture
+
+    folder = tmp_path / "site"
+    folder.mkdir()
+    write_capture(folder / "a.mcap", 30_000)
+    for name in ("b.mcap", "c.mcap"):
+        shutil.copy(folder / "a.mcap", folder / name)
+    for command in (["stats", "--each", str(folder), "-o", str(tmp_path / "s.txt")],
+                    ["report", "--each", str(folder), "-o", str(tmp_path / "r.html")],
+                    ["export", "--each", str(folder), "--parquet", str(tmp_path / "d")]):
+        shown = run_on_pty([*command, "--jobs", "1"])
+        assert "of 3 captures" in shown and " MB" in shown and " %" in shown, (command, shown)
+    assert run_on_pty(["stats", "--each", str(folder), "-o", str(tmp_path / "q.txt"), "-q"]).strip() == ""
+
+
 def test_live_screen_is_a_snapshot() -> None:
     """rich redraws in its own thread while the capture thread goes on adding frames: a screen
     shows what there was when it was made, and never iterates what is being changed."""

@@ -39,8 +39,8 @@ from decoders.modbus.pdu import (
     ReadWriteRequest,
     WriteCoilsRequest,
     WriteRegistersRequest,
-    parse_pdu,
 )
+from decoders.modbus.pdu_parse import parse_pdu
 from decoders.modbus.quick import QuickRead, register_reads
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.uss import parse_uss

@@ -1,7 +1,7 @@
 """The commonest frames decoded a batch at a time: register reads (FC 3 and 4), request and answer.
 
 A polling master reads registers and its slaves answer with values that change: each such frame
-is new to the annotator's cache, and decoding it alone (:func:`decoders.modbus.pdu.parse_pdu`,
+is new to the annotator's cache, and decoding it alone (:func:`decoders.modbus.pdu_parse.parse_pdu`,
 its summary) is most of its cost. Here the reads and answers of a batch that carry a good CRC and
 a shape Modbus allows are found with numpy and decoded into the same PDUs and summaries, with
 little Python per frame, for every slave (a profile then names what they carry); the tests hold

@@ -14,7 +14,6 @@ from typing import NamedTuple
 from decoders.message import Decoding, DeviceIdentity, Message, ParamValue, Role
 from decoders.modbus.param_runs import addressed_values
 from decoders.modbus.pdu import (
-    DeviceIdResponse,
     ExceptionPdu,
     Pdu,
     ReadRequest,
@@ -22,6 +21,7 @@ from decoders.modbus.pdu import (
     WriteCoilsRequest,
     WriteRegistersRequest,
 )
+from decoders.modbus.pdu_serial import DeviceIdResponse
 from decoders.profiles.model import Indirection, Parameter, Profile
 
 BROADCAST_ADDRESS = 0

@@ -28,7 +28,7 @@ from sniffer.exports.streams import RerunStreamSink, add_stream_options, check_s
 from sniffer.io.output_files import published_whole
 from sniffer.many_captures import add_each_options, capture_files, each_capture, jobs_for_each, tell_failures
 from sniffer.pipeline import Analysis, analyze
-from sniffer.progress import progress_for
+from sniffer.progress import over_captures, progress_for, shown
 from sniffer.sinks import FileSink
 
 
@@ -178,7 +178,8 @@ def _run_each(args: argparse.Namespace) -> int:
     files = capture_files(args.capture)
     one = argparse.Namespace(**{**vars(args), "each": False, "quiet": True, "jobs": "1"})
     outcomes, frames, added = [], 0, []
-    for outcome in each_capture(files, _export_one, one, jobs_for_each(args.jobs)):
+    for outcome in over_captures(each_capture(files, _export_one, one, jobs_for_each(args.jobs)), files,
+                                 shown(args, to_terminal=False)):
         outcomes.append(outcome)
         if outcome.result is None:
             print(f"error: {outcome.error}", file=sys.stderr, flush=True)

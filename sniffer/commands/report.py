@@ -36,7 +36,7 @@ from sniffer.many_captures import (
     tell_failures,
 )
 from sniffer.pipeline import analyze
-from sniffer.progress import progress_for
+from sniffer.progress import over_captures, progress_for, shown
 from sniffer.report.collect import Comparison, Provenance, ReportCollector, source_file
 from sniffer.report.html import write_html
 from sniffer.report.markdown import write_markdown
@@ -121,7 +121,8 @@ def _gathered_each(args: argparse.Namespace,
     one = argparse.Namespace(**{**vars(args), "each": False, "quiet": True})  # no progress bars from the pool
     merged = ReportCollector(_provenance(args, []))
     outcomes: list[Outcome[None]] = []
-    for outcome in each_capture(paths, _gathered_one, one, jobs_for_each(args.jobs)):
+    bar = shown(args, to_terminal=args.output in (None, "-"))
+    for outcome in over_captures(each_capture(paths, _gathered_one, one, jobs_for_each(args.jobs)), paths, bar):
         outcomes.append(Outcome(outcome.path, None, outcome.error))  # not the part: memory stays flat
         if outcome.result is None:
             print(f"error: {outcome.error}", file=sys.stderr, flush=True)

@@ -31,7 +31,7 @@ from sniffer.commands.counting import counted_capture
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.many_captures import add_each_options, capture_files, each_capture, jobs_for_each, tell_failures
 from sniffer.pipeline import analyze
-from sniffer.progress import progress_for
+from sniffer.progress import over_captures, progress_for, shown
 from sniffer.views.compare_view import Side
 from sniffer.views.layout import terminal_colors, terminal_width
 from sniffer.views.stats_view import StatsView
@@ -83,7 +83,8 @@ def _run_each(args: argparse.Namespace) -> int:
     files = capture_files(args.capture)
     merged, first, outcomes = Statistics(), None, []
     quiet = argparse.Namespace(**{**vars(args), "quiet": True})  # no progress bars from the pool
-    for outcome in each_capture(files, _counted, quiet, jobs_for_each(args.jobs)):
+    bar = shown(args, to_terminal=args.output in (None, "-"))
+    for outcome in over_captures(each_capture(files, _counted, quiet, jobs_for_each(args.jobs)), files, bar):
         outcomes.append(outcome)
         if outcome.result is None:
             print(f"error: {outcome.error}", file=sys.stderr, flush=True)

@@ -11,7 +11,7 @@ from decoders.crc import crc_bytes, crc_ok
 from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from decoders.modbus.annotate import answer_context
-from decoders.modbus.pdu import parse_pdu
+from decoders.modbus.pdu_parse import parse_pdu
 from decoders.modbus.quick import register_reads
 
 

@@ -24,9 +24,9 @@ from decoders.modbus.pdu import (
     WriteMultipleResponse,
     WriteRegistersRequest,
     WriteSingle,
-    parse_pdu,
     quantity_allowed,
 )
+from decoders.modbus.pdu_parse import parse_pdu
 from sniffer.encoding.param_text import runs_json
 from sniffer.encoding.records import param_record
 from sniffer.exports.mcap_export import numeric_params

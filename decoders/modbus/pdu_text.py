@@ -1,0 +1,11 @@
+"""How PDU summaries write register values: big-endian words in hex, the first few of many."""
+
+from __future__ import annotations
+
+import struct
+
+
+def hex_words(values: tuple[int, ...], limit: int = 8) -> str:
+    """``000F 0081``: the first ``limit`` values as 16-bit hex words, and how many more there are."""
+    shown = struct.pack(f">{min(len(values), limit)}H", *values[:limit]).hex(" ", 2).upper()
+    return shown + (f" … (+{len(values) - limit})" if len(values) > limit else "")
