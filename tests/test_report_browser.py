@@ -159,3 +159,29 @@ def test_a_narrow_window_keeps_the_report_readable(browser: Any, cli: Cli, tmp_p
     assert overflow <= 0
     assert opened.console == []
     opened.shot("narrow.png", tmp_path)
+
+
+def test_a_report_of_many_captures(browser: Any, cli: Cli, tmp_path: Path) -> None:
+    """``report --each`` of a folder: it draws without a console error, its anomaly counts are
+    the merged ``stats --each``, and its frame tables and state changes name each row's file."""
+    folder = tmp_path / "site"
+    folder.mkdir()
+    for capture in CAPTURES:
+        shutil.copy(capture, folder / capture.name)
+    result = cli("report", "--each", str(folder), "-o", str(tmp_path / "plant.html"), "--profile", "2=atv71")
+    assert result.code == 0, result.err
+    opened = Opened(browser, tmp_path / "plant.html")
+    assert opened.console == [] and opened.requests == [opened.url]
+    stats = json.loads(cli("stats", "--each", str(folder), "--format", "json").out)
+    shown = opened.page.eval_on_selector_all(
+        "details.kind", "nodes => nodes.map(n => [n.dataset.kind, Number(n.dataset.count)])")
+    assert dict(shown) == expected_counts(stats)
+    heads = opened.page.eval_on_selector_all("table.frames tr:first-child th:first-child, table.states th:first-child",
+                                             "cells => cells.map(c => c.textContent)")
+    files = opened.page.eval_on_selector_all("table.states td:first-child, table.frames td:first-child",
+                                             "cells => cells.map(c => c.textContent)")
+    assert "file" in heads and set(files) & {str(folder / capture.name) for capture in CAPTURES}
+    charts = opened.page.eval_on_selector_all(
+        "svg.plot", "svgs => svgs.map(s => s.querySelectorAll('path').length)")
+    assert charts and all(count > 0 for count in charts)
+    assert opened.shot("plant.png", tmp_path).stat().st_size > 20_000
