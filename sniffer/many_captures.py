@@ -21,10 +21,11 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Generic, TypeVar
+from typing import Generic, TypeVar
 
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.registry import formats_for
+from sniffer.progress import over_captures
 
 #: The exit code of a command of which some captures failed (each said in its error line).
 SOME_FAILED = 15
@@ -112,10 +113,32 @@ def _one(one: Callable[[argparse.Namespace], Result], args: argparse.Namespace, 
         return Outcome(path, None, str(exc))
 
 
-def tell_failures(outcomes: list[Outcome[Any]]) -> int:
-    """How many captures failed (each said its error line as it came); the exit code (0, or
-    :data:`SOME_FAILED`)."""
-    failed = [outcome for outcome in outcomes if outcome.error is not None]
-    if failed:
-        print(f"{len(failed)} of {len(outcomes)} captures failed", file=sys.stderr)
-    return SOME_FAILED if failed else 0
+@dataclass
+class Tally:
+    """The captures of an ``--each`` command: how many were named, done, and failed."""
+
+    total: int
+    done: int = 0
+    failed: int = 0
+
+    def exit_code(self) -> int:
+        """0, or :data:`SOME_FAILED` after saying how many captures failed (each said its error
+        line as it came)."""
+        if self.failed:
+            print(f"{self.failed} of {self.total} captures failed", file=sys.stderr)
+        return SOME_FAILED if self.failed else 0
+
+
+def each_result(paths: list[str], one: Callable[[argparse.Namespace], Result], args: argparse.Namespace,
+                jobs: int, tally: Tally, *, show: bool) -> Iterator[Result]:
+    """``one(args)`` of every capture that succeeds, in the order of ``paths`` (with a bar over
+    the captures when ``show``); a capture that fails is its error line, counted in ``tally``.
+    Nothing of a result is kept once the caller has it: a report's part or a capture's statistics
+    weigh megabytes, and memory stays flat over any number of captures."""
+    for outcome in over_captures(each_capture(paths, one, args, jobs), paths, show):
+        if outcome.result is None:
+            print(f"error: {outcome.error}", file=sys.stderr, flush=True)
+            tally.failed += 1
+            continue
+        tally.done += 1
+        yield outcome.result

@@ -145,8 +145,8 @@ def over_captures(outcomes: Iterator[Item], paths: list[str], show: bool) -> Ite
     task = progress.add_task(f"0 of {len(paths):,} captures", total=total or len(paths), size="")
     read = 0
     with progress:
-        for done, outcome in enumerate(outcomes, 1):
-            read += sizes[done - 1] if done <= len(sizes) else 0
+        for done, (outcome, size) in enumerate(zip(outcomes, sizes, strict=True), 1):
+            read += size
             progress.update(task, completed=read if total else done, description=f"{done:,} of {len(paths):,} "
                             "captures", size=f"{read / 1e6:,.1f} of {total / 1e6:,.1f} MB")
             yield outcome

@@ -26,9 +26,9 @@ from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.outputs import McapSink, ParquetSink, PcapSink, RerunSink
 from sniffer.exports.streams import RerunStreamSink, add_stream_options, check_streams, stream_sinks
 from sniffer.io.output_files import published_whole
-from sniffer.many_captures import add_each_options, capture_files, each_capture, jobs_for_each, tell_failures
+from sniffer.many_captures import Tally, add_each_options, capture_files, each_result, jobs_for_each
 from sniffer.pipeline import Analysis, analyze
-from sniffer.progress import over_captures, progress_for, shown
+from sniffer.progress import progress_for, shown
 from sniffer.sinks import FileSink
 
 
@@ -177,20 +177,16 @@ def _run_each(args: argparse.Namespace) -> int:
     check_dataset(args)
     files = capture_files(args.capture)
     one = argparse.Namespace(**{**vars(args), "each": False, "quiet": True, "jobs": "1"})
-    outcomes, frames, added = [], 0, []
-    for outcome in over_captures(each_capture(files, _export_one, one, jobs_for_each(args.jobs)), files,
-                                 shown(args, to_terminal=False)):
-        outcomes.append(outcome)
-        if outcome.result is None:
-            print(f"error: {outcome.error}", file=sys.stderr, flush=True)
-            continue
-        frames += outcome.result[0]
-        added += outcome.result[1]
+    tally, frames, added = Tally(len(files)), 0, []
+    for exported, files_added in each_result(files, _export_one, one, jobs_for_each(args.jobs), tally,
+                                             show=shown(args, to_terminal=False)):
+        frames += exported
+        added += files_added
     if not args.quiet and added:
-        size, done = sum(os.path.getsize(path) for path in added), sum(o.result is not None for o in outcomes)
-        print(f"added {len(added)} files to {args.parquet}: Parquet dataset, {frames:,} frames of {done} captures, "
-              f"{human_size(size)}", file=sys.stderr)
-    return tell_failures(outcomes)
+        size = sum(os.path.getsize(path) for path in added)
+        print(f"added {len(added)} files to {args.parquet}: Parquet dataset, {frames:,} frames of {tally.done} "
+              f"captures, {human_size(size)}", file=sys.stderr)
+    return tally.exit_code()
 
 
 def _export_one(args: argparse.Namespace) -> tuple[int, list[str]]:

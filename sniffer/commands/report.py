@@ -27,16 +27,9 @@ from sniffer.commands.counting import counted_capture
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import published_whole
-from sniffer.many_captures import (
-    Outcome,
-    add_each_options,
-    capture_files,
-    each_capture,
-    jobs_for_each,
-    tell_failures,
-)
+from sniffer.many_captures import Tally, add_each_options, capture_files, each_result, jobs_for_each
 from sniffer.pipeline import analyze
-from sniffer.progress import over_captures, progress_for, shown
+from sniffer.progress import progress_for, shown
 from sniffer.report.collect import Comparison, Provenance, ReportCollector, source_file
 from sniffer.report.html import write_html
 from sniffer.report.markdown import write_markdown
@@ -88,12 +81,13 @@ def run(args: argparse.Namespace) -> int:
                             "give -o report.html (or --format md to read it here)")
     paths = capture_files(args.capture) if args.each else capture_paths(args)
     check_outputs([args.output], [*paths, *([args.baseline] if args.baseline else [])], force=args.force)
+    tally = Tally(len(paths))
     if args.each:
-        collector, outcomes = _gathered_each(args, paths)
+        collector = _gathered_each(args, paths, tally)
         if collector is None:
-            return tell_failures(outcomes)
+            return tally.exit_code()
     else:
-        collector, outcomes = _gathered(args, paths, jobs=decoding_jobs(args.jobs)), []
+        collector = _gathered(args, paths, jobs=decoding_jobs(args.jobs))
     comparison = _comparison(args, collector) if args.baseline else None
     # Written only once everything is read: a capture that fails leaves no half report behind.
     with published_whole(args.output or "-") as target, ExitStack() as stack:
@@ -101,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     if args.output not in (None, "-"):
         captures = f", {len(collector.provenance.files)} captures" if args.each else ""
         tell_written(args, [(args.output, f"{kind} report of {collector.statistics.frames:,} frames{captures}")])
-    return tell_failures(outcomes)
+    return tally.exit_code()
 
 
 def _gathered(args: argparse.Namespace, paths: list[str], jobs: int, *, part: bool = False) -> ReportCollector:
@@ -114,21 +108,15 @@ def _gathered(args: argparse.Namespace, paths: list[str], jobs: int, *, part: bo
     return collector
 
 
-def _gathered_each(args: argparse.Namespace,
-                   paths: list[str]) -> tuple[ReportCollector | None, list[Outcome[None]]]:
+def _gathered_each(args: argparse.Namespace, paths: list[str], tally: Tally) -> ReportCollector | None:
     """``--each``: every capture gathered on its own (in a pool), merged in the order named;
     ``None`` when every capture failed."""
     one = argparse.Namespace(**{**vars(args), "each": False, "quiet": True})  # no progress bars from the pool
     merged = ReportCollector(_provenance(args, []))
-    outcomes: list[Outcome[None]] = []
     bar = shown(args, to_terminal=args.output in (None, "-"))
-    for outcome in over_captures(each_capture(paths, _gathered_one, one, jobs_for_each(args.jobs)), paths, bar):
-        outcomes.append(Outcome(outcome.path, None, outcome.error))  # not the part: memory stays flat
-        if outcome.result is None:
-            print(f"error: {outcome.error}", file=sys.stderr, flush=True)
-        else:
-            merged.merge(outcome.result)
-    return (merged if merged.provenance.files else None), outcomes
+    for part in each_result(paths, _gathered_one, one, jobs_for_each(args.jobs), tally, show=bar):
+        merged.merge(part)
+    return merged if tally.done else None
 
 
 def _gathered_one(args: argparse.Namespace) -> ReportCollector:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from contextlib import ExitStack
 from dataclasses import replace
 
@@ -29,9 +28,9 @@ from sniffer.commands.common import (
 )
 from sniffer.commands.counting import counted_capture
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.many_captures import add_each_options, capture_files, each_capture, jobs_for_each, tell_failures
+from sniffer.many_captures import Tally, add_each_options, capture_files, each_result, jobs_for_each
 from sniffer.pipeline import analyze
-from sniffer.progress import over_captures, progress_for, shown
+from sniffer.progress import progress_for, shown
 from sniffer.views.compare_view import Side
 from sniffer.views.layout import terminal_colors, terminal_width
 from sniffer.views.stats_view import StatsView
@@ -81,17 +80,13 @@ def _run_each(args: argparse.Namespace) -> int:
     if args.follow:
         raise RtuSniffError(ErrorKind.USAGE, "--follow follows one capture, --each reads many: give one of them")
     files = capture_files(args.capture)
-    merged, first, outcomes = Statistics(), None, []
+    merged, first, tally = Statistics(), None, Tally(len(files))
     quiet = argparse.Namespace(**{**vars(args), "quiet": True})  # no progress bars from the pool
     bar = shown(args, to_terminal=args.output in (None, "-"))
-    for outcome in over_captures(each_capture(files, _counted, quiet, jobs_for_each(args.jobs)), files, bar):
-        outcomes.append(outcome)
-        if outcome.result is None:
-            print(f"error: {outcome.error}", file=sys.stderr, flush=True)
-            continue
-        first = first or outcome.result
-        merged.merge(outcome.result.statistics)
-    done = len(outcomes) - sum(outcome.result is None for outcome in outcomes)
+    for side in each_result(files, _counted, quiet, jobs_for_each(args.jobs), tally, show=bar):
+        first = first or side
+        merged.merge(side.statistics)
+    done = tally.done
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         console = Console(file=out)
@@ -104,7 +99,7 @@ def _run_each(args: argparse.Namespace) -> int:
             view.finish(merged)
     if args.output not in (None, "-") and first is not None:
         tell_written(args, [(args.output, f"{args.format} statistics of {merged.frames:,} frames, {done} captures")])
-    return tell_failures(outcomes)
+    return tally.exit_code()
 
 
 def _counted(args: argparse.Namespace) -> Side:

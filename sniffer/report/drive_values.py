@@ -75,7 +75,6 @@ class DriveValues:
         self._timeline = timeline
         self._max_series = max_series
         self.series: dict[tuple[int, str, str], ValueSeries] = {}
-        self.series_left_out = 0
         self._left_out: set[tuple[int, str, str]] = set()
         self.changes: list[StateChange] = []
         self.changes_total = 0
@@ -83,6 +82,11 @@ class DriveValues:
         #: The first state seen of each slave's code (what a capture before this one is compared with).
         self._firsts: dict[tuple[int, str], str] = {}
         self._cache: dict[Decoding, tuple[_Numbers, _Texts]] = {}
+
+    @property
+    def series_left_out(self) -> int:
+        """Series seen beyond the ones kept."""
+        return len(self._left_out)
 
     def add(self, batch: AnnotatedBatch) -> None:
         messages = batch.messages
@@ -137,9 +141,7 @@ class DriveValues:
         if key in self.series:
             return True
         if len(self.series) >= self._max_series:
-            if key not in self._left_out:
-                self._left_out.add(key)
-                self.series_left_out += 1
+            self._left_out.add(key)
             return False
         self.series[key] = ValueSeries(key[0], key[1], name, unit, key[2])
         return True
@@ -171,7 +173,6 @@ class DriveValues:
                 self.series[series_key] = series
         seen = other.series.keys() | other._left_out
         self._left_out |= {series_key for series_key in seen if series_key not in self.series}
-        self.series_left_out = len(self._left_out)
         for series_key in other.series.keys() - self.series.keys():
             for merge in _MERGES:
                 self._timeline.series.pop(f"{other.series[series_key].key}:{merge}", None)

@@ -148,10 +148,6 @@ def _state_changes(collector: ReportCollector) -> str:
             f"{rows}</table>\n{more}")
 
 
-def _file_hint(capture: str) -> str:
-    return " (FILE: the file a row names)" if capture == "FILE" else ""
-
-
 def _capture_cell(capture: str, merged: bool) -> str:
     return f"<td>{escape(capture)}</td>" if merged else ""
 
@@ -171,22 +167,24 @@ def _anomalies(collector: ReportCollector) -> str:
     if not found:
         return ("<h2 id=\"anomalies\">Anomalies</h2>\n"
                 "<p class=\"good\">None: every frame good, every request answered.</p>\n")
-    sections = [_kind_section(kind, log.counts[kind], log.kept[kind], capture) for kind in found]
+    merged = collector.provenance.merged
+    sections = [_kind_section(kind, log.counts[kind], log.kept[kind], capture, merged) for kind in found]
     return head + rows + "</table>\n" + "".join(sections)
 
 
-def _kind_section(kind: str, count: int, kept: list[Anomaly], capture: str) -> str:
+def _kind_section(kind: str, count: int, kept: list[Anomaly], capture: str, merged: bool) -> str:
+    """``merged`` (``--each``): rows name their file, and ``capture`` is ``FILE``."""
     title = KINDS[kind][0]
     shown = f"all {count:,}" if count == len(kept) else f"the first {len(kept):,} of {count:,}"
     opened = " open" if count <= OPEN_UP_TO else ""
     contexts = [a for a in kept if a.with_context]
     blocks = "".join(_context_block(anomaly) for anomaly in contexts)
-    listing = _frame_table([a.row for a in kept], focus=None, files=capture == "FILE")
+    listing = _frame_table([a.row for a in kept], focus=None, files=merged)
     return (f"<details class=\"kind\" id=\"anomaly-{kind}\" data-kind=\"{kind}\" data-count=\"{count}\"{opened}>"
             f"<summary>{escape(title)}: {count:,}</summary>\n"
             f"<p class=\"muted\">The first {len(contexts)} with the frames around them; then {shown} as rows. "
             f"<code>rtusniff analyze {escape(capture)} --around INDEX --context 5</code> shows any of them "
-            f"in full{_file_hint(capture)}.</p>\n{blocks}"
+            f"in full{' (FILE: the file a row names)' if merged else ''}.</p>\n{blocks}"
             f"<details><summary>{escape(shown)} as rows</summary>\n{listing}</details>\n"
             "</details>\n")
 

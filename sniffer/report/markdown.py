@@ -73,7 +73,7 @@ def _anomalies(collector: ReportCollector) -> list[str]:
     lines = ["## Anomalies", "", "| kind | frames | meaning |", "|---|---:|---|"]
     lines += [f"| {KINDS[kind][0]} | {log.counts[kind]:,} | {KINDS[kind][1]} |" for kind in found]
     lines += ["", f"Any of them in full: `rtusniff analyze {capture} --around INDEX --context 5`"
-              + (" (FILE: the file an example names)." if capture == "FILE" else "."), ""]
+              + (" (FILE: the file an example names)." if collector.provenance.merged else "."), ""]
     for kind in found:
         examples = [anomaly for anomaly in log.kept[kind] if anomaly.with_context][:EXAMPLES]
         lines += [f"### {KINDS[kind][0]}: {log.counts[kind]:,}", ""]
