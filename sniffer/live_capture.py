@@ -8,8 +8,6 @@ recording has every byte.
 
 from __future__ import annotations
 
-import io
-import os
 import queue
 import signal
 import threading
@@ -18,7 +16,6 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib.metadata import version
-from types import FrameType
 from typing import TextIO, cast
 
 from rich.console import Console
@@ -37,6 +34,7 @@ from sniffer.pipeline import Delivery
 from sniffer.recorder import Recorder, Rotation
 from sniffer.serial_source import ICOUNT_FIELDS, PortGoneError, PortStatus, SerialSource
 from sniffer.sinks import Sink
+from sniffer.stopping import StopRequest, TerminatedError, handle_stop_signals, restore_signals, whole_writes
 from sniffer.views.jsonl import JsonlView
 from sniffer.views.live import LiveState, LiveView
 
@@ -62,10 +60,6 @@ def live_gap_ns(line: LineSettings, status: PortStatus) -> int:
     if delivery_ms is None:
         return LIVE_IDLE_NS
     return max(MIN_LIVE_GAP_NS, int(line.t3_5_ns) + 10_000_000, 2 * delivery_ms * 1_000_000 + 10_000_000)
-
-
-class TerminatedError(Exception):
-    """SIGTERM arrived."""
 
 
 @dataclass(frozen=True)
@@ -114,8 +108,8 @@ def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
                               name="rtusniff-reader", daemon=True)
     # Handlers for both signals, whatever this process inherited: a shell starts a background job
     # with SIGINT ignored, and `kill -INT` must still stop a capture cleanly (as dumpcap's does).
-    request = _StopRequest(shared)
-    previous = _handle_stop_signals(request)
+    request = StopRequest(shared.stop)
+    previous = handle_stop_signals(request)
     code = 0
     session = _Session(options, status, recorder, shared, out, request=request)
     try:
@@ -135,7 +129,7 @@ def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
     except TerminatedError:
         code = TERMINATED
     finally:
-        _restore_signals(previous)
+        restore_signals(previous)
         shared.stop.set()
         reader.join(timeout=2)
         source.close()
@@ -196,83 +190,13 @@ def _read(source: SerialSource, recorder: Recorder | None, shared: _Shared, deco
         shared.stop.set()
 
 
-_SignalHandler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
-
-
-class _WholeWrites(io.TextIOBase):
-    """Text written straight to a file descriptor, every byte of it. A stop signal that interrupts a
-    large write to a full pipe (a slow consumer) makes CPython's buffered writer drop part of the
-    data even when the handler returns (seen on 3.11: 74 of 2 000 lines lost); ``os.write`` says
-    how much it wrote, and the rest is written after it."""
-
-    def __init__(self, fd: int) -> None:
-        self._fd = fd
-
-    def write(self, text: str) -> int:
-        view = memoryview(text.encode())
-        while view:
-            view = view[os.write(self._fd, view) :]
-        return len(text)
-
-    def writable(self) -> bool:
-        return True
-
-
-def whole_writes(out: TextIO) -> TextIO:
-    """``out``, or for a stream on a file descriptor, a writer that never drops what it is given."""
-    try:
-        fd = out.fileno()
-    except (OSError, ValueError, AttributeError):  # a StringIO, a stream without a descriptor
-        return out
-    out.flush()
-    return cast(TextIO, _WholeWrites(fd))
-
-
-class _StopRequest:
-    """SIGINT raises KeyboardInterrupt and SIGTERM TerminatedError, at once, except while records
-    are being written: a JSON Lines record cut in two is a line no script can read. Then the first
-    signal asks for a stop once the write is done, and a second one raises (a consumer that never
-    reads again must not keep the capture from stopping)."""
-
-    def __init__(self, shared: _Shared) -> None:
-        self.shared = shared
-        self.writing = False
-        self.asked: int | None = None
-
-    def handle(self, signum: int, frame: FrameType | None) -> None:
-        if self.writing and self.asked is None:
-            self.asked = signum
-            self.shared.stop.set()
-            return
-        if signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        raise TerminatedError
-
-
-def _handle_stop_signals(request: _StopRequest) -> dict[int, _SignalHandler]:
-    """``request`` handles SIGINT and SIGTERM; the previous handlers, to restore. Only the main
-    thread may set handlers (tests run captures in threads too)."""
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-    return {
-        signal.SIGINT: signal.signal(signal.SIGINT, request.handle),
-        signal.SIGTERM: signal.signal(signal.SIGTERM, request.handle),
-    }
-
-
-def _restore_signals(previous: dict[int, _SignalHandler]) -> None:
-    for number, handler in previous.items():
-        if handler is not None:  # None: set outside Python, cannot be put back
-            signal.signal(number, handler)
-
-
 class _Session:
     """The main thread's side: decoding, statistics, the view, the stop conditions."""
 
     def __init__(self, options: CaptureOptions, status: PortStatus, recorder: Recorder | None,
-                 shared: _Shared, out: TextIO, *, request: _StopRequest | None = None) -> None:
+                 shared: _Shared, out: TextIO, *, request: StopRequest | None = None) -> None:
         self.options, self.recorder, self.shared = options, recorder, shared
-        self.request = request or _StopRequest(shared)
+        self.request = request or StopRequest(shared.stop)
         self.decoder = Decoder(options.line, TimingQuality.HOST, response_timeout_ns=options.response_timeout_ns,
                                host_gap_ns=live_gap_ns(options.line, status))
         self.state = LiveState(options.port, options.line.format(), options.output,
@@ -371,7 +295,7 @@ class _Session:
 
     @contextmanager
     def _writing(self) -> Iterator[None]:
-        """A stop signal waits until the records written here are whole (see ``_StopRequest``)."""
+        """A stop signal waits until the records written here are whole (see :class:`StopRequest`)."""
         self.request.writing = True
         try:
             yield

@@ -215,19 +215,19 @@ def test_rerun_chunks_are_large_and_memory_is_capped(
     the same rows, in the same order."""
     entity_rows, max_buffered, max_pieces = limits
     from sniffer.cli import main
-    from sniffer.exports import rerun_export
+    from sniffer.exports import rerun_rows
 
-    monkeypatch.setattr(rerun_export, "ENTITY_ROWS", entity_rows)
-    monkeypatch.setattr(rerun_export, "MAX_BUFFERED_ROWS", max_buffered)
-    monkeypatch.setattr(rerun_export, "MAX_PIECES", max_pieces)
+    monkeypatch.setattr(rerun_rows, "ENTITY_ROWS", entity_rows)
+    monkeypatch.setattr(rerun_rows, "MAX_BUFFERED_ROWS", max_buffered)
+    monkeypatch.setattr(rerun_rows, "MAX_PIECES", max_pieces)
     buffered: list[int] = []
-    send_due = rerun_export.RerunExporter._send_due
+    send_due = rerun_rows.EntityRows.send_due
 
-    def recorded_send_due(self: rerun_export.RerunExporter) -> None:
+    def recorded_send_due(self: rerun_rows.EntityRows) -> None:
         send_due(self)
-        buffered.append(self._rows)
+        buffered.append(self.rows)
 
-    monkeypatch.setattr(rerun_export.RerunExporter, "_send_due", recorded_send_due)
+    monkeypatch.setattr(rerun_rows.EntityRows, "send_due", recorded_send_due)
     rrd = tmp_path / "small.rrd"
     assert main(["export", str(SAMPLE_LOG), "--rrd", str(rrd), "--profile", "atv71"]) == 0
     chunks, values, _ = _rerun_rows(rrd)
@@ -339,7 +339,7 @@ def test_rerun_buffered_rows_own_their_memory(tmp_path: Path) -> None:
     from decoders.modbus.annotate import Annotator
     from decoders.pipeline import Decoder
     from decoders.profiles.apply import ProfileApplier
-    from sniffer.exports import rerun_export
+    from sniffer.exports import rerun_rows
     from sniffer.exports.rerun_export import RerunExporter
     from sniffer.io.registry import open_reader
     from sniffer.profiles_io import profile_book
@@ -352,9 +352,9 @@ def test_rerun_buffered_rows_own_their_memory(tmp_path: Path) -> None:
     for chunks in reader.batches():
         for batch in decoder.feed(chunks):
             exporter.messages(annotator.annotate_batch(batch))
-    buffers = exporter._buffers.values()
+    buffers = exporter.entities.buffers.values()
     columns = [c for rows in buffers for c in (*rows.times, *rows.frames, *rows.values, *rows.texts, *rows.levels)]
-    assert any("/state/" in exporter._paths[entity] for entity in exporter._buffers)
+    assert any("/state/" in exporter.entities.paths[entity] for entity in exporter.entities.buffers)
     assert columns and all(column.base is None for column in columns)
-    assert all(len(rows.times) < rerun_export.MAX_PIECES for rows in buffers)
+    assert all(len(rows.times) < rerun_rows.MAX_PIECES for rows in buffers)
     exporter.close()

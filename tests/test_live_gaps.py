@@ -92,10 +92,10 @@ def test_a_stop_signal_waits_for_the_record_being_written() -> None:
 
     import pytest
 
-    from sniffer.live_capture import TerminatedError, _StopRequest
+    from sniffer.stopping import StopRequest, TerminatedError
 
     shared = _Shared(threading.Event(), queue.Queue())
-    request = _StopRequest(shared)
+    request = StopRequest(shared.stop)
     with pytest.raises(TerminatedError):
         request.handle(signal.SIGTERM, None)  # not writing: at once
     request.writing = True
@@ -115,7 +115,7 @@ def test_records_written_under_signals_are_whole() -> None:
 
     import pytest
 
-    from sniffer.live_capture import whole_writes
+    from sniffer.stopping import whole_writes
 
     if sys.platform == "win32":
         pytest.skip("signals interrupting writes are POSIX")

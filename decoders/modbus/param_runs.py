@@ -58,7 +58,7 @@ def param_runs(pdu: Pdu, request: Pdu | None) -> tuple[ParamRun, ...]:
             start = _read_start(request)
             return () if start is None else (ParamRun(start, len(values), values),)
         case BitsResponse(bits=bits) if isinstance(request, ReadRequest):
-            asked = [int(bit) for bit in bits[: request.count]]
+            asked = list(map(int, bits[: request.count]))
             return (ParamRun(request.address, len(asked), asked),)
         case WriteSingle(function=5, address=address, value=value):
             return (ParamRun(address, 1, (1 if value == COIL_ON else 0,)),)
@@ -67,7 +67,7 @@ def param_runs(pdu: Pdu, request: Pdu | None) -> tuple[ParamRun, ...]:
         case WriteRegistersRequest(address=address, values=values):
             return (ParamRun(address, len(values), values),)
         case WriteCoilsRequest(address=address, bits=bits):
-            return (ParamRun(address, len(bits), [int(bit) for bit in bits]),)
+            return (ParamRun(address, len(bits), list(map(int, bits))),)
         case ReadWriteRequest():
             written = ParamRun(pdu.write_address, len(pdu.values), pdu.values)
             return (written, ParamRun(pdu.read_address, pdu.read_count))

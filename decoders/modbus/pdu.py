@@ -60,8 +60,11 @@ def quantity_allowed(pdu: Pdu) -> bool:
     return True
 
 
+_BIT_DIGITS = ("0", "1")
+
+
 def _bit_string(bits: tuple[bool, ...], limit: int = 32) -> str:
-    shown = "".join("1" if b else "0" for b in bits[:limit])
+    shown = "".join(map(_BIT_DIGITS.__getitem__, bits[:limit]))
     return shown + ("…" if len(bits) > limit else "")
 
 

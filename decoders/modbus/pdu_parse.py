@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable
+from itertools import chain
 
 from decoders.modbus.codes import EXCEPTION_BIT
 from decoders.modbus.layouts import MEI_READ_DEVICE_ID
@@ -59,8 +60,12 @@ def _words(data: bytes) -> tuple[int, ...]:
     return struct.unpack(f">{len(data) // 2}H", data)
 
 
+#: The bits of each byte value, LSB first: a coil frame is decoded a byte at a time, not a bit.
+_BYTE_BITS = [tuple(bool(byte >> i & 1) for i in range(8)) for byte in range(256)]
+
+
 def _bits(data: bytes, count: int | None = None) -> tuple[bool, ...]:
-    bits = tuple(bool(byte >> i & 1) for byte in data for i in range(8))
+    bits = tuple(chain.from_iterable(map(_BYTE_BITS.__getitem__, data)))
     return bits if count is None else bits[:count]
 
 

@@ -1,4 +1,5 @@
-"""A Rerun timeline of the capture. The only module that calls the Rerun SDK (tested with 0.41).
+"""A Rerun timeline of the capture. With :mod:`sniffer.exports.rerun_rows`, the only modules that
+call the Rerun SDK (tested with 0.41).
 
 Timelines: ``capture_time`` (the frames' start times) and ``frame`` (the frame index).
 Entities, per slave N: ``slaves/N/log`` (every frame's summary, with a level),
@@ -7,20 +8,15 @@ Entities, per slave N: ``slaves/N/log`` (every frame's summary, with a level),
 (a point for each), ``slaves/N/state/CODE`` (a status word's state, logged when it changes);
 and for the bus: ``bus/load_percent`` and ``bus/errors_per_s`` per second, ``bus/noise``.
 
-Rows are buffered per entity and sent in columns (``send_columns``), which is hundreds of
-times faster than logging row by row. Each send is one chunk, and the recording keeps an index
-entry per chunk until it writes the file's footer, so an entity is sent when it holds
-``ENTITY_ROWS`` rows, and only when all buffers together pass ``MAX_BUFFERED_ROWS`` are the
-largest ones sent early: a day-long capture makes a few thousand large chunks, not one per
-entity and batch, and memory stays flat. A blueprint opens the recording with the plots on top
-and the logs below.
+Rows are buffered per entity and sent in columns (:mod:`sniffer.exports.rerun_rows`). A
+blueprint opens the recording with the plots on top and the logs below.
 """
 
 from __future__ import annotations
 
 import contextlib
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from operator import attrgetter, itemgetter
 
 import numpy as np
@@ -33,20 +29,12 @@ from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, AnnotatedBatch, Decodi
 from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
 from sniffer.exports.published import PublishedValues, plotted
-from sniffer.exports.rerun_live import LiveSender
+from sniffer.exports.rerun_rows import EntityRows
 
 APPLICATION = "rtusniff"
-ENTITY_ROWS = 32_768
 #: Live: how often what was buffered goes to the viewer (a quarter of a second behind the bus:
 #: each entity sent is a fixed cost in the SDK, so sending more often costs a core on a busy line).
 LIVE_SEND_S = 0.5
-#: Live: a flush (which finds a viewer gone) every this many rounds, and how long it may wait
-#: for a slow viewer.
-FLUSH_EVERY_ROUNDS = 4
-LIVE_FLUSH_S = 5.0
-MAX_BUFFERED_ROWS = 400_000
-#: Column pieces an entity's buffer holds before they are merged into one.
-MAX_PIECES = 32
 MAX_UNNAMED_SERIES = 64
 SECOND_NS = 1_000_000_000
 #: Rerun's level names by foxglove.Log level.
@@ -72,43 +60,6 @@ class _Parts:
     latency_entity: int
 
 
-@dataclass
-class _Rows:
-    """Buffered rows of one entity, as the column pieces of each batch."""
-
-    times: list[npt.NDArray[np.int64]] = field(default_factory=list)
-    frames: list[npt.NDArray[np.int64]] = field(default_factory=list)
-    values: list[npt.NDArray[np.float64]] = field(default_factory=list)
-    #: Text logs' rows as object arrays of str: Rerun hands those to Arrow as they are, where it
-    #: would call ``str`` on every item of a list.
-    texts: list[npt.NDArray[np.object_]] = field(default_factory=list)
-    levels: list[npt.NDArray[np.object_]] = field(default_factory=list)
-    count: int = 0
-
-    def merge(self) -> None:
-        """One piece per column: a slave's rarely read parameter gains a row or two a batch, and
-        an array per row would cost a hundred bytes of header for its eight of data."""
-        for pieces in (self.times, self.frames, self.values, self.texts, self.levels):
-            if len(pieces) > 1:
-                pieces[:] = [np.concatenate(pieces)]
-
-
-def send_rows(rec: rr.RecordingStream, path: str, style: rr.SeriesLines | rr.SeriesPoints | None,
-              rows: _Rows) -> None:
-    """One entity's buffered rows as columns (its series style first, once)."""
-    if rows.texts:
-        columns = rr.TextLog.columns(text=np.concatenate(rows.texts), level=np.concatenate(rows.levels))
-    else:
-        columns = rr.Scalars.columns(scalars=np.concatenate(rows.values))
-    indexes = [
-        rr.TimeColumn("capture_time", timestamp=np.concatenate(rows.times).astype("datetime64[ns]")),
-        rr.TimeColumn("frame", sequence=np.concatenate(rows.frames)),
-    ]
-    if style is not None:
-        rec.log(path, style, static=True)
-    rec.send_columns(path, indexes=indexes, columns=columns)
-
-
 def spawn_viewer(port: int, program: str | None) -> str:
     """Start a Rerun viewer (``program``) listening on ``port``; its address."""
     rr.spawn(port=port, connect=False, executable_path=program)
@@ -128,20 +79,15 @@ class RerunExporter:
         self._rec = rr.RecordingStream(APPLICATION)
         self._rec.set_log_time_enabled(False)
         self._rec.set_log_tick_enabled(False)
-        #: Live: the thread that sends, so that the decoding never waits for the SDK.
-        self._sender = LiveSender(self._send_round) if live else None
-        self._rounds_sent = 0
+        self._live = live
         sinks: list[rr.GrpcSink | rr.FileSink] = []
         if viewer is not None:
             sinks.append(rr.GrpcSink(viewer))
         if path is not None:
             sinks.append(rr.FileSink(path))
         self._rec.set_sinks(*sinks)
-        self._paths: list[str] = []
-        self._ids: dict[str, int] = {}
-        #: Series styles of plotted entities not sent yet.
-        self._styles: dict[int, rr.SeriesLines | rr.SeriesPoints] = {}
-        self._buffers: dict[int, _Rows] = {}
+        self.entities = EntityRows(self._rec, live=live)
+        self._entity, self._grouped, self._append = self.entities.entity, self.entities.grouped, self.entities.append
         self._states: dict[int, str] = {}
         self._slaves: set[int] = set()
         self._published = PublishedValues()
@@ -156,7 +102,6 @@ class RerunExporter:
         self._second: int | None = None
         self._wire_ns = 0
         self._errors = 0
-        self._rows = 0
         #: Slaves in the blueprint sent last, and when the buffers go next (live).
         self._blueprint_slaves = -1
         self._next_live_send = 0.0
@@ -179,10 +124,10 @@ class RerunExporter:
             positions, t_start, slave = positions[keep], t_start[keep], slave[keep]
         if len(positions):
             self._frames(batch, positions, t_start, slave)
-        if self._sender is not None:
+        if self._live:
             self._send_live()
         else:
-            self._send_due()
+            self.entities.send_due()
 
     def _send_live(self) -> None:
         """Everything buffered, at most every ``LIVE_SEND_S`` (each entity sent is a call into the
@@ -191,7 +136,7 @@ class RerunExporter:
             return
         self._next_live_send = time.monotonic() + LIVE_SEND_S
         slaves = len(self._slaves)
-        self._flush()
+        self.entities.flush()
         if slaves != self._blueprint_slaves:
             self._rec.send_blueprint(self.blueprint(), make_active=True)
             self._blueprint_slaves = slaves
@@ -321,17 +266,6 @@ class RerunExporter:
         seen.add(address)
         return True
 
-    def _entity(self, path: str, series: str | None = None, *, points: bool = False) -> int:
-        """An entity's id; a plotted one (``series`` named) gets its style, as static data, with
-        its first rows: an entity that never gets any is not shown as an empty series."""
-        entity = self._ids.get(path)
-        if entity is None:
-            entity = self._ids[path] = len(self._paths)
-            self._paths.append(path)
-            if series is not None:
-                self._styles[entity] = rr.SeriesPoints(names=series) if points else rr.SeriesLines(names=series)
-        return entity
-
     def _bus(self, t_start: npt.NDArray[np.int64], wire_ns: npt.NDArray[np.int64], failed: npt.NDArray[np.bool_],
              *, first_index: int) -> None:
         """Bus load and errors per second, a point at the start of each second once it is over."""
@@ -356,98 +290,20 @@ class RerunExporter:
             self._append(self._entity("bus/load_percent", "bus load (%)"), at, frame, values=np.array(loads))
             self._append(self._entity("bus/errors_per_s", "errors per second"), at, frame, values=np.array(rates))
 
-    def _grouped(self, entities: npt.NDArray[np.int64], times: npt.NDArray[np.int64], frames: npt.NDArray[np.int64],
-                 *, values: npt.NDArray[np.float64] | None = None, texts: npt.NDArray[np.object_] | None = None,
-                 levels: npt.NDArray[np.object_] | None = None) -> None:
-        """Rows of several entities, each given to its entity in its order."""
-        if not len(entities):
-            return
-        order = np.argsort(entities, kind="stable")
-        ordered = entities[order]
-        starts = np.flatnonzero(np.diff(ordered, prepend=ordered[0] - 1))
-        for entity, rows in zip(ordered[starts].tolist(), np.split(order, starts[1:]), strict=True):
-            if texts is not None and levels is not None:
-                self._append(entity, times[rows], frames[rows], texts=texts[rows], levels=levels[rows])
-            elif values is not None:
-                self._append(entity, times[rows], frames[rows], values=values[rows])
-
-    def _append(self, entity: int, times: npt.NDArray[np.int64], frames: npt.NDArray[np.int64], *,
-                values: npt.NDArray[np.float64] | None = None, texts: npt.NDArray[np.object_] | None = None,
-                level: str = "INFO", levels: npt.NDArray[np.object_] | None = None) -> None:
-        rows = self._buffers.get(entity)
-        if rows is None:
-            rows = self._buffers[entity] = _Rows()
-        rows.times.append(times)
-        rows.frames.append(frames)
-        if values is not None:
-            rows.values.append(values)
-        if texts is not None:
-            rows.texts.append(texts)
-            rows.levels.append(levels if levels is not None else np.full(len(texts), level, dtype=object))
-        rows.count += len(times)
-        self._rows += len(times)
-        if len(rows.times) >= MAX_PIECES:
-            rows.merge()
-
-    def _send_due(self) -> None:
-        """Send full entities; past the memory cap, send the largest until half the cap is left."""
-        for entity, rows in list(self._buffers.items()):
-            if rows.count >= ENTITY_ROWS:
-                self._send(entity, rows)
-        if self._rows < MAX_BUFFERED_ROWS:
-            return
-        for entity, rows in sorted(self._buffers.items(), key=lambda item: -item[1].count):
-            if self._rows <= MAX_BUFFERED_ROWS // 2:
-                break
-            self._send(entity, rows)
-
-    def _send(self, entity: int, rows: _Rows) -> None:
-        del self._buffers[entity]
-        send_rows(self._rec, self._paths[entity], self._styles.pop(entity, None), rows)
-        self._rows -= rows.count
-
-    def _flush(self) -> None:
-        if self._sender is not None:  # live: one hand-over to the sending thread
-            items = [(self._paths[entity], self._styles.pop(entity, None), rows)
-                     for entity, rows in self._buffers.items()]
-            self._sender.submit(items, self._rows)
-            self._buffers, self._rows = {}, 0
-            return
-        for entity, rows in list(self._buffers.items()):
-            self._send(entity, rows)
-
-    def _send_round(self, items: list[tuple[str, rr.SeriesLines | rr.SeriesPoints | None, _Rows]]) -> None:
-        for path, style, rows in items:
-            send_rows(self._rec, path, style, rows)
-        # The SDK takes rows for a viewer that has gone and says so only when flushed: a flush
-        # every few rounds raises at once where the connection broke (waited for here, in the
-        # sending thread; each flush also sends what the SDK was batching, which costs CPU).
-        self._rounds_sent += 1
-        if self._rounds_sent % FLUSH_EVERY_ROUNDS:
-            return
-        try:
-            self._rec.flush(timeout_sec=LIVE_FLUSH_S)
-        except RuntimeError as exc:
-            if "time" not in str(exc).lower():  # a slow viewer is not a gone one: its rounds get skipped
-                raise
-
     @property
     def skipped_rows(self) -> int:
         """Live: rows not sent because the SDK fell behind (the recording has them)."""
-        return self._sender.skipped_rows if self._sender is not None else 0
+        return self.entities.skipped_rows
 
     def close(self) -> None:
-        self._flush()
-        if self._sender is not None:
-            self._sender.close()
+        self.entities.close()
         self._rec.send_blueprint(self.blueprint())
         self._rec.flush()
         self._rec.disconnect()
 
     def abandon(self) -> None:
         """The viewer went away: stop sending, wait for nothing, keep no error of it."""
-        if self._sender is not None:
-            self._sender.abandon()
+        self.entities.abandon()
         with contextlib.suppress(Exception):  # the SDK's errors for a connection that is gone
             self._rec.disconnect()
 

@@ -9,7 +9,8 @@ import pytest
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
-from sniffer.io.formats.text import TextCaptureReader, format_time_ns, parse_time_ns
+from sniffer.io.formats.text import TextCaptureReader, parse_time_ns
+from sniffer.io.text_writer import format_time_ns
 
 GOOD = """# rtu-capture v1
 # line: 19200 8E1
@@ -153,7 +154,7 @@ def test_uart_errors_mark_the_line_above(tmp_path: Path) -> None:
 
 
 def test_uart_errors_round_trip_and_plain_files_stay_plain(tmp_path: Path) -> None:
-    from sniffer.io.formats.text import TextCaptureWriter
+    from sniffer.io.text_writer import TextCaptureWriter
 
     _, [batch] = read(tmp_path, MARKED)
     out = tmp_path / "out.log"
@@ -193,7 +194,7 @@ CHANNELS = """# rtu-capture v1
 
 
 def test_channels_name_the_lines_that_follow_and_round_trip(tmp_path: Path) -> None:
-    from sniffer.io.formats.text import TextCaptureWriter
+    from sniffer.io.text_writer import TextCaptureWriter
 
     info, [batch] = read(tmp_path, CHANNELS)
     assert info.channels == ("TX", "RX") and info.notes == ()
@@ -217,7 +218,7 @@ def test_notes_never_become_data_or_headers(tmp_path: Path, note: str, lines: li
     """A note from another capture (an MCAP's, anything) is written as comment lines only: a
     newline cannot start a data line, a note cannot pass for a header or an extension line, and
     what is not ASCII is escaped (the format is ASCII)."""
-    from sniffer.io.formats.text import TextCaptureWriter, comment_lines
+    from sniffer.io.text_writer import TextCaptureWriter, comment_lines
 
     assert comment_lines(note) == lines
     path = tmp_path / "notes.log"

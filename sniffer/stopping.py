@@ -1,0 +1,92 @@
+"""Stopping a capture on a signal without cutting a record in two, and writes that are never cut.
+
+SIGINT and SIGTERM stop a live capture at once, except while records are being written: then the
+first signal stops it once the write is done (:class:`StopRequest`). A write interrupted by a
+signal is finished by :class:`WholeWrites`. Signal handlers are set only where Python allows
+(the main thread); the signals used here exist on Windows too.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import signal
+import threading
+from collections.abc import Callable
+from types import FrameType
+from typing import TextIO, cast
+
+
+class TerminatedError(Exception):
+    """SIGTERM arrived."""
+
+
+_SignalHandler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
+
+
+class WholeWrites(io.TextIOBase):
+    """Text written straight to a file descriptor, every byte of it. A stop signal that interrupts a
+    large write to a full pipe (a slow consumer) makes CPython's buffered writer drop part of the
+    data even when the handler returns (seen on 3.11: 74 of 2 000 lines lost); ``os.write`` says
+    how much it wrote, and the rest is written after it."""
+
+    def __init__(self, fd: int) -> None:
+        self._fd = fd
+
+    def write(self, text: str) -> int:
+        view = memoryview(text.encode())
+        while view:
+            view = view[os.write(self._fd, view) :]
+        return len(text)
+
+    def writable(self) -> bool:
+        return True
+
+
+def whole_writes(out: TextIO) -> TextIO:
+    """``out``, or for a stream on a file descriptor, a writer that never drops what it is given."""
+    try:
+        fd = out.fileno()
+    except (OSError, ValueError, AttributeError):  # a StringIO, a stream without a descriptor
+        return out
+    out.flush()
+    return cast(TextIO, WholeWrites(fd))
+
+
+class StopRequest:
+    """SIGINT raises KeyboardInterrupt and SIGTERM TerminatedError, at once, except while records
+    are being written: a JSON Lines record cut in two is a line no script can read. Then the first
+    signal asks for a stop once the write is done, and a second one raises (a consumer that never
+    reads again must not keep the capture from stopping)."""
+
+    def __init__(self, stop: threading.Event) -> None:
+        """``stop``: set when a signal asks for a stop after the write."""
+        self.stop = stop
+        self.writing = False
+        self.asked: int | None = None
+
+    def handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.writing and self.asked is None:
+            self.asked = signum
+            self.stop.set()
+            return
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise TerminatedError
+
+
+def handle_stop_signals(request: StopRequest) -> dict[int, _SignalHandler]:
+    """``request`` handles SIGINT and SIGTERM; the previous handlers, to restore. Only the main
+    thread may set handlers (tests run captures in threads too)."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {
+        signal.SIGINT: signal.signal(signal.SIGINT, request.handle),
+        signal.SIGTERM: signal.signal(signal.SIGTERM, request.handle),
+    }
+
+
+def restore_signals(previous: dict[int, _SignalHandler]) -> None:
+    for number, handler in previous.items():
+        if handler is not None:  # None: set outside Python, cannot be put back
+            signal.signal(number, handler)
