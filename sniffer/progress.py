@@ -4,10 +4,15 @@ Progress is measured in capture time: how far the frames decoded so far reach be
 first frame and the capture's end (``CaptureReader.last_time_ns``, from the file's tail or
 index). It shows the share of the file that is (about) done, frames per second, the time
 elapsed and the time left; where the end is unknown (standard input), a count and a rate.
-The bar is a sink (it gets the framed batches, before annotation) and vanishes when done,
-leaving the closing line that says what was written. Many captures at once (``--each``) get a
-bar over the captures instead (:func:`over_captures`): captures done, megabytes of them, the
-time elapsed and left.
+The bar is a sink (it gets the framed batches, before annotation) and vanishes when the last
+batch is in, before any sink writes what it kept for the end (a table of statistics), leaving
+the closing line that says what was written. A command that writes its output to standard
+output as it goes (``analyze``, ``values``, ``convert -``, ``export --pcap -``) shows no bar:
+whatever reads that output (the terminal itself, or ``less``, ``head`` or ``grep`` through a
+pipe) draws on the same terminal as the bar, and the two would overwrite each other.
+
+Many captures at once (``--each``) get a bar over the captures instead (:func:`over_captures`):
+captures done, megabytes of them, the time elapsed and left.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from rich.progress import (
 
 from decoders.capture import ChunkBatch
 from decoders.message import MessageBatch
+from decoders.stats import Statistics
 from sniffer.io.base import CaptureReader
 from sniffer.sinks import Sink
 
@@ -49,6 +55,8 @@ class ProgressSink(Sink):
 
     def __init__(self, progress: Progress | None, task: TaskID | None, end_ns: int | None,
                  size: int | None) -> None:
+        """Put it first among a command's sinks: its :meth:`finish` clears the bar before the
+        others write what they kept for the end."""
         self._progress, self._task, self._end_ns, self._size = progress, task, end_ns, size
         self._first_ns: int | None = None
         self._started = time.monotonic()
@@ -57,6 +65,10 @@ class ProgressSink(Sink):
     def frames(self, batch: MessageBatch) -> None:
         if len(batch):
             self.advance(int(batch.frames.t_start_ns[0]), int(batch.frames.t_end_ns[-1]), len(batch))
+
+    def finish(self, statistics: Statistics) -> None:
+        if self._progress is not None:
+            self._progress.stop()  # transient: the bar's lines are erased
 
     def chunks(self, batch: ChunkBatch) -> None:
         """For commands that copy chunks (``convert``): progress in chunks."""
@@ -117,18 +129,18 @@ class ProgressBar:
             self._progress.stop()
 
 
-def progress_for(args: argparse.Namespace, reader: CaptureReader, *, to_terminal: bool,
+def progress_for(args: argparse.Namespace, reader: CaptureReader, *, streaming: bool,
                  path: str | None = None) -> ProgressBar:
-    """The bar for a command reading ``path`` (else the files of ``args.capture``): shown when
-    standard error is a terminal, the output does not go to that terminal too, and ``--quiet``
-    is not given."""
-    return ProgressBar(reader, [path] if path else list(args.capture), shown(args, to_terminal=to_terminal))
+    """The bar for a command reading ``path`` (else the files of ``args.capture``), if
+    :func:`shown`."""
+    return ProgressBar(reader, [path] if path else list(args.capture), shown(args, streaming=streaming))
 
 
-def shown(args: argparse.Namespace, *, to_terminal: bool) -> bool:
-    """Whether a bar is shown: standard error is a terminal, the output does not go to that
-    terminal too, and ``--quiet`` is not given."""
-    return sys.stderr.isatty() and not getattr(args, "quiet", False) and not (to_terminal and sys.stdout.isatty())
+def shown(args: argparse.Namespace, *, streaming: bool) -> bool:
+    """Whether a bar is shown: standard error is a terminal, ``--quiet`` is not given, and the
+    command does not write its output to standard output as it goes (``streaming``; see the
+    module's docstring)."""
+    return sys.stderr.isatty() and not getattr(args, "quiet", False) and not streaming
 
 
 def over_captures(outcomes: Iterator[Item], paths: list[str], show: bool) -> Iterator[Item]:

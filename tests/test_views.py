@@ -254,6 +254,44 @@ def test_progress_bar_on_a_terminal(tmp_path: Path) -> None:
     assert "frames/s" in reported and f"wrote {tmp_path / 'long.html'}: html report of 60,000 frames" in reported
 
 
+def test_no_bar_over_output_that_streams_to_the_terminal(tmp_path: Path) -> None:
+    """A command writing to standard output as it goes shows no bar, even into a pipe: what reads
+    the pipe (less, head) draws on the same terminal. A command that writes at the end shows one."""
+    from benchmarks.bench_memory import write_capture
+
+    capture = tmp_path / "long.mcap"
+    write_capture(capture, 60_000)
+    assert run_on_pty(["analyze", str(capture)]).strip() == ""
+    assert run_on_pty(["values", str(capture)]).strip() == ""
+    assert "frames/s" in run_on_pty(["stats", str(capture)])
+
+
+@pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed")
+def test_the_bar_is_gone_before_the_statistics_are_written(tmp_path: Path) -> None:
+    """``stats CAPTURE | head``: the bar (standard error, the terminal) is erased before the table
+    goes down the pipe to the same terminal; no bar is left with the table's first line after it."""
+    from benchmarks.bench_memory import write_capture
+
+    capture = tmp_path / "long.mcap"
+    write_capture(capture, 200_000)
+    session, done = f"rtusniff-bar-{os.getpid()}", tmp_path / "done"
+    command = (f"env -u COLUMNS -u LINES {sys.executable} -m sniffer stats {capture} | head -3; "
+               f"touch {done}; sleep 30")
+    subprocess.run(["tmux", "-L", session, "new-session", "-d", "-x", "120", "-y", "30",
+                    "-e", f"PYTHONPATH={ROOT}", command], check=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not done.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        screen = subprocess.run(["tmux", "-L", session, "capture-pane", "-p", "-S", "-"], check=True,
+                                capture_output=True, text=True).stdout
+    finally:
+        subprocess.run(["tmux", "-L", session, "kill-server"], check=False)
+    lines = [line for line in screen.splitlines() if line.strip()]
+    assert lines[0] == f"# {capture}  line 115200 8N1  timing exact", screen
+    assert "━" not in screen and "frames/s" not in screen
+
+
 def test_a_bar_over_many_captures_on_a_terminal(tmp_path: Path) -> None:
     """``--each``: a bar over the captures (done of all, their megabytes) for stats, report and
     export; nothing of it with --quiet."""

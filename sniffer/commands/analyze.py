@@ -95,8 +95,8 @@ def run(args: argparse.Namespace) -> int:
             stack.callback(stream.close)
         # Following: each batch reaches a pipe (| jq, | grep) as it is decoded.
         flushing = [FlushEachBatch(out)] if args.follow else []
-        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
-        statistics = analyze(reader, source_name(args), analysis, [sink, *flushing, *streams, progress.sink],
+        progress = stack.enter_context(progress_for(args, reader, streaming=args.output in (None, "-")))
+        statistics = analyze(reader, source_name(args), analysis, [progress.sink, sink, *flushing, *streams],
                              jobs=decoding_jobs(args.jobs, follow=args.follow))
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format}, {shown_frames(sink, statistics.frames):,} frames")])

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
         # A copy that stops where the input broke would pass for a whole capture: it appears only whole.
         with published_whole(args.output) as target:
             writer = open_writer(target, info, args.output_format)
-            progress = progress_for(args, reader, to_terminal=args.output == "-", path=args.input)
+            progress = progress_for(args, reader, streaming=args.output == "-", path=args.input)
             try:
                 with progress:
                     for batch in reader.batches():

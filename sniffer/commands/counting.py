@@ -34,6 +34,6 @@ def counted_capture(args: argparse.Namespace, path: str) -> Side:
     with ExitStack() as stack:
         reader, analysis = open_analysis(one, stack)
         counted = _Counted()
-        progress = stack.enter_context(progress_for(one, reader, to_terminal=args.output in (None, "-")))
-        statistics: Statistics = analyze(reader, path, analysis, [counted, progress.sink])
+        progress = stack.enter_context(progress_for(one, reader, streaming=False))
+        statistics: Statistics = analyze(reader, path, analysis, [progress.sink, counted])
     return Side(path, counted.line, counted.timing, statistics)

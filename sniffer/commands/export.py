@@ -91,8 +91,8 @@ def run(args: argparse.Namespace) -> int:
                  for option, _, _ in OUTPUTS if getattr(args, option) and option != "parquet"}
         reader, analysis = open_analysis(args, stack)
         sinks = output_sinks(argparse.Namespace(**{**vars(args), **parts}), analysis, stack)
-        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.pcap == "-"))
-        analyze(reader, source_name(args), analysis, [*(sink for _, sink in sinks), progress.sink],
+        progress = stack.enter_context(progress_for(args, reader, streaming=args.pcap == "-"))
+        analyze(reader, source_name(args), analysis, [progress.sink, *(sink for _, sink in sinks)],
                 jobs=decoding_jobs(args.jobs, follow=args.follow))
     if not args.quiet:
         _tell_written(args, sinks)
@@ -179,7 +179,7 @@ def _run_each(args: argparse.Namespace) -> int:
     one = argparse.Namespace(**{**vars(args), "each": False, "quiet": True, "jobs": "1"})
     tally, frames, added = Tally(len(files)), 0, []
     for exported, files_added in each_result(files, _export_one, one, jobs_for_each(args.jobs), tally,
-                                             show=shown(args, to_terminal=False)):
+                                             show=shown(args, streaming=False)):
         frames += exported
         added += files_added
     if not args.quiet and added:

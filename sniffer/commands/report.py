@@ -103,8 +103,8 @@ def _gathered(args: argparse.Namespace, paths: list[str], jobs: int, *, part: bo
     collector = ReportCollector(_provenance(args, paths), part=part)
     with ExitStack() as stack:
         reader, analysis = open_analysis(args, stack)
-        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
-        analyze(reader, source_name(args), analysis, [collector, progress.sink], jobs=jobs)
+        progress = stack.enter_context(progress_for(args, reader, streaming=False))
+        analyze(reader, source_name(args), analysis, [progress.sink, collector], jobs=jobs)
     return collector
 
 
@@ -113,7 +113,7 @@ def _gathered_each(args: argparse.Namespace, paths: list[str], tally: Tally) -> 
     ``None`` when every capture failed."""
     one = argparse.Namespace(**{**vars(args), "each": False, "quiet": True})  # no progress bars from the pool
     merged = ReportCollector(_provenance(args, []))
-    bar = shown(args, to_terminal=args.output in (None, "-"))
+    bar = shown(args, streaming=False)
     for part in each_result(paths, _gathered_one, one, jobs_for_each(args.jobs), tally, show=bar):
         merged.merge(part)
     return merged if tally.done else None

@@ -68,8 +68,8 @@ def run(args: argparse.Namespace) -> int:
         width = terminal_width(args, console)
         view = StatsView(out, width=width, color_system=terminal_colors(console) if width else None,
                          as_json=args.format == "json")
-        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
-        statistics = analyze(reader, source_name(args), analysis, [view, progress.sink])
+        progress = stack.enter_context(progress_for(args, reader, streaming=False))
+        statistics = analyze(reader, source_name(args), analysis, [progress.sink, view])
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format} statistics of {statistics.frames:,} frames")])
     return 0
@@ -82,7 +82,7 @@ def _run_each(args: argparse.Namespace) -> int:
     files = capture_files(args.capture)
     merged, first, tally = Statistics(), None, Tally(len(files))
     quiet = argparse.Namespace(**{**vars(args), "quiet": True})  # no progress bars from the pool
-    bar = shown(args, to_terminal=args.output in (None, "-"))
+    bar = shown(args, streaming=False)
     for side in each_result(files, _counted, quiet, jobs_for_each(args.jobs), tally, show=bar):
         first = first or side
         merged.merge(side.statistics)

@@ -59,8 +59,8 @@ def run(args: argparse.Namespace) -> int:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)
         view = ValuesView(out, choice, as_json=args.format == "jsonl", wide=args.wide, time_mode=args.time)
-        progress = stack.enter_context(progress_for(args, reader, to_terminal=args.output in (None, "-")))
-        analyze(reader, source_name(args), analysis, [view, progress.sink], jobs=decoding_jobs(args.jobs))
+        progress = stack.enter_context(progress_for(args, reader, streaming=args.output in (None, "-")))
+        analyze(reader, source_name(args), analysis, [progress.sink, view], jobs=decoding_jobs(args.jobs))
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format}, {view.shown:,} values")])
     return 0
