@@ -75,10 +75,15 @@ def analyze(
     prepare = _each_prepare(delivery.preparing) if delivery.preparing and not delivery.selective else None
     run = partial(_run, source=source, info=info, analysis=analysis, delivery=delivery)
     if jobs == 1:
-        return run(decode_here(reader, decoder, prepare))
-    with_chunks = any(sink.wants_chunks for sink in sinks)
-    with closing(ChildDecoding(reader, decoder, with_chunks=with_chunks, prepare=prepare)) as child:
-        return run(child)
+        statistics = run(decode_here(reader, decoder, prepare))
+    else:
+        with_chunks = any(sink.wants_chunks for sink in sinks)
+        with closing(ChildDecoding(reader, decoder, with_chunks=with_chunks, prepare=prepare)) as child:
+            statistics = run(child)
+    missed = delivery.window_missed()
+    if missed is not None:
+        reader.warnings.append(f"{source}: {missed}")
+    return statistics
 
 
 def _each_prepare(preparing: list[Sink]) -> Callable[[MessageBatch], tuple[Any, ...]]:
@@ -116,6 +121,10 @@ class Delivery:
         #: Set when nothing more can be delivered (past the window, or the limit reached).
         self.done = False
         self._chunk_span = ChunkSpan()
+
+    def window_missed(self) -> str | None:
+        """Where the frames read lie, when the window held none of them (see :meth:`Window.missed`)."""
+        return None if self._window is None else self._window.missed()
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         for sink in self.sinks:

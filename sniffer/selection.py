@@ -113,6 +113,10 @@ class Window:
         self._resolved = False
         #: Set once a batch went past the window's end: nothing after it can be in the window.
         self.past = False
+        #: Frames read (in the window or not), the first one's start and the last one's end.
+        self.read = 0
+        self._read_span: tuple[int, int] | None = None
+        self.delivered = 0
 
     def span(self, batch: MessageBatch) -> tuple[int, int]:
         """The positions ``[begin, end)`` of ``batch`` inside the window (frames are in time order)."""
@@ -122,6 +126,10 @@ class Window:
             self._start_ns = None if selection.start is None else selection.start.resolve(first)
             self._stop_ns = None if selection.stop is None else selection.stop.resolve(first)
             self._resolved = True
+        if len(frames):
+            self.read += len(frames)
+            first_ns = int(frames.t_start_ns[0]) if self._read_span is None else self._read_span[0]
+            self._read_span = (first_ns, int(frames.t_end_ns[-1]))
         begin, end = 0, len(frames)
         if self._start_ns is not None:
             begin = max(begin, int(np.searchsorted(frames.t_start_ns, self._start_ns, "left")))
@@ -134,7 +142,24 @@ class Window:
         if end < len(frames):
             self.past = True
         begin = min(max(begin, 0), len(frames))
-        return begin, max(min(end, len(frames)), begin)
+        end = max(min(end, len(frames)), begin)
+        self.delivered += end - begin
+        return begin, end
+
+    def missed(self) -> str | None:
+        """What to tell when the window held none of the frames read (a time of day in the wrong
+        zone, an index past the end): where the frames read lie. ``None`` when it held some."""
+        if self.delivered or self._read_span is None:
+            return None
+        first, last = (_utc(t_ns) for t_ns in self._read_span)
+        missed = "no frame falls in the window of --from/--to/--around: "
+        if self.past:  # the window ends before the capture starts: the rest was not read
+            return missed + f"the capture's first frame starts at {first} UTC, after the window's end"
+        return missed + f"the capture's {self.read:,} frames run from {first} to {last} UTC (#0 to #{self.read - 1:,})"
+
+
+def _utc(t_ns: int) -> str:
+    return datetime.fromtimestamp(t_ns // NS_PER_S, UTC).strftime("%Y-%m-%d %H:%M:%S") + f".{t_ns % NS_PER_S:09d}"[:4]
 
 
 def add_selection_options(parser: argparse.ArgumentParser) -> None:

@@ -47,6 +47,21 @@ def test_time_window_offsets_and_clock_times(cli: Cli) -> None:
     assert summary["frames"] == len(expected)
 
 
+def test_a_window_that_misses_the_capture_says_where_the_frames_are(cli: Cli) -> None:
+    """A time of day in the wrong zone or an index past the end selects nothing: one warning
+    says where the capture's frames lie, and the (empty) output is still written, exit 0."""
+    later = cli("analyze", str(SAMPLE_LOG), "--from", "23:00")
+    assert later.code == 0 and "# 0 frames" in later.out
+    assert later.err.strip() == (f"warning: {SAMPLE_LOG}: no frame falls in the window of --from/--to/--around: the "
+                                 "capture's 52 frames run from 2023-11-14 22:13:20.000 to 2023-11-14 22:13:22.659 UTC "
+                                 "(#0 to #51)")
+    earlier = cli("stats", str(SAMPLE_LOG), "--to", "21:00", "--jobs", "2")
+    assert earlier.code == 0 and earlier.err.count("warning:") == 1
+    assert "first frame starts at 2023-11-14 22:13:20.000 UTC, after the window's end" in earlier.err
+    assert "no frame falls" in cli("analyze", str(SAMPLE_LOG), "--around", "900").err
+    assert cli("analyze", str(SAMPLE_LOG), "--from", "22:13:21").err == ""
+
+
 def test_answers_in_a_window_keep_their_request(cli: Cli) -> None:
     """A window that starts between a request and its answer: the answer is still paired and
     decoded with the request's addresses."""
