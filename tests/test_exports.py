@@ -8,6 +8,7 @@ import os
 import shutil
 import struct
 import subprocess
+import sys
 from collections import Counter
 from collections.abc import Callable
 from decimal import Decimal
@@ -358,3 +359,19 @@ def test_rerun_buffered_rows_own_their_memory(tmp_path: Path) -> None:
     assert columns and all(column.base is None for column in columns)
     assert all(len(rows.times) < rerun_rows.MAX_PIECES for rows in buffers)
     exporter.close()
+
+
+@pytest.mark.parametrize(("given", "used"), [(None, "QUIET"), ("debug", "debug")])
+def test_the_rerun_sdk_log_filter_is_set_before_its_import_unless_the_user_set_one(
+    given: str | None, used: str
+) -> None:
+    """The SDK reads ``RUST_LOG`` once, at import: rerun_sdk sets the quiet filter first, and a
+    filter the user set wins."""
+    from sniffer.exports.rerun_sdk import QUIET_FILTER
+
+    env = {key: value for key, value in os.environ.items() if key != "RUST_LOG"}
+    if given is not None:
+        env["RUST_LOG"] = given
+    script = "import os, sniffer.exports.rerun_sdk as sdk; print(os.environ['RUST_LOG'], sdk.rr.__name__)"
+    shown = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True).stdout
+    assert shown.split() == [QUIET_FILTER if used == "QUIET" else used, "rerun"]

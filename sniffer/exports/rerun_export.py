@@ -1,5 +1,5 @@
 """A Rerun timeline of the capture. With :mod:`sniffer.exports.rerun_rows`, the only modules that
-call the Rerun SDK (tested with 0.41).
+call the Rerun SDK (tested with 0.41; imported through :mod:`sniffer.exports.rerun_sdk`).
 
 Timelines: ``capture_time`` (the frames' start times) and ``frame`` (the frame index).
 Entities, per slave N: ``slaves/N/log`` (every frame's summary, with a level),
@@ -21,8 +21,6 @@ from operator import attrgetter, itemgetter
 
 import numpy as np
 import numpy.typing as npt
-import rerun as rr
-import rerun.blueprint as rrb
 
 from decoders.memo import Memo
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, AnnotatedBatch, Decoding, ParamValue, Role
@@ -30,6 +28,7 @@ from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
 from sniffer.exports.published import PublishedValues, plotted
 from sniffer.exports.rerun_rows import EntityRows
+from sniffer.exports.rerun_sdk import rr, rrb
 
 APPLICATION = "rtusniff"
 #: Live: how often what was buffered goes to the viewer (a quarter of a second behind the bus:

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-import rerun as rr
 
 from sniffer.exports.rerun_live import LiveSender
+from sniffer.exports.rerun_sdk import rr
 
 ENTITY_ROWS = 32_768
 MAX_BUFFERED_ROWS = 400_000
