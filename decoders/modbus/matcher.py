@@ -21,6 +21,9 @@ requests still open, pairs every response and exception with its request, and fl
   that slave that got no valid answer.
 * Address 0 is a broadcast: nobody answers it, and a frame that looks like an
   answer to it is ``unexpected``.
+* An answer before the capture's first request is not ``unexpected``: the recording
+  began between a request and its answer (every rotated file of a long recording
+  read alone, ``--each``, begins so about half the time).
 
 A request is held back until its outcome is known, and frames behind it with it,
 so that messages leave in capture order with their flags final.
@@ -134,6 +137,8 @@ class Matcher:
     #: The least a derived timeout may be: on host captures, how late the capture's read
     #: loop delivers bytes (an answer often comes one read, a read timeout, after its request).
     delivery_floor_ns: int = 0
+    #: Whether a request has been seen: answers before the first one are not ``unexpected``.
+    _asked: bool = False
 
     @property
     def timeout_ns(self) -> int:
@@ -244,6 +249,7 @@ class Matcher:
                 if pending != NONE:
                     self._fail(slave)
                 role[position] = REQUEST
+                self._asked = True
                 if failed and failed.get(slave) == adu:
                     flags[position] = RETRY
                 open_position[slave], open_index[slave] = position, first_index + i
@@ -253,7 +259,8 @@ class Matcher:
                 deadline = min(deadline, t_ends[i] + timeout)
             elif shape & FITS_RESPONSE:
                 role[position] = RESPONSE
-                flags[position] = UNEXPECTED
+                if self._asked:  # before the first request: its request preceded the recording
+                    flags[position] = UNEXPECTED
 
     def _settle_pairs(self, frames: FrameBatch, pair_frames: npt.NDArray[np.intp], first: int) -> None:
         """Requests and their answers, alternating, from a state with nothing open."""
@@ -261,6 +268,7 @@ class Matcher:
         asks, answers = pair_frames[0::2], pair_frames[1::2]
         columns["role"][first + asks] = REQUEST
         columns["role"][first + answers] = RESPONSE
+        self._asked = True
         columns["request_index"][first + answers] = frames.first_index + asks
         latencies = np.maximum(frames.t_start_ns[answers] - frames.t_end_ns[asks], 0)
         columns["latency_ns"][first + answers] = latencies
@@ -293,7 +301,7 @@ class Matcher:
         requests = self._open
         if slave != BROADCAST_ADDRESS and requests.position[slave] != NONE and requests.function[slave] == function:
             self._answer(position, slave, crc_ok, t_start)
-        else:
+        elif self._asked:
             columns["flags"][position] = UNEXPECTED
 
     def _broadcast(self, position: int, raw: int, shape: int, request_key: int, response_key: int) -> None:
@@ -303,6 +311,7 @@ class Matcher:
         if shape & FITS_REQUEST and not replies:
             self._last_broadcast = (raw, request_key)
             columns["role"][position] = BROADCAST
+            self._asked = True
         elif shape & FITS_RESPONSE:
             columns["role"][position] = RESPONSE
             columns["flags"][position] = UNEXPECTED

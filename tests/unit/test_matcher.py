@@ -75,10 +75,26 @@ def test_requests_to_other_slaves_interleave() -> None:
 def test_unexpected_answers() -> None:
     wrong_function = adu("02 04 08 0028 0258 01F4 0000")
     wrong_count = adu("02 03 02 0028")
-    result = run((0, ANSWER_2), (10, READ_2), (15, wrong_function), (20, wrong_count), (25, ANSWER_5))
+    result = run((0, READ_5), (3, ANSWER_5), (5, ANSWER_2), (10, READ_2), (15, wrong_function), (20, wrong_count),
+                 (25, ANSWER_5))
     # The request is still open when the capture ends: no verdict.
-    assert [m.flags.names for m in result] == [["unexpected"], [], ["unexpected"], ["unexpected"], ["unexpected"]]
-    assert [m.role for m in result] == [Role.RESPONSE, Role.REQUEST, Role.RESPONSE, Role.RESPONSE, Role.RESPONSE]
+    assert [m.flags.names for m in result][2:] == [["unexpected"], [], ["unexpected"], ["unexpected"], ["unexpected"]]
+    assert [m.role for m in result][2:] == [Role.RESPONSE, Role.REQUEST, Role.RESPONSE, Role.RESPONSE, Role.RESPONSE]
+
+
+def test_answers_before_the_first_request_are_not_unexpected() -> None:
+    """A recording that begins between a request and its answer (each rotated file read alone):
+    its first answers have a request the capture never saw. From the first request on, an
+    answer nobody asked for is unexpected again."""
+    result = run((0, ANSWER_2), (2, adu("05 83 02")), (10, READ_2), (15, ANSWER_2), (20, ANSWER_5))
+    assert roles(result) == [("response", None, []), ("exception", None, []), ("request", None, []),
+                             ("response", 2, []), ("response", None, ["unexpected"])]
+    for bulk in (True, False):  # pairs settled in bulk count as requests seen too
+        matcher, times = Matcher(bulk=bulk), [(0, READ_2), (5, ANSWER_2), (10, READ_5), (15, ANSWER_5), (20, ANSWER_2)]
+        frames = [Frame(i, int(t * MS), int(t * MS) + len(data) * MS // 10, data, crc_ok(data), FrameFlag.NONE)
+                  for i, (t, data) in enumerate(times)]
+        out = [*matcher.feed(frames_to_batch(frames)), *matcher.flush()]
+        assert [m.flags.names for m in out] == [[], [], [], [], ["unexpected"]], bulk
 
 
 def test_exception_pairs_with_its_request() -> None:
