@@ -177,6 +177,30 @@ def test_a_failed_export_adds_nothing(tmp_path: Path, cli: Callable[..., Any]) -
     assert not [path for path in (tmp_path / "d").rglob("*") if path.is_file()]
 
 
+@pytest.mark.parametrize("row_group", [8, 1 << 17])
+def test_a_full_disk_in_the_writing_thread_is_one_error_and_adds_nothing(
+    tmp_path: Path, cli: Callable[..., Any], monkeypatch: pytest.MonkeyPatch, row_group: int
+) -> None:
+    """Row groups are written by a thread of their own: its failure (mid-export with small row
+    groups, at the end with the default) comes back as the export's one error line, and no file
+    of the capture is left in the dataset."""
+    import errno
+
+    import pyarrow.parquet as pq
+
+    from sniffer.exports import parquet_export
+
+    def full(self: pq.ParquetWriter, table: object, row_group_size: object = None) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(parquet_export, "ROW_GROUP_ROWS", row_group)
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", full)
+    result = cli("export", str(CAPTURES / "atv71-plc-poll.log"), "--parquet", str(tmp_path / "d"))
+    assert result.code != 0 and result.err.count("\n") == 1, result.err
+    assert "No space left on device" in result.err and "Traceback" not in result.err
+    assert not [path for path in (tmp_path / "d").rglob("*") if path.is_file()]
+
+
 @pytest.mark.parametrize(("args", "said"), [
     (["--parquet", "-"], "--parquet takes a folder"),
     (["--bus", "x", "--pcap", "{tmp}/x.pcap"], "--bus names the partition"),

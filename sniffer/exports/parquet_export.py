@@ -21,6 +21,9 @@ holds the capture's provenance (source files and SHA-256, line, timing, tool ver
 A capture's files are named by its id (the first 16 hex digits of its SHA-256) and created
 exclusively: exporting more captures adds files and never rewrites one, and a capture already
 in the dataset is refused. Files are written beside their name and put in place once whole.
+
+Row groups are compressed and written by a thread of their own (pyarrow lets go of the GIL while
+it compresses), in order, while the next rows are decoded; at most ``QUEUED_WRITES`` wait.
 """
 
 from __future__ import annotations
@@ -28,7 +31,9 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
+from collections import deque
 from collections.abc import Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,6 +53,8 @@ from sniffer.exports.transactions import OUTCOMES
 TABLES = ("frames", "transactions", "values", "anomalies")
 #: Rows gathered per file before they are written as a row group.
 ROW_GROUP_ROWS = 1 << 17
+#: Row groups handed to the writing thread and not written yet, at most.
+QUEUED_WRITES = 2
 DAY_NS = 86_400 * 1_000_000_000
 TIME = pa.timestamp("ns", tz="UTC")
 _ROLES = pa.array([role.value for role in ROLE_ORDER])
@@ -92,6 +99,8 @@ class ParquetDataset:
         self.files: list[Path] = []
         #: Each table's columns, known from its first rows (or an empty batch of them).
         self._schemas: dict[str, pa.Schema] = {}
+        self._worker = ThreadPoolExecutor(1, thread_name_prefix="rtusniff-parquet")
+        self._queued: deque[Future[None]] = deque()
 
     def add(self, table: str, t_ns: npt.NDArray[np.int64], columns: dict[str, pa.Array]) -> None:
         """Rows of ``table`` (``t_ns``: each row's time, which chooses its date's file)."""
@@ -126,26 +135,28 @@ class ParquetDataset:
         return _Part(final, final.with_name(f".{final.name}.partial"))
 
     def _write(self, part: _Part) -> None:
-        table = pa.Table.from_batches(part.held)
+        """The rows ``part`` holds, handed to the writing thread as one row group."""
+        table = pa.Table.from_batches(part.held).replace_schema_metadata(self._metadata)
         if part.writer is None:
-            schema = table.schema.with_metadata(self._metadata)
-            part.writer = pq.ParquetWriter(part.partial, schema, compression="zstd")
-        part.writer.write_table(table.replace_schema_metadata(self._metadata))
+            part.writer = pq.ParquetWriter(part.partial, table.schema, compression="zstd")
+        self._wait(QUEUED_WRITES - 1)
+        self._queued.append(self._worker.submit(part.writer.write_table, table))
         part.held, part.rows = [], 0
+
+    def _wait(self, queued: int) -> None:
+        """Until at most ``queued`` writes wait; the first failure (a full disk) is raised here."""
+        while len(self._queued) > queued:
+            self._queued.popleft().result()
 
     def close(self) -> None:
         """Writes what is held and puts every file in place (``files``). A table the capture has
         no row for gets a file without rows on its first day: every table of a dataset can be
         read, whatever captures it holds."""
-        days = sorted({day for _, day in self._parts})
-        for table, schema in self._schemas.items():
-            if days and not any(name == table for name, _ in self._parts):
-                self._hold(table, days[0], pa.RecordBatch.from_pylist([], schema))
-        for part in self._parts.values():
-            if part.held:
-                self._write(part)
-            assert part.writer is not None
-            part.writer.close()
+        try:
+            self._write_all()
+        except BaseException:
+            self.abandon()  # a failure in the last writes (a full disk): nothing of it in the dataset
+            raise
         for part in self._parts.values():
             try:
                 os.link(part.partial, part.final)  # never over a file that appeared meanwhile
@@ -156,8 +167,24 @@ class ParquetDataset:
                 part.partial.unlink()
         self.files = sorted(part.final for part in self._parts.values())
 
+    def _write_all(self) -> None:
+        """Every row held, written, and every file closed."""
+        days = sorted({day for _, day in self._parts})
+        for table, schema in self._schemas.items():
+            if days and not any(name == table for name, _ in self._parts):
+                self._hold(table, days[0], pa.RecordBatch.from_pylist([], schema))
+        for part in self._parts.values():
+            if part.held:
+                self._write(part)
+        self._wait(0)
+        self._worker.shutdown()
+        for part in self._parts.values():
+            assert part.writer is not None
+            part.writer.close()
+
     def abandon(self) -> None:
         """A failed export: no file of it is left in the dataset."""
+        self._worker.shutdown(cancel_futures=True)  # waits for the write under way, if any
         for part in self._parts.values():
             with contextlib.suppress(OSError):
                 if part.writer is not None:
