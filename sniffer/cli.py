@@ -29,9 +29,9 @@ from sniffer.commands import (
 )
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import allow_replacing
+from sniffer.stopping import INTERRUPTED, TERMINATED, TerminatedError, restore_signals, terminate_raises
 
 COMMANDS = [analyze, stats, report, values, compare, cut, export, capture, ports, convert, profiles]
-INTERRUPTED_EXIT = 130
 #: Errors that only writing raises: a full disk, a quota, a file too large.
 WRITE_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 #: Objects allocated between young-generation collections. Decoding builds millions of
@@ -94,6 +94,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     args.command_line = ["rtusniff", *given]
     allow_replacing([])  # nothing may be replaced until a command's --force says which files
+    previous = terminate_raises()
     try:
         result: int = args.run(args)
         return result
@@ -104,7 +105,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return ErrorKind.USAGE.exit_code if exc.kind is ErrorKind.USAGE else exc.kind.exit_code
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return INTERRUPTED_EXIT
+        return INTERRUPTED
+    except TerminatedError:
+        print("terminated", file=sys.stderr)
+        return TERMINATED
     except BrokenPipeError:
         # The reader of our output (e.g. `head`) has gone; that is not an error.
         sys.stderr.close()
@@ -115,6 +119,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         # Standard output on a full disk (or /dev/full): the files rtusniff opens say their own name.
         print(f"error: cannot write the output: {exc.strerror}", file=sys.stderr)
         return ErrorKind.OUTPUT_FAILED.exit_code
+    finally:
+        restore_signals(previous)
 
 
 def entry_point() -> None:

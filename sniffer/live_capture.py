@@ -34,7 +34,15 @@ from sniffer.pipeline import Delivery
 from sniffer.recorder import Recorder, Rotation
 from sniffer.serial_source import ICOUNT_FIELDS, PortGoneError, PortStatus, SerialSource
 from sniffer.sinks import Sink
-from sniffer.stopping import StopRequest, TerminatedError, handle_stop_signals, restore_signals, whole_writes
+from sniffer.stopping import (
+    INTERRUPTED,
+    TERMINATED,
+    StopRequest,
+    TerminatedError,
+    handle_stop_signals,
+    restore_signals,
+    whole_writes,
+)
 from sniffer.views.jsonl import JsonlView
 from sniffer.views.live import LiveState, LiveView
 
@@ -47,8 +55,6 @@ READ_TIMEOUT_S = 0.1
 COUNTERS_EVERY_S = 1.0
 #: The least quiet that ends a frame live (a prompt port's reads still jitter by milliseconds).
 MIN_LIVE_GAP_NS = 20_000_000
-INTERRUPTED = 130
-TERMINATED = 143
 
 
 def live_gap_ns(line: LineSettings, status: PortStatus) -> int:

@@ -98,12 +98,18 @@ def each_capture(paths: list[str], one: Callable[[argparse.Namespace], Result], 
     context = multiprocessing.get_context("fork" if hasattr(os, "fork") else "spawn")
     with ProcessPoolExecutor(jobs, mp_context=context) as pool:
         pending: list[Future[Outcome[Result]]] = []
-        for path in paths:
-            pending.append(pool.submit(_one, one, args, path))
-            if len(pending) >= jobs * AHEAD_PER_JOB:
-                yield pending.pop(0).result()
-        for future in pending:
-            yield future.result()
+        try:
+            for path in paths:
+                pending.append(pool.submit(_one, one, args, path))
+                if len(pending) >= jobs * AHEAD_PER_JOB:
+                    yield pending.pop(0).result()
+            for future in pending:
+                yield future.result()
+        except BaseException:
+            # Stopped (Ctrl-C, SIGTERM, a failure): the captures queued ahead are not started;
+            # those under way end with their worker.
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
 
 
 def _one(one: Callable[[argparse.Namespace], Result], args: argparse.Namespace, path: str) -> Outcome[Result]:

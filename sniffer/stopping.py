@@ -1,4 +1,9 @@
-"""Stopping a capture on a signal without cutting a record in two, and writes that are never cut.
+"""Stopping on a signal: every command cleans up on SIGTERM as on Ctrl-C; a capture stops
+without cutting a record in two, and its writes are never cut.
+
+:func:`terminate_raises`: SIGTERM (``kill PID``, a service manager stopping a job) raises
+:class:`TerminatedError` where the default would end the process at once, so that what a
+command was writing is abandoned or closed as on Ctrl-C (no ``.partial`` file is left).
 
 SIGINT and SIGTERM stop a live capture at once, except while records are being written: then the
 first signal stops it once the write is done (:class:`StopRequest`). A write interrupted by a
@@ -15,6 +20,10 @@ import threading
 from collections.abc import Callable
 from types import FrameType
 from typing import TextIO, cast
+
+#: Exit codes after Ctrl-C and SIGTERM (128 + the signal's number, as shells report them).
+INTERRUPTED = 130
+TERMINATED = 143
 
 
 class TerminatedError(Exception):
@@ -73,6 +82,18 @@ class StopRequest:
         if signum == signal.SIGINT:
             raise KeyboardInterrupt
         raise TerminatedError
+
+
+def terminate_raises() -> dict[int, _SignalHandler]:
+    """SIGTERM raises :class:`TerminatedError` from now on (the main thread only); the previous
+    handler, for :func:`restore_signals`."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {signal.SIGTERM: signal.signal(signal.SIGTERM, _raise_terminated)}
+
+
+def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    raise TerminatedError
 
 
 def handle_stop_signals(request: StopRequest) -> dict[int, _SignalHandler]:

@@ -5,6 +5,10 @@ from __future__ import annotations
 
 import json
 import shutil
+import signal
+import subprocess
+import sys
+import time
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
@@ -229,3 +233,23 @@ def test_real_recordings_export_every_frame(tmp_path: Path, cli: Callable[..., A
                           "hive_partitioning = true) WHERE kind = 'crc_error' GROUP BY bus").fetchall())
     assert frames == {bus: stats["frames"] for bus, stats in expected.items()}
     assert {bus: crc.get(bus, 0) for bus in expected} == {bus: stats["crc_errors"] for bus, stats in expected.items()}
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGTERM cannot be sent to a process on Windows")
+def test_sigterm_mid_export_leaves_nothing_in_the_dataset(tmp_path: Path) -> None:
+    """``kill PID`` (a service manager stopping a job) while row groups are being written: the
+    export stops as on Ctrl-C, says so, exits 143, and its partial files are gone."""
+    from benchmarks.bench_memory import write_capture
+
+    capture = tmp_path / "long.mcap"
+    write_capture(capture, 600_000)
+    dataset = tmp_path / "d"
+    process = subprocess.Popen([sys.executable, "-m", "sniffer", "export", str(capture), "--parquet", str(dataset)],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not [path for path in dataset.rglob("*.partial")] and time.monotonic() < deadline:
+        time.sleep(0.01)
+    process.send_signal(signal.SIGTERM)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 143 and err.strip() == "terminated", err
+    assert not [path for path in dataset.rglob("*") if path.is_file()]

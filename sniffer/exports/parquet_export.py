@@ -22,8 +22,8 @@ A capture's files are named by its id (the first 16 hex digits of its SHA-256) a
 exclusively: exporting more captures adds files and never rewrites one, and a capture already
 in the dataset is refused. Files are written beside their name and put in place once whole.
 
-Row groups are compressed and written by a thread of their own (pyarrow lets go of the GIL while
-it compresses), in order, while the next rows are decoded; at most ``QUEUED_WRITES`` wait.
+Row groups are compressed and written by a thread of their own, in order, while the next rows are
+decoded (:mod:`sniffer.exports.parquet_writing`).
 """
 
 from __future__ import annotations
@@ -31,16 +31,13 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
-from collections import deque
 from collections.abc import Sequence
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from decoders.anomalies import KINDS, anomaly_masks
 from decoders.frame import flag_names_of
@@ -48,13 +45,12 @@ from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch
 from decoders.stats import Statistics
 from sniffer.encoding.value_rows import ValueRow, ValueRows
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.parquet_writing import RowGroupWriter
 from sniffer.exports.transactions import OUTCOMES
 
 TABLES = ("frames", "transactions", "values", "anomalies")
 #: Rows gathered per file before they are written as a row group.
 ROW_GROUP_ROWS = 1 << 17
-#: Row groups handed to the writing thread and not written yet, at most.
-QUEUED_WRITES = 2
 DAY_NS = 86_400 * 1_000_000_000
 TIME = pa.timestamp("ns", tz="UTC")
 _ROLES = pa.array([role.value for role in ROLE_ORDER])
@@ -81,7 +77,6 @@ class _Part:
 
     final: Path
     partial: Path
-    writer: pq.ParquetWriter | None = None
     held: list[pa.RecordBatch] = field(default_factory=list)
     rows: int = 0
 
@@ -99,8 +94,7 @@ class ParquetDataset:
         self.files: list[Path] = []
         #: Each table's columns, known from its first rows (or an empty batch of them).
         self._schemas: dict[str, pa.Schema] = {}
-        self._worker = ThreadPoolExecutor(1, thread_name_prefix="rtusniff-parquet")
-        self._queued: deque[Future[None]] = deque()
+        self._writer = RowGroupWriter()
 
     def add(self, table: str, t_ns: npt.NDArray[np.int64], columns: dict[str, pa.Array]) -> None:
         """Rows of ``table`` (``t_ns``: each row's time, which chooses its date's file)."""
@@ -136,17 +130,8 @@ class ParquetDataset:
 
     def _write(self, part: _Part) -> None:
         """The rows ``part`` holds, handed to the writing thread as one row group."""
-        table = pa.Table.from_batches(part.held).replace_schema_metadata(self._metadata)
-        if part.writer is None:
-            part.writer = pq.ParquetWriter(part.partial, table.schema, compression="zstd")
-        self._wait(QUEUED_WRITES - 1)
-        self._queued.append(self._worker.submit(part.writer.write_table, table))
+        self._writer.write(part.partial, pa.Table.from_batches(part.held).replace_schema_metadata(self._metadata))
         part.held, part.rows = [], 0
-
-    def _wait(self, queued: int) -> None:
-        """Until at most ``queued`` writes wait; the first failure (a full disk) is raised here."""
-        while len(self._queued) > queued:
-            self._queued.popleft().result()
 
     def close(self) -> None:
         """Writes what is held and puts every file in place (``files``). A table the capture has
@@ -176,19 +161,12 @@ class ParquetDataset:
         for part in self._parts.values():
             if part.held:
                 self._write(part)
-        self._wait(0)
-        self._worker.shutdown()
-        for part in self._parts.values():
-            assert part.writer is not None
-            part.writer.close()
+        self._writer.close()
 
     def abandon(self) -> None:
         """A failed export: no file of it is left in the dataset."""
-        self._worker.shutdown(cancel_futures=True)  # waits for the write under way, if any
+        self._writer.abandon()  # its files closed, no write under way
         for part in self._parts.values():
-            with contextlib.suppress(OSError):
-                if part.writer is not None:
-                    part.writer.close()
             with contextlib.suppress(OSError):
                 part.partial.unlink()
 
