@@ -12,12 +12,11 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from decoders.modbus.codes import EXCEPTION_BIT
+from decoders.modbus.codes import BROADCAST_ADDRESS, EXCEPTION_BIT
 from decoders.modbus.layouts import LAYOUTS, exception_length
 
 MIN_ADU = 4
 MAX_ADDRESS = 247
-BROADCAST_ADDRESS = 0
 
 #: (slave, function) of the request that awaits its response, if any.
 OpenRequest = tuple[int, int] | None

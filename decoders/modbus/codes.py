@@ -4,6 +4,8 @@ from __future__ import annotations
 
 #: Bit set in the function code of an exception response.
 EXCEPTION_BIT = 0x80
+#: Slave address 0: a broadcast, which no slave answers.
+BROADCAST_ADDRESS = 0
 #: The most registers or coils one request may name (Modbus Application Protocol V1.1b3); a
 #: request for more is invalid, and a slave answers it with exception 03.
 MAX_QUANTITY: dict[int, int] = {1: 2000, 2: 2000, 3: 125, 4: 125, 15: 1968, 16: 123}

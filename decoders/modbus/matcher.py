@@ -45,12 +45,12 @@ import numpy.typing as npt
 
 from decoders.frame import USS, FrameBatch, FrameFlag, concat_frames, slice_frames
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
-from decoders.modbus.codes import EXCEPTION_BIT
+from decoders.modbus.codes import BROADCAST_ADDRESS, EXCEPTION_BIT
 from decoders.modbus.layouts import MEI_EXCEPTION_LENGTH
-from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, IS_EXCEPTION, MIN_ADU, Shapes, frame_shapes
+from decoders.modbus.pair_runs import pair_runs
+from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, MIN_ADU, Shapes, frame_shapes
 from decoders.uss_pairing import UssPairing
 
-BROADCAST_ADDRESS = 0
 MIN_TIMEOUT_NS = 100_000_000
 MAX_TIMEOUT_NS = 1_000_000_000
 TIMEOUT_PER_LATENCY = 10
@@ -183,7 +183,7 @@ class Matcher:
         lengths = np.diff(frames.offsets)
         uss = frames.protocols() == USS
         active = np.flatnonzero(~frames.is_noise & (lengths >= MIN_ADU) & ~uss)
-        runs = _pair_runs(frames, shapes, active)
+        runs = pair_runs(frames, shapes, active, within_ns=MIN_TIMEOUT_NS)
         self._visit(frames, shapes, active, runs, first)
         if uss.any():
             self._uss.assign(frames, np.flatnonzero(uss), self._held.columns, first)
@@ -363,35 +363,6 @@ def _defaults(frames: FrameBatch, shapes: Shapes) -> dict[str, npt.NDArray[np.in
         "request_index": np.full(count, NONE, np.int64),
         "latency_ns": np.full(count, NONE, np.int64),
     }
-
-
-def _pair_runs(frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp]) -> list[int]:
-    """For each active frame k: how many request/answer pairs start there, one after the
-    other, whose outcome is certain from a state with nothing open (0 if none)."""
-    if len(active) < 2:
-        return [0] * len(active)
-    slave, raw, shape = shapes.slave[active], shapes.function[active], shapes.shape[active]
-    request_key, response_key = shapes.request_key[active], shapes.response_key[active]
-    ask, answer = slice(0, -1), slice(1, None)
-    latency = frames.t_start_ns[active][answer] - frames.t_end_ns[active][ask]
-    pair = np.zeros(len(active), np.bool_)
-    pair[:-1] = (
-        ((shape[ask] & (FITS_REQUEST | IS_EXCEPTION)) == FITS_REQUEST)
-        & (slave[ask] != BROADCAST_ADDRESS)
-        & ((shape[answer] & (FITS_RESPONSE | IS_EXCEPTION)) == FITS_RESPONSE)
-        & (slave[answer] == slave[ask])
-        & (raw[answer] == raw[ask])
-        & (response_key[answer] == request_key[ask])
-        & frames.crc_ok[active][answer]
-        & (latency < MIN_TIMEOUT_NS)
-    )
-    runs = np.zeros(len(active), np.int64)
-    for parity in (0, 1):
-        starts = pair[parity::2]
-        breaks = np.where(starts, len(starts), np.arange(len(starts)))
-        next_break = np.minimum.accumulate(breaks[::-1])[::-1]
-        runs[parity::2] = next_break - np.arange(len(starts))
-    return runs.tolist()
 
 
 def _empty_batch() -> MessageBatch:

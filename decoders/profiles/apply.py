@@ -24,7 +24,6 @@ from decoders.modbus.pdu import (
 from decoders.modbus.pdu_serial import DeviceIdResponse
 from decoders.profiles.model import Indirection, Parameter, Profile
 
-BROADCAST_ADDRESS = 0
 #: The slave column's value for a frame without a slave (noise).
 NO_SLAVE = -1
 KEPT_NAMED_PARAMS = 65536
