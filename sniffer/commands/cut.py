@@ -71,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
         info, line, timing = reader.info, analysis.line, analysis.timing
     place = finder.place
     if place.first_index is None:
-        raise RtuSniffError(ErrorKind.NO_DATA, "no frame in the window: nothing to cut", path=source_name(args))
+        missed = finder.missed() or "no frame in the window"
+        raise RtuSniffError(ErrorKind.NO_DATA, f"{missed}; nothing to cut", path=source_name(args))
     note = _provenance(args, place, Clock(args.time))
     info = CaptureInfo(line, timing, (*info.notes, note), info.channels)
     chunks = 0

@@ -56,6 +56,10 @@ class WindowFinder(Sink):
         self._offset = 0
         self.place = WindowPlace()
 
+    def missed(self) -> str | None:
+        """Where the capture's frames lie, when the window held none (:meth:`Window.missed`)."""
+        return self._window.missed()
+
     def frames(self, batch: MessageBatch) -> None:
         frames = batch.frames
         begin, end = self._window.span(batch)
