@@ -86,7 +86,6 @@ class RerunExporter:
             sinks.append(rr.FileSink(path))
         self._rec.set_sinks(*sinks)
         self.entities = EntityRows(self._rec, live=live)
-        self._entity, self._grouped, self._append = self.entities.entity, self.entities.grouped, self.entities.append
         self._states: dict[int, str] = {}
         self._slaves: set[int] = set()
         self._published = PublishedValues()
@@ -117,7 +116,7 @@ class RerunExporter:
         noise = slave == NONE
         if noise.any():
             chosen = positions[noise]
-            self._append(self._entity("bus/noise"), t_start[noise], chosen + frames.first_index,
+            self.entities.append(self.entities.entity("bus/noise"), t_start[noise], chosen + frames.first_index,
                          texts=_strings([batch.decodings[p].summary for p in chosen.tolist()]), level="WARN")
             keep = ~noise
             positions, t_start, slave = positions[keep], t_start[keep], slave[keep]
@@ -153,18 +152,18 @@ class RerunExporter:
         for row in np.flatnonzero(flags).tolist():
             texts[row] += FLAG_SUFFIXES[flags[row]]
         levels = _LEVEL_NAMES[log_levels(messages)[positions]]
-        self._grouped(self._slave_ids[slave, 0], t_start, index, texts=texts, levels=levels)
+        self.entities.grouped(self._slave_ids[slave, 0], t_start, index, texts=texts, levels=levels)
         self._values(self._published_parts(batch, positions, parts, slave), t_start, index)
         latency = messages.latency_ns[positions]
         crc_ok = frames.crc_ok[positions]
         latency_ids = np.fromiter(map(_LATENCY_ENTITY, parts), np.int64, len(parts))
         timed = (latency != NONE) & crc_ok & (latency_ids >= 0)
-        self._grouped(latency_ids[timed], t_start[timed], index[timed], values=latency[timed] / 1e6)
+        self.entities.grouped(latency_ids[timed], t_start[timed], index[timed], values=latency[timed] / 1e6)
         failures = (~crc_ok, (flags & TIMEOUT) != 0, messages.role[positions] == _EXCEPTION)
         for column, failed in enumerate(failures, start=1):
             if failed.any():
                 ids = self._slave_ids[slave[failed], column]
-                self._grouped(ids, t_start[failed], index[failed], values=np.ones(len(ids)))
+                self.entities.grouped(ids, t_start[failed], index[failed], values=np.ones(len(ids)))
 
     def _published_parts(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64], parts: list[_Parts],
                          slave: npt.NDArray[np.int16]) -> list[tuple[int, _Parts]]:
@@ -188,7 +187,7 @@ class RerunExporter:
         counts = np.fromiter(map(len, map(_SCALAR_IDS, parts)), np.int64, len(parts))
         if counts.any():
             repeated = np.repeat(rows, counts)
-            self._grouped(np.concatenate(list(map(_SCALAR_IDS, parts))), t_start[repeated], index[repeated],
+            self.entities.grouped(np.concatenate(list(map(_SCALAR_IDS, parts))), t_start[repeated], index[repeated],
                           values=np.concatenate(list(map(_SCALAR_VALUES, parts))))
         for row, part in shown:
             for entity, text in part.states:
@@ -196,7 +195,7 @@ class RerunExporter:
                     self._states[entity] = text
                     # Copies, not views: a state can stay buffered all day, and a view would keep
                     # its whole batch's column alive with it.
-                    self._append(entity, t_start[[row]], index[[row]], texts=_strings([text]), level="INFO")
+                    self.entities.append(entity, t_start[[row]], index[[row]], texts=_strings([text]), level="INFO")
 
     def _parts_of(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64]) -> list[_Parts]:
         decodings, messages = batch.decodings_at(positions.tolist()), batch.messages
@@ -225,16 +224,17 @@ class RerunExporter:
                 states.append((series[1], f"{param.code}: {param.value}"))
         latency = -1
         if function != NONE:
-            latency = self._entity(f"slaves/{slave}/latency_ms/fc{function}", f"latency FC {function} (ms)")
+            latency = self.entities.entity(f"slaves/{slave}/latency_ms/fc{function}", f"latency FC {function} (ms)")
         return _Parts(f"{ROLE_ORDER[role].value}: {decoding.summary}", np.array(scalar_ids, np.int64),
                       np.array(scalar_values, np.float64), states, latency)
 
     def _known_slave(self, slave: int) -> None:
         if slave not in self._slaves:
             self._slaves.add(slave)
+            entity = self.entities.entity
             self._slave_ids[slave] = [
-                self._entity(f"slaves/{slave}/log"),
-                *(self._entity(f"slaves/{slave}/errors/{kind}", f"{kind} errors", points=True) for kind in _ERRORS),
+                entity(f"slaves/{slave}/log"),
+                *(entity(f"slaves/{slave}/errors/{kind}", f"{kind} errors", points=True) for kind in _ERRORS),
             ]
 
     def _param_series(self, slave: int, param: ParamValue) -> tuple[int, int] | tuple[()]:
@@ -249,8 +249,8 @@ class RerunExporter:
         series: tuple[int, int] | tuple[()] = ()
         if param.code is not None or self._may_plot(slave, param.address):
             name = f"{code} ({param.unit})" if param.unit else code
-            series = (self._entity(f"slaves/{slave}/params/{_path(code)}", name),
-                      self._entity(f"slaves/{slave}/state/{_path(code)}"))
+            series = (self.entities.entity(f"slaves/{slave}/params/{_path(code)}", name),
+                      self.entities.entity(f"slaves/{slave}/state/{_path(code)}"))
         self._param_entities.put(key, series)
         return series
 
@@ -285,9 +285,9 @@ class RerunExporter:
             self._wire_ns += wire_sum
             self._errors += error_count
         if times:
-            at, frame = np.array(times, np.int64), np.array(indexes, np.int64)
-            self._append(self._entity("bus/load_percent", "bus load (%)"), at, frame, values=np.array(loads))
-            self._append(self._entity("bus/errors_per_s", "errors per second"), at, frame, values=np.array(rates))
+            at, frame, entities = np.array(times, np.int64), np.array(indexes, np.int64), self.entities
+            entities.append(entities.entity("bus/load_percent", "bus load (%)"), at, frame, values=np.array(loads))
+            entities.append(entities.entity("bus/errors_per_s", "errors per second"), at, frame, values=np.array(rates))
 
     @property
     def skipped_rows(self) -> int:
