@@ -11,11 +11,12 @@ the same by construction.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from itertools import repeat
 from typing import Any, NamedTuple
 
 from decoders.message import Decoding, ParamValue
+from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.pdu import (
     COIL_ON,
     BitsResponse,
@@ -48,32 +49,66 @@ class ParamRun(NamedTuple):
 
 def param_runs(pdu: Pdu, request: Pdu | None) -> tuple[ParamRun, ...]:
     """The runs ``pdu`` names (read against ``request``, its answer's request); none for a
-    request for more than Modbus allows (a damaged count would name thousands)."""
+    request for more than Modbus allows (a damaged count would name thousands).
+
+    One function per PDU type, looked up by the type: a ``match`` over class patterns tries
+    them in turn, which cost more than the run itself for most frames."""
+    runs_of = _RUNS_BY_TYPE.get(type(pdu))
+    return () if runs_of is None else runs_of(pdu, request)
+
+
+def _counted(pdu: ReadRequest | WriteMultipleResponse, request: Pdu | None) -> tuple[ParamRun, ...]:
+    count = pdu.count
+    return (ParamRun(pdu.address, count),) if 1 <= count <= MAX_QUANTITY[pdu.function] else ()
+
+
+def _registers(pdu: RegistersResponse, request: Pdu | None) -> tuple[ParamRun, ...]:
+    start = _read_start(request)
+    return () if start is None else (ParamRun(start, len(pdu.values), pdu.values),)
+
+
+def _bits(pdu: BitsResponse, request: Pdu | None) -> tuple[ParamRun, ...]:
+    if not isinstance(request, ReadRequest):
+        return ()
+    asked = list(map(int, pdu.bits[: request.count]))
+    return (ParamRun(request.address, len(asked), asked),)
+
+
+def _single(pdu: WriteSingle, request: Pdu | None) -> tuple[ParamRun, ...]:
+    if pdu.function == 5:  # FC 5: a coil, written as 0xFF00 or 0x0000
+        return (ParamRun(pdu.address, 1, (1 if pdu.value == COIL_ON else 0,)),)
+    return (ParamRun(pdu.address, 1, (pdu.value,)),)
+
+
+def _written_registers(pdu: WriteRegistersRequest, request: Pdu | None) -> tuple[ParamRun, ...]:
+    return (ParamRun(pdu.address, len(pdu.values), pdu.values),)
+
+
+def _written_coils(pdu: WriteCoilsRequest, request: Pdu | None) -> tuple[ParamRun, ...]:
+    return (ParamRun(pdu.address, len(pdu.bits), list(map(int, pdu.bits))),)
+
+
+def _read_write(pdu: ReadWriteRequest, request: Pdu | None) -> tuple[ParamRun, ...]:
     if not quantity_allowed(pdu):
         return ()
-    match pdu:
-        case ReadRequest(address=address, count=count) | WriteMultipleResponse(address=address, count=count):
-            return (ParamRun(address, count),)
-        case RegistersResponse(values=values):
-            start = _read_start(request)
-            return () if start is None else (ParamRun(start, len(values), values),)
-        case BitsResponse(bits=bits) if isinstance(request, ReadRequest):
-            asked = list(map(int, bits[: request.count]))
-            return (ParamRun(request.address, len(asked), asked),)
-        case WriteSingle(function=5, address=address, value=value):
-            return (ParamRun(address, 1, (1 if value == COIL_ON else 0,)),)
-        case WriteSingle(address=address, value=value):
-            return (ParamRun(address, 1, (value,)),)
-        case WriteRegistersRequest(address=address, values=values):
-            return (ParamRun(address, len(values), values),)
-        case WriteCoilsRequest(address=address, bits=bits):
-            return (ParamRun(address, len(bits), list(map(int, bits))),)
-        case ReadWriteRequest():
-            written = ParamRun(pdu.write_address, len(pdu.values), pdu.values)
-            return (written, ParamRun(pdu.read_address, pdu.read_count))
-        case MaskWrite(address=address):
-            return (ParamRun(address, 1),)
-    return ()
+    return (ParamRun(pdu.write_address, len(pdu.values), pdu.values), ParamRun(pdu.read_address, pdu.read_count))
+
+
+def _masked(pdu: MaskWrite, request: Pdu | None) -> tuple[ParamRun, ...]:
+    return (ParamRun(pdu.address, 1),)
+
+
+_RUNS_BY_TYPE: dict[type, Callable[[Any, Pdu | None], tuple[ParamRun, ...]]] = {
+    ReadRequest: _counted,
+    WriteMultipleResponse: _counted,
+    RegistersResponse: _registers,
+    BitsResponse: _bits,
+    WriteSingle: _single,
+    WriteRegistersRequest: _written_registers,
+    WriteCoilsRequest: _written_coils,
+    ReadWriteRequest: _read_write,
+    MaskWrite: _masked,
+}
 
 
 def named_registers(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:
