@@ -46,14 +46,23 @@ class Memo(Generic[Key, Value]):
         """The value of every key, for a batch: repeats looked up in C (``map`` over the young
         generation), the rest through :meth:`get`, and what neither holds built by
         ``build(row)`` and kept (so a key that comes again later in the batch finds it)."""
-        values = list(map(self._young.get, keys))
+        young = self._young
+        values = list(map(young.get, keys))
         if None in values:
+            old, size = self._old, self.size
             for row, value in enumerate(values):
                 if value is None:
-                    found = self.get(keys[row])
+                    # get() and put() inlined: a batch of new frames misses on every row
+                    key = keys[row]
+                    found = young.get(key)  # built for an earlier row of this batch
                     if found is None:
-                        found = build(row)
-                        self.put(keys[row], found)
+                        found = old.get(key)
+                        if found is None:
+                            found = build(row)
+                        if len(young) >= size:
+                            self._old, old, young = young, young, {}
+                            self._young = young
+                        young[key] = found
                     values[row] = found
         return cast(list[Value], values)
 

@@ -70,7 +70,7 @@ def _registers(pdu: RegistersResponse, request: Pdu | None) -> tuple[ParamRun, .
 def _bits(pdu: BitsResponse, request: Pdu | None) -> tuple[ParamRun, ...]:
     if not isinstance(request, ReadRequest):
         return ()
-    asked = list(map(int, pdu.bits[: request.count]))
+    asked = pdu.bits[: request.count]
     return (ParamRun(request.address, len(asked), asked),)
 
 
@@ -85,7 +85,7 @@ def _written_registers(pdu: WriteRegistersRequest, request: Pdu | None) -> tuple
 
 
 def _written_coils(pdu: WriteCoilsRequest, request: Pdu | None) -> tuple[ParamRun, ...]:
-    return (ParamRun(pdu.address, len(pdu.bits), list(map(int, pdu.bits))),)
+    return (ParamRun(pdu.address, len(pdu.bits), pdu.bits),)
 
 
 def _read_write(pdu: ReadWriteRequest, request: Pdu | None) -> tuple[ParamRun, ...]:

@@ -63,7 +63,7 @@ def quantity_allowed(pdu: Pdu) -> bool:
 _BIT_DIGITS = ("0", "1")
 
 
-def _bit_string(bits: tuple[bool, ...], limit: int = 32) -> str:
+def _bit_string(bits: tuple[int, ...], limit: int = 32) -> str:
     shown = "".join(map(_BIT_DIGITS.__getitem__, bits[:limit]))
     return shown + ("…" if len(bits) > limit else "")
 
@@ -93,7 +93,7 @@ class BitsResponse:
 
     function: int
     byte_count: int
-    bits: tuple[bool, ...]
+    bits: tuple[int, ...]  # 0 and 1
 
     def summary(self) -> str:
         return f"{_TABLES[self.function]} = {_bit_string(self.bits)} ({self.byte_count} bytes)"
@@ -133,7 +133,7 @@ class WriteCoilsRequest:
 
     address: int
     count: int
-    bits: tuple[bool, ...]
+    bits: tuple[int, ...]  # 0 and 1
 
     def summary(self) -> str:
         return f"write coils {_range(self.address, self.count)} = {_bit_string(self.bits)}"

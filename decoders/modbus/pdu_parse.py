@@ -60,11 +60,12 @@ def _words(data: bytes) -> tuple[int, ...]:
     return struct.unpack(f">{len(data) // 2}H", data)
 
 
-#: The bits of each byte value, LSB first: a coil frame is decoded a byte at a time, not a bit.
-_BYTE_BITS = [tuple(bool(byte >> i & 1) for i in range(8)) for byte in range(256)]
+#: The bits of each byte value as 0 and 1, LSB first: a coil frame is decoded a byte at a time,
+#: not a bit, and its runs take the bits as their values as they are.
+_BYTE_BITS = [tuple(byte >> i & 1 for i in range(8)) for byte in range(256)]
 
 
-def _bits(data: bytes, count: int | None = None) -> tuple[bool, ...]:
+def _bits(data: bytes, count: int | None = None) -> tuple[int, ...]:
     bits = tuple(chain.from_iterable(map(_BYTE_BITS.__getitem__, data)))
     return bits if count is None else bits[:count]
 

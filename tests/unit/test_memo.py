@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import cast
+
+from hypothesis import given
+from hypothesis import strategies as st
+
 from decoders.memo import Memo
 
 
@@ -40,3 +46,37 @@ def test_get_all_builds_each_missing_key_once() -> None:
     assert memo.get_all(keys, build) == ["B", "OLD", "NEW", "B", "NEW"]
     assert built == [2]  # "new" at row 4 found what row 2 built
     assert memo.get_all(["b", "new"], build) == ["B", "NEW"] and built == [2]
+
+
+
+def reference_get_all(memo: Memo[int, str], keys: list[int], build: Callable[[int], str]) -> list[str]:
+    """:meth:`Memo.get_all` through ``get`` and ``put``: what it did before they were inlined."""
+    values = list(map(memo._young.get, keys))
+    for row, value in enumerate(values):
+        if value is None:
+            found = memo.get(keys[row])
+            if found is None:
+                found = build(row)
+                memo.put(keys[row], found)
+            values[row] = found
+    return cast(list[str], values)
+
+
+@given(st.integers(1, 4), st.lists(st.lists(st.integers(0, 12), max_size=12), max_size=6))
+def test_get_all_is_its_plain_form(size: int, batches: list[list[int]]) -> None:
+    """The batch lookup (get and put inlined for speed) against the plain one: the same values,
+    the same keys built, the same generations after every batch (they roll over mid-batch)."""
+    fast: Memo[int, str] = Memo(size)
+    plain: Memo[int, str] = Memo(size)
+    for keys in batches:
+        built: dict[str, list[int]] = {"fast": [], "plain": []}
+
+        def builder(name: str, keys: list[int] = keys, built: dict[str, list[int]] = built) -> Callable[[int], str]:
+            def build(row: int) -> str:
+                built[name].append(keys[row])
+                return f"v{keys[row]}"
+            return build
+
+        assert fast.get_all(keys, builder("fast")) == reference_get_all(plain, keys, builder("plain"))
+        assert built["fast"] == built["plain"]
+        assert (fast._young, fast._old) == (plain._young, plain._old)
