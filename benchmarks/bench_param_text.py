@@ -4,7 +4,8 @@
 
 ``tables`` is what :mod:`sniffer.encoding.param_text` does (address starts and value ends
 formatted once for all 65 536 words, slices joined); ``template``: one ``%``-template per run
-length, filled in C; ``dict``: value ends kept in a dict as values come (the former way).
+length, filled in C; ``dict``: value ends kept in a dict as values come (the former way). Each
+writes the JSON array as UTF-8, as a record takes it.
 Values: ``none`` (a read request), ``random`` (every value new: the polling benchmark),
 ``steady`` (a few values again and again: a plant), ``bits`` (coils).
 """
@@ -22,36 +23,40 @@ from sniffer.encoding import param_text
 RUNS_PER_CASE = 20_000
 LENGTHS = (1, 2, 4, 8, 16, 32, 64, 125)
 KINDS = ("none", "random", "steady", "bits")
-_VALUED = '{"address":%d,"code":null,"name":null,"raw":%d,"value":%d,"unit":null}'
-_UNVALUED = '{"address":%d,"code":null,"name":null,"raw":null,"value":null,"unit":null}'
-_templates: dict[tuple[int, bool], str] = {}
-_ends: dict[int, str] = {}
+_VALUED = b'{"address":%d,"code":null,"name":null,"raw":%d,"value":%d,"unit":null}'
+_UNVALUED = b'{"address":%d,"code":null,"name":null,"raw":null,"value":null,"unit":null}'
+_templates: dict[tuple[int, bool], bytes] = {}
+_ends: dict[int, bytes] = {}
 
 
-def _template(run: ParamRun) -> str:
+def _tables(run: ParamRun) -> bytes:
+    return param_text.runs_json((run,))
+
+
+def _template(run: ParamRun) -> bytes:
     address, count, values = run
     key = (count, values is None)
     template = _templates.get(key)
     if template is None:
-        template = _templates[key] = ",".join([_UNVALUED if values is None else _VALUED] * count)
+        template = _templates[key] = b"[" + b",".join([_UNVALUED if values is None else _VALUED] * count) + b"]"
     if values is None:
         return template % tuple(range(address, address + count))
     return template % tuple(chain.from_iterable(zip(range(address, address + count), values, values, strict=True)))
 
 
-def _dict_end(value: int) -> str:
+def _dict_end(value: int) -> bytes:
     end = _ends.get(value)
     if end is None:
-        end = _ends[value] = f'{value},"value":{value},"unit":null}}'
+        end = _ends[value] = b'%d,"value":%d,"unit":null}' % (value, value)
     return end
 
 
-def _dict(run: ParamRun) -> str:
+def _dict(run: ParamRun) -> bytes:
     address, count, values = run
-    pieces: list[str] = [""] * (2 * count)
+    pieces: list[bytes] = [b""] * (2 * count)
     pieces[::2] = param_text._starts[address : address + count]  # the same address starts
     pieces[1::2] = [param_text._NO_VALUE] * count if values is None else list(map(_dict_end, values))
-    return "".join(pieces)[1:]
+    return b"[" + b"".join(pieces)[1:] + b"]"
 
 
 def _values(kind: str, count: int, rng: random.Random) -> tuple[int, ...] | None:
@@ -64,7 +69,7 @@ def _values(kind: str, count: int, rng: random.Random) -> tuple[int, ...] | None
     return tuple(rng.randrange(2) for _ in range(count))
 
 
-def _ns_per_param(write: Callable[[ParamRun], str], runs: list[ParamRun], count: int) -> float:
+def _ns_per_param(write: Callable[[ParamRun], bytes], runs: list[ParamRun], count: int) -> float:
     start = time.perf_counter()
     for run in runs:
         write(run)
@@ -73,8 +78,8 @@ def _ns_per_param(write: Callable[[ParamRun], str], runs: list[ParamRun], count:
 
 def main() -> None:
     rng = random.Random(1)
-    param_text.run_text(ParamRun(0, 1))  # the tables are built at first use, not timed
-    ways: dict[str, Callable[[ParamRun], str]] = {"tables": param_text.run_text, "template": _template, "dict": _dict}
+    _tables(ParamRun(0, 1))  # the tables are built at first use, not timed
+    ways: dict[str, Callable[[ParamRun], bytes]] = {"tables": _tables, "template": _template, "dict": _dict}
     print(f"{'params':>6} {'values':>7}" + "".join(f"{name + ' ns':>12}" for name in ways))
     for count in LENGTHS:
         for kind in KINDS:

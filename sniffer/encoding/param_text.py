@@ -3,11 +3,15 @@
 For registers no profile names every param record is the same text but for the address and the
 value. Each address's start (``,{"address":…,"raw":``) and each value's end (``…,"unit":null}``)
 is formatted once, in two tables of 65 536 (built at first use: 10 ms and 5 MB each), and a run
-is two slices interleaved and joined. Raw values are 16-bit words or coil bits, so a value is its
-own index. ``python -m benchmarks.bench_param_text`` times this against a ``%``-template per run
-length and against ends kept in a dict as values come: the tables are the fastest, or within
-a third of it (read requests of 2 to 4 registers), for every run length, with values that
-repeat (a plant) and values that never do (the polling benchmark).
+is two slices interleaved. Raw values are 16-bit words or coil bits, so a value is its own
+index. ``python -m benchmarks.bench_param_text`` times this against a ``%``-template per run
+length and against ends kept in a dict as values come. With values, the tables are the fastest
+from 8 params on and within a quarter of the fastest below, with values that repeat (a plant)
+and values that never do (the polling benchmark). A run without values (a read request) up to
+``SHORT_UNVALUED`` params fills its template instead, which is faster there.
+
+The text is UTF-8 pieces for the caller to join with the rest of its record: a coil frame's
+params are kilobytes, and each copy of them costs more than the pieces.
 Exactly the JSON of :func:`sniffer.encoding.records.param_record` (the tests compare both).
 """
 
@@ -18,44 +22,54 @@ from collections.abc import Sequence
 from decoders.modbus.param_runs import ParamRun
 
 #: The end of a param record without a value (a read request names registers without).
-_NO_VALUE = 'null,"value":null,"unit":null}'
+_NO_VALUE = b'null,"value":null,"unit":null}'
 _WORDS = 1 << 16
 
-_starts: list[str] = []
-_value_ends: list[str] = []
+#: Runs without values up to this long are written from a template (see the module docstring).
+SHORT_UNVALUED = 24
+_UNVALUED = b',{"address":%d,"code":null,"name":null,"raw":null,"value":null,"unit":null}'
+#: By run length: the template of that many params without values (each after a comma).
+_UNVALUED_TEMPLATES = [_UNVALUED * count for count in range(SHORT_UNVALUED + 1)]
+
+_starts: list[bytes] = []
+_value_ends: list[bytes] = []
 
 
-def runs_json(runs: tuple[ParamRun, ...]) -> str:
+def runs_json(runs: tuple[ParamRun, ...]) -> bytes:
     """The ``params`` array of the registers or coils of ``runs``, no profile naming them."""
-    if len(runs) == 1:  # most frames
-        return f"[{run_text(runs[0])}]"
-    return "[" + ",".join(text for text in map(run_text, runs) if text) + "]"
+    return b"".join(params_pieces(runs))
 
 
-def run_text(run: ParamRun) -> str:
-    """The param records of one run, comma-separated, without brackets."""
-    address, count, values = run
+def params_pieces(runs: tuple[ParamRun, ...], before: bytes = b"") -> list[bytes]:
+    """:func:`runs_json` as pieces to join, the first of them ``before`` and the array's ``[``."""
     if not _starts:
         _starts.extend(map(_start, range(_WORDS)))
-        _value_ends.extend(f'{value},"value":{value},"unit":null}}' for value in range(_WORDS))
-    if count == 1 and address < _WORDS:  # a single register or coil: no list to interleave
-        return _starts[address][1:] + (_NO_VALUE if values is None else _value_ends[values[0]])
-    if count <= 0:
-        return ""
-    return "".join(_run_pieces(address, count, values))[1:]
+        _value_ends.extend(b'%d,"value":%d,"unit":null}' % (value, value) for value in range(_WORDS))
+    pieces = [before + b"["]
+    for address, count, values in runs:
+        if values is None and 0 < count <= SHORT_UNVALUED and address + count <= _WORDS:
+            pieces.append(_UNVALUED_TEMPLATES[count] % tuple(range(address, address + count)))
+        elif count == 1 and address < _WORDS:  # a single register or coil: no lists to interleave
+            pieces += (_starts[address], _value_ends[values[0]] if values is not None else _NO_VALUE)
+        elif count > 0:
+            pieces += _run_pieces(address, count, values)
+    if len(pieces) > 1:
+        pieces[1] = pieces[1][1:]  # the first param's start, without its comma
+    pieces.append(b"]")
+    return pieces
 
 
-def _run_pieces(address: int, count: int, values: Sequence[int] | None) -> list[str]:
+def _run_pieces(address: int, count: int, values: Sequence[int] | None) -> list[bytes]:
     """The run's pieces: each param's start then its end (each start begins with a comma)."""
     if address + count > _WORDS:  # not on a wire (16-bit addresses): spelt one by one
         heads = [_start(a) for a in range(address, address + count)]
     else:
         heads = _starts[address : address + count]
-    pieces: list[str] = [""] * (2 * count)
+    pieces: list[bytes] = [b""] * (2 * count)
     pieces[::2] = heads
     pieces[1::2] = [_NO_VALUE] * count if values is None else map(_value_ends.__getitem__, values)
     return pieces
 
 
-def _start(address: int) -> str:
-    return f',{{"address":{address},"code":null,"name":null,"raw":'
+def _start(address: int) -> bytes:
+    return b',{"address":%d,"code":null,"name":null,"raw":' % address

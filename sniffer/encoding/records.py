@@ -27,7 +27,7 @@ from decoders.message import (
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.blocks import Block, times_matrix
-from sniffer.encoding.param_text import runs_json
+from sniffer.encoding.param_text import params_pieces
 from sniffer.encoding.rows import (
     Column,
     Pieces,
@@ -138,7 +138,7 @@ def uart_error_column(frames: FrameBatch, kept: npt.NDArray[np.int64]) -> list[C
     ]]
 
 
-_PROTOCOL_JSON = {code: f'"{name}"' for code, name in PROTOCOL_NAMES.items()}
+_PROTOCOL_JSON = {code: f'"{name}"'.encode() for code, name in PROTOCOL_NAMES.items()}
 _FLAG_TEXTS = [encode_json(list(flag_set(value).names)) for value in range(1 << len(FrameFlag))]
 _FLAGS_JSON = Table(_FLAG_TEXTS)
 
@@ -273,17 +273,19 @@ class FrameRecordEncoder:
         between frames with the same bytes, role and protocol)."""
         data, crc_ok, slave, function, role, code, protocol = facts(position)
         if isinstance(decoding, LazyParams):  # no profile: written from its runs, no param objects
-            params_summary = f'"params":{runs_json(decoding.runs)},"summary":{encode_json(decoding.summary).decode()}'
+            tail = params_pieces(decoding.runs, b'"params":')
+            tail += (b',"summary":', encode_json(decoding.summary))
         else:
             record = {"params": [param_record(p) for p in decoding.params], "summary": decoding.summary}
-            text = encode_json(record).decode() if _spelt_alike(decoding.params) else encode_record(record)
-            params_summary = text[1:-1]
-        remarks = encode_json(list(decoding.remarks)).decode()
+            text = encode_json(record) if _spelt_alike(decoding.params) else encode_record(record).encode()
+            tail = [text[1:-1]]
+        remarks = encode_json(list(decoding.remarks)) if decoding.remarks else b"[]"
+        tail += (b',"protocol":', _PROTOCOL_JSON[protocol], b',"remarks":', remarks)
         return (
             f'"hex":"{data.hex()}","crc_ok":{"true" if crc_ok else "false"},'
             f'"slave":{"null" if slave == NONE else slave},"function":{"null" if function == NONE else function},'
             f'"role":"{ROLE_ORDER[role].value}","exception_code":{"null" if code == NONE else code}'.encode(),
-            f'{params_summary},"protocol":{_PROTOCOL_JSON[protocol]},"remarks":{remarks}'.encode(),
+            b"".join(tail),
         )
 
 
