@@ -53,14 +53,74 @@ def crc_ok(frame: bytes) -> bool:
 def crc_ok_many(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
     """CRC check of every frame ``data[offsets[i]:offsets[i+1]]``.
 
-    A frame followed by its own CRC (low byte first) leaves the CRC register at zero,
-    so one CRC call per whole frame is the check.
+    A frame followed by its own CRC (low byte first) leaves the CRC register at zero.
+    Frames of one length (a bus has a few: its requests, its answers) are stepped in
+    lockstep by numpy, two bytes a step through a table of 65 536 registers; lengths
+    that fewer than ``LOCKSTEP_MIN_FRAMES`` frames share, or longer than
+    ``LOCKSTEP_MAX_LENGTH``, go one ``fastcrc`` call a frame as in
+    :func:`crc_ok_many_reference`. Twice as fast on the polling benchmark
+    (``python -m benchmarks.bench_crc``).
     """
+    lengths = np.diff(offsets)
+    valid = np.zeros(len(lengths), np.bool_)
+    if not len(lengths):
+        return valid
+    wire = np.frombuffer(data, np.uint8)
+    starts = offsets[:-1]
+    sizes, counts = np.unique(lengths, return_counts=True)
+    for size, count in zip(sizes.tolist(), counts.tolist(), strict=True):
+        if size < MIN_CHECKED:
+            continue
+        rows = np.flatnonzero(lengths == size)
+        if count < LOCKSTEP_MIN_FRAMES or size > LOCKSTEP_MAX_LENGTH:
+            valid[rows] = [crc16.modbus(data[start : start + size]) == 0 for start in starts[rows].tolist()]
+        else:
+            valid[rows] = _lockstep_remainders(wire[starts[rows][:, None] + np.arange(size)]) == 0
+    return valid
+
+
+def crc_ok_many_reference(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+    """:func:`crc_ok_many` by one ``fastcrc`` call a frame: the plain path."""
     bounds = offsets.tolist()
     frames = map(data.__getitem__, map(slice, bounds[:-1], bounds[1:]))
     remainders = np.fromiter(map(crc16.modbus, frames), np.int64, len(bounds) - 1)
-    valid: npt.NDArray[np.bool_] = (remainders == 0) & (np.diff(offsets) >= 3)
+    valid: npt.NDArray[np.bool_] = (remainders == 0) & (np.diff(offsets) >= MIN_CHECKED)
     return valid
+
+
+#: Spans shorter than this never pass: a frame has an address and a function code before its CRC.
+MIN_CHECKED = 3
+#: Frame lengths checked in lockstep (see :func:`crc_ok_many`) when at least this many share one.
+LOCKSTEP_MIN_FRAMES = 16
+LOCKSTEP_MAX_LENGTH = 64
+
+
+def _pair_table() -> npt.NDArray[np.uint16]:
+    """``table[r]``: the register after two bytes, where ``r`` is the register with the two
+    bytes (the first low) already XORed in: their two table steps depend on ``r`` alone."""
+    registers = np.arange(1 << 16, dtype=np.uint32)
+    step = np.array(CRC_TABLE, np.uint32)
+    for _ in range(2):
+        registers = (registers >> 8) ^ step[registers & 0xFF]
+    return registers.astype(np.uint16)
+
+
+_PAIR_TABLE = _pair_table()
+_BYTE_TABLE = np.array(CRC_TABLE, np.uint16)
+
+
+def _lockstep_remainders(frames: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint16]:
+    """The CRC register after each row of ``frames`` (one frame per row, all one length)."""
+    count, size = frames.shape
+    register = np.full(count, 0xFFFF, np.uint16)
+    first = size % 2
+    if first:  # an odd length: one byte alone, then pairs
+        register = (register >> 8) ^ _BYTE_TABLE[(register ^ frames[:, 0]) & 0xFF]
+    pairs = frames[:, first:].astype(np.uint16)
+    words = pairs[:, 0::2] | (pairs[:, 1::2] << 8)
+    for column in range(words.shape[1]):
+        register = _PAIR_TABLE[register ^ words[:, column]]
+    return register
 
 
 _STEP_TABLE = np.array(CRC_TABLE, np.uint32)

@@ -1,9 +1,19 @@
+from itertools import pairwise
+
 import numpy as np
+import numpy.typing as npt
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from decoders.crc import crc16_modbus, crc16_modbus_reference, crc_bytes, crc_ok, crc_ok_many
+from decoders.crc import (
+    crc16_modbus,
+    crc16_modbus_reference,
+    crc_bytes,
+    crc_ok,
+    crc_ok_many,
+    crc_ok_many_reference,
+)
 from tests.conftest import load_manual_frames
 
 MANUAL = load_manual_frames()
@@ -42,3 +52,27 @@ def test_crc_ok_many_matches_single(manual_frames: dict[str, bytes]) -> None:
 @pytest.mark.parametrize("short", [b"", b"\x01", b"\x01\x02"])
 def test_too_short_is_not_ok(short: bytes) -> None:
     assert not crc_ok(short)
+
+
+@st.composite
+def framed_runs(draw: st.DrawFn) -> tuple[bytes, npt.NDArray[np.int64]]:
+    """Frames back to back, most of a few lengths (as on a bus) and CRC-valid, some damaged,
+    some rare lengths, some too short, some long: every path of the lockstep check."""
+    common = draw(st.lists(st.integers(3, 70), min_size=1, max_size=3))
+    frames = []
+    for _ in range(draw(st.integers(0, 120))):
+        size = draw(st.sampled_from(common) | st.integers(0, 90))
+        body = draw(st.binary(min_size=max(0, size - 2), max_size=max(0, size - 2)))
+        frame = (body + crc_bytes(body))[:size] if size >= 2 else draw(st.binary(min_size=size, max_size=size))
+        if frame and draw(st.integers(0, 4)) == 0:
+            frame = frame[:-1] + bytes([frame[-1] ^ 0x10])
+        frames.append(frame)
+    offsets = np.cumsum([0, *map(len, frames)]).astype(np.int64)
+    return b"".join(frames), offsets
+
+
+@given(framed_runs())
+def test_crc_ok_many_in_lockstep_matches_one_by_one(run: tuple[bytes, npt.NDArray[np.int64]]) -> None:
+    data, offsets = run
+    assert crc_ok_many(data, offsets).tolist() == crc_ok_many_reference(data, offsets).tolist()
+    assert crc_ok_many(data, offsets).tolist() == [crc_ok(data[a:b]) for a, b in pairwise(offsets.tolist())]
