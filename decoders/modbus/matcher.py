@@ -28,11 +28,12 @@ requests still open, pairs every response and exception with its request, and fl
 A request is held back until its outcome is known, and frames behind it with it,
 so that messages leave in capture order with their flags final.
 
-Speed: on a healthy bus no request is open between exchanges and nothing has
-failed. From such a state, a run of consecutive request/answer pairs (same slave
-and function, fitting content, valid answer CRC, answered well within the shortest
-timeout) has one possible outcome, which numpy assigns in bulk; the loop handles
-the frames outside such runs one by one.
+Speed: on a healthy bus no request is open between exchanges. From such a state,
+a run of consecutive request/answer pairs (same slave and function, fitting
+content, valid answer CRC, answered well within the shortest timeout) has one
+possible outcome, which numpy assigns in bulk: only a slave whose last request
+failed needs a look, at its first request of the run (a retry, or not). The loop
+handles the frames outside such runs one by one.
 """
 
 from __future__ import annotations
@@ -212,7 +213,7 @@ class Matcher:
         timeout = self.timeout_ns
         k = 0
         while k < len(active_list):
-            if runs[k] and self.bulk and not open_slaves and not failed:
+            if runs[k] and self.bulk and not open_slaves:
                 self._settle_pairs(frames, active[k : k + 2 * runs[k]], first)
                 k += 2 * runs[k]
                 timeout = self.timeout_ns
@@ -266,6 +267,8 @@ class Matcher:
         """Requests and their answers, alternating, from a state with nothing open."""
         columns = self._held.columns
         asks, answers = pair_frames[0::2], pair_frames[1::2]
+        if self._failed:
+            self._settle_retries(frames, asks, first)
         columns["role"][first + asks] = REQUEST
         columns["role"][first + answers] = RESPONSE
         self._asked = True
@@ -273,6 +276,19 @@ class Matcher:
         latencies = np.maximum(frames.t_start_ns[answers] - frames.t_end_ns[asks], 0)
         columns["latency_ns"][first + answers] = latencies
         self._learn_many(latencies.tolist())
+
+    def _settle_retries(self, frames: FrameBatch, asks: npt.NDArray[np.intp], first: int) -> None:
+        """Of a run of pairs, the first request to each slave whose last request got no valid
+        answer: a retry if it repeats that request byte for byte; its valid answer (every
+        answer of a run is valid) then clears the slave, so later requests are none."""
+        offsets, data = frames.offsets, frames.data
+        ask_slaves = np.frombuffer(data, np.uint8)[offsets[asks]]
+        for slave in list(self._failed):
+            found = np.flatnonzero(ask_slaves == slave)
+            if len(found):
+                ask = int(asks[found[0]])
+                if data[int(offsets[ask]) : int(offsets[ask + 1])] == self._failed.pop(slave):
+                    self._held.columns["flags"][first + ask] = RETRY
 
     def _deadline(self) -> float:
         if not self._open.slaves:

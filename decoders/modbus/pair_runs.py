@@ -1,6 +1,6 @@
 """The matcher's shortcut: runs of request/answer pairs whose outcome is certain, found by numpy.
 
-From a state with nothing open and nothing failed, a request followed by its answer (same slave
+From a state with nothing open, a request followed by its answer (same slave
 and function, fitting content, a valid answer CRC, well within the shortest response timeout)
 has one possible outcome; :class:`decoders.modbus.matcher.Matcher` settles such runs in bulk and
 visits the frames outside them one by one (``bulk=False`` visits all: the reference path).

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from hypothesis import given
+from hypothesis import strategies as st
+
 from decoders.crc import crc_bytes, crc_ok
 from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import Message, Role
@@ -222,3 +225,41 @@ def test_tick_times_out_and_releases_by_the_clock() -> None:
     assert len(matcher.tick(50 * MS)) == 0
     [released] = list(matcher.tick(200 * MS))
     assert released.flags.names == ["timeout"]
+
+
+_DAMAGED_2 = ANSWER_2[:-1] + bytes([ANSWER_2[-1] ^ 0xFF])
+_OTHER_READ_2 = adu("02 03 0C20 0004")
+_OTHER_ANSWER_2 = adu("02 03 08 0001 0002 0003 0004")
+#: What a step of the exchange puts on the wire after its request: the answer, a damaged
+#: answer, an exception, or nothing (the slave is silent).
+_STEPS = {
+    "read 2": (READ_2, ANSWER_2), "read 2 damaged": (READ_2, _DAMAGED_2), "read 2 silent": (READ_2, None),
+    "read 2 elsewhere": (_OTHER_READ_2, _OTHER_ANSWER_2), "read 2 exception": (READ_2, adu("02 83 02")),
+    "read 5": (READ_5, ANSWER_5), "read 5 silent": (READ_5, None), "write 2": (WRITE_2, WRITE_2),
+}
+
+
+@given(st.lists(st.tuples(st.sampled_from(sorted(_STEPS)), st.integers(1, 300)), max_size=60),
+       st.lists(st.integers(1, 9), min_size=1, max_size=8))
+def test_bulk_runs_with_failed_slaves_are_the_loop(steps: list[tuple[str, int]], splits: list[int]) -> None:
+    """Runs settled in bulk while slaves have failed (silent, damaged answers, exceptions), their
+    retries and the requests that are none, against the frame-by-frame loop; batches split anywhere."""
+    frames, now, index = [], 0, 0
+    for name, pause_ms in steps:
+        request, answer = _STEPS[name]
+        for data in (request, answer):
+            if data is not None:
+                frames.append(Frame(index, now * MS, now * MS + len(data) * MS // 10, data, crc_ok(data),
+                                    FrameFlag.NONE))
+                index, now = index + 1, now + 3
+        now += pause_ms
+    results = []
+    for bulk in (True, False):
+        matcher, out, position, cut = Matcher(bulk=bulk), [], 0, 0
+        while position < len(frames):
+            size = splits[cut % len(splits)]
+            out += matcher.feed(frames_to_batch(frames[position : position + size]))
+            position, cut = position + size, cut + 1
+        out += matcher.flush()
+        results.append([(m.role, m.flags, m.request_index, m.latency_ns) for m in out])
+    assert results[0] == results[1]
