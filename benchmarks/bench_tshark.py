@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -44,6 +45,8 @@ def run(argv: list[str], output: Path) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=1_000_000)
+    parser.add_argument("--rounds", type=int, default=1,
+                        help="run every command this many times, in rounds; the table gives medians")
     add_capture_options(parser)
     args = parser.parse_args()
     tshark = shutil.which("tshark")
@@ -63,7 +66,7 @@ def main() -> None:
             ("rtusniff export --mcap", [*rtusniff, "export", str(capture), "--mcap", str(Path(tmp) / "x.mcap"),
                                         "--force", "-q"]),
             ("rtusniff export --parquet", [*rtusniff, "export", str(capture), "--parquet",
-                                           str(Path(tmp) / f"dataset-{time.monotonic_ns()}"), "-q"]),
+                                           str(Path(tmp) / "dataset"), "-q"]),
             ("tshark -T json (mbrtu, on that pcap)",
              [tshark, "-n", "-o", f"uat:user_dlts:{WIRESHARK_USER_DLT}", "-o", "mbrtu.crc_verification:TRUE",
               "-r", str(pcap), "-T", "json"]),
@@ -75,26 +78,56 @@ def main() -> None:
               "-r", str(pcap)]),
         ]
         wire_mb = wire_megabytes(capture)
-        print(f"{args.frames:,} frames, {wire_mb:.1f} MB on the wire, {capture.stat().st_size / 1e6:.1f} MB capture")
-        print(f"{'command':<40} {'seconds':>8} {'frames/s':>10} {'wire MB/s':>10} {'peak RSS MB':>12} "
-              f"{'output lines':>13}")
-        seconds_by_job = {}
-        for name, argv in jobs:
-            output = Path(tmp) / "out.txt"
-            seconds, rss = run(argv, output)
+        print(f"{args.frames:,} frames, {wire_mb:.1f} MB on the wire, {capture.stat().st_size / 1e6:.1f} MB capture, "
+              f"{args.rounds} round{'s' if args.rounds != 1 else ''} (medians)")
+        rounds = [_round(jobs, Path(tmp), count_lines=number == 0) for number in range(args.rounds)]
+        _print_table(jobs, rounds, args.frames, wire_mb)
+        _print_ratios(jobs, rounds)
+
+
+#: A round's figures per job: seconds, peak RSS (MB), output lines (first round only, else -1).
+Round = dict[str, tuple[float, float, int]]
+
+
+def _round(jobs: list[tuple[str, list[str]]], folder: Path, *, count_lines: bool) -> Round:
+    """Every job once, in order (the pcap export before tshark reads it), into a new dataset."""
+    shutil.rmtree(folder / "dataset", ignore_errors=True)
+    figures = {}
+    for name, argv in jobs:
+        output = folder / "out.txt"
+        seconds, rss = run(argv, output)
+        lines = -1
+        if count_lines:
             with output.open("rb") as f:
                 lines = sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(1 << 20), b""))
-            seconds_by_job[name] = seconds
-            print(f"{name:<40} {seconds:>8.1f} {args.frames / seconds:>10,.0f} {wire_mb / seconds:>10.2f} "
-                  f"{rss:>12.1f} {lines:>13,}")
-        fields_seconds, line_seconds = seconds_by_job[jobs[-2][0]], seconds_by_job[jobs[-1][0]]
-        for name in ("rtusniff stats --format json", "rtusniff analyze --format jsonl"):
-            print(f"tshark -T fields time / {name} time: {fields_seconds / seconds_by_job[name]:.2f}")
-        json_seconds = seconds_by_job["tshark -T json (mbrtu, on that pcap)"]
-        for name in ("rtusniff analyze --format jsonl", "rtusniff export --mcap", "rtusniff export --parquet"):
-            print(f"tshark -T json time / {name} time: {json_seconds / seconds_by_job[name]:.2f}")
-        table = "rtusniff analyze (table, a line a frame)"
-        print(f"tshark one-line time / {table} time: {line_seconds / seconds_by_job[table]:.2f}")
+        figures[name] = (seconds, rss, lines)
+    return figures
+
+
+def _print_table(jobs: list[tuple[str, list[str]]], rounds: list[Round], frames: int, wire_mb: float) -> None:
+    print(f"{'command':<40} {'seconds':>8} {'frames/s':>10} {'wire MB/s':>10} {'peak RSS MB':>12} "
+          f"{'output lines':>13}")
+    for name, _ in jobs:
+        seconds = statistics.median(r[name][0] for r in rounds)
+        rss = max(r[name][1] for r in rounds)
+        print(f"{name:<40} {seconds:>8.1f} {frames / seconds:>10,.0f} {wire_mb / seconds:>10.2f} "
+              f"{rss:>12.1f} {rounds[0][name][2]:>13,}")
+
+
+def _print_ratios(jobs: list[tuple[str, list[str]]], rounds: list[Round]) -> None:
+    """tshark's time over rtusniff's, per round (the two ran minutes apart at most), then the
+    median of the rounds: on a shared machine whose speed drifts, a ratio of medians taken
+    over different minutes says less."""
+    fields, line = jobs[-2][0], jobs[-1][0]
+    pairs = [(fields, "rtusniff stats --format json"), (fields, "rtusniff analyze --format jsonl")]
+    pairs += [("tshark -T json (mbrtu, on that pcap)", name)
+              for name in ("rtusniff analyze --format jsonl", "rtusniff export --mcap", "rtusniff export --parquet")]
+    pairs.append((line, "rtusniff analyze (table, a line a frame)"))
+    for theirs, ours in pairs:
+        ratios = [r[theirs][0] / r[ours][0] for r in rounds]
+        spread = f" (rounds {min(ratios):.2f}..{max(ratios):.2f})" if len(ratios) > 1 else ""
+        label = theirs.split(" (")[0].replace("tshark one-line summary", "tshark one-line")
+        print(f"{label} time / {ours} time: {statistics.median(ratios):.2f}{spread}")
 
 
 if __name__ == "__main__":
