@@ -1,0 +1,105 @@
+"""This checkout against an earlier commit, side by side: the commands alternate; prints a table.
+
+    python -m benchmarks.bench_versus REV [--frames 1000000] [--runs 2] [--keep DIR]
+                                          [--only stats:steady jsonl:coils ...]
+
+On a shared machine whose speed drifts by a quarter within minutes, two passes made minutes
+apart say little about a change; here every command runs on ``REV`` and on this checkout one
+after the other, ``--runs`` times, so both see the same state of the machine. ``REV`` is checked
+out into a temporary ``git worktree`` (removed at the end) and both are byte-compiled; each
+command runs in its own process from its tree (``python -m sniffer`` with the tree as the
+working directory, which puts that tree's packages first), output to ``/dev/null``. Captures are
+the benchmark captures of ``benchmarks/bench_memory.py``. The table gives every run's seconds
+and the ratio of the medians (earlier / this checkout: above 1 is faster now).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from benchmarks.bench_memory import benchmark_capture
+
+ROOT = Path(__file__).resolve().parent.parent
+#: (command, traffic) pairs timed unless --only names others.
+DEFAULT_CASES = ("stats:steady", "stats:polling", "jsonl:mixed", "jsonl:polling", "jsonl:coils", "mcap:mixed",
+                 "mcap:polling", "mcap:coils")
+COMMANDS = ("stats", "jsonl", "table", "mcap", "parquet")
+TRAFFICS = ("steady", "mixed", "polling", "coils")
+
+
+def _argv(command: str, capture: Path, scratch: Path) -> list[str]:
+    """The rtusniff arguments of a benchmark command (a new output under ``scratch`` where it writes one)."""
+    if command == "stats":
+        return ["stats", str(capture)]
+    if command == "jsonl":
+        return ["analyze", str(capture), "--format", "jsonl"]
+    if command == "table":
+        return ["analyze", str(capture)]
+    output = scratch / f"out-{time.monotonic_ns()}"
+    if command == "mcap":
+        return ["export", str(capture), "--mcap", f"{output}.mcap", "-q"]
+    return ["export", str(capture), "--parquet", str(output), "-q"]
+
+
+def _seconds(tree: Path, argv: list[str]) -> float:
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "sniffer", *argv], cwd=tree, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, check=False)
+    seconds = time.perf_counter() - start
+    if done.returncode != 0:
+        sys.exit(f"bench_versus: rtusniff {' '.join(argv)} in {tree} failed: {done.stderr.decode().strip()}")
+    return seconds
+
+
+def _case(text: str) -> tuple[str, str]:
+    command, _, traffic = text.partition(":")
+    if command not in COMMANDS or traffic not in TRAFFICS:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected COMMAND:TRAFFIC, COMMAND one of {', '.join(COMMANDS)}, "
+                                         f"TRAFFIC one of {', '.join(TRAFFICS)}")
+    return command, traffic
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("rev", help="the commit to compare with (anything git rev-parse takes)")
+    parser.add_argument("--frames", type=int, default=1_000_000)
+    parser.add_argument("--runs", type=int, default=2)
+    parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated captures in this folder")
+    parser.add_argument("--only", type=_case, nargs="+", default=[_case(c) for c in DEFAULT_CASES],
+                        metavar="COMMAND:TRAFFIC")
+    args = parser.parse_args()
+    commit = subprocess.run(["git", "rev-parse", "--short", args.rev], cwd=ROOT, capture_output=True, text=True,
+                            check=True).stdout.strip()
+    with tempfile.TemporaryDirectory() as tmp:
+        scratch, earlier = Path(tmp), Path(tmp) / "earlier"
+        subprocess.run(["git", "worktree", "add", "--detach", "-q", str(earlier), commit], cwd=ROOT, check=True)
+        try:
+            for tree in (earlier, ROOT):
+                subprocess.run([sys.executable, "-m", "compileall", "-q", "sniffer", "decoders"], cwd=tree,
+                               stdout=subprocess.DEVNULL, check=True)
+            print(f"{args.frames:,} frames, {args.runs} runs each, alternating; seconds")
+            print(f"{'command':<8} {'traffic':<8} {commit:>20} {'this checkout':>20} {'ratio':>6}")
+            for command, traffic in args.only:
+                capture = benchmark_capture(args.keep or scratch, args.frames, traffic)
+                times: dict[Path, list[float]] = {earlier: [], ROOT: []}
+                for _ in range(args.runs):
+                    for tree in (earlier, ROOT):
+                        times[tree].append(_seconds(tree, _argv(command, capture, scratch)))
+                ratio = statistics.median(times[earlier]) / statistics.median(times[ROOT])
+                shown = {tree: ", ".join(f"{s:.2f}" for s in figures) for tree, figures in times.items()}
+                print(f"{command:<8} {traffic:<8} {shown[earlier]:>20} {shown[ROOT]:>20} {ratio:>6.2f}")
+                for leftover in scratch.glob("out-*"):
+                    shutil.rmtree(leftover) if leftover.is_dir() else leftover.unlink()
+        finally:
+            subprocess.run(["git", "worktree", "remove", "--force", str(earlier)], cwd=ROOT, check=False)
+
+
+if __name__ == "__main__":
+    main()
