@@ -133,12 +133,13 @@ def zero_padded(data: bytes, start: int, end: int) -> bool:
     return False
 
 
-def searchable(head: bytes) -> bool:
+def searchable(head: bytes, lengths: list[int | None] | None = None) -> bool:
     """Whether only CRC search can find this frame's length: no rule gives one, or
-    FC 8 sub-function 0 (return query data), which echoes any number of bytes."""
+    FC 8 sub-function 0 (return query data), which echoes any number of bytes.
+    ``lengths``: :func:`rule_lengths` of ``head``, where the caller has them already."""
     if head[1] == DIAGNOSTICS:
         return len(head) >= 4 and head[2] == 0 and head[3] == 0
-    return not any(length is not None for length in rule_lengths(head))
+    return not any(length is not None for length in (rule_lengths(head) if lengths is None else lengths))
 
 
 #: A reading's direction, where the request and response rules differ; ``SEARCHED``: a
@@ -207,7 +208,7 @@ def valid_frames_at(data: bytes, start: int, stop: int, *, search_unknown: bool,
         direction = NO_DIRECTION if len(lengths) == 1 else (REQUEST_READING, RESPONSE_READING)[position]
         found.append((start + length, CRC_MATCH + prior, FrameFlag.NONE, MODBUS, direction))
     known = (function & ~EXCEPTION_BIT) in FUNCTION_NAMES or (function & ~EXCEPTION_BIT) in USER_DEFINED_FUNCTIONS
-    if (known or search_unknown) and searchable(head):
+    if (known or search_unknown) and searchable(head, lengths):
         score = CRC_MATCH + prior + LENGTH_SEARCHED
         for length in search.lengths(start, stop):
             if length not in lengths and not zero_padded(data, start, start + length):
