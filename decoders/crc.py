@@ -50,6 +50,15 @@ def crc_ok(frame: bytes) -> bool:
     return crc16_modbus(frame[:-2]) == frame[-2] | (frame[-1] << 8)
 
 
+#: Spans shorter than this never pass: a frame has an address and a function code before its CRC.
+MIN_CHECKED = 3
+#: Frame lengths checked in lockstep (see :func:`crc_ok_many`) when at least this many share one.
+LOCKSTEP_MIN_FRAMES = 16
+LOCKSTEP_MAX_LENGTH = 64
+#: :data:`CRC_TABLE` as an array, for the numpy paths below.
+_STEP_TABLE = np.array(CRC_TABLE, np.uint32)
+
+
 def crc_ok_many(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
     """CRC check of every frame ``data[offsets[i]:offsets[i+1]]``.
 
@@ -88,25 +97,16 @@ def crc_ok_many_reference(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.ND
     return valid
 
 
-#: Spans shorter than this never pass: a frame has an address and a function code before its CRC.
-MIN_CHECKED = 3
-#: Frame lengths checked in lockstep (see :func:`crc_ok_many`) when at least this many share one.
-LOCKSTEP_MIN_FRAMES = 16
-LOCKSTEP_MAX_LENGTH = 64
-
-
 def _pair_table() -> npt.NDArray[np.uint16]:
     """``table[r]``: the register after two bytes, where ``r`` is the register with the two
     bytes (the first low) already XORed in: their two table steps depend on ``r`` alone."""
     registers = np.arange(1 << 16, dtype=np.uint32)
-    step = np.array(CRC_TABLE, np.uint32)
     for _ in range(2):
-        registers = (registers >> 8) ^ step[registers & 0xFF]
+        registers = (registers >> 8) ^ _STEP_TABLE[registers & 0xFF]
     return registers.astype(np.uint16)
 
 
 _PAIR_TABLE = _pair_table()
-_BYTE_TABLE = np.array(CRC_TABLE, np.uint16)
 
 
 def _lockstep_remainders(frames: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint16]:
@@ -115,7 +115,7 @@ def _lockstep_remainders(frames: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint16
     register = np.full(count, 0xFFFF, np.uint16)
     first = size % 2
     if first:  # an odd length: one byte alone, then pairs
-        register = (register >> 8) ^ _BYTE_TABLE[(register ^ frames[:, 0]) & 0xFF]
+        register = ((register >> 8) ^ _STEP_TABLE[(register ^ frames[:, 0]) & 0xFF]).astype(np.uint16)
     pairs = frames[:, first:].astype(np.uint16)
     words = pairs[:, 0::2] | (pairs[:, 1::2] << 8)
     for column in range(words.shape[1]):
@@ -123,7 +123,6 @@ def _lockstep_remainders(frames: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint16
     return register
 
 
-_STEP_TABLE = np.array(CRC_TABLE, np.uint32)
 #: Spans up to this long are checked by :func:`crc_ok_spans`.
 MAX_SPAN = 320
 

@@ -44,15 +44,16 @@ class Memo(Generic[Key, Value]):
 
     def get_all(self, keys: list[Key], build: Callable[[int], Value]) -> list[Value]:
         """The value of every key, for a batch: repeats looked up in C (``map`` over the young
-        generation), the rest through :meth:`get`, and what neither holds built by
-        ``build(row)`` and kept (so a key that comes again later in the batch finds it)."""
+        generation), the rest as :meth:`get` finds them, and what neither holds built by
+        ``build(row)`` and kept as :meth:`put` keeps it (so a key that comes again later in the
+        batch finds it). Both are written out here rather than called: a batch of new frames
+        misses on every row, and ``tests/unit/test_memo.py`` holds this to the calls."""
         young = self._young
         values = list(map(young.get, keys))
         if None in values:
             old, size = self._old, self.size
             for row, value in enumerate(values):
                 if value is None:
-                    # get() and put() inlined: a batch of new frames misses on every row
                     key = keys[row]
                     found = young.get(key)  # built for an earlier row of this batch
                     if found is None:

@@ -16,7 +16,6 @@ from itertools import repeat
 from typing import Any, NamedTuple
 
 from decoders.message import Decoding, ParamValue
-from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.pdu import (
     COIL_ON,
     BitsResponse,
@@ -58,8 +57,7 @@ def param_runs(pdu: Pdu, request: Pdu | None) -> tuple[ParamRun, ...]:
 
 
 def _counted(pdu: ReadRequest | WriteMultipleResponse, request: Pdu | None) -> tuple[ParamRun, ...]:
-    count = pdu.count
-    return (ParamRun(pdu.address, count),) if 1 <= count <= MAX_QUANTITY[pdu.function] else ()
+    return (ParamRun(pdu.address, pdu.count),) if quantity_allowed(pdu) else ()
 
 
 def _registers(pdu: RegistersResponse, request: Pdu | None) -> tuple[ParamRun, ...]:

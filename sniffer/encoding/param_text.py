@@ -49,8 +49,8 @@ def params_pieces(runs: tuple[ParamRun, ...], before: bytes = b"") -> list[bytes
     for address, count, values in runs:
         if values is None and 0 < count <= SHORT_UNVALUED and address + count <= _WORDS:
             pieces.append(_UNVALUED_TEMPLATES[count] % tuple(range(address, address + count)))
-        elif count == 1 and address < _WORDS:  # a single register or coil: no lists to interleave
-            pieces += (_starts[address], _value_ends[values[0]] if values is not None else _NO_VALUE)
+        elif count == 1 and values is not None and address < _WORDS:  # one register or coil: nothing to interleave
+            pieces += (_starts[address], _value_ends[values[0]])
         elif count > 0:
             pieces += _run_pieces(address, count, values)
     if len(pieces) > 1:
