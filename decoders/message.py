@@ -14,6 +14,7 @@ from decoders.frame import Frame, FrameBatch, FrameFlag, flag_set, slice_frames
 
 if TYPE_CHECKING:
     from decoders.modbus.pdu import Pdu
+    from decoders.modbus.read_columns import ReadColumns
     from decoders.uss import UssTelegram
 
 
@@ -84,6 +85,8 @@ class Decoding:
 
 #: The decoding of a message no annotator has seen yet.
 UNDECODED = Decoding("")
+#: The decoding of a message an annotator left in columns (``AnnotatedBatch.reads``).
+IN_COLUMNS = Decoding("(decoded in columns)")
 
 
 # Not frozen (treat as immutable; only the annotator sets ``decoding`` on messages it has just
@@ -207,11 +210,14 @@ class AnnotatedBatch:
 
     ``rows``: the positions a filter kept, ``None`` for all. Iterating yields the kept
     messages as objects; sinks that can stay in columns read ``messages`` and ``decodings``.
+    ``reads``: the frames left in columns (:meth:`Annotator.annotate_columns`, only for sinks
+    that take them): their decodings are :data:`IN_COLUMNS`, and ``rows`` leaves them out.
     """
 
     messages: MessageBatch
     decodings: list[Decoding]
     rows: npt.NDArray[np.int64] | None = None
+    reads: ReadColumns | None = None
 
     def __len__(self) -> int:
         return len(self.decodings) if self.rows is None else len(self.rows)

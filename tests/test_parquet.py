@@ -253,3 +253,47 @@ def test_sigterm_mid_export_leaves_nothing_in_the_dataset(tmp_path: Path) -> Non
     _, err = process.communicate(timeout=60)
     assert process.returncode == 143 and err.strip() == "terminated", err
     assert not [path for path in dataset.rglob("*") if path.is_file()]
+
+
+def _generated(folder: Path, traffic: str) -> Path:
+    from benchmarks.bench_memory import benchmark_capture
+
+    return benchmark_capture(folder, 6000, traffic)
+
+
+def _real(folder: Path, name: str) -> Path:
+    if not available():
+        pytest.skip("needs ../shared/real beside the checkout")
+    copy = folder / name
+    shutil.copy(TEXT / name, copy)
+    return copy
+
+
+@pytest.mark.parametrize(("capture", "setting"), [
+    *[(lambda _, sample=sample: CAPTURES / sample, (["--profile", "atv71"], 0)) for sample in SAMPLES],
+    *[(lambda _, sample=sample: CAPTURES / sample, ([], 0)) for sample in ("atv71-plc-poll-usb.mcap", "xbt-hmi.mcap")],
+    (lambda folder: _generated(folder, "polling"), ([], 5000)),
+    (lambda folder: _generated(folder, "coils"), ([], 2000)),
+    (lambda folder: _generated(folder, "mixed"), ([], 0)),
+    *[(lambda folder, name=name: _real(folder, name), ([], 0)) for name in RECORDINGS],
+], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", *RECORDINGS])
+def test_reads_left_in_columns_write_the_same_tables(tmp_path: Path, cli: Callable[..., Any],
+                                                     monkeypatch: pytest.MonkeyPatch, capture: Callable[[Path], Path],
+                                                     setting: tuple[list[str], int]) -> None:
+    """The dataset written with plain reads left in columns (``AnnotatedBatch.reads``) is the one
+    written with every frame decoded (the plain path), row for row, in every table; real
+    recordings, the samples with and without their profile, generated traffic."""
+    from decoders.modbus.read_columns import ReadColumns
+    from sniffer.exports.outputs import ParquetSink
+
+    source, (options, least_in_columns) = capture(tmp_path), setting
+    in_columns = []
+    summaries = ReadColumns.summaries
+    monkeypatch.setattr(ReadColumns, "summaries",
+                        lambda self, data: in_columns.append(len(self)) or summaries(self, data))
+    assert cli("export", str(source), "--parquet", str(tmp_path / "columns"), "--jobs", "1", "-q", *options).code == 0
+    monkeypatch.setattr(ParquetSink, "takes_read_columns", False)
+    assert cli("export", str(source), "--parquet", str(tmp_path / "plain"), "--jobs", "1", "-q", *options).code == 0
+    for name in ("frames", "transactions", "values", "anomalies"):
+        assert table(tmp_path / "columns", name) == table(tmp_path / "plain", name), name
+    assert sum(in_columns) >= least_in_columns  # not vacuous: most frames of a polling bus stay in columns

@@ -15,11 +15,14 @@ again, never answered from before.
 
 from __future__ import annotations
 
-from collections import OrderedDict
+from collections.abc import Iterable
+
+import numpy as np
 
 from decoders.frame import USS
 from decoders.memo import Memo
 from decoders.message import (
+    IN_COLUMNS,
     NONE,
     ROLE_CODE,
     ROLE_ORDER,
@@ -42,16 +45,17 @@ from decoders.modbus.pdu import (
 )
 from decoders.modbus.pdu_parse import parse_pdu
 from decoders.modbus.quick import QuickRead, register_reads
+from decoders.modbus.read_columns import KEPT_REQUESTS, ReadColumns, find_reads
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.uss import parse_uss
 
-#: Decoded requests kept for their responses; older ones are answered or lost.
-KEPT_REQUESTS = 1024
 #: Decodings kept for repeats, per generation of the memo: what a bus repeats stays while
 #: one-off frames (changing values) pass through (an LRU that costs a dict lookup).
 KEPT_DECODINGS = 8192
 _AS_REQUEST = {Role.REQUEST, Role.BROADCAST}
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
+#: Read Device Identification (FC 43): an answer may give its slave a profile.
+IDENTIFICATION = 43
 _NOISE_CODE = ROLE_CODE[Role.NOISE]
 #: What of a request decoding its answer reads (see :func:`answer_context`).
 AnswerContext = tuple[object, ...] | None
@@ -67,22 +71,74 @@ class Annotator:
 
     def __init__(self, profiles: ProfileApplier | None = None) -> None:
         #: Open requests by frame index: their answer context and decoded PDU.
-        self._requests: OrderedDict[int, tuple[AnswerContext, Pdu]] = OrderedDict()
+        self._requests: dict[int, tuple[AnswerContext, Pdu]] = {}
         self._profiles = profiles
         self._decodings: Memo[DecodingKey, tuple[Decoding, AnswerContext]] = Memo(KEPT_DECODINGS)
 
     def annotate_batch(self, batch: MessageBatch) -> AnnotatedBatch:
         """Every message of the batch, decoded; repeats share one :class:`Decoding`.
         Stays in columns: message objects are built only for frames not seen before."""
+        decodings = self._annotate(batch, range(len(batch)), batch.role.tolist(), batch.frames.protocols().tolist(),
+                                   batch.request_index.tolist())
+        return AnnotatedBatch(batch, decodings)
+
+    def annotate_columns(self, batch: MessageBatch) -> AnnotatedBatch:
+        """:meth:`annotate_batch`, but the plain reads and their answers stay in columns
+        (:mod:`decoders.modbus.read_columns`): the result's ``reads``, and its ``rows`` the rest,
+        decoded as there. The annotator's state after it is the same."""
+        reads = self._reads(batch)
+        if reads is None:
+            return self.annotate_batch(batch)
+        first, requests = batch.frames.first_index, self._requests
+        for index in reads.earlier_requests:
+            del requests[index]
+        for position, function, address, count in reads.kept():
+            context = (ReadRequest, function, address, count)
+            requests[first + position] = (context, ReadRequest(function, address, count))
+        rest = np.ones(len(batch), np.bool_)
+        rest[reads.positions] = False
+        rows = np.flatnonzero(rest)
+        decodings = self._annotate(batch, rows.tolist(), batch.role[rows].tolist(),
+                                   batch.frames.protocols()[rows].tolist(), batch.request_index[rows].tolist())
+        return AnnotatedBatch(batch, decodings, rows, reads)
+
+    def _reads(self, batch: MessageBatch) -> ReadColumns | None:
+        """The reads of ``batch`` to keep in columns; ``None`` where it holds an identification
+        (FC 43 may give a slave a profile, which then names what its reads carry)."""
+        function = batch.function
+        if not len(batch) or (function == IDENTIFICATION).any():
+            return None
+        eligible = batch.frames.protocols() != USS
+        if self._profiles is not None:
+            slaves = np.unique(batch.slave)
+            plain = np.array([self._profiles.adds_nothing(int(slave)) for slave in slaves.tolist()], np.bool_)
+            eligible &= plain[np.searchsorted(slaves, batch.slave)]
+        return find_reads(batch, eligible, self._earlier_read)
+
+    def _earlier_read(self, index: int) -> tuple[int, int, int] | None:
+        kept = self._requests.get(index)
+        if kept is None or kept[0] is None or kept[0][0] is not ReadRequest:
+            return None
+        _, function, address, count = kept[0]
+        return int(function), int(address), int(count)  # type: ignore[call-overload]
+
+    def _annotate(self, batch: MessageBatch, positions: Iterable[int], roles: list[int], protocols: list[int],
+                  request_indexes: list[int]) -> list[Decoding]:
+        """The decodings of the messages at ``positions`` (the columns given: theirs), in a list
+        by position (what no position names: :data:`IN_COLUMNS`)."""
         frames = batch.frames
         data, offsets, first = frames.data, frames.offsets.tolist(), frames.first_index
-        rows = zip(batch.role.tolist(), frames.protocols().tolist(), batch.request_index.tolist(), strict=True)
-        decodings, requests, memo = [], self._requests, self._decodings
+        decodings, requests, memo = [IN_COLUMNS] * len(batch), self._requests, self._decodings
         # Only decoding a frame teaches the profiles (a new version) or fills the memo.
         recent, version = memo.recent(), self._version()
         fresh = _Fresh(self, batch)
-        for position, (role, protocol, request_index) in enumerate(rows):
-            context, request = _NO_REQUEST if request_index == NONE else requests.pop(request_index, _NO_REQUEST)
+        for position, role, protocol, request_index in zip(positions, roles, protocols, request_indexes, strict=True):
+            if request_index == NONE:
+                context, request = _NO_REQUEST
+            else:
+                context, request = requests.pop(request_index, _NO_REQUEST)
+                if first + position - request_index > KEPT_REQUESTS:
+                    context, request = _NO_REQUEST  # too long ago: read against nothing
             key = (role, protocol, data[offsets[position] : offsets[position + 1]], context, version)
             known = recent(key)
             if known is None:
@@ -94,10 +150,15 @@ class Annotator:
                 recent = memo.recent()
             if role == _REQUEST_CODE and known[0].pdu is not None:
                 requests[first + position] = (known[1], known[0].pdu)
-                if len(requests) > KEPT_REQUESTS:
-                    requests.popitem(last=False)
-            decodings.append(known[0])
-        return AnnotatedBatch(batch, decodings)
+            decodings[position] = known[0]
+        self._forget(first + len(batch))
+        return decodings
+
+    def _forget(self, next_index: int) -> None:
+        """Requests no answer from ``next_index`` on reads against, let go (now and then)."""
+        if len(self._requests) > 2 * KEPT_REQUESTS:
+            oldest = next_index - KEPT_REQUESTS
+            self._requests = {index: kept for index, kept in self._requests.items() if index >= oldest}
 
     def _version(self) -> int:
         return 0 if self._profiles is None else self._profiles.version
@@ -117,13 +178,13 @@ class Annotator:
         """The context and PDU of the request ``message`` answers, if it is still kept."""
         if message.request_index is None:
             return _NO_REQUEST
-        return self._requests.pop(message.request_index, _NO_REQUEST)
+        kept = self._requests.pop(message.request_index, _NO_REQUEST)
+        return _NO_REQUEST if message.frame.index - message.request_index > KEPT_REQUESTS else kept
 
     def _keep_request(self, index: int, context: AnswerContext, pdu: Pdu | None) -> None:
         if pdu is not None:
             self._requests[index] = (context, pdu)
-            if len(self._requests) > KEPT_REQUESTS:
-                self._requests.popitem(last=False)
+            self._forget(index + 1)
 
     def _decode(self, message: Message, request: Pdu | None) -> Message:
         frame = message.frame

@@ -33,6 +33,8 @@ _REQUEST, _BROADCAST = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST]
 _RESPONSE, _EXCEPTION = ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.EXCEPTION]
 _WRITES = frozenset({5, 6, 15, 16, 23})
 _TIMEOUT = int(FrameFlag.TIMEOUT)
+#: :attr:`ValueRows.emitting` after the last frame: past every frame index.
+AT_THE_END = 1 << 62
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,9 @@ class ValueRows(Sink):
         self._last: dict[tuple[int, int, str], object] = {}
         #: Value rows given to :meth:`output`.
         self.shown = 0
+        #: The frame index of the message being read (an output's row is found there; a written
+        #: row waits for its answer's); :data:`AT_THE_END` once the capture has ended.
+        self.emitting = 0
 
     def output(self, row: ValueRow) -> None:
         """A row, its params chosen and each one's validity set."""
@@ -97,6 +102,7 @@ class ValueRows(Sink):
         t_start = frames.t_start_ns.tolist()
         as_runs = self.takes_runs and self._choice.everything
         for position in batch.positions():
+            self.emitting = first + position
             decoding: Decoding = batch.decodings[position]
             kind = role[position]
             if kind in (_RESPONSE, _EXCEPTION) and request[position] != NONE:
@@ -162,6 +168,7 @@ class ValueRows(Sink):
         return True
 
     def finish(self, statistics: Statistics) -> None:
+        self.emitting = AT_THE_END
         for row in list(self._writes.values()):
             self._emit(row, crc_ok=False)  # no answer before the capture ended
         self._writes.clear()

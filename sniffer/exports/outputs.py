@@ -32,6 +32,7 @@ from sniffer.sinks import FileSink
 if TYPE_CHECKING:
     from sniffer.exports.mcap_export import McapExporter  # noqa: F401 - named in a string (imported when used)
     from sniffer.exports.parquet_export import ParquetDataset  # noqa: F401 - named in a string (imported when used)
+    from sniffer.exports.parquet_values import NumericValues
     from sniffer.exports.rerun_export import RerunExporter  # noqa: F401 - named in a string (imported when used)
 
 
@@ -100,6 +101,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
     """Decoded tables added to a Parquet dataset (:mod:`sniffer.exports.parquet_export`)."""
 
     wants_messages = True
+    takes_read_columns = True
 
     def __init__(self, folder: str, args: argparse.Namespace, analysis: Analysis) -> None:
         super().__init__(folder)
@@ -110,7 +112,8 @@ class ParquetSink(FileSink["ParquetDataset"]):
         self.prepare = lambda batch: encoder.columns(batch, np.arange(len(batch)))
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
-        from sniffer.exports.parquet_export import ParquetDataset, ValueCollector  # noqa: PLC0415 - pyarrow
+        from sniffer.exports.parquet_export import ParquetDataset  # noqa: PLC0415 - pyarrow
+        from sniffer.exports.parquet_values import ValueCollector  # noqa: PLC0415 - pyarrow
 
         metadata = _metadata(self._args, self._analysis)
         metadata |= {"line": line.format(), "timing": info.timing.value, "tool": f"rtusniff {version('rtusniff')}"}
@@ -122,29 +125,33 @@ class ParquetSink(FileSink["ParquetDataset"]):
                                                                                  metadata.items()})
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        from sniffer.exports.parquet_export import anomaly_columns, frame_columns  # noqa: PLC0415 - loaded already
+        from sniffer.exports.parquet_export import anomaly_columns, frame_columns, summaries  # noqa: PLC0415
+        from sniffer.exports.parquet_values import read_values  # noqa: PLC0415 - loaded already
 
         self.frames_written += len(batch.messages)
         if self.exporter is None:
             return
-        positions = np.asarray(batch.positions(), np.int64)
-        frames = batch.messages.frames
+        # Reads left in columns are no filter's leaving: every frame is written.
+        positions = np.arange(len(batch.messages)) if batch.reads is not None else np.asarray(batch.positions(),
+                                                                                               np.int64)
+        frames, texts = batch.messages.frames, summaries(batch)
         with self.writing():
-            self.exporter.add("frames", frames.t_start_ns[positions], frame_columns(batch, positions, self._source))
-            self.exporter.add("anomalies", *anomaly_columns(batch, positions))
+            self.exporter.add("frames", frames.t_start_ns[positions],
+                              frame_columns(batch, positions, self._source, texts))
+            self.exporter.add("anomalies", *anomaly_columns(batch, positions, texts))
             self._values.messages(batch)
-            self._add_values()
+            self._add_values(read_values(batch))
 
     @property
     def _source(self) -> str:
         return " + ".join(self._args.capture)
 
-    def _add_values(self) -> None:
-        from sniffer.exports.parquet_export import value_columns  # noqa: PLC0415 - loaded already
+    def _add_values(self, reads: NumericValues | None = None) -> None:
+        from sniffer.exports.parquet_values import value_columns  # noqa: PLC0415 - loaded already
 
         rows = self._values.take()
-        if rows and self.exporter is not None:
-            self.exporter.add("values", *value_columns(rows))
+        if (rows or (reads is not None and len(reads))) and self.exporter is not None:
+            self.exporter.add("values", *value_columns(rows, reads))
 
     def prepared(self, value: dict[str, npt.NDArray[np.int64]]) -> None:
         from sniffer.exports.parquet_export import transaction_columns  # noqa: PLC0415 - loaded already
@@ -154,7 +161,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
                 self.exporter.add("transactions", value["t_ns"], transaction_columns(value))
 
     def finish(self, statistics: Statistics) -> None:
-        from sniffer.exports.parquet_export import CollectedValues, value_columns  # noqa: PLC0415 - loaded already
+        from sniffer.exports.parquet_values import CollectedValues, value_columns  # noqa: PLC0415 - loaded already
 
         with self.writing():
             self._values.finish(statistics)

@@ -29,9 +29,7 @@ decoded (:mod:`sniffer.exports.parquet_writing`).
 from __future__ import annotations
 
 import contextlib
-import itertools
 import os
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,8 +40,6 @@ import pyarrow as pa
 from decoders.anomalies import KINDS, anomaly_masks
 from decoders.frame import flag_names_of
 from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch
-from decoders.stats import Statistics
-from sniffer.encoding.value_rows import ValueRow, ValueRows
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.parquet_writing import RowGroupWriter
 from sniffer.exports.transactions import OUTCOMES
@@ -171,8 +167,19 @@ class ParquetDataset:
                 part.partial.unlink()
 
 
-def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], capture: str) -> dict[str, pa.Array]:
-    """The ``frames`` table's columns of the messages at ``positions``."""
+def summaries(batch: AnnotatedBatch) -> list[str]:
+    """Every message's summary line, by position (of reads left in columns: written from them)."""
+    texts = [decoding.summary for decoding in batch.decodings]
+    reads = batch.reads
+    if reads is not None:
+        for position, text in zip(reads.positions.tolist(), reads.summaries(batch.messages.frames.data), strict=True):
+            texts[position] = text
+    return texts
+
+
+def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], capture: str,
+                  texts: list[str]) -> dict[str, pa.Array]:
+    """The ``frames`` table's columns of the messages at ``positions`` (``texts``: :func:`summaries`)."""
     messages, frames = batch.messages, batch.messages.frames
     offsets = frames.offsets
     starts, ends = offsets[:-1][positions], offsets[1:][positions]
@@ -182,7 +189,6 @@ def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], captu
     flag_lists = pa.array([flag_names_of(int(mask)) for mask in masks], pa.list_(pa.string())).take(
         pa.array(which.astype(np.int32)))
     latency = messages.latency_ns[positions]
-    decodings = batch.decodings_at(positions.tolist())
     columns = {
         "capture": dictionary(np.zeros(len(positions), np.int32), pa.array([capture])),
         "index": pa.array(positions + frames.first_index, pa.int64()),
@@ -198,7 +204,8 @@ def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], captu
         "latency_ms": pa.array(latency / 1e6, pa.float64(), mask=latency == NONE),
         "length": pa.array((ends - starts).astype(np.int32), pa.int32()),
         "bytes": raw,
-        "summary": pa.array([decoding.summary for decoding in decodings], pa.string()),
+        "summary": pa.array(texts if len(positions) == len(texts) else list(map(texts.__getitem__, positions.tolist())),
+                            pa.string()),
         "protocol": dictionary(frames.protocols()[positions], pa.array(["modbus", "uss"])),
     }
     return columns
@@ -219,9 +226,10 @@ def transaction_columns(values: dict[str, npt.NDArray[np.int64]]) -> dict[str, p
     }
 
 
-def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64]) -> tuple[
+def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], texts: list[str]) -> tuple[
         npt.NDArray[np.int64], dict[str, pa.Array]]:
-    """The ``anomalies`` table: a row per kind each message at ``positions`` shows, in frame order."""
+    """The ``anomalies`` table: a row per kind each message at ``positions`` shows, in frame order
+    (``texts``: :func:`summaries`)."""
     messages, frames = batch.messages, batch.messages.frames
     masks = anomaly_masks(messages)
     rows, kinds = [], []
@@ -232,7 +240,6 @@ def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64]) -> 
     row, kind = np.concatenate(rows), np.concatenate(kinds)
     order = np.lexsort((kind, row))
     row, kind = row[order], kind[order]
-    decodings = batch.decodings_at(row.tolist())
     t_ns = frames.t_start_ns[row]
     return t_ns, {
         "t": times(t_ns),
@@ -241,7 +248,7 @@ def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64]) -> 
         "function": nullable(messages.function[row], pa.int16()),
         "kind": dictionary(kind, _KINDS),
         "exception_code": nullable(messages.exception_code[row], pa.int16()),
-        "summary": pa.array([decoding.summary for decoding in decodings], pa.string()),
+        "summary": pa.array(list(map(texts.__getitem__, row.tolist())), pa.string()),
     }
 
 
@@ -256,120 +263,3 @@ def _binary(data: bytes, starts: npt.NDArray[np.int64], ends: npt.NDArray[np.int
         raw = np.frombuffer(data, np.uint8)
         body = raw[np.repeat(starts - offsets[:-1], lengths) + np.arange(int(offsets[-1]))].tobytes()
     return pa.Array.from_buffers(pa.binary(), len(starts), [None, pa.py_buffer(offsets), pa.py_buffer(body)])
-
-
-#: A value row as the ``values`` table holds it (from a profiled slave's params).
-ValueTuple = tuple[int, int, int, str, int, str | None, str | None, int | None, object, str | None, int | None, bool]
-_VALUE_KINDS = ["reported", "written"]
-
-
-@dataclass
-class CollectedValues:
-    """The value rows of some batches, in the order found: a tuple a value for profiled slaves'
-    params (``tuples``), the rows of runs as they are (``runs``); ``*_order``: each one's place."""
-
-    tuples: list[ValueTuple] = field(default_factory=list)
-    tuple_order: list[int] = field(default_factory=list)
-    runs: list[ValueRow] = field(default_factory=list)
-    run_order: list[int] = field(default_factory=list)
-
-    def __len__(self) -> int:
-        return len(self.tuples) + len(self.runs)
-
-
-class ValueCollector(ValueRows):
-    """The value rows of each batch, taken by :meth:`take` (the ``values`` table); rows of slaves
-    no profile speaks for stay runs until :func:`value_columns` lays them out with numpy."""
-
-    takes_runs = True
-
-    def __init__(self) -> None:
-        super().__init__()
-        self._found = CollectedValues()
-        self._rows_found = 0
-
-    def output(self, row: ValueRow) -> None:
-        found, self._rows_found = self._found, self._rows_found + 1
-        if row.runs is not None:
-            found.runs.append(row)
-            found.run_order.append(self._rows_found)
-            return
-        found.tuples.extend((row.t_ns, row.index, row.slave, row.kind, p.address, p.code, p.name, p.raw, p.value,
-                             p.unit, row.request_index, valid) for p, valid in zip(row.params, row.valid, strict=True))
-        found.tuple_order += [self._rows_found] * len(row.params)
-
-    def take(self) -> CollectedValues:
-        found, self._found = self._found, CollectedValues()
-        return found
-
-    def finish(self, statistics: Statistics) -> None:
-        super().finish(statistics)
-
-
-def value_columns(found: CollectedValues) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:
-    """The ``values`` table: (t, index, slave, kind, address, code, name, raw, value, text, unit,
-    request index, valid), a row per value, in the order found."""
-    tuples_t, tuple_columns = _tuple_columns(found.tuples)
-    if not found.runs:
-        return tuples_t, tuple_columns
-    runs_t, runs_columns, counts = _run_columns(found.runs)
-    if not found.tuples:
-        return runs_t, runs_columns
-    order = np.argsort(np.concatenate([np.array(found.tuple_order, np.int64),
-                                       np.repeat(np.array(found.run_order, np.int64), counts)]), kind="stable")
-    taken = pa.array(order)
-    columns = {name: pa.concat_arrays([tuple_columns[name], runs_columns[name]]).take(taken) for name in tuple_columns}
-    return np.concatenate([tuples_t, runs_t])[order], columns
-
-
-def _tuple_columns(rows: Sequence[ValueTuple]) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:
-    t_ns = np.fromiter((row[0] for row in rows), np.int64, len(rows))
-    values = [row[8] for row in rows]
-    numbers = [float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
-               for value in values]
-    kinds = np.array([_VALUE_KINDS.index(row[3]) for row in rows], np.int32)
-    return t_ns, {
-        "t": times(t_ns),
-        "index": pa.array([row[1] for row in rows], pa.int64()),
-        "slave": pa.array([row[2] for row in rows], pa.int16()),
-        "kind": dictionary(kinds, pa.array(_VALUE_KINDS)),
-        "address": pa.array([row[4] for row in rows], pa.int32()),
-        "code": pa.array([row[5] for row in rows], pa.string()),
-        "name": pa.array([row[6] for row in rows], pa.string()),
-        "raw": pa.array([row[7] for row in rows], pa.int32()),
-        "value": pa.array(numbers, pa.float64()),
-        "text": pa.array([value if isinstance(value, str) else None for value in values], pa.string()),
-        "unit": pa.array([row[9] for row in rows], pa.string()),
-        "request_index": pa.array([row[10] for row in rows], pa.int64()),
-        "valid": pa.array([row[11] for row in rows], pa.bool_()),
-    }
-
-
-def _run_columns(rows: list[ValueRow]) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array], npt.NDArray[np.int64]]:
-    """The columns of rows of runs, laid out by numpy; and the values per row."""
-    runs = [run for row in rows for run in row.runs or ()]
-    run_counts = np.array([run.size for run in runs], np.int64)
-    counts = np.array([sum(run.size for run in row.runs or ()) for row in rows], np.int64)
-    total = int(run_counts.sum())
-    first_of_run = np.repeat(np.cumsum(run_counts) - run_counts, run_counts)
-    address = np.repeat(np.array([run.address for run in runs], np.int64), run_counts) + np.arange(total) - first_of_run
-    raw = np.fromiter(itertools.chain.from_iterable(run.values or () for run in runs), np.int64, total)
-    t_ns = np.repeat(np.array([row.t_ns for row in rows], np.int64), counts)
-    request = np.array([NONE if row.request_index is None else row.request_index for row in rows], np.int64)
-    no_text = pa.nulls(total, pa.string())
-    return t_ns, {
-        "t": times(t_ns),
-        "index": pa.array(np.repeat(np.array([row.index for row in rows], np.int64), counts), pa.int64()),
-        "slave": pa.array(np.repeat(np.array([row.slave for row in rows], np.int64), counts), pa.int16()),
-        "kind": dictionary(np.repeat(np.array([_VALUE_KINDS.index(row.kind) for row in rows], np.int32), counts),
-                           pa.array(_VALUE_KINDS)),
-        "address": pa.array(address, pa.int32()),
-        "code": no_text,
-        "name": no_text,
-        "raw": pa.array(raw, pa.int32()),
-        "value": pa.array(raw.astype(np.float64), pa.float64()),
-        "text": no_text,
-        "unit": no_text,
-        "request_index": nullable(np.repeat(request, counts), pa.int64()),
-        "valid": pa.array(np.repeat(np.array([row.valid[0] for row in rows], np.bool_), counts), pa.bool_()),
-    }, counts

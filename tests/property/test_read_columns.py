@@ -1,0 +1,159 @@
+"""Hypothesis: reads kept in columns (:meth:`Annotator.annotate_columns`) say what the plain
+annotator says of the same frames: the summaries, the values each answer carries, the decodings
+of the rest, and what the annotator keeps for the next batch; batches cut anywhere."""
+
+from __future__ import annotations
+
+import struct
+from itertools import pairwise
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from decoders.frame import Frame, FrameFlag, frames_to_batch
+from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, MessageBatch, Role, slice_messages
+from decoders.modbus.annotate import Annotator
+from decoders.modbus.param_runs import addressed_values
+from decoders.modbus.read_columns import KEPT_REQUESTS
+from decoders.profiles.apply import ProfileApplier
+from sniffer.profiles_io import profile_book
+from tests.property.test_annotation_cache import PRODUCT, adu, matched, said
+
+SLAVES = st.sampled_from([1, 2, 7])
+
+
+@st.composite
+def exchanges(draw: st.DrawFn) -> list[bytes]:
+    """A read of coils, inputs or registers and (mostly) its answer, or something else a bus
+    carries between them; answers damaged, cut short, repeated or missing now and then."""
+    s, function = bytes([draw(SLAVES)]), draw(st.sampled_from([1, 2, 3, 4, 3, 3]))
+    address = draw(st.sampled_from([0, 3201, 8604, 12741, 65535, 100]))
+    count = draw(st.one_of(st.integers(1, 20), st.sampled_from([0, 125, 126, 2000, 2001])))
+    request = adu(s, bytes([function]), struct.pack(">HH", address, count))
+    size = (count + 7) // 8 if function <= 2 else 2 * count
+    size = min(max(size + draw(st.sampled_from([0, 0, 0, -1, 1])), 0), 250)
+    answer = adu(s, bytes([function, size]), draw(st.binary(min_size=size, max_size=size)))
+    match draw(st.integers(0, 9)):
+        case 0:
+            return [request]  # no answer
+        case 1:
+            return [request, answer, answer]  # answered twice
+        case 2:
+            return [request, adu(s, bytes([function | 0x80, 2]))]  # an exception
+        case 3:
+            damaged = bytearray(answer)
+            damaged[draw(st.integers(2, len(answer) - 1))] ^= 1
+            return [request, bytes(damaged)]
+        case 4:
+            return [adu(s, b"\x2b\x0e\x01\x00"), adu(s, b"\x2b\x0e\x01\x02\x00\x00\x03", PRODUCT)]
+        case 5:
+            return [adu(s, b"\x10", struct.pack(">HHB", address, 1, 2), b"\x00\x07"), adu(s, b"\x10",
+                                                                                       struct.pack(">HH", address, 1))]
+        case 6:
+            return [adu(b"\x00", bytes([function]), struct.pack(">HH", address, count))]  # a broadcast read
+    return [request, answer]
+
+
+def annotator(profiles: list[str] | None) -> Annotator:
+    return Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [])))
+
+
+def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
+    """One batch through both annotators; how many frames were kept in columns."""
+    expected = plain.annotate_batch(batch).decodings
+    got = columns.annotate_columns(batch)
+    reads = got.reads
+    kept = set() if reads is None else set(reads.positions.tolist())
+    assert got.positions() == [position for position in range(len(batch)) if position not in kept]
+    for position in got.positions():
+        assert said(got.decodings[position]) == said(expected[position])
+    if reads is not None:
+        data = batch.frames.data
+        assert all(got.decodings[position] is IN_COLUMNS for position in kept)
+        assert reads.summaries(data) == [expected[position].summary for position in reads.positions.tolist()]
+        at, address, value = reads.values(data)
+        carried = [(p, a, v) for p, a, v in zip(at.tolist(), address.tolist(), value.tolist(), strict=True)]
+        wanted = [(position, a, v) for position, answer in zip(reads.positions.tolist(), reads.is_answer.tolist(),
+                                                               strict=True) if answer
+                  for a, v in addressed_values(expected[position])]
+        assert carried == wanted
+        for position in kept:  # what a plain read's decoding says besides: nothing
+            assert expected[position].remarks == () and expected[position].device is None
+    assert columns._requests == plain._requests
+    return len(kept)
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
+       st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=atv71", "7=atv312"]]))
+def test_reads_in_columns_say_what_the_plain_path_says(traffic: list[list[bytes]], cuts: list[int],
+                                                       profiles: list[str] | None) -> None:
+    """The matcher's batches, cut again anywhere (between a request and its answer too)."""
+    columns, plain = annotator(profiles), annotator(profiles)
+    for batch in matched([data for exchange in traffic for data in exchange]):
+        bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
+        for start, stop in pairwise(bounds):
+            check_batch(columns, plain, slice_messages(batch, start, stop))
+
+
+def test_polling_is_kept_in_columns_and_answers_read_requests_of_the_batch_before() -> None:
+    """Not vacuous: plain polling is all in columns, across a cut between request and answer;
+    a slave a profile names stays out."""
+    poll = []
+    for slave in (1, 2):
+        poll += [adu(bytes([slave]), b"\x03", struct.pack(">HH", 3201, 2)),
+                 adu(bytes([slave]), b"\x03\x04\x00\x07\x86\x37")]
+    columns, plain = annotator(["2=atv71"]), annotator(["2=atv71"])
+    (batch,) = [batch for batch in matched(poll * 3) if len(batch)]
+    # Cut between a request and its answer (the matcher holds requests back; a pipeline may not).
+    kept = [check_batch(columns, plain, piece) for piece in (slice_messages(batch, 0, 5),
+                                                              slice_messages(batch, 5, len(batch)))]
+    assert kept == [3, 3]  # slave 1's frames (the answer after the cut too); slave 2's go through its profile
+
+
+def paired_by_hand(adus: list[bytes], answered: dict[int, int]) -> MessageBatch:
+    """``adus`` as one batch, requests but the frames ``answered`` maps to their request."""
+    frames = frames_to_batch([Frame(i, i * 10, i * 10 + 5, data, True, FrameFlag.NONE)
+                              for i, data in enumerate(adus)])
+    count = len(adus)
+    role = np.full(count, ROLE_CODE[Role.REQUEST], np.uint8)
+    paired = np.full(count, NONE, np.int64)
+    for answer, request in answered.items():
+        role[answer], paired[answer] = ROLE_CODE[Role.RESPONSE], request
+    return MessageBatch(frames, role, np.array([data[0] for data in adus], np.int16),
+                        np.array([data[1] for data in adus], np.int16), np.full(count, NONE, np.int16),
+                        np.zeros(count, np.uint16), paired, np.full(count, NONE, np.int64))
+
+
+def test_an_answer_too_long_after_its_request_is_read_against_nothing() -> None:
+    """Past ``KEPT_REQUESTS`` frames, in both paths alike (the plain path's rule); paired by
+    hand, as no matcher waits so long."""
+    request = adu(b"\x01\x03", struct.pack(">HH", 10, 1))
+    filler = [adu(b"\x05\x06", struct.pack(">HH", 1, n % 65536)) for n in range(KEPT_REQUESTS)]
+    answer = adu(b"\x01\x03\x02\x00\x2a")
+    for late in (0, 1):
+        batch = paired_by_hand([request, *filler[: KEPT_REQUESTS - 1 + late], answer], {KEPT_REQUESTS + late: 0})
+        assert check_batch(annotator(None), annotator(None), batch) == (1 if late else 2)
+        said_last = addressed_values(annotator(None).annotate_batch(batch).decodings[-1])
+        assert said_last == ([] if late else [(10, 42)])
+
+
+def test_only_the_first_answer_to_a_request_reads_it() -> None:
+    """Two answers paired with one request (no matcher here does so; the annotator allows it):
+    the second reads against nothing, in both paths."""
+    request = adu(b"\x01\x03", struct.pack(">HH", 10, 1))
+    answer = adu(b"\x01\x03\x02\x00\x2a")
+    batch = paired_by_hand([request, answer, answer], {1: 0, 2: 0})
+    assert check_batch(annotator(None), annotator(None), batch) == 2
+
+
+def test_values_of_coils_are_bits_least_significant_first() -> None:
+    traffic = [adu(b"\x01\x01", struct.pack(">HH", 20, 10)), adu(b"\x01\x01\x02\x05\x02")]
+    batch = matched(traffic)[0]
+    reads = annotator(None).annotate_columns(batch).reads
+    assert reads is not None
+    at, address, value = reads.values(batch.frames.data)
+    assert address.tolist() == list(range(20, 30))
+    assert value.tolist() == [1, 0, 1, 0, 0, 0, 0, 0, 0, 1]
+    assert np.all(at == 1)
