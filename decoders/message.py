@@ -13,8 +13,8 @@ import numpy.typing as npt
 from decoders.frame import Frame, FrameBatch, FrameFlag, flag_set, slice_frames
 
 if TYPE_CHECKING:
+    from decoders.modbus.columnar import ColumnarFrames
     from decoders.modbus.pdu import Pdu
-    from decoders.modbus.read_columns import ReadColumns
     from decoders.uss import UssTelegram
 
 
@@ -85,7 +85,7 @@ class Decoding:
 
 #: The decoding of a message no annotator has seen yet.
 UNDECODED = Decoding("")
-#: The decoding of a message an annotator left in columns (``AnnotatedBatch.reads``).
+#: The decoding of a message an annotator left in columns (``AnnotatedBatch.columnar``).
 IN_COLUMNS = Decoding("(decoded in columns)")
 
 
@@ -210,14 +210,14 @@ class AnnotatedBatch:
 
     ``rows``: the positions a filter kept, ``None`` for all. Iterating yields the kept
     messages as objects; sinks that can stay in columns read ``messages`` and ``decodings``.
-    ``reads``: the frames left in columns (:meth:`Annotator.annotate_columns`, only for sinks
-    that take them): their decodings are :data:`IN_COLUMNS`, and ``rows`` leaves them out.
+    ``columnar``: the frames left in columns (:meth:`Annotator.annotate_columnar`, only for
+    sinks that take them): their decodings are :data:`IN_COLUMNS`, and ``rows`` leaves them out.
     """
 
     messages: MessageBatch
     decodings: list[Decoding]
     rows: npt.NDArray[np.int64] | None = None
-    reads: ReadColumns | None = None
+    columnar: ColumnarFrames | None = None
 
     def __len__(self) -> int:
         return len(self.decodings) if self.rows is None else len(self.rows)

@@ -110,9 +110,9 @@ class Delivery:
         applier = ProfileApplier(profiles) if profiles is not None else None
         self._annotator = Annotator(applier) if self._message_sinks else None
         self._keep = keep
-        #: Whether plain reads stay in columns (every message sink takes them; nothing filtered).
+        #: Whether plain frames stay in columns (every message sink takes them; nothing filtered).
         self._in_columns = keep is None and not selection.windowed and selection.limit is None and all(
-            sink.takes_read_columns for sink in self._message_sinks)
+            sink.takes_columnar for sink in self._message_sinks)
         self._window = Window(selection) if selection.windowed else None
         #: Frames the message sinks may still get (``--limit``), ``None``: no limit.
         self._left = selection.limit
@@ -161,7 +161,7 @@ class Delivery:
             self.done = self._window.past
         kept = None
         if self._annotator is not None:
-            annotated = (self._annotator.annotate_columns(batch) if self._in_columns
+            annotated = (self._annotator.annotate_columnar(batch) if self._in_columns
                          else self._annotator.annotate_batch(batch))
             kept = annotated if self._keep is None else annotated.select(self._keep(annotated))
         if self._left is not None:

@@ -9,7 +9,7 @@ of the list it was given,
 * per decoded batch: ``frames`` with the framed and paired messages in columns,
   before annotation (``wants_frames``), then ``messages`` with the annotated
   batch (``wants_messages``: only then does the pipeline annotate; its plain reads
-  in columns for sinks that all ``takes_read_columns``), then
+  in columns for sinks that all ``takes_columnar``), then
   ``prepared`` with what the sink's ``prepare`` made of that batch;
 * ``gap`` where a live capture skipped reads it could not decode in time;
 * ``finish`` once, with the statistics of the whole capture (counted only when
@@ -45,9 +45,9 @@ class Sink:
     wants_frames = False
     wants_messages = False
     wants_statistics = False
-    #: Whether ``messages`` takes plain reads left in columns (``AnnotatedBatch.reads``): when
+    #: Whether ``messages`` takes plain frames left in columns (``AnnotatedBatch.columnar``): when
     #: every sink that wants messages does, and nothing is filtered, they are left so.
-    takes_read_columns = False
+    takes_columnar = False
     #: Work on a framed batch, where it is framed (see the module docstring); ``None``: none.
     prepare: Callable[[MessageBatch], Any] | None = None
 

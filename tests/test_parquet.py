@@ -280,19 +280,19 @@ def _real(folder: Path, name: str) -> Path:
 def test_reads_left_in_columns_write_the_same_tables(tmp_path: Path, cli: Callable[..., Any],
                                                      monkeypatch: pytest.MonkeyPatch, capture: Callable[[Path], Path],
                                                      setting: tuple[list[str], int]) -> None:
-    """The dataset written with plain reads left in columns (``AnnotatedBatch.reads``) is the one
+    """The dataset written with plain reads left in columns (``AnnotatedBatch.columnar``) is the one
     written with every frame decoded (the plain path), row for row, in every table; real
     recordings, the samples with and without their profile, generated traffic."""
-    from decoders.modbus.read_columns import ReadColumns
+    from decoders.modbus.columnar import ColumnarFrames
     from sniffer.exports.outputs import ParquetSink
 
     source, (options, least_in_columns) = capture(tmp_path), setting
     in_columns = []
-    summaries = ReadColumns.summaries
-    monkeypatch.setattr(ReadColumns, "summaries",
+    summaries = ColumnarFrames.summaries
+    monkeypatch.setattr(ColumnarFrames, "summaries",
                         lambda self, data: in_columns.append(len(self)) or summaries(self, data))
     assert cli("export", str(source), "--parquet", str(tmp_path / "columns"), "--jobs", "1", "-q", *options).code == 0
-    monkeypatch.setattr(ParquetSink, "takes_read_columns", False)
+    monkeypatch.setattr(ParquetSink, "takes_columnar", False)
     assert cli("export", str(source), "--parquet", str(tmp_path / "plain"), "--jobs", "1", "-q", *options).code == 0
     for name in ("frames", "transactions", "values", "anomalies"):
         assert table(tmp_path / "columns", name) == table(tmp_path / "plain", name), name

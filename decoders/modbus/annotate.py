@@ -33,6 +33,8 @@ from decoders.message import (
     Role,
 )
 from decoders.modbus.codes import function_name
+from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
+from decoders.modbus.columnar_find import find_columnar
 from decoders.modbus.layouts import fits_request
 from decoders.modbus.param_runs import LazyParams
 from decoders.modbus.pdu import (
@@ -45,7 +47,6 @@ from decoders.modbus.pdu import (
 )
 from decoders.modbus.pdu_parse import parse_pdu
 from decoders.modbus.quick import QuickRead, register_reads
-from decoders.modbus.read_columns import KEPT_REQUESTS, ReadColumns, find_reads
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.uss import parse_uss
 
@@ -82,29 +83,29 @@ class Annotator:
                                    batch.request_index.tolist())
         return AnnotatedBatch(batch, decodings)
 
-    def annotate_columns(self, batch: MessageBatch) -> AnnotatedBatch:
-        """:meth:`annotate_batch`, but the plain reads and their answers stay in columns
-        (:mod:`decoders.modbus.read_columns`): the result's ``reads``, and its ``rows`` the rest,
-        decoded as there. The annotator's state after it is the same."""
-        reads = self._reads(batch)
-        if reads is None:
+    def annotate_columnar(self, batch: MessageBatch) -> AnnotatedBatch:
+        """:meth:`annotate_batch`, but the commonest frames of slaves no profile names stay in
+        columns (:mod:`decoders.modbus.columnar`): the result's ``columnar``, and its ``rows``
+        the rest, decoded as there. The annotator's state after it is the same."""
+        columnar = self._columnar(batch)
+        if columnar is None:
             return self.annotate_batch(batch)
         first, requests = batch.frames.first_index, self._requests
-        for index in reads.earlier_requests:
+        for index in columnar.earlier_requests:
             del requests[index]
-        for position, function, address, count in reads.kept():
+        for position, function, address, count in columnar.kept():
             context = (ReadRequest, function, address, count)
             requests[first + position] = (context, ReadRequest(function, address, count))
         rest = np.ones(len(batch), np.bool_)
-        rest[reads.positions] = False
+        rest[columnar.positions] = False
         rows = np.flatnonzero(rest)
         decodings = self._annotate(batch, rows.tolist(), batch.role[rows].tolist(),
                                    batch.frames.protocols()[rows].tolist(), batch.request_index[rows].tolist())
-        return AnnotatedBatch(batch, decodings, rows, reads)
+        return AnnotatedBatch(batch, decodings, rows, columnar)
 
-    def _reads(self, batch: MessageBatch) -> ReadColumns | None:
-        """The reads of ``batch`` to keep in columns; ``None`` where it holds an identification
-        (FC 43 may give a slave a profile, which then names what its reads carry)."""
+    def _columnar(self, batch: MessageBatch) -> ColumnarFrames | None:
+        """The frames of ``batch`` to keep in columns; ``None`` where it holds an identification
+        (FC 43 may give a slave a profile, which then names what its frames carry)."""
         function = batch.function
         if not len(batch) or (function == IDENTIFICATION).any():
             return None
@@ -113,7 +114,7 @@ class Annotator:
             slaves = np.unique(batch.slave)
             plain = np.array([self._profiles.adds_nothing(int(slave)) for slave in slaves.tolist()], np.bool_)
             eligible &= plain[np.searchsorted(slaves, batch.slave)]
-        return find_reads(batch, eligible, self._earlier_read)
+        return find_columnar(batch, eligible, self._earlier_read)
 
     def _earlier_read(self, index: int) -> tuple[int, int, int] | None:
         kept = self._requests.get(index)

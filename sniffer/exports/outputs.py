@@ -101,7 +101,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
     """Decoded tables added to a Parquet dataset (:mod:`sniffer.exports.parquet_export`)."""
 
     wants_messages = True
-    takes_read_columns = True
+    takes_columnar = True
 
     def __init__(self, folder: str, args: argparse.Namespace, analysis: Analysis) -> None:
         super().__init__(folder)
@@ -126,13 +126,13 @@ class ParquetSink(FileSink["ParquetDataset"]):
 
     def messages(self, batch: AnnotatedBatch) -> None:
         from sniffer.exports.parquet_export import anomaly_columns, frame_columns, summaries  # noqa: PLC0415
-        from sniffer.exports.parquet_values import read_values  # noqa: PLC0415 - loaded already
+        from sniffer.exports.parquet_values import columnar_values  # noqa: PLC0415 - loaded already
 
         self.frames_written += len(batch.messages)
         if self.exporter is None:
             return
-        # Reads left in columns are no filter's leaving: every frame is written.
-        positions = np.arange(len(batch.messages)) if batch.reads is not None else np.asarray(batch.positions(),
+        # Frames left in columns are no filter's leaving: every frame is written.
+        positions = np.arange(len(batch.messages)) if batch.columnar is not None else np.asarray(batch.positions(),
                                                                                                np.int64)
         frames, texts = batch.messages.frames, summaries(batch)
         with self.writing():
@@ -140,18 +140,18 @@ class ParquetSink(FileSink["ParquetDataset"]):
                               frame_columns(batch, positions, self._source, texts))
             self.exporter.add("anomalies", *anomaly_columns(batch, positions, texts))
             self._values.messages(batch)
-            self._add_values(read_values(batch))
+            self._add_values(columnar_values(batch))
 
     @property
     def _source(self) -> str:
         return " + ".join(self._args.capture)
 
-    def _add_values(self, reads: NumericValues | None = None) -> None:
+    def _add_values(self, columnar: NumericValues | None = None) -> None:
         from sniffer.exports.parquet_values import value_columns  # noqa: PLC0415 - loaded already
 
         rows = self._values.take()
-        if (rows or (reads is not None and len(reads))) and self.exporter is not None:
-            self.exporter.add("values", *value_columns(rows, reads))
+        if (rows or (columnar is not None and len(columnar))) and self.exporter is not None:
+            self.exporter.add("values", *value_columns(rows, columnar))
 
     def prepared(self, value: dict[str, npt.NDArray[np.int64]]) -> None:
         from sniffer.exports.parquet_export import transaction_columns  # noqa: PLC0415 - loaded already

@@ -52,6 +52,11 @@ TIME = pa.timestamp("ns", tz="UTC")
 _ROLES = pa.array([role.value for role in ROLE_ORDER])
 _OUTCOMES = pa.array(OUTCOMES)
 _KINDS = pa.array(list(KINDS))
+#: Columns of few distinct values, dictionary-encoded in the files (the others, times, indexes,
+#: bytes and summaries, would only grow a dictionary to throw away: 40 % of the time it takes to
+#: write a frame table, and 25 % more bytes, measured on 1 M frames).
+DICTIONARY_COLUMNS = ["capture", "slave", "function", "role", "exception_code", "flags", "protocol", "outcome",
+                      "kind", "code", "name", "unit", "text"]
 
 
 def dictionary(codes: npt.NDArray[np.integer], names: pa.Array) -> pa.DictionaryArray:
@@ -90,7 +95,7 @@ class ParquetDataset:
         self.files: list[Path] = []
         #: Each table's columns, known from its first rows (or an empty batch of them).
         self._schemas: dict[str, pa.Schema] = {}
-        self._writer = RowGroupWriter()
+        self._writer = RowGroupWriter(DICTIONARY_COLUMNS)
 
     def add(self, table: str, t_ns: npt.NDArray[np.int64], columns: dict[str, pa.Array]) -> None:
         """Rows of ``table`` (``t_ns``: each row's time, which chooses its date's file)."""
@@ -168,11 +173,12 @@ class ParquetDataset:
 
 
 def summaries(batch: AnnotatedBatch) -> list[str]:
-    """Every message's summary line, by position (of reads left in columns: written from them)."""
+    """Every message's summary line, by position (of frames left in columns: written from them)."""
     texts = [decoding.summary for decoding in batch.decodings]
-    reads = batch.reads
-    if reads is not None:
-        for position, text in zip(reads.positions.tolist(), reads.summaries(batch.messages.frames.data), strict=True):
+    columnar = batch.columnar
+    if columnar is not None:
+        for position, text in zip(columnar.positions.tolist(), columnar.summaries(batch.messages.frames.data),
+                                  strict=True):
             texts[position] = text
     return texts
 

@@ -2,8 +2,8 @@
 found (the rule of :mod:`sniffer.encoding.value_rows`).
 
 Three sources make its rows: values a profile names (a tuple each, names and units as text),
-runs of values no profile names (laid out by numpy), and the answers to reads the annotator left
-in columns (``AnnotatedBatch.reads``: laid out by numpy from the frames' bytes, no object per
+runs of values no profile names (laid out by numpy), and the frames the annotator left in
+columns (``AnnotatedBatch.columnar``: laid out by numpy from the frames' bytes, no object per
 frame). Each row carries the frame index where it was found (a written value is found at its
 answer), which puts the three back in one order.
 """
@@ -26,7 +26,7 @@ from sniffer.exports.parquet_export import dictionary, nullable, times
 #: A value row as the ``values`` table holds it (from a profiled slave's params).
 ValueTuple = tuple[int, int, int, str, int, str | None, str | None, int | None, object, str | None, int | None, bool]
 _VALUE_KINDS = ["reported", "written"]
-_REPORTED = _VALUE_KINDS.index("reported")
+_REPORTED, _WRITTEN = _VALUE_KINDS.index("reported"), _VALUE_KINDS.index("written")
 
 
 @dataclass
@@ -59,8 +59,8 @@ class NumericValues:
     request_index: npt.NDArray[np.int64]
     valid: npt.NDArray[np.bool_]
     found: npt.NDArray[np.int64]
-    #: The place of each row's run among the rows found (0 for the answers to reads in columns,
-    #: which are found at frames where nothing else is).
+    #: The place of each row's run among the rows found (for frames in columns, which are found
+    #: where no other row is: 0 for a write's values, 1 for its answer's, as the rule has them).
     order: npt.NDArray[np.int64]
 
     def __len__(self) -> int:
@@ -98,36 +98,35 @@ class ValueCollector(ValueRows):
         super().finish(statistics)
 
 
-def read_values(batch: AnnotatedBatch) -> NumericValues | None:
-    """The values the answers to reads left in columns carry (every one valid: their CRC holds)."""
-    reads = batch.reads
-    if reads is None:
+def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
+    """The values of the frames left in columns (every one valid: their CRC holds, and a write
+    kept in columns was confirmed)."""
+    columnar = batch.columnar
+    if columnar is None:
         return None
     messages, frames = batch.messages, batch.messages.frames
-    position, address, raw = reads.values(frames.data)
-    answers = reads.is_answer
-    index = position + frames.first_index
-    none = np.zeros(len(position), np.int64)
-    return NumericValues(frames.t_start_ns[position], index, messages.slave[position].astype(np.int64),
-                         np.full(len(position), _REPORTED, np.int32), address, raw,
-                         np.repeat(reads.request[answers], reads.count[answers]), np.ones(len(position), np.bool_),
-                         found=index, order=none)
+    first = frames.first_index
+    rows = columnar.values(frames.data)
+    index = rows.frame + first
+    return NumericValues(frames.t_start_ns[rows.frame], index, messages.slave[rows.frame].astype(np.int64),
+                         np.where(rows.written, _WRITTEN, _REPORTED).astype(np.int32), rows.address, rows.raw,
+                         np.where(rows.written, index, rows.request), np.ones(len(index), np.bool_),
+                         found=rows.found + first, order=np.where(rows.written, 0, 1))
 
 
 def value_columns(found: CollectedValues, numeric: NumericValues | None = None) -> tuple[
         npt.NDArray[np.int64], dict[str, pa.Array]]:
     """The ``values`` table: (t, index, slave, kind, address, code, name, raw, value, text, unit,
     request index, valid), a row per value, in the order found (``numeric``: more rows, of the
-    reads left in columns)."""
+    frames left in columns)."""
     parts = [] if numeric is None or not len(numeric) else [numeric]
     if found.runs:
         parts.insert(0, _run_values(found))
     if not parts:
         return _tuple_columns(found.tuples)
-    laid_out = parts[0] if len(parts) == 1 else NumericValues(*(
-        np.concatenate([getattr(part, name) for part in parts]) for name in NumericValues.__dataclass_fields__))
+    laid_out = parts[0] if len(parts) == 1 else _in_order(parts)
     numeric_t, numeric_columns = _numeric_columns(laid_out)
-    if not found.tuples and len(parts) == 1:
+    if not found.tuples:
         return numeric_t, numeric_columns
     tuples_t, tuple_columns = _tuple_columns(found.tuples)
     order = np.lexsort((np.concatenate([np.array(found.tuple_order, np.int64), laid_out.order]),
@@ -136,6 +135,14 @@ def value_columns(found: CollectedValues, numeric: NumericValues | None = None) 
     columns = {name: pa.concat_arrays([tuple_columns[name], numeric_columns[name]]).take(taken)
                for name in tuple_columns}
     return np.concatenate([tuples_t, numeric_t])[order], columns
+
+
+def _in_order(parts: list[NumericValues]) -> NumericValues:
+    """The rows of ``parts`` as one, in the order found."""
+    joined = [np.concatenate([getattr(part, name) for part in parts]) for name in NumericValues.__dataclass_fields__]
+    rows = NumericValues(*joined)
+    order = np.lexsort((rows.order, rows.found))
+    return NumericValues(*(column[order] for column in joined))
 
 
 def _tuple_columns(rows: Sequence[ValueTuple]) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:

@@ -27,7 +27,10 @@ _CLOSE, _ABANDON = "close", "abandon"
 class RowGroupWriter:
     """Writes row groups to their files, in the order handed over, in a thread of its own."""
 
-    def __init__(self) -> None:
+    def __init__(self, dictionary_columns: list[str]) -> None:
+        """``dictionary_columns``: the columns dictionary-encoded (those of few distinct values;
+        trying it on the others costs time and bytes)."""
+        self._dictionary_columns = dictionary_columns
         self._queue: queue.Queue[tuple[Path, pa.Table] | str] = queue.Queue(QUEUED_WRITES)
         self._writers: dict[Path, pq.ParquetWriter] = {}
         #: The first failure of the thread (a full disk); the thread then drops what comes.
@@ -72,7 +75,8 @@ class RowGroupWriter:
             try:
                 writer = self._writers.get(path)
                 if writer is None:
-                    writer = self._writers[path] = pq.ParquetWriter(path, table.schema, compression="zstd")
+                    writer = self._writers[path] = pq.ParquetWriter(
+                        path, table.schema, compression="zstd", use_dictionary=self._dictionary_columns)
                 writer.write_table(table)
             except Exception as exc:  # an OSError mostly: told to the caller at its next call
                 self.failure = exc

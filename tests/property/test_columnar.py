@@ -1,6 +1,7 @@
-"""Hypothesis: reads kept in columns (:meth:`Annotator.annotate_columns`) say what the plain
-annotator says of the same frames: the summaries, the values each answer carries, the decodings
-of the rest, and what the annotator keeps for the next batch; batches cut anywhere."""
+"""Hypothesis: frames kept in columns (:meth:`Annotator.annotate_columnar`) say what the plain
+annotator says of the same frames: the summaries, the values each carries (where the value rows'
+rule finds them), the decodings of the rest, and what the annotator keeps for the next batch;
+batches cut anywhere."""
 
 from __future__ import annotations
 
@@ -12,10 +13,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from decoders.frame import Frame, FrameFlag, frames_to_batch
-from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, MessageBatch, Role, slice_messages
+from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, MessageBatch, Role, slice_messages
 from decoders.modbus.annotate import Annotator
+from decoders.modbus.columnar import KEPT_REQUESTS, WRITE, ColumnarFrames
 from decoders.modbus.param_runs import addressed_values
-from decoders.modbus.read_columns import KEPT_REQUESTS
 from decoders.profiles.apply import ProfileApplier
 from sniffer.profiles_io import profile_book
 from tests.property.test_annotation_cache import PRODUCT, adu, matched, said
@@ -25,15 +26,25 @@ SLAVES = st.sampled_from([1, 2, 7])
 
 @st.composite
 def exchanges(draw: st.DrawFn) -> list[bytes]:
-    """A read of coils, inputs or registers and (mostly) its answer, or something else a bus
-    carries between them; answers damaged, cut short, repeated or missing now and then."""
-    s, function = bytes([draw(SLAVES)]), draw(st.sampled_from([1, 2, 3, 4, 3, 3]))
-    address = draw(st.sampled_from([0, 3201, 8604, 12741, 65535, 100]))
-    count = draw(st.one_of(st.integers(1, 20), st.sampled_from([0, 125, 126, 2000, 2001])))
-    request = adu(s, bytes([function]), struct.pack(">HH", address, count))
-    size = (count + 7) // 8 if function <= 2 else 2 * count
-    size = min(max(size + draw(st.sampled_from([0, 0, 0, -1, 1])), 0), 250)
-    answer = adu(s, bytes([function, size]), draw(st.binary(min_size=size, max_size=size)))
+    """A read or a write and (mostly) its answer, or something else a bus carries between them;
+    answers damaged, repeated or missing now and then, counts and byte counts off now and then."""
+    s, function = bytes([draw(SLAVES)]), draw(st.sampled_from([1, 2, 3, 4, 3, 5, 6, 15, 16]))
+    address = draw(st.sampled_from([0, 3201, 8604, 12741, 12701, 65535, 100]))
+    count = draw(st.one_of(st.integers(1, 20), st.sampled_from([0, 123, 124, 125, 126, 1968, 1969, 2000, 2001])))
+    off = draw(st.sampled_from([0, 0, 0, -1, 1]))
+    if function <= 4:
+        request = adu(s, bytes([function]), struct.pack(">HH", address, count))
+        size = min(max(((count + 7) // 8 if function <= 2 else 2 * count) + off, 0), 250)
+        answer = adu(s, bytes([function, size]), draw(st.binary(min_size=size, max_size=size)))
+    elif function <= 6:
+        value = draw(st.sampled_from([0xFF00, 0, 1, 0x8000, 1500]))
+        request = answer = adu(s, bytes([function]), struct.pack(">HH", address, value))
+    else:
+        count = min(count, 240)
+        size = min(max(((count + 7) // 8 if function == 15 else 2 * count) + off, 0), 246)
+        request = adu(s, bytes([function]), struct.pack(">HHB", address, count, size),
+                      draw(st.binary(min_size=size, max_size=size)))
+        answer = adu(s, bytes([function]), struct.pack(">HH", address, count + draw(st.sampled_from([0, 0, 1]))))
     match draw(st.integers(0, 9)):
         case 0:
             return [request]  # no answer
@@ -48,10 +59,7 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
         case 4:
             return [adu(s, b"\x2b\x0e\x01\x00"), adu(s, b"\x2b\x0e\x01\x02\x00\x00\x03", PRODUCT)]
         case 5:
-            return [adu(s, b"\x10", struct.pack(">HHB", address, 1, 2), b"\x00\x07"), adu(s, b"\x10",
-                                                                                       struct.pack(">HH", address, 1))]
-        case 6:
-            return [adu(b"\x00", bytes([function]), struct.pack(">HH", address, count))]  # a broadcast read
+            return [adu(b"\x00", request[1:-2])]  # a broadcast
     return [request, answer]
 
 
@@ -59,11 +67,29 @@ def annotator(profiles: list[str] | None) -> Annotator:
     return Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [])))
 
 
+def expected_values(batch: MessageBatch, decodings: list[Decoding],
+                    columnar: ColumnarFrames) -> list[tuple[int, ...]]:
+    """The value rows' rule, from the plain path's decodings: an answer reports its values where
+    it is; a write's values are written where its answer is, before that answer's own."""
+    first, request = batch.frames.first_index, batch.request_index.tolist()
+    rows = []
+    for position, kind in zip(columnar.positions.tolist(), columnar.kind.tolist(), strict=True):
+        written = kind == WRITE
+        found = request.index(first + position) if written else position
+        if written or request[position] != NONE:
+            for address, raw in addressed_values(decodings[position]):
+                if raw is not None:
+                    rows.append((found, not written, position, written, address, raw,
+                                 -1 if written else request[position]))
+    rows.sort(key=lambda row: row[:2])
+    return [(frame, found, written, address, raw, asked) for found, _, frame, written, address, raw, asked in rows]
+
+
 def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
     """One batch through both annotators; how many frames were kept in columns."""
     expected = plain.annotate_batch(batch).decodings
-    got = columns.annotate_columns(batch)
-    reads = got.reads
+    got = columns.annotate_columnar(batch)
+    reads = got.columnar
     kept = set() if reads is None else set(reads.positions.tolist())
     assert got.positions() == [position for position in range(len(batch)) if position not in kept]
     for position in got.positions():
@@ -72,13 +98,8 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
         data = batch.frames.data
         assert all(got.decodings[position] is IN_COLUMNS for position in kept)
         assert reads.summaries(data) == [expected[position].summary for position in reads.positions.tolist()]
-        at, address, value = reads.values(data)
-        carried = [(p, a, v) for p, a, v in zip(at.tolist(), address.tolist(), value.tolist(), strict=True)]
-        wanted = [(position, a, v) for position, answer in zip(reads.positions.tolist(), reads.is_answer.tolist(),
-                                                               strict=True) if answer
-                  for a, v in addressed_values(expected[position])]
-        assert carried == wanted
-        for position in kept:  # what a plain read's decoding says besides: nothing
+        assert list(zip(*reads.values(data), strict=True)) == expected_values(batch, expected, reads)
+        for position in kept:  # what a plain frame's decoding says besides: nothing
             assert expected[position].remarks == () and expected[position].device is None
     assert columns._requests == plain._requests
     return len(kept)
@@ -151,9 +172,23 @@ def test_only_the_first_answer_to_a_request_reads_it() -> None:
 def test_values_of_coils_are_bits_least_significant_first() -> None:
     traffic = [adu(b"\x01\x01", struct.pack(">HH", 20, 10)), adu(b"\x01\x01\x02\x05\x02")]
     batch = matched(traffic)[0]
-    reads = annotator(None).annotate_columns(batch).reads
+    reads = annotator(None).annotate_columnar(batch).columnar
     assert reads is not None
-    at, address, value = reads.values(batch.frames.data)
-    assert address.tolist() == list(range(20, 30))
-    assert value.tolist() == [1, 0, 1, 0, 0, 0, 0, 0, 0, 1]
-    assert np.all(at == 1)
+    values = reads.values(batch.frames.data)
+    assert values.address.tolist() == list(range(20, 30))
+    assert values.raw.tolist() == [1, 0, 1, 0, 0, 0, 0, 0, 0, 1]
+    assert np.all(values.frame == 1)
+
+
+def test_writes_at_the_edges_say_what_the_plain_path_says() -> None:
+    """Counts at Modbus's limits and a confirmation past them, a coil written with neither ON
+    nor OFF, more coils than a summary shows."""
+    traffic = []
+    for function, count, confirmed in ((16, 123, 123), (16, 123, 124), (15, 1968, 1969), (15, 33, 33)):
+        size = (count + 7) // 8 if function == 15 else 2 * count
+        request = adu(b"\x01", bytes([function]), struct.pack(">HHB", 40, count, size), bytes(range(size)))
+        traffic += [request, adu(b"\x01", bytes([function]), struct.pack(">HH", 40, confirmed))]
+    traffic += [adu(b"\x01\x05", struct.pack(">HH", 7, 0x1234))] * 2
+    # Paired by hand: the matcher pairs no confirmation that differs from its write.
+    batch = paired_by_hand(traffic, {answer: answer - 1 for answer in range(1, len(traffic), 2)})
+    assert check_batch(annotator(None), annotator(None), batch) == 6  # not the confirmations past the limit

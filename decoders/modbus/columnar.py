@@ -1,0 +1,158 @@
+"""The commonest frames kept in columns: no PDU, decoding or param object for them.
+
+A master's reads and writes and its slaves' answers are most frames of a bus; where the values
+change, each is new to the annotator's memo and costs a PDU, a decoding and a param per value,
+which an output that writes columns (the Parquet dataset) only takes apart again. Here such
+frames of a batch are kept as columns (:class:`ColumnarFrames`, found by
+:func:`decoders.modbus.columnar_find.find_columnar`): where each frame is, its function and
+kind, the first address it names and how many values, where its values lie.
+:meth:`ColumnarFrames.summaries` writes their summary lines and :meth:`ColumnarFrames.values`
+their values, as the PDUs, :mod:`decoders.modbus.param_runs` and the value rows' rule do; the
+tests hold both, and the annotator's state after each batch, to the plain path
+(:meth:`Annotator.annotate_batch`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from decoders.modbus.codes import MAX_QUANTITY
+from decoders.modbus.quick import SHOWN_WORDS
+
+#: Requests are read against by answers that come within this many frames of them.
+KEPT_REQUESTS = 1024
+#: What a frame kept in columns is: a read request (FC 1-4), its answer, a write request
+#: (FC 5, 6, 15, 16; kept only with its answer), its answer.
+READ, READ_ANSWER, WRITE, WRITE_ANSWER = 0, 1, 2, 3
+_TABLES = {1: "coils", 2: "inputs", 3: "HR", 4: "IR", 15: "coils", 16: "HR"}
+#: The most a request may ask for, by function (0: not a function kept in columns).
+MOST = np.zeros(17, np.int64)
+for _function, _most in MAX_QUANTITY.items():
+    MOST[_function] = _most
+#: Each byte's bits as summary text, least significant first (as ``_bit_string`` writes them).
+_BYTE_TEXT = ["".join(str(byte >> bit & 1) for bit in range(8)) for byte in range(256)]
+_SHOWN_BITS = 32  # a summary writes 32 bits, then "…"
+_COIL_ON = 0xFF00
+_COIL_STATES = {_COIL_ON: "ON", 0: "OFF"}
+
+
+class ColumnarValues(NamedTuple):
+    """The values frames kept in columns carry, a row each, in the order the value rows' rule
+    finds them (:mod:`sniffer.encoding.value_rows`): ``frame``: the position of the frame that
+    carries it; ``found``: where the row is found (a written value: at its write's answer);
+    ``written``: written, not reported; ``request``: the request's frame index."""
+
+    frame: npt.NDArray[np.int64]
+    found: npt.NDArray[np.int64]
+    written: npt.NDArray[np.bool_]
+    address: npt.NDArray[np.int64]
+    raw: npt.NDArray[np.int64]
+    request: npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class ColumnarFrames:
+    """The frames of a batch kept in columns, by position (ascending), one entry each.
+
+    ``kind``: :data:`READ` … :data:`WRITE_ANSWER`; ``address`` and ``count``: the first register
+    or coil a frame names and how many (a read's answer: its request's first, and how many
+    values it carries of those asked); ``data``: where the values' bytes start in the batch's
+    data (``-1`` for a read request); ``request``: an answer's request (frame index, ``-1`` for a
+    request); ``answer``: a write's answer (position). ``kept_requests``: positions of read
+    requests no answer here reads; ``earlier_requests``: frame indexes of requests from before
+    the batch that answers here read."""
+
+    positions: npt.NDArray[np.int64]
+    function: npt.NDArray[np.int64]
+    kind: npt.NDArray[np.int64]
+    address: npt.NDArray[np.int64]
+    count: npt.NDArray[np.int64]
+    data: npt.NDArray[np.int64]
+    byte_count: npt.NDArray[np.int64]
+    request: npt.NDArray[np.int64]
+    answer: npt.NDArray[np.int64]
+    kept_requests: npt.NDArray[np.int64]
+    earlier_requests: list[int]
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    def kept(self) -> list[tuple[int, int, int, int]]:
+        """Position, function, first address and count of each of ``kept_requests``."""
+        at = np.searchsorted(self.positions, self.kept_requests)
+        return list(zip(self.kept_requests.tolist(), self.function[at].tolist(), self.address[at].tolist(),
+                        self.count[at].tolist(), strict=True))
+
+    def summaries(self, data: bytes) -> list[str]:
+        """Each frame's summary line, as its PDU's ``summary()`` writes it."""
+        return [_summary(data, row) for row in zip(
+            self.kind.tolist(), self.function.tolist(), self.address.tolist(), self.count.tolist(),
+            self.data.tolist(), self.byte_count.tolist(), strict=True)]
+
+    def values(self, data: bytes) -> ColumnarValues:
+        """The values of read answers, writes and the echoes of single writes (a write request's
+        at its answer, before the answer's own)."""
+        kind, function = self.kind, self.function
+        valued = np.flatnonzero((kind == READ_ANSWER) | (kind == WRITE) | ((kind == WRITE_ANSWER) & (function <= 6)))
+        counts = self.count[valued]
+        total = int(counts.sum())
+        within = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
+        start = np.repeat(self.data[valued], counts)
+        each_function = np.repeat(function[valued], counts)
+        bits = (each_function <= 2) | (each_function == 15)
+        raw = np.frombuffer(data, np.uint8).astype(np.int64)
+        at = np.where(bits, start + (within >> 3), start + 2 * within)
+        words = (raw[at] << 8) | raw[np.minimum(at + 1, len(raw) - 1)]
+        value = np.where(bits, (raw[at] >> (within & 7)) & 1, np.where(each_function == 5, words == _COIL_ON, words))
+        written = kind[valued] == WRITE
+        frame = self.positions[valued]
+        found = np.where(written, self.answer[valued], frame)
+        request = np.where(written, -1, self.request[valued])
+        rows = ColumnarValues(np.repeat(frame, counts), np.repeat(found, counts), np.repeat(written, counts),
+                              np.repeat(self.address[valued], counts) + within, value.astype(np.int64),
+                              np.repeat(request, counts))
+        order = np.lexsort((~rows.written, rows.found))  # stable: a frame's values stay in order
+        return ColumnarValues(rows.frame[order], rows.found[order], rows.written[order], rows.address[order],
+                              rows.raw[order], rows.request[order])
+
+
+def _summary(data: bytes, row: tuple[int, int, int, int, int, int]) -> str:
+    """A frame's summary line from its kind, function, address, count, and where its values lie
+    and their bytes."""
+    kind, function, address, count, start, size = row
+    table = _TABLES.get(function, "")
+    span = f"{address}" if count == 1 else f"{address}..{address + count - 1}"
+    if kind == READ:
+        return f"read {table} {span} ({count})"
+    if kind == READ_ANSWER:
+        if function >= 3:
+            words = size // 2
+            return f"{table} = {_hex_words(data, start, words)} ({words} registers)"
+        return f"{table} = {_bits(data, start, 8 * size)} ({size} bytes)"
+    if function <= 6:  # FC 5 and 6: a request and its echo say the same
+        value = int.from_bytes(data[start : start + 2], "big")
+        if function == 5:
+            return f"write coil {address} = {_COIL_STATES.get(value) or f'invalid 0x{value:04X}'}"
+        return f"write HR {address} = {value} (0x{value:04X})"
+    if kind == WRITE_ANSWER:
+        return f"wrote {table} {span} ({count})"
+    if function == 15:
+        return f"write coils {span} = {_bits(data, start, count)}"
+    return f"write HR {span} = {_hex_words(data, start, count)}"
+
+
+def _hex_words(data: bytes, start: int, words: int) -> str:
+    """As :func:`decoders.modbus.pdu_text.hex_words` writes ``words`` registers from ``start``."""
+    shown = data[start : start + 2 * min(words, SHOWN_WORDS)].hex(" ", 2).upper()
+    return shown + (f" … (+{words - SHOWN_WORDS})" if words > SHOWN_WORDS else "")
+
+
+def _bits(data: bytes, start: int, count: int) -> str:
+    """As ``_bit_string`` writes the first ``count`` bits from ``start``."""
+    shown = min(count, _SHOWN_BITS)
+    text = "".join(map(_BYTE_TEXT.__getitem__, data[start : start + (shown + 7) // 8]))[:shown]
+    return text + ("…" if count > _SHOWN_BITS else "")

@@ -1,0 +1,181 @@
+"""Which frames of a batch stay in columns (:mod:`decoders.modbus.columnar`), found with numpy.
+
+The rules; every frame also has a good CRC, a slave whose profile adds nothing to it
+(``eligible``, the annotator's to say: a named drive's values go through its profile), and the
+shape its function has in :func:`~decoders.modbus.pdu_parse.parse_pdu`, with counts Modbus
+allows:
+
+* a read request (FC 1 to 4, role request, 8 bytes);
+* a read's answer (role response): a byte count that counts the rest of the frame, even for
+  registers; the first message of the capture to name its request (the one the annotator reads
+  against it), within :data:`~decoders.modbus.columnar.KEPT_REQUESTS` frames of it; the request
+  a read of the same function kept in columns, or kept by the annotator from before the batch;
+* a write (FC 5, 6, 15, 16; role request; not timed out), kept only together with its answer in
+  the same batch (the matcher delivers a request with its outcome), which is kept when it is
+  the write's echo (FC 5, 6) or its confirmation (FC 15, 16: 8 bytes), the first message to
+  name the write.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import numpy.typing as npt
+
+from decoders.frame import FrameFlag
+from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
+from decoders.modbus.columnar import KEPT_REQUESTS, MOST, READ, READ_ANSWER, WRITE, WRITE_ANSWER, ColumnarFrames
+
+_REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
+_TIMEOUT = int(FrameFlag.TIMEOUT)
+_SHORT = 8  # bytes of a read request, a single write and its echo, a multiple write's answer
+_MULTIPLE_HEAD = 9  # bytes of a multiple write but its values
+
+#: The function, first address and count of a read request kept before the batch, by its frame
+#: index (``None``: none such).
+EarlierRead = Callable[[int], "tuple[int, int, int] | None"]
+
+
+class _Columns:
+    """A batch's columns as the rules read them."""
+
+    def __init__(self, batch: MessageBatch, eligible: npt.NDArray[np.bool_]) -> None:
+        frames = batch.frames
+        self.batch, self.first, self.size = batch, frames.first_index, len(batch)
+        self.starts, self.lengths = frames.offsets[:-1], np.diff(frames.offsets)
+        self.raw = np.frombuffer(frames.data, np.uint8).astype(np.int64)
+        self.function = batch.function.astype(np.int64)
+        self.good = eligible & frames.crc_ok
+        self.request = batch.request_index
+        #: Each frame's kind, first address and count, as the rules find them (-1: not kept).
+        self.kind = np.full(self.size, -1, np.int64)
+        self.address = np.full(self.size, -1, np.int64)
+        self.count = np.full(self.size, -1, np.int64)
+
+    def word(self, positions: npt.NDArray[np.int64], offset: int) -> npt.NDArray[np.int64]:
+        at = self.starts[positions] + offset
+        word: npt.NDArray[np.int64] = (self.raw[at] << 8) | self.raw[at + 1]
+        return word
+
+    def of(self, role: int, functions: tuple[int, ...]) -> npt.NDArray[np.bool_]:
+        """Good frames of ``role`` and one of ``functions``."""
+        found: npt.NDArray[np.bool_] = self.good & (self.batch.role == role) & np.isin(self.function, functions)
+        return found
+
+
+def find_columnar(batch: MessageBatch, eligible: npt.NDArray[np.bool_], earlier: EarlierRead) -> ColumnarFrames:
+    """The frames of ``batch`` kept in columns (see the module docstring); ``eligible``: Modbus
+    frames of slaves whose profile adds nothing; ``earlier``: the reads kept before the batch."""
+    columns = _Columns(batch, eligible)
+    size, first, function = columns.size, columns.first, columns.function
+    kind, address, count = columns.kind, columns.address, columns.count
+    reads = np.flatnonzero(columns.of(_REQUEST, (1, 2, 3, 4)) & (columns.lengths == _SHORT))
+    asked = columns.word(reads, 4)
+    reads = reads[(asked >= 1) & (asked <= MOST[function[reads]])]
+    kind[reads], address[reads], count[reads] = READ, columns.word(reads, 2), columns.word(reads, 4)
+    writes = _shaped_writes(columns)
+    kind[writes], address[writes] = WRITE, columns.word(writes, 2)
+    count[writes] = np.where(function[writes] <= 6, 1, columns.word(writes, 4))
+
+    answers = _first_answers(columns)
+    earlier_requests = _read_answers(columns, answers, earlier)
+    answered = _write_answers(columns, answers)
+    writes = writes[answered[writes]]
+    kind[(kind == WRITE) & ~answered] = -1
+    answers = answers[kind[answers] >= 0]
+
+    positions = np.flatnonzero(kind >= 0)
+    named = columns.request[answers] - first
+    consumed = np.zeros(size, np.bool_)
+    consumed[named[named >= 0]] = True
+    answer_of = np.full(size, -1, np.int64)
+    answer_of[named[named >= 0]] = answers[named >= 0]
+    starts = columns.starts[positions]
+    kinds, functions = kind[positions], function[positions]
+    byte_count = np.where(kinds == READ_ANSWER, columns.raw[starts + 2], 0)
+    data = np.select([kinds == READ_ANSWER, functions <= 6, kinds == WRITE], [starts + 3, starts + 4, starts + 7], -1)
+    return ColumnarFrames(
+        positions=positions, function=functions, kind=kinds, address=address[positions], count=count[positions],
+        data=np.where(kinds == READ, -1, data), byte_count=byte_count,
+        request=np.where((kinds == READ_ANSWER) | (kinds == WRITE_ANSWER), columns.request[positions], NONE),
+        answer=answer_of[positions], kept_requests=reads[~consumed[reads]], earlier_requests=earlier_requests)
+
+
+def _shaped_writes(columns: _Columns) -> npt.NDArray[np.int64]:
+    """Write requests of the shape ``parse_pdu`` reads, not timed out."""
+    function, lengths = columns.function, columns.lengths
+    writes = np.flatnonzero(columns.of(_REQUEST, (5, 6, 15, 16)) & ((columns.batch.flags & _TIMEOUT) == 0))
+    single = function[writes] <= 6
+    many = writes[~single]
+    count = columns.word(many, 4)
+    byte_count = columns.raw[columns.starts[many] + 6] if len(many) else np.zeros(0, np.int64)
+    needed = np.where(function[many] == 15, (count + 7) // 8, 2 * count)
+    fits = (lengths[many] == _MULTIPLE_HEAD + byte_count) & (byte_count == needed) & (count >= 1) & (
+        count <= MOST[function[many]])
+    kept: npt.NDArray[np.int64] = np.union1d(writes[single][lengths[writes[single]] == _SHORT], many[fits])
+    return kept
+
+
+def _first_answers(columns: _Columns) -> npt.NDArray[np.int64]:
+    """Good answers to reads and writes, each the first message to name its request, within
+    :data:`KEPT_REQUESTS` frames of it."""
+    answers = np.flatnonzero(columns.of(_RESPONSE, (1, 2, 3, 4, 5, 6, 15, 16)) & (columns.request != NONE))
+    naming = np.flatnonzero(columns.request != NONE)
+    named, first_naming = np.unique(columns.request[naming], return_index=True)
+    request = columns.request[answers]
+    is_first = naming[first_naming[np.searchsorted(named, request)]] == answers
+    distance = columns.first + answers - request
+    kept: npt.NDArray[np.int64] = answers[is_first & (distance > 0) & (distance <= KEPT_REQUESTS)]
+    return kept
+
+
+def _read_answers(columns: _Columns, answers: npt.NDArray[np.int64], earlier: EarlierRead) -> list[int]:
+    """Marks the answers to reads whose byte count fits and whose request is a read of their
+    function kept in columns or kept before the batch (their address and count: the request's);
+    the frame indexes of the latter."""
+    function, first = columns.function, columns.first
+    kind, address, count = columns.kind, columns.address, columns.count
+    reads = answers[function[answers] <= 4]
+    byte_count = columns.raw[columns.starts[reads] + 2]
+    fits = (byte_count == columns.lengths[reads] - 5) & (byte_count > 0) & ~(
+        (function[reads] >= 3) & (byte_count % 2 == 1))
+    reads = reads[fits]
+    request = columns.request[reads]
+    inside = request >= first
+    here, local = reads[inside], request[inside] - first
+    fits = (kind[local] == READ) & (function[local] == function[here])
+    here, local = here[fits], local[fits]
+    kind[here], address[here] = READ_ANSWER, address[local]
+    registers = function[here] >= 3
+    answer_bytes = columns.raw[columns.starts[here] + 2]
+    count[here] = np.where(registers, answer_bytes // 2, np.minimum(count[local], 8 * answer_bytes))
+    earlier_requests = []
+    for position, index in zip(reads[~inside].tolist(), request[~inside].tolist(), strict=True):
+        read = earlier(index)
+        if read is not None and read[0] == function[position] and 1 <= read[2] <= MOST[read[0]]:
+            words = int(columns.raw[columns.starts[position] + 2])
+            kind[position], address[position] = READ_ANSWER, read[1]
+            count[position] = words // 2 if read[0] >= 3 else min(read[2], 8 * words)
+            earlier_requests.append(index)
+    return earlier_requests
+
+
+def _write_answers(columns: _Columns, answers: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+    """Marks the answers to writes kept in columns (the echo or the confirmation, 8 bytes, of
+    the batch's write of their function); which writes were so answered."""
+    function, first, kind = columns.function, columns.first, columns.kind
+    echoes = answers[(function[answers] >= 5) & (columns.lengths[answers] == _SHORT)]
+    local = columns.request[echoes] - first
+    inside = local >= 0
+    echoes, local = echoes[inside], local[inside]
+    confirmed = columns.word(echoes, 4)
+    single = function[echoes] <= 6
+    fits = (kind[local] == WRITE) & (function[local] == function[echoes]) & (
+        single | ((confirmed >= 1) & (confirmed <= MOST[function[echoes]])))
+    echoes, local, single = echoes[fits], local[fits], single[fits]
+    kind[echoes], columns.address[echoes] = WRITE_ANSWER, columns.word(echoes, 2)
+    columns.count[echoes] = np.where(single, 1, columns.word(echoes, 4))
+    answered = np.zeros(columns.size, np.bool_)
+    answered[local] = True
+    return answered
