@@ -240,6 +240,17 @@ class AnnotatedBatch:
             return self.decodings
         return list(map(self.decodings.__getitem__, positions))
 
+    def decoded(self) -> AnnotatedBatch:
+        """This batch with a decoding for every frame left in columns too (its summary and
+        params, no PDU): for sinks that take columns only to cost less per frame."""
+        if self.columnar is None:
+            return self
+        decodings = list(self.decodings)
+        for position, decoding in zip(self.columnar.positions.tolist(),
+                                      self.columnar.decodings(self.messages.frames.data), strict=True):
+            decodings[position] = decoding
+        return AnnotatedBatch(self.messages, decodings)
+
     def select(self, keep: npt.NDArray[np.bool_]) -> AnnotatedBatch:
         """Only the messages where ``keep`` (one flag per message of ``messages``) is true."""
         rows = np.flatnonzero(keep)

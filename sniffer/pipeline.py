@@ -113,6 +113,7 @@ class Delivery:
         #: Whether plain frames stay in columns (every message sink takes them; nothing filtered).
         self._in_columns = keep is None and not selection.windowed and selection.limit is None and all(
             sink.takes_columnar for sink in self._message_sinks)
+        self._distinct_only = any(sink.caches_per_decoding for sink in self._message_sinks)
         self._window = Window(selection) if selection.windowed else None
         #: Frames the message sinks may still get (``--limit``), ``None``: no limit.
         self._left = selection.limit
@@ -161,8 +162,9 @@ class Delivery:
             self.done = self._window.past
         kept = None
         if self._annotator is not None:
-            annotated = (self._annotator.annotate_columnar(batch) if self._in_columns
-                         else self._annotator.annotate_batch(batch))
+            annotator = self._annotator
+            annotated = (annotator.annotate_columnar(batch, distinct_only=self._distinct_only) if self._in_columns
+                         else annotator.annotate_batch(batch))
             kept = annotated if self._keep is None else annotated.select(self._keep(annotated))
         if self._left is not None:
             batch, kept = self._limited(batch, kept)

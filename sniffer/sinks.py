@@ -48,6 +48,9 @@ class Sink:
     #: Whether ``messages`` takes plain frames left in columns (``AnnotatedBatch.columnar``): when
     #: every sink that wants messages does, and nothing is filtered, they are left so.
     takes_columnar = False
+    #: Whether the sink caches what it derives per decoding, so that repeats cost it less
+    #: decoded: frames stay in columns for it only in batches of mostly distinct frames.
+    caches_per_decoding = False
     #: Work on a framed batch, where it is framed (see the module docstring); ``None``: none.
     prepare: Callable[[MessageBatch], Any] | None = None
 

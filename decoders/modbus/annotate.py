@@ -57,6 +57,9 @@ _AS_REQUEST = {Role.REQUEST, Role.BROADCAST}
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
 #: Read Device Identification (FC 43): an answer may give its slave a profile.
 IDENTIFICATION = 43
+#: The share of distinct frames from which a batch is left in columns for outputs that cache
+#: what they derive per decoding (below it, most frames are repeats the memo serves).
+DISTINCT_ENOUGH = 0.5
 _NOISE_CODE = ROLE_CODE[Role.NOISE]
 #: What of a request decoding its answer reads (see :func:`answer_context`).
 AnswerContext = tuple[object, ...] | None
@@ -83,11 +86,13 @@ class Annotator:
                                    batch.request_index.tolist())
         return AnnotatedBatch(batch, decodings)
 
-    def annotate_columnar(self, batch: MessageBatch) -> AnnotatedBatch:
+    def annotate_columnar(self, batch: MessageBatch, *, distinct_only: bool = False) -> AnnotatedBatch:
         """:meth:`annotate_batch`, but the commonest frames of slaves no profile names stay in
         columns (:mod:`decoders.modbus.columnar`): the result's ``columnar``, and its ``rows``
-        the rest, decoded as there. The annotator's state after it is the same."""
-        columnar = self._columnar(batch)
+        the rest, decoded as there. The annotator's state after it is the same.
+        ``distinct_only``: only in a batch of mostly distinct frames (:func:`mostly_distinct`;
+        the memo serves repeats for less)."""
+        columnar = None if distinct_only and not mostly_distinct(batch) else self._columnar(batch)
         if columnar is None:
             return self.annotate_batch(batch)
         first, requests = batch.frames.first_index, self._requests
@@ -215,6 +220,20 @@ class Annotator:
     def _profiled(self, decoding: Decoding, facts: FrameFacts, request: Pdu | None) -> Decoding:
         """``decoding`` as the profiles name it (as it is, without profiles)."""
         return decoding if self._profiles is None else self._profiles.apply_decoding(decoding, facts, request)
+
+
+def mostly_distinct(batch: MessageBatch) -> bool:
+    """Whether at least :data:`DISTINCT_ENOUGH` of the batch's frames differ from one another, as
+    told by their CRC, length, slave and function (frames alike have them alike)."""
+    frames = batch.frames
+    if not len(batch):
+        return False
+    ends = frames.offsets[1:]
+    raw = np.frombuffer(frames.data, np.uint8).astype(np.int64)
+    last = np.maximum(ends - 1, 0), np.maximum(ends - 2, 0)
+    key = (raw[last[0]] << 8 | raw[last[1]]) | (np.diff(frames.offsets) << 16) | (
+        (batch.slave.astype(np.int64) & 0xFF) << 32) | ((batch.function.astype(np.int64) & 0xFF) << 40)
+    return len(np.unique(key)) >= DISTINCT_ENOUGH * len(batch)
 
 
 class _Fresh:

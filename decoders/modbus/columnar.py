@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.modbus.codes import MAX_QUANTITY
+from decoders.modbus.param_runs import LazyParams, ParamRun
 from decoders.modbus.quick import SHOWN_WORDS
 
 #: Requests are read against by answers that come within this many frames of them.
@@ -96,11 +97,40 @@ class ColumnarFrames:
     def values(self, data: bytes) -> ColumnarValues:
         """The values of read answers, writes and the echoes of single writes (a write request's
         at its answer, before the answer's own)."""
+        valued, counts, value = self._carried(data)
+        written = self.kind[valued] == WRITE
+        frame = self.positions[valued]
+        found = np.where(written, self.answer[valued], frame)
+        request = np.where(written, -1, self.request[valued])
+        within = np.arange(len(value)) - np.repeat(np.cumsum(counts) - counts, counts)
+        rows = ColumnarValues(np.repeat(frame, counts), np.repeat(found, counts), np.repeat(written, counts),
+                              np.repeat(self.address[valued], counts) + within, value, np.repeat(request, counts))
+        order = np.lexsort((~rows.written, rows.found))  # stable: a frame's values stay in order
+        return ColumnarValues(rows.frame[order], rows.found[order], rows.written[order], rows.address[order],
+                              rows.raw[order], rows.request[order])
+
+    def decodings(self, data: bytes) -> list[LazyParams]:
+        """Each frame's decoding as the plain path's says it (summary, runs of params), without
+        a PDU: for outputs that read no more of one."""
+        valued, counts, value = self._carried(data)
+        carried = np.zeros(len(self), np.int64)
+        carried[valued] = counts
+        ends = np.cumsum(carried).tolist()
+        values = value.tolist()
+        decodings = []
+        for summary, address, count, end, size in zip(self.summaries(data), self.address.tolist(),
+                                                      self.count.tolist(), ends, carried.tolist(), strict=True):
+            run = ParamRun(address, count, tuple(values[end - size : end])) if size else ParamRun(address, count)
+            decodings.append(LazyParams.of_runs(summary, (run,)))
+        return decodings
+
+    def _carried(self, data: bytes) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+        """Which frames carry values (indexes of these columns), how many each, and the values,
+        frame after frame (a register's word; a coil as 0 or 1)."""
         kind, function = self.kind, self.function
         valued = np.flatnonzero((kind == READ_ANSWER) | (kind == WRITE) | ((kind == WRITE_ANSWER) & (function <= 6)))
         counts = self.count[valued]
-        total = int(counts.sum())
-        within = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
+        within = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
         start = np.repeat(self.data[valued], counts)
         each_function = np.repeat(function[valued], counts)
         bits = (each_function <= 2) | (each_function == 15)
@@ -108,16 +138,7 @@ class ColumnarFrames:
         at = np.where(bits, start + (within >> 3), start + 2 * within)
         words = (raw[at] << 8) | raw[np.minimum(at + 1, len(raw) - 1)]
         value = np.where(bits, (raw[at] >> (within & 7)) & 1, np.where(each_function == 5, words == _COIL_ON, words))
-        written = kind[valued] == WRITE
-        frame = self.positions[valued]
-        found = np.where(written, self.answer[valued], frame)
-        request = np.where(written, -1, self.request[valued])
-        rows = ColumnarValues(np.repeat(frame, counts), np.repeat(found, counts), np.repeat(written, counts),
-                              np.repeat(self.address[valued], counts) + within, value.astype(np.int64),
-                              np.repeat(request, counts))
-        order = np.lexsort((~rows.written, rows.found))  # stable: a frame's values stay in order
-        return ColumnarValues(rows.frame[order], rows.found[order], rows.written[order], rows.address[order],
-                              rows.raw[order], rows.request[order])
+        return valued, counts, value.astype(np.int64)
 
 
 def _summary(data: bytes, row: tuple[int, int, int, int, int, int]) -> str:

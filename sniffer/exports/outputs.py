@@ -42,6 +42,8 @@ class McapSink(FileSink["McapExporter"]):
 
     wants_chunks = True
     wants_messages = True
+    takes_columnar = True
+    caches_per_decoding = True
 
     def __init__(self, path: str, args: argparse.Namespace, analysis: Analysis) -> None:
         super().__init__(path)
@@ -71,7 +73,7 @@ class McapSink(FileSink["McapExporter"]):
         self.frames_written += len(batch.messages)
         if self.exporter is not None:
             with self.writing():
-                self.exporter.messages(batch)
+                self.exporter.messages(batch.decoded())  # frames in columns: decodings without a PDU
 
     def prepared(self, value: tuple[Rows, npt.NDArray[np.int64]]) -> None:
         if self.exporter is not None:

@@ -37,13 +37,15 @@ class JsonlView(Sink):
 
     wants_messages = True
     wants_statistics = True
+    takes_columnar = True
+    caches_per_decoding = True
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._frames.channels = info.channels
         self._write(capture_record(source, info, line))
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        self._kept = batch
+        self._kept = batch.decoded()  # frames in columns: decodings without a PDU, cheaper to make
 
     def prepared(self, value: FrameFields) -> None:
         """Writes the batch kept by :meth:`messages`, with the fields its frames' records take

@@ -1,0 +1,108 @@
+"""Frames left in columns (``AnnotatedBatch.columnar``) write what the plain path writes: the
+Parquet dataset, JSONL and MCAP, compared byte for byte or row for row with the same outputs
+made with every frame decoded; on real recordings, the samples with and without a profile, and
+generated traffic."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mcap.reader import make_reader
+
+from tests.real_recordings import RECORDINGS, TEXT, available
+from tests.test_parquet import SAMPLES, table
+
+CAPTURES = Path(__file__).resolve().parents[1] / "captures"
+
+
+def _generated(folder: Path, traffic: str) -> Path:
+    from benchmarks.bench_memory import benchmark_capture
+
+    return benchmark_capture(folder, 6000, traffic)
+
+
+def _real(folder: Path, name: str) -> Path:
+    if not available():
+        pytest.skip("needs ../shared/real beside the checkout")
+    copy = folder / name
+    shutil.copy(TEXT / name, copy)
+    return copy
+
+
+#: A capture (made in a folder), the options it is decoded with, and how many frames at least
+#: stay in columns (not vacuous).
+CASES = pytest.mark.parametrize(("capture", "setting"), [
+    *[(lambda _, sample=sample: CAPTURES / sample, (["--profile", "atv71"], 0)) for sample in SAMPLES],
+    *[(lambda _, sample=sample: CAPTURES / sample, ([], 0)) for sample in ("atv71-plc-poll-usb.mcap", "xbt-hmi.mcap")],
+    (lambda folder: _generated(folder, "polling"), ([], 5000)),
+    (lambda folder: _generated(folder, "coils"), ([], 5000)),
+    (lambda folder: _generated(folder, "mixed"), ([], 0)),
+    *[(lambda folder, name=name: _real(folder, name), ([], 0)) for name in RECORDINGS],
+], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", *RECORDINGS])
+
+
+@pytest.fixture
+def both_ways(monkeypatch: pytest.MonkeyPatch, cli: Callable[..., Any]) -> Callable[..., int]:
+    """Runs a command twice, frames in columns wherever they qualify (repeats too), then none;
+    how many frames the first run kept in columns."""
+    from decoders.modbus import annotate
+    from decoders.modbus.columnar import ColumnarFrames
+    from decoders.modbus.columnar_find import find_columnar
+
+    def run(columns: list[str], plain: list[str]) -> int:
+        in_columns = []
+
+        def counted(*args: Any) -> ColumnarFrames:
+            found = find_columnar(*args)
+            in_columns.append(len(found))
+            return found
+
+        with monkeypatch.context() as patch:
+            patch.setattr(annotate, "find_columnar", counted)
+            patch.setattr(annotate, "DISTINCT_ENOUGH", 0.0)
+            assert cli(*columns).code == 0
+        with monkeypatch.context() as patch:
+            patch.setattr(annotate.Annotator, "annotate_columnar",
+                          lambda self, batch, distinct_only=False: self.annotate_batch(batch))
+            assert cli(*plain).code == 0
+        return sum(in_columns)
+
+    return run
+
+
+@CASES
+def test_parquet(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[Path], Path],
+                 setting: tuple[list[str], int]) -> None:
+    source, (options, least) = capture(tmp_path), setting
+    export = ["export", str(source), "--jobs", "1", "-q", *options, "--parquet"]
+    assert both_ways([*export, str(tmp_path / "columns")], [*export, str(tmp_path / "plain")]) >= least
+    for name in ("frames", "transactions", "values", "anomalies"):
+        assert table(tmp_path / "columns", name) == table(tmp_path / "plain", name), name
+
+
+@CASES
+def test_jsonl(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[Path], Path],
+               setting: tuple[list[str], int]) -> None:
+    source, (options, least) = capture(tmp_path), setting
+    analyze = ["analyze", str(source), "--format", "jsonl", *options, "-o"]
+    assert both_ways([*analyze, str(tmp_path / "columns.jsonl")], [*analyze, str(tmp_path / "plain.jsonl")]) >= least
+    assert (tmp_path / "columns.jsonl").read_bytes() == (tmp_path / "plain.jsonl").read_bytes()
+
+
+def _messages(path: Path) -> list[tuple[str, int, bytes]]:
+    with path.open("rb") as stream:
+        return [(channel.topic, message.log_time, message.data)
+                for _, channel, message in make_reader(stream).iter_messages(log_time_order=False)]
+
+
+@CASES
+def test_mcap(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[Path], Path],
+              setting: tuple[list[str], int]) -> None:
+    source, (options, least) = capture(tmp_path), setting
+    export = ["export", str(source), "--jobs", "1", "-q", *options, "--mcap"]
+    assert both_ways([*export, str(tmp_path / "columns.mcap")], [*export, str(tmp_path / "plain.mcap")]) >= least
+    assert _messages(tmp_path / "columns.mcap") == _messages(tmp_path / "plain.mcap")
