@@ -91,13 +91,13 @@ def test_values_are_what_values_says(dataset: Path, cli: Callable[..., Any]) -> 
 def test_values_without_a_profile_are_what_values_says(tmp_path: Path, cli: Callable[..., Any],
                                                        profile: list[str]) -> None:
     """Slaves no profile speaks for go to the table in columns (runs of registers and coils);
-    alone or between profiled slaves' rows, the table holds what ``values`` lists, in its order."""
-    from benchmarks.bench_framing import coil_transmissions
-    from benchmarks.bench_memory import write_capture
+    alone or between profiled slaves' rows (the generated drives identify themselves; steady
+    ones repeat their values, which the table takes apart once), the table holds what
+    ``values`` lists, in its order."""
+    from benchmarks.bench_memory import benchmark_capture
 
-    coils = tmp_path / "coils.mcap"
-    write_capture(coils, 3000, coil_transmissions)
-    for capture in (CAPTURES / "atv71-plc-poll.mcap", CAPTURES / "xbt-hmi.mcap", coils):
+    generated = [benchmark_capture(tmp_path, 3000, traffic) for traffic in ("coils", "steady", "mixed")]
+    for capture in (CAPTURES / "atv71-plc-poll.mcap", CAPTURES / "xbt-hmi.mcap", *generated):
         folder = tmp_path / f"{capture.stem}-{len(profile)}"
         assert cli("export", str(capture), "--parquet", str(folder), *profile, "-q").code == 0
         expected = cli("values", str(capture), *profile, "--format", "jsonl").jsonl()

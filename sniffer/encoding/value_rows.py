@@ -68,6 +68,8 @@ class ValueRow:
     #: For a subclass that ``takes_runs``: the values as runs (``params`` is then empty), all
     #: with the validity ``valid[0]`` (no profile marks a value as not a reading).
     runs: tuple[ParamRun, ...] | None = None
+    #: The decoding whose params these are (not for runs): what a subclass may cache by.
+    decoding: Decoding | None = None
 
 
 class ValueRows(Sink):
@@ -112,7 +114,8 @@ class ValueRows(Sink):
                 continue
             row = ValueRow(t_start[position], first + position, slave[position], "",
                            () if runs is not None else decoding.params,
-                           None if request[position] == NONE else request[position], runs=runs)
+                           None if request[position] == NONE else request[position], runs=runs,
+                           decoding=decoding if runs is None else None)
             if kind == _RESPONSE:
                 row.kind = "reported"
                 self._emit(row, crc_ok=bool(crc[position]))

@@ -18,32 +18,39 @@ import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
 
-from decoders.message import NONE, AnnotatedBatch
+from decoders.memo import Memo
+from decoders.message import NONE, AnnotatedBatch, Decoding, ParamValue
+from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.stats import Statistics
 from sniffer.encoding.value_rows import ValueRow, ValueRows
 from sniffer.exports.parquet_export import dictionary, nullable, times
 
-#: A value row as the ``values`` table holds it (from a profiled slave's params).
-ValueTuple = tuple[int, int, int, str, int, str | None, str | None, int | None, object, str | None, int | None, bool]
+#: The params of one decoding as the ``values`` table holds them, a tuple per column: address,
+#: code, name, raw, value (numbers), text (what a value says in words), unit, valid.
+NamedBlock = tuple[tuple[object, ...], ...]
+#: A named row's own columns: time, index, slave, kind (its code), request index (``NONE``).
+NamedRow = tuple[int, int, int, int, int]
 _VALUE_KINDS = ["reported", "written"]
 _REPORTED, _WRITTEN = _VALUE_KINDS.index("reported"), _VALUE_KINDS.index("written")
 
 
 @dataclass
 class CollectedValues:
-    """The value rows of some batches, in the order found: a tuple a value for profiled slaves'
-    params (``tuples``), the rows of runs as they are (``runs``); ``*_order``: each one's place,
-    ``*_at``: the frame index where each was found."""
+    """The value rows of some batches, in the order found: of profiled slaves' params, the row's
+    own columns (``named``) and its decoding's params (``blocks``, one object per decoding and
+    kind: repeats share it); the rows of runs as they are (``runs``); ``*_order``: each row's
+    place, ``*_at``: the frame index where each was found."""
 
-    tuples: list[ValueTuple] = field(default_factory=list)
-    tuple_order: list[int] = field(default_factory=list)
-    tuple_at: list[int] = field(default_factory=list)
+    named: list[NamedRow] = field(default_factory=list)
+    blocks: list[NamedBlock] = field(default_factory=list)
+    named_order: list[int] = field(default_factory=list)
+    named_at: list[int] = field(default_factory=list)
     runs: list[ValueRow] = field(default_factory=list)
     run_order: list[int] = field(default_factory=list)
     run_at: list[int] = field(default_factory=list)
 
     def __len__(self) -> int:
-        return len(self.tuples) + len(self.runs)
+        return len(self.named) + len(self.runs)
 
 
 @dataclass(frozen=True)
@@ -69,7 +76,9 @@ class NumericValues:
 
 class ValueCollector(ValueRows):
     """The value rows of each batch, taken by :meth:`take` (the ``values`` table); rows of slaves
-    no profile speaks for stay runs until :func:`value_columns` lays them out with numpy."""
+    no profile speaks for stay runs until :func:`value_columns` lays them out with numpy, rows of
+    profiled params refer to their decoding's :data:`NamedBlock`, made once per decoding (a
+    plant's drives report the same values again and again)."""
 
     takes_runs = True
 
@@ -77,18 +86,36 @@ class ValueCollector(ValueRows):
         super().__init__()
         self._found = CollectedValues()
         self._rows_found = 0
+        self._blocks: Memo[tuple[Decoding, str, bool], NamedBlock] = Memo(KEPT_DECODINGS)
+
+    def _emit(self, row: ValueRow, *, crc_ok: bool) -> None:
+        """:meth:`ValueRows._emit` of every value (this collector chooses none), a decoding's
+        params taken apart once (``tests/test_parquet.py`` holds the table to ``values``)."""
+        decoding = row.decoding
+        if decoding is None:
+            super()._emit(row, crc_ok=crc_ok)
+            return
+        key = (decoding, row.kind, crc_ok)
+        block = self._blocks.get(key)
+        if block is None:
+            block = _named_block(decoding.params, written=row.kind == "written", crc_ok=crc_ok)
+            self._blocks.put(key, block)
+        if not block[0]:
+            return
+        self.shown += len(block[0])
+        found, self._rows_found = self._found, self._rows_found + 1
+        found.named.append((row.t_ns, row.index, row.slave, _VALUE_KINDS.index(row.kind),
+                            NONE if row.request_index is None else row.request_index))
+        found.blocks.append(block)
+        found.named_order.append(self._rows_found)
+        found.named_at.append(self.emitting)
 
     def output(self, row: ValueRow) -> None:
+        """A row of runs (the rows of params go by :meth:`_emit`)."""
         found, self._rows_found = self._found, self._rows_found + 1
-        if row.runs is not None:
-            found.runs.append(row)
-            found.run_order.append(self._rows_found)
-            found.run_at.append(self.emitting)
-            return
-        found.tuples.extend((row.t_ns, row.index, row.slave, row.kind, p.address, p.code, p.name, p.raw, p.value,
-                             p.unit, row.request_index, valid) for p, valid in zip(row.params, row.valid, strict=True))
-        found.tuple_order += [self._rows_found] * len(row.params)
-        found.tuple_at += [self.emitting] * len(row.params)
+        found.runs.append(row)
+        found.run_order.append(self._rows_found)
+        found.run_at.append(self.emitting)
 
     def take(self) -> CollectedValues:
         found, self._found = self._found, CollectedValues()
@@ -96,6 +123,20 @@ class ValueCollector(ValueRows):
 
     def finish(self, statistics: Statistics) -> None:
         super().finish(statistics)
+
+
+def _named_block(params: tuple[ParamValue, ...], *, written: bool, crc_ok: bool) -> NamedBlock:
+    """The values of ``params`` that carry a raw value, as columns, each valid as the rule says."""
+    taken = [param for param in params if param.raw is not None]
+    values = [param.value for param in taken]
+    return (
+        tuple(param.address for param in taken), tuple(param.code for param in taken),
+        tuple(param.name for param in taken), tuple(param.raw for param in taken),
+        tuple(float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
+              for value in values),
+        tuple(value if isinstance(value, str) else None for value in values), tuple(param.unit for param in taken),
+        tuple(crc_ok and (param.available or written) for param in taken),
+    )
 
 
 def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
@@ -122,19 +163,21 @@ def value_columns(found: CollectedValues, numeric: NumericValues | None = None) 
     parts = [] if numeric is None or not len(numeric) else [numeric]
     if found.runs:
         parts.insert(0, _run_values(found))
+    named_t, named_columns, named_counts = _named_columns(found)
     if not parts:
-        return _tuple_columns(found.tuples)
+        return named_t, named_columns
     laid_out = parts[0] if len(parts) == 1 else _in_order(parts)
     numeric_t, numeric_columns = _numeric_columns(laid_out)
-    if not found.tuples:
+    if not found.named:
         return numeric_t, numeric_columns
-    tuples_t, tuple_columns = _tuple_columns(found.tuples)
-    order = np.lexsort((np.concatenate([np.array(found.tuple_order, np.int64), laid_out.order]),
-                        np.concatenate([np.array(found.tuple_at, np.int64), laid_out.found])))
+    order = np.lexsort((np.concatenate([np.repeat(np.array(found.named_order, np.int64), named_counts),
+                                        laid_out.order]),
+                        np.concatenate([np.repeat(np.array(found.named_at, np.int64), named_counts),
+                                        laid_out.found])))
     taken = pa.array(order)
-    columns = {name: pa.concat_arrays([tuple_columns[name], numeric_columns[name]]).take(taken)
-               for name in tuple_columns}
-    return np.concatenate([tuples_t, numeric_t])[order], columns
+    columns = {name: pa.concat_arrays([named_columns[name], numeric_columns[name]]).take(taken)
+               for name in named_columns}
+    return np.concatenate([named_t, numeric_t])[order], columns
 
 
 def _in_order(parts: list[NumericValues]) -> NumericValues:
@@ -145,27 +188,46 @@ def _in_order(parts: list[NumericValues]) -> NumericValues:
     return NumericValues(*(column[order] for column in joined))
 
 
-def _tuple_columns(rows: Sequence[ValueTuple]) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:
-    t_ns = np.fromiter((row[0] for row in rows), np.int64, len(rows))
-    values = [row[8] for row in rows]
-    numbers = [float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
-               for value in values]
-    kinds = np.array([_VALUE_KINDS.index(row[3]) for row in rows], np.int32)
+def _named_columns(found: CollectedValues) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array],
+                                                    npt.NDArray[np.int64]]:
+    """The columns of the rows of profiled params, a row per value; and the values per row. Each
+    distinct block is laid out once, and the rows take from it."""
+    table: dict[int, int] = {}  # by the block's id (every block is held by ``found``): its first row
+    columns: list[list[object]] = [[] for _ in range(8)]
+    starts = []
+    for block in found.blocks:
+        start = table.get(id(block))
+        if start is None:
+            start = table[id(block)] = len(columns[0])
+            for column, values in zip(columns, block, strict=True):
+                column.extend(values)
+        starts.append(start)
+    counts = np.array([len(block[0]) for block in found.blocks], np.int64)
+    total = int(counts.sum())
+    taken = pa.array(np.repeat(np.array(starts, np.int64), counts) + np.arange(total)
+                     - np.repeat(np.cumsum(counts) - counts, counts))
+    own = np.array(found.named, np.int64).reshape(-1, 5)
+
+    def each(column: int) -> npt.NDArray[np.int64]:
+        return np.repeat(own[:, column], counts)
+
+    t_ns = each(0)
+    address, code, name, raw, number, text, unit, valid = columns
     return t_ns, {
         "t": times(t_ns),
-        "index": pa.array([row[1] for row in rows], pa.int64()),
-        "slave": pa.array([row[2] for row in rows], pa.int16()),
-        "kind": dictionary(kinds, pa.array(_VALUE_KINDS)),
-        "address": pa.array([row[4] for row in rows], pa.int32()),
-        "code": pa.array([row[5] for row in rows], pa.string()),
-        "name": pa.array([row[6] for row in rows], pa.string()),
-        "raw": pa.array([row[7] for row in rows], pa.int32()),
-        "value": pa.array(numbers, pa.float64()),
-        "text": pa.array([value if isinstance(value, str) else None for value in values], pa.string()),
-        "unit": pa.array([row[9] for row in rows], pa.string()),
-        "request_index": pa.array([row[10] for row in rows], pa.int64()),
-        "valid": pa.array([row[11] for row in rows], pa.bool_()),
-    }
+        "index": pa.array(each(1), pa.int64()),
+        "slave": pa.array(each(2), pa.int16()),
+        "kind": dictionary(each(3).astype(np.int32), pa.array(_VALUE_KINDS)),
+        "address": pa.array(address, pa.int32()).take(taken),
+        "code": pa.array(code, pa.string()).take(taken),
+        "name": pa.array(name, pa.string()).take(taken),
+        "raw": pa.array(raw, pa.int32()).take(taken),
+        "value": pa.array(number, pa.float64()).take(taken),
+        "text": pa.array(text, pa.string()).take(taken),
+        "unit": pa.array(unit, pa.string()).take(taken),
+        "request_index": nullable(each(4), pa.int64()),
+        "valid": pa.array(valid, pa.bool_()).take(taken),
+    }, counts
 
 
 def _run_values(found: CollectedValues) -> NumericValues:
