@@ -25,13 +25,18 @@ from decoders.stats import Statistics
 from sniffer.encoding.value_rows import ValueRow, ValueRows
 from sniffer.exports.parquet_export import dictionary, nullable, times
 
-#: The params of one decoding as the ``values`` table holds them, a tuple per column: address,
+#: The params of one decoding as the ``values`` table holds them, a tuple per param: address,
 #: code, name, raw, value (numbers), text (what a value says in words), unit, valid.
 NamedBlock = tuple[tuple[object, ...], ...]
+_NAMED_COLUMNS = 8
+#: While decodings do not repeat, one block in this many is kept in the memo, to find out when
+#: they start to (see :class:`ValueCollector`).
+PROBE_EVERY = 16
 #: A named row's own columns: time, index, slave, kind (its code), request index (``NONE``).
 NamedRow = tuple[int, int, int, int, int]
 _VALUE_KINDS = ["reported", "written"]
 _REPORTED, _WRITTEN = _VALUE_KINDS.index("reported"), _VALUE_KINDS.index("written")
+_KIND_CODES = {kind: code for code, kind in enumerate(_VALUE_KINDS)}
 
 
 @dataclass
@@ -87,6 +92,11 @@ class ValueCollector(ValueRows):
         self._found = CollectedValues()
         self._rows_found = 0
         self._blocks: Memo[tuple[Decoding, str, bool], NamedBlock] = Memo(KEPT_DECODINGS)
+        #: Blocks found in the memo and made, since :meth:`take`; whether to keep every block
+        #: made (values that repeat) or one in :data:`PROBE_EVERY` (values that do not: keeping
+        #: them costs more than making them, yet a few tell when they start to repeat).
+        self._hits = self._made = 0
+        self._keeping = True
 
     def _emit(self, row: ValueRow, *, crc_ok: bool) -> None:
         """:meth:`ValueRows._emit` of every value (this collector chooses none), a decoding's
@@ -99,12 +109,16 @@ class ValueCollector(ValueRows):
         block = self._blocks.get(key)
         if block is None:
             block = _named_block(decoding.params, written=row.kind == "written", crc_ok=crc_ok)
-            self._blocks.put(key, block)
-        if not block[0]:
+            self._made += 1
+            if self._keeping or self._made % PROBE_EVERY == 0:
+                self._blocks.put(key, block)
+        else:
+            self._hits += 1
+        if not block:
             return
-        self.shown += len(block[0])
+        self.shown += len(block)
         found, self._rows_found = self._found, self._rows_found + 1
-        found.named.append((row.t_ns, row.index, row.slave, _VALUE_KINDS.index(row.kind),
+        found.named.append((row.t_ns, row.index, row.slave, _KIND_CODES[row.kind],
                             NONE if row.request_index is None else row.request_index))
         found.blocks.append(block)
         found.named_order.append(self._rows_found)
@@ -119,6 +133,10 @@ class ValueCollector(ValueRows):
 
     def take(self) -> CollectedValues:
         found, self._found = self._found, CollectedValues()
+        if self._hits + self._made >= PROBE_EVERY:
+            # Kept, a block must be asked for again to pay: when probes are, keep them all.
+            self._keeping = self._hits * (1 if self._keeping else PROBE_EVERY) >= self._made
+            self._hits = self._made = 0
         return found
 
     def finish(self, statistics: Statistics) -> None:
@@ -126,17 +144,16 @@ class ValueCollector(ValueRows):
 
 
 def _named_block(params: tuple[ParamValue, ...], *, written: bool, crc_ok: bool) -> NamedBlock:
-    """The values of ``params`` that carry a raw value, as columns, each valid as the rule says."""
-    taken = [param for param in params if param.raw is not None]
-    values = [param.value for param in taken]
-    return (
-        tuple(param.address for param in taken), tuple(param.code for param in taken),
-        tuple(param.name for param in taken), tuple(param.raw for param in taken),
-        tuple(float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
-              for value in values),
-        tuple(value if isinstance(value, str) else None for value in values), tuple(param.unit for param in taken),
-        tuple(crc_ok and (param.available or written) for param in taken),
-    )
+    """The values of ``params`` that carry a raw value, each valid as the rule says."""
+    block = []
+    for param in params:
+        if param.raw is not None:
+            value = param.value
+            number = float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
+            text = value if isinstance(value, str) else None
+            block.append((param.address, param.code, param.name, param.raw, number, text, param.unit,
+                          crc_ok and (param.available or written)))
+    return tuple(block)
 
 
 def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
@@ -193,40 +210,46 @@ def _named_columns(found: CollectedValues) -> tuple[npt.NDArray[np.int64], dict[
     """The columns of the rows of profiled params, a row per value; and the values per row. Each
     distinct block is laid out once, and the rows take from it."""
     table: dict[int, int] = {}  # by the block's id (every block is held by ``found``): its first row
-    columns: list[list[object]] = [[] for _ in range(8)]
+    params: list[tuple[object, ...]] = []
     starts = []
     for block in found.blocks:
         start = table.get(id(block))
         if start is None:
-            start = table[id(block)] = len(columns[0])
-            for column, values in zip(columns, block, strict=True):
-                column.extend(values)
+            start = table[id(block)] = len(params)
+            params += block
         starts.append(start)
-    counts = np.array([len(block[0]) for block in found.blocks], np.int64)
+    counts = np.fromiter(map(len, found.blocks), np.int64, len(found.blocks))
     total = int(counts.sum())
-    taken = pa.array(np.repeat(np.array(starts, np.int64), counts) + np.arange(total)
-                     - np.repeat(np.cumsum(counts) - counts, counts))
-    own = np.array(found.named, np.int64).reshape(-1, 5)
+    taken = None if len(params) == total else pa.array(  # None: no block twice, the table is the rows
+        np.repeat(np.array(starts, np.int64), counts) + np.arange(total)
+        - np.repeat(np.cumsum(counts) - counts, counts))
 
-    def each(column: int) -> npt.NDArray[np.int64]:
-        return np.repeat(own[:, column], counts)
+    def column(values: tuple[object, ...], kind: pa.DataType) -> pa.Array:
+        array = pa.array(values, kind)
+        return array if taken is None else array.take(taken)
+
+    own = list(zip(*found.named, strict=True)) or [()] * 5  # the rows' own columns
+
+    def each(field: int) -> npt.NDArray[np.int64]:
+        return np.repeat(np.array(own[field], np.int64), counts)
 
     t_ns = each(0)
-    address, code, name, raw, number, text, unit, valid = columns
+    address, code, name, raw, number, text, unit, valid = zip(*params, strict=True) if params else (
+        [()] * _NAMED_COLUMNS)
     return t_ns, {
         "t": times(t_ns),
         "index": pa.array(each(1), pa.int64()),
         "slave": pa.array(each(2), pa.int16()),
         "kind": dictionary(each(3).astype(np.int32), pa.array(_VALUE_KINDS)),
-        "address": pa.array(address, pa.int32()).take(taken),
-        "code": pa.array(code, pa.string()).take(taken),
-        "name": pa.array(name, pa.string()).take(taken),
-        "raw": pa.array(raw, pa.int32()).take(taken),
-        "value": pa.array(number, pa.float64()).take(taken),
-        "text": pa.array(text, pa.string()).take(taken),
-        "unit": pa.array(unit, pa.string()).take(taken),
+        "address": column(address, pa.int32()),
+        "code": column(code, pa.string()),
+        "name": column(name, pa.string()),
+        "raw": column(raw, pa.int32()),
+        "value": column(number, pa.float64()),
+        "text": column(text, pa.string()),
+        "unit": column(unit, pa.string()),
         "request_index": nullable(each(4), pa.int64()),
-        "valid": pa.array(valid, pa.bool_()).take(taken),
+        "valid": column(valid, pa.bool_()),
     }, counts
 
 
