@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -250,9 +251,8 @@ class FrameRecordEncoder:
             .pieces()
         )  # fmt: skip
         decodings, facts = batch.decodings_at(positions), _FrameFacts(batch.messages)
-        tails = self._tails.get_all(
-            decodings, lambda row: b",".join(self._frame_parts(facts, positions[row], decodings[row]))
-        )
+        tails = parts_by_decoding(self._tails, decodings, batch.fresh_at(positions),
+                             lambda row: b",".join(self._frame_parts(facts, positions[row], decodings[row])))
         optional = [*channel_column(frames, kept, self.channels), *uart_error_column(frames, kept)]
         return join_rows([rows, tails, *optional, b"}" + end], len(positions), reserved)
 
@@ -265,7 +265,8 @@ class FrameRecordEncoder:
         """Per kept message, its record from ``hex`` to ``exception_code`` and from ``params``
         to the end: looked up in C for repeats, built for new decodings."""
         decodings, facts = batch.decodings_at(positions), _FrameFacts(batch.messages)
-        found = self._parts.get_all(decodings, lambda row: self._frame_parts(facts, positions[row], decodings[row]))
+        found = parts_by_decoding(self._parts, decodings, batch.fresh_at(positions),
+                             lambda row: self._frame_parts(facts, positions[row], decodings[row]))
         return [parts[0] for parts in found], [parts[1] for parts in found]
 
     def _frame_parts(self, facts: _FrameFacts, position: int, decoding: Decoding) -> tuple[bytes, bytes]:
@@ -287,6 +288,16 @@ class FrameRecordEncoder:
             f'"role":"{ROLE_ORDER[role].value}","exception_code":{"null" if code == NONE else code}'.encode(),
             b"".join(tail),
         )
+
+
+Part = TypeVar("Part")
+
+
+def parts_by_decoding(memo: Memo[Decoding, Part], decodings: list[Decoding], fresh: list[bool] | None,
+                 build: Callable[[int], Part]) -> list[Part]:
+    """What ``build(row)`` makes of each decoding, repeats found in ``memo``; decodings made
+    for the batch alone (``fresh``) built without a lookup."""
+    return memo.get_all(decodings, build) if fresh is None else memo.get_new(decodings, build, fresh)
 
 
 class _FrameFacts:

@@ -39,7 +39,7 @@ from decoders.memo import Memo
 from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
-from sniffer.encoding.records import FrameRecordEncoder, encode_json
+from sniffer.encoding.records import FrameRecordEncoder, encode_json, parts_by_decoding
 from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports import foxglove_log
@@ -179,7 +179,8 @@ class DecodedChannels:
         kept = np.array(positions, np.int64)
         messages, frames = batch.messages, batch.messages.frames
         t_ns, slaves = frames.t_start_ns[kept], messages.slave[kept]
-        heads, values = self._decoding_parts(batch.decodings_at(positions), messages.role[kept])
+        heads, values = self._decoding_parts(batch.decodings_at(positions), messages.role[kept],
+                                             batch.fresh_at(positions))
         values = self._published_values(batch, kept, values)
         indexes = number_texts(kept + frames.first_index)
         self._write(self._frame_records.rows(batch, reserved=HEADER_SIZE), self._frames, t_ns)
@@ -232,10 +233,12 @@ class DecodedChannels:
         columns: list[Column] = [b'{"index":', [indexes[row] for row in picked], b",", [values[row] for row in picked]]
         self._write(join_rows(columns, len(picked), HEADER_SIZE), self._param_channels[slaves[rows]], t_ns[rows])
 
-    def _decoding_parts(self, decodings: list[Decoding], roles: Integers) -> tuple[list[bytes], list[bytes]]:
+    def _decoding_parts(self, decodings: list[Decoding], roles: Integers,
+                        fresh: list[bool] | None) -> tuple[list[bytes], list[bytes]]:
         """Per message: the log text after the frame index, and its numeric params as JSON
         members (``b""``: it carried no values). Looked up in C for repeats."""
-        found = self._parts.get_all(decodings, lambda row: _decoding_parts(decodings[row], int(roles[row])))
+        found = parts_by_decoding(self._parts, decodings, fresh,
+                                  lambda row: _decoding_parts(decodings[row], int(roles[row])))
         return [parts[0] for parts in found], [parts[1] for parts in found]
 
     def log_line(self, t_ns: int, level: int, text: str) -> None:
