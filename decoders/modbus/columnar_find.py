@@ -31,6 +31,7 @@ _REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
 _TIMEOUT = int(FrameFlag.TIMEOUT)
 _SHORT = 8  # bytes of a read request, a single write and its echo, a multiple write's answer
 _MULTIPLE_HEAD = 9  # bytes of a multiple write but its values
+_SHORTEST_ANSWER = 6  # a read's answer with one byte of data
 
 #: The function, first address and count of a read request kept before the batch, by its frame
 #: index (``None``: none such).
@@ -108,8 +109,9 @@ def _shaped_writes(columns: _Columns) -> npt.NDArray[np.int64]:
     writes = np.flatnonzero(columns.of(_REQUEST, (5, 6, 15, 16)) & ((columns.batch.flags & _TIMEOUT) == 0))
     single = function[writes] <= 6
     many = writes[~single]
+    many = many[lengths[many] >= _MULTIPLE_HEAD]  # its count and byte count inside the frame
     count = columns.word(many, 4)
-    byte_count = columns.raw[columns.starts[many] + 6] if len(many) else np.zeros(0, np.int64)
+    byte_count = columns.raw[columns.starts[many] + 6]
     needed = np.where(function[many] == 15, (count + 7) // 8, 2 * count)
     fits = (lengths[many] == _MULTIPLE_HEAD + byte_count) & (byte_count == needed) & (count >= 1) & (
         count <= MOST[function[many]])
@@ -136,7 +138,7 @@ def _read_answers(columns: _Columns, answers: npt.NDArray[np.int64], earlier: Ea
     the frame indexes of the latter."""
     function, first = columns.function, columns.first
     kind, address, count = columns.kind, columns.address, columns.count
-    reads = answers[function[answers] <= 4]
+    reads = answers[(function[answers] <= 4) & (columns.lengths[answers] >= _SHORTEST_ANSWER)]
     byte_count = columns.raw[columns.starts[reads] + 2]
     fits = (byte_count == columns.lengths[reads] - 5) & (byte_count > 0) & ~(
         (function[reads] >= 3) & (byte_count % 2 == 1))

@@ -60,6 +60,8 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
             return [adu(s, b"\x2b\x0e\x01\x00"), adu(s, b"\x2b\x0e\x01\x02\x00\x00\x03", PRODUCT)]
         case 5:
             return [adu(b"\x00", request[1:-2])]  # a broadcast
+        case 6:  # a frame of that function of any length, and another
+            return [adu(s, bytes([function]), draw(st.binary(max_size=9))) for _ in range(2)]
     return [request, answer]
 
 
@@ -202,3 +204,14 @@ def test_writes_at_the_edges_say_what_the_plain_path_says() -> None:
     # Paired by hand: the matcher pairs no confirmation that differs from its write.
     batch = paired_by_hand(traffic, {answer: answer - 1 for answer in range(1, len(traffic), 2)})
     assert check_batch(annotator(None), annotator(None), batch) == 6  # not the confirmations past the limit
+
+
+def test_short_frames_of_every_function_are_left_to_the_plain_path() -> None:
+    """Frames too short for their function's layout, alone at the end of a batch (where reading
+    past them would leave the batch's bytes)."""
+    shorts = [adu(b"\x01")] + [adu(b"\x01", bytes([function]), bytes(range(size)))  # 3 to 7 bytes
+                                for function in (1, 3, 5, 6, 15, 16) for size in range(4)]
+    for short in shorts:
+        for answered in ({}, {1: 0}):
+            batch = paired_by_hand([short, short], answered)
+            assert check_batch(annotator(None), annotator(None), batch) == 0
