@@ -99,8 +99,8 @@ class Annotator:
         for index in columnar.earlier_requests:
             del requests[index]
         for position, function, address, count in columnar.kept():
-            context = (ReadRequest, function, address, count)
-            requests[first + position] = (context, ReadRequest(function, address, count))
+            pdu = ReadRequest(function, address, count)
+            requests[first + position] = (answer_context(pdu), pdu)
         rest = np.ones(len(batch), np.bool_)
         rest[columnar.positions] = False
         rows = np.flatnonzero(rest)

@@ -22,7 +22,8 @@ import numpy.typing as npt
 
 from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.param_runs import LazyParams, ParamRun
-from decoders.modbus.quick import SHOWN_WORDS
+from decoders.modbus.pdu import COIL_OFF, COIL_ON
+from decoders.modbus.pdu_text import hex_payload
 
 #: Requests are read against by answers that come within this many frames of them.
 KEPT_REQUESTS = 1024
@@ -37,8 +38,7 @@ for _function, _most in MAX_QUANTITY.items():
 #: Each byte's bits as summary text, least significant first (as ``_bit_string`` writes them).
 _BYTE_TEXT = ["".join(str(byte >> bit & 1) for bit in range(8)) for byte in range(256)]
 _SHOWN_BITS = 32  # a summary writes 32 bits, then "…"
-_COIL_ON = 0xFF00
-_COIL_STATES = {_COIL_ON: "ON", 0: "OFF"}
+_COIL_STATES = {COIL_ON: "ON", COIL_OFF: "OFF"}
 
 
 class ColumnarValues(NamedTuple):
@@ -97,12 +97,11 @@ class ColumnarFrames:
     def values(self, data: bytes) -> ColumnarValues:
         """The values of read answers, writes and the echoes of single writes (a write request's
         at its answer, before the answer's own)."""
-        valued, counts, value = self._carried(data)
+        valued, counts, within, value = self._carried(data)
         written = self.kind[valued] == WRITE
         frame = self.positions[valued]
         found = np.where(written, self.answer[valued], frame)
         request = np.where(written, -1, self.request[valued])
-        within = np.arange(len(value)) - np.repeat(np.cumsum(counts) - counts, counts)
         rows = ColumnarValues(np.repeat(frame, counts), np.repeat(found, counts), np.repeat(written, counts),
                               np.repeat(self.address[valued], counts) + within, value, np.repeat(request, counts))
         order = np.lexsort((~rows.written, rows.found))  # stable: a frame's values stay in order
@@ -112,7 +111,7 @@ class ColumnarFrames:
     def decodings(self, data: bytes) -> list[LazyParams]:
         """Each frame's decoding as the plain path's says it (summary, runs of params), without
         a PDU: for outputs that read no more of one."""
-        valued, counts, value = self._carried(data)
+        valued, counts, _, value = self._carried(data)
         carried = np.zeros(len(self), np.int64)
         carried[valued] = counts
         ends = np.cumsum(carried).tolist()
@@ -124,21 +123,28 @@ class ColumnarFrames:
             decodings.append(LazyParams.of_runs(summary, (run,)))
         return decodings
 
-    def _carried(self, data: bytes) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-        """Which frames carry values (indexes of these columns), how many each, and the values,
-        frame after frame (a register's word; a coil as 0 or 1)."""
+    def _carried(self, data: bytes) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64],
+                                             npt.NDArray[np.int64]]:
+        """Which frames carry values (indexes of these columns), how many each, each value's place
+        in its frame, and the values, frame after frame (a register's word; a coil as 0 or 1)."""
         kind, function = self.kind, self.function
         valued = np.flatnonzero((kind == READ_ANSWER) | (kind == WRITE) | ((kind == WRITE_ANSWER) & (function <= 6)))
         counts = self.count[valued]
-        within = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+        within = within_runs(counts)
         start = np.repeat(self.data[valued], counts)
         each_function = np.repeat(function[valued], counts)
         bits = (each_function <= 2) | (each_function == 15)
         raw = np.frombuffer(data, np.uint8).astype(np.int64)
         at = np.where(bits, start + (within >> 3), start + 2 * within)
         words = (raw[at] << 8) | raw[np.minimum(at + 1, len(raw) - 1)]
-        value = np.where(bits, (raw[at] >> (within & 7)) & 1, np.where(each_function == 5, words == _COIL_ON, words))
-        return valued, counts, value.astype(np.int64)
+        value = np.where(bits, (raw[at] >> (within & 7)) & 1, np.where(each_function == 5, words == COIL_ON, words))
+        return valued, counts, within, value.astype(np.int64)
+
+
+def within_runs(counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    """For runs of ``counts`` items laid end to end, each item's place in its run (0, 1, … 0, …)."""
+    within: npt.NDArray[np.int64] = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+    return within
 
 
 def _summary(data: bytes, row: tuple[int, int, int, int, int, int]) -> str:
@@ -152,7 +158,7 @@ def _summary(data: bytes, row: tuple[int, int, int, int, int, int]) -> str:
     if kind == READ_ANSWER:
         if function >= 3:
             words = size // 2
-            return f"{table} = {_hex_words(data, start, words)} ({words} registers)"
+            return f"{table} = {hex_payload(data[start : start + size])} ({words} registers)"
         return f"{table} = {_bits(data, start, 8 * size)} ({size} bytes)"
     if function <= 6:  # FC 5 and 6: a request and its echo say the same
         value = int.from_bytes(data[start : start + 2], "big")
@@ -163,13 +169,7 @@ def _summary(data: bytes, row: tuple[int, int, int, int, int, int]) -> str:
         return f"wrote {table} {span} ({count})"
     if function == 15:
         return f"write coils {span} = {_bits(data, start, count)}"
-    return f"write HR {span} = {_hex_words(data, start, count)}"
-
-
-def _hex_words(data: bytes, start: int, words: int) -> str:
-    """As :func:`decoders.modbus.pdu_text.hex_words` writes ``words`` registers from ``start``."""
-    shown = data[start : start + 2 * min(words, SHOWN_WORDS)].hex(" ", 2).upper()
-    return shown + (f" … (+{words - SHOWN_WORDS})" if words > SHOWN_WORDS else "")
+    return f"write HR {span} = {hex_payload(data[start : start + 2 * count])}"
 
 
 def _bits(data: bytes, start: int, count: int) -> str:

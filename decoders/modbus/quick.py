@@ -18,9 +18,8 @@ import numpy.typing as npt
 from decoders.message import ROLE_CODE, MessageBatch, Role
 from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.pdu import Pdu, ReadRequest, RegistersResponse
+from decoders.modbus.pdu_text import hex_payload
 
-#: Answer registers written out in a summary before "… (+N)" (as RegistersResponse.summary).
-SHOWN_WORDS = 8
 _TABLE = {3: "HR", 4: "IR"}
 _REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
 READ_REQUEST_BYTES = 8
@@ -61,10 +60,7 @@ def register_reads(batch: MessageBatch, eligible: npt.NDArray[np.bool_]) -> dict
                                                strict=True):
             payload = data[start + 3 : start + 3 + size]
             words = size // 2
-            shown = payload[: 2 * SHOWN_WORDS].hex(" ", 2).upper()
-            if words > SHOWN_WORDS:
-                shown += f" … (+{words - SHOWN_WORDS})"
             values = struct.unpack(f">{words}H", payload)
-            decoded[position] = (f"{_TABLE[code]} = {shown} ({words} registers)",
+            decoded[position] = (f"{_TABLE[code]} = {hex_payload(payload)} ({words} registers)",
                                  RegistersResponse(code, size, values), _ANSWER_CONTEXT)
     return decoded

@@ -252,7 +252,7 @@ class FrameRecordEncoder:
         )  # fmt: skip
         decodings, facts = batch.decodings_at(positions), _FrameFacts(batch.messages)
         tails = parts_by_decoding(self._tails, decodings, batch.fresh_at(positions),
-                             lambda row: b",".join(self._frame_parts(facts, positions[row], decodings[row])))
+                                  lambda row: b",".join(self._frame_parts(facts, positions[row], decodings[row])))
         optional = [*channel_column(frames, kept, self.channels), *uart_error_column(frames, kept)]
         return join_rows([rows, tails, *optional, b"}" + end], len(positions), reserved)
 
@@ -266,7 +266,7 @@ class FrameRecordEncoder:
         to the end: looked up in C for repeats, built for new decodings."""
         decodings, facts = batch.decodings_at(positions), _FrameFacts(batch.messages)
         found = parts_by_decoding(self._parts, decodings, batch.fresh_at(positions),
-                             lambda row: self._frame_parts(facts, positions[row], decodings[row]))
+                                  lambda row: self._frame_parts(facts, positions[row], decodings[row]))
         return [parts[0] for parts in found], [parts[1] for parts in found]
 
     def _frame_parts(self, facts: _FrameFacts, position: int, decoding: Decoding) -> tuple[bytes, bytes]:
@@ -294,7 +294,7 @@ Part = TypeVar("Part")
 
 
 def parts_by_decoding(memo: Memo[Decoding, Part], decodings: list[Decoding], fresh: list[bool] | None,
-                 build: Callable[[int], Part]) -> list[Part]:
+                      build: Callable[[int], Part]) -> list[Part]:
     """What ``build(row)`` makes of each decoding, repeats found in ``memo``; decodings made
     for the batch alone (``fresh``) built without a lookup."""
     return memo.get_all(decodings, build) if fresh is None else memo.get_new(decodings, build, fresh)

@@ -21,7 +21,7 @@ import pyarrow as pa
 from decoders.memo import Memo
 from decoders.message import NONE, AnnotatedBatch, Decoding, ParamValue
 from decoders.modbus.annotate import KEPT_DECODINGS
-from decoders.stats import Statistics
+from decoders.modbus.columnar import within_runs
 from sniffer.encoding.value_rows import ValueRow, ValueRows
 from sniffer.exports.parquet_export import dictionary, nullable, times
 
@@ -139,9 +139,6 @@ class ValueCollector(ValueRows):
             self._hits = self._made = 0
         return found
 
-    def finish(self, statistics: Statistics) -> None:
-        super().finish(statistics)
-
 
 def _named_block(params: tuple[ParamValue, ...], *, written: bool, crc_ok: bool) -> NamedBlock:
     """The values of ``params`` that carry a raw value, each valid as the rule says."""
@@ -180,13 +177,13 @@ def value_columns(found: CollectedValues, numeric: NumericValues | None = None) 
     parts = [] if numeric is None or not len(numeric) else [numeric]
     if found.runs:
         parts.insert(0, _run_values(found))
-    named_t, named_columns, named_counts = _named_columns(found)
     if not parts:
-        return named_t, named_columns
+        return _named_columns(found)[:2]
     laid_out = parts[0] if len(parts) == 1 else _in_order(parts)
     numeric_t, numeric_columns = _numeric_columns(laid_out)
     if not found.named:
         return numeric_t, numeric_columns
+    named_t, named_columns, named_counts = _named_columns(found)
     order = np.lexsort((np.concatenate([np.repeat(np.array(found.named_order, np.int64), named_counts),
                                         laid_out.order]),
                         np.concatenate([np.repeat(np.array(found.named_at, np.int64), named_counts),
@@ -221,8 +218,7 @@ def _named_columns(found: CollectedValues) -> tuple[npt.NDArray[np.int64], dict[
     counts = np.fromiter(map(len, found.blocks), np.int64, len(found.blocks))
     total = int(counts.sum())
     taken = None if len(params) == total else pa.array(  # None: no block twice, the table is the rows
-        np.repeat(np.array(starts, np.int64), counts) + np.arange(total)
-        - np.repeat(np.cumsum(counts) - counts, counts))
+        np.repeat(np.array(starts, np.int64), counts) + within_runs(counts))
 
     def column(values: tuple[object, ...], kind: pa.DataType) -> pa.Array:
         array = pa.array(values, kind)
@@ -260,8 +256,7 @@ def _run_values(found: CollectedValues) -> NumericValues:
     run_counts = np.array([run.size for run in runs], np.int64)
     counts = np.array([sum(run.size for run in row.runs or ()) for row in rows], np.int64)
     total = int(run_counts.sum())
-    first_of_run = np.repeat(np.cumsum(run_counts) - run_counts, run_counts)
-    address = np.repeat(np.array([run.address for run in runs], np.int64), run_counts) + np.arange(total) - first_of_run
+    address = np.repeat(np.array([run.address for run in runs], np.int64), run_counts) + within_runs(run_counts)
     request = [NONE if row.request_index is None else row.request_index for row in rows]
 
     def each(values: Sequence[int]) -> npt.NDArray[np.int64]:
