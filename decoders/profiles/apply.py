@@ -22,7 +22,8 @@ from decoders.modbus.pdu import (
     WriteRegistersRequest,
 )
 from decoders.modbus.pdu_serial import DeviceIdResponse
-from decoders.profiles.model import Indirection, Parameter, Profile
+from decoders.profiles.model import Indirection, Profile
+from decoders.profiles.naming import AddressNamer, summary_with
 
 #: The slave column's value for a frame without a slave (noise).
 NO_SLAVE = -1
@@ -84,18 +85,24 @@ class _Indirections:
 
 
 class ProfileApplier:
-    """Adds profile knowledge to messages in capture order (it learns scanner tables)."""
+    """Adds profile knowledge to messages in capture order (it learns scanner tables).
 
-    def __init__(self, book: ProfileBook) -> None:
+    ``fast=False``: every value named anew, nothing kept between frames: the reference the
+    tests hold the kept namers and values to.
+    """
+
+    def __init__(self, book: ProfileBook, *, fast: bool = True) -> None:
         self.book = book
+        self.fast = fast
         self._indirections = _Indirections()
         #: Counts what the applier has learnt (scanner tables, identified slaves): a decoding
         #: made at one version holds while the version stays.
         self.version = 0
-        #: Named params by (profile, slave, address, raw, reported), for what they were at
-        #: ``_named_version``: a drive reports the same values again and again.
-        self._named: dict[tuple[str, int | None, int, int | None, bool], ParamValue] = {}
+        #: Namers by (profile, slave, reported) and address, for what they were at
+        #: ``_named_version``; ``_kept``: how many namers and named values they hold.
+        self._namers: dict[tuple[str, int | None, bool], dict[int, AddressNamer]] = {}
         self._named_version = 0
+        self._kept = 0
         #: :func:`_knows_nothing` of each slave's profile, while the version stays.
         self._adds_nothing: dict[int, bool] = {}
         self._adds_nothing_version = 0
@@ -129,15 +136,10 @@ class ProfileApplier:
         if device is None and self.adds_nothing(NO_SLAVE if slave is None else slave):
             return decoding
         profile = self.book.profile_for(slave)
-        reported = facts.role is Role.RESPONSE
         values = addressed_values(decoding)
-        if self._named_version != self.version or len(self._named) >= KEPT_NAMED_PARAMS:
-            self._named.clear()
-            self._named_version = self.version
-        known, named_param, profile_id = self._named.get, self._named_param, profile.id
-        params = tuple([known((profile_id, slave, address, raw, reported))
-                        or named_param(profile, slave, address, raw, reported) for address, raw in values])
-        self._learn(profile, slave, values)
+        params, shown, learns = self._named(profile, slave, facts.role is Role.RESPONSE, values)
+        if learns:
+            self._learn(profile, slave, values)
         remarks = list(decoding.remarks)
         if facts.role in (Role.REQUEST, Role.BROADCAST) and pdu is not None:
             remarks += _limit_remarks(profile, facts, pdu)
@@ -145,8 +147,59 @@ class ProfileApplier:
             remarks += _exception_remarks(profile, pdu, request)
         if device is not None:
             remarks.append(_device_remark(device))
-        return Decoding(_summary(decoding.summary, params), params, pdu, tuple(remarks),
+        return Decoding(summary_with(decoding.summary, shown), tuple(params), pdu, tuple(remarks),
                         decoding.device if device is None else device, decoding.uss)
+
+    def _named(self, profile: Profile, slave: int | None, reported: bool,
+               values: list[tuple[int, int | None]]) -> tuple[list[ParamValue], list[str], bool]:
+        """The params of ``values``, the summary's texts of the named ones, and whether any is
+        a scanner address register (``reported``: the values come from the device)."""
+        if self._named_version != self.version or self._kept >= KEPT_NAMED_PARAMS:
+            self._namers.clear()
+            self._named_version, self._kept = self.version, 0
+        key = (profile.id, slave, reported)
+        namers = self._namers.get(key) if self.fast else {}
+        if namers is None:
+            namers = self._namers[key] = {}
+        params: list[ParamValue] = []
+        shown: list[str] = []
+        learns = False
+        for address, raw in values:
+            namer = namers.get(address)
+            if namer is None:
+                namer = namers[address] = self._namer(profile, slave, address, reported)
+                self._kept += 1
+            named = namer.known.get(raw) if self.fast else None
+            if named is None:
+                named = namer.make(raw)
+                self._kept += 1
+            params.append(named[0])
+            if named[1] is not None:
+                shown.append(named[1])
+            if namer.learns:
+                learns = True
+        return params, shown, learns
+
+    def _namer(self, profile: Profile, slave: int | None, address: int, reported: bool) -> AddressNamer:
+        """How ``profile`` names the register at ``address`` of ``slave`` now (the rules:
+        :mod:`decoders.profiles.naming`)."""
+        learns = any(0 <= address - table.address_registers < table.count for table in profile.indirections)
+        parameter = profile.parameters.get(address)
+        label: tuple[str | None, str | None] = (parameter.code, parameter.name) if parameter is not None else (
+            (f"%MW{address}", f"4{address + 1:05d}") if profile.address_style == "xbt" else (None, None))
+        for table in profile.indirections:
+            slot = address - table.value_registers
+            if slave is not None and 0 <= slot < table.count:
+                target = self._indirections.mapping(slave, table)[slot]
+                code = f"{table.prefix}{slot + 1}"
+                parameter = profile.parameters.get(target) if target else None
+                if parameter is None:
+                    what = "unassigned" if not target else f"copy of register {target}"
+                    label = (code, f"{code} ({what})")
+                else:
+                    label = (f"{code}→{parameter.code}", f"{code} → {parameter.name}")
+                break
+        return AddressNamer(profile, address, label, parameter, reported=reported, learns=learns)
 
     def _identify(self, pdu: DeviceIdResponse, facts: FrameFacts) -> DeviceIdentity | None:
         slave = facts.slave
@@ -168,40 +221,6 @@ class ProfileApplier:
             profile=profile.id if profile is not None else None,
             applied=profile is not None and self.book.profile_for(slave) is profile,
         )
-
-    def _named_param(self, profile: Profile, slave: int | None, address: int, raw: int | None,
-                     reported: bool) -> ParamValue:
-        """:meth:`_param` of the register at ``address`` holding ``raw``, remembered while the
-        applier learns nothing new (:meth:`apply_decoding` looks it up first, and empties the
-        memory when the applier has learnt something or it is full)."""
-        named = self._named[(profile.id, slave, address, raw, reported)] = self._param(
-            profile, slave, ParamValue(address, None, None, raw, raw), reported)
-        return named
-
-    def _param(self, profile: Profile, slave: int | None, param: ParamValue, reported: bool) -> ParamValue:
-        """``reported``: the value comes from the device (a response), where special values apply."""
-        for table in profile.indirections:
-            slot = param.address - table.value_registers
-            if slave is not None and 0 <= slot < table.count:
-                target = self._indirections.mapping(slave, table)[slot]
-                return self._indirect(profile, table, target, slot, param, reported=reported)
-        parameter = profile.parameters.get(param.address)
-        if parameter is None:
-            return _plain(profile, param, reported)
-        return _named(profile, parameter, param, parameter.code, parameter.name, reported=reported)
-
-    def _indirect(
-        self, profile: Profile, table: Indirection, target: int, slot: int, param: ParamValue, *, reported: bool
-    ) -> ParamValue:
-        code = f"{table.prefix}{slot + 1}"
-        parameter = profile.parameters.get(target) if target else None
-        if parameter is None:
-            what = "unassigned" if not target else f"copy of register {target}"
-            plain = _plain(profile, param, reported)
-            return ParamValue(param.address, code, f"{code} ({what})", param.raw, plain.value,
-                              available=plain.available)
-        label = f"{code} → {parameter.name}"
-        return _named(profile, parameter, param, f"{code}→{parameter.code}", label, reported=reported)
 
     def _learn(self, profile: Profile, slave: int | None, values: list[tuple[int, int | None]]) -> None:
         """Scanner address registers seen being read or written change the table."""
@@ -231,53 +250,10 @@ def _uss_words(profile: Profile, decoding: Decoding, role: Role) -> Decoding:
                     decoding.remarks, decoding.device, telegram)
 
 
-def _named(
-    profile: Profile, parameter: Parameter, param: ParamValue, code: str, name: str, *, reported: bool
-) -> ParamValue:
-    special = _special(profile, param.raw, reported)
-    if special is not None:
-        # A marker (16#8000), not a reading: its meaning, no unit, not available.
-        return ParamValue(param.address, code, name, param.raw, special, None, available=False)
-    value, unit = _value(profile, parameter, param.raw)
-    return ParamValue(param.address, code, name, param.raw, value, unit)
-
-
-def _special(profile: Profile, raw: int | None, reported: bool) -> str | None:
-    if raw is None or not reported:
-        return None
-    return profile.special_meanings.get(raw)
-
-
-def _value(profile: Profile, parameter: Parameter, raw: int | None) -> tuple[float | int | str | None, str | None]:
-    """The value as the device means it, and its unit (for a raw word that is no marker)."""
-    if raw is None:
-        return None, parameter.unit
-    if parameter.bitfield is not None:
-        return profile.bitfields[parameter.bitfield].describe(raw) or f"16#{raw:04X}", None
-    if raw in parameter.enum:
-        return parameter.enum[raw], None
-    number = raw - 0x10000 if parameter.signed and raw & 0x8000 else raw
-    if parameter.scale == 1.0:
-        return number, parameter.unit
-    return round(number * parameter.scale, 6), parameter.unit
-
-
 def _knows_nothing(profile: Profile) -> bool:
     """A profile with nothing to add (generic): messages pass unchanged."""
     return not (profile.parameters or profile.specials or profile.indirections or profile.exceptions
                 or profile.limits.functions or profile.address_style != "plain" or profile.uss_control_word)
-
-
-def _plain(profile: Profile, param: ParamValue, reported: bool) -> ParamValue:
-    special = _special(profile, param.raw, reported)
-    if special is None and profile.address_style == "plain":
-        return param
-    value = param.raw if special is None else special
-    if profile.address_style == "xbt":
-        # XBT addressing: %MWi is Modbus register 40001+i, PDU address i.
-        return ParamValue(param.address, f"%MW{param.address}", f"4{param.address + 1:05d}", param.raw, value,
-                          available=special is None)
-    return ParamValue(param.address, raw=param.raw, value=value, available=special is None)
 
 
 def _limit_remarks(profile: Profile, facts: FrameFacts, pdu: Pdu) -> list[str]:
@@ -329,20 +305,3 @@ def _device_remark(device: DeviceIdentity) -> str:
     if device.applied:
         return f"slave {device.slave} is {device.product_code}: decoded with profile {device.profile}"
     return f"slave {device.slave} is {device.product_code}: matches profile {device.profile} (another was chosen)"
-
-
-def _summary(summary: str, params: tuple[ParamValue, ...]) -> str:
-    named = [p for p in params if p.code is not None or type(p.value) is str]
-    if not named:
-        return summary
-    return f"{summary}: {', '.join([_show(p) for p in named[:12]])}" + (" …" if len(named) > 12 else "")
-
-
-def _show(param: ParamValue) -> str:
-    label = param.code if param.code is not None else str(param.address)
-    if param.raw is None:
-        return label
-    if isinstance(param.value, str):
-        return f"{label} = 16#{param.raw:04X} {param.value}"
-    unit = f" {param.unit}" if param.unit else ""
-    return f"{label} = {param.value}{unit}"

@@ -16,6 +16,7 @@ from decimal import Decimal
 from itertools import pairwise
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -24,6 +25,7 @@ from decoders.frame import Frame, FrameFlag, flag_set, frames_to_batch
 from decoders.message import AnnotatedBatch, Decoding, MessageBatch, ParamValue
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
+from decoders.profiles import apply as apply_module
 from decoders.profiles.apply import ProfileApplier
 from sniffer.encoding.records import FrameRecordEncoder, encode_record, frame_record
 from sniffer.profiles_io import profile_book
@@ -45,7 +47,7 @@ def adu(*parts: bytes) -> bytes:
 def exchanges(draw: st.DrawFn) -> list[bytes]:
     """A request and (mostly) its answer, from a small pool so that frames repeat."""
     s = bytes([draw(SLAVES)])
-    address, count = draw(ADDRESSES), draw(st.integers(1, 3))
+    address, count = draw(ADDRESSES), draw(st.one_of(st.integers(1, 3), st.just(14)))
     values = [draw(VALUES) for _ in range(count)]
     match draw(st.integers(0, 5)):
         case 0:
@@ -91,16 +93,17 @@ def said(decoding: Decoding) -> tuple[object, ...]:
 
 
 @settings(max_examples=max(300, EXAMPLES), deadline=None)
-@given(st.lists(exchanges(), max_size=60), st.sampled_from([None, [], ["atv71"], ["2=atv312"]]))
+@given(st.lists(exchanges(), max_size=60), st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=xbt", "7=atv71"]]))
 def test_cached_decodings_equal_decoding_each_frame(traffic: list[list[bytes]], profiles: list[str] | None) -> None:
     """Also the lean path: frames of slaves no profile speaks for (none at all: ``None``; the
-    generic one: ``[]``), decoded without message objects, their params named when read."""
+    generic one: ``[]``), decoded without message objects, their params named when read; and
+    the profiles' kept namers and values against naming every value anew (``fast=False``)."""
     batches = matched([data for exchange in traffic for data in exchange])
 
-    def annotator() -> Annotator:
-        return Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [])))
+    def annotator(fast: bool) -> Annotator:
+        return Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, []), fast=fast))
 
-    cached, plain = annotator(), annotator()
+    cached, plain = annotator(True), annotator(False)
     for batch in batches:
         expected = [plain.annotate(message) for message in batch]
         got = cached.annotate_all(batch)
@@ -126,6 +129,20 @@ def test_what_the_profiles_learn_is_not_answered_from_the_cache() -> None:
     messages = [m for batch in batches for m in annotator.annotate_all(batch)]
     assert messages[1].params[0].code == "NM1→ETA"
     assert messages[5].params[0].code == "NM1→RFRD" and messages[5].params[0].unit == "rpm"
+
+
+def test_named_values_kept_stay_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A drive reporting ever new values fills the applier's memory up to its bound, not beyond."""
+    monkeypatch.setattr(apply_module, "KEPT_NAMED_PARAMS", 50)
+    polls = []
+    for value in range(300):
+        polls += [adu(b"\x02\x03", struct.pack(">HH", 8604, 1)), adu(b"\x02\x03\x02", struct.pack(">H", value))]
+    applier = ProfileApplier(profile_book(["atv71"], []))
+    annotator = Annotator(applier)
+    messages = [m for batch in matched(polls) for m in annotator.annotate_all(batch)]
+    assert messages[-1].params[0].code == "RFRD" and messages[-1].params[0].raw == 299
+    kept = sum(1 + len(namer.known) for namers in applier._namers.values() for namer in namers.values())
+    assert 0 < kept <= 50 + 2  # checked before each frame, which adds a namer and a value at most
 
 
 NUMBERS = st.one_of(st.none(), st.integers(-(2**40), 2**40), st.floats(allow_nan=False, allow_infinity=False),
