@@ -37,8 +37,11 @@ WRITE_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 #: Objects allocated between young-generation collections. Decoding builds millions of
 #: short-lived objects next to long-lived caches of decodings; at Python's default (700)
 #: the collector walks the caches again and again: 9.9 s instead of 6.0 s for `analyze`
-#: of 200 000 frames that are all distinct (benchmarks/bench_stages.py).
-GC_YOUNG_THRESHOLD = 100_000
+#: of 200 000 frames that are all distinct (benchmarks/bench_stages.py). At 100 000, frames
+#: named by a profile, whose caches churn (objects made in one batch, freed in a later one),
+#: still set off 84 young and 8 middle collections per 1 M mixed frames, 0.4 to 0.6 s; at
+#: 500 000 none, with the same peak RSS (gc callbacks, analyze and export --mcap/--parquet).
+GC_YOUNG_THRESHOLD = 500_000
 
 
 def build_parser() -> argparse.ArgumentParser:
