@@ -21,24 +21,16 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.modbus.codes import MAX_QUANTITY
+from decoders.modbus.columnar_text import READ_ANSWER, WRITE, WRITE_ANSWER, summaries
 from decoders.modbus.param_runs import LazyParams, ParamRun
-from decoders.modbus.pdu import COIL_OFF, COIL_ON
-from decoders.modbus.pdu_text import hex_payload
+from decoders.modbus.pdu import COIL_ON
 
 #: Requests are read against by answers that come within this many frames of them.
 KEPT_REQUESTS = 1024
-#: What a frame kept in columns is: a read request (FC 1-4), its answer, a write request
-#: (FC 5, 6, 15, 16; kept only with its answer), its answer.
-READ, READ_ANSWER, WRITE, WRITE_ANSWER = 0, 1, 2, 3
-_TABLES = {1: "coils", 2: "inputs", 3: "HR", 4: "IR", 15: "coils", 16: "HR"}
 #: The most a request may ask for, by function (0: not a function kept in columns).
 MOST = np.zeros(17, np.int64)
 for _function, _most in MAX_QUANTITY.items():
     MOST[_function] = _most
-#: Each byte's bits as summary text, least significant first (as ``_bit_string`` writes them).
-_BYTE_TEXT = ["".join(str(byte >> bit & 1) for bit in range(8)) for byte in range(256)]
-_SHOWN_BITS = 32  # a summary writes 32 bits, then "…"
-_COIL_STATES = {COIL_ON: "ON", COIL_OFF: "OFF"}
 
 
 class ColumnarValues(NamedTuple):
@@ -59,9 +51,9 @@ class ColumnarValues(NamedTuple):
 class ColumnarFrames:
     """The frames of a batch kept in columns, by position (ascending), one entry each.
 
-    ``kind``: :data:`READ` … :data:`WRITE_ANSWER`; ``address`` and ``count``: the first register
-    or coil a frame names and how many (a read's answer: its request's first, and how many
-    values it carries of those asked); ``data``: where the values' bytes start in the batch's
+    ``kind``: ``READ`` … ``WRITE_ANSWER`` (:mod:`decoders.modbus.columnar_text`); ``address``
+    and ``count``: the first register or coil a frame names and how many (a read's answer: its
+    request's first, and how many values it carries of those asked); ``data``: where the values' bytes start in the batch's
     data (``-1`` for a read request); ``request``: an answer's request (frame index, ``-1`` for a
     request); ``answer``: a write's answer (position). ``kept_requests``: positions of read
     requests no answer here reads; ``earlier_requests``: frame indexes of requests from before
@@ -89,10 +81,9 @@ class ColumnarFrames:
                         self.count[at].tolist(), strict=True))
 
     def summaries(self, data: bytes) -> list[str]:
-        """Each frame's summary line, as its PDU's ``summary()`` writes it."""
-        return [_summary(data, row) for row in zip(
-            self.kind.tolist(), self.function.tolist(), self.address.tolist(), self.count.tolist(),
-            self.data.tolist(), self.byte_count.tolist(), strict=True)]
+        """Each frame's summary line, as its PDU's ``summary()`` writes it
+        (:mod:`decoders.modbus.columnar_text`)."""
+        return summaries(self, data)
 
     def values(self, data: bytes) -> ColumnarValues:
         """The values of read answers, writes and the echoes of single writes (a write request's
@@ -145,35 +136,3 @@ def within_runs(counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     """For runs of ``counts`` items laid end to end, each item's place in its run (0, 1, … 0, …)."""
     within: npt.NDArray[np.int64] = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
     return within
-
-
-def _summary(data: bytes, row: tuple[int, int, int, int, int, int]) -> str:
-    """A frame's summary line from its kind, function, address, count, and where its values lie
-    and their bytes."""
-    kind, function, address, count, start, size = row
-    table = _TABLES.get(function, "")
-    span = f"{address}" if count == 1 else f"{address}..{address + count - 1}"
-    if kind == READ:
-        return f"read {table} {span} ({count})"
-    if kind == READ_ANSWER:
-        if function >= 3:
-            words = size // 2
-            return f"{table} = {hex_payload(data[start : start + size])} ({words} registers)"
-        return f"{table} = {_bits(data, start, 8 * size)} ({size} bytes)"
-    if function <= 6:  # FC 5 and 6: a request and its echo say the same
-        value = int.from_bytes(data[start : start + 2], "big")
-        if function == 5:
-            return f"write coil {address} = {_COIL_STATES.get(value) or f'invalid 0x{value:04X}'}"
-        return f"write HR {address} = {value} (0x{value:04X})"
-    if kind == WRITE_ANSWER:
-        return f"wrote {table} {span} ({count})"
-    if function == 15:
-        return f"write coils {span} = {_bits(data, start, count)}"
-    return f"write HR {span} = {hex_payload(data[start : start + 2 * count])}"
-
-
-def _bits(data: bytes, start: int, count: int) -> str:
-    """As ``_bit_string`` writes the first ``count`` bits from ``start``."""
-    shown = min(count, _SHOWN_BITS)
-    text = "".join(map(_BYTE_TEXT.__getitem__, data[start : start + (shown + 7) // 8]))[:shown]
-    return text + ("…" if count > _SHOWN_BITS else "")

@@ -25,7 +25,8 @@ import numpy.typing as npt
 
 from decoders.frame import FrameFlag
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
-from decoders.modbus.columnar import KEPT_REQUESTS, MOST, READ, READ_ANSWER, WRITE, WRITE_ANSWER, ColumnarFrames
+from decoders.modbus.columnar import KEPT_REQUESTS, MOST, ColumnarFrames
+from decoders.modbus.columnar_text import READ, READ_ANSWER, WRITE, WRITE_ANSWER
 
 _REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
 _TIMEOUT = int(FrameFlag.TIMEOUT)

@@ -15,7 +15,8 @@ from hypothesis import strategies as st
 from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, MessageBatch, Role, slice_messages
 from decoders.modbus.annotate import Annotator
-from decoders.modbus.columnar import KEPT_REQUESTS, WRITE, ColumnarFrames
+from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
+from decoders.modbus.columnar_text import WRITE
 from decoders.modbus.param_runs import addressed_values
 from decoders.profiles.apply import ProfileApplier
 from sniffer.profiles_io import profile_book
