@@ -143,6 +143,8 @@ class Message:
 #: Roles by their code in :class:`MessageBatch`.
 ROLE_ORDER = [Role.REQUEST, Role.RESPONSE, Role.EXCEPTION, Role.BROADCAST, Role.NOISE, Role.UNKNOWN]
 ROLE_CODE = {role: code for code, role in enumerate(ROLE_ORDER)}
+#: Each role code's name (``Role.value``, which an enum computes on every read).
+ROLE_NAMES = [role.value for role in ROLE_ORDER]
 NONE = -1
 
 

@@ -18,7 +18,7 @@ import numpy.typing as npt
 from decoders.capture import UartError
 from decoders.frame import FrameBatch, FrameFlag
 from decoders.framing.fast import padded_bytes
-from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
+from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, ROLE_ORDER, MessageBatch, Role
 
 _LOWEST_NS = 1_000.0
 _RATIO = 1.01
@@ -226,7 +226,7 @@ class Statistics:
         self.last_ns = int(frames.t_end_ns[-1])
         for code, count in enumerate(np.bincount(batch.role, minlength=len(ROLE_ORDER)).tolist()):
             if count:
-                self.roles[ROLE_ORDER[code].value] += count
+                self.roles[ROLE_NAMES[code]] += count
         for flag in _FLAGS:
             count = int(np.count_nonzero(batch.flags & flag))
             if count:

@@ -53,9 +53,9 @@ class ColumnarFrames:
 
     ``kind``: ``READ`` … ``WRITE_ANSWER`` (:mod:`decoders.modbus.columnar_text`); ``address``
     and ``count``: the first register or coil a frame names and how many (a read's answer: its
-    request's first, and how many values it carries of those asked); ``data``: where the values' bytes start in the batch's
-    data (``-1`` for a read request); ``request``: an answer's request (frame index, ``-1`` for a
-    request); ``answer``: a write's answer (position). ``kept_requests``: positions of read
+    request's first, and how many values it carries of those asked); ``data``: where the values'
+    bytes start in the batch's data (``-1`` for a read request); ``request``: an answer's request
+    (frame index, ``-1`` for a request); ``answer``: a write's answer (position). ``kept_requests``: positions of read
     requests no answer here reads; ``earlier_requests``: frame indexes of requests from before
     the batch that answers here read."""
 

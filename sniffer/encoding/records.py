@@ -17,7 +17,7 @@ from decoders.line import LineSettings
 from decoders.memo import Memo
 from decoders.message import (
     NONE,
-    ROLE_ORDER,
+    ROLE_NAMES,
     AnnotatedBatch,
     Decoding,
     DeviceIdentity,
@@ -285,7 +285,7 @@ class FrameRecordEncoder:
         return (
             f'"hex":"{data.hex()}","crc_ok":{"true" if crc_ok else "false"},'
             f'"slave":{"null" if slave == NONE else slave},"function":{"null" if function == NONE else function},'
-            f'"role":"{ROLE_ORDER[role].value}","exception_code":{"null" if code == NONE else code}'.encode(),
+            f'"role":"{ROLE_NAMES[role]}","exception_code":{"null" if code == NONE else code}'.encode(),
             b"".join(tail),
         )
 

@@ -36,7 +36,7 @@ import numpy.typing as npt
 from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.memo import Memo
-from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding
+from decoders.message import NONE, ROLE_NAMES, AnnotatedBatch, Decoding
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.records import FrameRecordEncoder, encode_json, parts_by_decoding
@@ -314,7 +314,7 @@ def transaction_encoder() -> TransactionEncoder:
 
 def _decoding_parts(decoding: Decoding, role: int) -> tuple[bytes, bytes]:
     values = numeric_params(decoding)
-    return f" {ROLE_ORDER[role].value}: {decoding.summary}".encode(), encode_json(values)[1:] if values else b""
+    return f" {ROLE_NAMES[role]}: {decoding.summary}".encode(), encode_json(values)[1:] if values else b""
 
 
 #: The log's ``name`` by slave, then rtusniff's own lines; NONE (-1, noise) is the last.

@@ -20,7 +20,7 @@ import numpy as np
 
 from decoders.damage import uart_error_note
 from decoders.frame import FrameFlag, flag_set
-from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
+from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, MessageBatch, Role
 from sniffer.io.output_files import open_new
 
 LINKTYPE_USER0 = 147
@@ -115,7 +115,7 @@ def pcapng_blocks(batch: MessageBatch) -> bytes:
                   batch.latency_ns.tolist(), batch.flags.tolist(), strict=True)
     for position, (t_ns, role, request, latency, flags) in enumerate(columns):
         payload = data[offsets[position] : offsets[position + 1]]
-        comment = f"rtusniff #{frames.first_index + position}: {ROLE_ORDER[role].value}"
+        comment = f"rtusniff #{frames.first_index + position}: {ROLE_NAMES[role]}"
         if request != NONE:
             comment += f" to #{request}" + (f", latency {latency / 1e6:.3f} ms" if latency != NONE else "")
         if flags:

@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.memo import Memo
-from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, AnnotatedBatch, Decoding, ParamValue, Role
+from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, AnnotatedBatch, Decoding, ParamValue, Role
 from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
 from sniffer.exports.published import PublishedValues, plotted
@@ -225,7 +225,7 @@ class RerunExporter:
         latency = -1
         if function != NONE:
             latency = self.entities.entity(f"slaves/{slave}/latency_ms/fc{function}", f"latency FC {function} (ms)")
-        return _Parts(f"{ROLE_ORDER[role].value}: {decoding.summary}", np.array(scalar_ids, np.int64),
+        return _Parts(f"{ROLE_NAMES[role]}: {decoding.summary}", np.array(scalar_ids, np.int64),
                       np.array(scalar_values, np.float64), states, latency)
 
     def _known_slave(self, slave: int) -> None:
