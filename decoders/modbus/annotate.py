@@ -60,6 +60,8 @@ IDENTIFICATION = 43
 #: The share of distinct frames from which a batch is left in columns for outputs that cache
 #: what they derive per decoding (below it, most frames are repeats the memo serves).
 DISTINCT_ENOUGH = 0.5
+#: Frames of a batch decoded one by one before its register reads are decoded together.
+ONE_BY_ONE = 32
 _NOISE_CODE = ROLE_CODE[Role.NOISE]
 #: What of a request decoding its answer reads (see :func:`answer_context`).
 AnswerContext = tuple[object, ...] | None
@@ -237,24 +239,32 @@ def mostly_distinct(batch: MessageBatch) -> bool:
 
 
 class _Fresh:
-    """Decodes the frames of a batch its annotator has not seen before: register reads and their
-    answers from :func:`register_reads` (the whole batch at once, when the first such frame
-    comes), the rest by :meth:`Annotator._decoding`; then the profiles, which may learn."""
+    """Decodes the frames of a batch its annotator has not seen before: the first
+    :data:`ONE_BY_ONE` one by one (:meth:`Annotator._decoding`); past them, the register reads
+    and their answers from the frame on at once (:func:`register_reads`), the rest one by one;
+    then the profiles, which may learn. A batch of repeats has few frames to decode, and decoding
+    all its reads for them would cost more than they do."""
 
     def __init__(self, annotator: Annotator, batch: MessageBatch) -> None:
         self._annotator, self._batch = annotator, batch
-        self._reads: dict[int, QuickRead] | None = None
+        self._facts: tuple[list[int], list[bool], list[int]] | None = None
+        self._reads: dict[int, QuickRead] = {}
+        self._decoded = 0
 
     def decode(self, position: int, key: DecodingKey, request: Pdu | None) -> tuple[Decoding, AnswerContext]:
         annotator, batch = self._annotator, self._batch
-        if self._reads is None:
-            self._slaves, self._crc = batch.slave.tolist(), batch.frames.crc_ok.tolist()
-            self._functions = batch.function.tolist()
-            self._reads = register_reads(batch, batch.frames.protocols() != USS)
+        if self._facts is None:
+            self._facts = batch.slave.tolist(), batch.frames.crc_ok.tolist(), batch.function.tolist()
+        self._decoded += 1
+        if self._decoded == ONE_BY_ONE + 1:
+            eligible = batch.frames.protocols() != USS
+            eligible[:position] = False  # decoded already, or repeats
+            self._reads = register_reads(batch, eligible)
+        slaves, crc, functions = self._facts
         role, protocol, data = key[0], key[1], key[2]
-        slave, function = self._slaves[position], self._functions[position]
+        slave, function = slaves[position], functions[position]
         facts = FrameFacts(None if slave == NONE else slave, ROLE_ORDER[role], None if function == NONE else function,
-                           self._crc[position])
+                           crc[position])
         read = self._reads.get(position)
         if read is None:
             decoding = annotator._decoding(data, protocol, facts, request)

@@ -14,6 +14,7 @@ import struct
 from dataclasses import astuple
 from decimal import Decimal
 from itertools import pairwise
+from unittest.mock import patch
 
 import numpy as np
 import pytest
@@ -23,6 +24,7 @@ from hypothesis import strategies as st
 from decoders.crc import crc_bytes, crc_ok
 from decoders.frame import Frame, FrameFlag, flag_set, frames_to_batch
 from decoders.message import AnnotatedBatch, Decoding, MessageBatch, ParamValue
+from decoders.modbus import annotate as annotate_module
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.profiles import apply as apply_module
@@ -93,13 +95,20 @@ def said(decoding: Decoding) -> tuple[object, ...]:
 
 
 @settings(max_examples=max(300, EXAMPLES), deadline=None)
-@given(st.lists(exchanges(), max_size=60), st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=xbt", "7=atv71"]]))
-def test_cached_decodings_equal_decoding_each_frame(traffic: list[list[bytes]], profiles: list[str] | None) -> None:
+@given(st.lists(exchanges(), max_size=60), st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=xbt", "7=atv71"]]),
+       st.sampled_from([0, 1, 5, annotate_module.ONE_BY_ONE]))
+def test_cached_decodings_equal_decoding_each_frame(traffic: list[list[bytes]], profiles: list[str] | None,
+                                                    one_by_one: int) -> None:
     """Also the lean path: frames of slaves no profile speaks for (none at all: ``None``; the
-    generic one: ``[]``), decoded without message objects, their params named when read; and
+    generic one: ``[]``), decoded without message objects, their params named when read; the
+    register reads of a batch decoded together past its first ``one_by_one`` new frames; and
     the profiles' kept namers and values against naming every value anew (``fast=False``)."""
     batches = matched([data for exchange in traffic for data in exchange])
+    with patch.object(annotate_module, "ONE_BY_ONE", one_by_one):
+        _check_cached_decodings(batches, profiles)
 
+
+def _check_cached_decodings(batches: list[MessageBatch], profiles: list[str] | None) -> None:
     def annotator(fast: bool) -> Annotator:
         return Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, []), fast=fast))
 
