@@ -96,15 +96,17 @@ def said(decoding: Decoding) -> tuple[object, ...]:
 
 @settings(max_examples=max(300, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=60), st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=xbt", "7=atv71"]]),
-       st.sampled_from([0, 1, 5, annotate_module.ONE_BY_ONE]))
+       st.sampled_from([0, 1, 5, annotate_module.ONE_BY_ONE]), st.sampled_from([0, annotate_module.TOGETHER_FROM]))
 def test_cached_decodings_equal_decoding_each_frame(traffic: list[list[bytes]], profiles: list[str] | None,
-                                                    one_by_one: int) -> None:
+                                                    one_by_one: int, together_from: float) -> None:
     """Also the lean path: frames of slaves no profile speaks for (none at all: ``None``; the
     generic one: ``[]``), decoded without message objects, their params named when read; the
-    register reads of a batch decoded together past its first ``one_by_one`` new frames; and
+    register reads of a batch decoded together past its first ``one_by_one`` new frames (once
+    they are ``together_from`` of the frames passed); and
     the profiles' kept namers and values against naming every value anew (``fast=False``)."""
     batches = matched([data for exchange in traffic for data in exchange])
-    with patch.object(annotate_module, "ONE_BY_ONE", one_by_one):
+    with (patch.object(annotate_module, "ONE_BY_ONE", one_by_one),
+          patch.object(annotate_module, "TOGETHER_FROM", together_from)):
         _check_cached_decodings(batches, profiles)
 
 
