@@ -31,7 +31,8 @@ from sniffer.sinks import Sink
 KEPT_WRITES = 1024
 _REQUEST, _BROADCAST = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST]
 _RESPONSE, _EXCEPTION = ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.EXCEPTION]
-_WRITES = frozenset({5, 6, 15, 16, 23})
+#: The functions whose requests carry written values.
+WRITES = frozenset({5, 6, 15, 16, 23})
 _TIMEOUT = int(FrameFlag.TIMEOUT)
 #: :attr:`ValueRows.emitting` after the last frame: past every frame index.
 AT_THE_END = 1 << 62
@@ -96,6 +97,10 @@ class ValueRows(Sink):
         raise NotImplementedError
 
     def messages(self, batch: AnnotatedBatch) -> None:
+        self.rows_at(batch, batch.positions())
+
+    def rows_at(self, batch: AnnotatedBatch, positions: list[int]) -> None:
+        """The rows of the messages at ``positions`` (of the batch's kept positions, in order)."""
         messages, frames = batch.messages, batch.messages.frames
         first = frames.first_index
         self._first_frame(frames.t_start_ns)
@@ -103,7 +108,7 @@ class ValueRows(Sink):
         crc, flags, request = frames.crc_ok.tolist(), messages.flags.tolist(), messages.request_index.tolist()
         t_start = frames.t_start_ns.tolist()
         as_runs = self.takes_runs and self._choice.everything
-        for position in batch.positions():
+        for position in positions:
             self.emitting = first + position
             decoding: Decoding = batch.decodings[position]
             kind = role[position]
@@ -119,7 +124,7 @@ class ValueRows(Sink):
             if kind == _RESPONSE:
                 row.kind = "reported"
                 self._emit(row, crc_ok=bool(crc[position]))
-            elif kind in (_REQUEST, _BROADCAST) and function[position] in _WRITES:
+            elif kind in (_REQUEST, _BROADCAST) and function[position] in WRITES:
                 self._written(row, kind=kind, crc_ok=bool(crc[position]), timed_out=bool(flags[position] & _TIMEOUT))
 
     def _written(self, row: ValueRow, *, kind: int, crc_ok: bool, timed_out: bool) -> None:

@@ -24,6 +24,7 @@ from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.columnar import within_runs
 from sniffer.encoding.value_rows import ValueRow, ValueRows
 from sniffer.exports.parquet_export import dictionary, nullable, times
+from sniffer.exports.value_bulk import REPORTED, VALUE_KINDS, WRITTEN, BulkRows, bulk_rows
 
 #: The params of one decoding as the ``values`` table holds them, a tuple per param: address,
 #: code, name, raw, value (numbers), text (what a value says in words), unit, valid.
@@ -34,8 +35,7 @@ _NAMED_COLUMNS = 8
 PROBE_EVERY = 16
 #: A named row's own columns: time, index, slave, kind (its code), request index (``NONE``).
 NamedRow = tuple[int, int, int, int, int]
-_VALUE_KINDS = ["reported", "written"]
-_REPORTED, _WRITTEN = _VALUE_KINDS.index("reported"), _VALUE_KINDS.index("written")
+_VALUE_KINDS = list(VALUE_KINDS)
 _KIND_CODES = {kind: code for code, kind in enumerate(_VALUE_KINDS)}
 
 
@@ -56,6 +56,14 @@ class CollectedValues:
 
     def __len__(self) -> int:
         return len(self.named) + len(self.runs)
+
+    def in_order(self) -> None:
+        """The named rows put in the order found (where each was found, then found when)."""
+        order = np.lexsort((np.array(self.named_order, np.int64), np.array(self.named_at, np.int64))).tolist()
+        self.named = [self.named[row] for row in order]
+        self.blocks = [self.blocks[row] for row in order]
+        self.named_order = [self.named_order[row] for row in order]
+        self.named_at = [self.named_at[row] for row in order]
 
 
 @dataclass(frozen=True)
@@ -97,6 +105,67 @@ class ValueCollector(ValueRows):
         #: them costs more than making them, yet a few tell when they start to repeat).
         self._hits = self._made = 0
         self._keeping = True
+        #: Whether rows found in bulk were added since :meth:`take`.
+        self._bulk = False
+
+    def messages(self, batch: AnnotatedBatch) -> None:
+        """:meth:`ValueRows.messages`, the rows of named params found in bulk where the rule needs
+        no frame by frame state (:func:`sniffer.exports.value_bulk.bulk_rows`): a row from each
+        decoding's block, looked up once per decoding. The other frames go by the rule, one by
+        one, after them; :meth:`take` puts the rows in the order found."""
+        positions = batch.positions()
+        found = bulk_rows(batch, positions, pending=self._writes.keys())
+        if found is None:
+            self.rows_at(batch, positions)
+            return
+        decodings, first = batch.decodings_at(positions), batch.messages.frames.first_index
+        for rows in (found.written, found.reported):
+            self._add_bulk(batch, rows, [decodings[row] for row in rows.carrier.tolist()], first)
+        self.rows_at(batch, [positions[row] for row in found.one_by_one.tolist()])
+
+    def _add_bulk(self, batch: AnnotatedBatch, rows: BulkRows, decodings: list[Decoding], first: int) -> None:
+        """``rows`` (``decodings``: their carriers'), each row where its block has values."""
+        if not len(rows.carrier):
+            return
+        kind = _VALUE_KINDS[rows.kind]
+        blocks: dict[tuple[int, bool], NamedBlock] = {}
+        chosen = []
+        for decoding, valid in zip(decodings, rows.valid.tolist(), strict=True):
+            block = blocks.get((id(decoding), valid))
+            if block is None:
+                block = blocks[(id(decoding), valid)] = self._block(decoding, kind, valid)
+            chosen.append(block)
+        carried = np.fromiter(map(len, chosen), np.int64, len(chosen))
+        kept = np.flatnonzero(carried > 0)
+        if not len(kept):
+            return
+        messages = batch.messages
+        carrier, count = rows.positions[kept], len(kept)
+        request = np.full(count, first, np.int64) + carrier if rows.kind == WRITTEN else \
+            messages.request_index[carrier]
+        found = self._found
+        found.named += zip(messages.frames.t_start_ns[carrier].tolist(), (carrier + first).tolist(),
+                           messages.slave[carrier].tolist(), itertools.repeat(rows.kind, count), request.tolist(),
+                           strict=False)
+        found.blocks += [chosen[row] for row in kept.tolist()]
+        found.named_order += range(self._rows_found + 1, self._rows_found + 1 + count)
+        found.named_at += (rows.at[kept] + first).tolist()
+        self._rows_found += count
+        self.shown += int(carried.sum())
+        self._bulk = True
+
+    def _block(self, decoding: Decoding, kind: str, crc_ok: bool) -> NamedBlock:
+        """The params of ``decoding`` as the table holds them, from the memo where kept."""
+        key = (decoding, kind, crc_ok)
+        block = self._blocks.get(key)
+        if block is None:
+            block = _named_block(decoding.params, written=kind == "written", crc_ok=crc_ok)
+            self._made += 1
+            if self._keeping or self._made % PROBE_EVERY == 0:
+                self._blocks.put(key, block)
+        else:
+            self._hits += 1
+        return block
 
     def _emit(self, row: ValueRow, *, crc_ok: bool) -> None:
         """:meth:`ValueRows._emit` of every value (this collector chooses none), a decoding's
@@ -105,15 +174,7 @@ class ValueCollector(ValueRows):
         if decoding is None:
             super()._emit(row, crc_ok=crc_ok)
             return
-        key = (decoding, row.kind, crc_ok)
-        block = self._blocks.get(key)
-        if block is None:
-            block = _named_block(decoding.params, written=row.kind == "written", crc_ok=crc_ok)
-            self._made += 1
-            if self._keeping or self._made % PROBE_EVERY == 0:
-                self._blocks.put(key, block)
-        else:
-            self._hits += 1
+        block = self._block(decoding, row.kind, crc_ok)
         if not block:
             return
         self.shown += len(block)
@@ -133,6 +194,9 @@ class ValueCollector(ValueRows):
 
     def take(self) -> CollectedValues:
         found, self._found = self._found, CollectedValues()
+        if self._bulk:
+            found.in_order()
+            self._bulk = False
         if self._hits + self._made >= PROBE_EVERY:
             # Kept, a block must be asked for again to pay: when probes are, keep them all.
             self._keeping = self._hits * (1 if self._keeping else PROBE_EVERY) >= self._made
@@ -164,7 +228,7 @@ def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
     rows = columnar.values(frames.data)
     index = rows.frame + first
     return NumericValues(frames.t_start_ns[rows.frame], index, messages.slave[rows.frame].astype(np.int64),
-                         np.where(rows.written, _WRITTEN, _REPORTED).astype(np.int32), rows.address, rows.raw,
+                         np.where(rows.written, WRITTEN, REPORTED).astype(np.int32), rows.address, rows.raw,
                          np.where(rows.written, index, rows.request), np.ones(len(index), np.bool_),
                          found=rows.found + first, order=np.where(rows.written, 0, 1))
 
