@@ -35,8 +35,7 @@ _NAMED_COLUMNS = 8
 PROBE_EVERY = 16
 #: A named row's own columns: time, index, slave, kind (its code), request index (``NONE``).
 NamedRow = tuple[int, int, int, int, int]
-_VALUE_KINDS = list(VALUE_KINDS)
-_KIND_CODES = {kind: code for code, kind in enumerate(_VALUE_KINDS)}
+_KIND_CODES = {kind: code for code, kind in enumerate(VALUE_KINDS)}
 
 
 @dataclass
@@ -127,7 +126,7 @@ class ValueCollector(ValueRows):
         """``rows`` (``decodings``: their carriers'), each row where its block has values."""
         if not len(rows.carrier):
             return
-        kind = _VALUE_KINDS[rows.kind]
+        kind = VALUE_KINDS[rows.kind]
         blocks: dict[tuple[int, bool], NamedBlock] = {}
         chosen = []
         for decoding, valid in zip(decodings, rows.valid.tolist(), strict=True):
@@ -300,7 +299,7 @@ def _named_columns(found: CollectedValues) -> tuple[npt.NDArray[np.int64], dict[
         "t": times(t_ns),
         "index": pa.array(each(1), pa.int64()),
         "slave": pa.array(each(2), pa.int16()),
-        "kind": dictionary(each(3).astype(np.int32), pa.array(_VALUE_KINDS)),
+        "kind": dictionary(each(3).astype(np.int32), pa.array(VALUE_KINDS)),
         "address": column(address, pa.int32()),
         "code": column(code, pa.string()),
         "name": column(name, pa.string()),
@@ -328,7 +327,7 @@ def _run_values(found: CollectedValues) -> NumericValues:
 
     return NumericValues(
         each([row.t_ns for row in rows]), each([row.index for row in rows]), each([row.slave for row in rows]),
-        np.repeat(np.array([_VALUE_KINDS.index(row.kind) for row in rows], np.int32), counts), address,
+        np.repeat(np.array([VALUE_KINDS.index(row.kind) for row in rows], np.int32), counts), address,
         np.fromiter(itertools.chain.from_iterable(run.values or () for run in runs), np.int64, total),
         each(request), np.repeat(np.array([row.valid[0] for row in rows], np.bool_), counts), each(found.run_at),
         each(found.run_order))
@@ -340,7 +339,7 @@ def _numeric_columns(rows: NumericValues) -> tuple[npt.NDArray[np.int64], dict[s
         "t": times(rows.t_ns),
         "index": pa.array(rows.index, pa.int64()),
         "slave": pa.array(rows.slave, pa.int16()),
-        "kind": dictionary(rows.kind, pa.array(_VALUE_KINDS)),
+        "kind": dictionary(rows.kind, pa.array(VALUE_KINDS)),
         "address": pa.array(rows.address, pa.int32()),
         "code": no_text,
         "name": no_text,

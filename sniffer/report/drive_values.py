@@ -22,6 +22,7 @@ import numpy as np
 
 from decoders.message import ROLE_CODE, AnnotatedBatch, Decoding, Role
 from decoders.timeline import Merge, Timeline
+from sniffer.encoding.value_rows import WRITES
 
 MAX_SERIES = 48
 #: Series a capture of ``report --each`` keeps: the merge keeps the first ``MAX_SERIES`` of all
@@ -32,7 +33,6 @@ MAX_CHANGES = 500
 CACHED = 4096
 _RESPONSE = ROLE_CODE[Role.RESPONSE]
 _SENT = (ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST])
-_WRITES = frozenset({5, 6, 15, 16, 23})
 _MERGES: tuple[Merge, ...] = ("min", "max", "last")
 
 
@@ -92,7 +92,7 @@ class DriveValues:
         messages = batch.messages
         crc_ok = messages.frames.crc_ok
         answers = (messages.role == _RESPONSE) & crc_ok
-        writes = np.isin(messages.role, _SENT) & np.isin(messages.function, list(_WRITES)) & crc_ok
+        writes = np.isin(messages.role, _SENT) & np.isin(messages.function, sorted(WRITES)) & crc_ok
         positions = np.flatnonzero(answers | writes).tolist()
         if not positions:
             return
