@@ -8,7 +8,8 @@ so no shorter gap proves anything. What the capture's read loop really does is
 learned from the frames themselves (:mod:`decoders.framing.delivery`), and sets
 the matcher's least response timeout. A live capture knows
 its own reader: :meth:`Framer.close_idle` closes the open segment after 100 ms
-of quiet. Segments that are one whole valid frame are recognised
+of quiet. Segments that are one whole valid frame, two clean frames (an answer
+sooner than t3.5) or a clean frame and 1..3 stray bytes (a glitch) are recognised
 in bulk (:mod:`decoders.framing.fast`); :func:`decoders.framing.best_parse.parse_segment`
 cuts the others into frames and noise by the best parse of their content, with
 silences > t1.5 as evidence on exact captures. Every byte ends up in exactly one
@@ -38,7 +39,7 @@ from decoders.frame import NO_IDLE, FrameBatch, FrameFlag
 from decoders.framing.best_parse import Pieces, clean_frame_end, parse_segment
 from decoders.framing.content import OpenRequest, replayed_open_request
 from decoders.framing.delivery import DeliveryDelay
-from decoders.framing.fast import single_frame_segments
+from decoders.framing.fast import frame_pair_segments, single_frame_segments
 from decoders.framing.programme import Context
 from decoders.line import LineSettings
 
@@ -151,11 +152,11 @@ class Framer:
 
     def _closed_segments(self, data: bytes, times: tuple[Int64Array, Int64Array, UInt8Array | None],
                          bounds: Int64Array) -> Pieces:
-        """Pieces of the segments ``data[bounds[i]:bounds[i+1]]``: whole frames in bulk,
-        the rest through the content parser (``times``: the bytes' starts, ends and UART errors)."""
+        """Pieces of the segments ``data[bounds[i]:bounds[i+1]]``: whole frames and pairs of
+        pieces in bulk, the rest through the content parser (``times``: the bytes' starts,
+        ends and UART errors)."""
         starts, ends, kinds = times
         seg_starts, seg_ends = bounds[:-1], bounds[1:]
-        count = len(seg_starts)
         single = single_frame_segments(data, seg_starts, seg_ends, crc_ok_many(data, bounds))
         if not self.fast:
             single[:] = False
@@ -164,23 +165,50 @@ class Framer:
             for index in np.flatnonzero(~single).tolist():
                 begin, stop = int(seg_starts[index]), int(seg_ends[index])
                 single[index] = clean_frame_end(data[begin:stop], 0, stop - begin) == stop - begin
-        slow = np.flatnonzero(~single).tolist()
+        known = [Pieces.frames(seg_starts[single], seg_ends[single])]
+        slow = np.flatnonzero(~single)
+        if self.fast and len(slow):
+            paired, slow = self._pairs(data, (starts, ends), (seg_starts[slow], seg_ends[slow]), slow)
+            known.append(paired)
+        whole = Pieces.join(known).in_order() if len(known) > 1 else known[0]
+        frames = ~whole.is_noise
+        frame_bounds = (whole.first[frames], whole.last[frames])
+        frames_before = np.searchsorted(frame_bounds[0], seg_starts[slow]).tolist()
         parsed: list[Pieces] = []
         done = 0
-        for index in slow:
+        for index, upto in zip(slow.tolist(), frames_before, strict=True):
             if index > 0:
                 self._at_capture_start = False  # whole frames came before it
-            self._open_request = replayed_open_request(data, (seg_starts, seg_ends), range(done, index),
-                                                       self._open_request)
+            self._open_request = replayed_open_request(data, frame_bounds, range(done, upto), self._open_request)
             parsed.append(self._parse(data, starts, ends, int(seg_starts[index]), int(seg_ends[index]), closed=True,
                                       kinds=kinds))
-            done = index + 1
-        self._open_request = replayed_open_request(data, (seg_starts, seg_ends), range(done, count),
+            done = upto
+        self._open_request = replayed_open_request(data, frame_bounds, range(done, len(frame_bounds[0])),
                                                    self._open_request)
-        if count:
+        if len(seg_starts):
             self._at_capture_start = False
-        whole = Pieces.frames(seg_starts[single], seg_ends[single])
         return Pieces.join([whole, *parsed]).in_order() if parsed else whole
+
+    def _pairs(self, data: bytes, times: tuple[Int64Array, Int64Array], segments: tuple[Int64Array, Int64Array],
+               which: Int64Array) -> tuple[Pieces, Int64Array]:
+        """Of the segments ``which`` (their bounds: ``segments``), the pieces of those that
+        are two frames or a frame and a few stray bytes; and the indexes of the others."""
+        seg_starts, seg_ends = segments
+        pause_at = None
+        if self.timing is TimingQuality.EXACT:
+            starts, ends = times
+            pause_at = np.zeros(len(data), np.bool_)
+            pause_at[1:] = starts[1:] - ends[:-1] > self.line.t1_5_ns + TOLERANCE_NS
+        first_length, second_frame = frame_pair_segments(data, seg_starts, seg_ends, pause_at)
+        known = first_length > 0
+        split = seg_starts[known] + first_length[known]
+        first = np.concatenate([seg_starts[known], split])
+        last = np.concatenate([split, seg_ends[known]])
+        pieces = Pieces.frames(first, last)
+        stray = np.concatenate([np.zeros(len(split), np.bool_), ~second_frame[known]])
+        pieces.is_noise[stray] = True
+        pieces.crc_ok[stray] = False
+        return pieces.in_order(), which[~known]
 
     def _parse(
         self, data: bytes, starts: Int64Array, ends: Int64Array, begin: int, stop: int, *, closed: bool,

@@ -1,4 +1,4 @@
-"""Vectorised recognition of segments that are one whole, valid frame.
+"""Vectorised recognition of segments that are one whole, valid frame (or two pieces).
 
 On a healthy exact capture nearly every timing segment is exactly one frame: its
 CRC holds and its length is what its function code's length rule says. Those are
@@ -121,9 +121,10 @@ _CLEAN_FIXED, _CLEAN_POSITION, _CLEAN_BASE = _clean_rule_tables()
 _HAS_CLEAN_RULE = (_CLEAN_FIXED[0] > 0) | (_CLEAN_POSITION[0] >= 0)
 
 
-def clean_frame_ends(data: bytes) -> npt.NDArray[np.int64]:
+def clean_frame_ends(data: bytes, limits: Int64Array | None = None) -> npt.NDArray[np.int64]:
     """For every position of ``data``: the end of the clean frame starting there, or 0
-    (what :func:`decoders.framing.best_parse.clean_frame_end` says, for all positions at once)."""
+    (what :func:`decoders.framing.best_parse.clean_frame_end` says, for all positions at once).
+    ``limits``: per position, where its run of bytes stops (default: the end of ``data``)."""
     size = len(data)
     ends = np.zeros(size, np.int64)
     if size < MIN_ADU:
@@ -136,11 +137,12 @@ def clean_frame_ends(data: bytes) -> npt.NDArray[np.int64]:
     functions = functions_all[positions].astype(np.intp)
     registers = prefix_registers(data)
     valid_count = np.zeros(size, np.int64)
+    limit = size if limits is None else limits[positions]
     for slot in (0, 1):
         fixed, at = _CLEAN_FIXED[slot, functions], _CLEAN_POSITION[slot, functions]
         counted = at >= 0
         lengths = np.where(counted, _CLEAN_BASE[slot, functions] + padded[positions + np.maximum(at, 0)], fixed)
-        usable = ((fixed > 0) | (counted & (positions + at < size))) & (positions + lengths <= size)
+        usable = ((fixed > 0) | (counted & (positions + at < limit))) & (positions + lengths <= limit)
         starts = positions[usable]
         good = crc_ok_spans(registers, starts, lengths[usable])
         stops = starts + lengths[usable]
@@ -150,3 +152,54 @@ def clean_frame_ends(data: bytes) -> npt.NDArray[np.int64]:
         ends[good_starts] = good_stops
     ends[valid_count > 1] = 0  # both directions pass: the programme decides
     return ends
+
+
+#: Stray bytes after a frame that are noise whatever they hold: no reading is this short.
+MAX_STRAY = MIN_ADU - 1
+
+
+def frame_pair_segments(
+    data: bytes, seg_starts: Int64Array, seg_ends: Int64Array, pause_at: npt.NDArray[np.bool_] | None
+) -> tuple[Int64Array, npt.NDArray[np.bool_]]:
+    """Of segments that are not one whole frame: where each one's first piece ends, for those
+    that are a clean frame followed by another clean frame (a fast answer) or by 1..3 stray
+    bytes (a glitch), else 0; and whether the rest is that second frame.
+
+    The parse of such a segment is known without the programme: its frames are anchors of
+    :mod:`decoders.framing.best_parse` (clean, no other clean frame starting inside, no
+    pause inside, touching the segment's start or each other), and fewer than ``MIN_ADU``
+    bytes hold no reading, so they are noise. ``pause_at[q]``: byte ``q`` of ``data``
+    follows a silence > t1.5 (``None``: no pauses, host timing).
+    """
+    count = len(seg_starts)
+    lengths = seg_ends - seg_starts
+    offsets = np.zeros(count + 1, np.int64)
+    np.cumsum(lengths, out=offsets[1:])
+    total = int(offsets[-1])
+    bounds = zip(seg_starts.tolist(), seg_ends.tolist(), strict=True)
+    joined = b"".join([data[begin:stop] for begin, stop in bounds])
+    ends = clean_frame_ends(joined, np.repeat(offsets[1:], lengths))
+    clean_before = np.zeros(total + 1, np.int64)  # [q]: clean frames starting before q
+    np.cumsum(ends > 0, out=clean_before[1:])
+    pauses_before = np.zeros(total + 1, np.int64)
+    if pause_at is not None:
+        at_data = np.repeat(seg_starts - offsets[:-1], lengths) + np.arange(total)
+        np.cumsum(pause_at[at_data], out=pauses_before[1:])
+    begin, stop = offsets[:-1], offsets[1:]
+    first_end = ends[np.minimum(begin, max(total - 1, 0))] if total else np.zeros(count, np.int64)
+    split = np.where((first_end > begin) & (first_end < stop), first_end, begin + 1)
+
+    def quiet(start: Int64Array, end: Int64Array) -> npt.NDArray[np.bool_]:
+        """No clean frame starts and no pause lies strictly inside ``(start, end)``."""
+        inside = np.maximum(start + 1, end)
+        none: npt.NDArray[np.bool_] = (clean_before[inside] == clean_before[start + 1]) & (
+            pauses_before[inside] == pauses_before[start + 1])
+        return none
+
+    first_ok = (first_end > begin) & (first_end < stop) & quiet(begin, split)
+    second_frame = ends[np.minimum(split, max(total - 1, 0))] == stop
+    second_ok = second_frame & quiet(split, stop)
+    stray_ok = (stop - split <= MAX_STRAY) & quiet(split, stop)
+    known = first_ok & (second_ok | stray_ok)
+    first_length = np.where(known, split - begin, 0)
+    return first_length, known & second_ok

@@ -1,0 +1,83 @@
+"""Hypothesis: segments of two frames (a fast answer) or of a frame and a few stray bytes
+(a glitch), which the framer cuts in bulk, are cut as the content parser cuts them."""
+
+from __future__ import annotations
+
+import random
+from unittest import mock
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from decoders.capture import Chunk, ChunkBatch
+from decoders.crc import crc_bytes
+from decoders.framer import Framer
+from decoders.line import LineSettings
+from decoders.synthesis import Transmission, exact_chunks
+from tests.corpus import exchange
+from tests.property.test_framer_properties import LINES, T0
+
+
+def frames(chunks: list[Chunk], line: LineSettings, *, fast: bool, batch: int = 5) -> list[tuple[object, ...]]:
+    framer = Framer(line, fast=fast)
+    out = []
+    for start in range(0, len(chunks), batch):
+        out.extend(framer.feed(ChunkBatch.from_chunks(chunks[start : start + batch])))
+    out.extend(framer.flush())
+    return [(f.data, f.t_start_ns, f.t_end_ns, f.flags, f.crc_ok, f.is_noise, f.idle_before_ns) for f in out]
+
+
+@st.composite
+def tight_exchanges(draw: st.DrawFn) -> tuple[LineSettings, list[Chunk]]:
+    """Requests and answers (pymodbus-built), segment by segment: a frame alone, with its
+    answer sooner than t3.5, or with 1..3 stray bytes after it; pauses inside some frames."""
+    line = draw(LINES)
+    rng = random.Random(draw(st.integers(0, 2**32 - 1)))
+    margin = 3  # ns: 1 ns rounding of byte times never moves a decision made at a threshold
+    short = st.integers(0, int(line.t3_5_ns) - margin).filter(lambda s: abs(s - line.t1_5_ns) > margin)
+    apart = st.integers(int(line.t3_5_ns) + margin, int(3 * line.t3_5_ns))
+
+    def transmission(data: bytes, idle: int) -> Transmission:
+        pause = draw(st.integers(0, 5)) == 0 and len(data) > 1
+        gaps = draw(st.dictionaries(st.integers(1, len(data) - 1), short, min_size=1, max_size=1)) if pause else {}
+        return Transmission(data, idle, gaps)
+
+    transmissions = []
+    for _ in range(draw(st.integers(1, 6))):
+        request, answer = exchange(rng, draw(st.integers(1, 247)))
+        after = draw(st.sampled_from(["answer", "stray", "apart"]))
+        transmissions.append(transmission(request, draw(apart)))
+        if after == "stray":
+            transmissions.append(Transmission(draw(st.binary(min_size=1, max_size=3)), draw(short)))
+        transmissions.append(transmission(answer, draw(short if after == "answer" else apart)))
+        if draw(st.booleans()):
+            transmissions.append(Transmission(draw(st.binary(min_size=1, max_size=3)), draw(short)))
+    return line, list(exact_chunks(transmissions, line, T0))
+
+
+@settings(max_examples=300, deadline=None)
+@given(tight_exchanges())
+def test_pairs_cut_in_bulk_as_the_parser_cuts_them(capture: tuple[LineSettings, list[Chunk]]) -> None:
+    line, chunks = capture
+    assert frames(chunks, line, fast=True) == frames(chunks, line, fast=False)
+
+
+def test_a_fast_answer_and_a_glitch_are_cut_without_the_parser() -> None:
+    line = LineSettings.parse("19200 8E1")
+    bodies = (bytes.fromhex("0103000A0002"), bytes.fromhex("010304002A0000"))
+    request, answer = (body + crc_bytes(body) for body in bodies)
+    transmissions = [
+        Transmission(request, 0), Transmission(answer, 1_000_000),  # an answer after 1 ms: one segment
+        Transmission(request, 10_000_000), Transmission(b"\x00", 0),  # a glitch against the request
+        Transmission(answer, 10_000_000),
+    ]
+    chunks = list(exact_chunks(transmissions, line, T0))
+    with mock.patch.object(Framer, "_parse", autospec=True, side_effect=Framer._parse) as parse:
+        found = frames(chunks, line, fast=True, batch=len(chunks))
+    # Only the held last segment, at the capture's end, is left to the parser.
+    closed = [call for call in parse.call_args_list if call.kwargs.get("closed") and not call.kwargs.get("at_end")]
+    assert [(f[0], f[4], f[5]) for f in found] == [
+        (request, True, False), (answer, True, False), (request, True, False), (b"\x00", False, True),
+        (answer, True, False)]
+    assert closed == [], "segments of two pieces went through the content parser"
+    assert found == frames(chunks, line, fast=False, batch=len(chunks))
