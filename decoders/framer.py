@@ -39,7 +39,7 @@ from decoders.frame import NO_IDLE, FrameBatch, FrameFlag
 from decoders.framing.best_parse import Pieces, clean_frame_end, parse_segment
 from decoders.framing.content import OpenRequest, replayed_open_request
 from decoders.framing.delivery import DeliveryDelay
-from decoders.framing.fast import frame_pair_segments, single_frame_segments
+from decoders.framing.fast import frame_pair_segments, single_frame_segments, whole_by_own_rule
 from decoders.framing.programme import Context
 from decoders.line import LineSettings
 
@@ -161,10 +161,11 @@ class Framer:
         if not self.fast:
             single[:] = False
         else:
-            # Timing and CRC agree on one frame the vectorised test left out (one ending in 0x00).
+            # Timing and CRC agree on one frame the vectorised test left out (one ending in 0x00,
+            # one whose length rule walks its content).
             for index in np.flatnonzero(~single).tolist():
-                begin, stop = int(seg_starts[index]), int(seg_ends[index])
-                single[index] = clean_frame_end(data[begin:stop], 0, stop - begin) == stop - begin
+                segment = data[int(seg_starts[index]) : int(seg_ends[index])]
+                single[index] = clean_frame_end(segment, 0, len(segment)) == len(segment) or whole_by_own_rule(segment)
         known = [Pieces.frames(seg_starts[single], seg_ends[single])]
         slow = np.flatnonzero(~single)
         if self.fast and len(slow):

@@ -17,10 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from fastcrc import crc16
 
 from decoders.capture import Int64Array
 from decoders.crc import crc_ok_spans, prefix_registers
-from decoders.framing.content import MAX_ADDRESS, MIN_ADU
+from decoders.framing.content import MAX_ADDRESS, MIN_ADU, rule_lengths
 from decoders.framing.evidence import CLEAN_RULES
 from decoders.modbus.codes import EXCEPTION_BIT
 from decoders.modbus.layouts import EXCEPTION_LENGTH, LAYOUTS, MAX_ADU, LengthRule
@@ -102,6 +103,14 @@ def single_frame_segments(
         & (padded[np.maximum(ends - 1, 0)] != 0)
     )
     return whole
+
+
+def whole_by_own_rule(segment: bytes) -> bool:
+    """Whether ``segment`` is one valid frame by a length rule the tables cannot hold
+    (FC 43's objects, FC 24's two-byte count): the scalar test of the segments the
+    vectorised one left out, under the same conditions."""
+    return (MIN_ADU <= len(segment) <= MAX_ADU and segment[0] <= MAX_ADDRESS and segment[-1] != 0
+            and len(segment) in rule_lengths(segment) and crc16.modbus(segment) == 0)
 
 
 def _clean_rule_tables() -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
@@ -191,9 +200,10 @@ def frame_pair_segments(
 
     def quiet(start: Int64Array, end: Int64Array) -> npt.NDArray[np.bool_]:
         """No clean frame starts and no pause lies strictly inside ``(start, end)``."""
-        inside = np.maximum(start + 1, end)
-        none: npt.NDArray[np.bool_] = (clean_before[inside] == clean_before[start + 1]) & (
-            pauses_before[inside] == pauses_before[start + 1])
+        after = np.minimum(start + 1, total)
+        inside = np.maximum(after, end)
+        none: npt.NDArray[np.bool_] = (clean_before[inside] == clean_before[after]) & (
+            pauses_before[inside] == pauses_before[after])
         return none
 
     first_ok = (first_end > begin) & (first_end < stop) & quiet(begin, split)

@@ -30,7 +30,8 @@ def frames(chunks: list[Chunk], line: LineSettings, *, fast: bool, batch: int = 
 @st.composite
 def tight_exchanges(draw: st.DrawFn) -> tuple[LineSettings, list[Chunk]]:
     """Requests and answers (pymodbus-built), segment by segment: a frame alone, with its
-    answer sooner than t3.5, or with 1..3 stray bytes after it; pauses inside some frames."""
+    answer sooner than t3.5, or with 1..3 stray bytes after it; pauses inside some frames;
+    stray bytes alone."""
     line = draw(LINES)
     rng = random.Random(draw(st.integers(0, 2**32 - 1)))
     margin = 3  # ns: 1 ns rounding of byte times never moves a decision made at a threshold
@@ -52,6 +53,8 @@ def tight_exchanges(draw: st.DrawFn) -> tuple[LineSettings, list[Chunk]]:
         transmissions.append(transmission(answer, draw(short if after == "answer" else apart)))
         if draw(st.booleans()):
             transmissions.append(Transmission(draw(st.binary(min_size=1, max_size=3)), draw(short)))
+        if draw(st.integers(0, 4)) == 0:  # stray bytes alone, between silences
+            transmissions.append(Transmission(draw(st.binary(min_size=1, max_size=5)), draw(apart)))
     return line, list(exact_chunks(transmissions, line, T0))
 
 
