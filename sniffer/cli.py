@@ -12,7 +12,6 @@ import gc
 import re
 import sys
 from collections.abc import Sequence
-from importlib.metadata import version
 
 from sniffer.commands import (
     analyze,
@@ -30,6 +29,7 @@ from sniffer.commands import (
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import allow_replacing
 from sniffer.stopping import INTERRUPTED, TERMINATED, TerminatedError, restore_signals, terminate_raises
+from sniffer.tool_version import tool_version
 
 COMMANDS = [analyze, stats, report, values, compare, cut, export, capture, ports, convert, profiles]
 #: Errors that only writing raises: a full disk, a quota, a file too large.
@@ -44,13 +44,22 @@ WRITE_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 GC_YOUNG_THRESHOLD = 500_000
 
 
+class _VersionAction(argparse.Action):
+    """``--version``: the version is read only when asked for (see :mod:`sniffer.tool_version`)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        print(tool_version())
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rtusniff",
         description="Modbus RTU protocol analyzer and passive RS485 bus sniffer.",
         epilog="'rtusniff COMMAND --help' tells a command's options; exit codes are listed in the README.",
     )
-    parser.add_argument("--version", action="version", version=f"rtusniff {version('rtusniff')}")
+    parser.add_argument("--version", action=_VersionAction, nargs=0, help="show the version and exit")
     parser.add_argument("--debug", action="store_true", help="show the traceback of errors")
     subparsers = parser.add_subparsers(title="commands", metavar="COMMAND")
     for command in COMMANDS:

@@ -15,7 +15,6 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from importlib.metadata import version
 from typing import TextIO, cast
 
 from rich.console import Console
@@ -43,6 +42,7 @@ from sniffer.stopping import (
     restore_signals,
     whole_writes,
 )
+from sniffer.tool_version import tool_version
 from sniffer.views.jsonl import JsonlView
 from sniffer.views.live import LiveState, LiveView
 
@@ -152,7 +152,7 @@ def _recorder(options: CaptureOptions, status: PortStatus) -> Recorder | None:
     if options.output is None:
         return None
     notes = [
-        f"captured from {options.port} by rtusniff {version('rtusniff')} (passive: nothing written to the port)",
+        f"captured from {options.port} by {tool_version()} (passive: nothing written to the port)",
         f"low latency mode: {'on' if status.low_latency else 'not available'}; "
         f"latency timer: {status.latency_timer_ms if status.latency_timer_ms is not None else 'unknown'} ms",
         status.modem_note(),

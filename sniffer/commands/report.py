@@ -6,7 +6,6 @@ import argparse
 import shlex
 import sys
 from contextlib import ExitStack
-from importlib.metadata import version
 from pathlib import Path
 
 from decoders.compare import compare
@@ -33,6 +32,7 @@ from sniffer.progress import progress_for, shown
 from sniffer.report.collect import Comparison, Provenance, ReportCollector, source_file
 from sniffer.report.html import write_html
 from sniffer.report.markdown import write_markdown
+from sniffer.tool_version import version_number
 from sniffer.views.compare_view import Side
 
 WRITERS = {"html": write_html, "md": write_markdown}
@@ -126,7 +126,7 @@ def _gathered_one(args: argparse.Namespace) -> ReportCollector:
 
 def _provenance(args: argparse.Namespace, paths: list[str]) -> Provenance:
     return Provenance(files=[source_file(path) for path in paths], command=shlex.join(args.command_line),
-                      tool_version=version("rtusniff"), profiles=list(args.profile), window=_window(args))
+                      tool_version=version_number(), profiles=list(args.profile), window=_window(args))
 
 
 def _comparison(args: argparse.Namespace, collector: ReportCollector) -> Comparison:

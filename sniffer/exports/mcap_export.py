@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-from importlib.metadata import version
 from typing import Any, BinaryIO, Protocol
 
 import numpy as np
@@ -60,6 +59,7 @@ from sniffer.io.mcap_blocks import (
 )
 from sniffer.io.mcap_native import info_metadata
 from sniffer.io.output_files import open_new
+from sniffer.tool_version import tool_version
 
 #: Uncompressed bytes per chunk. The writer keeps every chunk's index entry (with an offset
 #: per channel) until it writes the summary: 4 MiB chunks keep that to ~0.5 MB a million frames,
@@ -259,7 +259,7 @@ class McapExporter(DecodedChannels):
     def __init__(self, path: str, info: CaptureInfo, line: LineSettings, metadata: dict[str, str]) -> None:
         self.path = path
         self._file: BinaryIO = open_new(path)
-        tool = f"rtusniff {version('rtusniff')}"
+        tool = tool_version()
         self._mcap = ColumnarMcapWriter(self._file, profile=PROFILE, library=tool, chunk_size=CHUNK_SIZE)
         try:
             # Metadata first: a reader of the capture finds the line settings before any block.

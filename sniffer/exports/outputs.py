@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import hashlib
 import shlex
-from importlib.metadata import version
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -28,6 +27,7 @@ from sniffer.exports.pcap_export import PcapExporter
 from sniffer.exports.transactions import TransactionEncoder
 from sniffer.pipeline import Analysis
 from sniffer.sinks import FileSink
+from sniffer.tool_version import tool_version
 
 if TYPE_CHECKING:
     from sniffer.exports.mcap_export import McapExporter  # noqa: F401 - named in a string (imported when used)
@@ -118,7 +118,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
         from sniffer.exports.parquet_values import ValueCollector  # noqa: PLC0415 - pyarrow
 
         metadata = _metadata(self._args, self._analysis)
-        metadata |= {"line": line.format(), "timing": info.timing.value, "tool": f"rtusniff {version('rtusniff')}"}
+        metadata |= {"line": line.format(), "timing": info.timing.value, "tool": tool_version()}
         capture_id = hashlib.sha256(metadata["source_sha256"].encode()).hexdigest()[:16]
         bus = self._args.bus or Path(self._args.capture[0]).stem
         self._values = ValueCollector()

@@ -32,7 +32,6 @@ import os
 import struct
 from collections.abc import Iterator
 from dataclasses import replace
-from importlib.metadata import version
 from typing import BinaryIO, cast
 
 import numpy as np
@@ -74,6 +73,7 @@ from sniffer.io.mcap_blocks import (
     side_messages,
 )
 from sniffer.io.output_files import open_new
+from sniffer.tool_version import tool_version
 
 
 def info_metadata(info: CaptureInfo) -> dict[str, str]:
@@ -82,7 +82,7 @@ def info_metadata(info: CaptureInfo) -> dict[str, str]:
         "format_version": FORMAT_VERSION,
         "timing": info.timing.value,
         "notes": json.dumps(list(info.notes)),
-        "writer": f"rtusniff {version('rtusniff')}",
+        "writer": tool_version(),
     }
     if info.line is not None:
         fields["line"] = info.line.format()
@@ -102,7 +102,7 @@ class McapCaptureWriter:
     def __init__(self, path: str, info: CaptureInfo) -> None:
         self._file: BinaryIO = open_new(path)
         self._writer = Writer(self._file, compression=CompressionType.ZSTD, chunk_size=1)
-        self._writer.start(profile=PROFILE, library=f"rtusniff {version('rtusniff')}")
+        self._writer.start(profile=PROFILE, library=tool_version())
         self._writer.add_metadata(METADATA_NAME, info_metadata(info))
         self._channel = self._writer.register_channel(
             topic=TOPIC, message_encoding=MESSAGE_ENCODING, schema_id=0, metadata={"layout": LAYOUT_DOC}
