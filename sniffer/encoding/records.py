@@ -28,6 +28,7 @@ from decoders.message import (
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.blocks import Block, times_matrix
+from sniffer.encoding.float_text import float_texts
 from sniffer.encoding.param_text import params_pieces
 from sniffer.encoding.rows import (
     Column,
@@ -173,7 +174,7 @@ def frame_fields(batch: MessageBatch) -> FrameFields:
 
 
 def _seconds(ns: npt.NDArray[np.int64]) -> Pieces:
-    return number_texts(ns / NS_PER_S)
+    return float_texts(ns / NS_PER_S)
 
 
 def _pieces(columns: list[Column], count: int) -> Pieces:
