@@ -23,24 +23,16 @@ import sys
 import time
 from collections.abc import Iterator
 from types import TracebackType
-from typing import TypeVar
-
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TaskID,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
+from typing import TYPE_CHECKING, TypeVar
 
 from decoders.capture import ChunkBatch
 from decoders.message import MessageBatch
 from decoders.stats import Statistics
 from sniffer.io.base import CaptureReader
 from sniffer.sinks import Sink
+
+if TYPE_CHECKING:
+    from rich.progress import Progress, TaskID
 
 #: The bar counts in thousandths of the capture's span.
 STEPS = 1000
@@ -106,6 +98,16 @@ class ProgressBar:
             end_ns = reader.last_time_ns()
             files = [path for path in paths if path != "-" and os.path.isfile(path)]
             size = sum(map(os.path.getsize, files)) if len(files) == len(paths) else None
+            from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+            from rich.progress import (  # noqa: PLC0415
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
             columns = [TextColumn("{task.description}"), BarColumn(),
                        TextColumn("{task.percentage:>3.0f} %") if end_ns else MofNCompleteColumn(),
                        TextColumn("{task.fields[size]}"), TextColumn("{task.fields[frames]}"),
@@ -149,6 +151,9 @@ def over_captures(outcomes: Iterator[Item], paths: list[str], show: bool) -> Ite
     if not show:
         yield from outcomes
         return
+    from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn  # noqa: PLC0415
+
     sizes = [os.path.getsize(path) if os.path.isfile(path) else 0 for path in paths]
     total = sum(sizes)
     progress = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f} %"),

@@ -241,3 +241,25 @@ def test_the_shipped_profiles_are_package_data(cli: Any) -> None:
     assert listed.code == 0
     for name in ("generic", "atv71", "atv312", "nord-sk", "xbt"):
         assert name in listed.out
+
+
+@pytest.mark.parametrize("argv", [["stats", "--format", "json"], ["analyze", "--format", "jsonl"], ["--version"]],
+                         ids=["stats-json", "analyze-jsonl", "version"])
+def test_output_that_no_terminal_reads_starts_without_rich_nor_metadata(argv: list[str], tmp_path: Path) -> None:
+    """rich (tens of ms to import) only for a terminal's tables and bars, importlib.metadata
+    only for the version: a command writing JSON to a file or a pipe starts without either."""
+    arguments = [*argv, str(SAMPLE_LOG)] if argv[0] != "--version" else argv
+    program = textwrap.dedent(f"""
+        import contextlib, io, sys
+        from sniffer.cli import main
+        with contextlib.redirect_stdout(io.StringIO()):
+            try:
+                main({arguments!r})
+            except SystemExit:
+                pass
+        print(any(name.split(".")[0] == "rich" for name in sys.modules), "importlib.metadata" in sys.modules)
+    """)
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, cwd=tmp_path, check=False,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["False", "True" if argv == ["--version"] else "False"], done.stdout

@@ -7,8 +7,6 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from typing import TextIO
 
-from rich.console import Console
-
 from decoders.message import AnnotatedBatch, MessageBatch
 from sniffer.commands.common import (
     add_capture_argument,
@@ -67,6 +65,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 def table_sink(out: TextIO, args: argparse.Namespace) -> Sink:
     """The table: laid out for the terminal ``out`` is (its width and colours), else one line a frame."""
+    from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+
     console = Console(file=out, highlight=False)
     width = terminal_width(args, console)
     if width is None:

@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-
-from rich.console import Console
+from typing import TYPE_CHECKING
 
 from decoders.line import LineSettings
 from sniffer.commands.common import add_profile_options, add_response_timeout_option, response_timeout_ns
@@ -15,9 +14,11 @@ from sniffer.exports.streams import add_stream_options, check_streams, stream_si
 from sniffer.io.registry import find_format
 from sniffer.io.rotation import rotated_files
 from sniffer.line_probe import probe_line
-from sniffer.live_capture import CaptureOptions, run_capture
 from sniffer.profiles_io import profile_book
 from sniffer.recorder import Rotation
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -46,6 +47,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run(args: argparse.Namespace) -> int:
+    from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+
+    from sniffer.live_capture import CaptureOptions, run_capture  # noqa: PLC0415 - its live view is rich's
+
     err = Console(stderr=True, highlight=False)
     if args.output is None and args.quiet:
         raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: give a file with -o")

@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 from contextlib import ExitStack
 
-from rich.console import Console
-
 from decoders.compare import compare
 from sniffer.commands.common import (
     add_decoding_options,
@@ -48,6 +46,8 @@ def run(args: argparse.Namespace) -> int:
     sides = [counted_capture(args, path) for path in (args.before, args.after)]
     with ExitStack() as stack:
         out = open_output(args.output, stack)
+        from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+
         console = Console(file=out)
         width = terminal_width(args, console) if args.format == "table" else None
         write_comparison(out, sides[0], sides[1], compare(sides[0].statistics, sides[1].statistics),

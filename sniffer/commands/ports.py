@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-from rich.console import Console
-from rich.table import Table
-
 from sniffer.serial_source import serial_ports
 
 
@@ -17,6 +14,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run(args: argparse.Namespace) -> int:
+    from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+    from rich.table import Table  # noqa: PLC0415
+
     console = Console(highlight=False)
     ports = serial_ports()
     if not ports:

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import argparse
-
-from rich.console import Console
-from rich.table import Table
+from typing import TYPE_CHECKING
 
 from decoders.profiles.model import Profile
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.profiles_io import load_profile_file, shipped_profiles
+
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.table import Table
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -25,6 +27,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run(args: argparse.Namespace) -> int:
+    from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+
     console = Console(highlight=False)
     if args.action == "list":
         console.print(_list_table(shipped_profiles()))
@@ -45,6 +49,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _list_table(profiles: dict[str, Profile]) -> Table:
+    from rich.table import Table  # noqa: PLC0415 - rich: only when the command runs
+
     table = Table(title="device profiles (use with --profile NAME or --profile SLAVE=NAME)", title_justify="left")
     for header in ("name", "device", "role", "parameters", "identified by product code"):
         table.add_column(header)
@@ -87,6 +93,8 @@ def _show(console: Console, profile: Profile) -> None:
 
 
 def _parameter_table(profile: Profile) -> Table:
+    from rich.table import Table  # noqa: PLC0415 - rich: only when the command runs
+
     table = Table(title="parameters", title_justify="left")
     for header in ("address", "hex", "code", "name", "unit", "scale", "access", "source", "note"):
         table.add_column(header, overflow="fold")

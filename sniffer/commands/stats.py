@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 from contextlib import ExitStack
 from dataclasses import replace
-
-from rich.console import Console
+from typing import TextIO
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
@@ -64,15 +63,23 @@ def run(args: argparse.Namespace) -> int:
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)
-        console = Console(file=out)
-        width = terminal_width(args, console)
-        view = StatsView(out, width=width, color_system=terminal_colors(console) if width else None,
-                         as_json=args.format == "json")
+        view = _view(out, args)
         progress = stack.enter_context(progress_for(args, reader, streaming=False))
         statistics = analyze(reader, source_name(args), analysis, [progress.sink, view])
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format} statistics of {statistics.frames:,} frames")])
     return 0
+
+
+def _view(out: TextIO, args: argparse.Namespace) -> StatsView:
+    """The statistics as JSON, or as tables laid out for the terminal ``out`` is."""
+    if args.format == "json":
+        return StatsView(out, width=None, as_json=True)
+    from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+
+    console = Console(file=out)
+    width = terminal_width(args, console)
+    return StatsView(out, width=width, color_system=terminal_colors(console) if width else None, as_json=False)
 
 
 def _run_each(args: argparse.Namespace) -> int:
@@ -89,10 +96,7 @@ def _run_each(args: argparse.Namespace) -> int:
     done = tally.done
     with ExitStack() as stack:
         out = open_output(args.output, stack)
-        console = Console(file=out)
-        width = terminal_width(args, console)
-        view = StatsView(out, width=width, color_system=terminal_colors(console) if width else None,
-                         as_json=args.format == "json")
+        view = _view(out, args)
         if first is not None:
             line = LineSettings.parse(first.line)
             view.start(f"{done} of {len(files)} captures", CaptureInfo(line, TimingQuality(first.timing)), line)

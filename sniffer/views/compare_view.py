@@ -9,14 +9,15 @@ from __future__ import annotations
 import json
 import textwrap
 from dataclasses import dataclass
-from typing import Any, TextIO
-
-from rich.color import ColorSystem
+from typing import TYPE_CHECKING, Any, TextIO
 
 from decoders.compare import Change, Measures
 from decoders.modbus.codes import function_name
 from decoders.stats import Statistics
 from sniffer.views.layout import Cells, Column, Layout
+
+if TYPE_CHECKING:
+    from rich.color import ColorSystem
 
 COLUMNS = [
     Column("slave", "slave", right=True),

@@ -23,10 +23,11 @@ import argparse
 import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-from rich.color import ColorSystem
-from rich.console import Console
-from rich.style import Style
+if TYPE_CHECKING:
+    from rich.color import ColorSystem
+    from rich.console import Console
 
 #: ``keep`` of a column that is never dropped.
 ALWAYS = 1_000
@@ -34,16 +35,16 @@ ALWAYS = 1_000
 BELOW_INDENT = 4
 
 
-#: rich's names of the colour systems that take ANSI styles ("windows", the legacy console, takes none).
-_ANSI_SYSTEMS = {"standard": ColorSystem.STANDARD, "256": ColorSystem.EIGHT_BIT, "truecolor": ColorSystem.TRUECOLOR}
-
-
 def terminal_colors(console: Console) -> ColorSystem | None:
     """The colours to style with on ``console``: ``None`` off a terminal, with ``NO_COLOR``,
     or on a console that takes no ANSI codes."""
+    from rich.color import ColorSystem  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+
     if not console.is_terminal or console.color_system is None:
         return None
-    return _ANSI_SYSTEMS.get(console.color_system)
+    # rich's names of the colour systems that take ANSI styles ("windows", the legacy console, takes none).
+    ansi = {"standard": ColorSystem.STANDARD, "256": ColorSystem.EIGHT_BIT, "truecolor": ColorSystem.TRUECOLOR}
+    return ansi.get(console.color_system)
 
 
 def terminal_width(args: argparse.Namespace, console: Console) -> int | None:
@@ -200,6 +201,8 @@ class Layout:
         key = (style, text)
         styled = self._styles.get(key)
         if styled is None:
+            from rich.style import Style  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+
             styled = Style.parse(style).render(text, color_system=self.color_system)
             if len(self._styles) < 4096:
                 self._styles[key] = styled

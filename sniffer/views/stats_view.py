@@ -9,9 +9,7 @@ from __future__ import annotations
 
 import json
 import textwrap
-from typing import TextIO
-
-from rich.color import ColorSystem
+from typing import TYPE_CHECKING, TextIO
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
@@ -19,6 +17,9 @@ from decoders.modbus.codes import function_name
 from decoders.stats import FunctionStats, Histogram, Statistics
 from sniffer.sinks import Sink
 from sniffer.views.layout import Cells, Column, Layout
+
+if TYPE_CHECKING:
+    from rich.color import ColorSystem
 
 #: What the latency cells of a host-timed capture say: read times do not measure latency.
 HOST_LATENCY = "n/a"

@@ -15,11 +15,10 @@ import itertools
 import operator
 import textwrap
 from dataclasses import dataclass
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 import numpy.typing as npt
-from rich.color import ColorSystem
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.damage import RetryDiff
@@ -40,6 +39,9 @@ from sniffer.views.frame_cells import (
     summary_cells,
 )
 from sniffer.views.layout import Layout
+
+if TYPE_CHECKING:
+    from rich.color import ColorSystem
 
 #: Rows laid out at once: bounds memory, and on a terminal the first rows appear at once.
 ROWS_PER_BLOCK = 2000
