@@ -86,6 +86,9 @@ class Framer:
         self._kinds: UInt8Array | None = None
         self._channels: UInt8Array | None = None
         self._at_capture_start = True
+        #: The held bytes begin where a valid frame committed from their segment ended (the
+        #: parse of the rest must know, as the parse of the whole segment would).
+        self._follows_frame = False
         self._open_request: OpenRequest = None
         self._next_index = 0
         self._last_end_ns: int | None = None
@@ -123,6 +126,10 @@ class Framer:
             open_pieces = self._parse(data, starts, ends, open_start, len(data), closed=False, kinds=kinds)
             parts.append(open_pieces)
             kept_from = int(open_pieces.last[-1]) if len(open_pieces) else open_start
+            if len(open_pieces):
+                self._follows_frame = bool(open_pieces.crc_ok[-1] and not open_pieces.is_noise[-1])
+            elif open_start > 0:
+                self._follows_frame = False  # the held bytes begin at a timing cut
         self._data, self._starts, self._ends = data[kept_from:], starts[kept_from:], ends[kept_from:]
         self._kinds = None if kinds is None or not kinds[kept_from:].any() else kinds[kept_from:]
         self._channels = None if channels is None else channels[kept_from:]
@@ -135,6 +142,7 @@ class Framer:
             return self._assemble(b"", self._starts[:0], self._ends[:0], Pieces.of([]), (None, None))
         data, starts, ends, marks = self._take_held()
         pieces = self._parse(data, starts, ends, 0, len(data), closed=True, kinds=marks[0])
+        self._follows_frame = False
         return self._assemble(data, starts, ends, pieces, marks)
 
     def flush(self) -> FrameBatch:
@@ -142,6 +150,7 @@ class Framer:
         data, starts, ends, marks = self._take_held()
         pieces = self._parse(data, starts, ends, 0, len(data), closed=True, at_end=True, kinds=marks[0]) if data \
             else Pieces.of([])
+        self._follows_frame = False
         return self._assemble(data, starts, ends, pieces, marks)
 
     def _take_held(self) -> tuple[bytes, Int64Array, Int64Array, ByteMarks]:
@@ -223,6 +232,7 @@ class Framer:
         if kinds is not None:
             framing_errors = tuple(np.flatnonzero(kinds[begin:stop] & UartError.FRAMING).tolist())
         context = Context(pauses, closed=closed, at_capture_start=self._at_capture_start, at_capture_end=at_end,
+                          follows_frame=self._follows_frame and begin == 0,
                           timed=closed, framing_errors=framing_errors)
         parse = parse_segment(data[begin:stop], context, self._open_request, fast=self.fast)
         if len(parse.pieces):

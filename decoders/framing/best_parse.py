@@ -30,7 +30,9 @@ path to.
 to the last anchor whose confirmation is complete. When no anchor comes for
 ``WINDOW`` bytes, the programme runs over that window and commits up to the point
 where the best paths to every position near the window's end agree (the common
-ancestor of their tracebacks), so memory and delay stay bounded.
+ancestor of their tracebacks), so memory and delay stay bounded. The rest is parsed
+later with ``Context.follows_frame`` where a valid frame was committed last: a frame ends
+where it begins, as the parse of the whole segment would know.
 """
 
 from __future__ import annotations
@@ -134,7 +136,8 @@ def parse_segment(
     position = stops[-1] if stops else 0
     if context.closed:
         if position < end:
-            tail = best_pieces(Region(data, position, end, context, search, after_frame=position > 0), open_request)
+            region = Region(data, position, end, context, search, after_frame=_after_frame(position, context))
+            tail = best_pieces(region, open_request)
             pieces.extend(tail.pieces)
             open_request = tail.open_request
         position = end
@@ -162,7 +165,8 @@ def _between_anchors(
     for index in [k for k in range(len(starts)) if starts[k] > previous_ends[k]]:
         position = previous_ends[index]
         open_request = replayed_open_request(data, anchors, range(since, index), open_request)
-        region = Region(data, position, starts[index], context, search, after_frame=position > 0, before_frame=True)
+        region = Region(data, position, starts[index], context, search, after_frame=_after_frame(position, context),
+                        before_frame=True)
         gap = best_pieces(region, open_request)
         pieces.extend(gap.pieces)
         open_request, since = gap.open_request, index
@@ -176,13 +180,21 @@ def _windows(
     pieces every best path agrees on, window by window; where they end; the open request."""
     pieces: list[Piece] = []
     while len(data) - position > WINDOW:
-        region = Region(data, position, position + WINDOW, context, search, after_frame=position > 0, open_end=True)
+        region = Region(data, position, position + WINDOW, context, search,
+                        after_frame=_after_frame(position, context), open_end=True)
         window = best_pieces(region, open_request)
         if window.consumed == position:
             break
         pieces.extend(window.pieces)
         open_request, position = window.open_request, window.consumed
     return pieces, position, open_request
+
+
+def _after_frame(position: int, context: Context) -> bool:
+    """Whether a frame ends at ``position``: an anchor's end, or, at 0, one committed before
+    (the parse of the rest of a segment weighs a glitch and a damaged frame there as the parse
+    of the whole segment would)."""
+    return position > 0 or context.follows_frame
 
 
 def clean_frame_end(data: bytes, start: int, stop: int) -> int:

@@ -46,6 +46,9 @@ class Context:
     timed: bool = False
     #: Positions (relative to the segment) of characters the receiver saw with a framing error.
     framing_errors: tuple[int, ...] = ()
+    #: A valid frame ends where these bytes begin: they are the rest of an open segment whose
+    #: first frames were committed already (see :mod:`decoders.framing.best_parse`, streaming).
+    follows_frame: bool = False
 
 
 @dataclass(frozen=True, slots=True)

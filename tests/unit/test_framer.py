@@ -167,3 +167,37 @@ def test_a_length_by_crc_search_may_start_where_a_frame_ends(fast: bool) -> None
     frames = [*framer.feed(ChunkBatch.from_chunks(chunks)), *framer.flush()]
     assert [(f.data.hex(), f.is_noise, f.crc_ok) for f in frames] == [("010b41e7", False, True),
                                                                       ("000dc075", False, True)]
+
+
+def _adu(body_hex: str) -> bytes:
+    body = bytes.fromhex(body_hex)
+    return body + crc_bytes(body)
+
+
+@pytest.mark.parametrize("batch", [1, 2, 5])
+def test_the_rest_of_an_open_segment_knows_a_frame_ended_where_it_begins(batch: int) -> None:
+    """A long segment (answers sooner than t3.5) is committed frame by frame while open; the
+    four stray bytes after its first frame were read as a damaged frame once that frame had
+    been committed, and as noise (a glitch against a frame) by the parse of the whole
+    segment. Found by hypothesis (tests/property/test_frame_pairs.py, an earlier strategy)."""
+    line = LineSettings.parse("9600 8E1")
+    request, answer = _adu("010461c4001d"), _adu("01043a" + "00" * 58)
+    stray = bytes.fromhex("00010000")
+    transmissions = [Transmission(request, 0), Transmission(stray, 0), Transmission(answer, 0),
+                     Transmission(b"\x00", 0)]
+    for k in range(14):  # 2 ms apart at 9600 Bd (t3.5 = 4 ms): one segment of 300 bytes
+        transmissions += [Transmission(_adu(f"0103{k:04x}0002"), 2_000_000),
+                          Transmission(_adu(f"010304{k:08x}"), 2_000_000)]
+    chunks = list(exact_chunks(transmissions, line, T0))
+
+    def frames(fast: bool, size: int) -> list[tuple[bytes, bool, FrameFlag]]:
+        framer = Framer(line, fast=fast)
+        out = []
+        for start in range(0, len(chunks), size):
+            out.extend(framer.feed(ChunkBatch.from_chunks(chunks[start : start + size])))
+        out.extend(framer.flush())
+        return [(f.data, f.is_noise, f.flags) for f in out]
+
+    found = frames(True, batch)
+    assert found[1] == (stray, True, FrameFlag.NONE)
+    assert found == frames(False, len(chunks))
