@@ -243,12 +243,13 @@ def test_the_shipped_profiles_are_package_data(cli: Any) -> None:
         assert name in listed.out
 
 
-@pytest.mark.parametrize("argv", [["stats", "--format", "json"], ["analyze", "--format", "jsonl"], ["--version"]],
-                         ids=["stats-json", "analyze-jsonl", "version"])
+@pytest.mark.parametrize("argv", [["stats", "--format", "json", "LOG"], ["analyze", "--format", "jsonl", "LOG"],
+                                  ["compare", "--format", "json", "LOG", "LOG"], ["--version"]],
+                         ids=["stats-json", "analyze-jsonl", "compare-json", "version"])
 def test_output_that_no_terminal_reads_starts_without_rich_nor_metadata(argv: list[str], tmp_path: Path) -> None:
     """rich (tens of ms to import) only for a terminal's tables and bars, importlib.metadata
     only for the version: a command writing JSON to a file or a pipe starts without either."""
-    arguments = [*argv, str(SAMPLE_LOG)] if argv[0] != "--version" else argv
+    arguments = [str(SAMPLE_LOG) if word == "LOG" else word for word in argv]
     program = textwrap.dedent(f"""
         import contextlib, io, sys
         from sniffer.cli import main

@@ -32,7 +32,7 @@ from sniffer.progress import progress_for
 from sniffer.sinks import Sink
 from sniffer.views.clock import Clock
 from sniffer.views.jsonl import JsonlView
-from sniffer.views.layout import terminal_colors, terminal_width
+from sniffer.views.layout import terminal_layout
 from sniffer.views.registers import add_register_options, summary_reader
 from sniffer.views.table import PlainTableView, TableView
 
@@ -65,13 +65,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 def table_sink(out: TextIO, args: argparse.Namespace) -> Sink:
     """The table: laid out for the terminal ``out`` is (its width and colours), else one line a frame."""
-    from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
-
-    console = Console(file=out, highlight=False)
-    width = terminal_width(args, console)
+    width, colors = terminal_layout(args, out)
     if width is None:
         return PlainTableView(out, clock=Clock(args.time), hex_shown=args.hex, summary_of=summary_reader(args))
-    return TableView(out, width=width, color_system=terminal_colors(console), clock=Clock(args.time),
+    return TableView(out, width=width, color_system=colors, clock=Clock(args.time),
                      hex_shown=args.hex, summary_of=summary_reader(args))
 
 

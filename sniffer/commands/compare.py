@@ -18,7 +18,7 @@ from sniffer.commands.common import (
 )
 from sniffer.commands.counting import counted_capture
 from sniffer.views.compare_view import write_comparison
-from sniffer.views.layout import terminal_colors, terminal_width
+from sniffer.views.layout import terminal_layout
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -46,13 +46,9 @@ def run(args: argparse.Namespace) -> int:
     sides = [counted_capture(args, path) for path in (args.before, args.after)]
     with ExitStack() as stack:
         out = open_output(args.output, stack)
-        from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
-
-        console = Console(file=out)
-        width = terminal_width(args, console) if args.format == "table" else None
+        width, colors = terminal_layout(args, out) if args.format == "table" else (None, None)
         write_comparison(out, sides[0], sides[1], compare(sides[0].statistics, sides[1].statistics),
-                         as_json=args.format == "json", width=width,
-                         colors=terminal_colors(console) if width else None)
+                         as_json=args.format == "json", width=width, colors=colors)
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format}, {args.before} vs {args.after}")])
     return 0

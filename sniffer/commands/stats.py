@@ -31,7 +31,7 @@ from sniffer.many_captures import Tally, add_each_options, capture_files, each_r
 from sniffer.pipeline import analyze
 from sniffer.progress import progress_for, shown
 from sniffer.views.compare_view import Side
-from sniffer.views.layout import terminal_colors, terminal_width
+from sniffer.views.layout import terminal_layout
 from sniffer.views.stats_view import StatsView
 
 
@@ -75,11 +75,8 @@ def _view(out: TextIO, args: argparse.Namespace) -> StatsView:
     """The statistics as JSON, or as tables laid out for the terminal ``out`` is."""
     if args.format == "json":
         return StatsView(out, width=None, as_json=True)
-    from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
-
-    console = Console(file=out)
-    width = terminal_width(args, console)
-    return StatsView(out, width=width, color_system=terminal_colors(console) if width else None, as_json=False)
+    width, colors = terminal_layout(args, out)
+    return StatsView(out, width=width, color_system=colors, as_json=False)
 
 
 def _run_each(args: argparse.Namespace) -> int:

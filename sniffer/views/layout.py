@@ -23,7 +23,7 @@ import argparse
 import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TextIO
 
 if TYPE_CHECKING:
     from rich.color import ColorSystem
@@ -53,6 +53,17 @@ def terminal_width(args: argparse.Namespace, console: Console) -> int | None:
     if args.width is not None:
         return int(args.width) or None
     return console.width if console.is_terminal else None
+
+
+def terminal_layout(args: argparse.Namespace, out: TextIO) -> tuple[int | None, ColorSystem | None]:
+    """The width to lay a table out for on ``out`` (:func:`terminal_width`) and, where there
+    is one, the colours to style it with (:func:`terminal_colors`); rich is imported here, for
+    the tables alone."""
+    from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
+
+    console = Console(file=out)
+    width = terminal_width(args, console)
+    return width, terminal_colors(console) if width else None
 
 
 @dataclass(frozen=True)
