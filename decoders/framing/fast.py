@@ -195,7 +195,7 @@ def frame_pair_segments(
         at_data = np.repeat(seg_starts - offsets[:-1], lengths) + np.arange(total)
         np.cumsum(pause_at[at_data], out=pauses_before[1:])
     begin, stop = offsets[:-1], offsets[1:]
-    first_end = ends[np.minimum(begin, max(total - 1, 0))] if total else np.zeros(count, np.int64)
+    first_end = ends[begin]  # segments are never empty: every begin is a position
     split = np.where((first_end > begin) & (first_end < stop), first_end, begin + 1)
 
     def quiet(start: Int64Array, end: Int64Array) -> npt.NDArray[np.bool_]:
