@@ -227,18 +227,19 @@ class Annotator:
         return decoding if self._profiles is None else self._profiles.apply_decoding(decoding, facts, request)
 
 
-def mostly_distinct(batch: MessageBatch) -> bool:
-    """Whether at least :data:`DISTINCT_ENOUGH` of the batch's frames differ from one another, as
-    told by their CRC, length, slave and function (frames alike have them alike)."""
+def mostly_distinct(batch: MessageBatch, share: float = DISTINCT_ENOUGH) -> bool:
+    """Whether at least ``share`` of the batch's frames differ from one another, as told by
+    their CRC, length, slave and function (frames alike have them alike)."""
     frames = batch.frames
     if not len(batch):
         return False
     ends = frames.offsets[1:]
-    raw = np.frombuffer(frames.data, np.uint8).astype(np.int64)
+    raw = np.zeros(len(frames.data) + 1, np.int64)  # a byte more: frames of no bytes read it
+    raw[:-1] = np.frombuffer(frames.data, np.uint8)
     last = np.maximum(ends - 1, 0), np.maximum(ends - 2, 0)
     key = (raw[last[0]] << 8 | raw[last[1]]) | (np.diff(frames.offsets) << 16) | (
         (batch.slave.astype(np.int64) & 0xFF) << 32) | ((batch.function.astype(np.int64) & 0xFF) << 40)
-    return len(np.unique(key)) >= DISTINCT_ENOUGH * len(batch)
+    return len(np.unique(key)) >= share * len(batch)
 
 
 class _Fresh:

@@ -98,9 +98,10 @@ class ProfileApplier:
         #: Counts what the applier has learnt (scanner tables, identified slaves): a decoding
         #: made at one version holds while the version stays.
         self.version = 0
-        #: Namers by (profile, slave, reported) and address, for what they were at
-        #: ``_named_version``; ``_kept``: how many namers and named values they hold.
-        self._namers: dict[tuple[str, int | None, bool], dict[int, AddressNamer]] = {}
+        #: Namers by (profile, reported) and address (a scanner value register: (slave, address)),
+        #: for what they were at ``_named_version``; ``_kept``: how many namers and named values
+        #: they hold.
+        self._namers: dict[tuple[str, bool], dict[int | tuple[int | None, int], AddressNamer]] = {}
         self._named_version = 0
         self._kept = 0
         #: :func:`_knows_nothing` of each slave's profile, while the version stays.
@@ -157,7 +158,10 @@ class ProfileApplier:
         if self._named_version != self.version or self._kept >= KEPT_NAMED_PARAMS:
             self._namers.clear()
             self._named_version, self._kept = self.version, 0
-        key = (profile.id, slave, reported)
+        # Slaves share a profile's namers (a value's name says nothing of its slave), except at
+        # a scanner table's value registers, whose meaning is each slave's own: kept by
+        # (slave, address) there.
+        key = (profile.id, reported)
         namers = self._namers.get(key) if self.fast else {}
         if namers is None:
             namers = self._namers[key] = {}
@@ -167,8 +171,12 @@ class ProfileApplier:
         for address, raw in values:
             namer = namers.get(address)
             if namer is None:
-                namer = namers[address] = self._namer(profile, slave, address, reported)
-                self._kept += 1
+                scoped = _slave_scoped(profile, address)
+                namer = namers.get((slave, address)) if scoped else None
+                if namer is None:
+                    namer = self._namer(profile, slave, address, reported)
+                    namers[(slave, address) if scoped else address] = namer
+                    self._kept += 1
             named = namer.known.get(raw) if self.fast else None
             if named is None:
                 named = namer.make(raw)
@@ -248,6 +256,11 @@ def _uss_words(profile: Profile, decoding: Decoding, role: Role) -> Decoding:
     described = profile.bitfields[name].describe(word)
     return Decoding(f"{decoding.summary}: {label} = 16#{word:04X} {described}", decoding.params, decoding.pdu,
                     decoding.remarks, decoding.device, telegram)
+
+
+def _slave_scoped(profile: Profile, address: int) -> bool:
+    """Whether what ``address`` holds depends on the slave: a scanner table's value register."""
+    return any(0 <= address - table.value_registers < table.count for table in profile.indirections)
 
 
 def _knows_nothing(profile: Profile) -> bool:

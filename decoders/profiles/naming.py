@@ -14,7 +14,9 @@ applies them one call at a time):
 
 What depends on the address alone (code, name, parameter, whether specials apply) is resolved
 once per address by :class:`AddressNamer`; what depends on the raw word is made per value and
-kept by the namer, since a drive reports the same values again and again.
+kept by the namer, since a drive reports the same values again and again. Drives of one profile
+share its namers (sixteen drives report the same speeds), except at a scanner table's value
+registers, whose meaning is each slave's own mapping.
 """
 
 from __future__ import annotations

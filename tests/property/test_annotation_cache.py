@@ -29,6 +29,7 @@ from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.profiles import apply as apply_module
 from decoders.profiles.apply import ProfileApplier
+from sniffer.encoding import records as records_module
 from sniffer.encoding.records import FrameRecordEncoder, encode_record, frame_record
 from sniffer.profiles_io import profile_book
 
@@ -142,6 +143,19 @@ def test_what_the_profiles_learn_is_not_answered_from_the_cache() -> None:
     assert messages[5].params[0].code == "NM1→RFRD" and messages[5].params[0].unit == "rpm"
 
 
+def test_each_slave_reads_its_scanner_table_through_its_own_mapping() -> None:
+    """Slaves share what a register's value is named, but not a scanner's value registers:
+    slave 2 points NMA1 at RFRD, and slave 3's NM1 still means ETA (its factory mapping)."""
+    point_at_rfrd = [adu(b"\x02\x06", struct.pack(">HH", 12701, 8604))] * 2
+    reads = [adu(bytes([slave]), b"\x03", struct.pack(">HH", 12741, 1)) for slave in (2, 3)]
+    answers = [adu(bytes([slave]), b"\x03\x02\x05\xdc") for slave in (2, 3)]
+    batches = matched([*point_at_rfrd, reads[0], answers[0], reads[1], answers[1], reads[0], answers[0]])
+    for fast in (True, False):
+        annotator = Annotator(ProfileApplier(profile_book(["atv71"], []), fast=fast))
+        messages = [m for batch in batches for m in annotator.annotate_all(batch)]
+        assert [messages[at].params[0].code for at in (3, 5, 7)] == ["NM1→RFRD", "NM1→ETA", "NM1→RFRD"]
+
+
 def test_named_values_kept_stay_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
     """A drive reporting ever new values fills the applier's memory up to its bound, not beyond."""
     monkeypatch.setattr(apply_module, "KEPT_NAMED_PARAMS", 50)
@@ -188,12 +202,15 @@ def annotated_batches(draw: st.DrawFn) -> AnnotatedBatch:
 
 
 @settings(max_examples=max(500, EXAMPLES), deadline=None)
-@given(annotated_batches())
-def test_frame_records_are_what_json_dumps_writes(batch: AnnotatedBatch) -> None:
+@given(annotated_batches(), st.booleans())
+def test_frame_records_are_what_json_dumps_writes(batch: AnnotatedBatch, distinct: bool) -> None:
+    """Both ways of writing who a frame is: from the batch's columns (``distinct``: a batch of
+    mostly distinct frames) and once per decoding."""
     encoder = FrameRecordEncoder()
     expected = [json.dumps(frame_record(m), ensure_ascii=False, separators=(",", ":")) for m in batch]
-    assert encoder.encode_batch(batch) == expected
-    assert encoder.encode_batch(batch) == expected  # again, from the encoder's cache
+    with patch.object(records_module, "mostly_distinct", lambda *_: distinct):
+        assert encoder.encode_batch(batch) == expected
+        assert encoder.encode_batch(batch) == expected  # again, from the encoder's cache
 
 
 @settings(max_examples=max(300, EXAMPLES), deadline=None)
@@ -212,3 +229,27 @@ def test_fast_frame_records_say_what_the_exact_ones_say(batch: AnnotatedBatch, r
             assert record.pop(field) == (None if ns is None else Decimal(ns).scaleb(-9))
             expected.pop(field)
         assert record == expected
+
+
+def test_profiled_param_texts_kept_stay_bounded_and_right(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A param's JSON is kept by the param object (a namer hands one to every frame with that
+    value), up to a bound; past it, what is written stays what ``json.dumps`` writes."""
+    monkeypatch.setattr(records_module, "KEPT_PARAM_TEXTS", 3)
+    shared = ParamValue(3201, "ETA", "Status word", 0x8637, "ready", None)
+    decodings = [Decoding(f"read {n}", (shared, ParamValue(8604, "RFRD", "Speed", n, n * 1e-5, "rpm")))
+                 for n in range(8)]
+    batch = AnnotatedBatch(matched([adu(b"\x02\x03\x04", struct.pack(">HH", 0x8637, n)) for n in range(8)])[0],
+                           decodings)
+    encoder = FrameRecordEncoder()
+    expected = [json.dumps(frame_record(m), ensure_ascii=False, separators=(",", ":")) for m in batch]
+    assert encoder.encode_batch(batch) == expected
+    assert 0 < len(encoder._param_texts) <= 3
+
+
+def test_a_frame_of_no_bytes_is_written_too() -> None:
+    """The JSONL encoder asks whether a batch's frames are distinct; a frame of no bytes (no
+    framer makes one, the fuzzer did) is a frame like any other there."""
+    batch = Matcher().feed(frames_to_batch([Frame(0, 0, 0, b"", False, FrameFlag.NONE)]))
+    annotated = Annotator().annotate_batch(batch)
+    assert FrameRecordEncoder().encode_batch(annotated) == [
+        json.dumps(frame_record(m), ensure_ascii=False, separators=(",", ":")) for m in annotated]
