@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import struct
+import tracemalloc
 from dataclasses import astuple
 from decimal import Decimal
 from itertools import pairwise
@@ -253,3 +254,18 @@ def test_a_frame_of_no_bytes_is_written_too() -> None:
     annotated = Annotator().annotate_batch(batch)
     assert FrameRecordEncoder().encode_batch(annotated) == [
         json.dumps(frame_record(m), ensure_ascii=False, separators=(",", ":")) for m in annotated]
+
+
+def test_kept_json_texts_hold_their_text_alone() -> None:
+    """orjson's bytes keep the 4 KiB buffer they were written into; the encoder keeps tens of
+    thousands of param texts, which must cost their size, not 4 KiB each (260 MB on 1 M frames)."""
+    encoder = FrameRecordEncoder()
+    params = [ParamValue(8604, "RFRD", "Speed", n, n, "rpm") for n in range(2000)]
+    tracemalloc.start()
+    try:
+        texts = [encoder._param_text(param)[1] for param in params]
+        held = tracemalloc.get_traced_memory()[0]
+    finally:
+        tracemalloc.stop()
+    assert texts[7] == b'{"address":8604,"code":"RFRD","name":"Speed","raw":7,"value":7,"unit":"rpm"}'
+    assert held < 400 * len(params)  # the text, its tuple and dict slot: about 200 bytes
