@@ -9,13 +9,12 @@ from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch
 from decoders.stats import SkippedReads, Statistics
+from sniffer.encoding.frame_fields import FrameFields, frame_fields
 from sniffer.encoding.records import (
-    FrameFields,
     FrameRecordEncoder,
     capture_record,
     device_record,
     encode_record,
-    frame_fields,
 )
 from sniffer.encoding.rows import Rows
 from sniffer.sinks import Sink

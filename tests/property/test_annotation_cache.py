@@ -30,6 +30,7 @@ from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.profiles import apply as apply_module
 from decoders.profiles.apply import ProfileApplier
+from sniffer.encoding import frame_fields as frame_fields_module
 from sniffer.encoding import records as records_module
 from sniffer.encoding.records import FrameRecordEncoder, encode_record, frame_record
 from sniffer.profiles_io import profile_book
@@ -209,7 +210,7 @@ def test_frame_records_are_what_json_dumps_writes(batch: AnnotatedBatch, distinc
     mostly distinct frames) and once per decoding."""
     encoder = FrameRecordEncoder()
     expected = [json.dumps(frame_record(m), ensure_ascii=False, separators=(",", ":")) for m in batch]
-    with patch.object(records_module, "mostly_distinct", lambda *_: distinct):
+    with patch.object(frame_fields_module, "mostly_distinct", lambda *_: distinct):
         assert encoder.encode_batch(batch) == expected
         assert encoder.encode_batch(batch) == expected  # again, from the encoder's cache
 
