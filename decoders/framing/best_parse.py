@@ -14,17 +14,17 @@ byte positions (Viterbi) finds the sequence of pieces covering every byte with t
 highest total score (:mod:`decoders.framing.programme`).
 
 **Anchors (the fast path).** A *clean* frame -- CRC-valid at its rule length, a
-public function code, an address 1-247, one reading only (not also CRC-valid in
-the other direction), no pause inside, no other clean frame starting inside it --
-that touches another clean frame (up to ``ANCHOR_REACH`` stray bytes between them)
-or a supported boundary is on every best parse: reading its bytes any other way
-gives up 16 bits of CRC evidence per frame that no other reading can win back
-except by another CRC coincidence (2^-16). Anchors are found for a whole segment at
-once by numpy (:func:`decoders.framing.fast.clean_frame_ends`: the CRC of every
-candidate span from prefix registers); short segments by a scalar pass. The
-dynamic programme runs only over the bytes between anchors. ``fast=False`` runs it
-over the whole segment instead: the plain reference path the tests hold the fast
-path to.
+public function code, an address 1-247, one reading only (not also CRC-valid in the
+other direction, nor, for an FC 8 echo of any length, at another length), no pause
+inside, no other clean frame starting inside it -- that touches another clean frame
+(up to ``ANCHOR_REACH`` stray bytes between them) or a supported boundary is on
+every best parse: reading its bytes any other way gives up 16 bits of CRC evidence
+per frame that no other reading can win back except by another CRC coincidence
+(2^-16). Anchors are found for a whole segment at once by numpy
+(:func:`decoders.framing.fast.clean_frame_ends`: the CRC of every candidate span
+from prefix registers); short segments by a scalar pass. The dynamic programme runs
+only over the bytes between anchors. ``fast=False`` runs it over the whole segment
+instead: the plain reference path the tests hold the fast path to.
 
 **Streaming.** Of an open segment (its end not yet known), pieces are committed up
 to the last anchor whose confirmation is complete. When no anchor comes for
@@ -50,6 +50,7 @@ from decoders.framing import evidence as ev
 from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, replayed_open_request
 from decoders.framing.fast import clean_frame_ends
 from decoders.framing.programme import MAX_EDGE, Context, Piece, Region, best_pieces
+from decoders.modbus.codes import DIAGNOSTICS
 from decoders.modbus.layouts import MAX_ADU
 
 #: Stray bytes allowed between two clean frames that confirm each other.
@@ -213,6 +214,10 @@ def clean_frame_end(data: bytes, start: int, stop: int) -> int:
             if found:
                 return 0  # both directions pass the CRC (a frame ending in 0x00): the programme decides
             found = start + length
+    if found and data[start + 1] == DIAGNOSTICS and data[start + 2] == data[start + 3] == 0 and any(
+            crc16.modbus(data[start:end]) == 0 and end != found
+            for end in range(start + MIN_ADU, min(stop, start + MAX_ADU) + 1)):
+        return 0  # an echo (FC 8, return query data) is CRC-valid at another length too: two readings
     return found
 
 

@@ -23,7 +23,7 @@ from decoders.capture import Int64Array
 from decoders.crc import crc_ok_spans, prefix_registers
 from decoders.framing.content import MAX_ADDRESS, MIN_ADU, rule_lengths
 from decoders.framing.evidence import CLEAN_RULES
-from decoders.modbus.codes import EXCEPTION_BIT
+from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT
 from decoders.modbus.layouts import EXCEPTION_LENGTH, LAYOUTS, MAX_ADU, LengthRule
 
 #: Bytes read past a segment's start to find byte counts (FC 23's sits at 10).
@@ -160,7 +160,37 @@ def clean_frame_ends(data: bytes, limits: Int64Array | None = None) -> npt.NDArr
         valid_count[good_starts] += ends[good_starts] != good_stops
         ends[good_starts] = good_stops
     ends[valid_count > 1] = 0  # both directions pass: the programme decides
+    ends[_echoes_read_otherwise(padded, registers, ends, limits)] = 0
     return ends
+
+
+#: Echoes tested at once for another CRC-valid length (bounds the [echo, length] matrix).
+_ECHO_BLOCK = 4096
+
+
+def _echoes_read_otherwise(
+    padded: npt.NDArray[np.uint8], registers: npt.NDArray[np.uint32], ends: npt.NDArray[np.int64],
+    limits: Int64Array | None,
+) -> Int64Array:
+    """Clean-by-rule FC 8 sub-function 0 frames (return query data: an echo of any length,
+    so CRC search reads it too) with another CRC-valid length from the same start: two
+    readings, for the programme to weigh (see :func:`decoders.framing.evidence.searchable`)."""
+    size = len(ends)
+    candidates = np.flatnonzero(ends[: max(size - 1, 0)])
+    candidates = candidates[(padded[candidates + 1] == DIAGNOSTICS) & (padded[candidates + 2] == 0)
+                            & (padded[candidates + 3] == 0)]
+    lengths = np.arange(MIN_ADU, MAX_ADU + 1, dtype=np.int64)
+    read_otherwise = []
+    for block in range(0, len(candidates), _ECHO_BLOCK):
+        starts = candidates[block : block + _ECHO_BLOCK]
+        limit = (size if limits is None else limits[starts])
+        stops = starts[:, None] + lengths[None, :]
+        usable = (stops <= np.reshape(limit, (-1, 1))) & (stops != ends[starts][:, None])
+        spans = np.broadcast_to(starts[:, None], stops.shape)[usable]
+        other = np.zeros(stops.shape, np.bool_)
+        other[usable] = crc_ok_spans(registers, spans, (stops - starts[:, None])[usable])
+        read_otherwise.append(starts[other.any(axis=1)])
+    return np.concatenate(read_otherwise) if read_otherwise else np.zeros(0, np.int64)
 
 
 #: Stray bytes after a frame that are noise whatever they hold: no reading is this short.

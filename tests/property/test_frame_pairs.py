@@ -6,12 +6,14 @@ from __future__ import annotations
 import random
 from unittest import mock
 
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from decoders.capture import Chunk, ChunkBatch
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
+from decoders.framing.best_parse import clean_frame_end
+from decoders.framing.fast import clean_frame_ends
 from decoders.line import LineSettings
 from decoders.synthesis import Transmission, exact_chunks
 from tests.corpus import exchange
@@ -58,8 +60,15 @@ def tight_exchanges(draw: st.DrawFn) -> tuple[LineSettings, list[Chunk]]:
     return line, list(exact_chunks(transmissions, line, T0))
 
 
+#: Found by CI: two FC 8 echoes, then three stray bytes that make the second echo CRC-valid at 11 bytes too.
+_ECHO = bytes.fromhex("0108000014ba6eb8")
+_ECHO_READ_LONGER = [Chunk(T0 + 13_177_086, _ECHO), Chunk(T0 + 22_343_753, _ECHO),
+                     Chunk(T0 + 25_781_253, bytes.fromhex("368016"))]
+
+
 @settings(max_examples=300, deadline=None)
 @given(tight_exchanges())
+@example((LineSettings.parse("9600 8E1"), _ECHO_READ_LONGER))
 def test_pairs_cut_in_bulk_as_the_parser_cuts_them(capture: tuple[LineSettings, list[Chunk]]) -> None:
     line, chunks = capture
     assert frames(chunks, line, fast=True) == frames(chunks, line, fast=False)
@@ -84,3 +93,51 @@ def test_a_fast_answer_and_a_glitch_are_cut_without_the_parser() -> None:
         (answer, True, False)]
     assert closed == [], "segments of two pieces went through the content parser"
     assert found == frames(chunks, line, fast=False, batch=len(chunks))
+
+
+def _echo(data: bytes) -> bytes:
+    """An FC 8 return-query-data echo of ``data`` (any length) to slave 1."""
+    body = bytes([1, 8, 0, 0]) + data
+    return body + crc_bytes(body)
+
+
+def _longer_reading(frame: bytes, extra: int) -> bytes:
+    """``extra`` bytes after ``frame`` that make frame + them CRC-valid as one run."""
+    body = frame + bytes([extra])
+    return bytes([extra]) + crc_bytes(body)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.sampled_from(["echo", "longer", "stray", "read"]), min_size=1, max_size=40),
+       st.binary(min_size=1, max_size=6), st.integers(0, 255), LINES, st.sampled_from([1, 2, 50]))
+def test_an_echo_read_at_two_lengths_is_left_to_the_programme(
+    pieces: list[str], data: bytes, extra: int, line: LineSettings, batch: int
+) -> None:
+    """An FC 8 echo CRC-valid at its rule length and longer is two readings, not an anchor:
+    one segment of such echoes (short: scalar anchors; long: numpy anchors; fed whole or in
+    pieces, so anchors are also committed while it is open) is cut as the reference cuts it."""
+    echo = _echo(data[:2])
+    read = bytes.fromhex("0103000A0002")
+    parts = {"echo": echo, "longer": echo + _longer_reading(echo, extra), "stray": bytes([extra]),
+             "read": read + crc_bytes(read)}
+    stream = b"".join(parts[name] for name in pieces)
+    chunks = list(exact_chunks([Transmission(stream[k : k + 7], 0) for k in range(0, len(stream), 7)], line, T0))
+    assert frames(chunks, line, fast=True, batch=batch) == frames(chunks, line, fast=False, batch=batch)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.sampled_from(["echo", "longer", "noise"]), min_size=1, max_size=60), st.binary(min_size=1),
+       st.integers(0, 255))
+def test_clean_frames_found_in_bulk_as_one_by_one(pieces: list[str], data: bytes, extra: int) -> None:
+    """The numpy clean-frame ends equal the scalar ones, echoes read at two lengths included."""
+    echo = _echo(data[:3])
+    parts = {"echo": echo, "longer": echo + _longer_reading(echo, extra), "noise": data}
+    stream = b"".join(parts[name] for name in pieces)
+    assert clean_frame_ends(stream).tolist() == [clean_frame_end(stream, k, len(stream)) for k in range(len(stream))]
+
+
+def test_an_echo_with_a_longer_reading_is_no_clean_frame() -> None:
+    longer = _ECHO + bytes.fromhex("368016")
+    assert clean_frame_end(longer, 0, len(longer)) == 0
+    assert clean_frame_ends(longer)[0] == 0
+    assert clean_frame_end(_ECHO + b"\x36", 0, 9) == 8
