@@ -94,7 +94,10 @@ def send_exchanges(port: Path, count: int, pause_s: float = 0.05, stop: Any = No
 def test_real_master_and_slave_decoded_live_and_recorded(tmp_path: Path) -> None:
     from tests.test_pty_pymodbus import assert_session_decoded, run_master
 
-    recording = tmp_path / "live.mcap"
+    # A directory name longer than a line: the closing message must name the file on one
+    # line (stderr to a pipe is 80 columns to rich, which wrapped it mid-path).
+    recording = tmp_path / ("a-recordings-directory-with-a-name-longer-than-one-terminal-line-" * 2) / "live.mcap"
+    recording.parent.mkdir()
     with pty_pair(tmp_path, "master") as to_master, pty_pair(tmp_path, "slave") as to_slave, \
             pty_pair(tmp_path, "tap") as tap:
         capture = start_capture(tap.b, "-o", str(recording), "--format", "jsonl")
@@ -106,7 +109,8 @@ def test_real_master_and_slave_decoded_live_and_recorded(tmp_path: Path) -> None
             out, err = capture.communicate(timeout=HANG_S)
             assert relay.written_back() == b""  # passive: nothing came back from the capture's port
     assert capture.returncode == 130, err
-    assert "recorded" in err and str(recording) in err
+    said = err.splitlines()
+    assert any(line.startswith("recorded ") and line.endswith(f" bytes to {recording}") for line in said), err
     live = [json.loads(line) for line in out.splitlines()]
     code, recorded, warnings = analyze(recording)
     assert code == 0 and not warnings

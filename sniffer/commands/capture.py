@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
 
     from sniffer.live_capture import CaptureOptions, run_capture  # noqa: PLC0415 - its live view is rich's
 
-    err = Console(stderr=True, highlight=False)
+    err = Console(stderr=True, highlight=False, soft_wrap=True)  # a message naming a file stays one line
     if args.output is None and args.quiet:
         raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: give a file with -o")
     if args.output is not None:
