@@ -176,14 +176,14 @@ def _echoes_read_otherwise(
     so CRC search reads it too) with another CRC-valid length from the same start: two
     readings, for the programme to weigh (see :func:`decoders.framing.evidence.searchable`)."""
     size = len(ends)
-    candidates = np.flatnonzero(ends[: max(size - 1, 0)])
+    candidates = np.flatnonzero(ends)
     candidates = candidates[(padded[candidates + 1] == DIAGNOSTICS) & (padded[candidates + 2] == 0)
                             & (padded[candidates + 3] == 0)]
     lengths = np.arange(MIN_ADU, MAX_ADU + 1, dtype=np.int64)
     read_otherwise = []
     for block in range(0, len(candidates), _ECHO_BLOCK):
         starts = candidates[block : block + _ECHO_BLOCK]
-        limit = (size if limits is None else limits[starts])
+        limit = size if limits is None else limits[starts]
         stops = starts[:, None] + lengths[None, :]
         usable = (stops <= np.reshape(limit, (-1, 1))) & (stops != ends[starts][:, None])
         spans = np.broadcast_to(starts[:, None], stops.shape)[usable]
