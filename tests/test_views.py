@@ -23,6 +23,7 @@ from decoders.capture import TimingQuality
 from sniffer.io.registry import open_reader
 from sniffer.pipeline import Analysis, analyze
 from sniffer.views.clock import Clock
+from sniffer.views.layout import note_lines
 from sniffer.views.live import LiveState, LiveView
 from sniffer.views.table import PlainTableView
 from tests.conftest import ROOT, SAMPLE_LOG, CliResult
@@ -378,3 +379,17 @@ def test_relative_times_count_from_the_first_frame_read(cli: Cli) -> None:
         assert "1.441608" in out and "2.550759" in out
     windowed = cli("analyze", str(SAMPLE_LOG), "--time", "relative", "--around", "31", "--context", "1").out
     assert next(line.split()[1] for line in windowed.splitlines() if not line.startswith("#")) == "0.000000"
+
+
+@pytest.mark.parametrize("width", range(12, 101))
+def test_a_note_breaks_between_fields(width: int) -> None:
+    """The line above the table breaks between its fields, so that no label ends a line without
+    its value (``t3.5`` / ``2005 µs`` at 80 columns); a field wider than the line breaks between
+    its words, a word wider than the line within itself: no line is ever wider than the terminal."""
+    fields = ["captures/atv71-plc-poll.log", "line 19200 8E1", "timing exact", "t1.5 859 µs", "t3.5 2005 µs"]
+    lines = note_lines("  ".join(fields), width)
+    assert all(len(line) <= width for line in lines)
+    assert "".join("".join(lines).split()) == "".join("".join(fields).split())  # every character, in order
+    for field in fields:
+        if len(field) <= width:
+            assert any(field in line for line in lines), (width, field, lines)

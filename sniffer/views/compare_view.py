@@ -7,14 +7,13 @@ Each cell says ``before→after`` (no spaces: into a pipe every cell stays one a
 from __future__ import annotations
 
 import json
-import textwrap
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TextIO
 
 from decoders.compare import Change, Measures
 from decoders.modbus.codes import function_name
 from decoders.stats import Statistics
-from sniffer.views.layout import Cells, Column, Layout
+from sniffer.views.layout import Cells, Column, Layout, note_lines
 
 if TYPE_CHECKING:
     from rich.color import ColorSystem
@@ -79,7 +78,7 @@ def _note(out: TextIO, width: int | None, text: str) -> None:
     if width is None:
         out.write(f"# {text}\n")
     else:
-        out.write("".join(f"{line}\n" for line in textwrap.wrap(text, width, break_on_hyphens=False)))
+        out.write("".join(f"{line}\n" for line in note_lines(text, width)))
 
 
 def _load(statistics: Statistics) -> str:

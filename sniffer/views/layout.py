@@ -269,3 +269,22 @@ def _wrap(text: str, width: int) -> list[str]:
     if len(text) <= width:
         return [text]
     return textwrap.wrap(text, width, break_on_hyphens=False) or [""]
+
+
+#: What keeps the words of one field of a note together while it is wrapped (no text holds it).
+_JOINED = "\x00"
+
+
+def note_lines(text: str, width: int) -> list[str]:
+    """A note above or below a table (``source  line 19200 8E1  t3.5 2005 µs``) in lines of at
+    most ``width``: fields are separated by two spaces, and a line breaks between fields, so a
+    label stays with its value; a field wider than the line breaks between its words."""
+    fields = text.split("  ")
+    if len(text) <= width or len(fields) == 1:
+        return _wrap(text, width)
+    lines: list[str] = []
+    for joined in textwrap.wrap("  ".join(f.replace(" ", _JOINED) for f in fields), width, break_on_hyphens=False,
+                                break_long_words=False):
+        line = joined.replace(_JOINED, " ")
+        lines += _wrap(line, width)
+    return lines

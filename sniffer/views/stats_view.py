@@ -16,7 +16,7 @@ from decoders.line import LineSettings
 from decoders.modbus.codes import function_name
 from decoders.stats import FunctionStats, Histogram, Statistics
 from sniffer.sinks import Sink
-from sniffer.views.layout import Cells, Column, Layout
+from sniffer.views.layout import Cells, Column, Layout, note_lines
 
 if TYPE_CHECKING:
     from rich.color import ColorSystem
@@ -97,7 +97,7 @@ class StatsView(Sink):
         if self._width is None:
             self._out.write(f"# {text}\n")
         else:
-            self._out.write("".join(f"{line}\n" for line in textwrap.wrap(text, self._width, break_on_hyphens=False)))
+            self._out.write("".join(f"{line}\n" for line in note_lines(text, self._width)))
 
     def _bus_lines(self, s: Statistics) -> str:
         unit = "" if self._width is None else " "  # one field per cell in a pipe

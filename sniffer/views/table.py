@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import itertools
 import operator
-import textwrap
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, TextIO
 
@@ -38,7 +37,7 @@ from sniffer.views.frame_cells import (
     kept_rows,
     summary_cells,
 )
-from sniffer.views.layout import Layout
+from sniffer.views.layout import Layout, note_lines
 
 if TYPE_CHECKING:
     from rich.color import ColorSystem
@@ -71,8 +70,7 @@ class _FrameTable(Sink):
         if self._layout.plain:
             return f"# {text}\n"
         assert self._layout.width is not None
-        return "".join(self._layout.styled(line, style) + "\n"
-                       for line in textwrap.wrap(text, self._layout.width, break_on_hyphens=False))
+        return "".join(self._layout.styled(line, style) + "\n" for line in note_lines(text, self._layout.width))
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._out.write(self._note_lines(f"{source}  line {line.format()}  timing {info.timing.value}  "
