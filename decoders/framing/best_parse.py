@@ -50,7 +50,6 @@ from decoders.framing import evidence as ev
 from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, replayed_open_request
 from decoders.framing.fast import clean_frame_ends
 from decoders.framing.programme import MAX_EDGE, Context, Piece, Region, best_pieces
-from decoders.modbus.codes import DIAGNOSTICS
 from decoders.modbus.layouts import MAX_ADU
 
 #: Stray bytes allowed between two clean frames that confirm each other.
@@ -214,7 +213,7 @@ def clean_frame_end(data: bytes, start: int, stop: int) -> int:
             if found:
                 return 0  # both directions pass the CRC (a frame ending in 0x00): the programme decides
             found = start + length
-    if found and data[start + 1] == DIAGNOSTICS and data[start + 2] == data[start + 3] == 0 and any(
+    if found and ev.any_length_echo(data[start : start + 4]) and any(
             crc16.modbus(data[start:end]) == 0 and end != found
             for end in range(start + MIN_ADU, min(stop, start + MAX_ADU) + 1)):
         return 0  # an echo (FC 8, return query data) is CRC-valid at another length too: two readings

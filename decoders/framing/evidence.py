@@ -133,12 +133,18 @@ def zero_padded(data: bytes, start: int, end: int) -> bool:
     return False
 
 
+def any_length_echo(head: bytes) -> bool:
+    """Whether a frame starting with ``head`` is FC 8 sub-function 0 (return query data),
+    which echoes any number of bytes."""
+    return head[1] == DIAGNOSTICS and len(head) >= 4 and head[2] == 0 and head[3] == 0
+
+
 def searchable(head: bytes, lengths: list[int | None] | None = None) -> bool:
     """Whether only CRC search can find this frame's length: no rule gives one, or
-    FC 8 sub-function 0 (return query data), which echoes any number of bytes.
-    ``lengths``: :func:`rule_lengths` of ``head``, where the caller has them already."""
+    :func:`any_length_echo`. ``lengths``: :func:`rule_lengths` of ``head``, where the caller
+    has them already."""
     if head[1] == DIAGNOSTICS:
-        return len(head) >= 4 and head[2] == 0 and head[3] == 0
+        return any_length_echo(head)
     return not any(length is not None for length in (rule_lengths(head) if lengths is None else lengths))
 
 

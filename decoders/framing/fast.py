@@ -174,7 +174,7 @@ def _echoes_read_otherwise(
 ) -> Int64Array:
     """Clean-by-rule FC 8 sub-function 0 frames (return query data: an echo of any length,
     so CRC search reads it too) with another CRC-valid length from the same start: two
-    readings, for the programme to weigh (see :func:`decoders.framing.evidence.searchable`)."""
+    readings, for the programme to weigh (:func:`decoders.framing.evidence.any_length_echo`, in columns)."""
     size = len(ends)
     candidates = np.flatnonzero(ends)
     candidates = candidates[(padded[candidates + 1] == DIAGNOSTICS) & (padded[candidates + 2] == 0)

@@ -171,7 +171,7 @@ class ProfileApplier:
         for address, raw in values:
             namer = namers.get(address)
             if namer is None:
-                scoped = _slave_scoped(profile, address)
+                scoped = _value_table(profile, address) is not None
                 namer = namers.get((slave, address)) if scoped else None
                 if namer is None:
                     namer = self._namer(profile, slave, address, reported)
@@ -195,18 +195,17 @@ class ProfileApplier:
         parameter = profile.parameters.get(address)
         label: tuple[str | None, str | None] = (parameter.code, parameter.name) if parameter is not None else (
             (f"%MW{address}", f"4{address + 1:05d}") if profile.address_style == "xbt" else (None, None))
-        for table in profile.indirections:
+        table = _value_table(profile, address)
+        if slave is not None and table is not None:
             slot = address - table.value_registers
-            if slave is not None and 0 <= slot < table.count:
-                target = self._indirections.mapping(slave, table)[slot]
-                code = f"{table.prefix}{slot + 1}"
-                parameter = profile.parameters.get(target) if target else None
-                if parameter is None:
-                    what = "unassigned" if not target else f"copy of register {target}"
-                    label = (code, f"{code} ({what})")
-                else:
-                    label = (f"{code}→{parameter.code}", f"{code} → {parameter.name}")
-                break
+            target = self._indirections.mapping(slave, table)[slot]
+            code = f"{table.prefix}{slot + 1}"
+            parameter = profile.parameters.get(target) if target else None
+            if parameter is None:
+                what = "unassigned" if not target else f"copy of register {target}"
+                label = (code, f"{code} ({what})")
+            else:
+                label = (f"{code}→{parameter.code}", f"{code} → {parameter.name}")
         return AddressNamer(profile, address, label, parameter, reported=reported, learns=learns)
 
     def _identify(self, pdu: DeviceIdResponse, facts: FrameFacts) -> DeviceIdentity | None:
@@ -258,9 +257,11 @@ def _uss_words(profile: Profile, decoding: Decoding, role: Role) -> Decoding:
                     decoding.remarks, decoding.device, telegram)
 
 
-def _slave_scoped(profile: Profile, address: int) -> bool:
-    """Whether what ``address`` holds depends on the slave: a scanner table's value register."""
-    return any(0 <= address - table.value_registers < table.count for table in profile.indirections)
+def _value_table(profile: Profile, address: int) -> Indirection | None:
+    """The scanner table whose value registers hold ``address``, if any: what such a register
+    holds depends on the slave (its own mapping)."""
+    return next((table for table in profile.indirections if 0 <= address - table.value_registers < table.count),
+                None)
 
 
 def _knows_nothing(profile: Profile) -> bool:
