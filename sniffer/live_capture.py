@@ -105,7 +105,9 @@ class _Shared:
 
 
 def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
-    """Capture until Ctrl-C, SIGTERM, the end of ``duration_s`` or the loss of the port."""
+    """Capture until Ctrl-C, SIGTERM, the end of ``duration_s`` or the loss of the port.
+    ``err``: where messages go, a console that neither highlights, reads markup in, nor wraps
+    them (a message naming a file says the name as it is, on one line)."""
     source = SerialSource(options.port, options.line)
     status = source.open()
     recorder = _recorder(options, status)
@@ -123,10 +125,9 @@ def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
             recorder.start()
         reader.start()
         target = f" to {options.output}" if options.output else ""
-        err.print(f"capturing {options.port} at {options.line.format()}{target}; Ctrl-C to stop", highlight=False,
-                  soft_wrap=True)
+        err.print(f"capturing {options.port} at {options.line.format()}{target}; Ctrl-C to stop")
         if status.modem_lines is not None and any(status.modem_lines.values()):
-            err.print(f"warning: {options.port}: {status.modem_note()}", highlight=False, soft_wrap=True)
+            err.print(f"warning: {options.port}: {status.modem_note()}")
         session.run(source)
         if request.asked is not None:  # a signal that came while a record was written: stopped after it
             code = INTERRUPTED if request.asked == signal.SIGINT else TERMINATED
@@ -144,7 +145,7 @@ def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
         session.finish()
     warning = session.decoder.line_check.warning()
     if warning is not None:
-        err.print(f"warning: {options.port}: {warning}", highlight=False)
+        err.print(f"warning: {options.port}: {warning}")
     return _report(code, options, recorder, shared, err)
 
 
@@ -345,11 +346,10 @@ def _report(code: int, options: CaptureOptions, recorder: Recorder | None, share
     if shared.behind_reads:
         kept = "the recording has every byte" if recorder is not None else "they are lost (no -o recording)"
         err.print(f"warning: {options.port}: decoding fell behind and skipped {shared.behind_reads:,} reads "
-                  f"(decoding started again after each gap; in JSON Lines a gap record marks it); {kept}",
-                  highlight=False, soft_wrap=True)
+                  f"(decoding started again after each gap; in JSON Lines a gap record marks it); {kept}")
     if recorder is not None:
         files = ", ".join(recorder.files)
-        err.print(f"recorded {recorder.bytes_recorded:,} bytes to {files}", highlight=False)
+        err.print(f"recorded {recorder.bytes_recorded:,} bytes to {files}")
         if recorder.error is not None:
             raise recorder.error
     if shared.failure is not None:

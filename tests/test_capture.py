@@ -94,9 +94,10 @@ def send_exchanges(port: Path, count: int, pause_s: float = 0.05, stop: Any = No
 def test_real_master_and_slave_decoded_live_and_recorded(tmp_path: Path) -> None:
     from tests.test_pty_pymodbus import assert_session_decoded, run_master
 
-    # A directory name longer than a line: the closing message must name the file on one
-    # line (stderr to a pipe is 80 columns to rich, which wrapped it mid-path).
-    recording = tmp_path / ("a-recordings-directory-with-a-name-longer-than-one-terminal-line-" * 2) / "live.mcap"
+    # A directory name longer than a line, with brackets: the closing message must name the
+    # file as it is, on one line (stderr to a pipe is 80 columns to rich, which wrapped it
+    # mid-path; and rich markup took "[site-a]" for a style and dropped it).
+    recording = tmp_path / ("[site-a]-recordings-directory-named-longer-than-one-terminal-line-" * 2) / "live.mcap"
     recording.parent.mkdir()
     with pty_pair(tmp_path, "master") as to_master, pty_pair(tmp_path, "slave") as to_slave, \
             pty_pair(tmp_path, "tap") as tap:
@@ -374,3 +375,11 @@ def test_a_setting_the_port_refuses_is_one_error_and_skipped_by_auto(
     with pytest.raises(RtuSniffError, match=r"no traffic heard .*\(1 settings the port refused\)"):
         probe_line(str(port), 0.2, ["19200 8E1", "19200 8N1"])
 
+
+
+def test_port_descriptions_are_listed_as_written(cli: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A port's description is text, not rich markup (which dropped "[usb-ch341]")."""
+    monkeypatch.setattr("sniffer.commands.ports.serial_ports",
+                        lambda: [("/dev/ttyUSB0", "USB-RS485 adapter [usb-ch341]", "USB VID:PID=1A86:7523")])
+    listed = cli("ports")
+    assert listed.code == 0 and "USB-RS485 adapter [usb-ch341]" in listed.out

@@ -213,6 +213,23 @@ def test_profiles_command(cli: Callable[..., CliResult]) -> None:
     assert cli("profiles", "show", "nope").code == 2
 
 
+def test_profile_texts_are_shown_as_written(cli: Callable[..., CliResult], tmp_path: Path,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """Brackets in a profile's texts and in a path are text, not rich markup (which dropped
+    "[drivecom_status]", the bit field a parameter reads as, and "[address_formula]")."""
+    monkeypatch.setenv("COLUMNS", "250")  # table cells on one line each
+    shown = cli("profiles", "show", "atv71").out
+    assert "Status word [drivecom_status]" in shown and "([Profil])" in shown
+    assert "(see [address_formula])" in " ".join(cli("profiles", "show", "nord-sk").out.split())
+    site = tmp_path / "[site-a]"
+    site.mkdir()
+    copy = site / "atv71.toml"
+    copy.write_bytes((ROOT / "decoders" / "profiles" / "data" / "atv71.toml").read_bytes())
+    checked = cli("profiles", "check", str(copy))
+    said = checked.out.splitlines()  # one line naming the file, however long its path
+    assert checked.code == 0 and len(said) == 1 and said[0].startswith(f"{copy}: profile 'atv71' is valid"), said
+
+
 @pytest.mark.parametrize("scale", ["nan", "inf", "-inf", "0"])
 def test_a_scale_must_be_a_finite_number(cli: Callable[..., CliResult], tmp_path: Path, scale: str) -> None:
     """NaN would be written into JSON (not JSON), inf and 0 lose the value."""

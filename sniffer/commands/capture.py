@@ -51,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
 
     from sniffer.live_capture import CaptureOptions, run_capture  # noqa: PLC0415 - its live view is rich's
 
-    err = Console(stderr=True, highlight=False, soft_wrap=True)  # a message naming a file stays one line
+    # A message naming a file stays one line and says the name as it is (no rich markup: "[site-a]").
+    err = Console(stderr=True, highlight=False, markup=False, soft_wrap=True)
     if args.output is None and args.quiet:
         raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: give a file with -o")
     if args.output is not None:

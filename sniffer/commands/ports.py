@@ -17,7 +17,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
     from rich.table import Table  # noqa: PLC0415
 
-    console = Console(highlight=False)
+    console = Console(highlight=False, markup=False)  # a description may hold brackets: "USB Serial [CH340]"
     ports = serial_ports()
     if not ports:
         console.print("no serial ports found (a USB-RS485 adapter shows up as /dev/ttyUSB0 or /dev/ttyACM0)")

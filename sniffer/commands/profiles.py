@@ -29,7 +29,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
 
-    console = Console(highlight=False)
+    # No rich markup: profile texts and paths hold brackets ("[address_formula]", "([Profil])").
+    console = Console(highlight=False, markup=False)
     if args.action == "list":
         console.print(_list_table(shipped_profiles()))
         return 0
@@ -39,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     if args.action == "check":
         profile = load_profile_file(args.target)
         console.print(f"{args.target}: profile {profile.id!r} is valid: {len(profile.parameters)} parameters, "
-                      f"{len(profile.bitfields)} bit fields, {len(profile.exceptions)} exception notes")
+                      f"{len(profile.bitfields)} bit fields, {len(profile.exceptions)} exception notes", soft_wrap=True)
         return 0
     known = shipped_profiles()
     if args.target not in known:
@@ -61,7 +62,9 @@ def _list_table(profiles: dict[str, Profile]) -> Table:
 
 
 def _show(console: Console, profile: Profile) -> None:
-    console.print(f"[bold]{profile.id}[/]: {profile.name} ({profile.role})")
+    from rich.text import Text  # noqa: PLC0415 - rich: only when the command runs
+
+    console.print(Text.assemble((profile.id, "bold"), f": {profile.name} ({profile.role})"))
     for source in profile.sources:
         console.print(f"  source: {source}")
     for note in profile.notes:
