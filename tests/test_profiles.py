@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable
+from importlib.resources import files
 from pathlib import Path
 
 import pytest
@@ -224,7 +225,7 @@ def test_profile_texts_are_shown_as_written(cli: Callable[..., CliResult], tmp_p
     site = tmp_path / "[site-a]"
     site.mkdir()
     copy = site / "atv71.toml"
-    copy.write_bytes((ROOT / "decoders" / "profiles" / "data" / "atv71.toml").read_bytes())
+    copy.write_bytes(files("decoders.profiles").joinpath("data", "atv71.toml").read_bytes())  # the installed one
     checked = cli("profiles", "check", str(copy))
     said = checked.out.splitlines()  # one line naming the file, however long its path
     assert checked.code == 0 and len(said) == 1 and said[0].startswith(f"{copy}: profile 'atv71' is valid"), said
