@@ -245,6 +245,11 @@ class AnnotatedBatch:
         """The kept positions, in order."""
         return list(range(len(self.decodings))) if self.rows is None else self.rows.tolist()
 
+    def record_positions(self) -> list[int]:
+        """The positions of the messages a sink writes a record of: the kept ones, and those
+        left in columns (every message: frames are left in columns only where nothing filters)."""
+        return list(range(len(self.messages))) if self.columnar is not None else self.positions()
+
     def decodings_at(self, positions: list[int]) -> list[Decoding]:
         """The decodings at ``positions`` (ordered and distinct, as :meth:`positions` gives them:
         all of them when as many)."""

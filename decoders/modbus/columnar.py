@@ -25,6 +25,8 @@ from decoders.modbus.columnar_text import READ_ANSWER, WRITE, WRITE_ANSWER, summ
 from decoders.modbus.param_runs import LazyParams, ParamRun
 from decoders.modbus.pdu import COIL_ON
 
+#: A param's value where its frame names the address alone.
+NO_VALUE = -1
 #: Requests are read against by answers that come within this many frames of them.
 KEPT_REQUESTS = 1024
 #: The most a request may ask for, by function (0: not a function kept in columns).
@@ -45,6 +47,16 @@ class ColumnarValues(NamedTuple):
     address: npt.NDArray[np.int64]
     raw: npt.NDArray[np.int64]
     request: npt.NDArray[np.int64]
+
+
+class ColumnarParams(NamedTuple):
+    """The params of frames kept in columns, frame after frame: ``sizes``: how many each frame
+    names; each param's ``address``, and its ``value`` (:data:`NO_VALUE` where the frame names the
+    register or coil without one: a read request, the answer to a multiple write)."""
+
+    sizes: npt.NDArray[np.int64]
+    address: npt.NDArray[np.int64]
+    value: npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True)
@@ -113,6 +125,16 @@ class ColumnarFrames:
             run = ParamRun(address, count, tuple(values[end - size : end])) if size else ParamRun(address, count)
             decodings.append(LazyParams.of_runs(summary, (run,)))
         return decodings
+
+    def params(self, data: bytes) -> ColumnarParams:
+        """Every frame's params as :meth:`decodings` names them, laid end to end: for writers that
+        spell them in columns, with no decoding per frame."""
+        valued, counts, _, value = self._carried(data)
+        sizes = np.maximum(self.count, 0)
+        starts = np.cumsum(sizes) - sizes
+        values = np.full(int(sizes.sum()), NO_VALUE, np.int64)
+        values[np.repeat(starts[valued], counts) + within_runs(counts)] = value
+        return ColumnarParams(sizes, np.repeat(self.address, sizes) + within_runs(sizes), values)
 
     def _carried(self, data: bytes) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64],
                                              npt.NDArray[np.int64]]:

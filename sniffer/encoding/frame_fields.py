@@ -80,13 +80,29 @@ def _identities(batch: MessageBatch) -> Pieces:
     """Each frame's record from ``hex`` to ``exception_code``, as :meth:`FrameRecordEncoder._frame_parts`
     writes it."""
     frames = batch.frames
+    return _identity_pieces(batch, hex_texts(frames.data, frames.offsets, quoted=True), slice(None))
+
+
+def identities_at(batch: MessageBatch, positions: npt.NDArray[np.int64]) -> Pieces:
+    """:func:`_identities` of the frames at ``positions`` only."""
+    frames = batch.frames
+    starts, sizes = frames.offsets[positions], np.diff(frames.offsets)[positions]
+    taken = np.frombuffer(frames.data, np.uint8)[np.repeat(starts - np.cumsum(sizes) + sizes, sizes)
+                                                  + np.arange(int(sizes.sum()))]
+    offsets = np.zeros(len(positions) + 1, np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    return _identity_pieces(batch, hex_texts(taken.tobytes(), offsets, quoted=True), positions)
+
+
+def _identity_pieces(batch: MessageBatch, hex_column: Pieces, at: npt.NDArray[np.int64] | slice) -> Pieces:
     columns: list[Column] = [
-        b'"hex":', hex_texts(frames.data, frames.offsets, quoted=True),
-        b',"crc_ok":', _CRC_JSON.column(frames.crc_ok.view(np.uint8)),
-        b',"slave":', _BYTE_JSON.column(batch.slave), b',"function":', _BYTE_JSON.column(batch.function),
-        b',"role":', _ROLE_JSON.column(batch.role), b',"exception_code":', _BYTE_JSON.column(batch.exception_code),
+        b'"hex":', hex_column,
+        b',"crc_ok":', _CRC_JSON.column(batch.frames.crc_ok[at].view(np.uint8)),
+        b',"slave":', _BYTE_JSON.column(batch.slave[at]), b',"function":', _BYTE_JSON.column(batch.function[at]),
+        b',"role":', _ROLE_JSON.column(batch.role[at]),
+        b',"exception_code":', _BYTE_JSON.column(batch.exception_code[at]),
     ]  # fmt: skip
-    return _pieces(columns, len(batch))
+    return _pieces(columns, len(hex_column))
 
 
 def _seconds(ns: npt.NDArray[np.int64]) -> Pieces:

@@ -22,8 +22,8 @@ from collections.abc import Sequence
 from decoders.modbus.param_runs import ParamRun
 
 #: The end of a param record without a value (a read request names registers without).
-_NO_VALUE = b'null,"value":null,"unit":null}'
-_WORDS = 1 << 16
+NO_VALUE_END = b'null,"value":null,"unit":null}'
+WORDS = 1 << 16
 
 #: Runs without values up to this long are written from a template (see the module docstring).
 SHORT_UNVALUED = 24
@@ -42,14 +42,12 @@ def runs_json(runs: tuple[ParamRun, ...]) -> bytes:
 
 def params_pieces(runs: tuple[ParamRun, ...], before: bytes = b"") -> list[bytes]:
     """:func:`runs_json` as pieces to join, the first of them ``before`` and the array's ``[``."""
-    if not _starts:
-        _starts.extend(map(_start, range(_WORDS)))
-        _value_ends.extend(b'%d,"value":%d,"unit":null}' % (value, value) for value in range(_WORDS))
+    param_tables()
     pieces = [before + b"["]
     for address, count, values in runs:
-        if values is None and 0 < count <= SHORT_UNVALUED and address + count <= _WORDS:
+        if values is None and 0 < count <= SHORT_UNVALUED and address + count <= WORDS:
             pieces.append(_UNVALUED_TEMPLATES[count] % tuple(range(address, address + count)))
-        elif count == 1 and values is not None and address < _WORDS:  # one register or coil: nothing to interleave
+        elif count == 1 and values is not None and address < WORDS:  # one register or coil: nothing to interleave
             pieces += (_starts[address], _value_ends[values[0]])
         elif count > 0:
             pieces += _run_pieces(address, count, values)
@@ -59,17 +57,27 @@ def params_pieces(runs: tuple[ParamRun, ...], before: bytes = b"") -> list[bytes
     return pieces
 
 
+def param_tables() -> tuple[list[bytes], list[bytes]]:
+    """The two tables, by address and by value (each entry's text: see the module docstring),
+    built at first use."""
+    if not _starts:
+        _starts.extend(map(param_start, range(WORDS)))
+        _value_ends.extend(b'%d,"value":%d,"unit":null}' % (value, value) for value in range(WORDS))
+    return _starts, _value_ends
+
+
 def _run_pieces(address: int, count: int, values: Sequence[int] | None) -> list[bytes]:
     """The run's pieces: each param's start then its end (each start begins with a comma)."""
-    if address + count > _WORDS:  # not on a wire (16-bit addresses): spelt one by one
-        heads = [_start(a) for a in range(address, address + count)]
+    if address + count > WORDS:  # not on a wire (16-bit addresses): spelt one by one
+        heads = [param_start(a) for a in range(address, address + count)]
     else:
         heads = _starts[address : address + count]
     pieces: list[bytes] = [b""] * (2 * count)
     pieces[::2] = heads
-    pieces[1::2] = [_NO_VALUE] * count if values is None else map(_value_ends.__getitem__, values)
+    pieces[1::2] = [NO_VALUE_END] * count if values is None else map(_value_ends.__getitem__, values)
     return pieces
 
 
-def _start(address: int) -> bytes:
+def param_start(address: int) -> bytes:
+    """A param's text up to its raw value, after a comma."""
     return b',{"address":%d,"code":null,"name":null,"raw":' % address

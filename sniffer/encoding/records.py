@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
-from typing import Any, TypeVar
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -27,7 +27,8 @@ from decoders.message import (
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.blocks import Block, times_matrix
-from sniffer.encoding.frame_fields import FLAG_TEXTS, NS_PER_S, FrameFields, frame_fields
+from sniffer.encoding.columnar_parts import ColumnarParts, columnar_parts
+from sniffer.encoding.frame_fields import FLAG_TEXTS, NS_PER_S, FrameFields, frame_fields, identities_at
 from sniffer.encoding.param_text import params_pieces
 from sniffer.encoding.rows import (
     Column,
@@ -180,22 +181,27 @@ class FrameRecordEncoder:
         if not self._exact:
             return self._block_rows(batch, reserved, end)
         messages, frames = batch.messages, batch.messages.frames
-        positions = batch.positions()
+        positions = batch.record_positions()
         kept = np.array(positions, np.int64)
         own = fields if fields is not None else frame_fields(messages)
         if len(positions) != len(messages):
             own = own.take(kept)
-        decodings, fresh = batch.decodings_at(positions), batch.fresh_at(positions)
+        rest = batch.positions()  # those with a decoding (all but any left in columns)
+        decodings, fresh = batch.decodings_at(rest), batch.fresh_at(rest)
         if own.identities is not None:  # mostly distinct frames: their own columns say who they are
             protocols = _Protocols(frames)
-            tails = parts_by_decoding(self._tails_alone, decodings, fresh,
-                                      lambda row: self._decoding_part(decodings[row], protocols(positions[row])))
+            tails = in_columns_too(batch, lambda parts: parts.record_tails(), parts_by_decoding(
+                self._tails_alone, decodings, fresh,
+                lambda row: self._decoding_part(decodings[row], protocols(rest[row]))))
             middle: list[Column] = [own.identities, b',"flags":', own.middles, tails]
         else:
             facts = _FrameFacts(messages)
             found = parts_by_decoding(self._parts, decodings, fresh,
-                                      lambda row: self._frame_parts(facts, positions[row], decodings[row]))
-            middle = [[parts[0] for parts in found], b',"flags":', own.middles, [parts[1] for parts in found]]
+                                      lambda row: self._frame_parts(facts, rest[row], decodings[row]))
+            identities = in_columns_too(batch, lambda parts: identities_at(messages, parts.positions),
+                                        [parts[0] for parts in found])
+            tails = in_columns_too(batch, lambda parts: parts.record_tails(), [parts[1] for parts in found])
+            middle = [identities, b',"flags":', own.middles, tails]
         columns: list[Column] = [
             own.heads, *middle, *channel_column(frames, kept, self.channels), *uart_error_column(frames, kept),
             b"}" + end,
@@ -207,7 +213,7 @@ class FrameRecordEncoder:
         first, laid out as one :class:`~sniffer.encoding.blocks.Block`, then the decoding's part
         in one piece."""
         messages, frames = batch.messages, batch.messages.frames
-        positions = batch.positions()
+        positions = batch.record_positions()
         kept = np.array(positions, np.int64)
         t_start, t_end = frames.t_start_ns[kept], frames.t_end_ns[kept]
         block = Block(len(positions)).text(b'{"kind":"frame","index":')
@@ -225,9 +231,11 @@ class FrameRecordEncoder:
             .text(b",")
             .pieces()
         )  # fmt: skip
-        decodings, facts = batch.decodings_at(positions), _FrameFacts(batch.messages)
-        tails = parts_by_decoding(self._tails, decodings, batch.fresh_at(positions),
-                                  lambda row: b",".join(self._frame_parts(facts, positions[row], decodings[row])))
+        rest = batch.positions()  # those with a decoding (all but any left in columns)
+        decodings, facts = batch.decodings_at(rest), _FrameFacts(batch.messages)
+        tails = in_columns_too(batch, lambda parts: _joined_parts(messages, parts), parts_by_decoding(
+            self._tails, decodings, batch.fresh_at(rest),
+            lambda row: b",".join(self._frame_parts(facts, rest[row], decodings[row]))))
         optional = [*channel_column(frames, kept, self.channels), *uart_error_column(frames, kept)]
         return join_rows([rows, tails, *optional, b"}" + end], len(positions), reserved)
 
@@ -279,6 +287,29 @@ def parts_by_decoding(memo: Memo[Decoding, Part], decodings: list[Decoding], fre
     """What ``build(row)`` makes of each decoding, repeats found in ``memo``; decodings made
     for the batch alone (``fresh``) built without a lookup."""
     return memo.get_all(decodings, build) if fresh is None else memo.get_new(decodings, build, fresh)
+
+
+def in_columns_too(batch: AnnotatedBatch, spell: Callable[[ColumnarParts], Sequence[Part]],
+                   parts: list[Part]) -> list[Part]:
+    """``parts`` (one per decoding of the batch), with ``spell``'s for the frames it left in
+    columns (:mod:`sniffer.encoding.columnar_parts`) in their places: one per frame."""
+    columnar = batch.columnar
+    if columnar is None:
+        return parts
+    placed: list[Part] = [cast(Part, b"")] * len(batch.messages)
+    if batch.rows is not None:
+        for position, part in zip(batch.rows.tolist(), parts, strict=True):
+            placed[position] = part
+    for position, part in zip(columnar.positions.tolist(),
+                              spell(columnar_parts(columnar, batch.messages.frames.data)), strict=True):
+        placed[position] = part
+    return placed
+
+
+def _joined_parts(messages: MessageBatch, parts: ColumnarParts) -> list[bytes]:
+    """The records of frames in columns from ``hex`` to the end of ``remarks``."""
+    identities = identities_at(messages, parts.positions)
+    return [b",".join((identity, tail)) for identity, tail in zip(identities, parts.record_tails(), strict=True)]
 
 
 class _Protocols:

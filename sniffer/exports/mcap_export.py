@@ -38,7 +38,7 @@ from decoders.memo import Memo
 from decoders.message import NONE, ROLE_NAMES, AnnotatedBatch, Decoding
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
-from sniffer.encoding.records import FrameRecordEncoder, encode_json, parts_by_decoding
+from sniffer.encoding.records import FrameRecordEncoder, encode_json, in_columns_too, parts_by_decoding
 from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports import foxglove_log
@@ -159,7 +159,8 @@ class DecodedChannels:
         self._params_schema = self._writer.add_schema(
             PARAMS_SCHEMA["title"], "jsonschema", json.dumps(PARAMS_SCHEMA).encode()
         )
-        self._published = PublishedValues()
+        #: Keeps a write's values as the JSON members its params message would carry.
+        self._published: PublishedValues[bytes] = PublishedValues()
         #: ``/slave/N/params`` channel ids by slave, made when a slave first carries values.
         self._param_channels = np.zeros(256, np.uint16)
         self._frame_records = FrameRecordEncoder(exact=False)
@@ -173,14 +174,15 @@ class DecodedChannels:
         return self._writer.add_channel(topic, "json", schema_id, {})
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        positions = batch.positions()
+        """A batch's frames, log lines and params; frames left in columns
+        (``batch.columnar``) are spelt from their columns (:mod:`sniffer.encoding.columnar_parts`)."""
+        positions = batch.record_positions()
         if not positions:
             return
         kept = np.array(positions, np.int64)
         messages, frames = batch.messages, batch.messages.frames
         t_ns, slaves = frames.t_start_ns[kept], messages.slave[kept]
-        heads, values = self._decoding_parts(batch.decodings_at(positions), messages.role[kept],
-                                             batch.fresh_at(positions))
+        heads, values = self._decoding_parts(batch, messages.role)
         values = self._published_values(batch, kept, values)
         indexes = number_texts(kept + frames.first_index)
         self._write(self._frame_records.rows(batch, reserved=HEADER_SIZE), self._frames, t_ns)
@@ -192,14 +194,13 @@ class DecodedChannels:
     def _published_values(self, batch: AnnotatedBatch, kept: npt.NDArray[np.int64], values: list[bytes]) -> list[bytes]:
         """``values`` of the messages whose values are published (valid answers), with the values
         of the writes they accept; ``b""`` for the rest (:mod:`sniffer.exports.published`)."""
-        published, accepted = self._published.select(batch, kept)
+        carried = values  # a write request's own: the values it wrote
+        published, accepted = self._published.select(batch, kept, carried.__getitem__)
         if not published.all():
             values = [value if keep else b"" for value, keep in zip(values, published.tolist(), strict=True)]
-        for row, request in accepted:
-            written = numeric_params(request)
-            if written:
-                members = encode_json(written)[1:]
-                values[row] = values[row][:-1] + b"," + members if values[row] else members
+        for row, members in accepted:
+            if members:
+                values[row] = b"".join((values[row][:-1], b",", members)) if values[row] else members
         return values
 
     def transactions(self, rows: Rows, t_ns: npt.NDArray[np.int64]) -> None:
@@ -233,13 +234,17 @@ class DecodedChannels:
         columns: list[Column] = [b'{"index":', [indexes[row] for row in picked], b",", [values[row] for row in picked]]
         self._write(join_rows(columns, len(picked), HEADER_SIZE), self._param_channels[slaves[rows]], t_ns[rows])
 
-    def _decoding_parts(self, decodings: list[Decoding], roles: Integers,
-                        fresh: list[bool] | None) -> tuple[list[bytes], list[bytes]]:
-        """Per message: the log text after the frame index, and its numeric params as JSON
-        members (``b""``: it carried no values). Looked up in C for repeats."""
+    def _decoding_parts(self, batch: AnnotatedBatch, roles: Integers) -> tuple[list[bytes], list[bytes]]:
+        """Per message written (``record_positions``): the log text after the frame index, and its numeric
+        params as JSON members (``b""``: it carried no values). Looked up in C for repeats;
+        spelt from the columns for frames left in columns."""
+        rest = batch.positions()  # those with a decoding (all but any left in columns)
+        decodings, fresh = batch.decodings_at(rest), batch.fresh_at(rest)
         found = parts_by_decoding(self._parts, decodings, fresh,
-                                  lambda row: _decoding_parts(decodings[row], int(roles[row])))
-        return [parts[0] for parts in found], [parts[1] for parts in found]
+                                  lambda row: _decoding_parts(decodings[row], int(roles[rest[row]])))
+        heads = in_columns_too(batch, lambda parts: parts.log_heads(roles[parts.positions]),
+                               [parts[0] for parts in found])
+        return heads, in_columns_too(batch, lambda parts: parts.numeric_members(), [parts[1] for parts in found])
 
     def log_line(self, t_ns: int, level: int, text: str) -> None:
         """One line of rtusniff's own on ``/modbus/log`` (a gap in a live capture's decoding)."""

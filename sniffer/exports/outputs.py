@@ -73,7 +73,7 @@ class McapSink(FileSink["McapExporter"]):
         self.frames_written += len(batch.messages)
         if self.exporter is not None:
             with self.writing():
-                self.exporter.messages(batch.decoded())  # frames in columns: decodings without a PDU
+                self.exporter.messages(batch)
 
     def prepared(self, value: tuple[Rows, npt.NDArray[np.int64]]) -> None:
         if self.exporter is not None:

@@ -18,17 +18,21 @@ frame records and the log, marked as what they are.
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable
+from typing import Generic, TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
-from decoders.message import ROLE_CODE, AnnotatedBatch, Decoding, ParamValue, Role
+from decoders.message import ROLE_CODE, AnnotatedBatch, ParamValue, Role
 
 #: Writes whose answer does not repeat the written values.
 WRITES_ANSWERED_WITHOUT_VALUES = (15, 16, 23)
 #: Valid write requests kept until their answer: as many as the annotator keeps requests.
 KEPT_WRITES = 1024
 _RESPONSE, _REQUEST = ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.REQUEST]
+#: What an export keeps of a write until its answer: its decoding, or the text of its values.
+Written = TypeVar("Written")
 
 
 def plotted(params: tuple[ParamValue, ...]) -> list[ParamValue]:
@@ -36,29 +40,30 @@ def plotted(params: tuple[ParamValue, ...]) -> list[ParamValue]:
     return [param for param in params if param.raw is not None and param.available]
 
 
-class PublishedValues:
+class PublishedValues(Generic[Written]):
     """Tells, batch by batch, whose values are published (see the module's rules)."""
 
     def __init__(self) -> None:
-        #: Valid write requests (FC 15, 16, 23) by frame index, awaiting their answer.
-        self._writes: OrderedDict[int, Decoding] = OrderedDict()
+        #: Valid write requests (FC 15, 16, 23) by frame index, awaiting their answer: what
+        #: ``select`` was told they wrote.
+        self._writes: OrderedDict[int, Written] = OrderedDict()
 
     def select(
-        self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64]
-    ) -> tuple[npt.NDArray[np.bool_], list[tuple[int, Decoding]]]:
+        self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64], written: Callable[[int], Written]
+    ) -> tuple[npt.NDArray[np.bool_], list[tuple[int, Written]]]:
         """For the messages at ``positions``: whether each one's own values are published,
-        and ``(row, request decoding)`` for each answer that accepts a write (``row`` indexes
-        ``positions``; the write's values are published at that answer)."""
+        and ``(row, written(request's row))`` for each answer that accepts a write (``row``
+        indexes ``positions``; the write's values are published at that answer)."""
         messages = batch.messages
         roles, crc_ok = messages.role[positions], messages.frames.crc_ok[positions]
         answers = (roles == _RESPONSE) & crc_ok
         writes = np.flatnonzero((roles == _REQUEST) & crc_ok & np.isin(messages.function[positions],
                                                                           WRITES_ANSWERED_WITHOUT_VALUES))
-        accepted: list[tuple[int, Decoding]] = []
-        first, decodings = messages.frames.first_index, batch.decodings
+        accepted: list[tuple[int, Written]] = []
+        first = messages.frames.first_index
         # Writes first: an answer in the same batch comes after its request.
-        for position in positions[writes].tolist():
-            self._writes[first + position] = decodings[position]
+        for row, position in zip(writes.tolist(), positions[writes].tolist(), strict=True):
+            self._writes[first + position] = written(row)
             if len(self._writes) > KEPT_WRITES:
                 self._writes.popitem(last=False)
         if self._writes:

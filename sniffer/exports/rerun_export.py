@@ -88,7 +88,7 @@ class RerunExporter:
         self.entities = EntityRows(self._rec, live=live)
         self._states: dict[int, str] = {}
         self._slaves: set[int] = set()
-        self._published = PublishedValues()
+        self._published: PublishedValues[Decoding] = PublishedValues()
         # As many as the annotator keeps decodings: a repeat finds its parts.
         self._parts: Memo[Decoding, _Parts] = Memo(KEPT_DECODINGS)
         #: (plot entity, state entity), or () for a register not plotted.
@@ -169,7 +169,8 @@ class RerunExporter:
                          slave: npt.NDArray[np.int16]) -> list[tuple[int, _Parts]]:
         """``(row, parts)`` whose values go on plots and state series: valid answers, and the
         writes they accept (:mod:`sniffer.exports.published`), in row order."""
-        published, accepted = self._published.select(batch, positions)
+        decodings, at = batch.decodings, positions.tolist()
+        published, accepted = self._published.select(batch, positions, lambda row: decodings[at[row]])
         shown = [(row, parts[row]) for row in np.flatnonzero(published).tolist()]
         if accepted:
             functions = batch.messages.function[positions]

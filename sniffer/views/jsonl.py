@@ -44,7 +44,7 @@ class JsonlView(Sink):
         self._write(capture_record(source, info, line))
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        self._kept = batch.decoded()  # frames in columns: decodings without a PDU, cheaper to make
+        self._kept = batch  # frames in columns are spelt from their columns
 
     def prepared(self, value: FrameFields) -> None:
         """Writes the batch kept by :meth:`messages`, with the fields its frames' records take
@@ -52,7 +52,7 @@ class JsonlView(Sink):
         batch, self._kept = self._kept, None
         if batch is None:
             return
-        self.shown += len(batch)
+        self.shown += len(batch.record_positions())
         rows = self._frames.rows(batch, end=b"\n", fields=value)
         if any(decoding.device is not None for decoding in batch.decodings):
             self._write_with_devices(rows, batch)
@@ -85,7 +85,7 @@ class JsonlView(Sink):
     def _write_with_devices(self, rows: Rows, batch: AnnotatedBatch) -> None:
         """The frame records, each followed by its ``device`` record (a slave identified itself)."""
         first, decodings, written = batch.messages.frames.first_index, batch.decodings, 0
-        for row, position in enumerate(batch.positions()):
+        for row, position in enumerate(batch.record_positions()):
             device = decodings[position].device
             if device is not None:
                 end = int(rows.offsets[row + 1])

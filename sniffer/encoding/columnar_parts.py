@@ -1,0 +1,184 @@
+"""What a decoding gives a frame's records, spelt for all the frames of a batch kept in columns.
+
+A frame the annotator left in columns (``AnnotatedBatch.columnar``: a plain read, write or
+answer, most frames of a bus polled for values that change) has no decoding object. Its JSONL
+record's part from ``params`` to ``remarks``, its MCAP log text after the frame index and its
+``/slave/N/params`` members are spelt here from the columns, all the batch's such frames at
+once: every piece of every frame is laid out in one numpy object array (the params from the
+tables of :mod:`sniffer.encoding.param_text`) with its size beside it, and each frame's pieces
+are joined by one ``join``. Built per frame from a decoding
+(:meth:`~decoders.modbus.columnar.ColumnarFrames.decodings`), the same texts cost an object per
+frame and a param run, then a lookup in a memo that new frames always miss.
+
+The texts are exactly those the plain path writes from the decodings: the tests hold them to
+it (``tests/unit/test_columnar_parts.py``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import orjson
+
+from decoders.message import ROLE_NAMES
+from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
+from sniffer.encoding.param_text import NO_VALUE_END, WORDS, param_start, param_tables
+from sniffer.encoding.rows import Pieces, number_texts
+
+#: The tables as numpy object arrays (indexed by a column in C), built at first use.
+_tables: dict[str, npt.NDArray[Any]] = {}
+
+
+class ColumnarParts:
+    """The texts of the frames of ``columnar`` (``data``: their batch's bytes), each list in
+    the order of ``columnar.positions``; each made when first asked for."""
+
+    def __init__(self, columnar: ColumnarFrames, data: bytes) -> None:
+        self.columnar, self._data = columnar, data
+        self._summaries: list[str] | None = None
+        self._params: ColumnarParams | None = None
+
+    @property
+    def positions(self) -> npt.NDArray[np.int64]:
+        return self.columnar.positions
+
+    def summaries(self) -> list[str]:
+        if self._summaries is None:
+            self._summaries = self.columnar.summaries(self._data)
+        return self._summaries
+
+    def record_tails(self) -> Pieces:
+        """Each frame's JSONL record part from ``params`` to the end of ``remarks``
+        (``FrameRecordEncoder._decoding_part``)."""
+        sizes, address, value = self._param_columns()
+        # A frame's pieces: '"params":[', a start and an end per param, '],"summary":', its summary, the end.
+        layout = _Layout(2 * sizes + 4)
+        base = layout.base
+        layout.put(base, b'"params":[')
+        at = np.repeat(base + 1, sizes) + 2 * within_runs(sizes)
+        layout.put(at, *_by_address("starts", address))
+        words = np.maximum(value, 0)
+        ends, end_sizes = _table("value_ends")[words], _sizes("value_ends")[words]
+        unvalued = np.flatnonzero(value < 0)
+        ends[unvalued], end_sizes[unvalued] = NO_VALUE_END, len(NO_VALUE_END)
+        layout.put(at + 1, ends, end_sizes)
+        after = base + 2 * sizes
+        layout.put(after + 1, b'],"summary":')
+        summaries = list(map(orjson.dumps, self.summaries()))
+        layout.put(after + 2, _objects(summaries), np.fromiter(map(len, summaries), np.int64, len(summaries)))
+        layout.put(after + 3, b',"protocol":"modbus","remarks":[]')
+        layout.without_comma(base[sizes > 0] + 1)
+        return layout.texts()
+
+    def log_heads(self, roles: npt.NDArray[np.integer[Any]]) -> list[bytes]:
+        """Each frame's log text after its index: `` response: HR = …`` (``roles``: the frames')."""
+        return [f" {ROLE_NAMES[role]}: {summary}".encode() for role, summary in zip(roles.tolist(), self.summaries(),
+                                                                                    strict=True)]
+
+    def numeric_members(self) -> Pieces:
+        """Each frame's values as the members of a JSON object by address, its closing brace
+        included (``encode_json(numeric_params(decoding))[1:]``), or ``b""``: it carried none."""
+        sizes, address, value = self._param_columns()
+        named = np.flatnonzero(sizes > 0)
+        carried = np.zeros(len(sizes), np.bool_)
+        carried[named] = value[(np.cumsum(sizes) - sizes)[named]] >= 0  # a frame's values: all or none
+        counts = np.where(carried, sizes, 0)
+        # A frame's pieces: a key and a value per param, then '}' (nothing, when it carried none).
+        layout = _Layout(2 * counts + 1)
+        at = np.repeat(layout.base, counts) + 2 * within_runs(counts)
+        kept = np.flatnonzero(np.repeat(carried, sizes))
+        layout.put(at, *_by_address("keys", address[kept]))
+        numbers = number_texts(value[kept])
+        layout.put(at + 1, _objects(numbers), numbers.sizes)
+        layout.put((layout.base + 2 * counts)[carried], b"}")
+        layout.put(layout.base[~carried], b"")
+        layout.without_comma(layout.base[carried])
+        return layout.texts()
+
+    def _param_columns(self) -> ColumnarParams:
+        if self._params is None:
+            self._params = self.columnar.params(self._data)
+        return self._params
+
+
+class _Layout:
+    """Texts of pieces (``widths``: how many pieces each, at least one), laid out in one object
+    array with each piece's size beside it, joined at once."""
+
+    def __init__(self, widths: npt.NDArray[np.int64]) -> None:
+        ends = np.cumsum(widths)
+        #: Where each text's pieces begin.
+        self.base = ends - widths
+        self._last = ends - 1
+        self._pieces = np.empty(int(ends[-1]) if len(ends) else 0, object)  # every piece is put
+        self._sizes = np.zeros(len(self._pieces), np.int64)
+
+    def put(self, places: npt.NDArray[np.int64], pieces: npt.NDArray[Any] | bytes,
+            sizes: npt.NDArray[np.int64] | None = None) -> None:
+        """``pieces`` (one for all, or one each) at ``places``; ``sizes``: theirs, where not one piece."""
+        self._pieces[places] = pieces
+        if isinstance(pieces, bytes):
+            self._sizes[places] = len(pieces)
+        else:
+            assert sizes is not None
+            self._sizes[places] = sizes
+
+    def without_comma(self, places: npt.NDArray[np.int64]) -> None:
+        """The pieces at ``places`` (a first member, whose table entry begins with a comma) without it."""
+        self._pieces[places] = _objects([piece[1:] for piece in self._pieces[places].tolist()])
+        self._sizes[places] -= 1
+
+    def texts(self) -> Pieces:
+        """Each text, joined alone: a join of a whole batch's pieces reads each piece twice (to
+        size, then to copy) from far beyond the cache (a coil answer's are kilobytes)."""
+        pieces, join = self._pieces.tolist(), b"".join
+        ends = self._last + 1
+        texts = [join(pieces[start:end]) for start, end in zip(self.base.tolist(), ends.tolist(), strict=True)]
+        sizes = np.cumsum(self._sizes)[self._last]
+        return Pieces(texts, np.diff(sizes, prepend=0))
+
+
+def _table(name: str) -> npt.NDArray[Any]:
+    if not _tables:
+        starts, value_ends = param_tables()
+        for key, texts in (("starts", starts), ("value_ends", value_ends),
+                           ("keys", [b',"%d":' % address for address in range(WORDS)])):
+            _tables[key] = _objects(texts)
+            _tables[key + " sizes"] = np.fromiter(map(len, texts), np.int64, len(texts))
+    return _tables[name]
+
+
+def _sizes(name: str) -> npt.NDArray[np.int64]:
+    return _table(name + " sizes")
+
+
+def _by_address(name: str, address: npt.NDArray[np.int64]) -> tuple[npt.NDArray[Any], npt.NDArray[np.int64]]:
+    """The entries of table ``name`` at ``address`` and their sizes (an address past 16 bits,
+    which no wire has, spelt alone)."""
+    within = np.minimum(address, WORDS - 1)
+    texts, sizes = _table(name)[within], _sizes(name)[within]
+    for place in np.flatnonzero(address >= WORDS).tolist():
+        text = param_start(int(address[place])) if name == "starts" else b',"%d":' % int(address[place])
+        texts[place], sizes[place] = text, len(text)
+    return texts, sizes
+
+
+def _objects(items: list[bytes]) -> npt.NDArray[Any]:
+    """``items`` as an object array (numpy would make a list of bytes fixed-width strings)."""
+    array = np.empty(len(items), object)
+    array[:] = items
+    return array
+
+
+_last: tuple[ColumnarFrames, ColumnarParts] | None = None
+
+
+def columnar_parts(columnar: ColumnarFrames, data: bytes) -> ColumnarParts:
+    """The :class:`ColumnarParts` of ``columnar``: the same one for the sinks that write the same
+    batch (the frame records and the MCAP log share the summaries)."""
+    global _last  # noqa: PLW0603 - one batch's parts, held until the next batch
+    if _last is None or _last[0] is not columnar:
+        _last = (columnar, ColumnarParts(columnar, data))
+    return _last[1]

@@ -1,0 +1,77 @@
+"""Hypothesis: what :mod:`sniffer.encoding.columnar_parts` spells from the columns of frames left
+in columns is, byte for byte, what the plain path writes from each frame's decoding: the JSONL
+record's part from ``params`` on, the MCAP log text and the ``/slave/N/params`` members; and a
+frame's identity (``hex`` to ``exception_code``) spelt for some frames is what it is for all."""
+
+from __future__ import annotations
+
+from itertools import pairwise
+
+import numpy as np
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+
+from decoders.frame import MODBUS
+from decoders.message import MessageBatch, slice_messages
+from decoders.modbus.annotate import Annotator
+from sniffer.encoding.columnar_parts import ColumnarParts
+from sniffer.encoding.frame_fields import _identities, identities_at
+from sniffer.encoding.records import FrameRecordEncoder
+from sniffer.exports.mcap_export import _decoding_parts
+from tests.property.test_annotation_cache import adu, matched
+from tests.property.test_columnar import exchanges
+
+
+def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
+    """One batch through both annotators; how many frames were spelt from columns."""
+    expected = plain.annotate_batch(batch).decodings
+    columnar = columns.annotate_columnar(batch).columnar
+    if columnar is None:
+        return 0
+    parts = ColumnarParts(columnar, batch.frames.data)
+    positions = columnar.positions.tolist()
+    encoder = FrameRecordEncoder()
+    tails = parts.record_tails()
+    assert list(tails) == [encoder._decoding_part(expected[p], MODBUS) for p in positions]
+    assert tails.sizes.tolist() == list(map(len, tails))
+    logged = [_decoding_parts(expected[p], int(batch.role[p])) for p in positions]
+    assert parts.log_heads(batch.role[columnar.positions]) == [head for head, _ in logged]
+    members = parts.numeric_members()
+    assert list(members) == [values for _, values in logged]
+    assert members.sizes.tolist() == [len(values) for _, values in logged]
+    assert list(identities_at(batch, columnar.positions)) == [_identities(batch)[p] for p in positions]
+    return len(positions)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4))
+@example([[adu(b"\x07", b"\x03", (65535).to_bytes(2, "big") + (3).to_bytes(2, "big")),
+           adu(b"\x07", b"\x03\x06", bytes(range(6)))]], [])
+def test_parts_spelt_from_columns_are_what_decodings_write(traffic: list[list[bytes]], cuts: list[int]) -> None:
+    """Batches cut anywhere, so that an answer's request may be in the batch before."""
+    columns, plain = Annotator(), Annotator()
+    for batch in matched([data for exchange in traffic for data in exchange]):
+        bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
+        for start, stop in pairwise(bounds):
+            check_parts(columns, plain, slice_messages(batch, start, stop))
+
+
+def test_polling_and_coils_are_spelt_from_columns() -> None:
+    """Not vacuous: reads of registers and coils and writes, answered, all spelt from columns;
+    a register past 16 bits of address (none is on a wire) is named as the plain path names it."""
+    reads = [
+        adu(b"\x02", b"\x03\x00\x64\x00\x03"), adu(b"\x02", b"\x03\x06", bytes([0, 1, 0xFF, 0xFF, 0x12, 0x34])),
+        adu(b"\x02", b"\x01\x00\x00\x00\x0a"), adu(b"\x02", b"\x01\x02\xa5\x03"),
+        adu(b"\x02", b"\x10\x00\x10\x00\x02\x04\x00\x07\x00\x08"), adu(b"\x02", b"\x10\x00\x10\x00\x02"),
+        adu(b"\x02", b"\x06\x00\x05\x01\x02"), adu(b"\x02", b"\x06\x00\x05\x01\x02"),
+        adu(b"\x02", b"\x03\xff\xfe\x00\x03"), adu(b"\x02", b"\x03\x06", bytes(6)),
+    ]
+    columns, plain = Annotator(), Annotator()
+    spelt = sum(check_parts(columns, plain, batch) for batch in matched(reads * 20))
+    assert spelt >= 180
+    batch = next(iter(matched(reads)))
+    columnar = Annotator().annotate_columnar(batch).columnar
+    assert columnar is not None
+    members = ColumnarParts(columnar, batch.frames.data).numeric_members()
+    assert bytes(members[1]) == b'"100":1,"101":65535,"102":4660}' and bytes(members[0]) == b""
+    assert np.array_equal(members.sizes, [len(member) for member in members])
