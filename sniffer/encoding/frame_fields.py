@@ -18,6 +18,7 @@ import numpy.typing as npt
 from decoders.frame import FrameFlag, flag_set
 from decoders.message import NONE, ROLE_NAMES, MessageBatch
 from decoders.modbus.annotate import mostly_distinct
+from sniffer.encoding.blocks import Block, times_matrix
 from sniffer.encoding.float_text import float_texts
 from sniffer.encoding.rows import Column, Pieces, Table, hex_texts, join_rows, number_texts, or_null
 
@@ -74,6 +75,50 @@ def frame_fields(batch: MessageBatch) -> FrameFields:
     ]  # fmt: skip
     identities = _identities(batch) if mostly_distinct(batch, IDENTITIES_FROM) else None
     return FrameFields(_pieces(heads, count), _pieces(middles, count), identities)
+
+
+@dataclass(frozen=True)
+class BlockFields:
+    """The fields of MCAP's frame records that no decoding says, one piece per frame: ``heads``
+    from the record's start to the comma before ``hex``, laid out to one width
+    (:func:`block_heads`), and ``identities`` (``hex`` to ``exception_code``), made only for a
+    batch of many distinct frames, as :class:`FrameFields` has them."""
+
+    heads: Pieces
+    identities: Pieces | None = None
+
+    def take(self, rows: npt.NDArray[np.int64]) -> BlockFields:
+        """The fields of the frames at ``rows``, in that order."""
+        return BlockFields(self.heads.take(rows), None if self.identities is None else self.identities.take(rows))
+
+
+def block_fields(batch: MessageBatch) -> BlockFields:
+    """Every frame's :class:`BlockFields`: needs no decoding, so it may be made where frames are
+    paired (the MCAP export's ``prepare``, in the decoding process with ``--jobs 2``)."""
+    identities = _identities(batch) if mostly_distinct(batch, IDENTITIES_FROM) else None
+    return BlockFields(block_heads(batch, np.arange(len(batch), dtype=np.int64)), identities)
+
+
+def block_heads(batch: MessageBatch, kept: npt.NDArray[np.int64]) -> Pieces:
+    """What the frames at ``kept`` say themselves (index, times, flags, pairing, latency), laid
+    out as one :class:`~sniffer.encoding.blocks.Block`: the start of their MCAP frame records."""
+    frames = batch.frames
+    t_start, t_end = frames.t_start_ns[kept], frames.t_end_ns[kept]
+    block = Block(len(kept)).text(b'{"kind":"frame","index":')
+    block.integers(kept + frames.first_index)
+    times = times_matrix(t_start, t_end)  # the digits of each time once, for both spellings
+    if times is not None:
+        block.matrix(times)
+    else:
+        block.text(b',"t":').decimals(t_start, 9).text(b',"t_end":').decimals(t_end, 9)
+        block.text(b',"t_ns":').integers(t_start).text(b',"t_end_ns":').integers(t_end)
+    return (
+        block.text(b',"flags":').choice(batch.flags[kept], FLAG_TEXTS)
+        .text(b',"request_index":').integers(batch.request_index[kept], NONE)
+        .text(b',"latency_s":').decimals(batch.latency_ns[kept], 9, NONE)
+        .text(b",")
+        .pieces()
+    )  # fmt: skip
 
 
 def _identities(batch: MessageBatch) -> Pieces:

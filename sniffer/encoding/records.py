@@ -26,9 +26,15 @@ from decoders.message import (
 )
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
-from sniffer.encoding.blocks import Block, times_matrix
 from sniffer.encoding.columnar_parts import ColumnarParts, columnar_parts
-from sniffer.encoding.frame_fields import FLAG_TEXTS, NS_PER_S, FrameFields, frame_fields, identities_at
+from sniffer.encoding.frame_fields import (
+    NS_PER_S,
+    BlockFields,
+    FrameFields,
+    block_heads,
+    frame_fields,
+    identities_at,
+)
 from sniffer.encoding.param_text import params_pieces
 from sniffer.encoding.rows import (
     Column,
@@ -158,7 +164,7 @@ class FrameRecordEncoder:
     def __init__(self, *, exact: bool = True) -> None:
         """``exact``: spelt as ``json.dumps`` spells it (JSONL); otherwise the times
         (``t``, ``t_end``, ``latency_s``) are the exact decimals of their nanoseconds and the
-        frame's own fields come first, padded to one width (:meth:`_block_rows`), several
+        frame's own fields come first, padded to one width (:meth:`block_rows`), several
         times faster."""
         self._exact = exact
         #: The capture's line names (:attr:`CaptureInfo.channels`), for the ``channel`` field.
@@ -179,7 +185,7 @@ class FrameRecordEncoder:
         ``reserved`` bytes, see :func:`~sniffer.encoding.rows.join_rows`). ``fields``: the
         batch's :func:`frame_fields`, where they were made already (in the decoding process)."""
         if not self._exact:
-            return self._block_rows(batch, reserved, end)
+            return self.block_rows(batch, reserved, end)
         messages, frames = batch.messages, batch.messages.frames
         positions = batch.record_positions()
         kept = np.array(positions, np.int64)
@@ -189,10 +195,7 @@ class FrameRecordEncoder:
         rest = batch.positions()  # those with a decoding (all but any left in columns)
         decodings, fresh = batch.decodings_at(rest), batch.fresh_at(rest)
         if own.identities is not None:  # mostly distinct frames: their own columns say who they are
-            protocols = _Protocols(frames)
-            tails = in_columns_too(batch, lambda parts: parts.record_tails(), parts_by_decoding(
-                self._tails_alone, decodings, fresh,
-                lambda row: self._decoding_part(decodings[row], protocols(rest[row]))))
+            tails = self._tails_alone_of(batch, rest, decodings, fresh)
             middle: list[Column] = [own.identities, b',"flags":', own.middles, tails]
         else:
             facts = _FrameFacts(messages)
@@ -208,36 +211,37 @@ class FrameRecordEncoder:
         ]  # fmt: skip
         return join_rows(columns, len(positions), reserved)
 
-    def _block_rows(self, batch: AnnotatedBatch, reserved: int, end: bytes) -> Rows:
+    def block_rows(self, batch: AnnotatedBatch, reserved: int, end: bytes = b"",
+                   fields: BlockFields | None = None) -> Rows:
         """Not exact: what a frame's own columns say (index, times, flags, pairing, latency)
         first, laid out as one :class:`~sniffer.encoding.blocks.Block`, then the decoding's part
-        in one piece."""
+        in one piece. ``fields``: the batch's :func:`block_fields`, where they were made already
+        (in the decoding process)."""
         messages, frames = batch.messages, batch.messages.frames
         positions = batch.record_positions()
         kept = np.array(positions, np.int64)
-        t_start, t_end = frames.t_start_ns[kept], frames.t_end_ns[kept]
-        block = Block(len(positions)).text(b'{"kind":"frame","index":')
-        block.integers(kept + frames.first_index)
-        times = times_matrix(t_start, t_end)  # the digits of each time once, for both spellings
-        if times is not None:
-            block.matrix(times)
-        else:
-            block.text(b',"t":').decimals(t_start, 9).text(b',"t_end":').decimals(t_end, 9)
-            block.text(b',"t_ns":').integers(t_start).text(b',"t_end_ns":').integers(t_end)
-        rows = (
-            block.text(b',"flags":').choice(messages.flags[kept], FLAG_TEXTS)
-            .text(b',"request_index":').integers(messages.request_index[kept], NONE)
-            .text(b',"latency_s":').decimals(messages.latency_ns[kept], 9, NONE)
-            .text(b",")
-            .pieces()
-        )  # fmt: skip
         rest = batch.positions()  # those with a decoding (all but any left in columns)
-        decodings, facts = batch.decodings_at(rest), _FrameFacts(batch.messages)
-        tails = in_columns_too(batch, lambda parts: _joined_parts(messages, parts), parts_by_decoding(
-            self._tails, decodings, batch.fresh_at(rest),
-            lambda row: b",".join(self._frame_parts(facts, rest[row], decodings[row]))))
+        decodings, fresh = batch.decodings_at(rest), batch.fresh_at(rest)
+        if fields is not None and len(positions) != len(messages):
+            fields = fields.take(kept)
+        heads: Column = block_heads(messages, kept) if fields is None else fields.heads
+        if fields is not None and fields.identities is not None:  # mostly distinct frames
+            middle: list[Column] = [fields.identities, b",", self._tails_alone_of(batch, rest, decodings, fresh)]
+        else:
+            facts = _FrameFacts(batch.messages)
+            middle = [in_columns_too(batch, lambda parts: _joined_parts(messages, parts), parts_by_decoding(
+                self._tails, decodings, fresh, lambda row: b",".join(self._frame_parts(facts, rest[row],
+                                                                                        decodings[row]))))]
         optional = [*channel_column(frames, kept, self.channels), *uart_error_column(frames, kept)]
-        return join_rows([rows, tails, *optional, b"}" + end], len(positions), reserved)
+        return join_rows([heads, *middle, *optional, b"}" + end], len(positions), reserved)
+
+    def _tails_alone_of(self, batch: AnnotatedBatch, rest: list[int], decodings: list[Decoding],
+                        fresh: list[bool] | None) -> list[bytes]:
+        """Each written message's :meth:`_decoding_part` (``rest``: the positions of
+        ``decodings``; frames left in columns: spelt from them)."""
+        protocols = _Protocols(batch.messages.frames)
+        return in_columns_too(batch, lambda parts: parts.record_tails(), parts_by_decoding(
+            self._tails_alone, decodings, fresh, lambda row: self._decoding_part(decodings[row], protocols(rest[row]))))
 
     def encode_batch(self, batch: AnnotatedBatch) -> list[str]:
         """The records as text, one per kept message."""

@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import contextlib
 import json
-from typing import Any, BinaryIO, Protocol
+from collections.abc import Callable
+from typing import Any, BinaryIO, NamedTuple, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -35,9 +36,10 @@ import numpy.typing as npt
 from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.memo import Memo
-from decoders.message import NONE, ROLE_NAMES, AnnotatedBatch, Decoding
+from decoders.message import NONE, ROLE_NAMES, AnnotatedBatch, Decoding, MessageBatch
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
+from sniffer.encoding.frame_fields import BlockFields, block_fields
 from sniffer.encoding.records import FrameRecordEncoder, encode_json, in_columns_too, parts_by_decoding
 from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -173,9 +175,11 @@ class DecodedChannels:
         schema_id = self._writer.add_schema(schema["title"], "jsonschema", json.dumps(schema).encode())
         return self._writer.add_channel(topic, "json", schema_id, {})
 
-    def messages(self, batch: AnnotatedBatch) -> None:
+    def messages(self, batch: AnnotatedBatch, fields: BlockFields | None = None) -> None:
         """A batch's frames, log lines and params; frames left in columns
-        (``batch.columnar``) are spelt from their columns (:mod:`sniffer.encoding.columnar_parts`)."""
+        (``batch.columnar``) are spelt from their columns (:mod:`sniffer.encoding.columnar_parts`).
+        ``fields``: what of the frame records no decoding says, made where frames were paired
+        (:func:`~sniffer.encoding.frame_fields.block_fields`)."""
         positions = batch.record_positions()
         if not positions:
             return
@@ -185,7 +189,7 @@ class DecodedChannels:
         heads, values = self._decoding_parts(batch, messages.role)
         values = self._published_values(batch, kept, values)
         indexes = number_texts(kept + frames.first_index)
-        self._write(self._frame_records.rows(batch, reserved=HEADER_SIZE), self._frames, t_ns)
+        self._write(self._frame_records.block_rows(batch, HEADER_SIZE, fields=fields), self._frames, t_ns)
         text: list[Column] = [b"#", indexes, heads, _FLAG_SUFFIXES.column(messages.flags[kept])]
         log_rows = self._log_encoder.rows(t_ns, log_levels(messages)[kept], text, slaves, HEADER_SIZE)
         self._write(log_rows, self._log, t_ns)
@@ -315,6 +319,25 @@ def transaction_encoder() -> TransactionEncoder:
     """The encoder of what :meth:`McapExporter.transactions` writes: it needs no decodings, so it
     may run in the decoding process (``prepare`` in :func:`sniffer.pipeline.analyze`)."""
     return TransactionEncoder(HEADER_SIZE)
+
+
+class Prepared(NamedTuple):
+    """What of a batch's messages needs no decoding (``prepare``, where frames are paired):
+    its ``/modbus/transactions`` messages and their times, its frame records' own fields."""
+
+    transactions: Rows
+    t_ns: npt.NDArray[np.int64]
+    fields: BlockFields
+
+
+def preparer() -> Callable[[MessageBatch], Prepared]:
+    """The MCAP export's ``prepare``."""
+    encoder = transaction_encoder()
+
+    def prepare(batch: MessageBatch) -> Prepared:
+        return Prepared(*encoder.rows(batch, np.arange(len(batch))), block_fields(batch))
+
+    return prepare
 
 
 def _decoding_parts(decoding: Decoding, role: int) -> tuple[bytes, bytes]:

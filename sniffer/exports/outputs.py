@@ -22,7 +22,6 @@ from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch, MessageBatch
 from decoders.stats import Statistics
-from sniffer.encoding.rows import Rows
 from sniffer.exports.pcap_export import PcapExporter
 from sniffer.exports.transactions import TransactionEncoder
 from sniffer.pipeline import Analysis
@@ -30,7 +29,10 @@ from sniffer.sinks import FileSink
 from sniffer.tool_version import tool_version
 
 if TYPE_CHECKING:
-    from sniffer.exports.mcap_export import McapExporter  # noqa: F401 - named in a string (imported when used)
+    from sniffer.exports.mcap_export import (
+        McapExporter,  # noqa: F401 - named in a string (imported when used)
+        Prepared,
+    )
     from sniffer.exports.parquet_export import ParquetDataset  # noqa: F401 - named in a string (imported when used)
     from sniffer.exports.parquet_values import NumericValues
     from sniffer.exports.rerun_export import RerunExporter  # noqa: F401 - named in a string (imported when used)
@@ -48,15 +50,11 @@ class McapSink(FileSink["McapExporter"]):
     def __init__(self, path: str, args: argparse.Namespace, analysis: Analysis) -> None:
         super().__init__(path)
         self._args, self._analysis = args, analysis
-        from sniffer.exports.mcap_export import transaction_encoder  # noqa: PLC0415 - only for an MCAP export
+        from sniffer.exports.mcap_export import preparer  # noqa: PLC0415 - only for an MCAP export
 
-        encoder = transaction_encoder()
-
-        def transactions(batch: MessageBatch) -> tuple[Rows, npt.NDArray[np.int64]]:
-            """A batch's ``/modbus/transactions`` messages and their times (needs no decodings)."""
-            return encoder.rows(batch, np.arange(len(batch)))
-
-        self.prepare = transactions
+        #: A batch's transactions and its frame records' own fields (need no decodings).
+        self.prepare = preparer()
+        self._kept: AnnotatedBatch | None = None
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         from sniffer.exports.mcap_export import McapExporter  # noqa: PLC0415 - only for an MCAP export
@@ -71,14 +69,15 @@ class McapSink(FileSink["McapExporter"]):
 
     def messages(self, batch: AnnotatedBatch) -> None:
         self.frames_written += len(batch.messages)
-        if self.exporter is not None:
-            with self.writing():
-                self.exporter.messages(batch)
+        self._kept = batch  # written with what was prepared for it
 
-    def prepared(self, value: tuple[Rows, npt.NDArray[np.int64]]) -> None:
+    def prepared(self, value: Prepared) -> None:
+        batch, self._kept = self._kept, None
         if self.exporter is not None:
             with self.writing():
-                self.exporter.transactions(*value)
+                if batch is not None:
+                    self.exporter.messages(batch, value.fields)
+                self.exporter.transactions(value.transactions, value.t_ns)
 
 
 class RerunSink(FileSink["RerunExporter"]):
