@@ -6,6 +6,7 @@ frame's identity (``hex`` to ``exception_code``) spelt for some frames is what i
 from __future__ import annotations
 
 from itertools import pairwise
+from unittest.mock import patch
 
 import numpy as np
 from hypothesis import example, given, settings
@@ -14,6 +15,7 @@ from hypothesis import strategies as st
 from decoders.frame import MODBUS
 from decoders.message import MessageBatch, slice_messages
 from decoders.modbus.annotate import Annotator
+from sniffer.encoding import columnar_parts
 from sniffer.encoding.columnar_parts import ColumnarParts
 from sniffer.encoding.frame_fields import _identities, identities_at
 from sniffer.encoding.records import FrameRecordEncoder
@@ -44,16 +46,20 @@ def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4))
+@given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
+       st.sampled_from([columnar_parts.SLICE_PARAMS, 1, 7, 64]))
 @example([[adu(b"\x07", b"\x03", (65535).to_bytes(2, "big") + (3).to_bytes(2, "big")),
-           adu(b"\x07", b"\x03\x06", bytes(range(6)))]], [])
-def test_parts_spelt_from_columns_are_what_decodings_write(traffic: list[list[bytes]], cuts: list[int]) -> None:
-    """Batches cut anywhere, so that an answer's request may be in the batch before."""
+           adu(b"\x07", b"\x03\x06", bytes(range(6)))]], [], 2)
+def test_parts_spelt_from_columns_are_what_decodings_write(traffic: list[list[bytes]], cuts: list[int],
+                                                           slice_params: int) -> None:
+    """Batches cut anywhere, so that an answer's request may be in the batch before; the params
+    spelt in slices of any size."""
     columns, plain = Annotator(), Annotator()
-    for batch in matched([data for exchange in traffic for data in exchange]):
-        bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
-        for start, stop in pairwise(bounds):
-            check_parts(columns, plain, slice_messages(batch, start, stop))
+    with patch.object(columnar_parts, "SLICE_PARAMS", slice_params):
+        for batch in matched([data for exchange in traffic for data in exchange]):
+            bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
+            for start, stop in pairwise(bounds):
+                check_parts(columns, plain, slice_messages(batch, start, stop))
 
 
 def test_polling_and_coils_are_spelt_from_columns() -> None:
