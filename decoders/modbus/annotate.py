@@ -114,16 +114,19 @@ class Annotator:
         return AnnotatedBatch(batch, decodings, rows, columnar)
 
     def _columnar(self, batch: MessageBatch) -> ColumnarFrames | None:
-        """The frames of ``batch`` to keep in columns; ``None`` where it holds an identification
-        (FC 43 may give a slave a profile, which then names what its frames carry)."""
-        function = batch.function
-        if not len(batch) or (function == IDENTIFICATION).any():
+        """The frames of ``batch`` to keep in columns: Modbus frames of slaves whose profile adds
+        nothing, up to the batch's first identification (FC 43 may give a slave a profile, which
+        then names what its frames carry; the plain path decodes from there on)."""
+        if not len(batch):
             return None
         eligible = batch.frames.protocols() != USS
         if self._profiles is not None:
             slaves = np.unique(batch.slave)
             plain = np.array([self._profiles.adds_nothing(int(slave)) for slave in slaves.tolist()], np.bool_)
             eligible &= plain[np.searchsorted(slaves, batch.slave)]
+            identifications = np.flatnonzero(batch.function == IDENTIFICATION)
+            if len(identifications):
+                eligible[identifications[0] :] = False
         return find_columnar(batch, eligible, self._earlier_read)
 
     def _earlier_read(self, index: int) -> tuple[int, int, int] | None:

@@ -146,6 +146,23 @@ def test_polling_is_kept_in_columns_and_answers_read_requests_of_the_batch_befor
     assert kept == [3, 3]  # slave 1's frames (the answer after the cut too); slave 2's go through its profile
 
 
+def test_frames_before_an_identification_are_kept_in_columns_and_after_it_not() -> None:
+    """An FC 43 answer may give its slave a profile (here slave 1 says it is an ATV71): the
+    frames before the batch's first identification stay in columns, those from it on are decoded
+    one by one, and both paths say the same of all of them (slave 1's reads are named after it)."""
+    poll = []
+    for slave in (1, 2):
+        poll += [adu(bytes([slave]), b"\x03", struct.pack(">HH", 3201, 2)),
+                 adu(bytes([slave]), b"\x03\x04\x00\x07\x86\x37")]
+    identify = [adu(b"\x01\x2b\x0e\x01\x00"), adu(b"\x01\x2b\x0e\x01\x02\x00\x00\x03", PRODUCT)]
+    columns, plain = annotator([]), annotator([])
+    (batch,) = [batch for batch in matched(poll * 2 + identify + poll * 2) if len(batch)]
+    assert check_batch(columns, plain, batch) == 8
+    got = columns.annotate_columnar(batch)  # the next batch alike: slave 1 has a profile now
+    assert got.columnar is not None  # slave 2's frames before the FC 43
+    assert got.columnar.positions.tolist() == [2, 3, 6, 7]
+
+
 def paired_by_hand(adus: list[bytes], answered: dict[int, int]) -> MessageBatch:
     """``adus`` as one batch, requests but the frames ``answered`` maps to their request."""
     frames = frames_to_batch([Frame(i, i * 10, i * 10 + 5, data, True, FrameFlag.NONE)
