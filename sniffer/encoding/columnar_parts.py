@@ -176,11 +176,20 @@ class _Layout:
         return Pieces(texts, np.diff(sizes, prepend=0))
 
 
+def _key(address: int) -> bytes:
+    """A member's key by address, after a comma (``numeric_params`` names values so)."""
+    return b',"%d":' % address
+
+
+#: How the tables indexed by address spell an entry (an address past 16 bits, which no wire
+#: has, is spelt alone).
+_SPELT_BY_ADDRESS = {"starts": param_start, "keys": _key}
+
+
 def _table(name: str) -> npt.NDArray[Any]:
     if not _tables:
         starts, value_ends = param_tables()
-        for key, texts in (("starts", starts), ("value_ends", value_ends),
-                           ("keys", [b',"%d":' % address for address in range(WORDS)])):
+        for key, texts in (("starts", starts), ("value_ends", value_ends), ("keys", list(map(_key, range(WORDS))))):
             _tables[key] = _objects(texts)
             _tables[key + " sizes"] = np.fromiter(map(len, texts), np.int64, len(texts))
     return _tables[name]
@@ -191,12 +200,11 @@ def _sizes(name: str) -> npt.NDArray[np.int64]:
 
 
 def _by_address(name: str, address: npt.NDArray[np.int64]) -> tuple[npt.NDArray[Any], npt.NDArray[np.int64]]:
-    """The entries of table ``name`` at ``address`` and their sizes (an address past 16 bits,
-    which no wire has, spelt alone)."""
+    """The entries of table ``name`` at ``address`` and their sizes."""
     within = np.minimum(address, WORDS - 1)
     texts, sizes = _table(name)[within], _sizes(name)[within]
     for place in np.flatnonzero(address >= WORDS).tolist():
-        text = param_start(int(address[place])) if name == "starts" else b',"%d":' % int(address[place])
+        text = _SPELT_BY_ADDRESS[name](int(address[place]))
         texts[place], sizes[place] = text, len(text)
     return texts, sizes
 

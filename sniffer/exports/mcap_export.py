@@ -198,8 +198,8 @@ class DecodedChannels:
     def _published_values(self, batch: AnnotatedBatch, kept: npt.NDArray[np.int64], values: list[bytes]) -> list[bytes]:
         """``values`` of the messages whose values are published (valid answers), with the values
         of the writes they accept; ``b""`` for the rest (:mod:`sniffer.exports.published`)."""
-        carried = values  # a write request's own: the values it wrote
-        published, accepted = self._published.select(batch, kept, carried.__getitem__)
+        # What a write request wrote is its own values.
+        published, accepted = self._published.select(batch, kept, values.__getitem__)
         if not published.all():
             values = [value if keep else b"" for value, keep in zip(values, published.tolist(), strict=True)]
         for row, members in accepted:
