@@ -10,7 +10,9 @@ protocol, what its request asked (:func:`answer_context`) and what the profiles 
 that moment, so :meth:`Annotator.annotate_batch` decodes each such combination once and hands the same
 :class:`Decoding` to every repeat. The profiles' ``version`` is part of the key: a
 frame that taught them something (a scanner table, an identification) is decoded
-again, never answered from before.
+again, never answered from before. A frame new to the memo but for its values (the same read
+answered with new values) is decoded from its values and what the first frame of its shape
+said (:mod:`decoders.modbus.value_shapes`).
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ from decoders.modbus.pdu import (
 )
 from decoders.modbus.pdu_parse import parse_pdu
 from decoders.modbus.quick import QuickRead, register_reads
+from decoders.modbus.value_shapes import ValueShapes
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.uss import parse_uss
 
@@ -83,6 +86,8 @@ class Annotator:
         self._requests: dict[int, tuple[AnswerContext, Pdu]] = {}
         self._profiles = profiles
         self._decodings: Memo[DecodingKey, tuple[Decoding, AnswerContext]] = Memo(KEPT_DECODINGS)
+        #: Frames decoded from their values alone where one of their shape was decoded before.
+        self._shapes = ValueShapes(profiles)
 
     def annotate_batch(self, batch: MessageBatch) -> AnnotatedBatch:
         """Every message of the batch, decoded; repeats share one :class:`Decoding`.
@@ -246,7 +251,9 @@ def mostly_distinct(batch: MessageBatch, share: float = DISTINCT_ENOUGH) -> bool
 
 
 class _Fresh:
-    """Decodes the frames of a batch its annotator has not seen before: one by one
+    """Decodes the frames of a batch its annotator has not seen before: from their values where
+    one of their shape was decoded before (:mod:`decoders.modbus.value_shapes`; not counted
+    below); the others one by one
     (:meth:`Annotator._decoding`) while they are few (the first :data:`ONE_BY_ONE`, or fewer
     than :data:`TOGETHER_FROM` of the frames passed); from then on, the register reads and
     their answers at once (:func:`register_reads`), the rest one by one; then the profiles,
@@ -264,12 +271,15 @@ class _Fresh:
         annotator, batch = self._annotator, self._batch
         if self._facts is None:
             self._facts = batch.slave.tolist(), batch.frames.crc_ok.tolist(), batch.function.tolist()
+        slaves, crc, functions = self._facts
+        shaped = annotator._shapes.decode(key, crc[position], request)
+        if shaped is not None:
+            return shaped
         self._decoded += 1
         if not self._together and self._decoded > ONE_BY_ONE and self._decoded >= TOGETHER_FROM * (position + 1):
             eligible = batch.frames.protocols() != USS
             eligible[:position] = False  # decoded already, or repeats
             self._reads, self._together = register_reads(batch, eligible), True
-        slaves, crc, functions = self._facts
         role, protocol, data = key[0], key[1], key[2]
         slave, function = slaves[position], functions[position]
         facts = FrameFacts(None if slave == NONE else slave, ROLE_ORDER[role], None if function == NONE else function,
@@ -277,8 +287,11 @@ class _Fresh:
         read = self._reads.get(position)
         if read is None:
             decoding = annotator._decoding(data, protocol, facts, request)
-            return decoding, answer_context(decoding.pdu)
-        return annotator._profiled(LazyParams(read[0], read[1], request), facts, request), read[2]
+            decoded: tuple[Decoding, AnswerContext] = (decoding, answer_context(decoding.pdu))
+        else:
+            decoded = (annotator._profiled(LazyParams(read[0], read[1], request), facts, request), read[2])
+        annotator._shapes.learn(key, facts, request, decoded, annotator._version())
+        return decoded
 
 
 def answer_context(request: Pdu | None) -> AnswerContext:

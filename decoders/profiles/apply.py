@@ -8,6 +8,7 @@ profile whose product codes match, from then on.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -104,6 +105,8 @@ class ProfileApplier:
         self._namers: dict[tuple[str, bool], dict[int | tuple[int | None, int], AddressNamer]] = {}
         self._named_version = 0
         self._kept = 0
+        #: Counts the times the kept namers were let go (see :meth:`named_by`).
+        self.generation = 0
         #: :func:`_knows_nothing` of each slave's profile, while the version stays.
         self._adds_nothing: dict[int, bool] = {}
         self._adds_nothing_version = 0
@@ -155,28 +158,12 @@ class ProfileApplier:
                values: list[tuple[int, int | None]]) -> tuple[list[ParamValue], list[str], bool]:
         """The params of ``values``, the summary's texts of the named ones, and whether any is
         a scanner address register (``reported``: the values come from the device)."""
-        if self._named_version != self.version or self._kept >= KEPT_NAMED_PARAMS:
-            self._namers.clear()
-            self._named_version, self._kept = self.version, 0
-        # Slaves share a profile's namers (a value's name says nothing of its slave), except at
-        # a scanner table's value registers, whose meaning is each slave's own: kept by
-        # (slave, address) there.
-        key = (profile.id, reported)
-        namers = self._namers.get(key) if self.fast else {}
-        if namers is None:
-            namers = self._namers[key] = {}
+        namers = self._kept_namers(profile, reported)
         params: list[ParamValue] = []
         shown: list[str] = []
         learns = False
         for address, raw in values:
-            namer = namers.get(address)
-            if namer is None:
-                scoped = _value_table(profile, address) is not None
-                namer = namers.get((slave, address)) if scoped else None
-                if namer is None:
-                    namer = self._namer(profile, slave, address, reported)
-                    namers[(slave, address) if scoped else address] = namer
-                    self._kept += 1
+            namer = namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
             named = namer.known.get(raw) if self.fast else None
             if named is None:
                 named = namer.make(raw)
@@ -187,6 +174,66 @@ class ProfileApplier:
             if namer.learns:
                 learns = True
         return params, shown, learns
+
+    def value_namers(self, facts: FrameFacts, addresses: list[int]) -> tuple[list[AddressNamer], int] | None:
+        """The namers :meth:`apply_decoding` names values at ``addresses`` of a frame with
+        ``facts`` by, and the generation they belong to (:meth:`named_by`); ``None`` where a
+        value would teach the profiles (a scanner address register) or nothing is kept
+        (``fast=False``)."""
+        if not self.fast:
+            return None
+        slave, reported = facts.slave, facts.role is Role.RESPONSE
+        profile = self.book.profile_for(slave)
+        namers = self._kept_namers(profile, reported)
+        found = [namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
+                 for address in addresses]
+        return None if any(namer.learns for namer in found) else (found, self.generation)
+
+    def named_by(self, namers: list[AddressNamer], raws: Sequence[int | None],
+                 generation: int) -> tuple[list[ParamValue], list[str]] | None:
+        """Values named by ``namers`` of :meth:`value_namers`, as :meth:`_named` names them:
+        their params and the summary's texts; ``None`` once the namers were let go (their
+        ``generation`` is past, or the kept values reached their bound)."""
+        if generation != self.generation or self._kept >= KEPT_NAMED_PARAMS or self._named_version != self.version:
+            return None
+        params: list[ParamValue] = []
+        shown: list[str] = []
+        for namer, raw in zip(namers, raws, strict=True):
+            named = namer.known.get(raw)
+            if named is None:
+                named = namer.make(raw)
+                self._kept += 1
+            params.append(named[0])
+            if named[1] is not None:
+                shown.append(named[1])
+        return params, shown
+
+    def _kept_namers(self, profile: Profile, reported: bool) -> dict[int | tuple[int | None, int], AddressNamer]:
+        """The namers kept for ``profile``'s values (``reported``: from the device), all let go
+        first when the profiles learnt something or the kept values reached their bound."""
+        if self._named_version != self.version or self._kept >= KEPT_NAMED_PARAMS:
+            self._namers.clear()
+            self._named_version, self._kept = self.version, 0
+            self.generation += 1
+        # Slaves share a profile's namers (a value's name says nothing of its slave), except at
+        # a scanner table's value registers, whose meaning is each slave's own: kept by
+        # (slave, address) there.
+        key = (profile.id, reported)
+        namers = self._namers.get(key) if self.fast else {}
+        if namers is None:
+            namers = self._namers[key] = {}
+        return namers
+
+    def _namer_at(self, namers: dict[int | tuple[int | None, int], AddressNamer], profile: Profile,
+                  slave: int | None, address: int, reported: bool) -> AddressNamer:
+        """The namer of ``address`` among ``namers`` (made and kept there if new)."""
+        scoped = _value_table(profile, address) is not None
+        namer = namers.get((slave, address)) if scoped else None
+        if namer is None:
+            namer = self._namer(profile, slave, address, reported)
+            namers[(slave, address) if scoped else address] = namer
+            self._kept += 1
+        return namer
 
     def _namer(self, profile: Profile, slave: int | None, address: int, reported: bool) -> AddressNamer:
         """How ``profile`` names the register at ``address`` of ``slave`` now (the rules:

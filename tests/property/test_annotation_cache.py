@@ -28,6 +28,7 @@ from decoders.message import AnnotatedBatch, Decoding, MessageBatch, ParamValue
 from decoders.modbus import annotate as annotate_module
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
+from decoders.modbus.pdu_parse import parse_pdu
 from decoders.profiles import apply as apply_module
 from decoders.profiles.apply import ProfileApplier
 from sniffer.encoding import frame_fields as frame_fields_module
@@ -54,7 +55,7 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
     s = bytes([draw(SLAVES)])
     address, count = draw(ADDRESSES), draw(st.one_of(st.integers(1, 3), st.just(14)))
     values = [draw(VALUES) for _ in range(count)]
-    match draw(st.integers(0, 5)):
+    match draw(st.integers(0, 6)):
         case 0:
             request = adu(s, b"\x03", struct.pack(">HH", address, count))
             answer = adu(s, b"\x03", bytes([2 * count]), struct.pack(f">{count}H", *values))
@@ -69,6 +70,10 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
             answer = adu(s, b"\x83", bytes([draw(st.sampled_from([2, 4]))]))
         case 4:
             request, answer = adu(s, b"\x2b\x0e\x01\x00"), adu(s, b"\x2b\x0e\x01\x02\x00\x00\x03", PRODUCT)
+        case 5:  # FC 23: writes ``values`` at ``address``, reads the registers after them
+            written = struct.pack(f">{count}H", *values)
+            request = adu(s, b"\x17", struct.pack(">HHHHB", address + count, count, address, count, 2 * count), written)
+            answer = adu(s, b"\x17", bytes([2 * count]), written[::-1])
         case _:
             request, answer = adu(s, b"\x10", struct.pack(">HHB", address, 1, 2), b"\x00"), b""
     if draw(st.booleans()) and len(answer) > 3:
@@ -132,6 +137,30 @@ def test_repeats_share_one_decoding() -> None:
     assert messages[0].decoding is messages[2].decoding is messages[4].decoding
     assert messages[1].decoding is messages[3].decoding
     assert messages[1].params[0].code == "ETA" and "operation enabled" in str(messages[1].params[0].value)
+
+
+@pytest.mark.parametrize("profiles", [None, ["atv71"]])
+def test_frames_of_a_known_shape_are_decoded_from_their_values(profiles: list[str] | None) -> None:
+    """A drive answering one read with ever new values, a master writing ever new setpoints: the
+    first frame of each shape is parsed, the rest are decoded from their values alone (and say
+    what the plain path says)."""
+    traffic = []
+    for value in range(40):
+        traffic += [adu(b"\x02\x03", struct.pack(">HH", 3201, 2)),
+                    adu(b"\x02\x03\x04", struct.pack(">HH", value, 3 * value)),
+                    adu(b"\x02\x10", struct.pack(">HHBHH", 8501, 2, 4, value, value + 1)),
+                    adu(b"\x02\x10", struct.pack(">HH", 8501, 2))]
+    batches = matched(traffic, cuts=(37, 81))
+    book = None if profiles is None else profile_book(profiles, [])
+    plain = Annotator(None if book is None else ProfileApplier(book, fast=False))
+    expected = [said(plain.annotate(message).decoding) for batch in batches for message in batch]
+    cached = Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [])))
+    parsed = []
+    with patch.object(annotate_module, "parse_pdu", lambda *a, **k: parsed.append(1) or parse_pdu(*a, **k)), \
+         patch.object(annotate_module, "ONE_BY_ONE", len(traffic)):
+        got = [said(message.decoding) for batch in batches for message in cached.annotate_all(batch)]
+    assert got == expected
+    assert len(parsed) == 4  # a read, its answer, a write, its answer: once each
 
 
 def test_what_the_profiles_learn_is_not_answered_from_the_cache() -> None:

@@ -1,0 +1,159 @@
+"""Frames that differ from one decoded before only in their values, decoded from their values.
+
+A drive answers the same read with new values and a master writes new setpoints to the same
+registers: each such frame is new to the annotator's memo, and the plain path parses it, finds
+its params' runs, its slave's profile, each register's namer and its limit remarks anew, though
+all of that but the values is what it was for the frame before. Here the frames of one *shape*
+share what the plain path made of the first of them:
+
+* a shape is a frame's role, the bytes before its values, its length, the answer context of its
+  request (:func:`decoders.modbus.annotate.answer_context`) and the profiles' version; it has
+  one only where its CRC is good, it is Modbus, and it is one of: an FC 3, 4 or 23 answer
+  (values from byte 3), an FC 6 write or its echo (byte 4), an FC 16 write (byte 7) or an FC 23
+  request (byte 11);
+* the first frame of a shape is decoded by the plain path; its :class:`Shape` keeps the PDU's
+  other fields, its params' namers (:meth:`~decoders.profiles.apply.ProfileApplier.value_namers`)
+  and its remarks, which depend on the function and counts alone. A shape whose values would
+  teach the profiles (a scanner address register) is never kept;
+* a frame of a known shape is its values unpacked, its PDU rebuilt, its summary written by the
+  PDU's own ``summary()`` and its values named by the shape's namers as
+  :meth:`~decoders.profiles.apply.ProfileApplier.named_by` names them.
+
+A shape is kept only once it has said, of the first frame's own values, exactly what the plain
+path said; the tests hold every frame to the plain path (``tests/property/test_annotation_cache.py``).
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable
+from functools import partial
+
+from decoders.frame import MODBUS
+from decoders.message import ROLE_CODE, Decoding, Role
+from decoders.modbus.param_runs import LazyParams
+from decoders.modbus.pdu import Pdu, ReadWriteRequest, RegistersResponse, WriteRegistersRequest, WriteSingle
+from decoders.profiles.apply import FrameFacts, ProfileApplier
+from decoders.profiles.naming import AddressNamer, summary_with
+
+#: Where a frame's values begin, by role code and function.
+VALUES_FROM = {
+    **{(ROLE_CODE[Role.RESPONSE], function): 3 for function in (3, 4, 23)},
+    **{(ROLE_CODE[role], 6): 4 for role in (Role.REQUEST, Role.BROADCAST, Role.RESPONSE)},
+    **{(ROLE_CODE[role], 16): 7 for role in (Role.REQUEST, Role.BROADCAST)},
+    **{(ROLE_CODE[role], 23): 11 for role in (Role.REQUEST, Role.BROADCAST)},
+}
+#: Shapes kept; all are let go at once past it (a bus has tens, a damaged line more).
+KEPT_SHAPES = 4096
+#: What a decoding depends on besides its frame's bytes: its request's answer context and the
+#: profiles' version (the annotator's key without role, protocol and bytes).
+ShapeKey = tuple[int, bytes, int, object, int]
+#: A frame's decoding and the answer context its answer reads.
+Decoded = tuple[Decoding, "tuple[object, ...] | None"]
+
+
+class Shape:
+    """What the frames of one shape share: how to rebuild their PDU from their values, their
+    params' namers (``None``: no profile adds to them, the params are named when read), the
+    params named without a value after the values (an FC 23 request's read), the remarks."""
+
+    __slots__ = ("context", "generation", "namers", "pdu_of", "remarks", "unpack", "unvalued")
+
+    def __init__(self, unpack: Callable[[bytes, int], tuple[int, ...]], pdu_of: Callable[[tuple[int, ...]], Pdu],
+                 context: tuple[object, ...] | None, *, named: tuple[list[AddressNamer], int] | None = None,
+                 unvalued: int = 0, remarks: tuple[str, ...] = ()) -> None:
+        self.unpack, self.pdu_of, self.context = unpack, pdu_of, context
+        self.namers: list[AddressNamer] | None = None if named is None else named[0]
+        self.generation = 0 if named is None else named[1]
+        self.unvalued, self.remarks = unvalued, remarks
+
+    def decode(self, data: bytes, start: int, request: Pdu | None, profiles: ProfileApplier | None) -> Decoding | None:
+        """The decoding of ``data`` (a frame of this shape whose values begin at ``start``);
+        ``None`` where the namers were let go since."""
+        values = self.unpack(data, start)
+        pdu = self.pdu_of(values)
+        if self.namers is None:
+            return LazyParams(pdu.summary(), pdu, request)
+        assert profiles is not None
+        raws = values + (None,) * self.unvalued if self.unvalued else values
+        named = profiles.named_by(self.namers, raws, self.generation)
+        if named is None:
+            return None
+        params, shown = named
+        return Decoding(summary_with(pdu.summary(), shown), tuple(params), pdu, self.remarks)
+
+
+class ValueShapes:
+    """The shapes seen (:class:`Shape`, or ``None``: never kept), for one annotator."""
+
+    def __init__(self, profiles: ProfileApplier | None) -> None:
+        self._profiles = profiles
+        self._shapes: dict[ShapeKey, Shape | None] = {}
+
+    def decode(self, key: tuple[int, int, bytes, object, int], crc_ok: bool, request: Pdu | None) -> Decoded | None:
+        """The decoding of the frame of the annotator's ``key`` if its shape is known."""
+        role, protocol, data = key[0], key[1], key[2]
+        start = VALUES_FROM.get((role, data[1])) if len(data) > 4 and crc_ok and protocol == MODBUS else None
+        if start is None:
+            return None
+        shape = self._shapes.get((role, data[:start], len(data), key[3], key[4]))
+        if shape is None:
+            return None
+        decoding = shape.decode(data, start, request, self._profiles)
+        return None if decoding is None else (decoding, shape.context)
+
+    def learn(self, key: tuple[int, int, bytes, object, int], facts: FrameFacts, request: Pdu | None,
+              decoded: Decoded, version: int) -> None:
+        """Keep the shape of the frame of ``key`` (``facts``: the applier's of it), whose plain
+        decoding is ``decoded``, made at the profiles' ``version``."""
+        role, protocol, data = key[0], key[1], key[2]
+        start = VALUES_FROM.get((role, data[1])) if len(data) > 4 and facts.crc_ok and protocol == MODBUS else None
+        if start is None or version != key[4]:  # the frame taught the profiles something
+            return
+        if len(self._shapes) >= KEPT_SHAPES:
+            self._shapes.clear()
+        shape_key = (role, data[:start], len(data), key[3], key[4])
+        self._shapes[shape_key] = None
+        shape = self._shape(data, start, facts, decoded)
+        if shape is not None and _said(shape.decode(data, start, request, self._profiles)) == _said(decoded[0]):
+            self._shapes[shape_key] = shape
+
+    def _shape(self, data: bytes, start: int, facts: FrameFacts, decoded: Decoded) -> Shape | None:
+        decoding, context = decoded
+        pdu, words = decoding.pdu, (len(data) - start - 2) // 2
+        pdu_of = _rebuilt(pdu)
+        if pdu_of is None or words < 1 or decoding.device is not None or decoding.uss is not None:
+            return None
+        unpack = struct.Struct(f">{words}H").unpack_from
+        if type(decoding) is LazyParams:
+            return Shape(unpack, pdu_of, context)
+        if self._profiles is None:
+            return None
+        addresses = [param.address for param in decoding.params]
+        unvalued = len(addresses) - words
+        named = self._profiles.value_namers(facts, addresses) if unvalued >= 0 else None
+        if named is None:
+            return None
+        return Shape(unpack, pdu_of, context, named=named, unvalued=unvalued, remarks=decoding.remarks)
+
+
+def _rebuilt(pdu: Pdu | None) -> Callable[[tuple[int, ...]], Pdu] | None:
+    """How to build ``pdu`` again with other values (``None``: not a PDU of the shapes)."""
+    match pdu:
+        case RegistersResponse(function=function, byte_count=byte_count):
+            return partial(RegistersResponse, function, byte_count)
+        case WriteSingle(function=6, address=address):
+            return lambda values: WriteSingle(6, address, values[0])
+        case WriteRegistersRequest(address=address, count=count):
+            return partial(WriteRegistersRequest, address, count)
+        case ReadWriteRequest(read_address=read, read_count=reads, write_address=write, write_count=writes):
+            return partial(ReadWriteRequest, read, reads, write, writes)
+    return None
+
+
+def _said(decoding: Decoding | None) -> tuple[object, ...] | None:
+    """All a decoding says (a :class:`LazyParams`' params named now)."""
+    if decoding is None:
+        return None
+    return (type(decoding), decoding.summary, decoding.params, decoding.pdu, decoding.remarks, decoding.device,
+            decoding.uss)
