@@ -11,8 +11,13 @@ import pytest
 from decoders.capture import Chunk, ChunkBatch, TimingQuality
 from decoders.framer import Framer
 from decoders.line import LineSettings
+from decoders.modbus.annotate import Annotator
+from decoders.pipeline import Decoder
+from decoders.profiles.apply import ProfileApplier
 from decoders.read_loops import READ_LOOPS
+from sniffer.profiles_io import profile_book
 from tests import real_recordings
+from tests.property.test_annotation_cache import said
 from tests.real_recordings import RECORDINGS, Recording, load
 
 pytestmark = pytest.mark.skipif(not real_recordings.available(), reason="../shared/real is not beside the checkout")
@@ -102,3 +107,18 @@ def test_host_frames_last_their_length_on_the_wire(recording: Recording) -> None
     straddling = [f for f, end in zip(frames, offsets, strict=True)
                   if any(end - len(f.data) < e < end for e in read_ends)]
     assert straddling  # 32-byte reads end inside frames: the case this is about
+
+
+@pytest.mark.parametrize("profiles", [None, ["atv71"], ["xbt"]])
+def test_decodings_shortcuts_say_what_the_plain_path_says(recording: Recording, profiles: list[str] | None) -> None:
+    """The annotator's shortcuts (the memo, frames decoded from their values by their shape, the
+    kept namers) on real traffic, against decoding every frame alone by the plain path: a
+    flowmeter's readings change from answer to answer, and a profile for all names its registers."""
+    decoder = Decoder(recording.line, TimingQuality.EXACT)
+    batches = [*decoder.feed(ChunkBatch.from_chunks(recording.chunks)), *decoder.flush()]
+    book = None if profiles is None else profile_book(profiles, [])
+    cached = Annotator(None if book is None else ProfileApplier(book))
+    plain = Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, []), fast=False))
+    got = [said(m.decoding) for batch in batches for m in cached.annotate_all(batch)]
+    assert got == [said(plain.annotate(m).decoding) for batch in batches for m in batch]
+    assert len(got) > 10

@@ -89,6 +89,9 @@ class ValueShapes:
     def __init__(self, profiles: ProfileApplier | None) -> None:
         self._profiles = profiles
         self._shapes: dict[ShapeKey, Shape | None] = {}
+        #: The applier's generation of namers the shapes hold (all are let go with them: a
+        #: shape holding namers let go would keep their named values too).
+        self._generation = 0
 
     def decode(self, key: tuple[int, int, bytes, object, int], crc_ok: bool, request: Pdu | None) -> Decoded | None:
         """The decoding of the frame of the annotator's ``key`` if its shape is known."""
@@ -96,6 +99,9 @@ class ValueShapes:
         start = VALUES_FROM.get((role, data[1])) if len(data) > 4 and crc_ok and protocol == MODBUS else None
         if start is None:
             return None
+        if self._profiles is not None and self._profiles.generation != self._generation:
+            self._shapes.clear()
+            self._generation = self._profiles.generation
         shape = self._shapes.get((role, data[:start], len(data), key[3], key[4]))
         if shape is None:
             return None
@@ -110,8 +116,10 @@ class ValueShapes:
         start = VALUES_FROM.get((role, data[1])) if len(data) > 4 and facts.crc_ok and protocol == MODBUS else None
         if start is None or version != key[4]:  # the frame taught the profiles something
             return
-        if len(self._shapes) >= KEPT_SHAPES:
+        generation = 0 if self._profiles is None else self._profiles.generation
+        if len(self._shapes) >= KEPT_SHAPES or generation != self._generation:
             self._shapes.clear()
+            self._generation = generation
         shape_key = (role, data[:start], len(data), key[3], key[4])
         self._shapes[shape_key] = None
         shape = self._shape(data, start, facts, decoded)

@@ -188,9 +188,12 @@ def test_each_slave_reads_its_scanner_table_through_its_own_mapping() -> None:
 
 
 def test_named_values_kept_stay_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A drive reporting ever new values fills the applier's memory up to its bound, not beyond."""
+    """A drive reporting ever new values fills the applier's memory up to its bound, not beyond;
+    the shapes holding namers go with them (an answer to a read never made again too)."""
     monkeypatch.setattr(apply_module, "KEPT_NAMED_PARAMS", 50)
     polls = []
+    for value in range(3):
+        polls += [adu(b"\x02\x03", struct.pack(">HH", 3201, 1)), adu(b"\x02\x03\x02", struct.pack(">H", value))]
     for value in range(300):
         polls += [adu(b"\x02\x03", struct.pack(">HH", 8604, 1)), adu(b"\x02\x03\x02", struct.pack(">H", value))]
     applier = ProfileApplier(profile_book(["atv71"], []))
@@ -199,6 +202,8 @@ def test_named_values_kept_stay_bounded(monkeypatch: pytest.MonkeyPatch) -> None
     assert messages[-1].params[0].code == "RFRD" and messages[-1].params[0].raw == 299
     kept = sum(1 + len(namer.known) for namers in applier._namers.values() for namer in namers.values())
     assert 0 < kept <= 50 + 2  # checked before each frame, which adds a namer and a value at most
+    assert applier.generation > 3  # the namers were let go again and again, and the shapes with them
+    assert {shape.generation for shape in annotator._shapes._shapes.values() if shape} == {applier.generation}
 
 
 NUMBERS = st.one_of(st.none(), st.integers(-(2**40), 2**40), st.floats(allow_nan=False, allow_infinity=False),
