@@ -27,7 +27,7 @@ import orjson
 from decoders.message import ROLE_NAMES
 from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
 from sniffer.encoding.param_text import NO_VALUE_END, WORDS, param_start, param_tables
-from sniffer.encoding.rows import Pieces, number_texts
+from sniffer.encoding.rows import Pieces
 
 #: Params spelt at once (see :func:`_in_slices`).
 SLICE_PARAMS = 1 << 16
@@ -131,8 +131,8 @@ def _numeric_members(params: ColumnarParams) -> Pieces:
     at = np.repeat(layout.base, counts) + 2 * within_runs(counts)
     kept = np.flatnonzero(np.repeat(carried, sizes))
     layout.put(at, *_by_address("keys", address[kept]))
-    numbers = number_texts(value[kept])
-    layout.put(at + 1, _objects(numbers), numbers.sizes)
+    words = value[kept]  # a register's word or a coil's 0 or 1: looked up, not formatted
+    layout.put(at + 1, _table("numbers")[words], _sizes("numbers")[words])
     layout.put((layout.base + 2 * counts)[carried], b"}")
     layout.put(layout.base[~carried], b"")
     layout.without_comma(layout.base[carried])
@@ -189,7 +189,9 @@ _SPELT_BY_ADDRESS = {"starts": param_start, "keys": _key}
 def _table(name: str) -> npt.NDArray[Any]:
     if not _tables:
         starts, value_ends = param_tables()
-        for key, texts in (("starts", starts), ("value_ends", value_ends), ("keys", list(map(_key, range(WORDS))))):
+        numbers = [b"%d" % word for word in range(WORDS)]
+        for key, texts in (("starts", starts), ("value_ends", value_ends), ("keys", list(map(_key, range(WORDS)))),
+                           ("numbers", numbers)):
             _tables[key] = _objects(texts)
             _tables[key + " sizes"] = np.fromiter(map(len, texts), np.int64, len(texts))
     return _tables[name]
