@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import numpy as np
+import numpy.typing as npt
 
 from decoders.frame import USS
 from decoders.memo import Memo
@@ -124,15 +125,21 @@ class Annotator:
         then names what its frames carry; the plain path decodes from there on)."""
         if not len(batch):
             return None
-        eligible = batch.frames.protocols() != USS
+        eligible = self.plain_frames(batch)
         if self._profiles is not None:
-            slaves = np.unique(batch.slave)
-            plain = np.array([self._profiles.adds_nothing(int(slave)) for slave in slaves.tolist()], np.bool_)
-            eligible &= plain[np.searchsorted(slaves, batch.slave)]
             identifications = np.flatnonzero(batch.function == IDENTIFICATION)
             if len(identifications):
                 eligible[identifications[0] :] = False
         return find_columnar(batch, eligible, self._earlier_read)
+
+    def plain_frames(self, batch: MessageBatch) -> npt.NDArray[np.bool_]:
+        """Which frames of ``batch`` are Modbus frames of slaves whose profile adds nothing now."""
+        plain: npt.NDArray[np.bool_] = batch.frames.protocols() != USS
+        if self._profiles is not None:
+            slaves = np.unique(batch.slave)
+            adds_nothing = np.array([self._profiles.adds_nothing(int(slave)) for slave in slaves.tolist()], np.bool_)
+            plain &= adds_nothing[np.searchsorted(slaves, batch.slave)]
+        return plain
 
     def _earlier_read(self, index: int) -> tuple[int, int, int] | None:
         kept = self._requests.get(index)
@@ -251,14 +258,14 @@ def mostly_distinct(batch: MessageBatch, share: float = DISTINCT_ENOUGH) -> bool
 
 
 class _Fresh:
-    """Decodes the frames of a batch its annotator has not seen before: from their values where
-    one of their shape was decoded before (:mod:`decoders.modbus.value_shapes`; not counted
-    below); the others one by one
-    (:meth:`Annotator._decoding`) while they are few (the first :data:`ONE_BY_ONE`, or fewer
-    than :data:`TOGETHER_FROM` of the frames passed); from then on, the register reads and
-    their answers at once (:func:`register_reads`), the rest one by one; then the profiles,
-    which may learn. A batch of repeats has few frames to decode, and decoding all its reads
-    for them would cost more than they do."""
+    """Decodes the frames of a batch its annotator has not seen before: one by one
+    (:meth:`Annotator._decoding`), or from their values where frames of their shape were
+    decoded before (:mod:`decoders.modbus.value_shapes`), while they are few (the first
+    :data:`ONE_BY_ONE`, or fewer than :data:`TOGETHER_FROM` of the frames passed); from then
+    on, the register reads and their answers of slaves no profile names at once
+    (:func:`register_reads`: cheaper than by their shape), the rest as before; then the profiles, which may
+    learn. A batch of repeats has few frames to decode, and decoding all its reads for them
+    would cost more than they do."""
 
     def __init__(self, annotator: Annotator, batch: MessageBatch) -> None:
         self._annotator, self._batch = annotator, batch
@@ -272,19 +279,23 @@ class _Fresh:
         if self._facts is None:
             self._facts = batch.slave.tolist(), batch.frames.crc_ok.tolist(), batch.function.tolist()
         slaves, crc, functions = self._facts
+        self._decoded += 1
+        if not self._together and self._decoded > ONE_BY_ONE and self._decoded >= TOGETHER_FROM * (position + 1):
+            # A named slave's reads go by their shape (value_shapes), for less.
+            eligible = annotator.plain_frames(batch)
+            eligible[:position] = False  # decoded already, or repeats
+            self._reads, self._together = register_reads(batch, eligible), True
+        slave = slaves[position]
+        read = self._reads.get(position)
+        profiles = annotator._profiles
+        if read is not None and (profiles is None or profiles.adds_nothing(slave)):
+            return LazyParams(read[0], read[1], request), read[2]  # what _profiled would leave as it is
         shaped = annotator._shapes.decode(key, crc[position], request)
         if shaped is not None:
             return shaped
-        self._decoded += 1
-        if not self._together and self._decoded > ONE_BY_ONE and self._decoded >= TOGETHER_FROM * (position + 1):
-            eligible = batch.frames.protocols() != USS
-            eligible[:position] = False  # decoded already, or repeats
-            self._reads, self._together = register_reads(batch, eligible), True
-        role, protocol, data = key[0], key[1], key[2]
-        slave, function = slaves[position], functions[position]
+        role, protocol, data, function = key[0], key[1], key[2], functions[position]
         facts = FrameFacts(None if slave == NONE else slave, ROLE_ORDER[role], None if function == NONE else function,
                            crc[position])
-        read = self._reads.get(position)
         if read is None:
             decoding = annotator._decoding(data, protocol, facts, request)
             decoded: tuple[Decoding, AnswerContext] = (decoding, answer_context(decoding.pdu))

@@ -4,23 +4,24 @@ A drive answers the same read with new values and a master writes new setpoints 
 registers: each such frame is new to the annotator's memo, and the plain path parses it, finds
 its params' runs, its slave's profile, each register's namer and its limit remarks anew, though
 all of that but the values is what it was for the frame before. Here the frames of one *shape*
-share what the plain path made of the first of them:
+share what the plain path made of one of them:
 
 * a shape is a frame's role, the bytes before its values, its length, the answer context of its
   request (:func:`decoders.modbus.annotate.answer_context`) and the profiles' version; it has
   one only where its CRC is good, it is Modbus, and it is one of: an FC 3, 4 or 23 answer
   (values from byte 3), an FC 6 write or its echo (byte 4), an FC 16 write (byte 7) or an FC 23
   request (byte 11);
-* the first frame of a shape is decoded by the plain path; its :class:`Shape` keeps the PDU's
-  other fields, its params' namers (:meth:`~decoders.profiles.apply.ProfileApplier.value_namers`)
+* the first two frames of a shape are decoded by the plain path (most shapes of a master
+  polling ever other registers never come again); the :class:`Shape` made of the second keeps
+  the PDU's other fields, its params' namers (:meth:`~decoders.profiles.apply.ProfileApplier.value_namers`)
   and its remarks, which depend on the function and counts alone. A shape whose values would
   teach the profiles (a scanner address register) is never kept;
 * a frame of a known shape is its values unpacked, its PDU rebuilt, its summary written by the
   PDU's own ``summary()`` and its values named by the shape's namers as
   :meth:`~decoders.profiles.apply.ProfileApplier.named_by` names them.
 
-A shape is kept only once it has said, of the first frame's own values, exactly what the plain
-path said; the tests hold every frame to the plain path (``tests/property/test_annotation_cache.py``).
+A shape is kept only once it has said, of that frame's own values, exactly what the plain path
+said; the tests hold every frame to the plain path (``tests/property/test_annotation_cache.py``).
 """
 
 from __future__ import annotations
@@ -45,6 +46,9 @@ VALUES_FROM = {
 }
 #: Shapes kept; all are let go at once past it (a bus has tens, a damaged line more).
 KEPT_SHAPES = 4096
+#: Frames looked up between two looks at whether looking up is worth it, the share of them of
+#: a shape seen before it takes, and the frames not looked up when it is not.
+WINDOW, REPEATS_WORTH_IT, REST = 4096, 1 / 16, 1 << 16
 #: What a decoding depends on besides its frame's bytes: its request's answer context and the
 #: profiles' version (the annotator's key without role, protocol and bytes).
 ShapeKey = tuple[int, bytes, int, object, int]
@@ -84,17 +88,32 @@ class Shape:
 
 
 class ValueShapes:
-    """The shapes seen (:class:`Shape`, or ``None``: never kept), for one annotator."""
+    """The shapes seen (:class:`Shape`, or ``None``: never kept), for one annotator.
+
+    Where shapes do not repeat (a master reading ever other registers), looking them up costs
+    for nothing: after every :data:`WINDOW` frames looked up, if fewer than a
+    :data:`REPEATS_WORTH_IT` share of them were of a shape seen before, the next
+    :data:`REST` frames are not looked up (nor learnt from)."""
 
     def __init__(self, profiles: ProfileApplier | None) -> None:
         self._profiles = profiles
         self._shapes: dict[ShapeKey, Shape | None] = {}
+        #: Shapes seen once (kept from their second frame on: most of a polling master's reads
+        #: of ever other registers are never repeated, and would cost a shape each for nothing).
+        self._seen_once: set[ShapeKey] = set()
         #: The applier's generation of namers the shapes hold (all are let go with them: a
         #: shape holding namers let go would keep their named values too).
         self._generation = 0
+        #: The shape of the frame :meth:`decode` last found none for, and where its values begin.
+        self._missed: tuple[ShapeKey, int] | None = None
+        self._looked = self._repeats = self._resting = 0
 
     def decode(self, key: tuple[int, int, bytes, object, int], crc_ok: bool, request: Pdu | None) -> Decoded | None:
         """The decoding of the frame of the annotator's ``key`` if its shape is known."""
+        self._missed = None
+        if self._resting:
+            self._resting -= 1
+            return None
         role, protocol, data = key[0], key[1], key[2]
         start = VALUES_FROM.get((role, data[1])) if len(data) > 4 and crc_ok and protocol == MODBUS else None
         if start is None:
@@ -102,26 +121,42 @@ class ValueShapes:
         if self._profiles is not None and self._profiles.generation != self._generation:
             self._shapes.clear()
             self._generation = self._profiles.generation
-        shape = self._shapes.get((role, data[:start], len(data), key[3], key[4]))
+        self._looked += 1
+        if self._looked >= WINDOW:
+            if self._repeats < REPEATS_WORTH_IT * self._looked:
+                self._resting = REST
+            self._looked = self._repeats = 0
+        shape_key = (role, data[:start], len(data), key[3], key[4])
+        shape = self._shapes.get(shape_key)
         if shape is None:
+            self._missed = (shape_key, start)
             return None
+        self._repeats += 1
         decoding = shape.decode(data, start, request, self._profiles)
         return None if decoding is None else (decoding, shape.context)
 
     def learn(self, key: tuple[int, int, bytes, object, int], facts: FrameFacts, request: Pdu | None,
               decoded: Decoded, version: int) -> None:
-        """Keep the shape of the frame of ``key`` (``facts``: the applier's of it), whose plain
-        decoding is ``decoded``, made at the profiles' ``version``."""
-        role, protocol, data = key[0], key[1], key[2]
-        start = VALUES_FROM.get((role, data[1])) if len(data) > 4 and facts.crc_ok and protocol == MODBUS else None
-        if start is None or version != key[4]:  # the frame taught the profiles something
+        """Keep the shape of the frame :meth:`decode` was just asked for and found none for
+        (``key``: the annotator's; ``facts``: the applier's of it), whose plain decoding is
+        ``decoded``, made at the profiles' ``version``."""
+        missed, self._missed = self._missed, None
+        if missed is None or version != key[4]:  # no shape, or the frame taught the profiles something
             return
-        generation = 0 if self._profiles is None else self._profiles.generation
-        if len(self._shapes) >= KEPT_SHAPES or generation != self._generation:
+        shape_key, start = missed
+        if shape_key in self._shapes:  # never kept (None)
+            return
+        if shape_key not in self._seen_once:
+            if len(self._seen_once) >= KEPT_SHAPES:
+                self._seen_once.clear()
+            self._seen_once.add(shape_key)
+            return
+        self._repeats += 1
+        self._seen_once.discard(shape_key)
+        if len(self._shapes) >= KEPT_SHAPES:
             self._shapes.clear()
-            self._generation = generation
-        shape_key = (role, data[:start], len(data), key[3], key[4])
         self._shapes[shape_key] = None
+        data = key[2]
         shape = self._shape(data, start, facts, decoded)
         if shape is not None and _said(shape.decode(data, start, request, self._profiles)) == _said(decoded[0]):
             self._shapes[shape_key] = shape
@@ -160,8 +195,9 @@ def _rebuilt(pdu: Pdu | None) -> Callable[[tuple[int, ...]], Pdu] | None:
 
 
 def _said(decoding: Decoding | None) -> tuple[object, ...] | None:
-    """All a decoding says (a :class:`LazyParams`' params named now)."""
+    """All a decoding says (a :class:`LazyParams`' params as the runs it would name them from:
+    a read of 125 registers would be 125 objects)."""
     if decoding is None:
         return None
-    return (type(decoding), decoding.summary, decoding.params, decoding.pdu, decoding.remarks, decoding.device,
-            decoding.uss)
+    params = decoding.runs if isinstance(decoding, LazyParams) else decoding.params
+    return (type(decoding), decoding.summary, params, decoding.pdu, decoding.remarks, decoding.device, decoding.uss)

@@ -26,6 +26,7 @@ from decoders.crc import crc_bytes, crc_ok
 from decoders.frame import Frame, FrameFlag, flag_set, frames_to_batch
 from decoders.message import AnnotatedBatch, Decoding, MessageBatch, ParamValue
 from decoders.modbus import annotate as annotate_module
+from decoders.modbus import value_shapes
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.modbus.pdu_parse import parse_pdu
@@ -160,7 +161,28 @@ def test_frames_of_a_known_shape_are_decoded_from_their_values(profiles: list[st
          patch.object(annotate_module, "ONE_BY_ONE", len(traffic)):
         got = [said(message.decoding) for batch in batches for message in cached.annotate_all(batch)]
     assert got == expected
-    assert len(parsed) == 4  # a read, its answer, a write, its answer: once each
+    assert len(parsed) == 6  # a read and its write answer once; an answer and a write, twice (see value_shapes)
+
+
+def test_shapes_are_not_looked_up_where_they_do_not_repeat(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A master reading ever other registers: no shape comes twice, so lookups rest for a while;
+    then a drive polled for one register is decoded from its values again."""
+    monkeypatch.setattr(value_shapes, "WINDOW", 8)
+    monkeypatch.setattr(value_shapes, "REST", 30)
+    one_offs = [frame for address in range(100, 140) for frame in (
+        adu(b"\x02\x03", struct.pack(">HH", address, 1)), adu(b"\x02\x03\x02", struct.pack(">H", address)))]
+    polls = [frame for value in range(60) for frame in (
+        adu(b"\x02\x03", struct.pack(">HH", 3201, 1)), adu(b"\x02\x03\x02", struct.pack(">H", value)))]
+    plain = Annotator(ProfileApplier(profile_book(["atv71"], []), fast=False))
+    cached = Annotator(ProfileApplier(profile_book(["atv71"], [])))
+    (first,) = [batch for batch in matched(one_offs) if len(batch)]
+    assert [said(m.decoding) for m in cached.annotate_all(first)] == [said(plain.annotate(m).decoding) for m in first]
+    assert cached._shapes._resting > 0
+    parsed = []
+    with patch.object(annotate_module, "parse_pdu", lambda *a, **k: parsed.append(1) or parse_pdu(*a, **k)):
+        got = [said(m.decoding) for batch in matched(polls) for m in cached.annotate_all(batch)]
+    assert got == [said(plain.annotate(m).decoding) for batch in matched(polls) for m in batch]
+    assert 10 < len(parsed) < 40  # the answers while resting, not those after
 
 
 def test_what_the_profiles_learn_is_not_answered_from_the_cache() -> None:
