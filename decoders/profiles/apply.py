@@ -159,21 +159,10 @@ class ProfileApplier:
         """The params of ``values``, the summary's texts of the named ones, and whether any is
         a scanner address register (``reported``: the values come from the device)."""
         namers = self._kept_namers(profile, reported)
-        params: list[ParamValue] = []
-        shown: list[str] = []
-        learns = False
-        for address, raw in values:
-            namer = namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
-            named = namer.known.get(raw) if self.fast else None
-            if named is None:
-                named = namer.make(raw)
-                self._kept += 1
-            params.append(named[0])
-            if named[1] is not None:
-                shown.append(named[1])
-            if namer.learns:
-                learns = True
-        return params, shown, learns
+        found = [namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
+                 for address, _ in values]
+        params, shown = self._name_values(found, [raw for _, raw in values])
+        return params, shown, any(namer.learns for namer in found)
 
     def value_namers(self, facts: FrameFacts, addresses: list[int]) -> tuple[list[AddressNamer], int] | None:
         """The namers :meth:`apply_decoding` names values at ``addresses`` of a frame with
@@ -196,10 +185,17 @@ class ProfileApplier:
         ``generation`` is past, or the kept values reached their bound)."""
         if generation != self.generation or self._kept >= KEPT_NAMED_PARAMS or self._named_version != self.version:
             return None
+        return self._name_values(namers, raws)
+
+    def _name_values(self, namers: list[AddressNamer],
+                     raws: Sequence[int | None]) -> tuple[list[ParamValue], list[str]]:
+        """Each raw value named by its namer (kept there, unless ``fast=False``): the params, and
+        the summary's texts of those it shows."""
         params: list[ParamValue] = []
         shown: list[str] = []
+        fast = self.fast
         for namer, raw in zip(namers, raws, strict=True):
-            named = namer.known.get(raw)
+            named = namer.known.get(raw) if fast else None
             if named is None:
                 named = namer.make(raw)
                 self._kept += 1
