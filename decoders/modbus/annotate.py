@@ -11,7 +11,7 @@ that moment, so :meth:`Annotator.annotate_batch` decodes each such combination o
 :class:`Decoding` to every repeat. The profiles' ``version`` is part of the key: a
 frame that taught them something (a scanner table, an identification) is decoded
 again, never answered from before. A frame new to the memo but for its values (the same read
-answered with new values) is decoded from its values and what the first frame of its shape
+answered with new values) is decoded from its values and what an earlier frame of its shape
 said (:mod:`decoders.modbus.value_shapes`).
 """
 
@@ -263,9 +263,9 @@ class _Fresh:
     decoded before (:mod:`decoders.modbus.value_shapes`), while they are few (the first
     :data:`ONE_BY_ONE`, or fewer than :data:`TOGETHER_FROM` of the frames passed); from then
     on, the register reads and their answers of slaves no profile names at once
-    (:func:`register_reads`: cheaper than by their shape), the rest as before; then the profiles, which may
-    learn. A batch of repeats has few frames to decode, and decoding all its reads for them
-    would cost more than they do."""
+    (:func:`register_reads`: cheaper than by their shape), the rest as before; then the
+    profiles, which may learn. A batch of repeats has few frames to decode, and decoding all
+    its reads for them would cost more than they do."""
 
     def __init__(self, annotator: Annotator, batch: MessageBatch) -> None:
         self._annotator, self._batch = annotator, batch
