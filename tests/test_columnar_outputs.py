@@ -106,3 +106,17 @@ def test_mcap(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[
     export = ["export", str(source), "--jobs", "1", "-q", *options, "--mcap"]
     assert both_ways([*export, str(tmp_path / "columns.mcap")], [*export, str(tmp_path / "plain.mcap")]) >= least
     assert _messages(tmp_path / "columns.mcap") == _messages(tmp_path / "plain.mcap")
+
+
+@CASES
+def test_table(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[Path], Path],
+               setting: tuple[list[str], int]) -> None:
+    """The table into a file (a line per frame); with ``--registers`` it reads every decoding,
+    and no frame stays in columns."""
+    source, (options, least) = capture(tmp_path), setting
+    analyze = ["analyze", str(source), *options, "-o"]
+    assert both_ways([*analyze, str(tmp_path / "columns.txt")], [*analyze, str(tmp_path / "plain.txt")]) >= least
+    assert (tmp_path / "columns.txt").read_bytes() == (tmp_path / "plain.txt").read_bytes()
+    registers = ["analyze", str(source), *options, "--registers", "s16", "-o"]
+    assert both_ways([*registers, str(tmp_path / "r-columns.txt")], [*registers, str(tmp_path / "r-plain.txt")]) == 0
+    assert (tmp_path / "r-columns.txt").read_bytes() == (tmp_path / "r-plain.txt").read_bytes()

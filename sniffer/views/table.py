@@ -177,6 +177,12 @@ class PlainTableView(_FrameTable):
                          clock, summary_of)
         self._header_laid = False
         self._kept: AnnotatedBatch | None = None
+        #: A frame left in columns (a plain read, write or answer) is written with its summary
+        #: from the columns (:meth:`ColumnarFrames.summaries`), which is all this table says of
+        #: it; a ``--registers`` reading needs the decoding. In batches of mostly distinct frames
+        #: only: the annotator's memo serves repeats for less.
+        self.takes_columnar = summary_of is decoding_summary
+        self.caches_per_decoding = True
         #: Comment lines waiting for the next frame shown.
         self._marks: list[str] = []
         self.prepare = self._lay_out
@@ -213,20 +219,25 @@ class PlainTableView(_FrameTable):
         batch, self._kept = self._kept, None
         if batch is None:
             return
-        rows = kept_rows(batch).tolist()
+        rows = batch.record_positions()
+        summaries = list(map(self._summary_of, batch.decodings_at(rows)))
+        columnar = batch.columnar
+        if columnar is not None:  # every frame is written: ``rows`` are all positions
+            for position, text in zip(columnar.positions.tolist(), columnar.summaries(batch.messages.frames.data),
+                                      strict=True):
+                summaries[position] = text
         marks, reached = value.marks, 0
         for begin, end in _runs_between_marks(rows, [position for position, _ in marks]):
             while reached < len(marks) and marks[reached][0] <= rows[begin]:
                 self._marks.append(marks[reached][1])
                 reached += 1
-            self._write(batch, value, rows[begin:end])
+            self._write(value, rows[begin:end], summaries[begin:end])
         self._marks += [line for _, line in marks[reached:]]
 
-    def _write(self, batch: AnnotatedBatch, value: PlainRows, rows: list[int]) -> None:
+    def _write(self, value: PlainRows, rows: list[int], summaries: list[str]) -> None:
         if self._marks:
             self._out.write("".join(self._marks))
             self._marks = []
-        summaries = map(self._summary_of, batch.decodings_at(rows))
         if len(rows) == len(value.prefixes):
             prefixes, suffixes = value.prefixes, value.suffixes
         else:
