@@ -49,8 +49,8 @@ KEPT_SHAPES = 4096
 #: Frames looked up between two looks at whether looking up is worth it, the share of them of
 #: a shape seen before it takes, and the frames not looked up when it is not.
 WINDOW, REPEATS_WORTH_IT, REST = 4096, 1 / 16, 1 << 16
-#: What a decoding depends on besides its frame's bytes: its request's answer context and the
-#: profiles' version (the annotator's key without role, protocol and bytes).
+#: A frame's shape: its role code, the bytes before its values, its length, its request's answer
+#: context and the profiles' version.
 ShapeKey = tuple[int, bytes, int, object, int]
 #: A frame's decoding and the answer context its answer reads.
 Decoded = tuple[Decoding, "tuple[object, ...] | None"]
