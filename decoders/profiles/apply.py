@@ -158,9 +158,7 @@ class ProfileApplier:
                values: list[tuple[int, int | None]]) -> tuple[list[ParamValue], list[str], bool]:
         """The params of ``values``, the summary's texts of the named ones, and whether any is
         a scanner address register (``reported``: the values come from the device)."""
-        namers = self._kept_namers(profile, reported)
-        found = [namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
-                 for address, _ in values]
+        found = self._address_namers(profile, slave, reported, [address for address, _ in values])
         params, shown = self._name_values(found, [raw for _, raw in values])
         return params, shown, any(namer.learns for namer in found)
 
@@ -171,11 +169,8 @@ class ProfileApplier:
         (``fast=False``)."""
         if not self.fast:
             return None
-        slave, reported = facts.slave, facts.role is Role.RESPONSE
-        profile = self.book.profile_for(slave)
-        namers = self._kept_namers(profile, reported)
-        found = [namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
-                 for address in addresses]
+        slave = facts.slave
+        found = self._address_namers(self.book.profile_for(slave), slave, facts.role is Role.RESPONSE, addresses)
         return None if any(namer.learns for namer in found) else (found, self.generation)
 
     def named_by(self, namers: list[AddressNamer], raws: Sequence[int | None],
@@ -219,6 +214,13 @@ class ProfileApplier:
         if namers is None:
             namers = self._namers[key] = {}
         return namers
+
+    def _address_namers(self, profile: Profile, slave: int | None, reported: bool,
+                        addresses: list[int]) -> list[AddressNamer]:
+        """The kept namer of each of ``addresses`` (made and kept where new)."""
+        namers = self._kept_namers(profile, reported)
+        return [namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
+                for address in addresses]
 
     def _namer_at(self, namers: dict[int | tuple[int | None, int], AddressNamer], profile: Profile,
                   slave: int | None, address: int, reported: bool) -> AddressNamer:
