@@ -1,4 +1,4 @@
-"""Per-byte wire times from chunk times, vectorised.
+"""Wire times of bytes from chunk times, vectorised.
 
 A chunk's time is the end of its last byte. Inside a chunk the bytes are taken to
 be back to back (exactly so for ``exact`` captures; the latest possible placement
@@ -7,13 +7,16 @@ character times, and starts ``n - j`` character times, before the chunk's time.
 Both are rounded to whole nanoseconds from the chunk's time, so that a silence
 between two chunks is exactly the difference of their recorded times.
 
-:func:`byte_times` looks the rounded offsets up in a table (one entry per character count
-up to the longest chunk) and takes each byte's end from the next byte's start; about
-twice as fast as :func:`byte_times_reference`, which computes every byte's offsets
-from the rule above and which the tests hold it to.
+:class:`ByteClock` is what the framer uses: it keeps the chunks and computes the times of
+the bytes asked for (frames' first and last bytes) and the silences where chunks meet.
+:func:`byte_times` computes every byte's times at once (a table of rounded offsets, for the
+benchmarks' models of the wire). :func:`byte_times_reference` computes every byte's offsets
+from the rule above: the plain path the tests hold both to.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -52,3 +55,77 @@ def byte_times_reference(batch: ChunkBatch, char_time_ns: float) -> tuple[Int64A
     ends = chunk_end - np.rint(chars_after * char_time_ns).astype(np.int64)
     starts = chunk_end - np.rint((chars_after + 1) * char_time_ns).astype(np.int64)
     return starts, ends
+
+
+@dataclass(frozen=True)
+class ByteClock:
+    """The wire times of a run of bytes, kept per chunk as the capture gives them.
+
+    The framer asks for few byte times (the first and last bytes of frames, the silences
+    between chunks) of many bytes: computing all of them (:func:`byte_times`) cost it a
+    quarter of its time on the benchmark captures, eleven bytes a chunk. The times are those of
+    :func:`byte_times`, byte for byte, and inside a chunk the silence between two bytes is
+    exactly zero, so every silence of the run lies where one chunk ends and the next begins.
+
+    ``ends[k]``: one past chunk *k*'s last byte (from the run's first byte, increasing: no
+    chunk is empty); ``t_end_ns[k]``: when that byte ended.
+    """
+
+    ends: Int64Array
+    t_end_ns: Int64Array
+    char_time_ns: float
+
+    @classmethod
+    def of(cls, batch: ChunkBatch, char_time_ns: float) -> ByteClock:
+        """The clock of ``batch``'s bytes (its empty chunks, which time no byte, left out)."""
+        filled = np.diff(batch.ends, prepend=0) > 0
+        if filled.all():
+            return cls(batch.ends, batch.t_end_ns, char_time_ns)
+        return cls(batch.ends[filled], batch.t_end_ns[filled], char_time_ns)
+
+    @classmethod
+    def empty(cls, char_time_ns: float) -> ByteClock:
+        return cls(np.zeros(0, np.int64), np.zeros(0, np.int64), char_time_ns)
+
+    def __len__(self) -> int:
+        return int(self.ends[-1]) if len(self.ends) else 0
+
+    def then(self, later: ByteClock) -> ByteClock:
+        """This run followed by ``later``'s bytes."""
+        if not len(self.ends):
+            return later
+        return ByteClock(np.concatenate([self.ends, later.ends + len(self)]),
+                         np.concatenate([self.t_end_ns, later.t_end_ns]), self.char_time_ns)
+
+    def tail(self, begin: int) -> ByteClock:
+        """The bytes from ``begin`` on (a byte's time is counted from its chunk's end: it stays)."""
+        kept = self.ends > begin
+        return ByteClock(self.ends[kept] - begin, self.t_end_ns[kept], self.char_time_ns)
+
+    def _before_end(self, chunks: Int64Array, positions: Int64Array, chars: int) -> Int64Array:
+        """The time ``chars`` characters after the start of each byte ``positions[i]`` of chunk
+        ``chunks[i]``: counted back from the chunk's end, rounded as :func:`byte_times` rounds."""
+        to_end = self.ends[chunks] - positions - chars
+        times: Int64Array = self.t_end_ns[chunks] - np.rint(to_end * self.char_time_ns).astype(np.int64)
+        return times
+
+    def starts_at(self, positions: Int64Array) -> Int64Array:
+        """When the start bit of each byte ``positions[i]`` began."""
+        return self._before_end(np.searchsorted(self.ends, positions, side="right"), positions, 0)
+
+    def ends_at(self, positions: Int64Array) -> Int64Array:
+        """When the stop bit of each byte ``positions[i]`` ended."""
+        return self._before_end(np.searchsorted(self.ends, positions, side="right"), positions, 1)
+
+    def run_times(self, starts: Int64Array, stops: Int64Array) -> tuple[Int64Array, Int64Array]:
+        """Start of the first byte and end of the last of each run ``[starts[i], stops[i])``
+        of bytes of one chunk."""
+        chunks = np.searchsorted(self.ends, starts, side="right")
+        return self._before_end(chunks, starts, 0), self._before_end(chunks, stops - 1, 1)
+
+    def silences(self) -> tuple[Int64Array, Int64Array]:
+        """Where each chunk but the first begins (byte positions, in order) and the silence
+        before it, in ns: every silence of the run that is not zero."""
+        positions = self.ends[:-1]
+        later = np.arange(1, len(self.ends), dtype=np.int64)
+        return positions, self._before_end(later, positions, 0) - self.t_end_ns[:-1]

@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from decoders.byte_times import byte_times
+from decoders.byte_times import ByteClock
 from decoders.capture import ChunkBatch, Int64Array, TimingQuality, UartError, UInt8Array
 from decoders.crc import crc_ok_many
 from decoders.frame import NO_IDLE, FrameBatch, FrameFlag
@@ -50,6 +50,9 @@ TOLERANCE_NS = 1.0
 HOST_GAP_NS = 3_000_000_000
 #: Per byte: UART error kinds and channels (``None``: the capture says none).
 ByteMarks = tuple[UInt8Array | None, UInt8Array | None]
+#: A run of bytes' clock, the positions where its chunks begin, and of its bytes after a
+#: silence > t1.5 (exact timing; none on host timing).
+Timed = tuple[ByteClock, Int64Array, Int64Array]
 #: Live capture through rtusniff's own reader: quiet this long means the line is idle
 #: (above a USB adapter's 16 ms latency timer and the host's jitter).
 LIVE_IDLE_NS = 100_000_000
@@ -80,8 +83,7 @@ class Framer:
         self._idle_ns = self._boundary_ns if timing is TimingQuality.EXACT else float(min(host_gap, LIVE_IDLE_NS))
         self._delivery = DeliveryDelay()
         self._data = b""
-        self._starts: Int64Array = np.zeros(0, np.int64)
-        self._ends: Int64Array = np.zeros(0, np.int64)
+        self._clock = ByteClock.empty(line.char_time_ns)
         #: UART error kinds and channels of the held bytes; ``None`` while the capture has shown none.
         self._kinds: UInt8Array | None = None
         self._channels: UInt8Array | None = None
@@ -101,10 +103,8 @@ class Framer:
 
     def feed(self, batch: ChunkBatch) -> FrameBatch:
         """Frames and noise that ``batch`` completes."""
-        new_starts, new_ends = byte_times(batch, self.line.char_time_ns)
+        clock = self._clock.then(ByteClock.of(batch, self.line.char_time_ns))
         data = self._data + batch.data
-        starts = np.concatenate([self._starts, new_starts])
-        ends = np.concatenate([self._ends, new_ends])
         if batch.uart_errors is not None or self._kinds is not None:
             held = self._kinds if self._kinds is not None else np.zeros(len(self._data), np.uint8)
             self._kinds = np.concatenate([held, batch.error_kinds()])
@@ -114,57 +114,72 @@ class Framer:
             fed = new_channels if new_channels is not None else np.zeros(len(batch.data), np.uint8)
             self._channels = np.concatenate([held, fed])
         kinds, channels = self._kinds, self._channels
-        cut = starts[1:] - ends[:-1] >= self._boundary_ns
-        if channels is not None:
-            cut |= channels[1:] != channels[:-1]  # bytes of two lines never share a frame
-        cuts = np.flatnonzero(cut) + 1
+        silent_at, silences = clock.silences()
+        cuts = silent_at[silences >= self._boundary_ns]
+        if channels is not None:  # bytes of two lines never share a frame
+            cuts = np.union1d(cuts, np.flatnonzero(channels[1:] != channels[:-1]) + 1)
+        pauses = self._pauses(silent_at, silences)
         bounds = np.concatenate([np.zeros(1, np.int64), cuts])
-        parts = [self._closed_segments(data, (starts, ends, kinds), bounds)]
+        parts = [self._closed_segments(data, pauses, kinds, bounds)]
         open_start = int(bounds[-1])
         kept_from = open_start
         if len(data) > open_start:
-            open_pieces = self._parse(data, starts, ends, open_start, len(data), closed=False, kinds=kinds)
+            open_pieces = self._parse(data, pauses, open_start, len(data), closed=False, kinds=kinds)
             parts.append(open_pieces)
             kept_from = int(open_pieces.last[-1]) if len(open_pieces) else open_start
             if len(open_pieces):
                 self._follows_frame = bool(open_pieces.crc_ok[-1] and not open_pieces.is_noise[-1])
             elif open_start > 0:
                 self._follows_frame = False  # the held bytes begin at a timing cut
-        self._data, self._starts, self._ends = data[kept_from:], starts[kept_from:], ends[kept_from:]
+        self._data, self._clock = data[kept_from:], clock.tail(kept_from)
         self._kinds = None if kinds is None or not kinds[kept_from:].any() else kinds[kept_from:]
         self._channels = None if channels is None else channels[kept_from:]
-        return self._assemble(data, starts, ends, Pieces.join(parts), (kinds, channels))
+        return self._assemble(data, (clock, silent_at, pauses), Pieces.join(parts), (kinds, channels))
+
+    def _pauses(self, silent_at: Int64Array, silences: Int64Array) -> Int64Array:
+        """Of the bytes after a silence (``silent_at``, :meth:`ByteClock.silences`), those
+        after one > t1.5: evidence inside a segment, on exact timing alone."""
+        if self.timing is not TimingQuality.EXACT:
+            return silent_at[:0]
+        pauses: Int64Array = silent_at[silences > self.line.t1_5_ns + TOLERANCE_NS]
+        return pauses
 
     def close_idle(self, now_ns: int) -> FrameBatch:
         """Live capture: the open segment is closed once the line has been quiet for t3.5
         (exact) or ``LIVE_IDLE_NS`` (host), without waiting for a next byte."""
-        if not self._data or now_ns - int(self._ends[-1]) < self._idle_ns:
-            return self._assemble(b"", self._starts[:0], self._ends[:0], Pieces.of([]), (None, None))
-        data, starts, ends, marks = self._take_held()
-        pieces = self._parse(data, starts, ends, 0, len(data), closed=True, kinds=marks[0])
+        if not self._data or now_ns - int(self._clock.ends_at(np.array([len(self._data) - 1]))[0]) < self._idle_ns:
+            return self._assemble(b"", self._timed(ByteClock.empty(self.line.char_time_ns)), Pieces.of([]),
+                                  (None, None))
+        data, clock, marks = self._take_held()
+        timed = self._timed(clock)
+        pieces = self._parse(data, timed[2], 0, len(data), closed=True, kinds=marks[0])
         self._follows_frame = False
-        return self._assemble(data, starts, ends, pieces, marks)
+        return self._assemble(data, timed, pieces, marks)
 
     def flush(self) -> FrameBatch:
         """Everything still held, at the end of the capture."""
-        data, starts, ends, marks = self._take_held()
-        pieces = self._parse(data, starts, ends, 0, len(data), closed=True, at_end=True, kinds=marks[0]) if data \
+        data, clock, marks = self._take_held()
+        timed = self._timed(clock)
+        pieces = self._parse(data, timed[2], 0, len(data), closed=True, at_end=True, kinds=marks[0]) if data \
             else Pieces.of([])
         self._follows_frame = False
-        return self._assemble(data, starts, ends, pieces, marks)
+        return self._assemble(data, timed, pieces, marks)
 
-    def _take_held(self) -> tuple[bytes, Int64Array, Int64Array, ByteMarks]:
-        held = self._data, self._starts, self._ends, (self._kinds, self._channels)
-        self._data, self._starts, self._ends = b"", np.zeros(0, np.int64), np.zeros(0, np.int64)
+    def _take_held(self) -> tuple[bytes, ByteClock, ByteMarks]:
+        held = self._data, self._clock, (self._kinds, self._channels)
+        self._data, self._clock = b"", ByteClock.empty(self.line.char_time_ns)
         self._kinds = self._channels = None
         return held
 
-    def _closed_segments(self, data: bytes, times: tuple[Int64Array, Int64Array, UInt8Array | None],
+    def _timed(self, clock: ByteClock) -> Timed:
+        silent_at, silences = clock.silences()
+        return clock, silent_at, self._pauses(silent_at, silences)
+
+    def _closed_segments(self, data: bytes, pauses: Int64Array, kinds: UInt8Array | None,
                          bounds: Int64Array) -> Pieces:
         """Pieces of the segments ``data[bounds[i]:bounds[i+1]]``: whole frames and pairs of
-        pieces in bulk, the rest through the content parser (``times``: the bytes' starts,
-        ends and UART errors)."""
-        starts, ends, kinds = times
+        pieces in bulk, the rest through the content parser (``pauses``: the bytes after a
+        silence > t1.5; ``kinds``: the bytes' UART errors)."""
         seg_starts, seg_ends = bounds[:-1], bounds[1:]
         single = single_frame_segments(data, seg_starts, seg_ends, crc_ok_many(data, bounds))
         if not self.fast:
@@ -178,7 +193,7 @@ class Framer:
         known = [Pieces.frames(seg_starts[single], seg_ends[single])]
         slow = np.flatnonzero(~single)
         if self.fast and len(slow):
-            paired, slow = self._pairs(data, (starts, ends), (seg_starts[slow], seg_ends[slow]), slow)
+            paired, slow = self._pairs(data, pauses, (seg_starts[slow], seg_ends[slow]), slow)
             known.append(paired)
         whole = Pieces.join(known).in_order() if len(known) > 1 else known[0]
         frames = ~whole.is_noise
@@ -190,7 +205,7 @@ class Framer:
             if index > 0:
                 self._at_capture_start = False  # whole frames came before it
             self._open_request = replayed_open_request(data, frame_bounds, range(done, upto), self._open_request)
-            parsed.append(self._parse(data, starts, ends, int(seg_starts[index]), int(seg_ends[index]), closed=True,
+            parsed.append(self._parse(data, pauses, int(seg_starts[index]), int(seg_ends[index]), closed=True,
                                       kinds=kinds))
             done = upto
         self._open_request = replayed_open_request(data, frame_bounds, range(done, len(frame_bounds[0])),
@@ -199,16 +214,15 @@ class Framer:
             self._at_capture_start = False
         return Pieces.join([whole, *parsed]).in_order() if parsed else whole
 
-    def _pairs(self, data: bytes, times: tuple[Int64Array, Int64Array], segments: tuple[Int64Array, Int64Array],
+    def _pairs(self, data: bytes, pauses: Int64Array, segments: tuple[Int64Array, Int64Array],
                which: Int64Array) -> tuple[Pieces, Int64Array]:
         """Of the segments ``which`` (their bounds: ``segments``), the pieces of those that
         are two frames or a frame and a few stray bytes; and the indexes of the others."""
         seg_starts, seg_ends = segments
         pause_at = None
         if self.timing is TimingQuality.EXACT:
-            starts, ends = times
             pause_at = np.zeros(len(data), np.bool_)
-            pause_at[1:] = starts[1:] - ends[:-1] > self.line.t1_5_ns + TOLERANCE_NS
+            pause_at[pauses] = True
         first_length, second_frame = frame_pair_segments(data, seg_starts, seg_ends, pause_at)
         known = first_length > 0
         split = seg_starts[known] + first_length[known]
@@ -221,17 +235,16 @@ class Framer:
         return pieces.in_order(), which[~known]
 
     def _parse(
-        self, data: bytes, starts: Int64Array, ends: Int64Array, begin: int, stop: int, *, closed: bool,
+        self, data: bytes, pauses: Int64Array, begin: int, stop: int, *, closed: bool,
         at_end: bool = False, kinds: UInt8Array | None = None,
     ) -> Pieces:
-        pauses: tuple[int, ...] = ()
-        if self.timing is TimingQuality.EXACT and stop - begin > 1:
-            silences = starts[begin + 1 : stop] - ends[begin : stop - 1]
-            pauses = tuple((np.flatnonzero(silences > self.line.t1_5_ns + TOLERANCE_NS) + 1).tolist())
+        """``pauses``: positions in ``data`` of the bytes after a silence > t1.5 (sorted)."""
+        inside = pauses[np.searchsorted(pauses, begin, side="right") : np.searchsorted(pauses, stop)]
+        pauses_in = tuple((inside - begin).tolist())
         framing_errors: tuple[int, ...] = ()
         if kinds is not None:
             framing_errors = tuple(np.flatnonzero(kinds[begin:stop] & UartError.FRAMING).tolist())
-        context = Context(pauses, closed=closed, at_capture_start=self._at_capture_start, at_capture_end=at_end,
+        context = Context(pauses_in, closed=closed, at_capture_start=self._at_capture_start, at_capture_end=at_end,
                           follows_frame=self._follows_frame and begin == 0,
                           timed=closed, framing_errors=framing_errors)
         parse = parse_segment(data[begin:stop], context, self._open_request, fast=self.fast)
@@ -240,18 +253,15 @@ class Framer:
             self._open_request = parse.open_request
         return parse.pieces.shifted(begin)
 
-    def _assemble(self, data: bytes, starts: Int64Array, ends: Int64Array, pieces: Pieces,
-                  marks: ByteMarks) -> FrameBatch:
-        """``marks``: the UART error kinds and the channels of ``data``'s bytes (or ``None``)."""
+    def _assemble(self, data: bytes, timed: Timed, pieces: Pieces, marks: ByteMarks) -> FrameBatch:
+        """``timed``: the clock of ``data``'s bytes, where its chunks begin and its pauses
+        (:meth:`_timed`); ``marks``: the UART error kinds and the channels of its bytes (or ``None``)."""
+        clock, chunk_starts, pauses = timed
         kinds, channels = marks
         first, last, is_noise, flags = pieces.first, pieces.last, pieces.is_noise, pieces.flags.copy()
         count = len(first)
         if count:
-            # Earliest start and latest end of the bytes: the same as first and last on a
-            # consistent capture, and still ordered on one whose times overlap.
-            span = slice(int(first[0]), int(last[-1]))
-            t_start = np.minimum.reduceat(starts[span], first - first[0])
-            t_end = np.maximum.reduceat(ends[span], first - first[0])
+            t_start, t_end = _piece_times(clock, chunk_starts, first, int(last[-1]))
         else:
             t_start = t_end = np.zeros(0, np.int64)
         if self.timing is TimingQuality.HOST and count:
@@ -267,9 +277,9 @@ class Framer:
             idle[0] = NO_IDLE if self._last_end_ns is None else t_start[0] - self._last_end_ns
             self._last_end_ns = int(t_end[-1])
         if self.timing is TimingQuality.EXACT:
-            flags |= self._timing_flags(starts, ends, first=first, last=last, idle=idle, is_noise=is_noise)
+            flags |= self._timing_flags(pauses, first=first, last=last, idle=idle, is_noise=is_noise)
         else:
-            self._delivery.learn(data, (starts, ends), (first, last), pieces.crc_ok & ~is_noise)
+            self._delivery.learn(data, (clock, *clock.silences()), (first, last), pieces.crc_ok & ~is_noise)
             # Host times are estimates; a negative silence is an artefact of them.
             idle[(idle < 0) & (idle != NO_IDLE)] = 0
         offsets = np.zeros(count + 1, np.int64)
@@ -301,20 +311,40 @@ class Framer:
 
     def _timing_flags(
         self,
-        starts: Int64Array,
-        ends: Int64Array,
+        pauses: Int64Array,
         *,
         first: Int64Array,
         last: Int64Array,
         idle: Int64Array,
         is_noise: npt.NDArray[np.bool_],
     ) -> npt.NDArray[np.uint16]:
-        # gaps_upto[k]: how many of bytes 0..k-1 follow a silence > t1.5; a frame
-        # [first, last) has one inside if any of its bytes after the first does.
-        gaps_upto = np.zeros(len(starts) + 1, np.int64)
-        gaps_upto[2:] = np.cumsum(starts[1:] - ends[:-1] > self.line.t1_5_ns + TOLERANCE_NS)
-        has_gap = gaps_upto[last] - gaps_upto[first + 1] > 0
+        # A frame [first, last) has a silence > t1.5 inside if one of its bytes after the first
+        # follows one (pauses are few: each is looked up among the frames).
+        has_gap = np.zeros(len(first), np.bool_)
+        if len(pauses) and len(first):
+            holder = np.maximum(np.searchsorted(first, pauses, side="right") - 1, 0)
+            has_gap[holder[(pauses > first[holder]) & (pauses < last[holder])]] = True
         short = (idle != NO_IDLE) & (idle < self.line.t3_5_ns - TOLERANCE_NS)
         flags = np.where(has_gap & ~is_noise, FrameFlag.GAP_1_5, 0)
         flags |= np.where(short & ~is_noise, FrameFlag.SHORT_IDLE, 0)
         return flags.astype(np.uint16)
+
+
+def _piece_times(clock: ByteClock, chunk_starts: Int64Array, first: Int64Array,
+                 stop: int) -> tuple[Int64Array, Int64Array]:
+    """Earliest start and latest end of the bytes of each piece ``[first[i], first[i+1])`` (the
+    last up to ``stop``): the times of its first and last bytes on a consistent capture, and
+    still ordered on one whose times overlap. Inside a chunk times only grow, so each run of a
+    piece's bytes in one chunk gives its first byte's start and its last byte's end."""
+    inside = chunk_starts[(chunk_starts > first[0]) & (chunk_starts < stop)]
+    # Mostly a chunk is a frame: few chunks begin inside a piece.
+    known = first[np.minimum(np.searchsorted(first, inside), len(first) - 1)] == inside
+    runs = first if known.all() else np.sort(np.concatenate([first, inside[~known]]))
+    run_ends = np.empty_like(runs)
+    run_ends[:-1] = runs[1:]
+    run_ends[-1] = stop
+    run_starts, run_stops = clock.run_times(runs, run_ends)
+    if runs is first:
+        return run_starts, run_stops
+    at = np.searchsorted(runs, first)
+    return np.minimum.reduceat(run_starts, at), np.maximum.reduceat(run_stops, at)

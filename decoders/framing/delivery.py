@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from decoders.byte_times import ByteClock
 from decoders.capture import Int64Array
 from decoders.framing.fast import REQUEST_RULES, RESPONSE_RULES, padded_bytes
 from decoders.modbus.codes import EXCEPTION_BIT
@@ -32,27 +33,27 @@ class DeliveryDelay:
         self.longest_ns = 0
 
     def learn(
-        self, data: bytes, byte_times: tuple[Int64Array, Int64Array], pieces: tuple[Int64Array, Int64Array],
+        self, data: bytes, times: tuple[ByteClock, Int64Array, Int64Array], pieces: tuple[Int64Array, Int64Array],
         valid: npt.NDArray[np.bool_],
     ) -> None:
         """Learn from the pieces ``[first[i], last[i])`` of ``data`` (``valid``: CRC-valid
-        frames) whose bytes start and end at ``byte_times`` (host times)."""
-        starts, ends = byte_times
+        frames) whose bytes' host times ``times`` give: their clock, and the silences where
+        its chunks meet (:meth:`ByteClock.silences`; inside a chunk there are none)."""
+        clock, silent_at, silences = times
         first, last = pieces
         frames = np.flatnonzero(valid & (last - first >= 2))
         if not len(frames):
             return
-        silences = np.zeros(len(starts) + 1, np.int64)  # one more: reduceat's last index may be the end
-        silences[1:-1] = starts[1:] - ends[:-1]
-        # The largest silence before bytes first+1 .. last-1 of each valid frame.
-        bounds = np.stack([first[frames] + 1, last[frames]], axis=1).ravel()
-        inner = int(np.maximum.reduceat(silences, bounds)[::2].max())
-        self.longest_ns = max(self.longest_ns, inner, self._answer_silence(data, starts, ends, first[frames],
-                                                                             last[frames]))
+        # The largest silence before bytes first+1 .. last-1 of a valid frame.
+        frame_first, frame_last = first[frames], last[frames]
+        holder = np.searchsorted(frame_first, silent_at, side="right") - 1
+        held = holder >= 0
+        inside = held & (silent_at > frame_first[holder]) & (silent_at < frame_last[holder])
+        inner = int(silences[inside].max()) if inside.any() else 0
+        self.longest_ns = max(self.longest_ns, inner, self._answer_silence(data, clock, frame_first, frame_last))
 
     @staticmethod
-    def _answer_silence(data: bytes, starts: Int64Array, ends: Int64Array, first: Int64Array,
-                        last: Int64Array) -> int:
+    def _answer_silence(data: bytes, clock: ByteClock, first: Int64Array, last: Int64Array) -> int:
         """The longest silence between a request and the valid frame after it that answers it."""
         if len(first) < 2:
             return 0
@@ -68,4 +69,4 @@ class DeliveryDelay:
         pairs = np.flatnonzero(ask & answer & same)
         if not len(pairs):
             return 0
-        return int((starts[first[pairs + 1]] - ends[last[pairs] - 1]).max())
+        return int((clock.starts_at(first[pairs + 1]) - clock.ends_at(last[pairs] - 1)).max())

@@ -81,22 +81,28 @@ def _special_shapes(frames: FrameBatch, shape: npt.NDArray[np.int64], positions:
 Column = npt.NDArray[np.int64]
 
 
+def _kinds(groups: tuple[tuple[int, ...], ...]) -> npt.NDArray[np.intp]:
+    """Per function code: 1 + the index of its group in ``groups``, 0 for the others."""
+    kinds = np.zeros(256, np.intp)
+    for kind, functions in enumerate(groups, start=1):
+        kinds[list(functions)] = kind
+    return kinds
+
+
+#: What a request's key is made of, per function code (a table: ``np.isin`` sorts per call).
+_REQUEST_KEY_KINDS = _kinds(((1, 2), (3, 4, 23), (5, 6, 15, 16, 22), (8,), (43,)))
+_RESPONSE_KEY_KINDS = _kinds(((1, 2, 3, 4, 23), (5, 6, 15, 16, 22), (8,), (43,)))
+
+
 def _request_keys(raw: npt.NDArray[np.intp], b2: Column, b3: Column, b4: Column, b5: Column) -> Column:
     count = b4 << 8 | b5
     echo = (b2 << 24) | (b3 << 16) | (b4 << 8) | b5
-    keys: Column = np.select(
-        [np.isin(raw, (1, 2)), np.isin(raw, (3, 4, 23)), np.isin(raw, (5, 6, 15, 16, 22)), raw == 8, raw == 43],
-        [(count + 7) // 8, 2 * count, echo, b2 << 8 | b3, b2],
-        0,
-    ).astype(np.int64)
+    keys: Column = np.choose(_REQUEST_KEY_KINDS[raw], [np.zeros_like(b2), (count + 7) // 8, 2 * count, echo,
+                                                        b2 << 8 | b3, b2])
     return keys
 
 
 def _response_keys(raw: npt.NDArray[np.intp], b2: Column, b3: Column, b4: Column, b5: Column) -> Column:
     echo = (b2 << 24) | (b3 << 16) | (b4 << 8) | b5
-    keys: Column = np.select(
-        [np.isin(raw, (1, 2, 3, 4, 23)), np.isin(raw, (5, 6, 15, 16, 22)), raw == 8, raw == 43],
-        [b2, echo, b2 << 8 | b3, b2],
-        0,
-    ).astype(np.int64)
+    keys: Column = np.choose(_RESPONSE_KEY_KINDS[raw], [np.zeros_like(b2), b2, echo, b2 << 8 | b3, b2])
     return keys

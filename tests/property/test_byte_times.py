@@ -1,4 +1,5 @@
-"""Hypothesis: the table-driven byte times are the reference's, byte for byte."""
+"""Hypothesis: the table-driven byte times and the framer's byte clock are the reference's,
+byte for byte, and the clock's silences are every silence of the run."""
 
 from __future__ import annotations
 
@@ -6,10 +7,11 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from decoders.byte_times import byte_times, byte_times_reference
+from decoders.byte_times import ByteClock, byte_times, byte_times_reference
 from decoders.capture import ChunkBatch
 
 T0 = 1_600_000_000_000_000_000
+CHAR_TIMES = st.sampled_from([11e9 / 115200, 11e9 / 9600, 10e9 / 19200, 1e9 / 3, 1.0, 104166.66666666667])
 
 
 @st.composite
@@ -22,7 +24,7 @@ def batches(draw: st.DrawFn) -> ChunkBatch:
     return ChunkBatch(data=bytes(int(ends[-1])), ends=ends, t_end_ns=times)
 
 
-@given(batches(), st.sampled_from([11e9 / 115200, 11e9 / 9600, 10e9 / 19200, 1e9 / 3, 1.0, 104166.66666666667]))
+@given(batches(), CHAR_TIMES)
 def test_byte_times_match_the_reference(batch: ChunkBatch, char_time_ns: float) -> None:
     starts, ends = byte_times(batch, char_time_ns)
     reference_starts, reference_ends = byte_times_reference(batch, char_time_ns)
@@ -31,7 +33,53 @@ def test_byte_times_match_the_reference(batch: ChunkBatch, char_time_ns: float) 
     assert ends.tolist() == reference_ends.tolist()
 
 
+def _clock_of_two(first: ChunkBatch, second: ChunkBatch, char_time_ns: float, kept_from: int) -> ByteClock:
+    """The framer's way: a held tail of the first batch, then the second."""
+    held = ByteClock.of(first, char_time_ns).tail(kept_from)
+    return held.then(ByteClock.of(second, char_time_ns))
+
+
+@given(batches(), batches(), CHAR_TIMES, st.integers(0, 12_000))
+def test_the_byte_clock_tells_the_reference_times(first: ChunkBatch, second: ChunkBatch, char_time_ns: float,
+                                                  kept: int) -> None:
+    kept_from = min(kept, len(first.data))
+    clock = _clock_of_two(first, second, char_time_ns, kept_from)
+    reference_starts = np.concatenate([byte_times_reference(batch, char_time_ns)[0] for batch in (first, second)])
+    reference_ends = np.concatenate([byte_times_reference(batch, char_time_ns)[1] for batch in (first, second)])
+    reference_starts, reference_ends = reference_starts[kept_from:], reference_ends[kept_from:]
+    every = np.arange(len(clock), dtype=np.int64)
+    assert len(clock) == len(reference_starts)
+    assert clock.starts_at(every).tolist() == reference_starts.tolist()
+    assert clock.ends_at(every).tolist() == reference_ends.tolist()
+    # Every silence between two bytes that is not zero is one the clock lists.
+    silences = reference_starts[1:] - reference_ends[:-1]
+    positions, clock_silences = clock.silences()
+    assert np.all(np.diff(positions) > 0)
+    listed = dict(zip(positions.tolist(), clock_silences.tolist(), strict=True))
+    for position, silence in enumerate(silences.tolist(), start=1):
+        assert listed.get(position, 0) == silence
+    assert set(listed) <= set(range(1, len(clock)))
+
+
+@given(batches(), CHAR_TIMES, st.data())
+def test_runs_inside_one_chunk_are_timed_by_their_ends(batch: ChunkBatch, char_time_ns: float,
+                                                       data: st.DataObject) -> None:
+    clock = ByteClock.of(batch, char_time_ns)
+    if not len(clock):
+        return
+    starts, ends = byte_times_reference(batch, char_time_ns)
+    chunk_starts = np.concatenate([[0], clock.ends[:-1]])
+    chunk = data.draw(st.integers(0, len(clock.ends) - 1))
+    begin = data.draw(st.integers(int(chunk_starts[chunk]), int(clock.ends[chunk]) - 1))
+    stop = data.draw(st.integers(begin + 1, int(clock.ends[chunk])))
+    run_starts, run_ends = clock.run_times(np.array([begin]), np.array([stop]))
+    assert (int(run_starts[0]), int(run_ends[0])) == (int(starts[begin]), int(ends[stop - 1]))
+
+
 def test_an_empty_batch_has_no_times() -> None:
     empty = ChunkBatch(data=b"", ends=np.zeros(0, np.int64), t_end_ns=np.zeros(0, np.int64))
     for times in (byte_times(empty, 1000.0), byte_times_reference(empty, 1000.0)):
         assert [len(t) for t in times] == [0, 0]
+    clock = ByteClock.of(empty, 1000.0)
+    assert len(clock) == 0
+    assert [len(part) for part in clock.silences()] == [0, 0]
