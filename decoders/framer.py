@@ -1,12 +1,12 @@
 """The framer: frames from timing where timing can be trusted, from content elsewhere.
 
-Timing (numpy over byte times) cuts the stream into segments at silences that
-certainly separate frames: t3.5 on an ``exact`` capture; on a ``host`` one, 3 s
-unless ``host_gap_ns`` says otherwise: a read may return mid-frame and the rest of
-the frame come a read timeout later (pyserial loops wait up to a second or two),
-so no shorter gap proves anything. What the capture's read loop really does is
-learned from the frames themselves (:mod:`decoders.framing.delivery`), and sets
-the matcher's least response timeout. A live capture knows
+Timing cuts the stream into segments at silences that certainly separate frames
+(numpy over the silences where chunks meet, :class:`decoders.byte_times.ByteClock`):
+t3.5 on an ``exact`` capture; on a ``host`` one, 3 s unless ``host_gap_ns`` says
+otherwise: a read may return mid-frame and the rest of the frame come a read timeout
+later (pyserial loops wait up to a second or two), so no shorter gap proves anything.
+What the capture's read loop really does is learned from the frames themselves
+(:mod:`decoders.framing.delivery`), and sets the matcher's least response timeout. A live capture knows
 its own reader: :meth:`Framer.close_idle` closes the open segment after 100 ms
 of quiet. Segments that are one whole valid frame, two clean frames (an answer
 sooner than t3.5) or a clean frame and 1..3 stray bytes (a glitch) are recognised
