@@ -67,20 +67,6 @@ class Memo(Generic[Key, Value]):
                     values[row] = found
         return cast(list[Value], values)
 
-    def get_new(self, keys: list[Key], build: Callable[[int], Value], new: list[bool]) -> list[Value]:
-        """:meth:`get_all`, but the rows marked ``new`` (keys made for this batch alone, which no
-        later row can share) built by ``build(row)`` without a lookup, and not kept."""
-        values: list[Value | None] = [None] * len(keys)
-        known = [row for row, fresh in enumerate(new) if not fresh]
-        if known:
-            for row, value in zip(known, self.get_all([keys[row] for row in known], lambda at: build(known[at])),
-                                  strict=True):
-                values[row] = value
-        for row, fresh in enumerate(new):
-            if fresh:
-                values[row] = build(row)
-        return cast(list[Value], values)
-
     def put(self, key: Key, value: Value) -> None:
         if len(self._young) >= self.size:
             self._old, self._young = self._young, {}

@@ -220,16 +220,6 @@ class AnnotatedBatch:
     decodings: list[Decoding]
     rows: npt.NDArray[np.int64] | None = None
     columnar: ColumnarFrames | None = None
-    #: Per message, whether its decoding was made for this batch alone from columns
-    #: (:meth:`decoded`): no other message shares it, so no cache need look it up or keep it.
-    fresh: npt.NDArray[np.bool_] | None = None
-
-    def fresh_at(self, positions: list[int]) -> list[bool] | None:
-        """:attr:`fresh` at ``positions``; ``None`` where no decoding is."""
-        if self.fresh is None:
-            return None
-        fresh: list[bool] = self.fresh[np.asarray(positions, np.int64)].tolist()
-        return fresh
 
     def __len__(self) -> int:
         return len(self.decodings) if self.rows is None else len(self.rows)
@@ -256,20 +246,6 @@ class AnnotatedBatch:
         if len(positions) == len(self.decodings):
             return self.decodings
         return list(map(self.decodings.__getitem__, positions))
-
-    def decoded(self) -> AnnotatedBatch:
-        """This batch with a decoding for every frame left in columns too (its summary and
-        params, no PDU): for sinks that take columns only to cost less per frame."""
-        if self.columnar is None:
-            return self
-        decodings = list(self.decodings)
-        positions = self.columnar.positions
-        for position, decoding in zip(positions.tolist(), self.columnar.decodings(self.messages.frames.data),
-                                      strict=True):
-            decodings[position] = decoding
-        fresh = np.zeros(len(decodings), np.bool_)
-        fresh[positions] = True
-        return AnnotatedBatch(self.messages, decodings, fresh=fresh)
 
     def select(self, keep: npt.NDArray[np.bool_]) -> AnnotatedBatch:
         """Only the messages where ``keep`` (one flag per message of ``messages``) is true."""

@@ -22,7 +22,6 @@ import numpy.typing as npt
 
 from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.columnar_text import READ_ANSWER, WRITE, WRITE_ANSWER, summaries
-from decoders.modbus.param_runs import LazyParams, ParamRun
 from decoders.modbus.pdu import COIL_ON
 
 #: A param's value where its frame names the address alone.
@@ -111,24 +110,9 @@ class ColumnarFrames:
         return ColumnarValues(rows.frame[order], rows.found[order], rows.written[order], rows.address[order],
                               rows.raw[order], rows.request[order])
 
-    def decodings(self, data: bytes) -> list[LazyParams]:
-        """Each frame's decoding as the plain path's says it (summary, runs of params), without
-        a PDU: for outputs that read no more of one."""
-        valued, counts, _, value = self._carried(data)
-        carried = np.zeros(len(self), np.int64)
-        carried[valued] = counts
-        ends = np.cumsum(carried).tolist()
-        values = value.tolist()
-        decodings = []
-        for summary, address, count, end, size in zip(self.summaries(data), self.address.tolist(),
-                                                      self.count.tolist(), ends, carried.tolist(), strict=True):
-            run = ParamRun(address, count, tuple(values[end - size : end])) if size else ParamRun(address, count)
-            decodings.append(LazyParams.of_runs(summary, (run,)))
-        return decodings
-
     def params(self, data: bytes) -> ColumnarParams:
-        """Every frame's params as :meth:`decodings` names them, laid end to end: for writers that
-        spell them in columns, with no decoding per frame."""
+        """Every frame's params as the plain path's decoding names them, laid end to end: for
+        writers that spell them in columns, with no decoding per frame."""
         valued, counts, _, value = self._carried(data)
         sizes = np.maximum(self.count, 0)
         starts = np.cumsum(sizes) - sizes

@@ -159,15 +159,6 @@ class LazyParams(Decoding):
         self._request = request
         self._runs: tuple[ParamRun, ...] | None = None
 
-    @classmethod
-    def of_runs(cls, summary: str, runs: tuple[ParamRun, ...]) -> LazyParams:
-        """A decoding said by its summary and runs alone, no PDU (a frame the annotator left in
-        columns: :meth:`decoders.modbus.columnar.ColumnarFrames.decodings`)."""
-        decoding = cls.__new__(cls)
-        decoding.summary, decoding.pdu, decoding.remarks, decoding.device, decoding.uss = summary, None, (), None, None
-        decoding._request, decoding._runs = None, runs
-        return decoding
-
     @property
     def runs(self) -> tuple[ParamRun, ...]:
         """The params as runs of consecutive addresses (:func:`param_runs`)."""

@@ -193,14 +193,13 @@ class FrameRecordEncoder:
         if len(positions) != len(messages):
             own = own.take(kept)
         rest = batch.positions()  # those with a decoding (all but any left in columns)
-        decodings, fresh = batch.decodings_at(rest), batch.fresh_at(rest)
+        decodings = batch.decodings_at(rest)
         if own.identities is not None:  # mostly distinct frames: their own columns say who they are
-            tails = self._tails_alone_of(batch, rest, decodings, fresh)
+            tails = self._tails_alone_of(batch, rest, decodings)
             middle: list[Column] = [own.identities, b',"flags":', own.middles, tails]
         else:
             facts = _FrameFacts(messages)
-            found = parts_by_decoding(self._parts, decodings, fresh,
-                                      lambda row: self._frame_parts(facts, rest[row], decodings[row]))
+            found = self._parts.get_all(decodings, lambda row: self._frame_parts(facts, rest[row], decodings[row]))
             identities = in_columns_too(batch, lambda parts: identities_at(messages, parts.positions),
                                         [parts[0] for parts in found])
             tails = in_columns_too(batch, lambda parts: parts.record_tails(), [parts[1] for parts in found])
@@ -221,27 +220,25 @@ class FrameRecordEncoder:
         positions = batch.record_positions()
         kept = np.array(positions, np.int64)
         rest = batch.positions()  # those with a decoding (all but any left in columns)
-        decodings, fresh = batch.decodings_at(rest), batch.fresh_at(rest)
+        decodings = batch.decodings_at(rest)
         if fields is not None and len(positions) != len(messages):
             fields = fields.take(kept)
         heads: Column = block_heads(messages, kept) if fields is None else fields.heads
         if fields is not None and fields.identities is not None:  # mostly distinct frames
-            middle: list[Column] = [fields.identities, b",", self._tails_alone_of(batch, rest, decodings, fresh)]
+            middle: list[Column] = [fields.identities, b",", self._tails_alone_of(batch, rest, decodings)]
         else:
             facts = _FrameFacts(batch.messages)
-            middle = [in_columns_too(batch, lambda parts: _joined_parts(messages, parts), parts_by_decoding(
-                self._tails, decodings, fresh, lambda row: b",".join(self._frame_parts(facts, rest[row],
-                                                                                        decodings[row]))))]
+            middle = [in_columns_too(batch, lambda parts: _joined_parts(messages, parts), self._tails.get_all(
+                decodings, lambda row: b",".join(self._frame_parts(facts, rest[row], decodings[row]))))]
         optional = [*channel_column(frames, kept, self.channels), *uart_error_column(frames, kept)]
         return join_rows([heads, *middle, *optional, b"}" + end], len(positions), reserved)
 
-    def _tails_alone_of(self, batch: AnnotatedBatch, rest: list[int], decodings: list[Decoding],
-                        fresh: list[bool] | None) -> list[bytes]:
+    def _tails_alone_of(self, batch: AnnotatedBatch, rest: list[int], decodings: list[Decoding]) -> list[bytes]:
         """Each written message's :meth:`_decoding_part` (``rest``: the positions of
         ``decodings``; frames left in columns: spelt from them)."""
         protocols = _Protocols(batch.messages.frames)
-        return in_columns_too(batch, lambda parts: parts.record_tails(), parts_by_decoding(
-            self._tails_alone, decodings, fresh, lambda row: self._decoding_part(decodings[row], protocols(rest[row]))))
+        return in_columns_too(batch, lambda parts: parts.record_tails(), self._tails_alone.get_all(
+            decodings, lambda row: self._decoding_part(decodings[row], protocols(rest[row]))))
 
     def encode_batch(self, batch: AnnotatedBatch) -> list[str]:
         """The records as text, one per kept message."""
@@ -284,13 +281,6 @@ class FrameRecordEncoder:
 
 
 Part = TypeVar("Part")
-
-
-def parts_by_decoding(memo: Memo[Decoding, Part], decodings: list[Decoding], fresh: list[bool] | None,
-                      build: Callable[[int], Part]) -> list[Part]:
-    """What ``build(row)`` makes of each decoding, repeats found in ``memo``; decodings made
-    for the batch alone (``fresh``) built without a lookup."""
-    return memo.get_all(decodings, build) if fresh is None else memo.get_new(decodings, build, fresh)
 
 
 def in_columns_too(batch: AnnotatedBatch, spell: Callable[[ColumnarParts], Sequence[Part]],

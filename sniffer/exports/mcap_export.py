@@ -40,7 +40,7 @@ from decoders.message import NONE, ROLE_NAMES, AnnotatedBatch, Decoding, Message
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.frame_fields import BlockFields, block_fields
-from sniffer.encoding.records import FrameRecordEncoder, encode_json, in_columns_too, parts_by_decoding
+from sniffer.encoding.records import FrameRecordEncoder, encode_json, in_columns_too
 from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports import foxglove_log
@@ -243,9 +243,8 @@ class DecodedChannels:
         params as JSON members (``b""``: it carried no values). Looked up in C for repeats;
         spelt from the columns for frames left in columns."""
         rest = batch.positions()  # those with a decoding (all but any left in columns)
-        decodings, fresh = batch.decodings_at(rest), batch.fresh_at(rest)
-        found = parts_by_decoding(self._parts, decodings, fresh,
-                                  lambda row: _decoding_parts(decodings[row], int(roles[rest[row]])))
+        decodings = batch.decodings_at(rest)
+        found = self._parts.get_all(decodings, lambda row: _decoding_parts(decodings[row], int(roles[rest[row]])))
         heads = in_columns_too(batch, lambda parts: parts.log_heads(roles[parts.positions]),
                                [parts[0] for parts in found])
         return heads, in_columns_too(batch, lambda parts: parts.numeric_members(), [parts[1] for parts in found])

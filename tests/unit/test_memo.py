@@ -80,27 +80,3 @@ def test_get_all_is_its_plain_form(size: int, batches: list[list[int]]) -> None:
         assert fast.get_all(keys, builder("fast")) == reference_get_all(plain, keys, builder("plain"))
         assert built["fast"] == built["plain"]
         assert (fast._young, fast._old) == (plain._young, plain._old)
-
-
-@given(st.integers(1, 4), st.lists(st.lists(st.tuples(st.integers(0, 12), st.booleans()), max_size=12), max_size=6))
-def test_get_new_builds_the_new_rows_and_finds_the_rest(size: int, batches: list[list[tuple[int, bool]]]) -> None:
-    """``get_new`` is ``get_all`` of the rows not marked new, which alone the memo sees; the new
-    rows are built, never looked up nor kept."""
-    memo: Memo[int, str] = Memo(size)
-    twin: Memo[int, str] = Memo(size)
-    for number, batch in enumerate(batches):
-        keys, new = [key for key, _ in batch], [fresh for _, fresh in batch]
-        built: list[int] = []
-
-        def build(row: int, keys: list[int] = keys, built: list[int] = built, number: int = number) -> str:
-            built.append(row)
-            return f"{keys[row]}@{number}"
-
-        values = memo.get_new(keys, build, new)
-        known = [key for key, fresh in batch if not fresh]
-        expected = twin.get_all(known, lambda at, known=known, number=number: f"{known[at]}@{number}")
-        assert [value for value, fresh in zip(values, new, strict=True) if not fresh] == expected
-        assert [value for value, fresh in zip(values, new, strict=True) if fresh] == [
-            f"{key}@{number}" for key, fresh in batch if fresh]
-        assert all(row in built for row, fresh in enumerate(new) if fresh)
-        assert (memo._young, memo._old) == (twin._young, twin._old)
