@@ -189,6 +189,7 @@ def _read(source: SerialSource, recorder: Recorder | None, shared: _Shared, deco
                 recorder.add(chunk)
             if decode:
                 skipped = _queue(shared, chunk, skipped)
+            source.delivered()
     except PortGoneError as exc:
         shared.gone = str(exc)
     except BaseException as exc:
@@ -256,6 +257,7 @@ class _Session:
         """Decode everything read since the last time, in one batch, once a refresh interval
         has passed (or, with a live viewer, as soon as something was read)."""
         self._wait_for_reads()
+        heard_until_ns = source.heard_until_ns()  # before the queue is emptied: every read before it is in it
         items = []
         try:
             while True:
@@ -273,7 +275,7 @@ class _Session:
                 chunks.append(item)
         if chunks:
             self._deliver(self.decoder.feed(ChunkBatch.from_chunks(chunks)))
-        self._deliver(self.decoder.tick(source.now_ns()))
+        self._deliver(self.decoder.tick(heard_until_ns))
         self.state.behind_reads = self.shared.behind_reads
         if self.options.streams:
             self.state.streams = "; ".join(cast(StreamSink, sink).live_status() for sink in self.options.streams)

@@ -130,6 +130,8 @@ class SerialSource:
             # get part of the bytes. Windows opens a port for one program only anyway.
             self._serial.exclusive = True
         self._offset_ns = time.time_ns() - time.monotonic_ns()
+        #: Set when a read has bytes to return (stamped no earlier), cleared by :meth:`delivered`.
+        self._in_flight_ns: int | None = None
 
     def open(self) -> PortStatus:
         try:
@@ -202,6 +204,7 @@ class SerialSource:
             ready, _, _ = select.select([fd], [], [], timeout_s)
             if not ready:
                 return None
+            self._in_flight_ns = self.now_ns()
             data = os.read(fd, READ_SIZE)
         except OSError as exc:
             if exc.errno in (errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF):
@@ -218,6 +221,7 @@ class SerialSource:
             self._serial.timeout = timeout_s
             data = self._serial.read(1)
             if data:
+                self._in_flight_ns = self.now_ns()
                 data += self._serial.read(self._serial.in_waiting)
         except (pyserial().SerialException, OSError) as exc:
             raise PortGoneError(str(exc)) from None
@@ -228,6 +232,20 @@ class SerialSource:
     def now_ns(self) -> int:
         """The same clock the chunks are stamped with."""
         return time.monotonic_ns() + self._offset_ns
+
+    def delivered(self) -> None:
+        """The chunk :meth:`read` returned is where its consumer finds it (queued for decoding)."""
+        self._in_flight_ns = None
+
+    def heard_until_ns(self) -> int:
+        """A time before which every read is delivered: now, or where a read not yet delivered
+        began. A reader stamps a read when it returns and queues it a little later, much later on
+        a loaded machine: a decoder whose clock ran past such a read would time out a request
+        whose answer was read in time and waits to be queued. Read this before taking what
+        was delivered (one that begins after it is stamped later)."""
+        now = self.now_ns()
+        in_flight = self._in_flight_ns
+        return now if in_flight is None else min(now, in_flight)
 
     def close(self) -> None:
         self._serial.close()

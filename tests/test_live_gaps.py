@@ -1,6 +1,7 @@
 """A live capture whose decoding falls behind: skipped reads are said (a ``gap`` record, the
 summary, standard error), and decoding starts again after them instead of splicing bytes that
-were never adjacent on the wire into invented noise and CRC errors."""
+were never adjacent on the wire into invented noise and CRC errors; a read stamped but not yet
+queued holds the decoder's clock back."""
 
 from __future__ import annotations
 
@@ -8,6 +9,8 @@ import io
 import json
 import queue
 import threading
+
+import pytest
 
 from decoders.capture import CaptureInfo, Chunk, TimingQuality
 from decoders.line import LineSettings
@@ -21,15 +24,22 @@ MS = 1_000_000
 
 
 class Clock:
+    """A serial source's clock: now, and where a read not yet queued began (``in_flight``)."""
+
     def __init__(self) -> None:
         self.now = T0
+        self.in_flight: int | None = None
 
     def now_ns(self) -> int:
         return self.now
 
+    def heard_until_ns(self) -> int:
+        return self.now if self.in_flight is None else min(self.now, self.in_flight)
 
-def _session(out: io.StringIO, shared: _Shared) -> _Session:
-    options = CaptureOptions("/dev/ttyTEST", LineSettings.parse("19200 8E1"), None, None, "jsonl", None, None, None)
+
+def _session(out: io.StringIO, shared: _Shared, response_timeout_ns: int | None = None) -> _Session:
+    options = CaptureOptions("/dev/ttyTEST", LineSettings.parse("19200 8E1"), None, None, "jsonl", None,
+                             response_timeout_ns, None)
     session = _Session(options, PortStatus(None, None, False), None, shared, out)
     session.delivery.start("/dev/ttyTEST", CaptureInfo(options.line, TimingQuality.HOST), options.line)
     return session
@@ -85,12 +95,36 @@ def test_decoding_restarts_at_a_gap() -> None:
     assert summary["kind"] == "summary" and summary["skipped_reads"] == 2 and summary["skipped_bytes"] == 15
 
 
+@pytest.mark.parametrize("answer_in_flight", [True, False])
+def test_an_answer_read_in_time_but_queued_late_is_no_timeout(answer_in_flight: bool) -> None:
+    """The reader stamped the answer 12 ms after the request and was then held up (a loaded
+    machine) before queueing it, while the decoder woke 500 ms later: with the read in flight,
+    the decoder's clock stops where it began, and the answer pairs. The same drain with no read
+    in flight (the answer really not there) times the request out: what a decoder that took the
+    time alone did with the late-queued answer too."""
+    out, clock = io.StringIO(), Clock()
+    shared = _Shared(threading.Event(), queue.Queue())
+    session = _session(out, shared, response_timeout_ns=100 * MS)
+    shared.stop.set()  # _drain waits on it for the refresh interval: not here
+    shared.reads.put(Chunk(T0, REQUEST))
+    clock.now, clock.in_flight = T0 + 500 * MS, (T0 + 11 * MS if answer_in_flight else None)
+    session._drain(clock)  # type: ignore[arg-type]
+    shared.reads.put(Chunk(T0 + 12 * MS, RESPONSE))
+    clock.now, clock.in_flight = T0 + 600 * MS, None
+    session._drain(clock)  # type: ignore[arg-type]
+    session.finish()
+    frames = [r for r in map(json.loads, out.getvalue().splitlines()) if r["kind"] == "frame"]
+    if answer_in_flight:
+        assert [(f["role"], f["flags"], f["request_index"]) for f in frames] == [
+            ("request", [], None), ("response", [], 0)]
+    else:
+        assert [(f["role"], f["flags"]) for f in frames] == [("request", ["timeout"]), ("response", ["unexpected"])]
+
+
 def test_a_stop_signal_waits_for_the_record_being_written() -> None:
     """SIGTERM while a JSONL record is written (a consumer that reads slowly) stops the capture
     after the write, never inside a line; a second signal stops it at once."""
     import signal
-
-    import pytest
 
     from sniffer.stopping import StopRequest, TerminatedError
 
@@ -112,8 +146,6 @@ def test_records_written_under_signals_are_whole() -> None:
     import signal
     import sys
     import time
-
-    import pytest
 
     from sniffer.stopping import whole_writes
 
