@@ -203,18 +203,26 @@ class Matcher:
         requests, failed = self._open, self._failed
         open_position, open_function, open_key = requests.position, requests.function, requests.key
         open_end, open_index, open_data, open_slaves = requests.t_end_ns, requests.index, requests.data, requests.slaves
-        offsets, data = frames.offsets.tolist(), frames.data
-        slaves, functions, shape_of = shapes.slave.tolist(), shapes.function.tolist(), shapes.shape.tolist()
-        request_keys, response_keys = shapes.request_key.tolist(), shapes.response_key.tolist()
-        crc_oks, t_starts, t_ends = frames.crc_ok.tolist(), frames.t_start_ns.tolist(), frames.t_end_ns.tolist()
-        first_index = frames.first_index
-        active_list = active.tolist()
+        k = self._leading_runs(frames, active, runs, first)
+        if k == len(active):
+            return
+        # The frames from the first one visited on, as lists (on a healthy bus that is the last
+        # request of the batch, whose answer comes in the next: the runs before need none).
+        base = int(active[k])
+        offsets, data = frames.offsets[base:].tolist(), frames.data
+        slaves, functions, shape_of = shapes.slave[base:].tolist(), shapes.function[base:].tolist(), \
+            shapes.shape[base:].tolist()
+        request_keys, response_keys = shapes.request_key[base:].tolist(), shapes.response_key[base:].tolist()
+        crc_oks, t_starts = frames.crc_ok[base:].tolist(), frames.t_start_ns[base:].tolist()
+        t_ends = frames.t_end_ns[base:].tolist()
+        first_index = frames.first_index + base
+        first += base
+        active_list = (active - base).tolist()
         deadline = self._deadline()
         timeout = self.timeout_ns
-        k = 0
         while k < len(active_list):
             if runs[k] and self.bulk and not open_slaves:
-                self._settle_pairs(frames, active[k : k + 2 * runs[k]], first)
+                self._settle_pairs(frames, active[k : k + 2 * runs[k]], first - base)
                 k += 2 * runs[k]
                 timeout = self.timeout_ns
                 continue
@@ -262,6 +270,15 @@ class Matcher:
                 role[position] = RESPONSE
                 if self._asked:  # before the first request: its request preceded the recording
                     flags[position] = UNEXPECTED
+
+    def _leading_runs(self, frames: FrameBatch, active: npt.NDArray[np.intp], runs: list[int], first: int) -> int:
+        """Settle the runs of pairs the batch begins with, from a clean state; the active frame
+        after them."""
+        k = 0
+        while k < len(active) and runs[k] and self.bulk and not self._open.slaves:
+            self._settle_pairs(frames, active[k : k + 2 * runs[k]], first)
+            k += 2 * runs[k]
+        return k
 
     def _settle_pairs(self, frames: FrameBatch, pair_frames: npt.NDArray[np.intp], first: int) -> None:
         """Requests and their answers, alternating, from a state with nothing open."""
