@@ -48,7 +48,7 @@ from decoders.frame import USS, FrameBatch, FrameFlag, concat_frames, slice_fram
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from decoders.modbus.codes import BROADCAST_ADDRESS, EXCEPTION_BIT
 from decoders.modbus.layouts import MEI_EXCEPTION_LENGTH
-from decoders.modbus.pair_runs import pair_runs
+from decoders.modbus.pair_runs import FrameLists, pair_runs
 from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, MIN_ADU, Shapes, frame_shapes
 from decoders.uss_pairing import UssPairing
 
@@ -193,8 +193,9 @@ class Matcher:
             if last_start > self._deadline():
                 self._expire(last_start)
 
-    def _visit(  # noqa: PLR0915
-        self, frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], runs: list[int], first: int
+    def _visit(  # noqa: PLR0912, PLR0915
+        self, frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], runs: npt.NDArray[np.int64],
+        first: int
     ) -> None:
         """The frames of ``active`` in order; from a clean state, ``runs[k]`` pairs starting
         at active frame k are settled in bulk."""
@@ -203,58 +204,57 @@ class Matcher:
         requests, failed = self._open, self._failed
         open_position, open_function, open_key = requests.position, requests.function, requests.key
         open_end, open_index, open_data, open_slaves = requests.t_end_ns, requests.index, requests.data, requests.slaves
-        k = self._leading_runs(frames, active, runs, first)
-        if k == len(active):
+        settled = self._leading_runs(frames, active, runs, first)
+        if settled == len(active):
             return
-        # The frames from the first one visited on, as lists (on a healthy bus that is the last
-        # request of the batch, whose answer comes in the next: the runs before need none).
-        base = int(active[k])
-        offsets, data = frames.offsets[base:].tolist(), frames.data
-        slaves, functions, shape_of = shapes.slave[base:].tolist(), shapes.function[base:].tolist(), \
-            shapes.shape[base:].tolist()
-        request_keys, response_keys = shapes.request_key[base:].tolist(), shapes.response_key[base:].tolist()
-        crc_oks, t_starts = frames.crc_ok[base:].tolist(), frames.t_start_ns[base:].tolist()
-        t_ends = frames.t_end_ns[base:].tolist()
-        first_index = frames.first_index + base
-        first += base
-        active_list = (active - base).tolist()
+        active, data, first_index = active[settled:], frames.data, frames.first_index
+        active_list, runs_at = active.tolist(), runs[settled:].tolist()
+        # The frames the loop visits, as lists of a window of the batch (see FrameLists).
+        window = FrameLists(frames, shapes)
+        base = window_end = 0
         deadline = self._deadline()
         timeout = self.timeout_ns
+        k = 0
         while k < len(active_list):
-            if runs[k] and self.bulk and not open_slaves:
-                self._settle_pairs(frames, active[k : k + 2 * runs[k]], first - base)
-                k += 2 * runs[k]
+            if runs_at[k] and self.bulk and not open_slaves:
+                self._settle_pairs(frames, active[k : k + 2 * runs_at[k]], first)
+                k += 2 * runs_at[k]
                 timeout = self.timeout_ns
                 continue
             i = active_list[k]
             k += 1
-            t_start = t_starts[i]
+            if i >= window_end:
+                base, window_end = i, window.reach(i)
+                offsets, slaves, functions, shape_of, request_keys, response_keys, crc_oks, t_starts, t_ends = \
+                    window.lists(base, window_end)
+            j = i - base
+            t_start = t_starts[j]
             if t_start > deadline:
                 self._expire(t_start)
                 deadline = self._deadline()
-            slave, raw, shape, position = slaves[i], functions[i], shape_of[i], first + i
+            slave, raw, shape, position = slaves[j], functions[j], shape_of[j], first + i
             if raw & EXCEPTION_BIT:
-                code = data[offsets[i] + (3 if offsets[i + 1] - offsets[i] == MEI_EXCEPTION_LENGTH else 2)]
-                self._exception(position, slave, raw & ~EXCEPTION_BIT, shape, code=code, crc_ok=crc_oks[i],
+                code = data[offsets[j] + (3 if offsets[j + 1] - offsets[j] == MEI_EXCEPTION_LENGTH else 2)]
+                self._exception(position, slave, raw & ~EXCEPTION_BIT, shape, code=code, crc_ok=crc_oks[j],
                                 t_start=t_start)
                 deadline, timeout = self._deadline(), self.timeout_ns
                 continue
             if slave == BROADCAST_ADDRESS:
-                self._broadcast(position, raw, shape, request_keys[i], response_keys[i])
+                self._broadcast(position, raw, shape, request_keys[j], response_keys[j])
                 continue
             pending = open_position[slave]
             if (
                 shape & FITS_RESPONSE
                 and pending != NONE
                 and open_function[slave] == raw
-                and open_key[slave] == response_keys[i]
+                and open_key[slave] == response_keys[j]
             ):
                 role[position] = RESPONSE
-                self._answer(position, slave, crc_oks[i], t_start)
+                self._answer(position, slave, crc_oks[j], t_start)
                 timeout = self.timeout_ns
                 # The deadline stays as it is: at worst too early, which costs one needless check.
             elif shape & FITS_REQUEST:
-                adu = data[offsets[i] : offsets[i + 1]]
+                adu = data[offsets[j] : offsets[j + 1]]
                 if pending != NONE:
                     self._fail(slave)
                 role[position] = REQUEST
@@ -262,22 +262,23 @@ class Matcher:
                 if failed and failed.get(slave) == adu:
                     flags[position] = RETRY
                 open_position[slave], open_index[slave] = position, first_index + i
-                open_function[slave], open_key[slave] = raw, request_keys[i]
-                open_end[slave], open_data[slave] = t_ends[i], adu
+                open_function[slave], open_key[slave] = raw, request_keys[j]
+                open_end[slave], open_data[slave] = t_ends[j], adu
                 open_slaves.add(slave)
-                deadline = min(deadline, t_ends[i] + timeout)
+                deadline = min(deadline, t_ends[j] + timeout)
             elif shape & FITS_RESPONSE:
                 role[position] = RESPONSE
                 if self._asked:  # before the first request: its request preceded the recording
                     flags[position] = UNEXPECTED
 
-    def _leading_runs(self, frames: FrameBatch, active: npt.NDArray[np.intp], runs: list[int], first: int) -> int:
+    def _leading_runs(self, frames: FrameBatch, active: npt.NDArray[np.intp], runs: npt.NDArray[np.int64],
+                      first: int) -> int:
         """Settle the runs of pairs the batch begins with, from a clean state; the active frame
         after them."""
         k = 0
-        while k < len(active) and runs[k] and self.bulk and not self._open.slaves:
-            self._settle_pairs(frames, active[k : k + 2 * runs[k]], first)
-            k += 2 * runs[k]
+        while k < len(active) and (run := int(runs[k])) and self.bulk and not self._open.slaves:
+            self._settle_pairs(frames, active[k : k + 2 * run], first)
+            k += 2 * run
         return k
 
     def _settle_pairs(self, frames: FrameBatch, pair_frames: npt.NDArray[np.intp], first: int) -> None:

@@ -3,7 +3,8 @@
 From a state with nothing open, a request followed by its answer (same slave
 and function, fitting content, a valid answer CRC, well within the shortest response timeout)
 has one possible outcome; :class:`decoders.modbus.matcher.Matcher` settles such runs in bulk and
-visits the frames outside them one by one (``bulk=False`` visits all: the reference path).
+visits the frames outside them one by one (``bulk=False`` visits all: the reference path),
+reading them from :class:`FrameLists`.
 """
 
 from __future__ import annotations
@@ -16,12 +17,13 @@ from decoders.modbus.codes import BROADCAST_ADDRESS
 from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, IS_EXCEPTION, Shapes
 
 
-def pair_runs(frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], *, within_ns: int) -> list[int]:
+def pair_runs(frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], *,
+              within_ns: int) -> npt.NDArray[np.int64]:
     """For each active frame k: how many request/answer pairs start there, one after the
     other, whose outcome is certain from a state with nothing open (0 if none): each answer
     comes ``within_ns`` of its request (less than any response timeout)."""
     if len(active) < 2:
-        return [0] * len(active)
+        return np.zeros(len(active), np.int64)
     slave, raw, shape = shapes.slave[active], shapes.function[active], shapes.shape[active]
     request_key, response_key = shapes.request_key[active], shapes.response_key[active]
     ask, answer = slice(0, -1), slice(1, None)
@@ -43,4 +45,35 @@ def pair_runs(frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], 
         breaks = np.where(starts, len(starts), np.arange(len(starts)))
         next_break = np.minimum.accumulate(breaks[::-1])[::-1]
         runs[parity::2] = next_break - np.arange(len(starts))
-    return runs.tolist()
+    return runs
+
+
+class FrameLists:
+    """The columns the matcher's loop reads, as lists of a window of a batch's frames.
+
+    On a healthy bus the loop visits few frames of a batch (bulk runs settle the rest): the
+    answer to the request the batch before left open, then the batch's own last request. Lists
+    of the whole batch cost more than the loop then. The first window is short; a frame past
+    it gets the rest of the batch, where a bus that needs the loop throughout is read once more.
+    """
+
+    FIRST = 64
+
+    def __init__(self, frames: FrameBatch, shapes: Shapes) -> None:
+        self.frames, self.shapes = frames, shapes
+        self._windows = 0
+
+    def reach(self, start: int) -> int:
+        """Where a window from frame ``start`` ends."""
+        self._windows += 1
+        return min(start + self.FIRST, len(self.frames)) if self._windows == 1 else len(self.frames)
+
+    def lists(self, start: int, stop: int) -> tuple[list[int], list[int], list[int], list[int], list[int],
+                                                    list[int], list[bool], list[int], list[int]]:
+        """Offsets (one more), slave, function, shape, request and response keys, CRC, start
+        and end times of frames ``start`` to ``stop``."""
+        frames, shapes, window = self.frames, self.shapes, slice(start, stop)
+        return (frames.offsets[start : stop + 1].tolist(), shapes.slave[window].tolist(),
+                shapes.function[window].tolist(), shapes.shape[window].tolist(), shapes.request_key[window].tolist(),
+                shapes.response_key[window].tolist(), frames.crc_ok[window].tolist(),
+                frames.t_start_ns[window].tolist(), frames.t_end_ns[window].tolist())

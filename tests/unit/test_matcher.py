@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -173,8 +174,10 @@ def test_damaged_exception_answer_makes_the_repeat_a_retry() -> None:
                              ("response", 2, [])]
 
 
-def test_bulk_settling_changes_nothing() -> None:
-    """On traffic with every fault the corpus knows, bulk runs and the frame-by-frame loop agree."""
+@pytest.mark.parametrize("chunks_per_batch", [50, 400])
+def test_bulk_settling_changes_nothing(chunks_per_batch: int) -> None:
+    """On traffic with every fault the corpus knows, bulk runs and the frame-by-frame loop agree;
+    in batches of more frames than the loop's first window of lists (FrameLists.FIRST) too."""
     from decoders.capture import ChunkBatch
     from decoders.framer import Framer
     from tests.corpus import LINES, SCENARIOS, build
@@ -182,8 +185,8 @@ def test_bulk_settling_changes_nothing() -> None:
     for scenario in SCENARIOS:
         corpus = build(scenario, LINES[1], exchanges=200)
         framer = Framer(corpus.line)
-        pieces = range(0, len(corpus.chunks), 50)
-        batches = [framer.feed(ChunkBatch.from_chunks(corpus.chunks[i : i + 50])) for i in pieces]
+        pieces = range(0, len(corpus.chunks), chunks_per_batch)
+        batches = [framer.feed(ChunkBatch.from_chunks(corpus.chunks[i : i + chunks_per_batch])) for i in pieces]
         batches.append(framer.flush())
         results = []
         for bulk in (True, False):
