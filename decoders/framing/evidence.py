@@ -22,6 +22,10 @@ length by CRC search   -8      no length rule: ~256 lengths tried, 2^8 more chan
 expected direction     +3      where the request and response rules give different lengths:
                                the response reading after a request to the same slave and
                                function, the request reading otherwise
+quantity out of range  -4      a read request (FC 1-4) asking for 0 or more than the
+                               specification allows (2000 bits, 125 registers): only a faulty
+                               master sends one (its slave answers exception 03), while an
+                               answer and two 0x00 glitch bytes read as such a request too
 silence > t1.5 at a    +1      exact timing only: a pause (or a segment end) where a piece
 piece's start or end           starts or ends
 silence > t1.5 inside  -4      exact timing only: each pause inside a frame
@@ -81,6 +85,9 @@ FUNCTION_USER_DEFINED = -3.0
 FUNCTION_UNKNOWN = -6.0
 LENGTH_SEARCHED = -8.0
 EXPECTED_DIRECTION = 3.0
+QUANTITY_OUT_OF_RANGE = -4.0
+#: The most a read request may ask for, per function code (the specification's limits).
+READ_QUANTITY_LIMITS = {1: 2000, 2: 2000, 3: 125, 4: 125}
 BOUNDARY_SUPPORTED = 1.0
 PAUSE_INSIDE = -4.0
 DAMAGED = -10.0
@@ -113,6 +120,15 @@ def function_prior(function: int) -> float | None:
     if code in USER_DEFINED_FUNCTIONS:
         return FUNCTION_USER_DEFINED
     return FUNCTION_UNKNOWN
+
+
+def quantity_prior(request: bytes) -> float:
+    """What a read request's quantity says (``request``: at least its first six bytes)."""
+    limit = READ_QUANTITY_LIMITS.get(request[1])
+    if limit is None or len(request) < 6:
+        return 0.0
+    quantity = request[4] << 8 | request[5]
+    return 0.0 if 1 <= quantity <= limit else QUANTITY_OUT_OF_RANGE
 
 
 def plausible_damaged_header(address: int, function: int) -> bool:
@@ -212,7 +228,8 @@ def valid_frames_at(data: bytes, start: int, stop: int, *, search_unknown: bool,
         if length is None or not MIN_ADU <= length <= len(head) or crc16.modbus(head[:length]) != 0:
             continue
         direction = NO_DIRECTION if len(lengths) == 1 else (REQUEST_READING, RESPONSE_READING)[position]
-        found.append((start + length, CRC_MATCH + prior, FrameFlag.NONE, MODBUS, direction))
+        quantity = quantity_prior(head) if direction == REQUEST_READING else 0.0
+        found.append((start + length, CRC_MATCH + prior + quantity, FrameFlag.NONE, MODBUS, direction))
     known = (function & ~EXCEPTION_BIT) in FUNCTION_NAMES or (function & ~EXCEPTION_BIT) in USER_DEFINED_FUNCTIONS
     if (known or search_unknown) and searchable(head, lengths):
         score = CRC_MATCH + prior + LENGTH_SEARCHED

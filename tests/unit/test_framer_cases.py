@@ -74,6 +74,24 @@ def test_glitch_after_a_frame_is_noise_and_the_frame_is_intact() -> None:
     assert emitted == [(request, False, True, frozenset()), (b"\x00", True, False, frozenset())]
 
 
+@pytest.mark.parametrize("fast", [True, False], ids=["fast", "reference"])
+def test_an_answer_and_two_zero_glitch_bytes_are_no_request(fast: bool) -> None:
+    """An FC 2 answer of 6 bytes with two 0x00 bytes right behind it passes the CRC as 8 bytes,
+    an FC 2 request's length: asking for 0x57CC inputs, more than a request may ask for (2000).
+    The answer to the open request and its glitch, as the property test found (seed 39)."""
+    from decoders.line import LineSettings
+    from decoders.synthesis import Transmission, exact_chunks
+
+    line = LineSettings.parse("9600 8E1")
+    request, answer = bytes.fromhex("E2025DC10001EDC9"), bytes.fromhex("E202010157CC")
+    chunks = list(exact_chunks([Transmission(request, 0), Transmission(answer, 13_600_000),
+                                Transmission(b"\x00\x00", 0)], line, 0))
+    emitted = run_framer(Corpus("glitch", line, TimingQuality.EXACT, chunks, [Expected(request), Expected(answer)]),
+                         fast=fast)
+    assert [(data, noise, crc_ok) for data, noise, crc_ok, _ in emitted] == [
+        (request, False, True), (answer, False, True), (b"\x00\x00", True, False)]
+
+
 @pytest.mark.parametrize("read_loop", ["slow-delivery", "read-timeout"])
 def test_slow_delivery_still_pairs_every_answered_request(read_loop: str) -> None:
     """An answer a read (a read timeout) after its request pairs with it: the response
