@@ -147,7 +147,8 @@ class Framer:
     def close_idle(self, now_ns: int) -> FrameBatch:
         """Live capture: the open segment is closed once the line has been quiet for t3.5
         (exact) or ``LIVE_IDLE_NS`` (host), without waiting for a next byte."""
-        if not self._data or now_ns - int(self._clock.ends_at(np.array([len(self._data) - 1]))[0]) < self._idle_ns:
+        # The clock has no empty chunk: its last chunk's time is when the last byte ended.
+        if not self._data or now_ns - int(self._clock.t_end_ns[-1]) < self._idle_ns:
             return self._assemble(b"", self._timed(ByteClock.empty(self.line.char_time_ns)), Pieces.of([]),
                                   (None, None))
         data, clock, marks = self._take_held()
@@ -172,6 +173,7 @@ class Framer:
         return held
 
     def _timed(self, clock: ByteClock) -> Timed:
+        """``clock`` with where its chunks begin and its pauses (see :data:`Timed`)."""
         silent_at, silences = clock.silences()
         return clock, silent_at, self._pauses(silent_at, silences)
 

@@ -48,7 +48,7 @@ from decoders.frame import USS, FrameBatch, FrameFlag, concat_frames, slice_fram
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from decoders.modbus.codes import BROADCAST_ADDRESS, EXCEPTION_BIT
 from decoders.modbus.layouts import MEI_EXCEPTION_LENGTH
-from decoders.modbus.pair_runs import FrameLists, pair_runs
+from decoders.modbus.pair_runs import FIRST_WINDOW, frame_lists, pair_runs
 from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, MIN_ADU, Shapes, frame_shapes
 from decoders.uss_pairing import UssPairing
 
@@ -193,7 +193,7 @@ class Matcher:
             if last_start > self._deadline():
                 self._expire(last_start)
 
-    def _visit(  # noqa: PLR0912, PLR0915
+    def _visit(  # noqa: PLR0915
         self, frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], runs: npt.NDArray[np.int64],
         first: int
     ) -> None:
@@ -204,13 +204,9 @@ class Matcher:
         requests, failed = self._open, self._failed
         open_position, open_function, open_key = requests.position, requests.function, requests.key
         open_end, open_index, open_data, open_slaves = requests.t_end_ns, requests.index, requests.data, requests.slaves
-        settled = self._leading_runs(frames, active, runs, first)
-        if settled == len(active):
-            return
-        active, data, first_index = active[settled:], frames.data, frames.first_index
-        active_list, runs_at = active.tolist(), runs[settled:].tolist()
-        # The frames the loop visits, as lists of a window of the batch (see FrameLists).
-        window = FrameLists(frames, shapes)
+        data, first_index = frames.data, frames.first_index
+        active_list, runs_at = active.tolist(), runs.tolist()
+        # The frames the loop visits, as lists of a window of the batch (see frame_lists).
         base = window_end = 0
         deadline = self._deadline()
         timeout = self.timeout_ns
@@ -224,9 +220,9 @@ class Matcher:
             i = active_list[k]
             k += 1
             if i >= window_end:
-                base, window_end = i, window.reach(i)
+                base, window_end = i, min(i + FIRST_WINDOW, len(frames)) if window_end == 0 else len(frames)
                 offsets, slaves, functions, shape_of, request_keys, response_keys, crc_oks, t_starts, t_ends = \
-                    window.lists(base, window_end)
+                    frame_lists(frames, shapes, base, window_end)
             j = i - base
             t_start = t_starts[j]
             if t_start > deadline:
@@ -270,16 +266,6 @@ class Matcher:
                 role[position] = RESPONSE
                 if self._asked:  # before the first request: its request preceded the recording
                     flags[position] = UNEXPECTED
-
-    def _leading_runs(self, frames: FrameBatch, active: npt.NDArray[np.intp], runs: npt.NDArray[np.int64],
-                      first: int) -> int:
-        """Settle the runs of pairs the batch begins with, from a clean state; the active frame
-        after them."""
-        k = 0
-        while k < len(active) and (run := int(runs[k])) and self.bulk and not self._open.slaves:
-            self._settle_pairs(frames, active[k : k + 2 * run], first)
-            k += 2 * run
-        return k
 
     def _settle_pairs(self, frames: FrameBatch, pair_frames: npt.NDArray[np.intp], first: int) -> None:
         """Requests and their answers, alternating, from a state with nothing open."""

@@ -4,7 +4,7 @@ From a state with nothing open, a request followed by its answer (same slave
 and function, fitting content, a valid answer CRC, well within the shortest response timeout)
 has one possible outcome; :class:`decoders.modbus.matcher.Matcher` settles such runs in bulk and
 visits the frames outside them one by one (``bulk=False`` visits all: the reference path),
-reading them from :class:`FrameLists`.
+reading them from :func:`frame_lists`.
 """
 
 from __future__ import annotations
@@ -48,32 +48,23 @@ def pair_runs(frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], 
     return runs
 
 
-class FrameLists:
-    """The columns the matcher's loop reads, as lists of a window of a batch's frames.
+#: Frames in the matcher loop's first window of lists (see :func:`frame_lists`).
+FIRST_WINDOW = 64
+
+
+def frame_lists(frames: FrameBatch, shapes: Shapes, start: int, stop: int) -> tuple[
+        list[int], list[int], list[int], list[int], list[int], list[int], list[bool], list[int], list[int]]:
+    """The columns the matcher's loop reads, as lists of frames ``start`` to ``stop``: offsets
+    (one more), slave, function, shape, request and response keys, CRC, start and end times.
 
     On a healthy bus the loop visits few frames of a batch (bulk runs settle the rest): the
     answer to the request the batch before left open, then the batch's own last request. Lists
-    of the whole batch cost more than the loop then. The first window is short; a frame past
-    it gets the rest of the batch, where a bus that needs the loop throughout is read once more.
+    of the whole batch cost more than the loop then. So the first window is ``FIRST_WINDOW``
+    frames, and a frame past it gets the rest of the batch: a bus that needs the loop
+    throughout is read once more.
     """
-
-    FIRST = 64
-
-    def __init__(self, frames: FrameBatch, shapes: Shapes) -> None:
-        self.frames, self.shapes = frames, shapes
-        self._windows = 0
-
-    def reach(self, start: int) -> int:
-        """Where a window from frame ``start`` ends."""
-        self._windows += 1
-        return min(start + self.FIRST, len(self.frames)) if self._windows == 1 else len(self.frames)
-
-    def lists(self, start: int, stop: int) -> tuple[list[int], list[int], list[int], list[int], list[int],
-                                                    list[int], list[bool], list[int], list[int]]:
-        """Offsets (one more), slave, function, shape, request and response keys, CRC, start
-        and end times of frames ``start`` to ``stop``."""
-        frames, shapes, window = self.frames, self.shapes, slice(start, stop)
-        return (frames.offsets[start : stop + 1].tolist(), shapes.slave[window].tolist(),
-                shapes.function[window].tolist(), shapes.shape[window].tolist(), shapes.request_key[window].tolist(),
-                shapes.response_key[window].tolist(), frames.crc_ok[window].tolist(),
-                frames.t_start_ns[window].tolist(), frames.t_end_ns[window].tolist())
+    window = slice(start, stop)
+    return (frames.offsets[start : stop + 1].tolist(), shapes.slave[window].tolist(),
+            shapes.function[window].tolist(), shapes.shape[window].tolist(), shapes.request_key[window].tolist(),
+            shapes.response_key[window].tolist(), frames.crc_ok[window].tolist(),
+            frames.t_start_ns[window].tolist(), frames.t_end_ns[window].tolist())
