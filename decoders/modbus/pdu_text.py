@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import struct
 
+#: How many register values a summary shows (the rest: how many more).
+HEX_WORDS_SHOWN = 8
 
-def hex_words(values: tuple[int, ...], limit: int = 8) -> str:
+
+def hex_words(values: tuple[int, ...], limit: int = HEX_WORDS_SHOWN) -> str:
     """``000F 0081``: the first ``limit`` values as 16-bit hex words, and how many more there are."""
     shown = struct.pack(f">{min(len(values), limit)}H", *values[:limit]).hex(" ", 2).upper()
     return shown + (f" … (+{len(values) - limit})" if len(values) > limit else "")
 
 
-def hex_payload(payload: bytes, limit: int = 8) -> str:
+def hex_payload(payload: bytes, limit: int = HEX_WORDS_SHOWN) -> str:
     """:func:`hex_words` of the big-endian registers ``payload`` holds, written from its bytes
     (no tuple of values to build first)."""
     words = len(payload) // 2

@@ -34,6 +34,7 @@ from decoders.frame import MODBUS
 from decoders.message import ROLE_CODE, Decoding, Role
 from decoders.modbus.param_runs import LazyParams
 from decoders.modbus.pdu import Pdu, ReadWriteRequest, RegistersResponse, WriteRegistersRequest, WriteSingle
+from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_words
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.profiles.naming import AddressNamer, summary_with
 
@@ -54,19 +55,23 @@ WINDOW, REPEATS_WORTH_IT, REST = 4096, 1 / 16, 1 << 16
 ShapeKey = tuple[int, bytes, int, object, int]
 #: A frame's decoding and the answer context its answer reads.
 Decoded = tuple[Decoding, "tuple[object, ...] | None"]
+#: A frame's PDU summary, from its bytes, where its values begin and its values.
+SummaryWriter = Callable[[bytes, int, tuple[int, ...]], str]
 
 
 class Shape:
-    """What the frames of one shape share: how to rebuild their PDU from their values, their
-    params' namers (``None``: no profile adds to them, the params are named when read), the
-    params named without a value after the values (an FC 23 request's read), the remarks."""
+    """What the frames of one shape share: how to rebuild their PDU from their values, how to
+    write their PDU's summary from their bytes (:func:`summary_writer`), their params' namers
+    (``None``: no profile adds to them, the params are named when read), the params named without
+    a value after the values (an FC 23 request's read), the remarks."""
 
-    __slots__ = ("context", "generation", "namers", "pdu_of", "remarks", "unpack", "unvalued")
+    __slots__ = ("context", "generation", "namers", "pdu_of", "remarks", "summary_of", "unpack", "unvalued")
 
     def __init__(self, unpack: Callable[[bytes, int], tuple[int, ...]], pdu_of: Callable[[tuple[int, ...]], Pdu],
-                 context: tuple[object, ...] | None, *, named: tuple[list[AddressNamer], int] | None = None,
-                 unvalued: int = 0, remarks: tuple[str, ...] = ()) -> None:
-        self.unpack, self.pdu_of, self.context = unpack, pdu_of, context
+                 summary_of: SummaryWriter, context: tuple[object, ...] | None, *,
+                 named: tuple[list[AddressNamer], int] | None = None, unvalued: int = 0,
+                 remarks: tuple[str, ...] = ()) -> None:
+        self.unpack, self.pdu_of, self.summary_of, self.context = unpack, pdu_of, summary_of, context
         self.namers: list[AddressNamer] | None = None if named is None else named[0]
         self.generation = 0 if named is None else named[1]
         self.unvalued, self.remarks = unvalued, remarks
@@ -77,14 +82,14 @@ class Shape:
         values = self.unpack(data, start)
         pdu = self.pdu_of(values)
         if self.namers is None:
-            return LazyParams(pdu.summary(), pdu, request)
+            return LazyParams(self.summary_of(data, start, values), pdu, request)
         assert profiles is not None
         raws = values + (None,) * self.unvalued if self.unvalued else values
         named = profiles.named_by(self.namers, raws, self.generation)
         if named is None:
             return None
         params, shown = named
-        return Decoding(summary_with(pdu.summary(), shown), tuple(params), pdu, self.remarks)
+        return Decoding(summary_with(self.summary_of(data, start, values), shown), tuple(params), pdu, self.remarks)
 
 
 class ValueShapes:
@@ -165,11 +170,14 @@ class ValueShapes:
         decoding, context = decoded
         pdu, words = decoding.pdu, (len(data) - start - 2) // 2
         pdu_of = _rebuilt(pdu)
-        if pdu_of is None or words < 1 or decoding.device is not None or decoding.uss is not None:
+        if pdu_of is None or pdu is None or words < 1 or decoding.device is not None or decoding.uss is not None:
+            return None
+        summary_of = summary_writer(pdu, words)
+        if summary_of is None:
             return None
         unpack = struct.Struct(f">{words}H").unpack_from
         if type(decoding) is LazyParams:
-            return Shape(unpack, pdu_of, context)
+            return Shape(unpack, pdu_of, summary_of, context)
         if self._profiles is None:
             return None
         addresses = [param.address for param in decoding.params]
@@ -177,7 +185,7 @@ class ValueShapes:
         named = self._profiles.value_namers(facts, addresses) if unvalued >= 0 else None
         if named is None:
             return None
-        return Shape(unpack, pdu_of, context, named=named, unvalued=unvalued, remarks=decoding.remarks)
+        return Shape(unpack, pdu_of, summary_of, context, named=named, unvalued=unvalued, remarks=decoding.remarks)
 
 
 def _rebuilt(pdu: Pdu | None) -> Callable[[tuple[int, ...]], Pdu] | None:
@@ -192,6 +200,28 @@ def _rebuilt(pdu: Pdu | None) -> Callable[[tuple[int, ...]], Pdu] | None:
         case ReadWriteRequest(read_address=read, read_count=reads, write_address=write, write_count=writes):
             return partial(ReadWriteRequest, read, reads, write, writes)
     return None
+
+
+def summary_writer(pdu: Pdu, words: int) -> SummaryWriter | None:
+    """How to write the summary of a PDU of ``pdu``'s shape (``words`` values) from a frame's
+    bytes: what the summary says of the values is their hex words (:func:`hex_words`), which
+    are the frame's own bytes in hex, or an FC 6 value in decimal and hex; the rest is the
+    shape's. Building the words from the bytes costs a third of what ``pdu.summary()`` does,
+    which formats the values anew (``None``: a summary not written so)."""
+    text = pdu.summary()
+    if isinstance(pdu, WriteSingle):
+        head = text.removesuffix(f"{pdu.value} (0x{pdu.value:04X})")
+        return None if head == text else lambda _data, _start, values: f"{head}{values[0]} (0x{values[0]:04X})"
+    values: tuple[int, ...] = getattr(pdu, "values", ())
+    if len(values) != words:
+        return None
+    shown_bytes = 2 * min(words, HEX_WORDS_SHOWN)
+    written = hex_words(values)
+    at = text.rfind(written)
+    if at < 0:
+        return None
+    head, tail = text[:at], text[at + len(hex_words(values[:HEX_WORDS_SHOWN])) :]
+    return lambda data, start, _values: head + data[start : start + shown_bytes].hex(" ", 2).upper() + tail
 
 
 def _said(decoding: Decoding | None) -> tuple[object, ...] | None:

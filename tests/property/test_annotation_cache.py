@@ -29,6 +29,7 @@ from decoders.modbus import annotate as annotate_module
 from decoders.modbus import value_shapes
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
+from decoders.modbus.pdu import ReadWriteRequest, RegistersResponse, WriteRegistersRequest, WriteSingle
 from decoders.modbus.pdu_parse import parse_pdu
 from decoders.profiles import apply as apply_module
 from decoders.profiles.apply import ProfileApplier
@@ -326,3 +327,33 @@ def test_kept_json_texts_hold_their_text_alone() -> None:
         tracemalloc.stop()
     assert texts[7] == b'{"address":8604,"code":"RFRD","name":"Speed","raw":7,"value":7,"unit":"rpm"}'
     assert held < 400 * len(params)  # the text, its tuple and dict slot: about 200 bytes
+
+
+WORDS = st.lists(st.integers(0, 0xFFFF), min_size=1, max_size=20)
+
+
+@settings(max_examples=max(300, EXAMPLES), deadline=None)
+@given(st.sampled_from(["response 3", "response 4", "write 16", "read-write 23", "write 6"]), WORDS, WORDS,
+       st.integers(0, 0xFFFF))
+def test_a_shape_writes_the_summary_its_pdu_writes(kind: str, learnt: list[int], values: list[int],
+                                                   address: int) -> None:
+    """A shape's summary, written from a frame's bytes, is its PDU's, for the values of any frame
+    of the shape (the shape is learnt from a frame of other values), more than eight too."""
+    values = (values * len(learnt))[: len(learnt)]
+    words = len(learnt)
+
+    def pdu_of(raws: list[int]) -> object:
+        match kind:
+            case "response 3" | "response 4":
+                return RegistersResponse(int(kind[-1]), 2 * words, tuple(raws))
+            case "write 16":
+                return WriteRegistersRequest(address, words, tuple(raws))
+            case "read-write 23":
+                return ReadWriteRequest(address, 3, address ^ 0x55, words, tuple(raws))
+        return WriteSingle(6, address, raws[0])
+
+    writer = value_shapes.summary_writer(pdu_of(learnt), 1 if kind == "write 6" else words)  # type: ignore[arg-type]
+    assert writer is not None
+    shown = values[:1] if kind == "write 6" else values
+    data = b"\xaa\xbb\xcc" + struct.pack(f">{len(shown)}H", *shown) + b"\x00\x00"
+    assert writer(data, 3, tuple(shown)) == pdu_of(shown).summary()  # type: ignore[attr-defined]
