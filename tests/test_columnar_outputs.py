@@ -80,7 +80,7 @@ def test_parquet(tmp_path: Path, both_ways: Callable[..., int], capture: Callabl
     source, (options, least) = capture(tmp_path), setting
     export = ["export", str(source), "--jobs", "1", "-q", *options, "--parquet"]
     assert both_ways([*export, str(tmp_path / "columns")], [*export, str(tmp_path / "plain")]) >= least
-    for name in ("frames", "transactions", "values", "anomalies"):
+    for name in ("frames", "transactions", "values", "anomalies", "latencies"):
         assert table(tmp_path / "columns", name) == table(tmp_path / "plain", name), name
 
 

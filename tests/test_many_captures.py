@@ -85,7 +85,7 @@ def test_a_folder_into_one_dataset(tmp_path: Path, cli: Callable[..., Any]) -> N
     for name in names:
         shutil.copy(CAPTURES / name, folder / name)
     result = cli("export", "--each", str(folder), "--parquet", str(tmp_path / "d"), "--jobs", "2")
-    assert result.code == 0 and "added 16 files" in result.err and "of 4 captures" in result.err
+    assert result.code == 0 and "added 20 files" in result.err and "of 4 captures" in result.err
     counts = dict(duckdb.sql(f"SELECT bus, count(*) FROM read_parquet('{tmp_path}/d/frames/**/*.parquet', "
                              "hive_partitioning = true) GROUP BY bus").fetchall())
     assert counts == {Path(name).stem: json.loads(cli("stats", str(folder / name), "--format", "json").out)["frames"]

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import signal
 import subprocess
@@ -23,15 +24,20 @@ from tests.real_recordings import RECORDINGS, TEXT, available
 duckdb = pytest.importorskip("duckdb")
 CAPTURES = Path(__file__).resolve().parents[1] / "captures"
 SAMPLES = ["atv71-plc-poll.mcap", "xbt-hmi.mcap", "atv312-setup.mcap", "nord-uss.mcap"]
-#: The README's query: latency p95 per slave per day, across every bus of the dataset.
-P95_QUERY = """
-SELECT bus, date, slave, count(*) AS answers,
-       quantile_cont(latency_ms, 0.95) AS latency_p95_ms
-FROM read_parquet('{dataset}/transactions/*/*/*.parquet', hive_partitioning = true)
-WHERE outcome = 'answered'
-GROUP BY ALL
-ORDER BY bus, date, slave
-"""
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def readme_query(table_name: str) -> str:
+    """The README's DuckDB query over ``table_name`` (its dataset folder: ``{dataset}``)."""
+    blocks = re.findall(r"```sql\n(.*?)```", README.read_text(encoding="utf-8"), re.DOTALL)
+    (query,) = [block for block in blocks if f"'plant/{table_name}/" in block]
+    return query.replace("'plant/", "'{dataset}/").rstrip().removesuffix(";")
+
+
+#: The README's queries: latency p95 per slave per day, across every bus of the dataset; exact,
+#: and to within 1 % from the latency histograms.
+P95_QUERY = readme_query("transactions")
+P95_HISTOGRAM_QUERY = readme_query("latencies")
 
 
 def table(dataset: Path, name: str) -> list[dict[str, Any]]:
@@ -134,11 +140,29 @@ def test_the_readme_query_runs_on_duckdb(dataset: Path) -> None:
         assert str(date) == "2023-11-14"
 
 
+def test_the_readme_histogram_query_is_within_one_percent(dataset: Path) -> None:
+    """The histograms count every answer of the ``transactions`` table, and their p95 is the
+    upper bound of the bin that holds the exact one (nearest rank, as ``stats`` ranks): at most
+    1 % above it."""
+    exact = duckdb.sql(P95_QUERY.format(dataset=dataset)).fetchall()
+    result = duckdb.sql(P95_HISTOGRAM_QUERY.format(dataset=dataset)).fetchall()
+    assert [row[:4] for row in result] == [row[:4] for row in exact]
+    transactions = [r for r in table(dataset, "transactions") if r["outcome"] == "answered"]
+    for bus, date, slave, answers, p95 in result:
+        mine = sorted(r["latency_ms"] for r in transactions if (r["bus"], str(r["date"]), r["slave"]) ==
+                      (bus, str(date), slave))
+        nearest_rank = mine[(95 * answers + 99) // 100 - 1]
+        assert nearest_rank <= p95 <= nearest_rank * 1.0101, (bus, slave)
+    latencies = table(dataset, "latencies")
+    assert all(row["to_ms"] == pytest.approx(1.01 * row["from_ms"]) for row in latencies)
+    assert sum(row["answers"] for row in latencies) == len(transactions)
+
+
 def test_every_file_says_where_it_comes_from(dataset: Path) -> None:
     import pyarrow.parquet as pq
 
     files = sorted(dataset.glob("*/bus=xbt-hmi/date=*/*.parquet"))
-    assert len(files) == 4
+    assert len(files) == 5
     for file in files:
         metadata = pq.read_schema(file).metadata
         assert metadata[b"rtusniff.line"] == b"19200 8N1" and len(metadata[b"rtusniff.source_sha256"]) == 64
@@ -154,8 +178,8 @@ def test_a_dataset_is_added_to_and_never_rewritten(tmp_path: Path, cli: Callable
     assert again.code == 11 and "in the dataset already" in again.err and again.err.count("\n") == 1
     assert {path: path.stat().st_mtime_ns for path in folder.rglob("*")  if path.is_file()} == before
     other = cli("export", str(CAPTURES / "atv71-plc-poll.log"), "--parquet", str(folder), "--bus", "line-1")
-    assert other.code == 0 and "added 4 files" in other.err
-    assert len(list(folder.rglob("*.parquet"))) == 8
+    assert other.code == 0 and "added 5 files" in other.err
+    assert len(list(folder.rglob("*.parquet"))) == 10
     assert all(path.stat().st_mtime_ns == mtime for path, mtime in before.items())
 
 

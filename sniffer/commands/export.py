@@ -49,8 +49,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
                         "frame in a UDP packet, master to slave port 502, so that Wireshark tells queries from "
                         "responses for every function (one preference: mbrtu.udp.port:502)")
     parser.add_argument("--parquet", metavar="DIR", help="add the decoded tables (frames, transactions, values, "
-                        "anomalies) to a Parquet dataset in DIR, partitioned by bus and date, for DuckDB, Polars, "
-                        "Spark, Trino; more captures add files, never rewrite one")
+                        "anomalies, latencies) to a Parquet dataset in DIR, partitioned by bus and date, for "
+                        "DuckDB, Polars, Spark, Trino; more captures add files, never rewrite one")
     parser.add_argument("--bus", metavar="NAME", help="with --parquet: the bus partition's name (default: the "
                         "capture file's name without its suffix)")
     parser.add_argument("--spawn", action="store_true", help="the same as --rerun spawn")

@@ -114,6 +114,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         from sniffer.exports.parquet_export import ParquetDataset  # noqa: PLC0415 - pyarrow
+        from sniffer.exports.parquet_latencies import LatencyHistograms  # noqa: PLC0415 - pyarrow
         from sniffer.exports.parquet_values import ValueCollector  # noqa: PLC0415 - pyarrow
 
         metadata = _metadata(self._args, self._analysis)
@@ -121,6 +122,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
         capture_id = hashlib.sha256(metadata["source_sha256"].encode()).hexdigest()[:16]
         bus = self._args.bus or Path(self._args.capture[0]).stem
         self._values = ValueCollector()
+        self._latencies = LatencyHistograms()
         with self.writing():
             self.exporter = ParquetDataset(self.path or "", bus, capture_id, {f"rtusniff.{k}": v for k, v in
                                                                                  metadata.items()})
@@ -160,6 +162,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
         if self.exporter is not None:
             with self.writing():
                 self.exporter.add("transactions", value["t_ns"], transaction_columns(value))
+            self._latencies.add(value)
 
     def finish(self, statistics: Statistics) -> None:
         from sniffer.exports.parquet_values import CollectedValues, value_columns  # noqa: PLC0415 - loaded already
@@ -169,6 +172,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
             self._add_values()
             if self.exporter is not None:
                 self.exporter.add("values", *value_columns(CollectedValues()))  # the table's columns, had it no row
+                self.exporter.add("latencies", *self._latencies.columns())
         self._finished = True
 
     def close(self) -> None:

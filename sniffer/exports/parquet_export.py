@@ -1,11 +1,11 @@
 """Decoded traffic as a Parquet dataset for SQL engines: ``export CAPTURE --parquet DIR``.
 
-Four tables, each a folder of ``DIR`` partitioned the Hive way by bus and UTC date, so that
+Five tables, each a folder of ``DIR`` partitioned the Hive way by bus and UTC date, so that
 DuckDB, Polars, pyarrow datasets, Spark and Trino read a table as one, whatever number of
 captures it holds::
 
     DIR/frames/bus=line-3/date=2026-03-01/<capture id>.parquet
-    DIR/transactions/…   DIR/values/…   DIR/anomalies/…
+    DIR/transactions/…   DIR/values/…   DIR/anomalies/…   DIR/latencies/…
 
 * ``frames``: a row per frame (the JSONL frame record's facts: times, slave, function, role,
   CRC, flags, pairing, latency, the bytes, the summary);
@@ -14,7 +14,10 @@ captures it holds::
   ``rtusniff values``: :mod:`sniffer.encoding.value_rows`), numbers in ``value``, texts (state
   words, markers) in ``text``;
 * ``anomalies``: a row per anomaly of a frame, by kind (:mod:`decoders.anomalies`: what
-  ``stats`` counts).
+  ``stats`` counts);
+* ``latencies``: the answers' latencies as histograms by slave and function, the bins of
+  ``stats`` (:mod:`sniffer.exports.parquet_latencies`): a plant's percentiles without reading
+  every answer.
 
 Times are nanosecond UTC timestamps; columns are zstd-compressed; each file's key-value metadata
 holds the capture's provenance (source files and SHA-256, line, timing, tool version, command).
@@ -44,7 +47,7 @@ from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.parquet_writing import RowGroupWriter
 from sniffer.exports.transactions import OUTCOMES
 
-TABLES = ("frames", "transactions", "values", "anomalies")
+TABLES = ("frames", "transactions", "values", "anomalies", "latencies")
 #: Rows gathered per file before they are written as a row group.
 ROW_GROUP_ROWS = 1 << 17
 DAY_NS = 86_400 * 1_000_000_000
