@@ -71,7 +71,7 @@ from fastcrc import crc16
 from decoders.crc import crc_ok_spans, prefix_registers
 from decoders.frame import MODBUS, USS, FrameFlag
 from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, rule_lengths
-from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT, FUNCTION_NAMES, USER_DEFINED_FUNCTIONS
+from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT, FUNCTION_NAMES, MAX_QUANTITY, USER_DEFINED_FUNCTIONS
 from decoders.modbus.layouts import LAYOUTS, MAX_ADU
 from decoders.uss import STX, uss_length
 
@@ -86,8 +86,8 @@ FUNCTION_UNKNOWN = -6.0
 LENGTH_SEARCHED = -8.0
 EXPECTED_DIRECTION = 3.0
 QUANTITY_OUT_OF_RANGE = -4.0
-#: The most a read request may ask for, per function code (the specification's limits).
-READ_QUANTITY_LIMITS = {1: 2000, 2: 2000, 3: 125, 4: 125}
+#: The read functions whose request's quantity is weighed (their limits: ``MAX_QUANTITY``).
+READ_FUNCTIONS = (1, 2, 3, 4)
 BOUNDARY_SUPPORTED = 1.0
 PAUSE_INSIDE = -4.0
 DAMAGED = -10.0
@@ -124,9 +124,9 @@ def function_prior(function: int) -> float | None:
 
 def quantity_prior(request: bytes) -> float:
     """What a read request's quantity says (``request``: at least its first six bytes)."""
-    limit = READ_QUANTITY_LIMITS.get(request[1])
-    if limit is None or len(request) < 6:
+    if request[1] not in READ_FUNCTIONS or len(request) < 6:
         return 0.0
+    limit = MAX_QUANTITY[request[1]]
     quantity = request[4] << 8 | request[5]
     return 0.0 if 1 <= quantity <= limit else QUANTITY_OUT_OF_RANGE
 
