@@ -22,9 +22,8 @@ from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, ROLE_ORDER, MessageBat
 
 _LOWEST_NS = 1_000.0
 _RATIO = 1.01
-_BINS = int(math.log(1e12 / _LOWEST_NS) / math.log(_RATIO)) + 2
 #: How many bins a latency histogram has (:func:`histogram_bins`).
-HISTOGRAM_BINS = _BINS
+HISTOGRAM_BINS = int(math.log(1e12 / _LOWEST_NS) / math.log(_RATIO)) + 2
 _LOG_RATIO = math.log(_RATIO)
 PERCENTILES = (50, 95, 99)
 
@@ -33,7 +32,7 @@ PERCENTILES = (50, 95, 99)
 class Histogram:
     """Durations in nanoseconds: count, exact min/max, percentiles to within 1 %."""
 
-    counts: npt.NDArray[np.int64] = field(default_factory=lambda: np.zeros(_BINS, np.int64))
+    counts: npt.NDArray[np.int64] = field(default_factory=lambda: np.zeros(HISTOGRAM_BINS, np.int64))
     count: int = 0
     minimum: int | None = None
     maximum: int | None = None
@@ -48,7 +47,7 @@ class Histogram:
         low, high = int(values_ns.min()), int(values_ns.max())
         self.minimum = low if self.minimum is None else min(self.minimum, low)
         self.maximum = high if self.maximum is None else max(self.maximum, high)
-        self.counts += np.bincount(histogram_bins(values_ns), minlength=_BINS)
+        self.counts += np.bincount(histogram_bins(values_ns), minlength=HISTOGRAM_BINS)
 
     def merge(self, counts: npt.NDArray[np.int64], count: int, low: int, high: int) -> None:
         """Add binned counts whose exact minimum and maximum are known."""
@@ -83,7 +82,7 @@ def histogram_bins(values_ns: npt.NDArray[np.int64]) -> npt.NDArray[np.intp]:
     """The histogram bin of each duration (see :func:`bin_floor_ns`; the last holds all above)."""
     scaled = np.maximum(values_ns, 1).astype(np.float64) / _LOWEST_NS
     bins = np.where(scaled < 1.0, 0, 1 + np.floor(np.log(np.maximum(scaled, 1.0)) / _LOG_RATIO))
-    return np.minimum(bins, _BINS - 1).astype(np.intp)
+    return np.minimum(bins, HISTOGRAM_BINS - 1).astype(np.intp)
 
 
 def _seconds(value_ns: float | None) -> float | None:
@@ -377,7 +376,8 @@ def _add_grouped(
     group, values = group[order], values[order]
     starts = np.flatnonzero(np.diff(group, prepend=-1))
     groups = group[starts].tolist()
-    counts = np.bincount(group * _BINS + histogram_bins(values), minlength=(max(groups) + 1) * _BINS).reshape(-1, _BINS)
+    bins = HISTOGRAM_BINS
+    counts = np.bincount(group * bins + histogram_bins(values), minlength=(max(groups) + 1) * bins).reshape(-1, bins)
     sizes = np.diff(np.append(starts, len(group))).tolist()
     lows, highs = np.minimum.reduceat(values, starts).tolist(), np.maximum.reduceat(values, starts).tolist()
     for g, size, low, high in zip(groups, sizes, lows, highs, strict=True):
