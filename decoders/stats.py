@@ -19,6 +19,7 @@ from decoders.capture import UartError
 from decoders.frame import FrameBatch, FrameFlag
 from decoders.framing.fast import padded_bytes
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, ROLE_ORDER, MessageBatch, Role
+from decoders.stats_tally import KEY_SPAN, LATENCY, POLL_PERIOD, FunctionTally
 
 _LOWEST_NS = 1_000.0
 _RATIO = 1.01
@@ -190,7 +191,10 @@ class SkippedReads:
 class Statistics:
     """Accumulates message batches; ``to_dict`` is the JSON form of ``stats`` and of the JSONL summary."""
 
-    per_function: dict[tuple[int, int], FunctionStats] = field(default_factory=dict)
+    #: Per slave and function (read through :attr:`per_function`, which adds what the tally holds).
+    _functions: dict[tuple[int, int], FunctionStats] = field(default_factory=dict)
+    #: What batches added per slave and function since :attr:`per_function` was last read.
+    _tally: FunctionTally = field(default_factory=lambda: FunctionTally(len(_COUNTS), HISTOGRAM_BINS), repr=False)
     roles: Counter[str] = field(default_factory=Counter)
     flags: Counter[str] = field(default_factory=Counter)
     frames: int = 0
@@ -237,42 +241,57 @@ class Statistics:
 
     def _per_function(self, batch: MessageBatch, mask: npt.NDArray[np.bool_]) -> None:
         rows = np.flatnonzero(mask)
-        keys = batch.slave[rows].astype(np.int64) * 256 + batch.function[rows]
-        unique, group = np.unique(keys, return_inverse=True)
-        targets = [self._function(int(k) // 256, int(k) % 256) for k in unique.tolist()]
+        tally = self._tally
+        pairs = tally.rows(batch.slave[rows].astype(np.int64) * KEY_SPAN + batch.function[rows])
         role, flags = batch.role[rows], batch.flags[rows]
         crc_ok = batch.frames.crc_ok[rows]
-        counts = {
+        counted = {
             "requests": role == ROLE_CODE[Role.REQUEST],
             "responses": role == ROLE_CODE[Role.RESPONSE],
             "broadcasts": role == ROLE_CODE[Role.BROADCAST],
             "crc_errors": ~crc_ok,
             **{name: (flags & flag) != 0 for name, flag in _FLAG_FIELDS.items()},
         }
-        for name, selected in counts.items():
-            totals = np.bincount(group[selected], minlength=len(unique)).tolist()
-            for target, total in zip(targets, totals, strict=True):
-                setattr(target, name, getattr(target, name) + total)
+        tally.count(pairs, [counted[name] for name in _COUNTS])
         exception = role == ROLE_CODE[Role.EXCEPTION]
-        for g, code in zip(group[exception].tolist(), batch.exception_code[rows][exception].tolist(), strict=True):
-            targets[g].exceptions[code] += 1
+        if exception.any():
+            tally.add_exceptions(pairs[exception], batch.exception_code[rows][exception])
         latency = batch.latency_ns[rows]
         answered = (latency >= 0) & crc_ok
-        _add_grouped(targets, group[answered], latency[answered], "latency")
-        asked = role == ROLE_CODE[Role.REQUEST]
-        self._poll_periods(batch, rows[asked], targets, group[asked])
+        tally.add(LATENCY, pairs[answered], histogram_bins(latency[answered]), latency[answered])
+        asked = counted["requests"]
+        self._poll_periods(batch, rows[asked], pairs[asked])
+
+    @property
+    def per_function(self) -> dict[tuple[int, int], FunctionStats]:
+        """The figures per slave and function (read at the end, or by a live view each second:
+        what the batches gathered in the tally is added to them here)."""
+        self._add_tallied()
+        return self._functions
+
+    def _add_tallied(self) -> None:
+        for tallied in self._tally.drain():
+            stats = self._function(tallied.slave, tallied.function)
+            for name, grown in zip(_COUNTS, tallied.counters, strict=True):
+                if grown:
+                    setattr(stats, name, getattr(stats, name) + grown)
+            stats.exceptions.update(tallied.exceptions)
+            for histogram, gathered in zip((stats.latency, stats.poll_period), tallied.histograms, strict=True):
+                if gathered is not None:
+                    histogram.merge(gathered.counts, gathered.count, gathered.low, gathered.high)
 
     def _poll_periods(
-        self, batch: MessageBatch, rows: npt.NDArray[np.intp], targets: list[FunctionStats], group: npt.NDArray[np.intp]
+        self, batch: MessageBatch, rows: npt.NDArray[np.intp], pairs: npt.NDArray[np.int64]
     ) -> None:
-        """Interval since the same request (same bytes) was last sent: the poll period."""
+        """Interval since the same request (same bytes) was last sent: the poll period
+        (``pairs``: each request's row in the tally)."""
         if not len(rows):
             return
         frames = batch.frames
         signatures = request_signatures(frames, rows)
         times = frames.t_start_ns[rows]
         order = np.lexsort((times, signatures))
-        signatures, times, group = signatures[order], times[order], group[order]
+        signatures, times, pairs = signatures[order], times[order], pairs[order]
         first_of_run = np.ones(len(order), np.bool_)
         first_of_run[1:] = signatures[1:] != signatures[:-1]
         previous = np.empty(len(order), np.int64)
@@ -281,13 +300,14 @@ class Statistics:
         last_of_run = np.append(first_of_run[1:], True)
         self._last_seen.store(signatures[last_of_run], times[last_of_run])
         known = previous != NONE
-        _add_grouped(targets, group[known], (times - previous)[known], "poll_period")
+        periods = (times - previous)[known]
+        self._tally.add(POLL_PERIOD, pairs[known], histogram_bins(periods), periods)
 
     def _function(self, slave: int, function: int) -> FunctionStats:
         key = (slave, function)
-        stats = self.per_function.get(key)
+        stats = self._functions.get(key)
         if stats is None:
-            stats = self.per_function[key] = FunctionStats()
+            stats = self._functions[key] = FunctionStats()
         return stats
 
     @property
@@ -301,6 +321,7 @@ class Statistics:
         counters and histograms add up exactly; the duration is the captures' durations summed,
         so that the bus load is the share of their time a wire was busy."""
         spans = self.duration_ns + other.duration_ns
+        self._add_tallied()
         for key, theirs in sorted(other.per_function.items()):
             self._function(*key).merge(theirs)
         self.roles.update(other.roles)
@@ -315,7 +336,8 @@ class Statistics:
     def portable(self) -> Statistics:
         """These statistics without the per-capture state of poll periods (1 MB): what another
         process sends back to be merged."""
-        return replace(self, _last_seen=_NO_LAST_SEEN)
+        return replace(self, _functions=self.per_function, _last_seen=_NO_LAST_SEEN,
+                       _tally=FunctionTally(len(_COUNTS), HISTOGRAM_BINS))
 
     @property
     def bus_load(self) -> float | None:
@@ -364,22 +386,3 @@ def request_signatures(frames: FrameBatch, rows: npt.NDArray[np.intp]) -> npt.ND
         head = (head << 8) | padded[starts + k]
     tail = padded[ends - 2].astype(np.int64) << 8 | padded[ends - 1]
     return (head << 16 | tail) ^ ((ends - starts) << 56)
-
-
-def _add_grouped(
-    targets: list[FunctionStats], group: npt.NDArray[np.intp], values: npt.NDArray[np.int64], histogram: str
-) -> None:
-    """Add ``values`` to the named histogram of the target each belongs to."""
-    if not len(values):
-        return
-    order = np.argsort(group, kind="stable")
-    group, values = group[order], values[order]
-    starts = np.flatnonzero(np.diff(group, prepend=-1))
-    groups = group[starts].tolist()
-    bins = HISTOGRAM_BINS
-    counts = np.bincount(group * bins + histogram_bins(values), minlength=(max(groups) + 1) * bins).reshape(-1, bins)
-    sizes = np.diff(np.append(starts, len(group))).tolist()
-    lows, highs = np.minimum.reduceat(values, starts).tolist(), np.maximum.reduceat(values, starts).tolist()
-    for g, size, low, high in zip(groups, sizes, lows, highs, strict=True):
-        target: Histogram = getattr(targets[g], histogram)
-        target.merge(counts[g], size, low, high)
