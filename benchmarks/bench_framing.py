@@ -74,6 +74,21 @@ def coil_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
     return transmissions
 
 
+def wide_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
+    """A wide bus: reads of 1-8 coils, inputs or registers (FC 1, 2, 3, 4) of 247 slaves with
+    random values, so that a batch of frames touches about 1 000 pairs of slave and function."""
+    rng = random.Random(seed)
+    transmissions = []
+    for _ in range(frames // 2):
+        slave, function, count = rng.randint(1, 247), rng.choice((1, 2, 3, 4)), rng.randint(1, 8)
+        request = bytes([slave, function]) + rng.randrange(0, 10_000).to_bytes(2, "big") + count.to_bytes(2, "big")
+        size = 2 * count if function in (3, 4) else 1
+        response = bytes([slave, function, size]) + rng.randbytes(size)
+        transmissions.append(Transmission(request + crc_bytes(request), rng.randint(2_000_000, 4_000_000)))
+        transmissions.append(Transmission(response + crc_bytes(response), rng.randint(1_800_000, 3_000_000)))
+    return transmissions
+
+
 def batched(chunks: list[Chunk]) -> list[ChunkBatch]:
     return [ChunkBatch.from_chunks(chunks[i : i + BATCH_CHUNKS]) for i in range(0, len(chunks), BATCH_CHUNKS)]
 

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from benchmarks import generate_capture
-from benchmarks.bench_framing import LINE, coil_transmissions, polling_transmissions
+from benchmarks.bench_framing import LINE, coil_transmissions, polling_transmissions, wide_transmissions
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.synthesis import Transmission, exact_chunks
 from sniffer.io.registry import open_reader, open_writer
@@ -42,18 +42,24 @@ def compile_sources() -> None:
         compileall.compile_dir(root / package, quiet=1)
 
 
+#: The benchmark traffics :func:`benchmark_capture` writes.
+TRAFFICS = ["polling", "mixed", "steady", "coils", "wide"]
+
+
 def add_capture_options(parser: argparse.ArgumentParser) -> None:
     """``--keep`` and ``--traffic``, as every end-to-end benchmark takes them."""
     parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated captures in this folder")
-    parser.add_argument("--traffic", choices=["polling", "mixed", "steady", "coils"], default="polling",
+    parser.add_argument("--traffic", choices=TRAFFICS, default="polling",
                         help="FC 3 polling of random registers and values; mixed ATV traffic with faults and random "
                              "values; the same with steady drives (benchmarks/generate_capture.py); coil reads and "
-                             "writes of random states")
+                             "writes of random states; wide: reads of 247 slaves by FC 1 to 4 (1 000 pairs of slave "
+                             "and function)")
 
 
 def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Path:
     """The benchmark capture of ``frames`` frames in ``folder``, written unless it is there:
-    ``polling`` (FC 3 only), ``mixed`` or ``steady`` (benchmarks/generate_capture.py, seed 1), ``coils``."""
+    ``polling`` (FC 3 only), ``mixed`` or ``steady`` (benchmarks/generate_capture.py, seed 1), ``coils``,
+    ``wide`` (:func:`benchmarks.bench_framing.wide_transmissions`)."""
     folder.mkdir(parents=True, exist_ok=True)
     capture = folder / f"{traffic}-{frames}.mcap"
     if not capture.exists():
@@ -61,7 +67,8 @@ def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Pa
             values = "steady" if traffic == "steady" else "random"
             generate_capture.write(capture, frames, 1, LINE, "exact", values=values)
         else:
-            write_capture(capture, frames, coil_transmissions if traffic == "coils" else polling_transmissions)
+            traffics = {"coils": coil_transmissions, "wide": wide_transmissions}
+            write_capture(capture, frames, traffics.get(traffic, polling_transmissions))
     return capture
 
 

@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks.bench_memory import benchmark_capture, compile_sources
+from benchmarks.bench_memory import TRAFFICS, benchmark_capture, compile_sources
 from decoders.capture import ChunkBatch
 from sniffer.io.registry import open_reader, open_writer
 
@@ -117,7 +117,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=20_000)
     parser.add_argument("--lines", type=int, default=40, help="the plant's lines, each recorded a file an hour")
     parser.add_argument("--jobs", default="2")
-    parser.add_argument("--traffic", default="mixed", choices=["polling", "mixed", "steady", "coils"])
+    parser.add_argument("--traffic", default="mixed", choices=TRAFFICS)
     parser.add_argument("--no-report", action="store_true", help="export and query only")
     args = parser.parse_args()
     compile_sources()

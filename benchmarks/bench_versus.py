@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_CASES = ("stats:steady", "stats:polling", "jsonl:mixed", "jsonl:polling", "jsonl:coils", "mcap:mixed",
                  "mcap:polling", "mcap:coils")
 COMMANDS = ("stats", "jsonl", "table", "mcap", "parquet")
-TRAFFICS = ("steady", "mixed", "polling", "coils")
+TRAFFICS = ("steady", "mixed", "polling", "coils", "wide")
 
 
 def _argv(command: str, capture: Path, scratch: Path) -> list[str]:
