@@ -67,8 +67,8 @@ class FunctionTally:
         self._seen = np.zeros(0, np.bool_)
 
     def rows(self, keys: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-        """The row of each key, made for the keys new to the tally (in the keys' order: the
-        pairs are then in the order they first came, as the statistics list them)."""
+        """The row of each key; keys new to the tally get new rows, in ascending order (so rows
+        are in the order :class:`~decoders.stats.Statistics` first met their pairs in)."""
         if not len(self._row_of):
             self._row_of = np.full(KEY_SPAN * KEY_SPAN, _NO_ROW, np.int64)
         rows = self._row_of[keys]
@@ -110,7 +110,7 @@ class FunctionTally:
         self._exceptions.update(zip(rows.tolist(), codes.tolist(), strict=True))
 
     def drain(self) -> list[TalliedFunction]:
-        """Every pair given since the last drain, in the order they first came, with what it
+        """Every pair given since the last drain, in the order of their rows, with what it
         gathered; the tally then starts afresh."""
         used = len(self._keys)
         exceptions: dict[int, Counter[int]] = {}
