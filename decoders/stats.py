@@ -27,6 +27,8 @@ _RATIO = 1.01
 HISTOGRAM_BINS = int(math.log(1e12 / _LOWEST_NS) / math.log(_RATIO)) + 2
 _LOG_RATIO = math.log(_RATIO)
 PERCENTILES = (50, 95, 99)
+#: The tally's 32-bit bins are added to the statistics before they could hold this many values.
+TALLY_HELD_MOST = 2**31 - 1
 
 
 @dataclass
@@ -50,7 +52,7 @@ class Histogram:
         self.maximum = high if self.maximum is None else max(self.maximum, high)
         self.counts += np.bincount(histogram_bins(values_ns), minlength=HISTOGRAM_BINS)
 
-    def merge(self, counts: npt.NDArray[np.int64], count: int, low: int, high: int) -> None:
+    def merge(self, counts: npt.NDArray[np.int64] | npt.NDArray[np.int32], count: int, low: int, high: int) -> None:
         """Add binned counts whose exact minimum and maximum are known."""
         self.counts += counts
         self.count += count
@@ -242,6 +244,8 @@ class Statistics:
     def _per_function(self, batch: MessageBatch, mask: npt.NDArray[np.bool_]) -> None:
         rows = np.flatnonzero(mask)
         tally = self._tally
+        if tally.held + len(rows) >= TALLY_HELD_MOST:  # each message adds one value at most
+            self._add_tallied()
         pairs = tally.rows(batch.slave[rows].astype(np.int64) * KEY_SPAN + batch.function[rows])
         role, flags = batch.role[rows], batch.flags[rows]
         crc_ok = batch.frames.crc_ok[rows]
@@ -279,6 +283,7 @@ class Statistics:
             for histogram, gathered in zip((stats.latency, stats.poll_period), tallied.histograms, strict=True):
                 if gathered is not None:
                     histogram.merge(gathered.counts, gathered.count, gathered.low, gathered.high)
+        self._tally.clear()
 
     def _poll_periods(
         self, batch: MessageBatch, rows: npt.NDArray[np.intp], pairs: npt.NDArray[np.int64]

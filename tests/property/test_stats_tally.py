@@ -9,9 +9,11 @@ from __future__ import annotations
 from collections import Counter
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from decoders import stats
 from decoders.message import MessageBatch
 from decoders.stats import Statistics
 from decoders.stats_tally import KEY_SPAN, LATENCY, POLL_PERIOD, FunctionTally, TalliedFunction
@@ -69,6 +71,17 @@ def _summed(drains: list[list[TalliedFunction]]) -> dict[tuple[int, int], tuple]
     return pairs
 
 
+def _taken(tally: FunctionTally) -> list[TalliedFunction]:
+    """What the tally drains, its counts copied before it is cleared (they are views)."""
+    drained = tally.drain()
+    for tallied in drained:
+        for histogram in tallied.histograms:
+            if histogram is not None:
+                histogram.counts = histogram.counts.copy()
+    tally.clear()
+    return drained
+
+
 @settings(max_examples=150, deadline=None)
 @given(st.lists(_message, max_size=300), st.lists(st.integers(1, 60), min_size=1, max_size=10),
        st.lists(st.booleans(), min_size=1, max_size=10))
@@ -88,10 +101,10 @@ def test_the_tally_adds_up_as_plain_counting(messages: list[tuple], sizes: list[
         raised = [k for k, m in enumerate(batch) if m[5] is not None]
         tally.add_exceptions(rows[raised], np.array([batch[k][5] for k in raised], np.int64))
         if drains_after[turn % len(drains_after)]:
-            drains.append(tally.drain())
+            drains.append(_taken(tally))
         position += len(batch)
         turn += 1
-    drains.append(tally.drain())
+    drains.append(_taken(tally))
     summed, plain = _summed(drains), _plain(messages)
     assert set(summed) == set(plain)
     for pair, (counters, exceptions, values) in plain.items():
@@ -128,3 +141,18 @@ def test_statistics_read_midway_end_as_read_once(sizes: list[int], reads: list[b
         position += sizes[turn % len(sizes)]
         turn += 1
     assert midway.to_dict() == reference.to_dict()
+
+
+def test_a_full_tally_is_added_before_its_bins_could_overflow(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The statistics take the tally's rows out before it holds ``TALLY_HELD_MOST`` values
+    (2**31 - 1: its bins are 32-bit); lowered here, so that it happens on the corpus."""
+    whole = whole_capture()
+    reference = Statistics()
+    reference.add_batch(whole)
+    monkeypatch.setattr(stats, "TALLY_HELD_MOST", 40)
+    guarded = Statistics()
+    for start in range(0, len(whole), 30):
+        guarded.add_batch(_slice(whole, start, min(len(whole), start + 30)))
+        assert guarded._tally.held < 40
+    assert guarded._functions  # taken out along the way, not only when read
+    assert guarded.to_dict() == reference.to_dict()
