@@ -4,17 +4,24 @@ A frame's summary depends on its kind (read, answer, write, write's answer) and 
 frames of one kind and function are summarised by one list comprehension over their columns,
 the bits of coils read or written taken from one unpacking of their bytes. The tests hold every
 line to the summary of the frame's PDU (the plain path: ``tests/property/test_columnar.py``).
+
+The commonest two, read requests and register answers of up to eight registers (a polled bus's
+every frame), are written faster (``fast``; the comprehensions remain the plain path, and the
+tests hold both to the PDU's summary): one ``%`` of a template repeated for all rows formats
+their numbers in C, the hex words of all answers are laid out by numpy and cut apart in C, and
+one ``split`` makes the lines. A million polling frames took 2.0 s of ``export --parquet``'s
+4.5 s to summarise, f-strings and ``bytes.hex`` a frame at a time.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from decoders.modbus.pdu import COIL_OFF, COIL_ON
-from decoders.modbus.pdu_text import hex_payload
+from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_payload
 
 if TYPE_CHECKING:
     from decoders.modbus.columnar import ColumnarFrames
@@ -28,16 +35,89 @@ _SHOWN_BYTES = _SHOWN_BITS // 8
 _COIL_STATES = {COIL_ON: "ON", COIL_OFF: "OFF"}
 
 
-def summaries(frames: ColumnarFrames, data: bytes) -> list[str]:
-    """Each frame's summary line, as its PDU's ``summary()`` writes it (``data``: the batch's)."""
+def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list[str]:
+    """Each frame's summary line, as its PDU's ``summary()`` writes it (``data``: the batch's;
+    ``fast``: see the module docstring, ``False`` is the plain path)."""
     kind, function = frames.kind, frames.function
     texts = np.empty(len(kind), object)
     group = kind * 256 + function
     for key in np.unique(group).tolist():
         rows = np.flatnonzero(group == key)
-        texts[rows] = _group(frames, data, rows, key >> 8, key & 0xFF)
+        kind_of, function_of = key >> 8, key & 0xFF
+        if fast and kind_of == READ:
+            texts[rows] = _read_texts(_TABLES[function_of], frames.address[rows], frames.count[rows])
+        elif fast and kind_of == READ_ANSWER and function_of >= 3:
+            _answer_texts(texts, rows, function_of, data, frames)
+        else:
+            texts[rows] = _group(frames, data, rows, kind_of, function_of)
     lines: list[str] = texts.tolist()
     return lines
+
+
+def _read_texts(table: str, address: npt.NDArray[np.int64], count: npt.NDArray[np.int64]) -> npt.NDArray[Any]:
+    """``read HR 3201..3202 (2)`` (one value: ``read HR 3201 (1)``) for every row."""
+    texts = np.empty(len(address), object)
+    one = count == 1
+    for rows, template, columns in (
+        (np.flatnonzero(one), f"read {table} %d (%d)", (address, count)),
+        (np.flatnonzero(~one), f"read {table} %d..%d (%d)", (address, address + count - 1, count)),
+    ):
+        if len(rows):
+            texts[rows] = _formatted(template, [column[rows] for column in columns])
+    return texts
+
+
+def _answer_texts(texts: npt.NDArray[Any], rows: npt.NDArray[np.int64], function: int, data: bytes,
+                  frames: ColumnarFrames) -> None:
+    """``HR = 0627 04EC (2 registers)`` into ``texts`` at ``rows``; answers of more than
+    :data:`HEX_WORDS_SHOWN` registers by the plain path (their byte counts are even: an odd
+    one is never kept in columns, :mod:`decoders.modbus.columnar_find`)."""
+    size = frames.byte_count[rows]
+    plain = size > 2 * HEX_WORDS_SHOWN
+    if plain.any():
+        texts[rows[plain]] = _group(frames, data, rows[plain], READ_ANSWER, function)
+    quick = np.flatnonzero(~plain)
+    if len(quick):
+        words = _hex_word_texts(data, frames.data[rows[quick]], size[quick])
+        registers = (size[quick] // 2).tolist()
+        texts[rows[quick]] = _formatted(f"{_TABLES[function]} = %s (%d registers)", [words, registers])
+
+
+def _formatted(template: str, columns: list[Any]) -> list[str]:
+    """``template % row`` for every row of ``columns`` (equal lengths: numbers, or texts for
+    ``%s``), by one ``%`` of the template repeated with a newline after each (texts must hold
+    neither ``%`` nor a newline: only numbers and hex words do here)."""
+    count, width = len(columns[0]), len(columns)
+    fields: list[Any] = [None] * (count * width)
+    for place, column in enumerate(columns):  # row after row, interleaved by slices in C
+        fields[place::width] = column if isinstance(column, list) else column.tolist()
+    lines = ((template + "\n") * count % tuple(fields)).split("\n")
+    lines.pop()  # after the last newline
+    return lines
+
+
+_UPPER_HEX = np.frombuffer(b"0123456789ABCDEF", np.uint8)
+
+
+def _hex_word_texts(data: bytes, starts: npt.NDArray[np.int64], sizes: npt.NDArray[np.int64]) -> list[str]:
+    """``payload.hex(" ", 2).upper()`` of each ``data[starts[i] : starts[i] + sizes[i]]`` (even
+    sizes), laid out by numpy: two digits a byte, a space after every second byte but the last,
+    ``|`` after each payload; cut apart by one ``split``."""
+    raw = np.frombuffer(data, np.uint8)
+    widths = np.maximum(sizes * 5 // 2 - 1, 0)  # 4 digits and a space a word, no space after the last
+    text_starts = np.zeros(len(sizes), np.int64)
+    np.cumsum(widths[:-1] + 1, out=text_starts[1:])
+    text = np.full(int(widths.sum()) + len(sizes), ord(" "), np.uint8)
+    text[text_starts + widths] = ord("|")
+    # Each byte's place in its payload, and in the text.
+    within = np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    places = np.repeat(text_starts, sizes) + 2 * within + within // 2
+    values = raw[np.repeat(starts, sizes) + within]
+    text[places] = _UPPER_HEX[values >> 4]
+    text[places + 1] = _UPPER_HEX[values & 0x0F]
+    words = text.tobytes().decode("ascii").split("|")
+    words.pop()  # after the last payload
+    return words
 
 
 def _group(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kind: int, function: int) -> list[str]:

@@ -16,7 +16,7 @@ from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, MessageBatch, Role, slice_messages
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
-from decoders.modbus.columnar_text import WRITE
+from decoders.modbus.columnar_text import WRITE, summaries
 from decoders.modbus.param_runs import addressed_values
 from decoders.profiles.apply import ProfileApplier
 from sniffer.profiles_io import profile_book
@@ -100,7 +100,9 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
     if reads is not None:
         data = batch.frames.data
         assert all(got.decodings[position] is IN_COLUMNS for position in kept)
-        assert reads.summaries(data) == [expected[position].summary for position in reads.positions.tolist()]
+        said_by_pdus = [expected[position].summary for position in reads.positions.tolist()]
+        assert reads.summaries(data) == said_by_pdus
+        assert summaries(reads, data, fast=False) == said_by_pdus
         assert list(zip(*reads.values(data), strict=True)) == expected_values(batch, expected, reads)
         for position in kept:  # what a plain frame's decoding says besides: nothing
             assert expected[position].remarks == () and expected[position].device is None
@@ -212,6 +214,17 @@ def test_writes_at_the_edges_say_what_the_plain_path_says() -> None:
     # Paired by hand: the matcher pairs no confirmation that differs from its write.
     batch = paired_by_hand(traffic, {answer: answer - 1 for answer in range(1, len(traffic), 2)})
     assert check_batch(annotator(None), annotator(None), batch) == 6  # not the confirmations past the limit
+
+
+def test_register_reads_around_the_words_a_summary_shows_say_what_the_plain_path_says() -> None:
+    """Answers of one to eight registers are written by the quick path, longer ones by the
+    plain one ("… (+1)"): both sides of the edge, and reads of one value and of many."""
+    traffic = []
+    for function, count in ((3, 1), (3, 2), (4, 7), (3, 8), (3, 9), (4, 10), (3, 125)):
+        traffic += [adu(b"\x01", bytes([function]), struct.pack(">HH", 3201, count)),
+                    adu(b"\x01", bytes([function, 2 * count]), bytes(range(2 * count)))]
+    batch = paired_by_hand(traffic, {answer: answer - 1 for answer in range(1, len(traffic), 2)})
+    assert check_batch(annotator(None), annotator(None), batch) == len(traffic)
 
 
 def test_short_frames_of_every_function_are_left_to_the_plain_path() -> None:
