@@ -1,6 +1,6 @@
 """`rtusniff stats` end to end on large captures: frames/s and peak RSS; prints a table.
 
-    python -m benchmarks.bench_stats [--frames 1000000 5000000] [--keep DIR] [--traffic polling|mixed]
+    python -m benchmarks.bench_stats [--frames 1000000 5000000] [--keep DIR] [--traffic polling|mixed|steady|coils|wide]
 
 Captures are FC 3 polling at 115200 8N1 (32 slaves, 1 % of frames with a pause
 inside), written as native MCAP captures in pieces; each size is analysed in a

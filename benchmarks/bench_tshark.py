@@ -1,6 +1,6 @@
 """rtusniff against Wireshark's tshark on the same frames, side by side in one run; prints a table.
 
-    python -m benchmarks.bench_tshark [--frames 1000000] [--keep DIR] [--traffic polling|mixed|steady|coils]
+    python -m benchmarks.bench_tshark [--frames 1000000] [--keep DIR] [--traffic polling|mixed|steady|coils|wide]
 
 The capture is FC 3 polling at 115200 8N1 (benchmarks/bench_memory.py). rtusniff writes it as
 pcap (`export --pcap`, frames already split), and tshark decodes that pcap with its Modbus RTU
