@@ -36,6 +36,14 @@ LINE = LineSettings.parse("115200 8N1")
 BATCH_CHUNKS = 8192
 
 
+def exchange(rng: random.Random, request: bytes, response: bytes,
+             gaps: dict[int, int] | None = None) -> list[Transmission]:
+    """A request and its response with their CRCs, each after a silence of 2-4 ms and 1.8-3 ms
+    (``gaps``: pauses inside the response)."""
+    return [Transmission(request + crc_bytes(request), rng.randint(2_000_000, 4_000_000)),
+            Transmission(response + crc_bytes(response), rng.randint(1_800_000, 3_000_000), gaps or {})]
+
+
 def polling_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
     """FC3 request/response pairs to 32 slaves, 1-8 register reads, 1 % gap_1_5."""
     rng = random.Random(seed)
@@ -46,8 +54,7 @@ def polling_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
         request = bytes([slave, 3]) + start.to_bytes(2, "big") + count.to_bytes(2, "big")
         response = bytes([slave, 3, 2 * count]) + rng.randbytes(2 * count)
         gaps = {5: 1_000_000} if i % 100 == 0 else {}
-        transmissions.append(Transmission(request + crc_bytes(request), rng.randint(2_000_000, 4_000_000)))
-        transmissions.append(Transmission(response + crc_bytes(response), rng.randint(1_800_000, 3_000_000), gaps))
+        transmissions += exchange(rng, request, response, gaps)
     return transmissions
 
 
@@ -69,8 +76,7 @@ def coil_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
             head = bytes([slave, 15]) + start.to_bytes(2, "big") + count.to_bytes(2, "big")
             request = head + bytes([(count + 7) // 8]) + rng.randbytes((count + 7) // 8)
             response = head
-        transmissions.append(Transmission(request + crc_bytes(request), rng.randint(2_000_000, 4_000_000)))
-        transmissions.append(Transmission(response + crc_bytes(response), rng.randint(1_800_000, 3_000_000)))
+        transmissions += exchange(rng, request, response)
     return transmissions
 
 
@@ -84,8 +90,7 @@ def wide_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
         request = bytes([slave, function]) + rng.randrange(0, 10_000).to_bytes(2, "big") + count.to_bytes(2, "big")
         size = 2 * count if function in (3, 4) else 1
         response = bytes([slave, function, size]) + rng.randbytes(size)
-        transmissions.append(Transmission(request + crc_bytes(request), rng.randint(2_000_000, 4_000_000)))
-        transmissions.append(Transmission(response + crc_bytes(response), rng.randint(1_800_000, 3_000_000)))
+        transmissions += exchange(rng, request, response)
     return transmissions
 
 
