@@ -139,6 +139,11 @@ _COUNTS = ("requests", "responses", "broadcasts", "crc_errors", "timeouts", "ret
            "short_idle")
 
 
+def _new_tally() -> FunctionTally:
+    """An empty tally of the statistics' counters and histogram bins."""
+    return FunctionTally(len(_COUNTS), HISTOGRAM_BINS)
+
+
 class LastSeen:
     """When each request signature was last seen, in a fixed-size direct-mapped table.
 
@@ -196,7 +201,7 @@ class Statistics:
     #: Per slave and function (read through :attr:`per_function`, which adds what the tally holds).
     _functions: dict[tuple[int, int], FunctionStats] = field(default_factory=dict)
     #: What batches added per slave and function since :attr:`per_function` was last read.
-    _tally: FunctionTally = field(default_factory=lambda: FunctionTally(len(_COUNTS), HISTOGRAM_BINS), repr=False)
+    _tally: FunctionTally = field(default_factory=_new_tally, repr=False)
     roles: Counter[str] = field(default_factory=Counter)
     flags: Counter[str] = field(default_factory=Counter)
     frames: int = 0
@@ -262,7 +267,8 @@ class Statistics:
             tally.add_exceptions(pairs[exception], batch.exception_code[rows][exception])
         latency = batch.latency_ns[rows]
         answered = (latency >= 0) & crc_ok
-        tally.add(LATENCY, pairs[answered], histogram_bins(latency[answered]), latency[answered])
+        latency = latency[answered]
+        tally.add(LATENCY, pairs[answered], histogram_bins(latency), latency)
         asked = counted["requests"]
         self._poll_periods(batch, rows[asked], pairs[asked])
 
@@ -341,8 +347,7 @@ class Statistics:
     def portable(self) -> Statistics:
         """These statistics without the per-capture state of poll periods (1 MB): what another
         process sends back to be merged."""
-        return replace(self, _functions=self.per_function, _last_seen=_NO_LAST_SEEN,
-                       _tally=FunctionTally(len(_COUNTS), HISTOGRAM_BINS))
+        return replace(self, _functions=self.per_function, _last_seen=_NO_LAST_SEEN, _tally=_new_tally())
 
     @property
     def bus_load(self) -> float | None:
