@@ -41,8 +41,9 @@ CASES = pytest.mark.parametrize(("capture", "setting"), [
     (lambda folder: _generated(folder, "polling"), ([], 5000)),
     (lambda folder: _generated(folder, "coils"), ([], 5000)),
     (lambda folder: _generated(folder, "mixed"), ([], 0)),
+    (lambda folder: _generated(folder, "mixed"), (["--profile", "atv71"], 4000)),
     *[(lambda folder, name=name: _real(folder, name), ([], 0)) for name in RECORDINGS],
-], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", *RECORDINGS])
+], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", "mixed-named", *RECORDINGS])
 
 
 @pytest.fixture
@@ -51,18 +52,18 @@ def both_ways(monkeypatch: pytest.MonkeyPatch, cli: Callable[..., Any]) -> Calla
     how many frames the first run kept in columns."""
     from decoders.modbus import annotate
     from decoders.modbus.columnar import ColumnarFrames
-    from decoders.modbus.columnar_find import find_columnar
 
     def run(columns: list[str], plain: list[str]) -> int:
         in_columns = []
+        find = annotate.Annotator._columnar
 
-        def counted(*args: Any) -> ColumnarFrames:
-            found = find_columnar(*args)
-            in_columns.append(len(found))
+        def counted(self: annotate.Annotator, batch: Any) -> ColumnarFrames | None:
+            found = find(self, batch)
+            in_columns.append(0 if found is None else len(found))
             return found
 
         with monkeypatch.context() as patch:
-            patch.setattr(annotate, "find_columnar", counted)
+            patch.setattr(annotate.Annotator, "_columnar", counted)
             patch.setattr(annotate, "DISTINCT_ENOUGH", 0.0)
             assert cli(*columns).code == 0
         with monkeypatch.context() as patch:

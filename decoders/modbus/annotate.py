@@ -52,6 +52,7 @@ from decoders.modbus.pdu_parse import parse_pdu
 from decoders.modbus.quick import QuickRead, register_reads
 from decoders.modbus.value_shapes import ValueShapes
 from decoders.profiles.apply import FrameFacts, ProfileApplier
+from decoders.profiles.columns import named, plain_codes, unnameable
 from decoders.uss import parse_uss
 
 #: Decodings kept for repeats, per generation of the memo: what a bus repeats stays while
@@ -98,12 +99,13 @@ class Annotator:
         return AnnotatedBatch(batch, decodings)
 
     def annotate_columnar(self, batch: MessageBatch, *, distinct_only: bool = False) -> AnnotatedBatch:
-        """:meth:`annotate_batch`, but the commonest frames of slaves no profile names stay in
-        columns (:mod:`decoders.modbus.columnar`): the result's ``columnar``, and its ``rows``
+        """:meth:`annotate_batch`, but the commonest frames stay in columns
+        (:mod:`decoders.modbus.columnar`, named by :mod:`decoders.profiles.columns` where a
+        profile names their slave): the result's ``columnar``, and its ``rows``
         the rest, decoded as there. The annotator's state after it is the same.
         ``distinct_only``: only in a batch of mostly distinct frames (:func:`mostly_distinct`;
         the memo serves repeats for less)."""
-        columnar = None if distinct_only and not mostly_distinct(batch) else self._columnar(batch)
+        columnar = None if distinct_only and not mostly_distinct(batch, DISTINCT_ENOUGH) else self._columnar(batch)
         if columnar is None:
             return self.annotate_batch(batch)
         first, requests = batch.frames.first_index, self._requests
@@ -121,16 +123,29 @@ class Annotator:
 
     def _columnar(self, batch: MessageBatch) -> ColumnarFrames | None:
         """The frames of ``batch`` to keep in columns: Modbus frames of slaves whose profile adds
-        nothing, up to the batch's first identification (FC 43 may give a slave a profile, which
-        then names what its frames carry; the plain path decodes from there on)."""
+        nothing or names plainly (:mod:`decoders.profiles.columns`), but a slave's from its first
+        identification in the batch on (FC 43 may give it a profile, which then names what its
+        frames carry; the plain path decodes from there on), and frames a profile would do more
+        to than name their params."""
         if not len(batch):
             return None
-        eligible = self.plain_frames(batch)
-        if self._profiles is not None:
-            identifications = np.flatnonzero(batch.function == IDENTIFICATION)
-            if len(identifications):
-                eligible[identifications[0] :] = False
-        return find_columnar(batch, eligible, self._earlier_read)
+        profiles = self._profiles
+        if profiles is None:
+            return find_columnar(batch, self.plain_frames(batch), self._earlier_read)
+        eligible = batch.frames.protocols() != USS
+        slaves = np.unique(batch.slave)
+        nameable = np.array([profiles.adds_nothing(slave) or plain_codes(profiles.book.profile_for(slave))
+                             for slave in slaves.tolist()], np.bool_)
+        eligible &= nameable[np.searchsorted(slaves, batch.slave)]
+        identifications = np.flatnonzero(batch.function == IDENTIFICATION)
+        for slave in np.unique(batch.slave[identifications]).tolist():
+            first = int(identifications[np.argmax(batch.slave[identifications] == slave)])
+            eligible[first:] &= batch.slave[first:] != slave
+        columnar = find_columnar(batch, eligible, self._earlier_read)
+        while len(unnamed := unnameable(profiles, batch, columnar)):
+            eligible[unnamed] = False
+            columnar = find_columnar(batch, eligible, self._earlier_read)
+        return named(profiles, batch, columnar)
 
     def plain_frames(self, batch: MessageBatch) -> npt.NDArray[np.bool_]:
         """Which frames of ``batch`` are Modbus frames of slaves whose profile adds nothing now."""
@@ -242,7 +257,7 @@ class Annotator:
         return decoding if self._profiles is None else self._profiles.apply_decoding(decoding, facts, request)
 
 
-def mostly_distinct(batch: MessageBatch, share: float = DISTINCT_ENOUGH) -> bool:
+def mostly_distinct(batch: MessageBatch, share: float) -> bool:
     """Whether at least ``share`` of the batch's frames differ from one another, as told by
     their CRC, length, slave and function (frames alike have them alike)."""
     frames = batch.frames

@@ -7,8 +7,10 @@ frames of a batch are kept as columns (:class:`ColumnarFrames`, found by
 :func:`decoders.modbus.columnar_find.find_columnar`): where each frame is, its function and
 kind, the first address it names and how many values, where its values lie.
 :meth:`ColumnarFrames.summaries` writes their summary lines and :meth:`ColumnarFrames.values`
-their values, as the PDUs, :mod:`decoders.modbus.param_runs` and the value rows' rule do; the
-tests hold both, and the annotator's state after each batch, to the plain path
+their values, as the PDUs, :mod:`decoders.modbus.param_runs` and the value rows' rule do. Where
+a profile names a frame's slave, :class:`ColumnarNames` holds what it names of the params
+(:mod:`decoders.profiles.columns`), and the summaries end with their texts. The tests hold all
+of it, and the annotator's state after each batch, to the plain path
 (:meth:`Annotator.annotate_batch`).
 """
 
@@ -21,8 +23,9 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.modbus.codes import MAX_QUANTITY
-from decoders.modbus.columnar_text import READ_ANSWER, WRITE, WRITE_ANSWER, summaries
+from decoders.modbus.columnar_text import READ_ANSWER, WRITE, WRITE_ANSWER, formatted, summaries
 from decoders.modbus.pdu import COIL_ON
+from decoders.profiles.naming import SHOWN_PARAMS, NamedValue, summary_with
 
 #: A param's value where its frame names the address alone.
 NO_VALUE = -1
@@ -46,16 +49,61 @@ class ColumnarValues(NamedTuple):
     address: npt.NDArray[np.int64]
     raw: npt.NDArray[np.int64]
     request: npt.NDArray[np.int64]
+    #: Each value's entry in the frames' :attr:`ColumnarNames.table` (-1: unnamed); ``None``: no
+    #: frame is named.
+    name: npt.NDArray[np.int64] | None = None
 
 
 class ColumnarParams(NamedTuple):
     """The params of frames kept in columns, frame after frame: ``sizes``: how many each frame
     names; each param's ``address``, and its ``value`` (:data:`NO_VALUE` where the frame names the
-    register or coil without one: a read request, the answer to a multiple write)."""
+    register or coil without one: a read request, the answer to a multiple write); ``name``: its
+    entry in :attr:`ColumnarNames.table` (-1: unnamed; ``None``: no frame is named)."""
 
     sizes: npt.NDArray[np.int64]
     address: npt.NDArray[np.int64]
     value: npt.NDArray[np.int64]
+    name: npt.NDArray[np.int64] | None = None
+
+
+class ColumnarNames(NamedTuple):
+    """What profiles name of the params of frames kept in columns
+    (:mod:`decoders.profiles.columns`): ``row``, per param in :meth:`ColumnarFrames.params` order,
+    its entry in ``table`` (-1: its slave's profile adds nothing); ``table``: each named value
+    (param and summary text) of the batch, once."""
+
+    row: npt.NDArray[np.int64]
+    table: list[NamedValue]
+
+    def suffixed(self, texts: list[str], sizes: npt.NDArray[np.int64], *, fast: bool = True) -> list[str]:
+        """``texts`` (the frames' PDU summaries; ``sizes``: how many params each names) followed
+        by their named values' texts, as :func:`~decoders.profiles.naming.summary_with` writes them:
+        frames that show as many texts at once, by one ``%`` of a template each
+        (:func:`~decoders.modbus.columnar_text.formatted`), or one by one (``fast=False``, or a text
+        holds a newline, which ``formatted`` cuts at)."""
+        words = np.empty(len(self.table) + 1, object)  # the last: for -1, nothing shown
+        words[:-1] = [text for _, text in self.table]
+        shown = np.flatnonzero(words[self.row] != None)  # noqa: E711 - elementwise, on objects
+        if not len(shown):
+            return texts
+        said = words[self.row[shown]]
+        counts = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[shown], minlength=len(sizes))
+        starts = np.cumsum(counts) - counts
+        if not fast or any("\n" in text for text in words[:-1].tolist() if text is not None):
+            each = said.tolist()
+            for position in np.flatnonzero(counts).tolist():
+                start = int(starts[position])
+                texts[position] = summary_with(texts[position], each[start : start + int(counts[position])])
+            return texts
+        suffixed = np.empty(len(texts), object)
+        suffixed[:] = texts
+        for count in np.unique(counts[counts > 0]).tolist():
+            frames = np.flatnonzero(counts == count)
+            template = "%s: " + ", ".join(["%s"] * min(count, SHOWN_PARAMS)) + (" …" if count > SHOWN_PARAMS else "")
+            columns = [suffixed[frames]] + [said[starts[frames] + place] for place in range(min(count, SHOWN_PARAMS))]
+            suffixed[frames] = formatted(template, [column.tolist() for column in columns])
+        result: list[str] = suffixed.tolist()
+        return result
 
 
 @dataclass(frozen=True)
@@ -81,6 +129,8 @@ class ColumnarFrames:
     answer: npt.NDArray[np.int64]
     kept_requests: npt.NDArray[np.int64]
     earlier_requests: list[int]
+    #: The names profiles give the params (``None``: no frame's slave has a profile that names).
+    names: ColumnarNames | None = None
 
     def __len__(self) -> int:
         return len(self.positions)
@@ -91,10 +141,11 @@ class ColumnarFrames:
         return list(zip(self.kept_requests.tolist(), self.function[at].tolist(), self.address[at].tolist(),
                         self.count[at].tolist(), strict=True))
 
-    def summaries(self, data: bytes) -> list[str]:
+    def summaries(self, data: bytes, *, fast: bool = True) -> list[str]:
         """Each frame's summary line, as its PDU's ``summary()`` writes it
-        (:mod:`decoders.modbus.columnar_text`)."""
-        return summaries(self, data)
+        (:mod:`decoders.modbus.columnar_text`; ``fast``: in bulk), with what its profile names."""
+        texts = summaries(self, data, fast=fast)
+        return texts if self.names is None else self.names.suffixed(texts, np.maximum(self.count, 0), fast=fast)
 
     def values(self, data: bytes) -> ColumnarValues:
         """The values of read answers, writes and the echoes of single writes (a write request's
@@ -107,18 +158,26 @@ class ColumnarFrames:
         rows = ColumnarValues(np.repeat(frame, counts), np.repeat(found, counts), np.repeat(written, counts),
                               np.repeat(self.address[valued], counts) + within, value, np.repeat(request, counts))
         order = np.lexsort((~rows.written, rows.found))  # stable: a frame's values stay in order
+        name = None if self.names is None else self.names.row[self._param_rows(valued, counts, within)[order]]
         return ColumnarValues(rows.frame[order], rows.found[order], rows.written[order], rows.address[order],
-                              rows.raw[order], rows.request[order])
+                              rows.raw[order], rows.request[order], name)
 
     def params(self, data: bytes) -> ColumnarParams:
         """Every frame's params as the plain path's decoding names them, laid end to end: for
         writers that spell them in columns, with no decoding per frame."""
-        valued, counts, _, value = self._carried(data)
+        valued, counts, within, value = self._carried(data)
         sizes = np.maximum(self.count, 0)
-        starts = np.cumsum(sizes) - sizes
         values = np.full(int(sizes.sum()), NO_VALUE, np.int64)
-        values[np.repeat(starts[valued], counts) + within_runs(counts)] = value
-        return ColumnarParams(sizes, np.repeat(self.address, sizes) + within_runs(sizes), values)
+        values[self._param_rows(valued, counts, within)] = value
+        return ColumnarParams(sizes, np.repeat(self.address, sizes) + within_runs(sizes), values,
+                              None if self.names is None else self.names.row)
+
+    def _param_rows(self, valued: npt.NDArray[np.int64], counts: npt.NDArray[np.int64],
+                    within: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+        """Where each value of :meth:`_carried` is among the params of :meth:`params`."""
+        sizes = np.maximum(self.count, 0)
+        rows: npt.NDArray[np.int64] = np.repeat((np.cumsum(sizes) - sizes)[valued], counts) + within
+        return rows
 
     def _carried(self, data: bytes) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64],
                                              npt.NDArray[np.int64]]:

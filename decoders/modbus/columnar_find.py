@@ -1,7 +1,7 @@
 """Which frames of a batch stay in columns (:mod:`decoders.modbus.columnar`), found with numpy.
 
-The rules; every frame also has a good CRC, a slave whose profile adds nothing to it
-(``eligible``, the annotator's to say: a named drive's values go through its profile), and the
+The rules; every frame also is ``eligible`` (the annotator's to say: Modbus, of a slave whose
+profile adds nothing or names plainly, :mod:`decoders.profiles.columns`), has a good CRC and the
 shape its function has in :func:`~decoders.modbus.pdu_parse.parse_pdu`, with counts Modbus
 allows:
 

@@ -49,7 +49,7 @@ def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list
             texts[rows] = _group(frames, data, rows, kind_of, function_of)
         elif function_of == 6:  # a request and its echo say the same
             values = _words_at(data, frames.data[rows])
-            texts[rows] = _formatted("write HR %d = %d (0x%04X)", [frames.address[rows], values, values])
+            texts[rows] = formatted("write HR %d = %d (0x%04X)", [frames.address[rows], values, values])
         elif kind_of in (READ, WRITE_ANSWER):
             head = f"read {table}" if kind_of == READ else f"wrote {table}"
             texts[rows] = _span_texts(head, frames.address[rows], frames.count[rows])
@@ -57,7 +57,7 @@ def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list
             _answer_texts(texts, rows, function_of, data, frames)
         elif kind_of == READ_ANSWER:
             bits = _bit_texts(data, frames.data[rows], 8 * frames.byte_count[rows])
-            texts[rows] = _formatted(f"{table} = %s (%d bytes)", [bits, frames.byte_count[rows]])
+            texts[rows] = formatted(f"{table} = %s (%d bytes)", [bits, frames.byte_count[rows]])
         else:
             texts[rows] = _group(frames, data, rows, kind_of, function_of)
     lines: list[str] = texts.tolist()
@@ -74,7 +74,7 @@ def _span_texts(head: str, address: npt.NDArray[np.int64], count: npt.NDArray[np
         (np.flatnonzero(~one), f"{head} %d..%d (%d)", (address, address + count - 1, count)),
     ):
         if len(rows):
-            texts[rows] = _formatted(template, [column[rows] for column in columns])
+            texts[rows] = formatted(template, [column[rows] for column in columns])
     return texts
 
 
@@ -91,13 +91,13 @@ def _answer_texts(texts: npt.NDArray[Any], rows: npt.NDArray[np.int64], function
     if len(quick):
         words = _hex_word_texts(data, frames.data[rows[quick]], size[quick])
         registers = (size[quick] // 2).tolist()
-        texts[rows[quick]] = _formatted(f"{_TABLES[function]} = %s (%d registers)", [words, registers])
+        texts[rows[quick]] = formatted(f"{_TABLES[function]} = %s (%d registers)", [words, registers])
 
 
-def _formatted(template: str, columns: list[Any]) -> list[str]:
+def formatted(template: str, columns: list[Any]) -> list[str]:
     """``template % row`` for every row of ``columns`` (equal lengths: numbers, or texts for
     ``%s``), by one ``%`` of the template repeated with a newline after each (texts must hold
-    neither ``%`` nor a newline: only numbers and hex words do here)."""
+    no newline: the result is cut at them)."""
     count, width = len(columns[0]), len(columns)
     fields: list[Any] = [None] * (count * width)
     for place, column in enumerate(columns):  # row after row, interleaved by slices in C

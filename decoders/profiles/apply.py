@@ -24,7 +24,7 @@ from decoders.modbus.pdu import (
 )
 from decoders.modbus.pdu_serial import DeviceIdResponse
 from decoders.profiles.model import Indirection, Profile
-from decoders.profiles.naming import AddressNamer, summary_with
+from decoders.profiles.naming import AddressNamer, NamedValue, summary_with
 
 #: The slave column's value for a frame without a slave (noise).
 NO_SLAVE = -1
@@ -146,7 +146,7 @@ class ProfileApplier:
             self._learn(profile, slave, values)
         remarks = list(decoding.remarks)
         if facts.role in (Role.REQUEST, Role.BROADCAST) and pdu is not None:
-            remarks += _limit_remarks(profile, facts, pdu)
+            remarks += limit_remarks(profile, facts, pdu)
         if isinstance(pdu, ExceptionPdu):
             remarks += _exception_remarks(profile, pdu, request)
         if device is not None:
@@ -181,6 +181,23 @@ class ProfileApplier:
         if generation != self.generation or self._kept >= KEPT_NAMED_PARAMS or self._named_version != self.version:
             return None
         return self._name_values(namers, raws)
+
+    def named_values(self, profile: Profile, reported: bool, address: int,
+                     raws: list[int | None]) -> list[NamedValue]:
+        """Each of ``raws`` at ``address`` as :meth:`apply_decoding` names it for a slave of
+        ``profile`` (``reported``: the device's values), kept as there: for frames named in
+        columns (:mod:`decoders.profiles.columns`). Not for a scanner table's registers, whose
+        names are each slave's own."""
+        namers = self._kept_namers(profile, reported)
+        namer = namers.get(address) or self._namer_at(namers, profile, None, address, reported)
+        fast, known, named = self.fast, namer.known, []
+        for raw in raws:
+            value = known.get(raw) if fast else None
+            if value is None:
+                value = namer.make(raw)
+                self._kept += 1
+            named.append(value)
+        return named
 
     def _name_values(self, namers: list[AddressNamer],
                      raws: Sequence[int | None]) -> tuple[list[ParamValue], list[str]]:
@@ -315,7 +332,8 @@ def _knows_nothing(profile: Profile) -> bool:
                 or profile.limits.functions or profile.address_style != "plain" or profile.uss_control_word)
 
 
-def _limit_remarks(profile: Profile, facts: FrameFacts, pdu: Pdu) -> list[str]:
+def limit_remarks(profile: Profile, facts: FrameFacts, pdu: Pdu) -> list[str]:
+    """What ``profile`` remarks of a request: a function it does not support, counts past its limits."""
     limits, name, function = profile.limits, profile.name, facts.function
     remarks = []
     if limits.functions and function not in limits.functions:

@@ -1,7 +1,9 @@
 """What a decoding gives a frame's records, spelt for all the frames of a batch kept in columns.
 
-A frame the annotator left in columns (``AnnotatedBatch.columnar``: a plain read, write or
-answer, most frames of a bus polled for values that change) has no decoding object. Its JSONL
+A frame the annotator left in columns (``AnnotatedBatch.columnar``: a read, write or answer,
+most frames of a bus polled for values that change) has no decoding object. Its params are
+spelt from tables by address and raw word, or, where a profile names them
+(``ColumnarFrames.names``), from each named value's own JSON and member, made once per value. Its JSONL
 record's part from ``params`` to ``remarks``, its MCAP log text after the frame index and its
 ``/slave/N/params`` members are spelt here from the columns, all the batch's such frames at
 once: every piece of every frame is laid out in one numpy object array (the params from the
@@ -24,15 +26,20 @@ import numpy as np
 import numpy.typing as npt
 import orjson
 
-from decoders.message import ROLE_NAMES
+from decoders.message import ROLE_NAMES, ParamValue
 from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
-from sniffer.encoding.param_text import NO_VALUE_END, WORDS, param_start, param_tables
+from sniffer.encoding.param_text import NO_VALUE_END, WORDS, member_json, param_json, param_start, param_tables
 from sniffer.encoding.rows import Pieces
 
 #: Params spelt at once (see :func:`_in_slices`).
 SLICE_PARAMS = 1 << 16
 #: The tables as numpy object arrays (indexed by a column in C), built at first use.
 _tables: dict[str, npt.NDArray[Any]] = {}
+#: Named params' texts kept (see :func:`_named_texts`).
+KEPT_NAMED_TEXTS = 65536
+#: Each named param's texts, by the param's identity (its namer hands the same param to every
+#: frame with that value; kept here, its id is not reused): its JSON and its params member.
+_named_kept: dict[int, tuple[ParamValue, bytes, bytes]] = {}
 
 
 class ColumnarParts:
@@ -57,7 +64,9 @@ class ColumnarParts:
         """Each frame's JSONL record part from ``params`` to the end of ``remarks``
         (``FrameRecordEncoder._decoding_part``)."""
         summaries = list(map(orjson.dumps, self.summaries()))
-        return _in_slices(self._param_columns(), lambda params, frames: _record_tails(params, summaries[frames]))
+        named = self._named_texts(members=False)
+        return _in_slices(self._param_columns(),
+                          lambda params, frames: _record_tails(params, summaries[frames], named))
 
     def log_heads(self, roles: npt.NDArray[np.integer[Any]]) -> list[bytes]:
         """Each frame's log text after its index: `` response: HR = …`` (``roles``: the frames')."""
@@ -67,7 +76,24 @@ class ColumnarParts:
     def numeric_members(self) -> Pieces:
         """Each frame's values as the members of a JSON object by address, its closing brace
         included (``encode_json(numeric_params(decoding))[1:]``), or ``b""``: it carried none."""
-        return _in_slices(self._param_columns(), lambda params, _: _numeric_members(params))
+        named = self._named_texts(members=True)
+        return _in_slices(self._param_columns(), lambda params, _: _numeric_members(params, named))
+
+    def _named_texts(self, *, members: bool) -> npt.NDArray[Any] | None:
+        """The JSON (or with ``members``, the params member) of each named value of the frames
+        (their :attr:`~decoders.modbus.columnar.ColumnarNames.table`), ``None`` where none is named."""
+        names = self.columnar.names
+        if names is None:
+            return None
+        if len(_named_kept) >= KEPT_NAMED_TEXTS:
+            _named_kept.clear()
+        texts: list[bytes] = []
+        for param, _ in names.table:
+            kept = _named_kept.get(id(param))
+            if kept is None:
+                kept = _named_kept[id(param)] = (param, b"," + param_json(param), member_json(param))
+            texts.append(kept[2] if members else kept[1])
+        return _objects(texts)
 
     def _param_columns(self) -> ColumnarParams:
         if self._params is None:
@@ -90,26 +116,34 @@ def _in_slices(params: ColumnarParams, spell: Callable[[ColumnarParams, slice], 
         if first == last:
             continue
         start, stop = int(ends[first] - params.sizes[first]), int(ends[last - 1])
-        sliced = ColumnarParams(params.sizes[first:last], params.address[start:stop], params.value[start:stop])
+        sliced = ColumnarParams(params.sizes[first:last], params.address[start:stop], params.value[start:stop],
+                                None if params.name is None else params.name[start:stop])
         spelt = spell(sliced, slice(first, last))
         texts += spelt
         sizes.append(spelt.sizes)
     return Pieces(texts, np.concatenate(sizes))
 
 
-def _record_tails(params: ColumnarParams, summaries: list[bytes]) -> Pieces:
-    """:meth:`ColumnarParts.record_tails` of the frames of ``params`` (their summaries in JSON)."""
-    sizes, address, value = params
+def _record_tails(params: ColumnarParams, summaries: list[bytes], named: npt.NDArray[Any] | None) -> Pieces:
+    """:meth:`ColumnarParts.record_tails` of the frames of ``params`` (their summaries in JSON;
+    ``named``: the JSON of each named value, after a comma)."""
+    sizes, address, value, name = params
     # A frame's pieces: '"params":[', a start and an end per param, '],"summary":', its summary, the end.
     layout = _Layout(2 * sizes + 4)
     base = layout.base
     layout.put(base, b'"params":[')
     at = np.repeat(base + 1, sizes) + 2 * within_runs(sizes)
-    layout.put(at, *_by_address("starts", address))
+    starts, start_sizes = _by_address("starts", address)
     words = np.maximum(value, 0)
     ends, end_sizes = _table("value_ends")[words], _sizes("value_ends")[words]
     unvalued = np.flatnonzero(value < 0)
     ends[unvalued], end_sizes[unvalued] = NO_VALUE_END, len(NO_VALUE_END)
+    if named is not None and name is not None:  # a named param is its JSON, whole, at its start
+        rows = np.flatnonzero(name >= 0)
+        starts[rows] = named[name[rows]]
+        start_sizes[rows] = _lengths(starts[rows])
+        ends[rows], end_sizes[rows] = b"", 0
+    layout.put(at, starts, start_sizes)
     layout.put(at + 1, ends, end_sizes)
     after = base + 2 * sizes
     layout.put(after + 1, b'],"summary":')
@@ -119,24 +153,47 @@ def _record_tails(params: ColumnarParams, summaries: list[bytes]) -> Pieces:
     return layout.texts()
 
 
-def _numeric_members(params: ColumnarParams) -> Pieces:
-    """:meth:`ColumnarParts.numeric_members` of the frames of ``params``."""
-    sizes, address, value = params
-    named = np.flatnonzero(sizes > 0)
+def _numeric_members(params: ColumnarParams, named: npt.NDArray[Any] | None) -> Pieces:
+    """:meth:`ColumnarParts.numeric_members` of the frames of ``params`` (``named``: each named
+    value's member after a comma, or ``b""``: no reading, which a named frame may carry alone)."""
+    sizes, address, value, name = params
+    frame = np.repeat(np.arange(len(sizes)), sizes)
     carried = np.zeros(len(sizes), np.bool_)
-    carried[named] = value[(np.cumsum(sizes) - sizes)[named]] >= 0  # a frame's values: all or none
+    carried[frame] = value >= 0  # a frame's values: all or none
+    named_frames = np.zeros(len(sizes), np.bool_)
+    members = member_sizes = None
+    if named is not None and name is not None:
+        each = np.append(named, b"")  # -1 (unnamed): the last
+        members, member_sizes = each[name], _lengths(each)[name]
+        named_frames[frame[name >= 0]] = True
+        carried[named_frames] = False
+        carried[frame[member_sizes > 0]] = True  # a named frame: where it carries a reading
     counts = np.where(carried, sizes, 0)
     # A frame's pieces: a key and a value per param, then '}' (nothing, when it carried none).
     layout = _Layout(2 * counts + 1)
     at = np.repeat(layout.base, counts) + 2 * within_runs(counts)
     kept = np.flatnonzero(np.repeat(carried, sizes))
-    layout.put(at, *_by_address("keys", address[kept]))
-    words = value[kept]  # a register's word or a coil's 0 or 1: looked up, not formatted
-    layout.put(at + 1, _table("numbers")[words], _sizes("numbers")[words])
+    keys, key_sizes = _by_address("keys", address[kept])
+    words = np.maximum(value[kept], 0)  # a register's word or a coil's 0 or 1: looked up, not formatted
+    numbers, number_sizes = _table("numbers")[words], _sizes("numbers")[words]
+    firsts = layout.base[carried & ~named_frames]
+    if members is not None and member_sizes is not None:  # a named param's member is whole at its key
+        rows = np.flatnonzero(named_frames[frame[kept]])
+        keys[rows], key_sizes[rows] = members[kept[rows]], member_sizes[kept[rows]]
+        numbers[rows], number_sizes[rows] = b"", 0
+        shown = rows[key_sizes[rows] > 0]
+        _, first = np.unique(frame[kept[shown]], return_index=True)  # each frame's first member
+        firsts = np.concatenate([firsts, at[shown[first]]])
+    layout.put(at, keys, key_sizes)
+    layout.put(at + 1, numbers, number_sizes)
     layout.put((layout.base + 2 * counts)[carried], b"}")
     layout.put(layout.base[~carried], b"")
-    layout.without_comma(layout.base[carried])
+    layout.without_comma(firsts)
     return layout.texts()
+
+
+def _lengths(pieces: npt.NDArray[Any]) -> npt.NDArray[np.int64]:
+    return np.fromiter(map(len, pieces.tolist()), np.int64, len(pieces))
 
 
 class _Layout:

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
-import orjson
 
 from decoders.capture import CaptureInfo, uart_error_name
 from decoders.frame import PROTOCOL_NAMES, FrameBatch, FrameFlag
@@ -35,7 +33,7 @@ from sniffer.encoding.frame_fields import (
     frame_fields,
     identities_at,
 )
-from sniffer.encoding.param_text import params_pieces
+from sniffer.encoding.param_text import encode_json, param_json, param_record, params_pieces
 from sniffer.encoding.rows import (
     Column,
     Rows,
@@ -45,28 +43,6 @@ from sniffer.encoding.rows import (
 
 #: Profiled params whose JSON is kept (see :attr:`FrameRecordEncoder._param_texts`).
 KEPT_PARAM_TEXTS = 65536
-
-
-def encode_record(record: dict[str, Any]) -> str:
-    """One record as compact JSON, exactly what ``json.dumps`` writes with
-    ``separators=(",", ":")`` and ``ensure_ascii=False`` (scripts compare outputs)."""
-    return json.dumps(record, ensure_ascii=False, separators=(",", ":"))
-
-
-def encode_json(value: object) -> bytes:
-    """Compact UTF-8 JSON, fast (orjson), where no one compares bytes (MCAP messages).
-    Numbers may be spelt differently from ``json.dumps``: ``0.00005`` for ``5e-05``.
-    A copy: orjson's own bytes object keeps the 4 KiB buffer it wrote into, and the records'
-    caches keep tens of thousands of texts (the copy costs 50 ns; holding orjson's took
-    260 MB more on 1 M mixed frames)."""
-    return bytes(memoryview(orjson.dumps(value)))
-
-
-def _spelt_alike(param: ParamValue) -> bool:
-    """Whether orjson writes the param's numbers as ``json.dumps`` does: floats differ only
-    where ``repr`` switches to an exponent."""
-    value = param.value
-    return type(value) is not float or value == 0 or 1e-4 <= abs(value) < 1e16
 
 
 def capture_record(source: str, info: CaptureInfo, line: LineSettings) -> dict[str, Any]:
@@ -247,8 +223,7 @@ class FrameRecordEncoder:
 
     def _param_text(self, param: ParamValue) -> tuple[ParamValue, bytes]:
         """``param``'s JSON, kept (all are let go at :data:`KEPT_PARAM_TEXTS`)."""
-        record = param_record(param)
-        text = encode_json(record) if _spelt_alike(param) else encode_record(record).encode()
+        text = param_json(param)
         if len(self._param_texts) >= KEPT_PARAM_TEXTS:
             self._param_texts.clear()
         kept = self._param_texts[id(param)] = (param, text)
@@ -351,15 +326,4 @@ def device_record(index: int, device: DeviceIdentity) -> dict[str, Any]:
         "revision": device.revision,
         "profile": device.profile,
         "applied": device.applied,
-    }
-
-
-def param_record(param: ParamValue) -> dict[str, Any]:
-    return {
-        "address": param.address,
-        "code": param.code,
-        "name": param.name,
-        "raw": param.raw,
-        "value": param.value,
-        "unit": param.unit,
     }

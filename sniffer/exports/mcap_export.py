@@ -40,7 +40,8 @@ from decoders.message import NONE, ROLE_NAMES, AnnotatedBatch, Decoding, Message
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.frame_fields import BlockFields, block_fields
-from sniffer.encoding.records import FrameRecordEncoder, encode_json, in_columns_too
+from sniffer.encoding.param_text import encode_json
+from sniffer.encoding.records import FrameRecordEncoder, in_columns_too
 from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports import foxglove_log

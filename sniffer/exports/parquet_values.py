@@ -10,6 +10,7 @@ answer), which puts the three back in one order.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -22,6 +23,7 @@ from decoders.memo import Memo
 from decoders.message import NONE, AnnotatedBatch, Decoding, ParamValue
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.columnar import within_runs
+from decoders.profiles.naming import NamedValue
 from sniffer.encoding.value_rows import ValueRow, ValueRows
 from sniffer.exports.parquet_export import dictionary, nullable, times
 from sniffer.exports.value_bulk import REPORTED, VALUE_KINDS, WRITTEN, BulkRows, bulk_rows
@@ -36,6 +38,12 @@ PROBE_EVERY = 16
 #: A named row's own columns: time, index, slave, kind (its code), request index (``NONE``).
 NamedRow = tuple[int, int, int, int, int]
 _KIND_CODES = {kind: code for code, kind in enumerate(VALUE_KINDS)}
+#: Named values' rows kept (see :func:`_with_names`), by the param's identity (its namer hands the
+#: same param to every frame with that value; kept here, its id is not reused).
+KEPT_NAMED_ROWS = 65536
+_rows_kept: dict[int, tuple[ParamValue, tuple[object, ...]]] = {}
+#: The row of a param without a value (a read request's, which no row is), and of no param.
+_NO_ROW = (None, None, None, None, None, None, None, True)
 
 
 @dataclass
@@ -67,7 +75,9 @@ class CollectedValues:
 
 @dataclass(frozen=True)
 class NumericValues:
-    """Rows of values no profile names, in columns (``found``: the frame index each was found at)."""
+    """Rows of values in columns (``found``: the frame index each was found at): of runs no
+    profile names, and of frames left in columns, whose profiles may name them (``name``: each
+    row's entry in ``names``, -1 where none does)."""
 
     t_ns: npt.NDArray[np.int64]
     index: npt.NDArray[np.int64]
@@ -81,9 +91,16 @@ class NumericValues:
     #: The place of each row's run among the rows found (for frames in columns, which are found
     #: where no other row is: 0 for a write's values, 1 for its answer's, as the rule has them).
     order: npt.NDArray[np.int64]
+    name: npt.NDArray[np.int64]
+    #: The named values (:attr:`decoders.modbus.columnar.ColumnarNames.table`), ``None``: none.
+    names: list[NamedValue] | None = None
 
     def __len__(self) -> int:
         return len(self.t_ns)
+
+
+#: The columns of :class:`NumericValues`, laid end to end by :func:`_in_order`.
+_ROW_COLUMNS = [name for name in NumericValues.__dataclass_fields__ if name != "names"]
 
 
 class ValueCollector(ValueRows):
@@ -226,10 +243,13 @@ def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
     first = frames.first_index
     rows = columnar.values(frames.data)
     index = rows.frame + first
+    names = columnar.names
     return NumericValues(frames.t_start_ns[rows.frame], index, messages.slave[rows.frame].astype(np.int64),
                          np.where(rows.written, WRITTEN, REPORTED).astype(np.int32), rows.address, rows.raw,
                          np.where(rows.written, index, rows.request), np.ones(len(index), np.bool_),
-                         found=rows.found + first, order=np.where(rows.written, 0, 1))
+                         found=rows.found + first, order=np.where(rows.written, 0, 1),
+                         name=np.full(len(index), -1, np.int64) if rows.name is None else rows.name,
+                         names=None if names is None else names.table)
 
 
 def value_columns(found: CollectedValues, numeric: NumericValues | None = None) -> tuple[
@@ -259,10 +279,10 @@ def value_columns(found: CollectedValues, numeric: NumericValues | None = None) 
 
 def _in_order(parts: list[NumericValues]) -> NumericValues:
     """The rows of ``parts`` as one, in the order found."""
-    joined = [np.concatenate([getattr(part, name) for part in parts]) for name in NumericValues.__dataclass_fields__]
-    rows = NumericValues(*joined)
-    order = np.lexsort((rows.order, rows.found))
-    return NumericValues(*(column[order] for column in joined))
+    joined = {name: np.concatenate([getattr(part, name) for part in parts]) for name in _ROW_COLUMNS}
+    order = np.lexsort((joined["order"], joined["found"]))
+    names = next((part.names for part in parts if part.names is not None), None)
+    return NumericValues(**{name: column[order] for name, column in joined.items()}, names=names)
 
 
 def _named_columns(found: CollectedValues) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array],
@@ -330,10 +350,12 @@ def _run_values(found: CollectedValues) -> NumericValues:
         np.repeat(np.array([VALUE_KINDS.index(row.kind) for row in rows], np.int32), counts), address,
         np.fromiter(itertools.chain.from_iterable(run.values or () for run in runs), np.int64, total),
         each(request), np.repeat(np.array([row.valid[0] for row in rows], np.bool_), counts), each(found.run_at),
-        each(found.run_order))
+        each(found.run_order), np.full(total, -1, np.int64))
 
 
 def _numeric_columns(rows: NumericValues) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:
+    if rows.names is not None and (rows.name >= 0).any():
+        return _with_names(rows, rows.names)
     no_text = pa.nulls(len(rows), pa.string())
     return rows.t_ns, {
         "t": times(rows.t_ns),
@@ -350,3 +372,33 @@ def _numeric_columns(rows: NumericValues) -> tuple[npt.NDArray[np.int64], dict[s
         "request_index": nullable(rows.request_index, pa.int64()),
         "valid": pa.array(rows.valid, pa.bool_()),
     }
+
+
+def _with_names(rows: NumericValues, names: list[NamedValue]) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:
+    """:func:`_numeric_columns` where a profile names some rows: theirs as :func:`_named_block`
+    has them, each named value's laid out once and taken by the rows."""
+    t_ns, columns = _numeric_columns(dataclasses.replace(rows, names=None))
+    if len(_rows_kept) >= KEPT_NAMED_ROWS:
+        _rows_kept.clear()
+    table = []
+    for param, _ in names:
+        kept = _rows_kept.get(id(param))
+        if kept is None:
+            row = _named_block((param,), written=False, crc_ok=True)
+            kept = _rows_kept[id(param)] = (param, row[0] if row else _NO_ROW)
+        table.append(kept[1])
+    _, code, name, _, number, text, unit, available = zip(*table, _NO_ROW, strict=True)  # the last: for -1
+    rows_named = rows.name >= 0
+    taken = pa.array(np.where(rows_named, rows.name, len(names)))  # unnamed: the last entry
+
+    def picked(column: tuple[object, ...]) -> pa.Array:
+        return pa.array(column, pa.string()).take(taken)
+
+    numbers = np.array([np.nan if value is None else value for value in number], np.float64)
+    unnumbered = np.array([value is None for value in number], np.bool_)
+    value = np.where(rows_named, numbers[rows.name], rows.raw.astype(np.float64))
+    valid = rows.valid & (~rows_named | np.array(available, np.bool_)[rows.name] | (rows.kind == WRITTEN))
+    columns.update(code=picked(code), name=picked(name), text=picked(text), unit=picked(unit),
+                   value=pa.array(value, pa.float64(), mask=rows_named & unnumbered[rows.name]),
+                   valid=pa.array(valid, pa.bool_()))
+    return t_ns, columns

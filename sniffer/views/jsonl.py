@@ -10,11 +10,11 @@ from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch
 from decoders.stats import SkippedReads, Statistics
 from sniffer.encoding.frame_fields import FrameFields, frame_fields
+from sniffer.encoding.param_text import encode_record
 from sniffer.encoding.records import (
     FrameRecordEncoder,
     capture_record,
     device_record,
-    encode_record,
 )
 from sniffer.encoding.rows import Rows
 from sniffer.sinks import Sink

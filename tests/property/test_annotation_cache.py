@@ -35,7 +35,8 @@ from decoders.profiles import apply as apply_module
 from decoders.profiles.apply import ProfileApplier
 from sniffer.encoding import frame_fields as frame_fields_module
 from sniffer.encoding import records as records_module
-from sniffer.encoding.records import FrameRecordEncoder, encode_record, frame_record
+from sniffer.encoding.param_text import encode_record
+from sniffer.encoding.records import FrameRecordEncoder, frame_record
 from sniffer.profiles_io import profile_book
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))

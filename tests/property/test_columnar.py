@@ -16,8 +16,8 @@ from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, MessageBatch, Role, slice_messages
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
-from decoders.modbus.columnar_text import WRITE, summaries
-from decoders.modbus.param_runs import addressed_values
+from decoders.modbus.columnar_text import WRITE
+from decoders.modbus.param_runs import LazyParams, addressed_values
 from decoders.profiles.apply import ProfileApplier
 from sniffer.profiles_io import profile_book
 from tests.property.test_annotation_cache import PRODUCT, adu, matched, said
@@ -88,6 +88,21 @@ def expected_values(batch: MessageBatch, decodings: list[Decoding],
     return [(frame, found, written, address, raw, asked) for found, _, frame, written, address, raw, asked in rows]
 
 
+def check_names(reads: ColumnarFrames, data: bytes, expected: list[Decoding]) -> None:
+    """Each frame's params as its profile names them (``reads.names``) are the plain path's;
+    none named where no profile names them."""
+    params, names = reads.params(data), reads.names
+    ends = np.cumsum(params.sizes).tolist()
+    for frame, position in enumerate(reads.positions.tolist()):
+        rows = range(ends[frame] - int(params.sizes[frame]), ends[frame])
+        decoding = expected[position]
+        if isinstance(decoding, LazyParams):
+            assert names is None or all(names.row[row] < 0 for row in rows)
+        else:
+            assert names is not None
+            assert [names.table[names.row[row]][0] for row in rows] == list(decoding.params)
+
+
 def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
     """One batch through both annotators; how many frames were kept in columns."""
     expected = plain.annotate_batch(batch).decodings
@@ -102,8 +117,17 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
         assert all(got.decodings[position] is IN_COLUMNS for position in kept)
         said_by_pdus = [expected[position].summary for position in reads.positions.tolist()]
         assert reads.summaries(data) == said_by_pdus
-        assert summaries(reads, data, fast=False) == said_by_pdus
-        assert list(zip(*reads.values(data), strict=True)) == expected_values(batch, expected, reads)
+        assert reads.summaries(data, fast=False) == said_by_pdus
+        values = reads.values(data)
+        assert list(zip(*values[:6], strict=True)) == expected_values(batch, expected, reads)
+        check_names(reads, data, expected)
+        if values.name is not None:  # a named value is named as its param is
+            assert reads.names is not None
+            table = reads.names.table
+            for name, address, raw in zip(*(column.tolist() for column in (values.name, values.address, values.raw)),
+                                          strict=True):
+                if name >= 0:
+                    assert (table[name][0].address, table[name][0].raw) == (address, raw)
         for position in kept:  # what a plain frame's decoding says besides: nothing
             assert expected[position].remarks == () and expected[position].device is None
     assert columns._requests == plain._requests
@@ -112,7 +136,7 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
 
 @settings(max_examples=400, deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
-       st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=atv71", "7=atv312"]]))
+       st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=atv71", "7=atv312"], ["2=xbt"]]))
 def test_reads_in_columns_say_what_the_plain_path_says(traffic: list[list[bytes]], cuts: list[int],
                                                        profiles: list[str] | None) -> None:
     """The matcher's batches, cut again anywhere (between a request and its answer too)."""
@@ -124,8 +148,8 @@ def test_reads_in_columns_say_what_the_plain_path_says(traffic: list[list[bytes]
 
 
 def test_polling_is_kept_in_columns_and_answers_read_requests_of_the_batch_before() -> None:
-    """Not vacuous: plain polling is all in columns, across a cut between request and answer;
-    a slave a profile names stays out."""
+    """Not vacuous: polling is all in columns, across a cut between request and answer; a slave
+    a profile names too, its values named."""
     poll = []
     for slave in (1, 2):
         poll += [adu(bytes([slave]), b"\x03", struct.pack(">HH", 3201, 2)),
@@ -133,15 +157,38 @@ def test_polling_is_kept_in_columns_and_answers_read_requests_of_the_batch_befor
     columns, plain = annotator(["2=atv71"]), annotator(["2=atv71"])
     (batch,) = [batch for batch in matched(poll * 3) if len(batch)]
     # Cut between a request and its answer (the matcher holds requests back; a pipeline may not).
-    kept = [check_batch(columns, plain, piece) for piece in (slice_messages(batch, 0, 5),
-                                                              slice_messages(batch, 5, len(batch)))]
-    assert kept == [3, 3]  # slave 1's frames (the answer after the cut too); slave 2's go through its profile
+    pieces = (slice_messages(batch, 0, 5), slice_messages(batch, 5, len(batch)))
+    assert [check_batch(columns, plain, piece) for piece in pieces] == [5, 7]
+    reads = columns.annotate_columnar(batch).columnar
+    assert reads is not None and reads.names is not None
+    assert reads.summaries(batch.frames.data)[1:4] == [
+        "HR = 0007 8637 (2 registers)", "read HR 3201..3202 (2): ETA",
+        "HR = 0007 8637 (2 registers): ETA = 16#0007 quick stop active, forward"]
+    assert [(param.code, param.raw) for param, _ in reads.names.table] == [
+        ("ETA", None), (None, None), ("ETA", 7), (None, 0x8637)]
 
 
-def test_frames_before_an_identification_are_kept_in_columns_and_after_it_not() -> None:
-    """An FC 43 answer may give its slave a profile (here slave 1 says it is an ATV71): the
-    frames before the batch's first identification stay in columns, those from it on are decoded
-    one by one, and both paths say the same of all of them (slave 1's reads are named after it)."""
+def test_a_named_slave_s_scanner_registers_and_remarked_requests_are_not_kept_in_columns() -> None:
+    """Reading a scanner table's address registers teaches the table, its value registers are
+    named after the slave's mapping, and a read past the profile's limit gets a remark: those
+    frames go the plain path; the slave's other frames stay in columns."""
+    slave = b"\x02"
+    traffic = []
+    for address, count in ((12701, 2), (12741, 2), (12740, 2), (3201, 64), (3201, 2)):
+        traffic += [adu(slave, b"\x03", struct.pack(">HH", address, count)),
+                    adu(slave, b"\x03", bytes([2 * count]), bytes(2 * count))]
+    columns, plain = annotator(["2=atv71"]), annotator(["2=atv71"])
+    (batch,) = [batch for batch in matched(traffic) if len(batch)]
+    assert check_batch(columns, plain, batch) == 2
+    reads = annotator(["2=atv71"]).annotate_columnar(batch).columnar
+    assert reads is not None and reads.positions.tolist() == [8, 9]
+
+
+def test_frames_from_a_slave_s_identification_on_are_not_kept_in_columns() -> None:
+    """An FC 43 answer may give its slave a profile (here slave 1 says it is an ATV71): its
+    frames from the batch's first identification on are decoded one by one, the other slaves'
+    stay in columns, and both paths say the same of all of them; in the next batch slave 1's
+    frames are in columns too, named after its profile."""
     poll = []
     for slave in (1, 2):
         poll += [adu(bytes([slave]), b"\x03", struct.pack(">HH", 3201, 2)),
@@ -149,10 +196,12 @@ def test_frames_before_an_identification_are_kept_in_columns_and_after_it_not() 
     identify = [adu(b"\x01\x2b\x0e\x01\x00"), adu(b"\x01\x2b\x0e\x01\x02\x00\x00\x03", PRODUCT)]
     columns, plain = annotator([]), annotator([])
     (batch,) = [batch for batch in matched(poll * 2 + identify + poll * 2) if len(batch)]
-    assert check_batch(columns, plain, batch) == 8
+    assert check_batch(columns, plain, batch) == 12
+    assert columns.annotate_columnar(batch).columnar.positions.tolist() == [  # type: ignore[union-attr]
+        0, 1, 2, 3, 4, 5, 6, 7, 12, 13, 16, 17]
     got = columns.annotate_columnar(batch)  # the next batch alike: slave 1 has a profile now
-    assert got.columnar is not None  # slave 2's frames before the FC 43
-    assert got.columnar.positions.tolist() == [2, 3, 6, 7]
+    assert got.columnar is not None and got.columnar.names is not None
+    assert got.columnar.positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 12, 13, 16, 17]
 
 
 def paired_by_hand(adus: list[bytes], answered: dict[int, int]) -> MessageBatch:

@@ -21,7 +21,7 @@ from sniffer.encoding.frame_fields import _identities, identities_at
 from sniffer.encoding.records import FrameRecordEncoder
 from sniffer.exports.mcap_export import _decoding_parts
 from tests.property.test_annotation_cache import adu, matched
-from tests.property.test_columnar import exchanges
+from tests.property.test_columnar import annotator, exchanges
 
 
 def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
@@ -47,14 +47,15 @@ def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
 
 @settings(max_examples=300, deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
-       st.sampled_from([columnar_parts.SLICE_PARAMS, 1, 7, 64]))
+       st.sampled_from([columnar_parts.SLICE_PARAMS, 1, 7, 64]),
+       st.sampled_from([None, ["atv71"], ["2=atv312", "7=xbt"]]))
 @example([[adu(b"\x07", b"\x03", (65535).to_bytes(2, "big") + (3).to_bytes(2, "big")),
-           adu(b"\x07", b"\x03\x06", bytes(range(6)))]], [], 2)
+           adu(b"\x07", b"\x03\x06", bytes(range(6)))]], [], 2, None)
 def test_parts_spelt_from_columns_are_what_decodings_write(traffic: list[list[bytes]], cuts: list[int],
-                                                           slice_params: int) -> None:
+                                                           slice_params: int, profiles: list[str] | None) -> None:
     """Batches cut anywhere, so that an answer's request may be in the batch before; the params
-    spelt in slices of any size."""
-    columns, plain = Annotator(), Annotator()
+    spelt in slices of any size; slaves a profile names (:mod:`decoders.profiles.columns`) or not."""
+    columns, plain = annotator(profiles), annotator(profiles)
     with patch.object(columnar_parts, "SLICE_PARAMS", slice_params):
         for batch in matched([data for exchange in traffic for data in exchange]):
             bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]

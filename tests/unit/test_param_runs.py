@@ -27,8 +27,7 @@ from decoders.modbus.pdu import (
     quantity_allowed,
 )
 from decoders.modbus.pdu_parse import parse_pdu
-from sniffer.encoding.param_text import runs_json
-from sniffer.encoding.records import param_record
+from sniffer.encoding.param_text import param_record, runs_json
 from sniffer.exports.mcap_export import numeric_params
 
 
