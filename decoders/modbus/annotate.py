@@ -134,14 +134,17 @@ class Annotator:
             return find_columnar(batch, self.plain_frames(batch), self._earlier_read)
         eligible = batch.frames.protocols() != USS
         slaves = np.unique(batch.slave)
-        nameable = np.array([profiles.adds_nothing(slave) or plain_codes(profiles.book.profile_for(slave))
-                             for slave in slaves.tolist()], np.bool_)
+        plain = [profiles.adds_nothing(slave) for slave in slaves.tolist()]
+        nameable = np.array([adds or plain_codes(profiles.book.profile_for(slave))
+                             for slave, adds in zip(slaves.tolist(), plain, strict=True)], np.bool_)
         eligible &= nameable[np.searchsorted(slaves, batch.slave)]
         identifications = np.flatnonzero(batch.function == IDENTIFICATION)
         for slave in np.unique(batch.slave[identifications]).tolist():
             first = int(identifications[np.argmax(batch.slave[identifications] == slave)])
             eligible[first:] &= batch.slave[first:] != slave
         columnar = find_columnar(batch, eligible, self._earlier_read)
+        if all(plain):  # no profile names a slave of the batch
+            return columnar
         while len(unnamed := unnameable(profiles, batch, columnar)):
             eligible[unnamed] = False
             columnar = find_columnar(batch, eligible, self._earlier_read)
