@@ -26,20 +26,15 @@ import numpy as np
 import numpy.typing as npt
 import orjson
 
-from decoders.message import ROLE_NAMES, ParamValue
+from decoders.message import ROLE_NAMES
 from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
-from sniffer.encoding.param_text import NO_VALUE_END, WORDS, member_json, param_json, param_start, param_tables
+from sniffer.encoding.param_text import NO_VALUE_END, WORDS, param_start, param_tables, param_texts
 from sniffer.encoding.rows import Pieces
 
 #: Params spelt at once (see :func:`_in_slices`).
 SLICE_PARAMS = 1 << 16
 #: The tables as numpy object arrays (indexed by a column in C), built at first use.
 _tables: dict[str, npt.NDArray[Any]] = {}
-#: Named params' texts kept (see :func:`_named_texts`).
-KEPT_NAMED_TEXTS = 65536
-#: Each named param's texts, by the param's identity (its namer hands the same param to every
-#: frame with that value; kept here, its id is not reused): its JSON and its params member.
-_named_kept: dict[int, tuple[ParamValue, bytes, bytes]] = {}
 
 
 class ColumnarParts:
@@ -85,15 +80,9 @@ class ColumnarParts:
         names = self.columnar.names
         if names is None:
             return None
-        if len(_named_kept) >= KEPT_NAMED_TEXTS:
-            _named_kept.clear()
-        texts: list[bytes] = []
-        for param, _ in names.table:
-            kept = _named_kept.get(id(param))
-            if kept is None:
-                kept = _named_kept[id(param)] = (param, b"," + param_json(param), member_json(param))
-            texts.append(kept[2] if members else kept[1])
-        return _objects(texts)
+        if members:
+            return _objects([param_texts(param, member=True)[2] for param, _ in names.table])
+        return _objects([b"," + param_texts(param)[1] for param, _ in names.table])
 
     def _param_columns(self) -> ColumnarParams:
         if self._params is None:

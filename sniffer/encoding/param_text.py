@@ -136,3 +136,31 @@ def member_json(param: ParamValue) -> bytes:
     key = param.code if param.code is not None else str(param.address)
     value = param.value if isinstance(param.value, int | float) else param.raw
     return b"," + encode_json({key: value})[1:-1]
+
+
+#: Profiled params whose texts are kept (see :func:`param_texts`).
+KEPT_PARAM_TEXTS = 65536
+#: Each profiled param's texts by the param's identity (a profile's namer hands the same param
+#: to every frame with that value; it stays alive here, so its id is not reused): the param, its
+#: JSON, and its params member once asked for.
+_kept_texts: dict[int, list[Any]] = {}
+
+
+def param_texts(param: ParamValue, *, member: bool = False) -> list[Any]:
+    """``[param, its JSON (:func:`param_json`), its member (:func:`member_json`, made where
+    ``member``)]``, made once and kept (all are let go at :data:`KEPT_PARAM_TEXTS`): a frame
+    record's params and the MCAP params message spell each profiled value so."""
+    kept = _kept_texts.get(id(param))
+    if kept is None:
+        if len(_kept_texts) >= KEPT_PARAM_TEXTS:
+            _kept_texts.clear()
+        kept = _kept_texts[id(param)] = [param, param_json(param), None]
+    if member and kept[2] is None:
+        kept[2] = member_json(param)
+    return kept
+
+
+def kept_param_texts() -> dict[int, list[Any]]:
+    """The kept texts by the param's identity, for a lookup in a comprehension (:func:`param_texts`
+    makes what is missing)."""
+    return _kept_texts

@@ -20,7 +20,6 @@ from decoders.message import (
     DeviceIdentity,
     Message,
     MessageBatch,
-    ParamValue,
 )
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
@@ -33,16 +32,13 @@ from sniffer.encoding.frame_fields import (
     frame_fields,
     identities_at,
 )
-from sniffer.encoding.param_text import encode_json, param_json, param_record, params_pieces
+from sniffer.encoding.param_text import encode_json, kept_param_texts, param_record, param_texts, params_pieces
 from sniffer.encoding.rows import (
     Column,
     Rows,
     Table,
     join_rows,
 )
-
-#: Profiled params whose JSON is kept (see :attr:`FrameRecordEncoder._param_texts`).
-KEPT_PARAM_TEXTS = 65536
 
 
 def capture_record(source: str, info: CaptureInfo, line: LineSettings) -> dict[str, Any]:
@@ -130,7 +126,7 @@ class FrameRecordEncoder:
 
     Every frame passes through here. What a decoding determines (params, summary, protocol,
     remarks) is encoded once per :class:`Decoding` (the annotator shares one between
-    repeats), a profiled param's JSON once per param (:attr:`_param_texts`); the frame's own
+    repeats), a profiled param's JSON once per param (:func:`~sniffer.encoding.param_text.param_texts`); the frame's own
     fields (times, bytes, slave, role, flags, pairing) are columns of the batch
     (:func:`frame_fields`), each formatted at once (numbers by one ``repr``, which is how
     ``json.dumps`` writes them; hex by numpy), and the columns are joined into records by
@@ -151,9 +147,6 @@ class FrameRecordEncoder:
         self._tails_alone: Memo[Decoding, bytes] = Memo(KEPT_DECODINGS)
         #: Not exact: a decoding's part of the record in one piece, from ``hex`` to the end.
         self._tails: Memo[Decoding, bytes] = Memo(KEPT_DECODINGS)
-        #: Each profiled param's JSON, by the param's identity (a profile's namer hands the same
-        #: param to every frame with that value; it stays alive here, so its id is not reused).
-        self._param_texts: dict[int, tuple[ParamValue, bytes]] = {}
 
     def rows(self, batch: AnnotatedBatch, *, reserved: int = 0, end: bytes = b"",
              fields: FrameFields | None = None) -> Rows:
@@ -221,14 +214,6 @@ class FrameRecordEncoder:
         rows = self.rows(batch)
         return [rows.row(index).decode() for index in range(len(rows))]
 
-    def _param_text(self, param: ParamValue) -> tuple[ParamValue, bytes]:
-        """``param``'s JSON, kept (all are let go at :data:`KEPT_PARAM_TEXTS`)."""
-        text = param_json(param)
-        if len(self._param_texts) >= KEPT_PARAM_TEXTS:
-            self._param_texts.clear()
-        kept = self._param_texts[id(param)] = (param, text)
-        return kept
-
     def _frame_parts(self, facts: _FrameFacts, position: int, decoding: Decoding) -> tuple[bytes, bytes]:
         """A record's parts that a frame's bytes, role and decoding determine (the annotator
         shares a decoding only between frames with the same bytes, role and protocol): from
@@ -247,8 +232,8 @@ class FrameRecordEncoder:
             tail = params_pieces(decoding.runs, b'"params":')
             tail += (b',"summary":', encode_json(decoding.summary))
         else:
-            texts = self._param_texts
-            params = b",".join([(texts.get(id(p)) or self._param_text(p))[1] for p in decoding.params])
+            texts = kept_param_texts()
+            params = b",".join([(texts.get(id(p)) or param_texts(p))[1] for p in decoding.params])
             tail = [b'"params":[', params, b'],"summary":', encode_json(decoding.summary)]
         remarks = encode_json(list(decoding.remarks)) if decoding.remarks else b"[]"
         tail += (b',"protocol":', _PROTOCOL_JSON[protocol], b',"remarks":', remarks)

@@ -34,7 +34,7 @@ from decoders.modbus.pdu_parse import parse_pdu
 from decoders.profiles import apply as apply_module
 from decoders.profiles.apply import ProfileApplier
 from sniffer.encoding import frame_fields as frame_fields_module
-from sniffer.encoding import records as records_module
+from sniffer.encoding import param_text
 from sniffer.encoding.param_text import encode_record
 from sniffer.encoding.records import FrameRecordEncoder, frame_record
 from sniffer.profiles_io import profile_book
@@ -294,7 +294,8 @@ def test_fast_frame_records_say_what_the_exact_ones_say(batch: AnnotatedBatch, r
 def test_profiled_param_texts_kept_stay_bounded_and_right(monkeypatch: pytest.MonkeyPatch) -> None:
     """A param's JSON is kept by the param object (a namer hands one to every frame with that
     value), up to a bound; past it, what is written stays what ``json.dumps`` writes."""
-    monkeypatch.setattr(records_module, "KEPT_PARAM_TEXTS", 3)
+    monkeypatch.setattr(param_text, "KEPT_PARAM_TEXTS", 3)
+    monkeypatch.setattr(param_text, "_kept_texts", {})
     shared = ParamValue(3201, "ETA", "Status word", 0x8637, "ready", None)
     decodings = [Decoding(f"read {n}", (shared, ParamValue(8604, "RFRD", "Speed", n, n * 1e-5, "rpm")))
                  for n in range(8)]
@@ -303,7 +304,7 @@ def test_profiled_param_texts_kept_stay_bounded_and_right(monkeypatch: pytest.Mo
     encoder = FrameRecordEncoder()
     expected = [json.dumps(frame_record(m), ensure_ascii=False, separators=(",", ":")) for m in batch]
     assert encoder.encode_batch(batch) == expected
-    assert 0 < len(encoder._param_texts) <= 3
+    assert 0 < len(param_text.kept_param_texts()) <= 3
 
 
 def test_a_frame_of_no_bytes_is_written_too() -> None:
@@ -318,11 +319,10 @@ def test_a_frame_of_no_bytes_is_written_too() -> None:
 def test_kept_json_texts_hold_their_text_alone() -> None:
     """orjson's bytes keep the 4 KiB buffer they were written into; the encoder keeps tens of
     thousands of param texts, which must cost their size, not 4 KiB each (260 MB on 1 M frames)."""
-    encoder = FrameRecordEncoder()
     params = [ParamValue(8604, "RFRD", "Speed", n, n, "rpm") for n in range(2000)]
     tracemalloc.start()
     try:
-        texts = [encoder._param_text(param)[1] for param in params]
+        texts = [param_text.param_texts(param)[1] for param in params]
         held = tracemalloc.get_traced_memory()[0]
     finally:
         tracemalloc.stop()
