@@ -43,7 +43,11 @@ CASES = pytest.mark.parametrize(("capture", "setting"), [
     (lambda folder: _generated(folder, "mixed"), ([], 0)),
     (lambda folder: _generated(folder, "mixed"), (["--profile", "atv71"], 4000)),
     *[(lambda folder, name=name: _real(folder, name), ([], 0)) for name in RECORDINGS],
-], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", "mixed-named", *RECORDINGS])
+    # Real wires read with a profile that names what they carry (wrongly, but every rule applies).
+    *[(lambda folder, name=name: _real(folder, name), (["--profile", profile], 0))
+      for name in RECORDINGS for profile in ("atv71", "xbt")],
+], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", "mixed-named", *RECORDINGS,
+        *[f"{name}-{profile}" for name in RECORDINGS for profile in ("atv71", "xbt")]])
 
 
 @pytest.fixture
