@@ -276,6 +276,17 @@ def test_register_reads_around_the_words_a_summary_shows_say_what_the_plain_path
     assert check_batch(annotator(None), annotator(None), batch) == len(traffic)
 
 
+def test_register_writes_around_the_words_a_summary_shows_say_what_the_plain_path_says() -> None:
+    """FC 16 writes of one to eight registers are written by the quick path, longer ones by the
+    plain one ("… (+1)"): both sides of the edge, with their confirmations."""
+    traffic = []
+    for count in (1, 2, 8, 9, 10):
+        traffic += [adu(b"\x01\x10", struct.pack(">HHB", 8501, count, 2 * count), bytes(range(2 * count))),
+                    adu(b"\x01\x10", struct.pack(">HH", 8501, count))]
+    batch = paired_by_hand(traffic, {answer: answer - 1 for answer in range(1, len(traffic), 2)})
+    assert check_batch(annotator(None), annotator(None), batch) == len(traffic)
+
+
 def test_short_frames_of_every_function_are_left_to_the_plain_path() -> None:
     """Frames too short for their function's layout, alone at the end of a batch (where reading
     past them would leave the batch's bytes)."""
