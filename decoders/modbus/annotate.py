@@ -52,7 +52,7 @@ from decoders.modbus.pdu_parse import parse_pdu
 from decoders.modbus.quick import QuickRead, register_reads
 from decoders.modbus.value_shapes import ValueShapes
 from decoders.profiles.apply import FrameFacts, ProfileApplier
-from decoders.profiles.columns import named, plain_codes, unnameable
+from decoders.profiles.columns import learning_slaves, named, plain_codes, unnameable
 from decoders.uss import parse_uss
 
 #: Decodings kept for repeats, per generation of the memo: what a bus repeats stays while
@@ -145,7 +145,8 @@ class Annotator:
         columnar = find_columnar(batch, eligible, self._earlier_read)
         if all(plain):  # no profile names a slave of the batch
             return columnar
-        while len(unnamed := unnameable(profiles, batch, columnar)):
+        learning = learning_slaves(profiles, batch, self._earlier_request)
+        while len(unnamed := unnameable(profiles, batch, columnar, learning)):
             eligible[unnamed] = False
             columnar = find_columnar(batch, eligible, self._earlier_read)
         return named(profiles, batch, columnar)
@@ -158,6 +159,10 @@ class Annotator:
             adds_nothing = np.array([self._profiles.adds_nothing(int(slave)) for slave in slaves.tolist()], np.bool_)
             plain &= adds_nothing[np.searchsorted(slaves, batch.slave)]
         return plain
+
+    def _earlier_request(self, index: int) -> Pdu | None:
+        kept = self._requests.get(index)
+        return None if kept is None else kept[1]
 
     def _earlier_read(self, index: int) -> tuple[int, int, int] | None:
         kept = self._requests.get(index)

@@ -182,14 +182,13 @@ class ProfileApplier:
             return None
         return self._name_values(namers, raws)
 
-    def named_values(self, profile: Profile, reported: bool, address: int,
+    def named_values(self, profile: Profile, slave: int, reported: bool, address: int,
                      raws: list[int | None]) -> list[NamedValue]:
-        """Each of ``raws`` at ``address`` as :meth:`apply_decoding` names it for a slave of
-        ``profile`` (``reported``: the device's values), kept as there: for frames named in
-        columns (:mod:`decoders.profiles.columns`). Not for a scanner table's registers, whose
-        names are each slave's own."""
+        """Each of ``raws`` at ``address`` as :meth:`apply_decoding` names it for ``slave`` of
+        ``profile`` (``reported``: the device's values) now, kept as there: for frames named in
+        columns (:mod:`decoders.profiles.columns`)."""
         namers = self._kept_namers(profile, reported)
-        namer = namers.get(address) or self._namer_at(namers, profile, None, address, reported)
+        namer = namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
         fast, known, named = self.fast, namer.known, []
         for raw in raws:
             value = known.get(raw) if fast else None
@@ -356,7 +355,7 @@ def limit_remarks(profile: Profile, facts: FrameFacts, pdu: Pdu) -> list[str]:
 
 
 def _exception_remarks(profile: Profile, pdu: ExceptionPdu, request: Pdu | None) -> list[str]:
-    asked = set(_addresses(request))
+    asked = set(request_addresses(request))
     return [
         note.explanation
         for note in profile.exceptions
@@ -366,7 +365,8 @@ def _exception_remarks(profile: Profile, pdu: ExceptionPdu, request: Pdu | None)
     ]
 
 
-def _addresses(pdu: Pdu | None) -> list[int]:
+def request_addresses(pdu: Pdu | None) -> list[int]:
+    """The registers or coils a request names (its read and its written ones)."""
     if isinstance(pdu, ReadRequest | WriteRegistersRequest | WriteCoilsRequest):
         return list(range(pdu.address, pdu.address + pdu.count))
     if isinstance(pdu, ReadWriteRequest):

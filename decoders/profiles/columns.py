@@ -5,7 +5,8 @@ value, unit, and a text for the summary), each what the register's namer
 (:class:`~decoders.profiles.naming.AddressNamer`) makes of its address and raw word. The frames
 the annotator keeps in columns (:mod:`decoders.modbus.columnar`) get theirs at once here
 (:func:`named`): every param of a named slave's frame is a key (its profile, whether the device
-reported it, its address, its raw word), each distinct key of the batch is named once through
+reported it, its address, its raw word, and at a scanner table's value register its slave, whose
+own mapping names it), each distinct key of the batch is named once through
 the applier, which keeps what its namers made as for any frame, and each param takes its entry
 (:class:`~decoders.modbus.columnar.ColumnarNames`). A batch of drives polled for values that
 change names a few thousand distinct values for tens of thousands of frames.
@@ -13,8 +14,10 @@ change names a few thousand distinct values for tens of thousands of frames.
 A named slave's frame stays in columns only where naming it is that lookup alone, all that
 :meth:`~decoders.profiles.apply.ProfileApplier.apply_decoding` would do to it:
 
-* none of its registers is in a scanner table (:func:`unnameable`): an address register teaches
-  the table, and a value register's name is its own slave's mapping at that frame;
+* none of its registers is a scanner table's address register (:func:`unnameable`: one teaches
+  the table); a value register, whose name is its own slave's mapping at that frame, only where
+  no frame of the batch may teach its slave's tables (:func:`learning_slaves`: then the mapping
+  the applier holds now holds for the whole batch);
 * a request the profile remarks nothing of (:func:`unnameable`: a function it supports, counts
   within its limits; answers in columns are never exceptions, which may get remarks);
 * its profile names no two registers alike and names none by a number (:func:`plain_codes`):
@@ -30,21 +33,32 @@ tests hold every output of frames so named to the plain path (``tests/property/t
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
 
-from decoders.message import MessageBatch, Role
+from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from decoders.modbus.columnar import ColumnarFrames, ColumnarNames
 from decoders.modbus.columnar_text import READ, READ_ANSWER, WRITE, WRITE_ANSWER
+from decoders.modbus.pdu import Pdu
 from decoders.modbus.pdu_parse import parse_pdu
-from decoders.profiles.apply import FrameFacts, ProfileApplier, limit_remarks
-from decoders.profiles.model import Profile
+from decoders.profiles.apply import FrameFacts, ProfileApplier, limit_remarks, request_addresses
+from decoders.profiles.model import Indirection, Profile
 
-#: Bits of a param's key (:func:`named`) for its raw word plus one (0: no value) and its address
-#: (a read's last register may lie past 65 535).
-_RAW_BITS, _ADDRESS_BITS = 17, 20
-_RAW_MASK, _ADDRESS_MASK = (1 << _RAW_BITS) - 1, (1 << _ADDRESS_BITS) - 1
+#: Bits of a param's key (:func:`named`) for its raw word plus one (0: no value), its address (a
+#: read's last register may lie past 65 535) and its slave plus one (0: a register whose name
+#: no slave's mapping changes).
+_RAW_BITS, _ADDRESS_BITS, _SLAVE_BITS = 17, 20, 9
+_RAW_MASK, _ADDRESS_MASK, _SLAVE_MASK = (1 << _RAW_BITS) - 1, (1 << _ADDRESS_BITS) - 1, (1 << _SLAVE_BITS) - 1
+#: The request of an answer from before the batch, by its frame index (``None``: not kept).
+EarlierRequest = Callable[[int], "Pdu | None"]
+#: Frames that may be requests, and what the plain path may read as one (a frame of no known role).
+_ASKING = [ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST], ROLE_CODE[Role.UNKNOWN]]
+#: Functions whose requests name registers: where their first address and count lie.
+_NAMING = (3, 4, 6, 16, 23)
+_SHORTEST_NAMING = 6  # slave, function, address, count
+_READ_WRITE, _READ_WRITE_NAMING = 23, 10  # FC 23 names a second span, written, at bytes 6 to 9
 
 
 def plain_codes(profile: Profile) -> bool:
@@ -73,20 +87,72 @@ class _Slaves:
         self.named: npt.NDArray[np.bool_] = np.array(names, np.bool_)[at]
 
 
-def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames) -> npt.NDArray[np.int64]:
+def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: EarlierRequest) -> set[int]:
+    """The slaves of ``batch`` whose scanner tables a frame of it may teach: a request (or a
+    frame of no known role, which the plain path may read as one) naming an address register of
+    its slave's tables, or an answer to a request from before the batch (``earlier``) naming one."""
+    slaves = [slave for slave in np.unique(batch.slave).tolist() if slave != NONE]
+    tables = {slave: applier.book.profile_for(slave).indirections for slave in slaves}
+    if not any(tables.values()):
+        return set()
+    # Each slave's tables by the place of its profile's in ``kinds`` (0: none).
+    kinds: list[tuple[Indirection, ...]] = [()]
+    kind_of = np.zeros(256, np.int64)
+    for slave, indirections in tables.items():
+        if indirections:
+            if indirections not in kinds:
+                kinds.append(indirections)
+            kind_of[slave & 0xFF] = kinds.index(indirections)
+    frames = batch.frames
+    starts, lengths = frames.offsets[:-1], np.diff(frames.offsets)
+    asking = np.flatnonzero(np.isin(batch.role, _ASKING) & np.isin(batch.function, _NAMING)
+                            & (lengths >= _SHORTEST_NAMING) & (batch.slave != NONE) & (kind_of[batch.slave & 0xFF] > 0))
+    raw = np.frombuffer(frames.data, np.uint8).astype(np.int64)
+
+    def word(at: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+        return (raw[at] << 8) | raw[at + 1]
+
+    at = starts[asking]
+    both = asking[(batch.function[asking] == _READ_WRITE) & (lengths[asking] >= _READ_WRITE_NAMING)]
+    learning: set[int] = set()
+    for rows, low, count in ((asking, word(at + 2), np.where(batch.function[asking] == 6, 1, word(at + 4))),
+                             (both, word(starts[both] + 6), word(starts[both] + 8))):
+        kind = kind_of[batch.slave[rows] & 0xFF]
+        hit = np.zeros(len(rows), np.bool_)
+        for place, indirections in enumerate(kinds):
+            for table in indirections:
+                first_register = table.address_registers
+                hit |= (kind == place) & (low < first_register + table.count) & (low + count > first_register)
+        learning.update(batch.slave[rows[hit]].tolist())
+    first = frames.first_index
+    for position in np.flatnonzero((batch.request_index != NONE) & (batch.request_index < first)).tolist():
+        slave = int(batch.slave[position])
+        named = request_addresses(earlier(int(batch.request_index[position])))
+        if any(0 <= address - table.address_registers < table.count
+               for table in tables.get(slave, ()) for address in named):
+            learning.add(slave)
+    return learning
+
+
+def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames,
+               learning: set[int]) -> npt.NDArray[np.int64]:
     """The positions of the frames of ``columnar`` (found in ``batch``) whose naming is more
-    than a lookup: a scanner table's register, or a request the profile remarks on."""
-    slaves = _Slaves(applier, batch.slave[columnar.positions].astype(np.int64))
+    than a lookup: a scanner table's address register, a value register of a slave whose tables
+    the batch may teach (``learning``, :func:`learning_slaves`), or a request the profile
+    remarks on."""
+    frame_slaves = batch.slave[columnar.positions].astype(np.int64)
+    slaves = _Slaves(applier, frame_slaves)
     bad = np.zeros(len(columnar), np.bool_)
     if not slaves.named.any():
         return columnar.positions[bad]
     low = columnar.address
     high = low + np.maximum(columnar.count, 0)
+    taught = np.isin(frame_slaves, list(learning))
     for place, profile in enumerate(slaves.profiles):
         of = slaves.named & (slaves.profile == place)
         for table in profile.indirections:
-            for first in (table.address_registers, table.value_registers):
-                bad |= of & (low < first + table.count) & (high > first)
+            bad |= of & (low < table.address_registers + table.count) & (high > table.address_registers)
+            bad |= of & taught & (low < table.value_registers + table.count) & (high > table.value_registers)
     requests = np.flatnonzero(slaves.named & np.isin(columnar.kind, (READ, WRITE)) & ~bad)
     if len(requests):
         # A request's remarks depend on its profile, function and count alone: one of each asked.
@@ -117,15 +183,31 @@ def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames
     rows = np.flatnonzero(slaves.named[frame])
     of = frame[rows]
     reported = np.isin(columnar.kind, (READ_ANSWER, WRITE_ANSWER))[of].astype(np.int64)
-    register = ((slaves.profile[of] * 2 + reported) << _ADDRESS_BITS) | params.address[rows]
+    address = params.address[rows]
+    owner = _value_register_owners(slaves, of, address, batch.slave[columnar.positions].astype(np.int64))
+    register = ((((slaves.profile[of] * 2 + reported) << _SLAVE_BITS) | owner) << _ADDRESS_BITS) | address
     distinct, inverse = np.unique((register << _RAW_BITS) | (params.value[rows] + 1), return_inverse=True)
     registers = distinct >> _RAW_BITS
     cuts = (np.flatnonzero(np.diff(registers)) + 1).tolist()
     table = []
     for start, stop in zip([0, *cuts], [*cuts, len(distinct)], strict=True):
-        group, address = int(registers[start]) >> _ADDRESS_BITS, int(registers[start]) & _ADDRESS_MASK
+        key = int(registers[start])
+        group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
         raws = [None if raw < 0 else raw for raw in ((distinct[start:stop] & _RAW_MASK) - 1).tolist()]
-        table += applier.named_values(slaves.profiles[group >> 1], bool(group & 1), address, raws)
+        table += applier.named_values(slaves.profiles[group >> 1], slave, bool(group & 1), key & _ADDRESS_MASK, raws)
     row = np.full(len(params.address), -1, np.int64)
     row[rows] = inverse.reshape(-1)
     return dataclasses.replace(columnar, names=ColumnarNames(row, table))
+
+
+def _value_register_owners(slaves: _Slaves, of: npt.NDArray[np.int64], address: npt.NDArray[np.int64],
+                           frame_slaves: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    """For each param (of frame ``of``, at ``address``): its slave plus one where it is a scanner
+    table's value register (named by that slave's mapping), 0 elsewhere (named alike for all)."""
+    owner = np.zeros(len(of), np.int64)
+    for place, profile in enumerate(slaves.profiles):
+        for table in profile.indirections:
+            inside = (slaves.profile[of] == place) & (address >= table.value_registers) & (
+                address < table.value_registers + table.count)
+            owner[inside] = frame_slaves[of[inside]] + 1
+    return owner

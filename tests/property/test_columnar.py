@@ -184,6 +184,52 @@ def test_a_named_slave_s_scanner_registers_and_remarked_requests_are_not_kept_in
     assert reads is not None and reads.positions.tolist() == [8, 9]
 
 
+def _read(slave: int, address: int, values: tuple[int, ...]) -> list[bytes]:
+    """A read of ``values`` at ``address`` and its answer."""
+    s = bytes([slave])
+    return [adu(s, b"\x03", struct.pack(">HH", address, len(values))),
+            adu(s, b"\x03", bytes([2 * len(values)]), struct.pack(f">{len(values)}H", *values))]
+
+
+def _names(annotator_: Annotator, batch: MessageBatch) -> list[str]:
+    """The summaries of the frames ``annotator_`` keeps in columns of ``batch``."""
+    reads = annotator_.annotate_columnar(batch).columnar
+    return [] if reads is None else reads.summaries(batch.frames.data)
+
+
+def test_scanner_value_registers_are_named_in_columns_by_each_slave_s_own_mapping() -> None:
+    """Slave 1 points NM1 at RFRD (8604) in one batch (writing NMA1, which stays out of columns);
+    in the next both slaves read NM1, in columns: slave 1's is NM1→RFRD, slave 2's the factory
+    NM1→ETA, as the plain path names them."""
+    columns, plain = annotator(["atv71"]), annotator(["atv71"])
+    teach = [adu(b"\x01\x06", struct.pack(">HH", 12701, 8604)), adu(b"\x01\x06", struct.pack(">HH", 12701, 8604))]
+    (first,) = [batch for batch in matched(teach) if len(batch)]
+    assert check_batch(columns, plain, first) == 0
+    (batch,) = [batch for batch in matched(_read(1, 12741, (1500,)) + _read(2, 12741, (0x0637,))) if len(batch)]
+    assert check_batch(columns, plain, batch) == 4
+    assert _names(columns, batch) == [
+        "read HR 12741 (1): NM1→RFRD", "HR = 05DC (1 registers): NM1→RFRD = 1500 rpm", "read HR 12741 (1): NM1→ETA",
+        "HR = 0637 (1 registers): NM1→ETA = 16#0637 operation enabled, reference reached, forward"]
+
+
+def test_a_batch_that_teaches_a_slave_s_scanner_keeps_its_value_registers_out_of_columns() -> None:
+    """Slave 1 reads NM1, points NMA1 at RFRD and reads NM1 again, in one batch: the two reads
+    say different things, so neither is named from the mapping the batch began with; slave 2's
+    read of NM1 stays in columns. An answer to a read of NMA1 from the batch before (which
+    teaches too) keeps the slave's value registers out as well."""
+    write = adu(b"\x01\x06", struct.pack(">HH", 12701, 8604))
+    read_write = adu(b"\x01\x17", struct.pack(">HHHHBH", 3201, 1, 12701, 1, 2, 8604))  # FC 23 writes NMA1
+    for teach in ([write, write], [read_write, adu(b"\x01\x17\x02\x06\x37")]):
+        columns, plain = annotator(["atv71"]), annotator(["atv71"])
+        traffic = _read(1, 12741, (1500,)) + teach + _read(1, 12741, (1500,)) + _read(2, 12741, (1500,))
+        (batch,) = [batch for batch in matched(traffic) if len(batch)]
+        assert check_batch(columns, plain, batch) == 2
+    columns, plain = annotator(["atv71"]), annotator(["atv71"])
+    (batch,) = [batch for batch in matched(_read(1, 12701, (8604,)) + _read(1, 12741, (1500,))) if len(batch)]
+    pieces = (slice_messages(batch, 0, 1), slice_messages(batch, 1, len(batch)))
+    assert [check_batch(columns, plain, piece) for piece in pieces] == [0, 0]
+
+
 def test_frames_from_a_slave_s_identification_on_are_not_kept_in_columns() -> None:
     """An FC 43 answer may give its slave a profile (here slave 1 says it is an ATV71): its
     frames from the batch's first identification on are decoded one by one, the other slaves'
