@@ -95,7 +95,7 @@ def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: Earli
     tables = {slave: applier.book.profile_for(slave).indirections for slave in slaves}
     if not any(tables.values()):
         return set()
-    # Each slave's tables by the place of its profile's in ``kinds`` (0: none).
+    # Each slave's tables by their place in ``kinds`` (0: none).
     kinds: list[tuple[Indirection, ...]] = [()]
     kind_of = np.zeros(256, np.int64)
     for slave, indirections in tables.items():
@@ -103,6 +103,29 @@ def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: Earli
             if indirections not in kinds:
                 kinds.append(indirections)
             kind_of[slave & 0xFF] = kinds.index(indirections)
+    learning: set[int] = set()
+    for rows, low, count in _asked_spans(batch, kind_of):
+        kind = kind_of[batch.slave[rows] & 0xFF]
+        hit = np.zeros(len(rows), np.bool_)
+        for place, indirections in enumerate(kinds):
+            for table in indirections:
+                first_register = table.address_registers
+                hit |= (kind == place) & (low < first_register + table.count) & (low + count > first_register)
+        learning.update(batch.slave[rows[hit]].tolist())
+    first = batch.frames.first_index
+    for position in np.flatnonzero((batch.request_index != NONE) & (batch.request_index < first)).tolist():
+        slave = int(batch.slave[position])
+        named = request_addresses(earlier(int(batch.request_index[position])))
+        if any(0 <= address - table.address_registers < table.count
+               for table in tables.get(slave, ()) for address in named):
+            learning.add(slave)
+    return learning
+
+
+def _asked_spans(batch: MessageBatch, kind_of: npt.NDArray[np.int64]) -> list[tuple[npt.NDArray[np.int64], ...]]:
+    """The registers the frames of ``batch`` that may be requests name, of slaves with tables
+    (``kind_of``, by slave, not 0): their positions, first registers and counts, once for every
+    such frame and again for the written span of each FC 23."""
     frames = batch.frames
     starts, lengths = frames.offsets[:-1], np.diff(frames.offsets)
     asking = np.flatnonzero(np.isin(batch.role, _ASKING) & np.isin(batch.function, _NAMING)
@@ -114,24 +137,8 @@ def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: Earli
 
     at = starts[asking]
     both = asking[(batch.function[asking] == _READ_WRITE) & (lengths[asking] >= _READ_WRITE_NAMING)]
-    learning: set[int] = set()
-    for rows, low, count in ((asking, word(at + 2), np.where(batch.function[asking] == 6, 1, word(at + 4))),
-                             (both, word(starts[both] + 6), word(starts[both] + 8))):
-        kind = kind_of[batch.slave[rows] & 0xFF]
-        hit = np.zeros(len(rows), np.bool_)
-        for place, indirections in enumerate(kinds):
-            for table in indirections:
-                first_register = table.address_registers
-                hit |= (kind == place) & (low < first_register + table.count) & (low + count > first_register)
-        learning.update(batch.slave[rows[hit]].tolist())
-    first = frames.first_index
-    for position in np.flatnonzero((batch.request_index != NONE) & (batch.request_index < first)).tolist():
-        slave = int(batch.slave[position])
-        named = request_addresses(earlier(int(batch.request_index[position])))
-        if any(0 <= address - table.address_registers < table.count
-               for table in tables.get(slave, ()) for address in named):
-            learning.add(slave)
-    return learning
+    return [(asking, word(at + 2), np.where(batch.function[asking] == 6, 1, word(at + 4))),
+            (both, word(starts[both] + 6), word(starts[both] + 8))]
 
 
 def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames,
