@@ -109,8 +109,7 @@ def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: Earli
         hit = np.zeros(len(rows), np.bool_)
         for place, indirections in enumerate(kinds):
             for table in indirections:
-                first_register = table.address_registers
-                hit |= (kind == place) & (low < first_register + table.count) & (low + count > first_register)
+                hit |= (kind == place) & _overlap(low, low + count, table.address_registers, table.count)
         learning.update(batch.slave[rows[hit]].tolist())
     first = batch.frames.first_index
     for position in np.flatnonzero((batch.request_index != NONE) & (batch.request_index < first)).tolist():
@@ -158,8 +157,8 @@ def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarF
     for place, profile in enumerate(slaves.profiles):
         of = slaves.named & (slaves.profile == place)
         for table in profile.indirections:
-            bad |= of & (low < table.address_registers + table.count) & (high > table.address_registers)
-            bad |= of & taught & (low < table.value_registers + table.count) & (high > table.value_registers)
+            bad |= of & _overlap(low, high, table.address_registers, table.count)
+            bad |= of & taught & _overlap(low, high, table.value_registers, table.count)
     requests = np.flatnonzero(slaves.named & np.isin(columnar.kind, (READ, WRITE)) & ~bad)
     if len(requests):
         # A request's remarks depend on its profile, function and count alone: one of each asked.
@@ -214,7 +213,14 @@ def _value_register_owners(slaves: _Slaves, of: npt.NDArray[np.int64], address: 
     owner = np.zeros(len(of), np.int64)
     for place, profile in enumerate(slaves.profiles):
         for table in profile.indirections:
-            inside = (slaves.profile[of] == place) & (address >= table.value_registers) & (
-                address < table.value_registers + table.count)
+            inside = (slaves.profile[of] == place) & _overlap(address, address + 1, table.value_registers, table.count)
             owner[inside] = frame_slaves[of[inside]] + 1
     return owner
+
+
+def _overlap(low: npt.NDArray[np.int64], high: npt.NDArray[np.int64], first: int,
+             count: int) -> npt.NDArray[np.bool_]:
+    """Whether each span of registers ``low`` up to ``high`` (excluded) shares one with the
+    ``count`` registers from ``first`` (a scanner table's)."""
+    shared: npt.NDArray[np.bool_] = (low < first + count) & (high > first)
+    return shared
