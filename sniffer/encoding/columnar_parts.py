@@ -28,7 +28,7 @@ import orjson
 
 from decoders.message import ROLE_NAMES
 from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
-from sniffer.encoding.param_text import NO_VALUE_END, WORDS, param_start, param_tables, param_texts
+from sniffer.encoding.param_text import NO_VALUE_END, PARAM_JSON, PARAM_MEMBERS, WORDS, param_start, param_tables
 from sniffer.encoding.rows import Pieces
 
 #: Params spelt at once (see :func:`_in_slices`).
@@ -81,8 +81,8 @@ class ColumnarParts:
         if names is None:
             return None
         if members:
-            return _objects([param_texts(param, member=True)[2] for param, _ in names.table])
-        return _objects([b"," + param_texts(param)[1] for param, _ in names.table])
+            return _objects([PARAM_MEMBERS.entry(param)[1] for param, _ in names.table])
+        return _objects([b"," + PARAM_JSON.entry(param)[1] for param, _ in names.table])
 
     def _param_columns(self) -> ColumnarParams:
         if self._params is None:

@@ -18,8 +18,8 @@ Exactly the JSON of :func:`sniffer.encoding.records.param_record` (the tests com
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, Generic, TypeVar
 
 import orjson
 
@@ -138,29 +138,32 @@ def member_json(param: ParamValue) -> bytes:
     return b"," + encode_json({key: value})[1:-1]
 
 
-#: Profiled params whose texts are kept (see :func:`param_texts`).
-KEPT_PARAM_TEXTS = 65536
-#: Each profiled param's texts by the param's identity (a profile's namer hands the same param
-#: to every frame with that value; it stays alive here, so its id is not reused): the param, its
-#: JSON, and its params member once asked for.
-_kept_texts: dict[int, list[Any]] = {}
+#: Profiled params kept by each :class:`KeptByParam` at most; all are let go past it.
+KEPT_PARAMS = 65536
+Made = TypeVar("Made")
 
 
-def param_texts(param: ParamValue, *, member: bool = False) -> list[Any]:
-    """``[param, its JSON (:func:`param_json`), its member (:func:`member_json`, made where
-    ``member``)]``, made once and kept (all are let go at :data:`KEPT_PARAM_TEXTS`): a frame
-    record's params and the MCAP params message spell each profiled value so."""
-    kept = _kept_texts.get(id(param))
-    if kept is None:
-        if len(_kept_texts) >= KEPT_PARAM_TEXTS:
-            _kept_texts.clear()
-        kept = _kept_texts[id(param)] = [param, param_json(param), None]
-    if member and kept[2] is None:
-        kept[2] = member_json(param)
-    return kept
+class KeptByParam(Generic[Made]):
+    """What a writer makes of profiled params (``make``), made once per param and kept by the
+    param's identity: a profile's namer hands the same param to every frame with that value, and
+    the param stays alive here, so its id is not reused. All are let go at :data:`KEPT_PARAMS`."""
+
+    def __init__(self, make: Callable[[ParamValue], Made]) -> None:
+        self._make = make
+        #: By the param's identity: the param and what was made of it (writers look it up in C,
+        #: in a comprehension, and call :meth:`entry` for what is missing).
+        self.kept: dict[int, tuple[ParamValue, Made]] = {}
+
+    def entry(self, param: ParamValue) -> tuple[ParamValue, Made]:
+        """``param`` and what was made of it (made and kept now where new)."""
+        kept = self.kept.get(id(param))
+        if kept is None:
+            if len(self.kept) >= KEPT_PARAMS:
+                self.kept.clear()
+            kept = self.kept[id(param)] = (param, self._make(param))
+        return kept
 
 
-def kept_param_texts() -> dict[int, list[Any]]:
-    """The kept texts by the param's identity, for a lookup in a comprehension (:func:`param_texts`
-    makes what is missing)."""
-    return _kept_texts
+#: Each profiled param's JSON in a frame record, and its ``/slave/N/params`` member.
+PARAM_JSON = KeptByParam(param_json)
+PARAM_MEMBERS = KeptByParam(member_json)

@@ -32,7 +32,7 @@ from sniffer.encoding.frame_fields import (
     frame_fields,
     identities_at,
 )
-from sniffer.encoding.param_text import encode_json, kept_param_texts, param_record, param_texts, params_pieces
+from sniffer.encoding.param_text import PARAM_JSON, encode_json, param_record, params_pieces
 from sniffer.encoding.rows import (
     Column,
     Rows,
@@ -126,7 +126,7 @@ class FrameRecordEncoder:
 
     Every frame passes through here. What a decoding determines (params, summary, protocol,
     remarks) is encoded once per :class:`Decoding` (the annotator shares one between
-    repeats), a profiled param's JSON once per param (:func:`~sniffer.encoding.param_text.param_texts`); the frame's own
+    repeats), a profiled param's JSON once per param (:data:`~sniffer.encoding.param_text.PARAM_JSON`); the frame's own
     fields (times, bytes, slave, role, flags, pairing) are columns of the batch
     (:func:`frame_fields`), each formatted at once (numbers by one ``repr``, which is how
     ``json.dumps`` writes them; hex by numpy), and the columns are joined into records by
@@ -232,8 +232,8 @@ class FrameRecordEncoder:
             tail = params_pieces(decoding.runs, b'"params":')
             tail += (b',"summary":', encode_json(decoding.summary))
         else:
-            texts = kept_param_texts()
-            params = b",".join([(texts.get(id(p)) or param_texts(p))[1] for p in decoding.params])
+            texts, entry = PARAM_JSON.kept, PARAM_JSON.entry
+            params = b",".join([(texts.get(id(p)) or entry(p))[1] for p in decoding.params])
             tail = [b'"params":[', params, b'],"summary":', encode_json(decoding.summary)]
         remarks = encode_json(list(decoding.remarks)) if decoding.remarks else b"[]"
         tail += (b',"protocol":', _PROTOCOL_JSON[protocol], b',"remarks":', remarks)

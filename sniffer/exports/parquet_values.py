@@ -26,6 +26,7 @@ from decoders.message import NONE, AnnotatedBatch, Decoding, ParamValue
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.columnar import within_runs
 from decoders.profiles.naming import NamedValue
+from sniffer.encoding.param_text import KeptByParam
 from sniffer.encoding.value_rows import ValueRow, ValueRows
 from sniffer.exports.parquet_export import dictionary, nullable, times
 from sniffer.exports.value_bulk import REPORTED, VALUE_KINDS, WRITTEN, BulkRows, bulk_rows
@@ -40,10 +41,6 @@ PROBE_EVERY = 16
 #: A named row's own columns: time, index, slave, kind (its code), request index (``NONE``).
 NamedRow = tuple[int, int, int, int, int]
 _KIND_CODES = {kind: code for code, kind in enumerate(VALUE_KINDS)}
-#: Named values' rows kept (see :func:`_with_names`), by the param's identity (its namer hands the
-#: same param to every frame with that value; kept here, its id is not reused).
-KEPT_NAMED_ROWS = 65536
-_rows_kept: dict[int, tuple[ParamValue, tuple[object, ...]]] = {}
 #: The row of a param without a value (a read request's, which no row is), and of no param.
 _NO_ROW = (None, None, None, None, None, None, None, True)
 
@@ -380,15 +377,7 @@ def _with_names(rows: NumericValues, names: list[NamedValue]) -> tuple[npt.NDArr
     """:func:`_numeric_columns` where a profile names some rows: theirs as :func:`_named_block`
     has them, each named value's laid out once and taken by the rows."""
     t_ns, columns = _numeric_columns(dataclasses.replace(rows, names=None))
-    if len(_rows_kept) >= KEPT_NAMED_ROWS:
-        _rows_kept.clear()
-    table = []
-    for param, _ in names:
-        kept = _rows_kept.get(id(param))
-        if kept is None:
-            row = _named_block((param,), written=False, crc_ok=True)
-            kept = _rows_kept[id(param)] = (param, row[0] if row else _NO_ROW)
-        table.append(kept[1])
+    table = [_NAMED_ROWS.entry(param)[1] for param, _ in names]
     _, code, name, _, number, text, unit, available = zip(*table, _NO_ROW, strict=True)  # the last: for -1
     rows_named = rows.name >= 0
     taken = pa.array(np.where(rows_named, rows.name, len(names)))  # unnamed: the last entry
@@ -404,3 +393,13 @@ def _with_names(rows: NumericValues, names: list[NamedValue]) -> tuple[npt.NDArr
                    value=pa.array(value, pa.float64(), mask=rows_named & unnumbered[rows.name]),
                    valid=pa.array(valid, pa.bool_()))
     return t_ns, columns
+
+
+def _named_row(param: ParamValue) -> tuple[object, ...]:
+    """``param``'s row as :func:`_named_block` has it (reported, its CRC good)."""
+    row = _named_block((param,), written=False, crc_ok=True)
+    return row[0] if row else _NO_ROW
+
+
+#: Each named value's row, for the frames left in columns (:func:`_with_names`).
+_NAMED_ROWS = KeptByParam(_named_row)

@@ -294,8 +294,8 @@ def test_fast_frame_records_say_what_the_exact_ones_say(batch: AnnotatedBatch, r
 def test_profiled_param_texts_kept_stay_bounded_and_right(monkeypatch: pytest.MonkeyPatch) -> None:
     """A param's JSON is kept by the param object (a namer hands one to every frame with that
     value), up to a bound; past it, what is written stays what ``json.dumps`` writes."""
-    monkeypatch.setattr(param_text, "KEPT_PARAM_TEXTS", 3)
-    monkeypatch.setattr(param_text, "_kept_texts", {})
+    monkeypatch.setattr(param_text, "KEPT_PARAMS", 3)
+    monkeypatch.setattr(param_text.PARAM_JSON, "kept", {})
     shared = ParamValue(3201, "ETA", "Status word", 0x8637, "ready", None)
     decodings = [Decoding(f"read {n}", (shared, ParamValue(8604, "RFRD", "Speed", n, n * 1e-5, "rpm")))
                  for n in range(8)]
@@ -304,7 +304,7 @@ def test_profiled_param_texts_kept_stay_bounded_and_right(monkeypatch: pytest.Mo
     encoder = FrameRecordEncoder()
     expected = [json.dumps(frame_record(m), ensure_ascii=False, separators=(",", ":")) for m in batch]
     assert encoder.encode_batch(batch) == expected
-    assert 0 < len(param_text.kept_param_texts()) <= 3
+    assert 0 < len(param_text.PARAM_JSON.kept) <= 3
 
 
 def test_a_frame_of_no_bytes_is_written_too() -> None:
@@ -322,7 +322,7 @@ def test_kept_json_texts_hold_their_text_alone() -> None:
     params = [ParamValue(8604, "RFRD", "Speed", n, n, "rpm") for n in range(2000)]
     tracemalloc.start()
     try:
-        texts = [param_text.param_texts(param)[1] for param in params]
+        texts = [param_text.PARAM_JSON.entry(param)[1] for param in params]
         held = tracemalloc.get_traced_memory()[0]
     finally:
         tracemalloc.stop()
