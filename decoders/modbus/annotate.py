@@ -36,7 +36,7 @@ from decoders.message import (
     Role,
 )
 from decoders.modbus.codes import function_name
-from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
+from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames, digests
 from decoders.modbus.columnar_find import find_columnar
 from decoders.modbus.layouts import fits_request
 from decoders.modbus.param_runs import LazyParams
@@ -64,7 +64,7 @@ _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
 IDENTIFICATION = 43
 #: The share of distinct frames from which a batch is left in columns for outputs that cache
 #: what they derive per decoding (below it, most frames are repeats the memo serves).
-DISTINCT_ENOUGH = 0.5
+DISTINCT_ENOUGH = 0.25
 #: Frames of a batch decoded one by one before its register reads may be decoded together;
 #: they are once the new frames are this share of the frames passed. A read costs 1.1 µs
 #: decoded with the others (all of them, repeats too), 2.6 µs alone (polling, 2026-11-25).
@@ -267,17 +267,11 @@ class Annotator:
 
 def mostly_distinct(batch: MessageBatch, share: float) -> bool:
     """Whether at least ``share`` of the batch's frames differ from one another, as told by
-    their CRC, length, slave and function (frames alike have them alike)."""
+    their CRC, length, slave and function (:func:`~decoders.modbus.columnar.digests`)."""
     frames = batch.frames
     if not len(batch):
         return False
-    ends = frames.offsets[1:]
-    raw = np.zeros(len(frames.data) + 1, np.int64)  # a byte more: frames of no bytes read it
-    raw[:-1] = np.frombuffer(frames.data, np.uint8)
-    last = np.maximum(ends - 1, 0), np.maximum(ends - 2, 0)
-    key = (raw[last[0]] << 8 | raw[last[1]]) | (np.diff(frames.offsets) << 16) | (
-        (batch.slave.astype(np.int64) & 0xFF) << 32) | ((batch.function.astype(np.int64) & 0xFF) << 40)
-    return len(np.unique(key)) >= share * len(batch)
+    return len(np.unique(digests(frames.data, frames.offsets[:-1], frames.offsets[1:]))) >= share * len(batch)
 
 
 class _Fresh:

@@ -17,7 +17,7 @@ of it, and the annotator's state after each batch, to the plain path
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -31,6 +31,14 @@ from decoders.profiles.naming import SHOWN_PARAMS, NamedValue, summary_with
 NO_VALUE = -1
 #: Requests are read against by answers that come within this many frames of them.
 KEPT_REQUESTS = 1024
+#: The share of frames kept in columns, distinct at first sight, from which :func:`alike` leaves
+#: them all to be spelt.
+DISTINCT_SHARE = 0.9
+#: Frames :func:`alike` samples to tell whether to look further.
+SAMPLED = 512
+#: An odd 64-bit multiplier (Knuth's, from the golden ratio) that spreads a frame's digest
+#: before its role, kind, address and count are mixed in.
+_MIX = np.int64(-7046029254386353131)
 #: The most a request may ask for, by function (0: not a function kept in columns).
 MOST = np.zeros(17, np.int64)
 for _function, _most in MAX_QUANTITY.items():
@@ -147,6 +155,19 @@ class ColumnarFrames:
         texts = summaries(self, data, fast=fast)
         return texts if self.names is None else self.names.suffixed(texts, np.maximum(self.count, 0), fast=fast)
 
+    def take(self, rows: npt.NDArray[np.int64]) -> ColumnarFrames:
+        """The frames at ``rows`` (indexes of these columns) as columns of their own, to spell their
+        texts: their names taken along (the table shared); ``kept_requests`` and
+        ``earlier_requests`` stay the batch's."""
+        names = self.names
+        if names is not None:
+            sizes = np.maximum(self.count, 0)
+            taken = np.repeat((np.cumsum(sizes) - sizes)[rows], sizes[rows]) + within_runs(sizes[rows])
+            names = ColumnarNames(names.row[taken], names.table)
+        return ColumnarFrames(self.positions[rows], self.function[rows], self.kind[rows], self.address[rows],
+                              self.count[rows], self.data[rows], self.byte_count[rows], self.request[rows],
+                              self.answer[rows], self.kept_requests, self.earlier_requests, names)
+
     def values(self, data: bytes) -> ColumnarValues:
         """The values of read answers, writes and the echoes of single writes (a write request's
         at its answer, before the answer's own)."""
@@ -201,3 +222,72 @@ def within_runs(counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     """For runs of ``counts`` items laid end to end, each item's place in its run (0, 1, … 0, …)."""
     within: npt.NDArray[np.int64] = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
     return within
+
+
+class Alike(NamedTuple):
+    """Frames kept in columns that read alike (:func:`alike`): ``distinct``, the first of each
+    (:meth:`ColumnarFrames.take`), and ``inverse``: for each frame, in order, its row there."""
+
+    distinct: ColumnarFrames
+    inverse: npt.NDArray[np.int64]
+
+
+def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
+          roles: npt.NDArray[np.integer[Any]]) -> Alike | None:
+    """The frames of ``columnar`` whose texts are the same: alike in their bytes, role, kind,
+    first address and count (an answer's are its request's); whatever else a text says (a
+    profile's names) the batch holds for all its frames alike. ``offsets``, ``roles``: the
+    batch's frames'. ``None`` where at least :data:`DISTINCT_SHARE` of a sample of the frames
+    (every n-th, :data:`SAMPLED` of them) differ in their CRC, length, slave and function
+    (:func:`digests`): there telling them apart costs more than it saves.
+
+    Frames are grouped by a number mixed of those and of their role, kind, address and count,
+    and each is then compared with its group's first, byte for byte and in role, kind, address
+    and count: those that differ (frames whose CRC, length, slave and function agree, as frames
+    of a bus polled for a day do now and then) are grouped again among themselves."""
+    positions = columnar.positions
+    if len(positions) < 2:
+        return None
+    starts, ends = offsets[positions], offsets[positions + 1]
+    step = max(len(positions) // SAMPLED, 1)
+    if len(np.unique(digests(data, starts[::step], ends[::step]))) >= DISTINCT_SHARE * len(starts[::step]):
+        return None
+    role = roles[positions].astype(np.int64)
+    code = (role << 3 | columnar.kind) << 48 | (columnar.count + 1) << 24 | columnar.address
+    with np.errstate(over="ignore"):  # mixed, wrapping: frames alike have it alike
+        mixed = digests(data, starts, ends) * _MIX ^ code
+    first = _group_firsts(np.arange(len(positions)), mixed)
+    raw = np.frombuffer(data, np.uint8)
+    pending = np.flatnonzero(first != np.arange(len(first)))
+    while len(pending):
+        # Against the group's first (their lengths are alike unless the mix collides); those that
+        # differ are grouped again among themselves, until every frame is its group's first or alike it.
+        sizes = np.minimum(ends - starts, (ends - starts)[first])[pending]
+        within = within_runs(sizes)
+        at, at_first = np.repeat(starts[pending], sizes) + within, np.repeat(starts[first[pending]], sizes) + within
+        differ = (code[pending] != code[first[pending]]) | ((ends - starts)[pending] != (ends - starts)[first[pending]])
+        differ[np.repeat(np.arange(len(pending)), sizes)[raw[at] != raw[at_first]]] = True
+        lone = pending[differ]
+        first[lone] = _group_firsts(lone, mixed)
+        pending = lone[first[lone] != lone]
+    firsts = np.flatnonzero(first == np.arange(len(first)))
+    return Alike(columnar.take(firsts), np.searchsorted(firsts, first))
+
+
+def _group_firsts(rows: npt.NDArray[np.int64], key: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    """For each of ``rows`` (ascending), the first of them with its ``key``."""
+    _, found, group = np.unique(key[rows], return_index=True, return_inverse=True)  # found: the first of each
+    first: npt.NDArray[np.int64] = rows[found[group.ravel()]]
+    return first
+
+
+def digests(data: bytes, starts: npt.NDArray[np.int64], ends: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    """A number per frame (``data[start:end]``) that frames alike share and frames that differ
+    seldom do: its CRC (last two bytes), length, slave and function (first two bytes; a frame
+    too short reads zeros or its own bytes again)."""
+    raw = np.zeros(len(data) + 1, np.int64)  # a byte more: frames of no bytes read it
+    raw[:-1] = np.frombuffer(data, np.uint8)
+    last = raw[np.maximum(ends - 1, 0)] << 8 | raw[np.maximum(ends - 2, 0)]
+    first = raw[starts] | raw[np.minimum(starts + 1, len(data))] << 8
+    digest: npt.NDArray[np.int64] = last | (ends - starts) << 16 | first << 32
+    return digest

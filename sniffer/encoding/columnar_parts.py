@@ -20,17 +20,18 @@ views, measured slower than a ``join`` per frame, on registers and on coils alik
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
 import orjson
 
-from decoders.message import ROLE_NAMES
-from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
+from decoders.message import ROLE_NAMES, MessageBatch
+from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, alike, within_runs
 from sniffer.encoding.param_text import NO_VALUE_END, PARAM_JSON, PARAM_MEMBERS, WORDS, param_start, param_tables
 from sniffer.encoding.rows import Pieces
 
+Text = TypeVar("Text", str, bytes)
 #: Params spelt at once (see :func:`_in_slices`).
 SLICE_PARAMS = 1 << 16
 #: The tables as numpy object arrays (indexed by a column in C), built at first use.
@@ -39,10 +40,16 @@ _tables: dict[str, npt.NDArray[Any]] = {}
 
 class ColumnarParts:
     """The texts of the frames of ``columnar`` (``data``: their batch's bytes), each list in
-    the order of ``columnar.positions``; each made when first asked for."""
+    the order of ``columnar.positions``; each made when first asked for. With ``messages``
+    (their batch), frames that read alike (:func:`~decoders.modbus.columnar.alike`: a drive's
+    unchanged status, a request polled again) are spelt once, and their texts shared."""
 
-    def __init__(self, columnar: ColumnarFrames, data: bytes) -> None:
+    def __init__(self, columnar: ColumnarFrames, data: bytes, messages: MessageBatch | None = None) -> None:
         self.columnar, self._data = columnar, data
+        found = None if messages is None else alike(columnar, data, messages.frames.offsets, messages.role)
+        #: The frames spelt, and for each frame its row among them (``None``: each its own).
+        self._spelt = columnar if found is None else found.distinct
+        self._inverse: npt.NDArray[np.int64] | None = None if found is None else found.inverse
         self._summaries: list[str] | None = None
         self._params: ColumnarParams | None = None
 
@@ -52,32 +59,42 @@ class ColumnarParts:
 
     def summaries(self) -> list[str]:
         if self._summaries is None:
-            self._summaries = self.columnar.summaries(self._data)
-        return self._summaries
+            self._summaries = self._spelt.summaries(self._data)
+        return self._each(self._summaries)
 
     def record_tails(self) -> Pieces:
         """Each frame's JSONL record part from ``params`` to the end of ``remarks``
         (``FrameRecordEncoder._decoding_part``)."""
-        summaries = list(map(orjson.dumps, self.summaries()))
+        self.summaries()
+        summaries = list(map(orjson.dumps, self._summaries or ()))
         named = self._named_texts(members=False)
-        return _in_slices(self._param_columns(),
-                          lambda params, frames: _record_tails(params, summaries[frames], named))
+        return self._each_piece(_in_slices(self._param_columns(),
+                                           lambda params, frames: _record_tails(params, summaries[frames], named)))
 
     def log_heads(self, roles: npt.NDArray[np.integer[Any]]) -> list[bytes]:
-        """Each frame's log text after its index: `` response: HR = …`` (``roles``: the frames')."""
-        return [f" {ROLE_NAMES[role]}: {summary}".encode() for role, summary in zip(roles.tolist(), self.summaries(),
-                                                                                    strict=True)]
+        """Each frame's log text after its index: `` response: HR = …`` (``roles``: the batch's)."""
+        self.summaries()
+        return self._each([f" {ROLE_NAMES[role]}: {summary}".encode()
+                           for role, summary in zip(roles[self._spelt.positions].tolist(), self._summaries or (),
+                                                    strict=True)])
 
     def numeric_members(self) -> Pieces:
         """Each frame's values as the members of a JSON object by address, its closing brace
         included (``encode_json(numeric_params(decoding))[1:]``), or ``b""``: it carried none."""
         named = self._named_texts(members=True)
-        return _in_slices(self._param_columns(), lambda params, _: _numeric_members(params, named))
+        return self._each_piece(_in_slices(self._param_columns(), lambda params, _: _numeric_members(params, named)))
+
+    def _each(self, spelt: list[Text]) -> list[Text]:
+        """A text per frame from those of the frames spelt."""
+        return spelt if self._inverse is None else list(map(spelt.__getitem__, self._inverse.tolist()))
+
+    def _each_piece(self, spelt: Pieces) -> Pieces:
+        return spelt if self._inverse is None else spelt.take(self._inverse)
 
     def _named_texts(self, *, members: bool) -> npt.NDArray[Any] | None:
         """The JSON (or with ``members``, the params member) of each named value of the frames
         (their :attr:`~decoders.modbus.columnar.ColumnarNames.table`), ``None`` where none is named."""
-        names = self.columnar.names
+        names = self._spelt.names
         if names is None:
             return None
         if members:
@@ -86,7 +103,7 @@ class ColumnarParts:
 
     def _param_columns(self) -> ColumnarParams:
         if self._params is None:
-            self._params = self.columnar.params(self._data)
+            self._params = self._spelt.params(self._data)
         return self._params
 
 
@@ -267,10 +284,11 @@ def _objects(items: list[bytes]) -> npt.NDArray[Any]:
 _last: tuple[ColumnarFrames, ColumnarParts] | None = None
 
 
-def columnar_parts(columnar: ColumnarFrames, data: bytes) -> ColumnarParts:
-    """The :class:`ColumnarParts` of ``columnar``: the same one for the sinks that write the same
-    batch (the frame records and the MCAP log share the summaries)."""
+def columnar_parts(columnar: ColumnarFrames, messages: MessageBatch) -> ColumnarParts:
+    """The :class:`ColumnarParts` of ``columnar`` (``messages``: its batch), alike frames spelt
+    once: the same one for the sinks that write the same batch (the frame records and the MCAP
+    log share the summaries)."""
     global _last  # noqa: PLW0603 - one batch's parts, held until the next batch
     if _last is None or _last[0] is not columnar:
-        _last = (columnar, ColumnarParts(columnar, data))
+        _last = (columnar, ColumnarParts(columnar, messages.frames.data, messages))
     return _last[1]

@@ -255,7 +255,7 @@ def in_columns_too(batch: AnnotatedBatch, spell: Callable[[ColumnarParts], Seque
         for position, part in zip(batch.rows.tolist(), parts, strict=True):
             placed[position] = part
     for position, part in zip(columnar.positions.tolist(),
-                              spell(columnar_parts(columnar, batch.messages.frames.data)), strict=True):
+                              spell(columnar_parts(columnar, batch.messages)), strict=True):
         placed[position] = part
     return placed
 

@@ -246,7 +246,7 @@ class DecodedChannels:
         rest = batch.positions()  # those with a decoding (all but any left in columns)
         decodings = batch.decodings_at(rest)
         found = self._parts.get_all(decodings, lambda row: _decoding_parts(decodings[row], int(roles[rest[row]])))
-        heads = in_columns_too(batch, lambda parts: parts.log_heads(roles[parts.positions]),
+        heads = in_columns_too(batch, lambda parts: parts.log_heads(roles),
                                [parts[0] for parts in found])
         return heads, in_columns_too(batch, lambda parts: parts.numeric_members(), [parts[1] for parts in found])
 

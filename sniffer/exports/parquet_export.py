@@ -43,6 +43,7 @@ import pyarrow as pa
 from decoders.anomalies import KINDS, anomaly_masks
 from decoders.frame import flag_names_of
 from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch
+from sniffer.encoding.columnar_parts import columnar_parts
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.parquet_writing import RowGroupWriter
 from sniffer.exports.transactions import OUTCOMES
@@ -180,7 +181,7 @@ def summaries(batch: AnnotatedBatch) -> list[str]:
     texts = [decoding.summary for decoding in batch.decodings]
     columnar = batch.columnar
     if columnar is not None:
-        for position, text in zip(columnar.positions.tolist(), columnar.summaries(batch.messages.frames.data),
+        for position, text in zip(columnar.positions.tolist(), columnar_parts(columnar, batch.messages).summaries(),
                                   strict=True):
             texts[position] = text
     return texts

@@ -24,6 +24,7 @@ from decoders.damage import RetryDiff
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch, MessageBatch, slice_messages
 from decoders.stats import Statistics
+from sniffer.encoding.columnar_parts import columnar_parts
 from sniffer.sinks import Sink
 from sniffer.views import fixed_width
 from sniffer.views.clock import Clock
@@ -223,7 +224,7 @@ class PlainTableView(_FrameTable):
         summaries = list(map(self._summary_of, batch.decodings_at(rows)))
         columnar = batch.columnar
         if columnar is not None:  # every frame is written: ``rows`` are all positions
-            for position, text in zip(columnar.positions.tolist(), columnar.summaries(batch.messages.frames.data),
+            for position, text in zip(columnar.positions.tolist(), columnar_parts(columnar, batch.messages).summaries(),
                                       strict=True):
                 summaries[position] = text
         marks, reached = value.marks, 0
