@@ -52,7 +52,7 @@ from decoders.modbus.pdu_parse import parse_pdu
 from decoders.modbus.quick import QuickRead, register_reads
 from decoders.modbus.value_shapes import ValueShapes
 from decoders.profiles.apply import FrameFacts, ProfileApplier
-from decoders.profiles.columns import learning_slaves, named, plain_codes, unnameable
+from decoders.profiles.columns import learning_slaves, named, plain_codes, reprofiling, unnameable
 from decoders.uss import parse_uss
 
 #: Decodings kept for repeats, per generation of the memo: what a bus repeats stays while
@@ -124,9 +124,9 @@ class Annotator:
     def _columnar(self, batch: MessageBatch) -> ColumnarFrames | None:
         """The frames of ``batch`` to keep in columns: Modbus frames of slaves whose profile adds
         nothing or names plainly (:mod:`decoders.profiles.columns`), but a slave's from its first
-        identification in the batch on (FC 43 may give it a profile, which then names what its
-        frames carry; the plain path decodes from there on), and frames a profile would do more
-        to than name their params."""
+        identification in the batch that may give it another profile on (FC 43 with another
+        product code: the profile then names what its frames carry; the plain path decodes from
+        there on), and frames a profile would do more to than name their params."""
         if not len(batch):
             return None
         profiles = self._profiles
@@ -138,10 +138,9 @@ class Annotator:
         nameable = np.array([adds or plain_codes(profiles.book.profile_for(slave))
                              for slave, adds in zip(slaves.tolist(), plain, strict=True)], np.bool_)
         eligible &= nameable[np.searchsorted(slaves, batch.slave)]
-        identifications = np.flatnonzero(batch.function == IDENTIFICATION)
-        for slave in np.unique(batch.slave[identifications]).tolist():
-            first = int(identifications[np.argmax(batch.slave[identifications] == slave)])
-            eligible[first:] &= batch.slave[first:] != slave
+        for first in _first_of_each_slave(batch, reprofiling(profiles, batch,
+                                                             np.flatnonzero(batch.function == IDENTIFICATION))):
+            eligible[first:] &= batch.slave[first:] != batch.slave[first]
         columnar = find_columnar(batch, eligible, self._earlier_read)
         if all(plain):  # no profile names a slave of the batch
             return columnar
@@ -263,6 +262,14 @@ class Annotator:
     def _profiled(self, decoding: Decoding, facts: FrameFacts, request: Pdu | None) -> Decoding:
         """``decoding`` as the profiles name it (as it is, without profiles)."""
         return decoding if self._profiles is None else self._profiles.apply_decoding(decoding, facts, request)
+
+
+def _first_of_each_slave(batch: MessageBatch, positions: list[int]) -> list[int]:
+    """The first of ``positions`` (ascending) of each slave."""
+    firsts: dict[int, int] = {}
+    for position in positions:
+        firsts.setdefault(int(batch.slave[position]), position)
+    return list(firsts.values())
 
 
 def mostly_distinct(batch: MessageBatch, share: float) -> bool:

@@ -64,10 +64,22 @@ class ProfileBook:
     def identify(self, slave: int, product_code: str) -> Profile | None:
         """The profile a product code names; it applies to ``slave`` from now on unless
         the user chose one for that slave."""
+        profile = self._named_by(product_code)
+        if profile is not None and self.automatic and slave not in self.per_slave:
+            self._identified[slave] = profile
+        return profile
+
+    def profile_after(self, slave: int, product_code: str) -> Profile:
+        """The profile ``slave`` would have once it said it is ``product_code`` (:meth:`identify`,
+        nothing changed here)."""
+        profile = self._named_by(product_code)
+        if profile is not None and self.automatic and slave not in self.per_slave:
+            return profile
+        return self.profile_for(slave)
+
+    def _named_by(self, product_code: str) -> Profile | None:
         for profile in self.known.values():
             if any(product_code.upper().startswith(code.upper()) for code in profile.product_codes):
-                if self.automatic and slave not in self.per_slave:
-                    self._identified[slave] = profile
                 return profile
         return None
 

@@ -22,8 +22,10 @@ A named slave's frame stays in columns only where naming it is that lookup alone
   within its limits; answers in columns are never exceptions, which may get remarks);
 * its profile names no two registers alike and names none by a number (:func:`plain_codes`):
   the MCAP params message holds a frame's values by code, or by address where none names it;
-* not from its slave's identification on (FC 43 may give the slave another profile: the
-  annotator's rule).
+* not from its slave's identification on, where that may give the slave another profile
+  (:func:`reprofiling`: an FC 43 answer whose product code names a profile other than the one
+  in force; the annotator's rule). A drive identified again as what it is, as masters poll
+  identities now and then, changes nothing.
 
 The annotator leaves the frames :func:`unnameable` finds out and finds the columns again. The
 tests hold every output of frames so named to the plain path (``tests/property/test_columnar.py``,
@@ -41,9 +43,17 @@ import numpy.typing as npt
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from decoders.modbus.columnar import ColumnarFrames, ColumnarNames
 from decoders.modbus.columnar_text import READ, READ_ANSWER, WRITE, WRITE_ANSWER
+from decoders.modbus.layouts import fits_request
 from decoders.modbus.pdu import Pdu
 from decoders.modbus.pdu_parse import parse_pdu
-from decoders.profiles.apply import FrameFacts, ProfileApplier, limit_remarks, request_addresses
+from decoders.modbus.pdu_serial import DeviceIdResponse
+from decoders.profiles.apply import (
+    PRODUCT_CODE_OBJECT,
+    FrameFacts,
+    ProfileApplier,
+    limit_remarks,
+    request_addresses,
+)
 from decoders.profiles.model import Indirection, Profile
 
 #: Bits of a param's key (:func:`named`) for its raw word plus one (0: no value), its address (a
@@ -58,6 +68,9 @@ _ASKING = [ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST], ROLE_CODE[Role.UN
 #: Functions whose requests name registers: where their first address and count lie.
 _NAMING = (3, 4, 6, 16, 23)
 _SHORTEST_NAMING = 6  # slave, function, address, count
+#: Roles whose frames the plain path reads as requests, and the role it reads by their bytes.
+_READ_AS_REQUESTS = (ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST])
+_UNKNOWN = ROLE_CODE[Role.UNKNOWN]
 _READ_WRITE, _READ_WRITE_NAMING = 23, 10  # FC 23 names a second span, written, at bytes 6 to 9
 
 
@@ -224,3 +237,28 @@ def _overlap(low: npt.NDArray[np.int64], high: npt.NDArray[np.int64], first: int
     ``count`` registers from ``first`` (a scanner table's)."""
     shared: npt.NDArray[np.bool_] = (low < first + count) & (high > first)
     return shared
+
+
+def reprofiling(profiles: ProfileApplier, batch: MessageBatch, positions: npt.NDArray[np.int64]) -> list[int]:
+    """Of the identifications (FC 43 frames) at ``positions``, those that may give their slave
+    another profile, as the plain path reads them: an answer whose product code names a profile
+    other than the one in force for it (a drive identified again, as a master does now and then,
+    changes nothing: its frames after it may stay in columns)."""
+    frames, book = batch.frames, profiles.book
+    offsets, data = frames.offsets, frames.data
+    changing = []
+    for position, role, slave, crc_ok in zip(positions.tolist(), batch.role[positions].tolist(),
+                                             batch.slave[positions].tolist(), frames.crc_ok[positions].tolist(),
+                                             strict=True):
+        if slave == NONE or not crc_ok or role in _READ_AS_REQUESTS:
+            continue  # read as a request, or not read for a device at all (ProfileApplier._identify)
+        adu = data[offsets[position] : offsets[position + 1]]
+        if role == _UNKNOWN and fits_request(adu):
+            continue
+        pdu = parse_pdu(adu, is_request=False)
+        if not isinstance(pdu, DeviceIdResponse):
+            continue
+        product = next((found.text for found in pdu.objects if found.object_id == PRODUCT_CODE_OBJECT), None)
+        if product is not None and book.profile_after(slave, product) is not book.profile_for(slave):
+            changing.append(position)
+    return changing

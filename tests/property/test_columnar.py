@@ -25,6 +25,10 @@ from tests.property.test_annotation_cache import PRODUCT, adu, matched, said
 SLAVES = st.sampled_from([1, 2, 7])
 
 
+#: An identification's objects naming another profile than ``PRODUCT``'s (an ATV312).
+OTHER_PRODUCT = b"\x00\x0dTelemecanique\x01\x0bATV312HU15M\x02\x040201"
+
+
 @st.composite
 def exchanges(draw: st.DrawFn) -> list[bytes]:
     """A read or a write and (mostly) its answer, or something else a bus carries between them;
@@ -57,8 +61,9 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
             damaged = bytearray(answer)
             damaged[draw(st.integers(2, len(answer) - 1))] ^= 1
             return [request, bytes(damaged)]
-        case 4:
-            return [adu(s, b"\x2b\x0e\x01\x00"), adu(s, b"\x2b\x0e\x01\x02\x00\x00\x03", PRODUCT)]
+        case 4:  # an identification: as the same drive again, or as another
+            product = draw(st.sampled_from([PRODUCT, PRODUCT, OTHER_PRODUCT]))
+            return [adu(s, b"\x2b\x0e\x01\x00"), adu(s, b"\x2b\x0e\x01\x02\x00\x00\x03", product)]
         case 5:
             return [adu(b"\x00", request[1:-2])]  # a broadcast
         case 6:  # a frame of that function of any length, and another
@@ -234,7 +239,7 @@ def test_frames_from_a_slave_s_identification_on_are_not_kept_in_columns() -> No
     """An FC 43 answer may give its slave a profile (here slave 1 says it is an ATV71): its
     frames from the batch's first identification on are decoded one by one, the other slaves'
     stay in columns, and both paths say the same of all of them; in the next batch slave 1's
-    frames are in columns too, named after its profile."""
+    frames are in columns too, named after its profile, until it says it is another drive."""
     poll = []
     for slave in (1, 2):
         poll += [adu(bytes([slave]), b"\x03", struct.pack(">HH", 3201, 2)),
@@ -242,12 +247,20 @@ def test_frames_from_a_slave_s_identification_on_are_not_kept_in_columns() -> No
     identify = [adu(b"\x01\x2b\x0e\x01\x00"), adu(b"\x01\x2b\x0e\x01\x02\x00\x00\x03", PRODUCT)]
     columns, plain = annotator([]), annotator([])
     (batch,) = [batch for batch in matched(poll * 2 + identify + poll * 2) if len(batch)]
-    assert check_batch(columns, plain, batch) == 12
-    assert columns.annotate_columnar(batch).columnar.positions.tolist() == [  # type: ignore[union-attr]
+    assert annotator([]).annotate_columnar(batch).columnar.positions.tolist() == [  # type: ignore[union-attr]
         0, 1, 2, 3, 4, 5, 6, 7, 12, 13, 16, 17]
-    got = columns.annotate_columnar(batch)  # the next batch alike: slave 1 has a profile now
+    assert check_batch(columns, plain, batch) == 12
+    # The next batch alike: slave 1 has its profile now, and saying again what it is changes
+    # nothing, so that all its polls stay in columns, named after it.
+    assert check_batch(columns, plain, batch) == 16
+    got = columns.annotate_columnar(batch)
     assert got.columnar is not None and got.columnar.names is not None
-    assert got.columnar.positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 12, 13, 16, 17]
+    assert got.columnar.positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 10, 11, 12, 13, 14, 15, 16, 17]
+    # Slave 1 says it is another drive (an ATV312): from there its frames are decoded one by one.
+    other = [identify[0], adu(b"\x01\x2b\x0e\x01\x02\x00\x00\x03", OTHER_PRODUCT)]
+    (batch,) = [batch for batch in matched(poll * 2 + other + poll * 2) if len(batch)]
+    assert check_batch(columns, plain, batch) == 12
+    assert check_batch(columns, plain, batch) == 16
 
 
 def paired_by_hand(adus: list[bytes], answered: dict[int, int]) -> MessageBatch:
