@@ -38,7 +38,6 @@ from decoders.message import (
 from decoders.modbus.codes import function_name
 from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames, digests
 from decoders.modbus.columnar_find import find_columnar
-from decoders.modbus.layouts import fits_request
 from decoders.modbus.param_runs import LazyParams
 from decoders.modbus.pdu import (
     ExceptionPdu,
@@ -48,7 +47,7 @@ from decoders.modbus.pdu import (
     WriteCoilsRequest,
     WriteRegistersRequest,
 )
-from decoders.modbus.pdu_parse import parse_pdu
+from decoders.modbus.pdu_parse import parse_as
 from decoders.modbus.quick import QuickRead, register_reads
 from decoders.modbus.value_shapes import ValueShapes
 from decoders.profiles.apply import FrameFacts, ProfileApplier
@@ -58,7 +57,6 @@ from decoders.uss import parse_uss
 #: Decodings kept for repeats, per generation of the memo: what a bus repeats stays while
 #: one-off frames (changing values) pass through (an LRU that costs a dict lookup).
 KEPT_DECODINGS = 8192
-_AS_REQUEST = {Role.REQUEST, Role.BROADCAST}
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
 #: Read Device Identification (FC 43): an answer may give its slave a profile.
 IDENTIFICATION = 43
@@ -249,8 +247,7 @@ class Annotator:
             decoding = Decoding(telegram.summary(), uss=telegram)
             request = None
         else:
-            is_request = role in _AS_REQUEST or (role is Role.UNKNOWN and fits_request(data))
-            pdu = parse_pdu(data, is_request=is_request)
+            pdu = parse_as(data, role)
             summary = pdu.summary()
             if isinstance(pdu, ExceptionPdu):
                 summary += f" ({function_name(pdu.function)})"

@@ -255,6 +255,7 @@ def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
     if len(positions) < 2:
         return None
     starts, ends = offsets[positions], offsets[positions + 1]
+    lengths = ends - starts
     step = max(len(positions) // SAMPLED, 1)
     if len(np.unique(digests(data, starts[::step], ends[::step]))) >= DISTINCT_SHARE * len(starts[::step]):
         return None
@@ -268,10 +269,11 @@ def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
     while len(pending):
         # Against the group's first (their lengths are alike unless the mix collides); those that
         # differ are grouped again among themselves, until every frame is its group's first or alike it.
-        sizes = np.minimum(ends - starts, (ends - starts)[first])[pending]
+        theirs = first[pending]
+        sizes = np.minimum(lengths[pending], lengths[theirs])
         within = within_runs(sizes)
-        at, at_first = np.repeat(starts[pending], sizes) + within, np.repeat(starts[first[pending]], sizes) + within
-        differ = (code[pending] != code[first[pending]]) | ((ends - starts)[pending] != (ends - starts)[first[pending]])
+        at, at_first = np.repeat(starts[pending], sizes) + within, np.repeat(starts[theirs], sizes) + within
+        differ = (code[pending] != code[theirs]) | (lengths[pending] != lengths[theirs])
         differ[np.repeat(np.arange(len(pending)), sizes)[raw[at] != raw[at_first]]] = True
         lone = pending[differ]
         first[lone] = _group_firsts(lone, mixed)

@@ -11,8 +11,9 @@ import struct
 from collections.abc import Callable
 from itertools import chain
 
+from decoders.message import Role
 from decoders.modbus.codes import EXCEPTION_BIT
-from decoders.modbus.layouts import MEI_READ_DEVICE_ID
+from decoders.modbus.layouts import MEI_READ_DEVICE_ID, fits_request
 from decoders.modbus.pdu import (
     AltivarMeiError,
     BitsResponse,
@@ -46,6 +47,9 @@ from decoders.modbus.pdu_serial import (
     NoData,
     ServerId,
 )
+
+#: Roles whose frames are read as requests.
+_AS_REQUEST = {Role.REQUEST, Role.BROADCAST}
 
 Parser = Callable[[int, bytes], Pdu]
 
@@ -253,6 +257,13 @@ RESPONSE_PARSERS: dict[int, Parser] = {
     20: _file_read_response, 21: _file_records, 22: _mask_write, 23: _registers_response,
     24: _fifo_response, 43: _mei_response,
 }  # fmt: skip
+
+
+def parse_as(adu: bytes, role: Role) -> Pdu:
+    """:func:`parse_pdu` of a frame of ``role``: a request or broadcast as a request, a frame of
+    no known role as one where it has a request's length, the rest as a response."""
+    is_request = role in _AS_REQUEST or (role is Role.UNKNOWN and fits_request(adu))
+    return parse_pdu(adu, is_request=is_request)
 
 
 def parse_pdu(adu: bytes, *, is_request: bool) -> Pdu:

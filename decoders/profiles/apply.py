@@ -65,7 +65,7 @@ class ProfileBook:
         """The profile a product code names; it applies to ``slave`` from now on unless
         the user chose one for that slave."""
         profile = self._named_by(product_code)
-        if profile is not None and self.automatic and slave not in self.per_slave:
+        if profile is not None and self._identifies(slave):
             self._identified[slave] = profile
         return profile
 
@@ -73,9 +73,11 @@ class ProfileBook:
         """The profile ``slave`` would have once it said it is ``product_code`` (:meth:`identify`,
         nothing changed here)."""
         profile = self._named_by(product_code)
-        if profile is not None and self.automatic and slave not in self.per_slave:
-            return profile
-        return self.profile_for(slave)
+        return profile if profile is not None and self._identifies(slave) else self.profile_for(slave)
+
+    def _identifies(self, slave: int) -> bool:
+        """Whether what ``slave`` says it is chooses its profile (none was chosen for it)."""
+        return self.automatic and slave not in self.per_slave
 
     def _named_by(self, product_code: str) -> Profile | None:
         for profile in self.known.values():
@@ -286,7 +288,7 @@ class ProfileApplier:
         if slave is None or not facts.crc_ok:
             return None
         objects = {o.object_id: o.text for o in pdu.objects}
-        product = objects.get(PRODUCT_CODE_OBJECT)
+        product = product_code(pdu)
         if product is None:
             return None
         before = self.book.profile_for(slave)
@@ -314,6 +316,12 @@ class ProfileApplier:
                     if mapping[slot] != raw:
                         mapping[slot] = raw
                         self.version += 1
+
+
+def product_code(pdu: DeviceIdResponse) -> str | None:
+    """The product code an identification answer gives, if it gives one (the last, where it
+    gives several)."""
+    return {found.object_id: found.text for found in pdu.objects}.get(PRODUCT_CODE_OBJECT)
 
 
 def _uss_words(profile: Profile, decoding: Decoding, role: Role) -> Decoding:

@@ -40,20 +40,13 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
-from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
+from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
 from decoders.modbus.columnar import ColumnarFrames, ColumnarNames
 from decoders.modbus.columnar_text import READ, READ_ANSWER, WRITE, WRITE_ANSWER
-from decoders.modbus.layouts import fits_request
 from decoders.modbus.pdu import Pdu
-from decoders.modbus.pdu_parse import parse_pdu
+from decoders.modbus.pdu_parse import parse_as, parse_pdu
 from decoders.modbus.pdu_serial import DeviceIdResponse
-from decoders.profiles.apply import (
-    PRODUCT_CODE_OBJECT,
-    FrameFacts,
-    ProfileApplier,
-    limit_remarks,
-    request_addresses,
-)
+from decoders.profiles.apply import FrameFacts, ProfileApplier, limit_remarks, product_code, request_addresses
 from decoders.profiles.model import Indirection, Profile
 
 #: Bits of a param's key (:func:`named`) for its raw word plus one (0: no value), its address (a
@@ -68,9 +61,6 @@ _ASKING = [ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST], ROLE_CODE[Role.UN
 #: Functions whose requests name registers: where their first address and count lie.
 _NAMING = (3, 4, 6, 16, 23)
 _SHORTEST_NAMING = 6  # slave, function, address, count
-#: Roles whose frames the plain path reads as requests, and the role it reads by their bytes.
-_READ_AS_REQUESTS = (ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST])
-_UNKNOWN = ROLE_CODE[Role.UNKNOWN]
 _READ_WRITE, _READ_WRITE_NAMING = 23, 10  # FC 23 names a second span, written, at bytes 6 to 9
 
 
@@ -250,15 +240,12 @@ def reprofiling(profiles: ProfileApplier, batch: MessageBatch, positions: npt.ND
     for position, role, slave, crc_ok in zip(positions.tolist(), batch.role[positions].tolist(),
                                              batch.slave[positions].tolist(), frames.crc_ok[positions].tolist(),
                                              strict=True):
-        if slave == NONE or not crc_ok or role in _READ_AS_REQUESTS:
-            continue  # read as a request, or not read for a device at all (ProfileApplier._identify)
-        adu = data[offsets[position] : offsets[position + 1]]
-        if role == _UNKNOWN and fits_request(adu):
-            continue
-        pdu = parse_pdu(adu, is_request=False)
+        if slave == NONE or not crc_ok:
+            continue  # not read for a device at all (ProfileApplier._identify)
+        pdu = parse_as(data[offsets[position] : offsets[position + 1]], ROLE_ORDER[role])
         if not isinstance(pdu, DeviceIdResponse):
             continue
-        product = next((found.text for found in pdu.objects if found.object_id == PRODUCT_CODE_OBJECT), None)
+        product = product_code(pdu)
         if product is not None and book.profile_after(slave, product) is not book.profile_for(slave):
             changing.append(position)
     return changing

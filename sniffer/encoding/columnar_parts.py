@@ -58,24 +58,26 @@ class ColumnarParts:
         return self.columnar.positions
 
     def summaries(self) -> list[str]:
+        return self._each(self._spelt_summaries())
+
+    def _spelt_summaries(self) -> list[str]:
+        """The summaries of the frames spelt (one per group of frames alike)."""
         if self._summaries is None:
             self._summaries = self._spelt.summaries(self._data)
-        return self._each(self._summaries)
+        return self._summaries
 
     def record_tails(self) -> Pieces:
         """Each frame's JSONL record part from ``params`` to the end of ``remarks``
         (``FrameRecordEncoder._decoding_part``)."""
-        self.summaries()
-        summaries = list(map(orjson.dumps, self._summaries or ()))
+        summaries = list(map(orjson.dumps, self._spelt_summaries()))
         named = self._named_texts(members=False)
         return self._each_piece(_in_slices(self._param_columns(),
                                            lambda params, frames: _record_tails(params, summaries[frames], named)))
 
     def log_heads(self, roles: npt.NDArray[np.integer[Any]]) -> list[bytes]:
         """Each frame's log text after its index: `` response: HR = …`` (``roles``: the batch's)."""
-        self.summaries()
         return self._each([f" {ROLE_NAMES[role]}: {summary}".encode()
-                           for role, summary in zip(roles[self._spelt.positions].tolist(), self._summaries or (),
+                           for role, summary in zip(roles[self._spelt.positions].tolist(), self._spelt_summaries(),
                                                     strict=True)])
 
     def numeric_members(self) -> Pieces:

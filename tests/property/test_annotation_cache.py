@@ -30,7 +30,7 @@ from decoders.modbus import value_shapes
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
 from decoders.modbus.pdu import ReadWriteRequest, RegistersResponse, WriteRegistersRequest, WriteSingle
-from decoders.modbus.pdu_parse import parse_pdu
+from decoders.modbus.pdu_parse import parse_as
 from decoders.profiles import apply as apply_module
 from decoders.profiles.apply import ProfileApplier
 from sniffer.encoding import frame_fields as frame_fields_module
@@ -159,7 +159,7 @@ def test_frames_of_a_known_shape_are_decoded_from_their_values(profiles: list[st
     expected = [said(plain.annotate(message).decoding) for batch in batches for message in batch]
     cached = Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [])))
     parsed = []
-    with patch.object(annotate_module, "parse_pdu", lambda *a, **k: parsed.append(1) or parse_pdu(*a, **k)), \
+    with patch.object(annotate_module, "parse_as", lambda *a, **k: parsed.append(1) or parse_as(*a, **k)), \
          patch.object(annotate_module, "ONE_BY_ONE", len(traffic)):
         got = [said(message.decoding) for batch in batches for message in cached.annotate_all(batch)]
     assert got == expected
@@ -181,7 +181,7 @@ def test_shapes_are_not_looked_up_where_they_do_not_repeat(monkeypatch: pytest.M
     assert [said(m.decoding) for m in cached.annotate_all(first)] == [said(plain.annotate(m).decoding) for m in first]
     assert cached._shapes._resting > 0
     parsed = []
-    with patch.object(annotate_module, "parse_pdu", lambda *a, **k: parsed.append(1) or parse_pdu(*a, **k)):
+    with patch.object(annotate_module, "parse_as", lambda *a, **k: parsed.append(1) or parse_as(*a, **k)):
         got = [said(m.decoding) for batch in matched(polls) for m in cached.annotate_all(batch)]
     assert got == [said(plain.annotate(m).decoding) for batch in matched(polls) for m in batch]
     assert 10 < len(parsed) < 40  # the answers while resting, not those after
