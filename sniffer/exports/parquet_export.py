@@ -61,6 +61,11 @@ _KINDS = pa.array(list(KINDS))
 #: write a frame table, and 25 % more bytes, measured on 1 M frames).
 DICTIONARY_COLUMNS = ["capture", "slave", "function", "role", "exception_code", "flags", "protocol", "outcome",
                       "kind", "code", "name", "unit", "text"]
+#: Columns that grow a little from row to row (times, frame indexes), stored as the differences
+#: (Parquet's ``DELTA_BINARY_PACKED``, which every engine named above reads): measured on 1 M
+#: frames of steady traffic, the frames table 27 % smaller, transactions 30 %, values 11 %, and
+#: writing them 10 % faster.
+DELTA_COLUMNS = ["t", "t_end", "index", "request_index", "answer_index"]
 
 
 def dictionary(codes: npt.NDArray[np.integer], names: pa.Array) -> pa.DictionaryArray:
@@ -99,7 +104,7 @@ class ParquetDataset:
         self.files: list[Path] = []
         #: Each table's columns, known from its first rows (or an empty batch of them).
         self._schemas: dict[str, pa.Schema] = {}
-        self._writer = RowGroupWriter(DICTIONARY_COLUMNS)
+        self._writer = RowGroupWriter(DICTIONARY_COLUMNS, DELTA_COLUMNS)
 
     def add(self, table: str, t_ns: npt.NDArray[np.int64], columns: dict[str, pa.Array]) -> None:
         """Rows of ``table`` (``t_ns``: each row's time, which chooses its date's file)."""

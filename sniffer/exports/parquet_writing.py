@@ -27,10 +27,12 @@ _CLOSE, _ABANDON = "close", "abandon"
 class RowGroupWriter:
     """Writes row groups to their files, in the order handed over, in a thread of its own."""
 
-    def __init__(self, dictionary_columns: list[str]) -> None:
+    def __init__(self, dictionary_columns: list[str], delta_columns: list[str]) -> None:
         """``dictionary_columns``: the columns dictionary-encoded (those of few distinct values;
-        trying it on the others costs time and bytes)."""
+        trying it on the others costs time and bytes); ``delta_columns``: the integer columns
+        stored as differences, where a table has them."""
         self._dictionary_columns = dictionary_columns
+        self._delta_columns = delta_columns
         self._queue: queue.Queue[tuple[Path, pa.Table] | str] = queue.Queue(QUEUED_WRITES)
         self._writers: dict[Path, pq.ParquetWriter] = {}
         #: The first failure of the thread (a full disk); the thread then drops what comes.
@@ -75,11 +77,15 @@ class RowGroupWriter:
             try:
                 writer = self._writers.get(path)
                 if writer is None:
-                    writer = self._writers[path] = pq.ParquetWriter(
-                        path, table.schema, compression="zstd", use_dictionary=self._dictionary_columns)
+                    writer = self._writers[path] = self._writer(path, table.schema)
                 writer.write_table(table)
             except Exception as exc:  # an OSError mostly: told to the caller at its next call
                 self.failure = exc
+
+    def _writer(self, path: Path, schema: pa.Schema) -> pq.ParquetWriter:
+        delta = {name: "DELTA_BINARY_PACKED" for name in self._delta_columns if name in schema.names}
+        return pq.ParquetWriter(path, schema, compression="zstd", use_dictionary=self._dictionary_columns,
+                                column_encoding=delta or None)
 
     def _close_writers(self) -> None:
         for writer in self._writers.values():
