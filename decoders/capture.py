@@ -192,6 +192,27 @@ class ChunkBatch:
         return cls(b"", np.zeros(0, np.int64), np.zeros(0, np.int64))
 
 
+def joined_batches(batches: Iterable[ChunkBatch], chunks: int) -> Iterator[ChunkBatch]:
+    """``batches`` joined, in order, into batches of at least ``chunks`` chunks (the last may hold
+    fewer). An empty batch (a followed recording's quiet) goes through at once, after what is held."""
+    held: list[ChunkBatch] = []
+    count = 0
+    for batch in batches:
+        if not len(batch):
+            if held:
+                yield ChunkBatch.concat(held)
+                held, count = [], 0
+            yield batch
+            continue
+        held.append(batch)
+        count += len(batch)
+        if count >= chunks:
+            yield ChunkBatch.concat(held)
+            held, count = [], 0
+    if held:
+        yield ChunkBatch.concat(held)
+
+
 def _marks(kinds: UInt8Array) -> UartErrorMarks:
     positions = np.flatnonzero(kinds)
     return tuple(zip(positions.tolist(), kinds[positions].tolist(), strict=True))

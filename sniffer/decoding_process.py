@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection, Pipe
 from typing import Generic, NoReturn, TypeVar
 
-from decoders.capture import ChunkBatch
+from decoders.capture import ChunkBatch, joined_batches
 from decoders.message import MessageBatch
 from decoders.pipeline import Decoder
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -90,12 +90,15 @@ def decoding_jobs(requested: str, *, follow: bool = False) -> int:
 
 
 def decode_here(
-    reader: CaptureReader, decoder: Decoder, prepare: Prepare[Prepared] | None = None
+    reader: CaptureReader, decoder: Decoder, prepare: Prepare[Prepared] | None = None, *, join_chunks: int = 0
 ) -> Iterator[DecodingStep[Prepared]]:
-    """The steps of decoding ``reader``, in this process. An empty batch says the source has been
-    quiet (a followed recording, :data:`sniffer.io.following.QUIET`): what is open is closed."""
+    """The steps of decoding ``reader``, in this process; ``join_chunks``: its batches joined up
+    to that many chunks (:func:`~decoders.capture.joined_batches`; 0: as read). An empty batch
+    says the source has been quiet (a followed recording, :data:`sniffer.io.following.QUIET`):
+    what is open is closed."""
     last_ns: int | None = None
-    for chunks in reader.batches():
+    batches = reader.batches()
+    for chunks in joined_batches(batches, join_chunks) if join_chunks else batches:
         if not len(chunks):
             if last_ns is not None:
                 yield _step(None, decoder.tick(last_ns + QUIET_NS), prepare)
@@ -121,7 +124,8 @@ class ChildDecoding(Generic[Prepared]):
     stops the child."""
 
     def __init__(
-        self, reader: CaptureReader, decoder: Decoder, *, with_chunks: bool, prepare: Prepare[Prepared] | None = None
+        self, reader: CaptureReader, decoder: Decoder, *, with_chunks: bool, prepare: Prepare[Prepared] | None = None,
+        join_chunks: int = 0,
     ) -> None:
         self._reader = reader
         self._receive, send = Pipe(duplex=False)
@@ -129,7 +133,7 @@ class ChildDecoding(Generic[Prepared]):
         pid = os.fork()
         if pid == 0:
             self._receive.close()
-            _child(send, decode_here(reader, decoder, prepare), reader, with_chunks)
+            _child(send, decode_here(reader, decoder, prepare, join_chunks=join_chunks), reader, with_chunks)
         send.close()
         self._child = _Child(pid)
         #: The child's process id.

@@ -22,11 +22,19 @@ from decoders.stats import SkippedReads, Statistics
 from sniffer.decoding_process import ChildDecoding, DecodingStep, decode_here
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.base import CaptureReader
+from sniffer.io.following import FollowingReader
 from sniffer.selection import EVERYTHING, Selection, Window
 from sniffer.sinks import Sink
 
 #: Frames before a window whose requests are decoded for the answers inside it.
 OPEN_REQUESTS_BEFORE = 64
+#: Chunks read are joined into batches of this many where the sinks take neither messages nor
+#: raw chunks (``stats``, ``compare``, ``cut``), and the capture is not followed as it grows:
+#: framing and pairing cost a fixed part per batch, and such batches hold little per frame. From
+#: the readers' 8 192, framing, pairing and counting 1 M frames took 18 to 22 % less time (polling,
+#: mixed, steady; one process), ``stats`` end to end ran 1.01 to 1.29× as fast, for 24 MB more memory;
+#: the outputs that annotate gained less and held 100 to 140 MB more.
+COUNTING_BATCH_CHUNKS = 32768
 
 
 def effective_line(info: CaptureInfo, override: LineSettings | None, path: str) -> LineSettings:
@@ -74,11 +82,15 @@ def analyze(
     # With a window or a limit the parent prepares the part it delivers (see Delivery.batch).
     prepare = _each_prepare(delivery.preparing) if delivery.preparing and not delivery.selective else None
     run = partial(_run, source=source, info=info, analysis=analysis, delivery=delivery)
+    with_chunks = any(sink.wants_chunks for sink in sinks)
+    counting = not with_chunks and not any(sink.wants_messages for sink in sinks) and not isinstance(
+        reader, FollowingReader)
+    join_chunks = COUNTING_BATCH_CHUNKS if counting else 0
     if jobs == 1:
-        statistics = run(decode_here(reader, decoder, prepare))
+        statistics = run(decode_here(reader, decoder, prepare, join_chunks=join_chunks))
     else:
-        with_chunks = any(sink.wants_chunks for sink in sinks)
-        with closing(ChildDecoding(reader, decoder, with_chunks=with_chunks, prepare=prepare)) as child:
+        with closing(ChildDecoding(reader, decoder, with_chunks=with_chunks, prepare=prepare,
+                                   join_chunks=join_chunks)) as child:
             statistics = run(child)
     missed = delivery.window_missed()
     if missed is not None:

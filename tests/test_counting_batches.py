@@ -1,0 +1,83 @@
+"""Commands whose sinks only count (``stats``, ``compare``, ``cut``) decode the chunks read joined
+into larger batches (:data:`sniffer.pipeline.COUNTING_BATCH_CHUNKS`); the statistics are the same
+as from the batches as read, on the samples and on the real recordings. Outputs that annotate
+keep the readers' batches (their memory grows with a batch)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from decoders.capture import ChunkBatch
+from decoders.message import MessageBatch
+from decoders.pipeline import Decoder
+from sniffer import pipeline
+from sniffer.io import mcap_blocks, mcap_native
+from sniffer.io.formats import text
+from tests.conftest import CliResult
+from tests.real_recordings import RECORDINGS, TEXT, available
+
+CAPTURES = Path(__file__).resolve().parents[1] / "captures"
+READ_CHUNKS = 4
+CAPTURE_FILES = sorted(CAPTURES.glob("*.log")) + sorted(CAPTURES.glob("*.mcap"))
+REAL = [TEXT / name for name in RECORDINGS]
+
+
+@pytest.fixture
+def fed(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[int]]:
+    """Small batches as read; the number of chunks of every batch the decoder is fed."""
+    monkeypatch.setattr(text, "BATCH_CHUNKS", READ_CHUNKS)
+    monkeypatch.setattr(mcap_blocks, "BATCH_CHUNKS", READ_CHUNKS)
+    monkeypatch.setattr(mcap_native, "BATCH_CHUNKS", READ_CHUNKS)
+    sizes: list[int] = []
+    feed = Decoder.feed
+
+    def counted(self: Decoder, batch: ChunkBatch) -> list[MessageBatch]:
+        sizes.append(len(batch))
+        return feed(self, batch)
+
+    monkeypatch.setattr(Decoder, "feed", counted)
+    yield sizes
+
+
+def _stats_both_ways(cli: Callable[..., CliResult], capture: Path, fed: list[int],
+                     monkeypatch: pytest.MonkeyPatch) -> None:
+    outputs, batches = [], []
+    for join in (0, 5 * READ_CHUNKS):
+        monkeypatch.setattr(pipeline, "COUNTING_BATCH_CHUNKS", join)
+        fed.clear()
+        result = cli("stats", str(capture), "--format", "json")
+        assert result.code == 0, result.err
+        outputs.append(result.out)
+        batches.append(list(fed))
+    assert outputs[0] == outputs[1]
+    as_read, joined = batches
+    assert sum(as_read) == sum(joined)
+    if sum(as_read) > 5 * READ_CHUNKS and len(as_read) > 2:
+        assert len(joined) < len(as_read) and max(joined) >= 5 * READ_CHUNKS, (as_read, joined)
+
+
+@pytest.mark.parametrize("capture", CAPTURE_FILES, ids=[path.name for path in CAPTURE_FILES])
+def test_stats_of_joined_batches_are_the_same(cli: Callable[..., CliResult], capture: Path, fed: list[int],
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    _stats_both_ways(cli, capture, fed, monkeypatch)
+
+
+@pytest.mark.skipif(not available(), reason="../shared/real not present")
+@pytest.mark.parametrize("capture", REAL, ids=[path.name for path in REAL])
+def test_stats_of_real_recordings_joined_are_the_same(cli: Callable[..., CliResult], capture: Path, fed: list[int],
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    _stats_both_ways(cli, capture, fed, monkeypatch)
+
+
+def test_outputs_that_annotate_keep_the_batches_as_read(cli: Callable[..., CliResult], fed: list[int],
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(pipeline, "COUNTING_BATCH_CHUNKS", 5 * READ_CHUNKS)
+    capture = CAPTURES / "atv71-plc-poll.log"
+    assert cli("analyze", str(capture), "--format", "jsonl", "--jobs", "1").code == 0
+    assert sum(fed) > 5 * READ_CHUNKS and max(fed) < 5 * READ_CHUNKS
+    fed.clear()
+    assert cli("stats", str(capture)).code == 0
+    assert max(fed) >= 5 * READ_CHUNKS
