@@ -30,7 +30,7 @@ so that messages leave in capture order with their flags final.
 
 Speed: on a healthy bus no request is open between exchanges. From such a state,
 a run of consecutive request/answer pairs (same slave and function, fitting
-content, valid answer CRC, answered well within the shortest timeout) has one
+content, valid answer CRC, answered sooner than the response timeout can be) has one
 possible outcome, which numpy assigns in bulk: only a slave whose last request
 failed needs a look, at its first request of the run (a retry, or not). The loop
 handles the frames outside such runs one by one.
@@ -142,6 +142,12 @@ class Matcher:
     _asked: bool = False
 
     @property
+    def _least_timeout_ns(self) -> int:
+        """The least the response timeout may be while this batch is matched: a fixed one (which
+        may be shorter than a derived one ever is), else the least a derived one is."""
+        return self.response_timeout_ns if self.response_timeout_ns is not None else MIN_TIMEOUT_NS
+
+    @property
     def timeout_ns(self) -> int:
         """The response timeout in force."""
         if self.response_timeout_ns is not None:
@@ -184,7 +190,7 @@ class Matcher:
         lengths = np.diff(frames.offsets)
         uss = frames.protocols() == USS
         active = np.flatnonzero(~frames.is_noise & (lengths >= MIN_ADU) & ~uss)
-        runs = pair_runs(frames, shapes, active, within_ns=MIN_TIMEOUT_NS)
+        runs = pair_runs(frames, shapes, active, within_ns=self._least_timeout_ns)
         self._visit(frames, shapes, active, runs, first)
         if uss.any():
             self._uss.assign(frames, np.flatnonzero(uss), self._held.columns, first)

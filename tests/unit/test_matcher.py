@@ -199,6 +199,20 @@ def test_bulk_settling_changes_nothing(chunks_per_batch: int) -> None:
         assert timeouts >= MIN_TIMEOUT_NS
 
 
+def test_a_fixed_timeout_shorter_than_a_derived_one_holds_in_one_batch() -> None:
+    """``--response-timeout 50``: answers 70 ms late are timeouts and unexpected answers, also
+    where the whole exchange comes in one batch (a run of pairs the bulk path would settle)."""
+    frames = []
+    for pair in range(4):
+        for start_ms, data in ((pair * 200, READ_2), (pair * 200 + 72, ANSWER_2)):
+            start = start_ms * MS
+            frames.append(Frame(len(frames), start, start + len(data) * MS // 10, data, True, FrameFlag.NONE))
+    matcher = Matcher(response_timeout_ns=50 * MS)
+    out = list(matcher.feed(frames_to_batch(frames))) + list(matcher.flush())
+    assert [m.flags.names for m in out] == [["timeout"], ["unexpected"]] + [["timeout", "retry"], ["unexpected"]] * 3
+    assert all(m.request_index is None for m in out)
+
+
 def test_latency_window_learned_in_bulk_as_one_by_one() -> None:
     import random
 
@@ -242,23 +256,28 @@ _STEPS = {
 }
 
 
-@given(st.lists(st.tuples(st.sampled_from(sorted(_STEPS)), st.integers(1, 300)), max_size=60),
-       st.lists(st.integers(1, 9), min_size=1, max_size=8))
-def test_bulk_runs_with_failed_slaves_are_the_loop(steps: list[tuple[str, int]], splits: list[int]) -> None:
-    """Runs settled in bulk while slaves have failed (silent, damaged answers, exceptions), their
-    retries and the requests that are none, against the frame-by-frame loop; batches split anywhere."""
+@given(st.lists(st.tuples(st.sampled_from(sorted(_STEPS)), st.integers(1, 300), st.sampled_from([3, 3, 3, 40, 90])),
+                max_size=60),
+       st.lists(st.integers(1, 9), min_size=1, max_size=8), st.sampled_from([None, None, 2, 20, 50, 150]))
+def test_bulk_runs_with_failed_slaves_are_the_loop(steps: list[tuple[str, int, int]], splits: list[int],
+                                                   timeout_ms: int | None) -> None:
+    """Runs settled in bulk while slaves have failed (silent, damaged answers, exceptions) or are
+    still open, their retries and the requests that are none, against the frame-by-frame loop;
+    answers late for a fixed response timeout (``--response-timeout``) shorter than the least a
+    derived one may be; batches split anywhere."""
     frames, now, index = [], 0, 0
-    for name, pause_ms in steps:
+    for name, pause_ms, latency_ms in steps:
         request, answer = _STEPS[name]
         for data in (request, answer):
             if data is not None:
                 frames.append(Frame(index, now * MS, now * MS + len(data) * MS // 10, data, crc_ok(data),
                                     FrameFlag.NONE))
-                index, now = index + 1, now + 3
+                index, now = index + 1, now + latency_ms
         now += pause_ms
     results = []
+    timeout_ns = None if timeout_ms is None else timeout_ms * MS
     for bulk in (True, False):
-        matcher, out, position, cut = Matcher(bulk=bulk), [], 0, 0
+        matcher, out, position, cut = Matcher(response_timeout_ns=timeout_ns, bulk=bulk), [], 0, 0
         while position < len(frames):
             size = splits[cut % len(splits)]
             out += matcher.feed(frames_to_batch(frames[position : position + size]))
