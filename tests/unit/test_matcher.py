@@ -177,7 +177,7 @@ def test_damaged_exception_answer_makes_the_repeat_a_retry() -> None:
 @pytest.mark.parametrize("chunks_per_batch", [50, 400])
 def test_bulk_settling_changes_nothing(chunks_per_batch: int) -> None:
     """On traffic with every fault the corpus knows, bulk runs and the frame-by-frame loop agree;
-    in batches of more frames than the loop's first window of lists (FIRST_WINDOW in pair_runs) too."""
+    in batches of more frames than the loop's window of lists (WINDOW in pair_runs) too."""
     from decoders.capture import ChunkBatch
     from decoders.framer import Framer
     from tests.corpus import LINES, SCENARIOS, build
