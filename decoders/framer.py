@@ -324,6 +324,12 @@ class Framer:
         # follows one (pauses are few: each is looked up among the frames).
         has_gap = np.zeros(len(first), np.bool_)
         if len(pauses) and len(first):
+            # On exact timing nearly every frame starts after a pause (t3.5 > t1.5): those are
+            # told apart by a mark per byte, and only the few others looked up.
+            starts_piece = np.zeros(int(last[-1]) + 1, np.bool_)
+            starts_piece[first] = True
+            pauses = pauses[(pauses > first[0]) & (pauses < last[-1])]
+            pauses = pauses[~starts_piece[pauses]]
             holder = np.maximum(np.searchsorted(first, pauses, side="right") - 1, 0)
             has_gap[holder[(pauses > first[holder]) & (pauses < last[holder])]] = True
         short = (idle != NO_IDLE) & (idle < self.line.t3_5_ns - TOLERANCE_NS)
@@ -339,8 +345,10 @@ def _piece_times(clock: ByteClock, chunk_starts: Int64Array, first: Int64Array,
     still ordered on one whose times overlap. Inside a chunk times only grow, so each run of a
     piece's bytes in one chunk gives its first byte's start and its last byte's end."""
     inside = chunk_starts[(chunk_starts > first[0]) & (chunk_starts < stop)]
-    # Mostly a chunk is a frame: few chunks begin inside a piece.
-    known = first[np.minimum(np.searchsorted(first, inside), len(first) - 1)] == inside
+    # Mostly a chunk is a frame: few chunks begin inside a piece (a mark per byte tells which).
+    starts_piece = np.zeros(stop + 1, np.bool_)
+    starts_piece[first] = True
+    known = starts_piece[inside]
     runs = first if known.all() else np.sort(np.concatenate([first, inside[~known]]))
     run_ends = np.empty_like(runs)
     run_ends[:-1] = runs[1:]
