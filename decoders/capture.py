@@ -192,23 +192,25 @@ class ChunkBatch:
         return cls(b"", np.zeros(0, np.int64), np.zeros(0, np.int64))
 
 
-def joined_batches(batches: Iterable[ChunkBatch], chunks: int) -> Iterator[ChunkBatch]:
-    """``batches`` joined, in order, into batches of at least ``chunks`` chunks (the last may hold
-    fewer). An empty batch (a followed recording's quiet) goes through at once, after what is held."""
+def joined_batches(batches: Iterable[ChunkBatch], chunks: int, size: int) -> Iterator[ChunkBatch]:
+    """``batches`` joined, in order, into batches of at least ``chunks`` chunks or ``size`` bytes
+    (the last may hold fewer). An empty batch (a followed recording's quiet) goes through at once,
+    after what is held."""
     held: list[ChunkBatch] = []
-    count = 0
+    count = held_size = 0
     for batch in batches:
         if not len(batch):
             if held:
                 yield ChunkBatch.concat(held)
-                held, count = [], 0
+                held, count, held_size = [], 0, 0
             yield batch
             continue
         held.append(batch)
         count += len(batch)
-        if count >= chunks:
+        held_size += len(batch.data)
+        if count >= chunks or held_size >= size:
             yield ChunkBatch.concat(held)
-            held, count = [], 0
+            held, count, held_size = [], 0, 0
     if held:
         yield ChunkBatch.concat(held)
 

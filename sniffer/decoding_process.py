@@ -90,15 +90,16 @@ def decoding_jobs(requested: str, *, follow: bool = False) -> int:
 
 
 def decode_here(
-    reader: CaptureReader, decoder: Decoder, prepare: Prepare[Prepared] | None = None, *, join_chunks: int = 0
+    reader: CaptureReader, decoder: Decoder, prepare: Prepare[Prepared] | None = None, *,
+    join: tuple[int, int] | None = None,
 ) -> Iterator[DecodingStep[Prepared]]:
-    """The steps of decoding ``reader``, in this process; ``join_chunks``: its batches joined up
-    to that many chunks (:func:`~decoders.capture.joined_batches`; 0: as read). An empty batch
-    says the source has been quiet (a followed recording, :data:`sniffer.io.following.QUIET`):
+    """The steps of decoding ``reader``, in this process; ``join``: its batches joined up to that
+    many chunks or bytes (:func:`~decoders.capture.joined_batches`; ``None``: as read). An empty
+    batch says the source has been quiet (a followed recording, :data:`sniffer.io.following.QUIET`):
     what is open is closed."""
     last_ns: int | None = None
     batches = reader.batches()
-    for chunks in joined_batches(batches, join_chunks) if join_chunks else batches:
+    for chunks in batches if join is None else joined_batches(batches, *join):
         if not len(chunks):
             if last_ns is not None:
                 yield _step(None, decoder.tick(last_ns + QUIET_NS), prepare)
@@ -125,7 +126,7 @@ class ChildDecoding(Generic[Prepared]):
 
     def __init__(
         self, reader: CaptureReader, decoder: Decoder, *, with_chunks: bool, prepare: Prepare[Prepared] | None = None,
-        join_chunks: int = 0,
+        join: tuple[int, int] | None = None,
     ) -> None:
         self._reader = reader
         self._receive, send = Pipe(duplex=False)
@@ -133,7 +134,7 @@ class ChildDecoding(Generic[Prepared]):
         pid = os.fork()
         if pid == 0:
             self._receive.close()
-            _child(send, decode_here(reader, decoder, prepare, join_chunks=join_chunks), reader, with_chunks)
+            _child(send, decode_here(reader, decoder, prepare, join=join), reader, with_chunks)
         send.close()
         self._child = _Child(pid)
         #: The child's process id.

@@ -21,10 +21,12 @@ def _batches(sizes: list[int]) -> list[ChunkBatch]:
     return batches
 
 
-@given(st.lists(st.integers(0, 9), max_size=20), st.integers(1, 25))
-def test_joined_batches_keep_every_chunk_and_every_quiet(sizes: list[int], at_least: int) -> None:
+@given(st.lists(st.integers(0, 9), max_size=20), st.integers(1, 25), st.integers(1, 60))
+def test_joined_batches_keep_every_chunk_and_every_quiet(sizes: list[int], at_least: int, size: int) -> None:
+    """Every chunk as read, in order; a batch ends once it holds ``at_least`` chunks or ``size``
+    bytes (two bytes a chunk here), or at a quiet."""
     read = _batches(sizes)
-    joined = list(joined_batches(iter(read), at_least))
+    joined = list(joined_batches(iter(read), at_least, size))
     assert [chunk for batch in joined for chunk in batch.chunks()] == [c for b in read for c in b.chunks()]
     # A quiet ends what is held: the batches between two quiets are joined among themselves.
     runs: list[list[int]] = [[]]
@@ -36,9 +38,9 @@ def test_joined_batches_keep_every_chunk_and_every_quiet(sizes: list[int], at_le
     expected = []
     for run in runs:
         held = 0
-        for size in run:
-            held += size
-            if held >= at_least:
+        for chunks in run:
+            held += chunks
+            if held >= at_least or 2 * held >= size:
                 expected.append(held)
                 held = 0
         if held:
