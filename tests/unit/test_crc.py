@@ -76,3 +76,21 @@ def test_crc_ok_many_in_lockstep_matches_one_by_one(run: tuple[bytes, npt.NDArra
     data, offsets = run
     assert crc_ok_many(data, offsets).tolist() == crc_ok_many_reference(data, offsets).tolist()
     assert crc_ok_many(data, offsets).tolist() == [crc_ok(data[a:b]) for a, b in pairwise(offsets.tolist())]
+
+
+@pytest.mark.parametrize("size", [0, 1, 2, 15, 16, 17, 63, 64, 65, 1000, 4096, 70_000, 300_001])
+def test_prefix_registers_are_the_register_after_every_prefix(size: int) -> None:
+    """Across the block widths prefix_registers chooses (16 to 128 bytes, by size) and their
+    edges: the register after data[:k] for every k, as the plain table steps it."""
+    from decoders.crc import CRC_TABLE, crc_ok_spans, prefix_registers
+
+    data = np.random.default_rng(size).bytes(size)
+    expected = [0xFFFF]
+    for byte in data:
+        expected.append((expected[-1] >> 8) ^ CRC_TABLE[(expected[-1] ^ byte) & 0xFF])
+    registers = prefix_registers(data)
+    assert registers.tolist() == expected
+    if size >= 8:
+        framed = data[:6] + crc_bytes(data[:6]) + data[8:]
+        starts, lengths = np.array([0, 1]), np.array([8, 7])
+        assert crc_ok_spans(prefix_registers(framed), starts, lengths).tolist() == [True, crc_ok(framed[1:8])]
