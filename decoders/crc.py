@@ -178,6 +178,24 @@ def prefix_registers(data: bytes) -> npt.NDArray[np.uint32]:
     return registers
 
 
+_ZERO_SHIFT_BY_BYTE = np.ascontiguousarray(_ZERO_SHIFT.transpose(1, 2, 0))  # [half, byte, shift]
+
+
+def crc_ok_lengths(registers: npt.NDArray[np.uint32], start: int, shortest: int, longest: int) -> list[int]:
+    """The lengths ``shortest..longest`` (3..``MAX_SPAN``) at which the span from ``start``
+    passes the CRC, from :func:`prefix_registers`: :func:`crc_ok_spans` of them all, with the
+    start's register shifted through every length at once (two rows of a table) instead of
+    gathered per length (a CRC search tries some 250 lengths from one start)."""
+    if longest < shortest:
+        return []
+    initial = int(registers[start]) ^ 0xFFFF
+    shifted = _ZERO_SHIFT_BY_BYTE[0, initial & 0xFF, shortest : longest + 1] ^ _ZERO_SHIFT_BY_BYTE[
+        1, initial >> 8, shortest : longest + 1]
+    own = registers[start + shortest : start + longest + 1] ^ shifted
+    found: list[int] = (np.flatnonzero(own == 0) + shortest).tolist()
+    return found
+
+
 def crc_ok_spans(
     registers: npt.NDArray[np.uint32], starts: npt.NDArray[np.int64], lengths: npt.NDArray[np.int64]
 ) -> npt.NDArray[np.bool_]:

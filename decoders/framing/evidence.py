@@ -68,7 +68,7 @@ import numpy as np
 import numpy.typing as npt
 from fastcrc import crc16
 
-from decoders.crc import crc_ok_spans, prefix_registers
+from decoders.crc import crc_ok_lengths, prefix_registers
 from decoders.frame import MODBUS, USS, FrameFlag
 from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, rule_lengths
 from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT, FUNCTION_NAMES, MAX_QUANTITY, USER_DEFINED_FUNCTIONS
@@ -200,10 +200,7 @@ class CrcSearch:
             return [n for n in range(MIN_ADU, longest + 1) if crc16.modbus(data[start : start + n]) == 0]
         if self._registers is None:
             self._registers = prefix_registers(self.data)
-        lengths = np.arange(MIN_ADU, longest + 1, dtype=np.int64)
-        valid = crc_ok_spans(self._registers, np.full(len(lengths), start, np.int64), lengths)
-        found: list[int] = lengths[valid].tolist()
-        return found
+        return crc_ok_lengths(self._registers, start, MIN_ADU, longest)
 
 
 def valid_frames_at(data: bytes, start: int, stop: int, *, search_unknown: bool, search: CrcSearch) -> list[Reading]:

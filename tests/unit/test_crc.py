@@ -94,3 +94,23 @@ def test_prefix_registers_are_the_register_after_every_prefix(size: int) -> None
         framed = data[:6] + crc_bytes(data[:6]) + data[8:]
         starts, lengths = np.array([0, 1]), np.array([8, 7])
         assert crc_ok_spans(prefix_registers(framed), starts, lengths).tolist() == [True, crc_ok(framed[1:8])]
+
+
+@given(st.binary(min_size=0, max_size=400), st.data())
+def test_crc_ok_lengths_are_the_spans_that_pass(data: bytes, draw: st.DataObject) -> None:
+    """Every length at once, as crc_ok_spans finds them length by length; with frames planted
+    at the start so that some lengths pass."""
+    from decoders.crc import MAX_SPAN, crc_ok_lengths, crc_ok_spans, prefix_registers
+
+    start = draw.draw(st.integers(0, len(data)))
+    for planted in (0, 1):
+        if planted and len(data) - start >= 6:
+            cut = draw.draw(st.integers(start + 1, len(data) - 2))
+            data = data[:cut] + crc_bytes(data[start:cut]) + data[cut + 2 :]
+        registers = prefix_registers(data)
+        shortest = draw.draw(st.integers(3, 8))
+        longest = min(MAX_SPAN, len(data) - start, draw.draw(st.integers(0, MAX_SPAN)))
+        lengths = np.arange(shortest, longest + 1, dtype=np.int64)
+        expected = lengths[crc_ok_spans(registers, np.full(len(lengths), start, np.int64), lengths)].tolist()
+        assert crc_ok_lengths(registers, start, shortest, longest) == expected
+        assert all(crc16_modbus(data[start : start + n]) == 0 for n in expected)
