@@ -195,6 +195,28 @@ def test_session_errors_are_one_line(cli: Cli, tmp_path: Path) -> None:
     assert only_analog.code == 5 and "analog channels only" in only_analog.err
 
 
+def test_a_session_zipped_without_a_date_decodes_from_1980(cli: Cli, tmp_path: Path) -> None:
+    """Zip writers that leave the date zero (month 0, found by the reader fuzz test): the frames
+    as with the date, their times from 1980-01-01 UTC, and the user told; no traceback."""
+    flowmeter = SIGROK / "uart" / "modbus_rtu" / "flowmeter" / "flowmeter_target0_val0.sr"
+    undated = tmp_path / "undated.sr"
+    with zipfile.ZipFile(flowmeter) as original, zipfile.ZipFile(undated, "w") as copy:
+        for entry in original.infolist():
+            info = zipfile.ZipInfo(entry.filename, (1980, 0, 0, 0, 0, 0) if entry.filename == "metadata"
+                                   else entry.date_time)
+            copy.writestr(info, original.read(entry.filename))
+    got = cli("analyze", str(undated), "--line", "9600 8N1", "--format", "jsonl")
+    want = cli("analyze", str(flowmeter), "--line", "9600 8N1", "--format", "jsonl")
+    assert got.code == 0 and want.code == 0, got.err
+    assert "no valid date for its metadata (1980-0-0): times count from 1980-01-01 00:00 UTC" in got.err
+    frames = [r for r in got.jsonl() if r["kind"] == "frame"]
+    expected = [r for r in want.jsonl() if r["kind"] == "frame"]
+    assert [f["hex"] for f in frames] == [f["hex"] for f in expected] and frames
+    assert frames[0]["t_ns"] // 10**9 - 315_532_800 < 3600  # an hour into 1980-01-01 at most
+    shift = expected[0]["t_ns"] - frames[0]["t_ns"]
+    assert all(e["t_ns"] - f["t_ns"] == shift for f, e in zip(frames, expected, strict=True))
+
+
 def test_line_settings_told_by_the_samples(cli: Cli) -> None:
     """Without --line: the baud rate of the shortest pulses, the format that reads best."""
     for session, line, channels in [("flowmeter/flowmeter_target0_val0.sr", "9600 8N1", []),

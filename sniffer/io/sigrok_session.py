@@ -35,6 +35,8 @@ DETECTION_SAMPLES = 4_000_000
 DETECTED_FORMATS = ("8E1", "8N1", "8O1", "8N2")
 _RATE = re.compile(r"([\d.]+)\s*([kMG]?)Hz", re.IGNORECASE)
 _SCALE = {"": 1.0, "k": 1e3, "m": 1e6, "g": 1e9}
+#: The earliest date a zip entry can hold (MS-DOS dates).
+_ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 
 class SigrokSessionReader:
@@ -66,6 +68,17 @@ class SigrokSessionReader:
             f"sigrok session {path}: probe {probes} at {self._rate:,.0f} Hz, decoded as UART "
             f"{self._line.format()} by rtusniff",), channels)
 
+    def _start_ns(self, stamp: tuple[int, int, int, int, int, int]) -> int:
+        """When the session began: its metadata's date in the zip. Some zip writers leave the
+        date zero (month 0), which is no date: the times then count from the earliest a zip
+        can hold, 1980-01-01 UTC, and the user is told (the frames and their spacing are the same)."""
+        try:
+            return timegm(stamp) * NS_PER_S
+        except (ValueError, OverflowError):
+            self.warnings.append(f"{self.path}: the session's zip gives no valid date for its metadata "
+                                 f"({'-'.join(map(str, stamp[:3]))}): times count from 1980-01-01 00:00 UTC")
+            return timegm(_ZIP_EPOCH) * NS_PER_S
+
     def _error(self, message: str, kind: ErrorKind = ErrorKind.BAD_DATA) -> CaptureFormatError:
         return CaptureFormatError(kind, message, path=self.path, location="session")
 
@@ -92,7 +105,7 @@ class SigrokSessionReader:
             analog = device.get("total analog", "0")
             raise self._error("no logic probes (rtusniff decodes digital samples; this session has "
                               f"{analog} analog channels only)", ErrorKind.UNKNOWN_FORMAT)
-        self._t0_ns = timegm(stamp) * NS_PER_S
+        self._t0_ns = self._start_ns(stamp)
         names = sorted((name for name in self._zip.namelist() if name.startswith(self._capturefile + "-")),
                        key=lambda name: int(name.rsplit("-", 1)[1]) if name.rsplit("-", 1)[1].isdigit() else 0)
         if not names:
