@@ -233,6 +233,19 @@ def test_latency_window_learned_in_bulk_as_one_by_one() -> None:
         matcher._learn_many(latencies[position : position + size])
         position += size
         assert matcher.timeout_ns == expected[position - 1], position
+    one_by_one = Matcher()  # the answers the loop visits: _learn_one, interleaved with runs
+    position = 0
+    for size in [1, 1, 29, 2, 1, 33, 1, 100, 1, 1, 300, 1]:
+        if size == 1:
+            one_by_one._learn_one(latencies[position])
+        else:
+            one_by_one._learn_many(latencies[position : position + size])
+        position += size
+        assert one_by_one.timeout_ns == expected[position - 1], position
+    for latency in latencies[position:]:
+        one_by_one._learn_one(latency)
+        position += 1
+        assert one_by_one.timeout_ns == expected[position - 1], position
 
 
 def test_tick_times_out_and_releases_by_the_clock() -> None:
