@@ -9,29 +9,23 @@ from __future__ import annotations
 import argparse
 import errno
 import gc
+import importlib
 import re
 import sys
 from collections.abc import Sequence
+from types import ModuleType
 
-from sniffer.commands import (
-    analyze,
-    capture,
-    compare,
-    convert,
-    cut,
-    export,
-    ports,
-    profiles,
-    report,
-    stats,
-    values,
-)
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import allow_replacing
 from sniffer.stopping import INTERRUPTED, TERMINATED, TerminatedError, restore_signals, terminate_raises
 from sniffer.tool_version import tool_version
 
-COMMANDS = [analyze, stats, report, values, compare, cut, export, capture, ports, convert, profiles]
+#: The commands, in the order ``--help`` lists them: each a module of :mod:`sniffer.commands` with
+#: ``add_parser``. A command run is parsed by its own parser alone, and only its module imported:
+#: ``stats`` started 0.1 s sooner without the modules of the exports and views (0.23 s of imports
+#: instead of 0.33 s, ``python -X importtime``).
+COMMAND_NAMES = ("analyze", "stats", "report", "values", "compare", "cut", "export", "capture", "ports",
+                 "convert", "profiles")
 #: Errors that only writing raises: a full disk, a quota, a file too large.
 WRITE_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 #: Objects allocated between young-generation collections. Decoding builds millions of
@@ -53,7 +47,13 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
-def build_parser() -> argparse.ArgumentParser:
+def command_module(name: str) -> ModuleType:
+    """The module of the command ``name`` (one of :data:`COMMAND_NAMES`)."""
+    return importlib.import_module(f"sniffer.commands.{name}")
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command line's parser: of every command, or of ``command`` alone (the one run)."""
     parser = argparse.ArgumentParser(
         prog="rtusniff",
         description="Modbus RTU protocol analyzer and passive RS485 bus sniffer.",
@@ -62,8 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action=_VersionAction, nargs=0, help="show the version and exit")
     parser.add_argument("--debug", action="store_true", help="show the traceback of errors")
     subparsers = parser.add_subparsers(title="commands", metavar="COMMAND")
-    for command in COMMANDS:
-        command.add_parser(subparsers)
+    for name in COMMAND_NAMES if command is None else (command,):
+        command_module(name).add_parser(subparsers)
     for subparser in subparsers.choices.values():
         # Also after the command (`rtusniff analyze --debug X`); SUPPRESS keeps the top level's value.
         subparser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
@@ -98,8 +98,8 @@ def joined_line_settings(argv: Sequence[str]) -> list[str]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     gc.set_threshold(GC_YOUNG_THRESHOLD, *gc.get_threshold()[1:])
-    parser = build_parser()
     given = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(_command_in(given))
     args = parser.parse_args(joined_line_settings(given))
     if not hasattr(args, "run"):
         parser.print_help()
@@ -133,6 +133,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return ErrorKind.OUTPUT_FAILED.exit_code
     finally:
         restore_signals(previous)
+
+
+def _command_in(argv: list[str]) -> str | None:
+    """The command ``argv`` runs (its first word that is no option), if it names one; ``None``:
+    no command, or a wrong one, which the parser of every command tells."""
+    first = next((word for word in argv if not word.startswith("-")), None)
+    return first if first in COMMAND_NAMES else None
 
 
 def entry_point() -> None:

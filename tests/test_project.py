@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-from sniffer.cli import COMMANDS
+from sniffer.cli import COMMAND_NAMES
 from sniffer.errors import ErrorKind
 from tests.conftest import ROOT
 
@@ -32,8 +32,7 @@ def test_ci_runs_the_readme_block() -> None:
 
 def test_every_command_has_a_usage_section() -> None:
     readme = (ROOT / "README.md").read_text()
-    for command in COMMANDS:
-        name = command.__name__.rsplit(".", 1)[-1]
+    for name in COMMAND_NAMES:
         assert f"### `rtusniff {name}" in readme, name
 
 
