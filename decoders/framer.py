@@ -348,13 +348,21 @@ def _piece_times(clock: ByteClock, chunk_starts: Int64Array, first: Int64Array,
     # Mostly a chunk is a frame: few chunks begin inside a piece (a mark per byte tells which).
     starts_piece = np.zeros(stop + 1, np.bool_)
     starts_piece[first] = True
-    known = starts_piece[inside]
-    runs = first if known.all() else np.sort(np.concatenate([first, inside[~known]]))
-    run_ends = np.empty_like(runs)
-    run_ends[:-1] = runs[1:]
-    run_ends[-1] = stop
-    run_starts, run_stops = clock.run_times(runs, run_ends)
-    if runs is first:
-        return run_starts, run_stops
-    at = np.searchsorted(runs, first)
+    extra = inside[~starts_piece[inside]]
+    if not len(extra):
+        return clock.run_times(first, _run_ends(first, stop))
+    # Both sorted, the extra starts few: each one's place among all runs, and each piece's.
+    at = np.arange(len(first)) + np.searchsorted(extra, first)
+    runs = np.empty(len(first) + len(extra), np.int64)
+    runs[at] = first
+    runs[np.arange(len(extra)) + np.searchsorted(first, extra)] = extra
+    run_starts, run_stops = clock.run_times(runs, _run_ends(runs, stop))
     return np.minimum.reduceat(run_starts, at), np.maximum.reduceat(run_stops, at)
+
+
+def _run_ends(runs: Int64Array, stop: int) -> Int64Array:
+    """Where each run of bytes starting at ``runs`` ends: at the next, the last at ``stop``."""
+    ends = np.empty_like(runs)
+    ends[:-1] = runs[1:]
+    ends[-1] = stop
+    return ends
