@@ -81,3 +81,34 @@ def test_outputs_that_annotate_keep_the_batches_as_read(cli: Callable[..., CliRe
     fed.clear()
     assert cli("stats", str(capture)).code == 0
     assert max(fed) >= 5 * READ_CHUNKS
+
+
+def test_two_processes_join_as_one(fed: list[int], monkeypatch: pytest.MonkeyPatch) -> None:
+    """The decoding process joins the chunks for counting sinks as one process does: the same
+    statistics, from as many batches, fewer than read."""
+    from decoders.stats import Statistics
+    from sniffer.io.registry import open_reader
+    from sniffer.sinks import Sink
+
+    class Counting(Sink):
+        wants_statistics = True
+
+    delivered: list[int] = []
+    batch = pipeline.Delivery.batch
+
+    def counted(self: pipeline.Delivery, *args: object) -> None:
+        delivered.append(1)
+        batch(self, *args)
+
+    monkeypatch.setattr(pipeline.Delivery, "batch", counted)
+    figures, batches = [], []
+    for jobs, join in ((1, 0), (1, 5 * READ_CHUNKS), (2, 5 * READ_CHUNKS)):
+        monkeypatch.setattr(pipeline, "COUNTING_BATCH_CHUNKS", join)
+        delivered.clear()
+        reader = open_reader(str(CAPTURES / "atv71-plc-poll.log"))
+        statistics: Statistics = pipeline.analyze(
+            reader, "poll", pipeline.Analysis(reader.info.line, reader.info.timing), [Counting()], jobs=jobs)
+        figures.append(statistics.to_dict())
+        batches.append(len(delivered))
+    assert figures[0] == figures[1] == figures[2] and figures[0]["frames"]
+    assert batches[1] == batches[2] < batches[0], batches
