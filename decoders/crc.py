@@ -130,12 +130,14 @@ MAX_SPAN = 320
 
 
 def _zero_shift_tables() -> npt.NDArray[np.uint32]:
-    """``tables[n, 0, x]`` / ``tables[n, 1, x]``: the register ``x`` / ``x << 8`` after n
-    zero bytes, with no initial value (CRC is linear: a register's effect splits by byte)."""
-    tables = np.empty((MAX_SPAN + 1, 2, 256), np.uint32)
+    """``tables[0, x, n]`` / ``tables[1, x, n]``: the register ``x`` / ``x << 8`` after n
+    zero bytes, with no initial value (CRC is linear: a register's effect splits by byte). The
+    shifts of one register lie side by side, for :func:`crc_ok_lengths` to slice; gathering
+    across them (:func:`crc_ok_spans`) is as fast as from a table laid out shift first."""
+    tables = np.empty((2, 256, MAX_SPAN + 1), np.uint32)
     current = np.stack([np.arange(256, dtype=np.uint32), np.arange(256, dtype=np.uint32) << 8])
     for shift in range(MAX_SPAN + 1):
-        tables[shift] = current
+        tables[:, :, shift] = current
         current = (current >> 8) ^ _STEP_TABLE[current & 0xFF]
     return tables
 
@@ -145,7 +147,7 @@ _ZERO_SHIFT = _zero_shift_tables()
 
 def _shifted(registers: npt.NDArray[np.uint32], counts: npt.NDArray[np.int64]) -> npt.NDArray[np.uint32]:
     """Each register carried through ``counts`` zero bytes (no initial value)."""
-    shifted: npt.NDArray[np.uint32] = _ZERO_SHIFT[counts, 0, registers & 0xFF] ^ _ZERO_SHIFT[counts, 1, registers >> 8]
+    shifted: npt.NDArray[np.uint32] = _ZERO_SHIFT[0, registers & 0xFF, counts] ^ _ZERO_SHIFT[1, registers >> 8, counts]
     return shifted
 
 
@@ -178,9 +180,6 @@ def prefix_registers(data: bytes) -> npt.NDArray[np.uint32]:
     return registers
 
 
-_ZERO_SHIFT_BY_BYTE = np.ascontiguousarray(_ZERO_SHIFT.transpose(1, 2, 0))  # [half, byte, shift]
-
-
 def crc_ok_lengths(registers: npt.NDArray[np.uint32], start: int, shortest: int, longest: int) -> list[int]:
     """The lengths ``shortest..longest`` (3..``MAX_SPAN``) at which the span from ``start``
     passes the CRC, from :func:`prefix_registers`: :func:`crc_ok_spans` of them all, with the
@@ -189,8 +188,8 @@ def crc_ok_lengths(registers: npt.NDArray[np.uint32], start: int, shortest: int,
     if longest < shortest:
         return []
     initial = int(registers[start]) ^ 0xFFFF
-    shifted = _ZERO_SHIFT_BY_BYTE[0, initial & 0xFF, shortest : longest + 1] ^ _ZERO_SHIFT_BY_BYTE[
-        1, initial >> 8, shortest : longest + 1]
+    shifted = _ZERO_SHIFT[0, initial & 0xFF, shortest : longest + 1] ^ _ZERO_SHIFT[1, initial >> 8,
+                                                                                    shortest : longest + 1]
     own = registers[start + shortest : start + longest + 1] ^ shifted
     found: list[int] = (np.flatnonzero(own == 0) + shortest).tolist()
     return found
