@@ -262,8 +262,12 @@ class Framer:
         kinds, channels = marks
         first, last, is_noise, flags = pieces.first, pieces.last, pieces.is_noise, pieces.flags.copy()
         count = len(first)
+        # Which bytes begin a piece, up to the last piece's end: mostly a chunk is a frame, and on
+        # exact timing a frame follows a pause, so chunks and pauses are told apart by these.
+        starts_piece = np.zeros(int(last[-1]) + 1 if count else 0, np.bool_)
+        starts_piece[first] = True
         if count:
-            t_start, t_end = _piece_times(clock, chunk_starts, first, int(last[-1]))
+            t_start, t_end = _piece_times(clock, chunk_starts, first, starts_piece)
         else:
             t_start = t_end = np.zeros(0, np.int64)
         if self.timing is TimingQuality.HOST and count:
@@ -279,7 +283,8 @@ class Framer:
             idle[0] = NO_IDLE if self._last_end_ns is None else t_start[0] - self._last_end_ns
             self._last_end_ns = int(t_end[-1])
         if self.timing is TimingQuality.EXACT:
-            flags |= self._timing_flags(pauses, first=first, last=last, idle=idle, is_noise=is_noise)
+            flags |= self._timing_flags(pauses, first=first, last=last, starts_piece=starts_piece, idle=idle,
+                                        is_noise=is_noise)
         else:
             self._delivery.learn(data, (clock, *clock.silences()), (first, last), pieces.crc_ok & ~is_noise)
             # Host times are estimates; a negative silence is an artefact of them.
@@ -317,6 +322,7 @@ class Framer:
         *,
         first: Int64Array,
         last: Int64Array,
+        starts_piece: npt.NDArray[np.bool_],
         idle: Int64Array,
         is_noise: npt.NDArray[np.bool_],
     ) -> npt.NDArray[np.uint16]:
@@ -325,9 +331,7 @@ class Framer:
         has_gap = np.zeros(len(first), np.bool_)
         if len(pauses) and len(first):
             # On exact timing nearly every frame starts after a pause (t3.5 > t1.5): those are
-            # told apart by a mark per byte, and only the few others looked up.
-            starts_piece = np.zeros(int(last[-1]) + 1, np.bool_)
-            starts_piece[first] = True
+            # told apart by ``starts_piece``, and only the few others looked up.
             pauses = pauses[(pauses > first[0]) & (pauses < last[-1])]
             pauses = pauses[~starts_piece[pauses]]
             holder = np.maximum(np.searchsorted(first, pauses, side="right") - 1, 0)
@@ -339,15 +343,15 @@ class Framer:
 
 
 def _piece_times(clock: ByteClock, chunk_starts: Int64Array, first: Int64Array,
-                 stop: int) -> tuple[Int64Array, Int64Array]:
+                 starts_piece: npt.NDArray[np.bool_]) -> tuple[Int64Array, Int64Array]:
     """Earliest start and latest end of the bytes of each piece ``[first[i], first[i+1])`` (the
-    last up to ``stop``): the times of its first and last bytes on a consistent capture, and
-    still ordered on one whose times overlap. Inside a chunk times only grow, so each run of a
-    piece's bytes in one chunk gives its first byte's start and its last byte's end."""
+    last up to the end of ``starts_piece``, which marks the bytes ``first`` holds): the times of
+    its first and last bytes on a consistent capture, and still ordered on one whose times
+    overlap. Inside a chunk times only grow, so each run of a piece's bytes in one chunk gives
+    its first byte's start and its last byte's end."""
+    stop = len(starts_piece) - 1
     inside = chunk_starts[(chunk_starts > first[0]) & (chunk_starts < stop)]
-    # Mostly a chunk is a frame: few chunks begin inside a piece (a mark per byte tells which).
-    starts_piece = np.zeros(stop + 1, np.bool_)
-    starts_piece[first] = True
+    # Mostly a chunk is a frame: few chunks begin inside a piece.
     extra = inside[~starts_piece[inside]]
     if not len(extra):
         return clock.run_times(first, _run_ends(first, stop))
