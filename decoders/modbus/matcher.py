@@ -362,8 +362,7 @@ class Matcher:
         self._learned += 1
         self._latencies.append(latency)
         if self._learned < LEARN_EVERY or self._learned % LEARN_EVERY == 0:
-            longest = max(self._latencies)
-            self._adaptive_timeout_ns = min(MAX_TIMEOUT_NS, max(MIN_TIMEOUT_NS, TIMEOUT_PER_LATENCY * longest))
+            self._adaptive_timeout_ns = _derived_timeout_ns(max(self._latencies))
 
     def _learn_many(self, latencies: list[int]) -> None:
         """Derive the timeout from the longest recent latency: after every answer at first,
@@ -378,9 +377,13 @@ class Matcher:
             # The window as it stood after the last checkpoint's answer.
             upto = max(checkpoints) - before
             recent = [*self._latencies, *latencies[:upto]][-LATENCY_WINDOW:]
-            longest = max(recent)
-            self._adaptive_timeout_ns = min(MAX_TIMEOUT_NS, max(MIN_TIMEOUT_NS, TIMEOUT_PER_LATENCY * longest))
+            self._adaptive_timeout_ns = _derived_timeout_ns(max(recent))
         self._latencies.extend(latencies)
+
+
+def _derived_timeout_ns(longest_ns: int) -> int:
+    """The response timeout derived from the longest recent latency (see the module docstring)."""
+    return min(MAX_TIMEOUT_NS, max(MIN_TIMEOUT_NS, TIMEOUT_PER_LATENCY * longest_ns))
 
 
 def _defaults(frames: FrameBatch, shapes: Shapes) -> dict[str, npt.NDArray[np.int64]]:
