@@ -159,7 +159,7 @@ class ColumnarFrames:
         """Each frame's summary line, as its PDU's ``summary()`` writes it
         (:mod:`decoders.modbus.columnar_text`; ``fast``: in bulk), with what its profile names."""
         texts = summaries(self, data, fast=fast)
-        return texts if self.names is None else self.names.suffixed(texts, np.maximum(self.count, 0), fast=fast)
+        return texts if self.names is None else self.names.suffixed(texts, self._sizes(), fast=fast)
 
     def take(self, rows: npt.NDArray[np.int64]) -> ColumnarFrames:
         """The frames at ``rows`` (indexes of these columns) as columns of their own, to spell their
@@ -167,8 +167,8 @@ class ColumnarFrames:
         ``earlier_requests`` stay the batch's."""
         names = self.names
         if names is not None:
-            sizes = np.maximum(self.count, 0)
-            taken = np.repeat((np.cumsum(sizes) - sizes)[rows], sizes[rows]) + within_runs(sizes[rows])
+            sizes = self._sizes()
+            taken = np.repeat(self._param_starts()[rows], sizes[rows]) + within_runs(sizes[rows])
             names = ColumnarNames(names.row[taken], names.table)
         return ColumnarFrames(self.positions[rows], self.function[rows], self.kind[rows], self.address[rows],
                               self.count[rows], self.data[rows], self.byte_count[rows], self.request[rows],
@@ -193,7 +193,7 @@ class ColumnarFrames:
         """Every frame's params as the plain path's decoding names them, laid end to end: for
         writers that spell them in columns, with no decoding per frame."""
         valued, counts, within, value = self._carried(data)
-        sizes = np.maximum(self.count, 0)
+        sizes = self._sizes()
         values = np.full(int(sizes.sum()), NO_VALUE, np.int64)
         values[self._param_rows(valued, counts, within)] = value
         return ColumnarParams(sizes, np.repeat(self.address, sizes) + within_runs(sizes), values,
@@ -202,9 +202,19 @@ class ColumnarFrames:
     def _param_rows(self, valued: npt.NDArray[np.int64], counts: npt.NDArray[np.int64],
                     within: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
         """Where each value of :meth:`_carried` is among the params of :meth:`params`."""
-        sizes = np.maximum(self.count, 0)
-        rows: npt.NDArray[np.int64] = np.repeat((np.cumsum(sizes) - sizes)[valued], counts) + within
+        rows: npt.NDArray[np.int64] = np.repeat(self._param_starts()[valued], counts) + within
         return rows
+
+    def _sizes(self) -> npt.NDArray[np.int64]:
+        """How many params each frame names (its count; none where it has none)."""
+        sizes: npt.NDArray[np.int64] = np.maximum(self.count, 0)
+        return sizes
+
+    def _param_starts(self) -> npt.NDArray[np.int64]:
+        """Where each frame's params begin among those of :meth:`params`."""
+        sizes = self._sizes()
+        starts: npt.NDArray[np.int64] = np.cumsum(sizes) - sizes
+        return starts
 
     def _carried(self, data: bytes) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64],
                                              npt.NDArray[np.int64]]:
