@@ -287,8 +287,8 @@ class ProfileApplier:
         slave = facts.slave
         if slave is None or not facts.crc_ok:
             return None
-        objects = {o.object_id: o.text for o in pdu.objects}
-        product = product_code(pdu)
+        objects = identity_objects(pdu)
+        product = objects.get(PRODUCT_CODE_OBJECT)
         if product is None:
             return None
         before = self.book.profile_for(slave)
@@ -318,10 +318,14 @@ class ProfileApplier:
                         self.version += 1
 
 
+def identity_objects(pdu: DeviceIdResponse) -> dict[int, str]:
+    """The objects an identification answer gives, by id (the last, where it gives one twice)."""
+    return {found.object_id: found.text for found in pdu.objects}
+
+
 def product_code(pdu: DeviceIdResponse) -> str | None:
-    """The product code an identification answer gives, if it gives one (the last, where it
-    gives several)."""
-    return {found.object_id: found.text for found in pdu.objects}.get(PRODUCT_CODE_OBJECT)
+    """The product code an identification answer gives, if it gives one."""
+    return identity_objects(pdu).get(PRODUCT_CODE_OBJECT)
 
 
 def _uss_words(profile: Profile, decoding: Decoding, role: Role) -> Decoding:
