@@ -88,13 +88,12 @@ def analyze(
     # With a window or a limit the parent prepares the part it delivers (see Delivery.batch).
     prepare = _each_prepare(delivery.preparing) if delivery.preparing and not delivery.selective else None
     run = partial(_run, source=source, info=info, analysis=analysis, delivery=delivery)
-    with_chunks = any(sink.wants_chunks for sink in sinks)
-    counting = not with_chunks and not any(sink.wants_messages for sink in sinks) and not isinstance(
-        reader, FollowingReader)
+    counting = delivery.counts_only and not isinstance(reader, FollowingReader)
     join = (COUNTING_BATCH_CHUNKS, COUNTING_BATCH_BYTES) if counting and COUNTING_BATCH_CHUNKS else None
     if jobs == 1:
         statistics = run(decode_here(reader, decoder, prepare, join=join))
     else:
+        with_chunks = any(sink.wants_chunks for sink in sinks)
         with closing(ChildDecoding(reader, decoder, with_chunks=with_chunks, prepare=prepare, join=join)) as child:
             statistics = run(child)
     missed = delivery.window_missed()
@@ -150,6 +149,11 @@ class Delivery:
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         for sink in self.sinks:
             sink.start(source, info, line)
+
+    @property
+    def counts_only(self) -> bool:
+        """Whether no sink takes messages or raw chunks: frames and statistics are all they need."""
+        return not self._message_sinks and not self._chunk_sinks
 
     @property
     def selective(self) -> bool:
