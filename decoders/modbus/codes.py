@@ -10,6 +10,9 @@ BROADCAST_ADDRESS = 0
 #: request for more is invalid, and a slave answers it with exception 03.
 MAX_QUANTITY: dict[int, int] = {1: 2000, 2: 2000, 3: 125, 4: 125, 15: 1968, 16: 123}
 MAX_READ_WRITE_QUANTITY = (125, 121)  # FC 23: read, write
+#: Functions that read or write coils and discrete inputs: bits, a table of their own beside the
+#: registers (a coil at 3201 is not register 3201).
+BIT_FUNCTIONS = frozenset({1, 2, 5, 15})
 
 FUNCTION_NAMES: dict[int, str] = {
     1: "Read Coils",

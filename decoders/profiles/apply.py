@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from decoders.message import Decoding, DeviceIdentity, Message, ParamValue, Role
+from decoders.modbus.codes import BIT_FUNCTIONS
 from decoders.modbus.param_runs import addressed_values
 from decoders.modbus.pdu import (
     ExceptionPdu,
@@ -154,10 +155,14 @@ class ProfileApplier:
         if device is None and self.adds_nothing(NO_SLAVE if slave is None else slave):
             return decoding
         profile = self.book.profile_for(slave)
-        values = addressed_values(decoding)
-        params, shown, learns = self._named(profile, slave, facts.role is Role.RESPONSE, values)
-        if learns:
-            self._learn(profile, slave, values)
+        bits = facts.function in BIT_FUNCTIONS  # a profile names registers: bits keep their addresses
+        params: Sequence[ParamValue] = decoding.params
+        shown: list[str] = []
+        if not bits:
+            values = addressed_values(decoding)
+            params, shown, learns = self._named(profile, slave, facts.role is Role.RESPONSE, values)
+            if learns:
+                self._learn(profile, slave, values)
         remarks = list(decoding.remarks)
         if facts.role in (Role.REQUEST, Role.BROADCAST) and pdu is not None:
             remarks += limit_remarks(profile, facts, pdu)
@@ -165,6 +170,8 @@ class ProfileApplier:
             remarks += _exception_remarks(profile, pdu, request)
         if device is not None:
             remarks.append(_device_remark(device))
+        if bits and len(remarks) == len(decoding.remarks) and device is None:
+            return decoding  # what the profile adds to it: nothing
         return Decoding(summary_with(decoding.summary, shown), tuple(params), pdu, tuple(remarks),
                         decoding.device if device is None else device, decoding.uss)
 

@@ -41,6 +41,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
+from decoders.modbus.codes import BIT_FUNCTIONS
 from decoders.modbus.columnar import ColumnarFrames, ColumnarNames
 from decoders.modbus.columnar_text import READ, READ_ANSWER, WRITE, WRITE_ANSWER
 from decoders.modbus.pdu import Pdu
@@ -185,11 +186,12 @@ def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames
     """``columnar`` with the names its frames' profiles give their params (none of them
     :func:`unnameable`); as it is where no frame's profile names anything."""
     slaves = _Slaves(applier, batch.slave[columnar.positions].astype(np.int64))
-    if not slaves.named.any():
+    named_frames = slaves.named & ~np.isin(columnar.function, list(BIT_FUNCTIONS))  # a profile names no coil
+    if not named_frames.any():
         return columnar
     params = columnar.params(batch.frames.data)
     frame = np.repeat(np.arange(len(columnar)), params.sizes)
-    rows = np.flatnonzero(slaves.named[frame])
+    rows = np.flatnonzero(named_frames[frame])
     of = frame[rows]
     reported = np.isin(columnar.kind, (READ_ANSWER, WRITE_ANSWER))[of].astype(np.int64)
     address = params.address[rows]

@@ -355,3 +355,23 @@ def test_short_frames_of_every_function_are_left_to_the_plain_path() -> None:
         for answered in ({}, {1: 0}):
             batch = paired_by_hand([short, short], answered)
             assert check_batch(annotator(None), annotator(None), batch) == 0
+
+
+def test_a_profile_names_no_coil() -> None:
+    """A profile names registers: a coil read or write at a register's address (3201 is the
+    ATV71's ETA and the NORD's STW, 8501 the ATV71's CMD, 12701 its NMA1) is shown by address and
+    teaches no scanner table, on the plain path and in columns alike (the ATV71 remarks that it
+    has no coils: those frames go the plain path; the NORD's stay in columns)."""
+    coils = [adu(b"\x01\x01", struct.pack(">HH", 3201, 2)), adu(b"\x01\x01\x01\x03"),
+             adu(b"\x01\x05", struct.pack(">HH", 8501, 0xFF00)), adu(b"\x01\x05", struct.pack(">HH", 8501, 0xFF00))]
+    traffic = [*coils, adu(b"\x01\x01", struct.pack(">HH", 12701, 1)), adu(b"\x01\x01\x01\x01"),
+               *_read(1, 12741, (1500,))]
+    for profile, kept in (["atv71"], 2), (["nord-sk"], 8):
+        columns, plain = annotator(profile), annotator(profile)
+        (batch,) = [batch for batch in matched(traffic) if len(batch)]
+        assert check_batch(columns, plain, batch) == kept
+        assert [decoding.summary for decoding in annotator(profile).annotate_batch(batch).decodings][:6] == [
+            "read coils 3201..3202 (2)", "coils = 11000000 (1 bytes)", "write coil 8501 = ON",
+            "write coil 8501 = ON", "read coils 12701 (1)", "coils = 10000000 (1 bytes)"]
+    atv71 = annotator(["atv71"]).annotate_batch(batch).decodings
+    assert atv71[7].summary == "HR = 05DC (1 registers): NM1→ETA = 16#05DC warning, reference reached, forward"
