@@ -5,7 +5,9 @@ change, each is new to the annotator's memo and costs a PDU, a decoding and a pa
 which an output that writes columns (the Parquet dataset) only takes apart again. Here such
 frames of a batch are kept as columns (:class:`ColumnarFrames`, found by
 :func:`decoders.modbus.columnar_find.find_columnar`): where each frame is, its function and
-kind, the first address it names and how many values, where its values lie.
+kind, the first address it names and how many values, where its values lie, and for an FC 23
+request (a scanner's exchange: it writes some registers and reads others) the span it reads,
+named after the one it writes.
 :meth:`ColumnarFrames.summaries` writes their summary lines and :meth:`ColumnarFrames.values`
 their values, as the PDUs, :mod:`decoders.modbus.param_runs` and the value rows' rule do. Where
 a profile names a frame's slave, :class:`ColumnarNames` holds what it names of the params
@@ -29,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.modbus.codes import MAX_QUANTITY
-from decoders.modbus.columnar_text import READ_ANSWER, WRITE, WRITE_ANSWER, formatted, summaries
+from decoders.modbus.columnar_text import READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, formatted, summaries
 from decoders.modbus.pdu import COIL_ON
 from decoders.profiles.naming import SHOWN_PARAMS, NamedValue, summary_with
 
@@ -124,9 +126,11 @@ class ColumnarNames(NamedTuple):
 class ColumnarFrames:
     """The frames of a batch kept in columns, by position (ascending), one entry each.
 
-    ``kind``: ``READ`` … ``WRITE_ANSWER`` (:mod:`decoders.modbus.columnar_text`); ``address``
+    ``kind``: ``READ`` … ``READ_WRITE`` (:mod:`decoders.modbus.columnar_text`); ``address``
     and ``count``: the first register or coil a frame names and how many (a read's answer: its
-    request's first, and how many values it carries of those asked); ``data``: where the values'
+    request's first, and how many values it carries of those asked; an FC 23 request: those it
+    writes); ``read_address`` and ``read_count``: the registers an FC 23 request reads, named
+    after those it writes (-1 and 0 for every other frame); ``data``: where the values'
     bytes start in the batch's data (``-1`` for a read request); ``request``: an answer's request
     (frame index, ``-1`` for a request); ``answer``: a write's answer (position). ``kept_requests``: positions of read
     requests no answer here reads; ``earlier_requests``: frame indexes of requests from before
@@ -137,6 +141,8 @@ class ColumnarFrames:
     kind: npt.NDArray[np.int64]
     address: npt.NDArray[np.int64]
     count: npt.NDArray[np.int64]
+    read_address: npt.NDArray[np.int64]
+    read_count: npt.NDArray[np.int64]
     data: npt.NDArray[np.int64]
     byte_count: npt.NDArray[np.int64]
     request: npt.NDArray[np.int64]
@@ -171,14 +177,15 @@ class ColumnarFrames:
             taken = np.repeat(self._param_starts()[rows], sizes[rows]) + within_runs(sizes[rows])
             names = ColumnarNames(names.row[taken], names.table)
         return ColumnarFrames(self.positions[rows], self.function[rows], self.kind[rows], self.address[rows],
-                              self.count[rows], self.data[rows], self.byte_count[rows], self.request[rows],
-                              self.answer[rows], self.kept_requests, self.earlier_requests, names)
+                              self.count[rows], self.read_address[rows], self.read_count[rows], self.data[rows],
+                              self.byte_count[rows], self.request[rows], self.answer[rows], self.kept_requests,
+                              self.earlier_requests, names)
 
     def values(self, data: bytes) -> ColumnarValues:
         """The values of read answers, writes and the echoes of single writes (a write request's
         at its answer, before the answer's own)."""
         valued, counts, within, value = self._carried(data)
-        written = self.kind[valued] == WRITE
+        written = np.isin(self.kind[valued], (WRITE, READ_WRITE))
         frame = self.positions[valued]
         found = np.where(written, self.answer[valued], frame)
         request = np.where(written, -1, self.request[valued])
@@ -196,8 +203,12 @@ class ColumnarFrames:
         sizes = self._sizes()
         values = np.full(int(sizes.sum()), NO_VALUE, np.int64)
         values[self._param_rows(valued, counts, within)] = value
-        return ColumnarParams(sizes, np.repeat(self.address, sizes) + within_runs(sizes), values,
-                              None if self.names is None else self.names.row)
+        place = within_runs(sizes)
+        first_span = np.repeat(np.maximum(self.count, 0), sizes)
+        read = place >= first_span  # an FC 23 request's read span, after its written one
+        address = np.where(read, np.repeat(self.read_address, sizes) + place - first_span,
+                           np.repeat(self.address, sizes) + place)
+        return ColumnarParams(sizes, address, values, None if self.names is None else self.names.row)
 
     def _param_rows(self, valued: npt.NDArray[np.int64], counts: npt.NDArray[np.int64],
                     within: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
@@ -206,8 +217,9 @@ class ColumnarFrames:
         return rows
 
     def _sizes(self) -> npt.NDArray[np.int64]:
-        """How many params each frame names (its count; none where it has none)."""
-        sizes: npt.NDArray[np.int64] = np.maximum(self.count, 0)
+        """How many params each frame names (its count, and an FC 23 request's read count; none
+        where it has none)."""
+        sizes: npt.NDArray[np.int64] = np.maximum(self.count, 0) + self.read_count
         return sizes
 
     def _param_starts(self) -> npt.NDArray[np.int64]:
@@ -221,7 +233,8 @@ class ColumnarFrames:
         """Which frames carry values (indexes of these columns), how many each, each value's place
         in its frame, and the values, frame after frame (a register's word; a coil as 0 or 1)."""
         kind, function = self.kind, self.function
-        valued = np.flatnonzero((kind == READ_ANSWER) | (kind == WRITE) | ((kind == WRITE_ANSWER) & (function <= 6)))
+        valued = np.flatnonzero((kind == READ_ANSWER) | (kind == WRITE) | (kind == READ_WRITE)
+                                | ((kind == WRITE_ANSWER) & (function <= 6)))
         counts = self.count[valued]
         within = within_runs(counts)
         start = np.repeat(self.data[valued], counts)

@@ -13,7 +13,11 @@ allows:
 * a write (FC 5, 6, 15, 16; role request; not timed out), kept only together with its answer in
   the same batch (the matcher delivers a request with its outcome), which is kept when it is
   the write's echo (FC 5, 6) or its confirmation (FC 15, 16: 8 bytes), the first message to
-  name the write.
+  name the write;
+* an FC 23 request (role request; not timed out; a byte count for the registers it writes,
+  counts Modbus allows), kept only together with its answer in the same batch, the first message
+  to name it: a register answer (its byte count even and counting the rest of the frame), which
+  reports registers from the request's first read one.
 """
 
 from __future__ import annotations
@@ -25,14 +29,16 @@ import numpy.typing as npt
 
 from decoders.frame import FrameFlag
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
+from decoders.modbus.codes import MAX_READ_WRITE_QUANTITY
 from decoders.modbus.columnar import KEPT_REQUESTS, MOST, ColumnarFrames
-from decoders.modbus.columnar_text import READ, READ_ANSWER, WRITE, WRITE_ANSWER
+from decoders.modbus.columnar_text import READ, READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER
 
 _REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
 _TIMEOUT = int(FrameFlag.TIMEOUT)
 _SHORT = 8  # bytes of a read request, a single write and its echo, a multiple write's answer
 _MULTIPLE_HEAD = 9  # bytes of a multiple write but its values
 _SHORTEST_ANSWER = 6  # a read's answer with one byte of data
+_READ_WRITE_HEAD = 13  # bytes of an FC 23 request but its values
 
 #: The function, first address and count of a read request kept before the batch, by its frame
 #: index (``None``: none such).
@@ -54,6 +60,9 @@ class _Columns:
         self.kind = np.full(self.size, -1, np.int64)
         self.address = np.full(self.size, -1, np.int64)
         self.count = np.full(self.size, -1, np.int64)
+        #: An FC 23 request's read span (-1 and 0: none).
+        self.read_address = np.full(self.size, -1, np.int64)
+        self.read_count = np.zeros(self.size, np.int64)
 
     def word(self, positions: npt.NDArray[np.int64], offset: int) -> npt.NDArray[np.int64]:
         at = self.starts[positions] + offset
@@ -79,12 +88,14 @@ def find_columnar(batch: MessageBatch, eligible: npt.NDArray[np.bool_], earlier:
     writes = _shaped_writes(columns)
     kind[writes], address[writes] = WRITE, columns.word(writes, 2)
     count[writes] = np.where(function[writes] <= 6, 1, columns.word(writes, 4))
+    _read_writes(columns)
 
     answers = _first_answers(columns)
     earlier_requests = _read_answers(columns, answers, earlier)
     answered = _write_answers(columns, answers)
-    writes = writes[answered[writes]]
-    kind[(kind == WRITE) & ~answered] = -1
+    read_writes = answers[(kind[answers] == READ_ANSWER) & (function[answers] == 23)]
+    answered[columns.request[read_writes] - first] = True
+    kind[((kind == WRITE) | (kind == READ_WRITE)) & ~answered] = -1
     answers = answers[kind[answers] >= 0]
 
     positions = np.flatnonzero(kind >= 0)
@@ -96,9 +107,11 @@ def find_columnar(batch: MessageBatch, eligible: npt.NDArray[np.bool_], earlier:
     starts = columns.starts[positions]
     kinds, functions = kind[positions], function[positions]
     byte_count = np.where(kinds == READ_ANSWER, columns.raw[starts + 2], 0)
-    data = np.select([kinds == READ_ANSWER, functions <= 6, kinds == WRITE], [starts + 3, starts + 4, starts + 7], -1)
+    data = np.select([kinds == READ_ANSWER, functions <= 6, kinds == WRITE, kinds == READ_WRITE],
+                     [starts + 3, starts + 4, starts + 7, starts + 11], -1)
     return ColumnarFrames(
         positions=positions, function=functions, kind=kinds, address=address[positions], count=count[positions],
+        read_address=columns.read_address[positions], read_count=columns.read_count[positions],
         data=np.where(kinds == READ, -1, data), byte_count=byte_count,
         request=np.where((kinds == READ_ANSWER) | (kinds == WRITE_ANSWER), columns.request[positions], NONE),
         answer=answer_of[positions], kept_requests=reads[~consumed[reads]], earlier_requests=earlier_requests)
@@ -120,10 +133,27 @@ def _shaped_writes(columns: _Columns) -> npt.NDArray[np.int64]:
     return kept
 
 
+def _read_writes(columns: _Columns) -> None:
+    """Marks the FC 23 requests of the shape ``parse_pdu`` reads, not timed out, with counts
+    Modbus allows and a byte count for the registers written (the written span first: its
+    values lie in the frame, and its params come first)."""
+    lengths = columns.lengths
+    asks = np.flatnonzero(columns.of(_REQUEST, (23,)) & ((columns.batch.flags & _TIMEOUT) == 0)
+                          & (lengths >= _READ_WRITE_HEAD))
+    read_count, write_count = columns.word(asks, 4), columns.word(asks, 8)
+    byte_count = columns.raw[columns.starts[asks] + 10]
+    read_most, write_most = MAX_READ_WRITE_QUANTITY
+    asks = asks[(lengths[asks] == _READ_WRITE_HEAD + byte_count) & (byte_count == 2 * write_count)
+                & (read_count >= 1) & (read_count <= read_most) & (write_count >= 1) & (write_count <= write_most)]
+    columns.kind[asks], columns.address[asks], columns.count[asks] = READ_WRITE, columns.word(asks, 6), \
+        columns.word(asks, 8)
+    columns.read_address[asks], columns.read_count[asks] = columns.word(asks, 2), columns.word(asks, 4)
+
+
 def _first_answers(columns: _Columns) -> npt.NDArray[np.int64]:
     """Good answers to reads and writes, each the first message to name its request, within
     :data:`KEPT_REQUESTS` frames of it."""
-    answers = np.flatnonzero(columns.of(_RESPONSE, (1, 2, 3, 4, 5, 6, 15, 16)) & (columns.request != NONE))
+    answers = np.flatnonzero(columns.of(_RESPONSE, (1, 2, 3, 4, 5, 6, 15, 16, 23)) & (columns.request != NONE))
     naming = np.flatnonzero(columns.request != NONE)
     named, first_naming = np.unique(columns.request[naming], return_index=True)
     request = columns.request[answers]
@@ -135,11 +165,13 @@ def _first_answers(columns: _Columns) -> npt.NDArray[np.int64]:
 
 def _read_answers(columns: _Columns, answers: npt.NDArray[np.int64], earlier: EarlierRead) -> list[int]:
     """Marks the answers to reads whose byte count fits and whose request is a read of their
-    function kept in columns or kept before the batch (their address and count: the request's);
-    the frame indexes of the latter."""
+    function kept in columns or kept before the batch (their address and count: the request's),
+    or an FC 23 request kept in columns (the first register it reads); the frame indexes of the
+    reads from before the batch."""
     function, first = columns.function, columns.first
     kind, address, count = columns.kind, columns.address, columns.count
-    reads = answers[(function[answers] <= 4) & (columns.lengths[answers] >= _SHORTEST_ANSWER)]
+    reads = answers[((function[answers] <= 4) | (function[answers] == 23))
+                    & (columns.lengths[answers] >= _SHORTEST_ANSWER)]
     byte_count = columns.raw[columns.starts[reads] + 2]
     fits = (byte_count == columns.lengths[reads] - 5) & (byte_count > 0) & ~(
         (function[reads] >= 3) & (byte_count % 2 == 1))
@@ -147,9 +179,10 @@ def _read_answers(columns: _Columns, answers: npt.NDArray[np.int64], earlier: Ea
     request = columns.request[reads]
     inside = request >= first
     here, local = reads[inside], request[inside] - first
-    fits = (kind[local] == READ) & (function[local] == function[here])
-    here, local = here[fits], local[fits]
-    kind[here], address[here] = READ_ANSWER, address[local]
+    read_write = function[here] == 23
+    fits = (kind[local] == np.where(read_write, READ_WRITE, READ)) & (function[local] == function[here])
+    here, local, read_write = here[fits], local[fits], read_write[fits]
+    kind[here], address[here] = READ_ANSWER, np.where(read_write, columns.read_address[local], address[local])
     registers = function[here] >= 3
     answer_bytes = columns.raw[columns.starts[here] + 2]
     count[here] = np.where(registers, answer_bytes // 2, np.minimum(count[local], 8 * answer_bytes))

@@ -6,8 +6,8 @@ the bits of coils read or written taken from one unpacking of their bytes. The t
 line to the summary of the frame's PDU (the plain path: ``tests/property/test_columnar.py``).
 
 Read requests, register answers of up to eight registers (a polled bus's every frame), coil
-answers, write answers, FC 6 writes and FC 16 writes of up to eight registers are written
-faster (``fast``; the comprehensions remain the plain path, and the tests hold both to the PDU's
+answers, write answers, FC 6 writes, and FC 16 and FC 23 writes of up to eight registers are
+written faster (``fast``; the comprehensions remain the plain path, and the tests hold both to the PDU's
 summary): one ``%`` of a template repeated for all rows formats their numbers in C, the hex
 words of all answers and writes are laid out by numpy and cut apart in C, and one ``split``
 makes the lines. A million polling frames took 2.0 s of
@@ -27,10 +27,11 @@ from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_payload
 if TYPE_CHECKING:
     from decoders.modbus.columnar import ColumnarFrames
 
-#: What a frame kept in columns is: a read request (FC 1-4), its answer, a write request
-#: (FC 5, 6, 15, 16; kept only with its answer), its answer.
-READ, READ_ANSWER, WRITE, WRITE_ANSWER = 0, 1, 2, 3
-_TABLES = {1: "coils", 2: "inputs", 3: "HR", 4: "IR", 15: "coils", 16: "HR"}
+#: What a frame kept in columns is: a read request (FC 1-4), its answer (or an FC 23 request's),
+#: a write request (FC 5, 6, 15, 16; kept only with its answer), its answer, an FC 23 request
+#: (read and write at once; kept only with its answer).
+READ, READ_ANSWER, WRITE, WRITE_ANSWER, READ_WRITE = 0, 1, 2, 3, 4
+_TABLES = {1: "coils", 2: "inputs", 3: "HR", 4: "IR", 15: "coils", 16: "HR", 23: "HR"}
 _SHOWN_BITS = 32  # a summary writes 32 bits, then "…"
 _SHOWN_BYTES = _SHOWN_BITS // 8
 _COIL_STATES = {COIL_ON: "ON", COIL_OFF: "OFF"}
@@ -58,6 +59,8 @@ def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list
             _answer_texts(texts, rows, function_of, data, frames)
         elif kind_of == WRITE and function_of == 16:
             _write_texts(texts, rows, data, frames)
+        elif kind_of == READ_WRITE:
+            _read_write_texts(texts, rows, data, frames)
         elif kind_of == READ_ANSWER:
             bits = _bit_texts(data, frames.data[rows], 8 * frames.byte_count[rows])
             texts[rows] = formatted(f"{table} = %s (%d bytes)", [bits, frames.byte_count[rows]])
@@ -136,6 +139,35 @@ def _write_texts(texts: npt.NDArray[Any], rows: npt.NDArray[np.int64], data: byt
                 "write HR %d..%d = %s", [address, address + frames.count[at] - 1, words])
 
 
+def _read_write_texts(texts: npt.NDArray[Any], rows: npt.NDArray[np.int64], data: bytes,
+                      frames: ColumnarFrames) -> None:
+    """``read HR 12741..12742 (2), write HR 12761..12762 = 000F 046C`` (FC 23) into ``texts`` at
+    ``rows``; writes of more than :data:`HEX_WORDS_SHOWN` registers by the plain path."""
+    count = frames.count[rows]
+    plain = count > HEX_WORDS_SHOWN
+    if plain.any():
+        texts[rows[plain]] = _group(frames, data, rows[plain], READ_WRITE, 23)
+    at = rows[~plain]
+    if len(at):
+        read_count = frames.read_count[at]
+        columns = [_spans(frames.read_address[at], read_count), read_count.tolist(),
+                   _spans(frames.address[at], frames.count[at]),
+                   _hex_word_texts(data, frames.data[at], 2 * frames.count[at])]
+        texts[at] = formatted("read HR %s (%d), write HR %s = %s", columns)
+
+
+def _spans(address: npt.NDArray[np.int64], count: npt.NDArray[np.int64]) -> list[str]:
+    """``3201..3202`` (one register: ``3201``) for every row."""
+    texts = np.empty(len(address), object)
+    one = count == 1
+    for rows, template, columns in ((np.flatnonzero(one), "%d", (address,)),
+                                    (np.flatnonzero(~one), "%d..%d", (address, address + count - 1))):
+        if len(rows):
+            texts[rows] = formatted(template, [column[rows] for column in columns])
+    spans: list[str] = texts.tolist()
+    return spans
+
+
 def _hex_word_texts(data: bytes, starts: npt.NDArray[np.int64], sizes: npt.NDArray[np.int64]) -> list[str]:
     """``payload.hex(" ", 2).upper()`` of each ``data[starts[i] : starts[i] + sizes[i]]`` (even
     sizes), laid out by numpy: two digits a byte, a space after every second byte but the last,
@@ -178,6 +210,11 @@ def _group(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kin
                     for a, v in zip(address, values, strict=True)]
         return [f"write HR {a} = {v} (0x{v:04X})" for a, v in zip(address, values, strict=True)]
     spans = [f"{a}" if c == 1 else f"{a}..{a + c - 1}" for a, c in zip(address, count, strict=True)]
+    if kind == READ_WRITE:
+        reads = zip(frames.read_address[rows].tolist(), frames.read_count[rows].tolist(), strict=True)
+        return [f"read HR {a if c == 1 else f'{a}..{a + c - 1}'} ({c}), write HR {span} = "
+                f"{hex_payload(data[s : s + 2 * n])}" for (a, c), span, s, n in zip(reads, spans, start, count,
+                                                                                     strict=True)]
     if kind == WRITE_ANSWER:
         return [f"wrote {table} {span} ({c})" for span, c in zip(spans, count, strict=True)]
     if function == 15:

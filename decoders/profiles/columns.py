@@ -43,7 +43,7 @@ import numpy.typing as npt
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
 from decoders.modbus.codes import BIT_FUNCTIONS
 from decoders.modbus.columnar import ColumnarFrames, ColumnarNames
-from decoders.modbus.columnar_text import READ, READ_ANSWER, WRITE, WRITE_ANSWER
+from decoders.modbus.columnar_text import READ, READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER
 from decoders.modbus.pdu import Pdu
 from decoders.modbus.pdu_parse import parse_as, parse_pdu
 from decoders.modbus.pdu_serial import DeviceIdResponse
@@ -155,18 +155,21 @@ def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarF
     bad = np.zeros(len(columnar), np.bool_)
     if not slaves.named.any():
         return columnar.positions[bad]
-    low = columnar.address
-    high = low + np.maximum(columnar.count, 0)
+    # The registers each frame names: its span, and an FC 23 request's read span (none elsewhere).
+    spans = [(columnar.address, columnar.address + np.maximum(columnar.count, 0)),
+             (columnar.read_address, columnar.read_address + columnar.read_count)]
     taught = np.isin(frame_slaves, list(learning))
     for place, profile in enumerate(slaves.profiles):
         of = slaves.named & (slaves.profile == place)
         for table in profile.indirections:
-            bad |= of & _overlap(low, high, table.address_registers, table.count)
-            bad |= of & taught & _overlap(low, high, table.value_registers, table.count)
-    requests = np.flatnonzero(slaves.named & np.isin(columnar.kind, (READ, WRITE)) & ~bad)
+            for low, high in spans:
+                bad |= of & _overlap(low, high, table.address_registers, table.count)
+                bad |= of & taught & _overlap(low, high, table.value_registers, table.count)
+    requests = np.flatnonzero(slaves.named & np.isin(columnar.kind, (READ, WRITE, READ_WRITE)) & ~bad)
     if len(requests):
-        # A request's remarks depend on its profile, function and count alone: one of each asked.
-        key = (slaves.profile[requests] << 32) | (columnar.function[requests] << 16) | columnar.count[requests]
+        # A request's remarks depend on its profile, function and counts alone: one of each asked.
+        key = ((slaves.profile[requests] << 48) | (columnar.read_count[requests] << 32)
+               | (columnar.function[requests] << 16) | columnar.count[requests])
         _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
         remarked = np.array([_remarked(applier, batch, slaves.profiles[int(slaves.profile[row])],
                                        int(columnar.positions[row])) for row in requests[first].tolist()], np.bool_)

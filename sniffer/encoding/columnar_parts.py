@@ -166,8 +166,9 @@ def _numeric_members(params: ColumnarParams, named: npt.NDArray[Any] | None) -> 
     value's member after a comma, or ``b""``: no reading, which a named frame may carry alone)."""
     sizes, address, value, name = params
     frame = np.repeat(np.arange(len(sizes)), sizes)
+    valued = value >= 0  # an FC 23 request's read params carry none, its written ones do
     carried = np.zeros(len(sizes), np.bool_)
-    carried[frame] = value >= 0  # a frame's values: all or none
+    carried[frame[valued]] = True
     named_frames = np.zeros(len(sizes), np.bool_)
     members = member_sizes = None
     if named is not None and name is not None:
@@ -176,11 +177,12 @@ def _numeric_members(params: ColumnarParams, named: npt.NDArray[Any] | None) -> 
         named_frames[frame[name >= 0]] = True
         carried[named_frames] = False
         carried[frame[member_sizes > 0]] = True  # a named frame: where it carries a reading
-    counts = np.where(carried, sizes, 0)
+    # A named frame's every param is laid out (one without a reading is an empty member).
+    kept = np.flatnonzero(carried[frame] & (valued | named_frames[frame]))
+    counts = np.bincount(frame[kept], minlength=len(sizes))
     # A frame's pieces: a key and a value per param, then '}' (nothing, when it carried none).
     layout = _Layout(2 * counts + 1)
     at = np.repeat(layout.base, counts) + 2 * within_runs(counts)
-    kept = np.flatnonzero(np.repeat(carried, sizes))
     keys, key_sizes = _by_address("keys", address[kept])
     words = np.maximum(value[kept], 0)  # a register's word or a coil's 0 or 1: looked up, not formatted
     numbers, number_sizes = _table("numbers")[words], _sizes("numbers")[words]

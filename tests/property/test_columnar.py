@@ -16,7 +16,7 @@ from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, MessageBatch, Role, slice_messages
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
-from decoders.modbus.columnar_text import WRITE
+from decoders.modbus.columnar_text import READ_WRITE, WRITE
 from decoders.modbus.param_runs import LazyParams, addressed_values
 from decoders.profiles.apply import ProfileApplier
 from sniffer.profiles_io import profile_book
@@ -33,7 +33,7 @@ OTHER_PRODUCT = b"\x00\x0dTelemecanique\x01\x0bATV312HU15M\x02\x040201"
 def exchanges(draw: st.DrawFn) -> list[bytes]:
     """A read or a write and (mostly) its answer, or something else a bus carries between them;
     answers damaged, repeated or missing now and then, counts and byte counts off now and then."""
-    s, function = bytes([draw(SLAVES)]), draw(st.sampled_from([1, 2, 3, 4, 3, 5, 6, 15, 16]))
+    s, function = bytes([draw(SLAVES)]), draw(st.sampled_from([1, 2, 3, 4, 3, 5, 6, 15, 16, 23]))
     address = draw(st.sampled_from([0, 3201, 8604, 12741, 12701, 65535, 100]))
     count = draw(st.one_of(st.integers(1, 20), st.sampled_from([0, 123, 124, 125, 126, 1968, 1969, 2000, 2001])))
     off = draw(st.sampled_from([0, 0, 0, -1, 1]))
@@ -44,6 +44,14 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
     elif function <= 6:
         value = draw(st.sampled_from([0xFF00, 0, 1, 0x8000, 1500]))
         request = answer = adu(s, bytes([function]), struct.pack(">HH", address, value))
+    elif function == 23:  # read ``count`` registers, write some (the scanner's: 12741 read, 12761 written)
+        written = draw(st.one_of(st.integers(1, 10), st.sampled_from([0, 121, 122])))
+        write_to = draw(st.sampled_from([12761, 12741, 12721, 8501, 0]))
+        size = min(max(2 * written + off, 0), 240)
+        request = adu(s, b"\x17", struct.pack(">HHHHB", address, min(count, 65535), write_to, written, size),
+                      draw(st.binary(min_size=size, max_size=size)))
+        size = min(max(2 * min(count, 125) + draw(st.sampled_from([0, 0, 0, -2, 1])), 0), 250)
+        answer = adu(s, bytes([function, size]), draw(st.binary(min_size=size, max_size=size)))
     else:
         count = min(count, 240)
         size = min(max(((count + 7) // 8 if function == 15 else 2 * count) + off, 0), 246)
@@ -82,7 +90,7 @@ def expected_values(batch: MessageBatch, decodings: list[Decoding],
     first, request = batch.frames.first_index, batch.request_index.tolist()
     rows = []
     for position, kind in zip(columnar.positions.tolist(), columnar.kind.tolist(), strict=True):
-        written = kind == WRITE
+        written = kind in (WRITE, READ_WRITE)
         found = request.index(first + position) if written else position
         if written or request[position] != NONE:
             for address, raw in addressed_values(decodings[position]):
@@ -215,6 +223,33 @@ def test_scanner_value_registers_are_named_in_columns_by_each_slave_s_own_mappin
     assert _names(columns, batch) == [
         "read HR 12741 (1): NM1→RFRD", "HR = 05DC (1 registers): NM1→RFRD = 1500 rpm", "read HR 12741 (1): NM1→ETA",
         "HR = 0637 (1 registers): NM1→ETA = 16#0637 operation enabled, reference reached, forward"]
+
+
+def test_the_scanner_s_fc_23_exchange_is_kept_in_columns_named_by_the_mapping() -> None:
+    """Not vacuous: a PLC's scanner exchange (FC 23: write NC1-2, read NM1-2) stays in columns,
+    named after the factory mapping where the slave has the ATV71 profile, by address where it
+    has none; its written values are found at its answer, before the answer's own. A request
+    whose answer is an exception goes the plain path."""
+    def exchange(slave: int, speed: int) -> list[bytes]:
+        s = bytes([slave])
+        return [adu(s, b"\x17", struct.pack(">HHHHBHH", 12741, 2, 12761, 2, 4, 0x000F, speed)),
+                adu(s, b"\x17\x04", struct.pack(">HH", 0x8637, speed))]
+    refused = [exchange(3, 5)[0], adu(b"\x03\x97\x02")]
+    columns, plain = annotator(["1=atv71"]), annotator(["1=atv71"])
+    (batch,) = [batch for batch in matched(exchange(1, 346) + exchange(2, 393) + refused) if len(batch)]
+    assert check_batch(columns, plain, batch) == 4
+    reads = columns.annotate_columnar(batch).columnar
+    assert reads is not None and reads.positions.tolist() == [0, 1, 2, 3]
+    assert reads.summaries(batch.frames.data) == [
+        "read HR 12741..12742 (2), write HR 12761..12762 = 000F 015A: NC1→CMD = 16#000F enable operation, forward, "
+        "NC2→LFRD = 346 rpm, NM1→ETA, NM2→RFRD",
+        "HR = 8637 015A (2 registers): NM1→ETA = 16#8637 operation enabled, reference reached, reverse, "
+        "NM2→RFRD = 346 rpm",
+        "read HR 12741..12742 (2), write HR 12761..12762 = 000F 0189", "HR = 8637 0189 (2 registers)"]
+    values = reads.values(batch.frames.data)
+    assert list(zip(values.found.tolist(), values.written.tolist(), values.address.tolist(), strict=True)) == [
+        (1, True, 12761), (1, True, 12762), (1, False, 12741), (1, False, 12742),
+        (3, True, 12761), (3, True, 12762), (3, False, 12741), (3, False, 12742)]
 
 
 def test_a_batch_that_teaches_a_slave_s_scanner_keeps_its_value_registers_out_of_columns() -> None:
