@@ -114,7 +114,7 @@ class ProfileApplier:
         #: Counts what the applier has learnt (scanner tables, identified slaves): a decoding
         #: made at one version holds while the version stays.
         self.version = 0
-        #: Namers by (profile, reported) and address (a scanner value register: (slave, address)),
+        #: Namers by (profile, reported) and address (a scanner value register: (target, address)),
         #: for what they were at ``_named_version``; ``_kept``: how many namers and named values
         #: they hold.
         self._namers: dict[tuple[str, bool], dict[int | tuple[int | None, int], AddressNamer]] = {}
@@ -243,9 +243,9 @@ class ProfileApplier:
             self._namers.clear()
             self._named_version, self._kept = self.version, 0
             self.generation += 1
-        # Slaves share a profile's namers (a value's name says nothing of its slave), except at
-        # a scanner table's value registers, whose meaning is each slave's own: kept by
-        # (slave, address) there.
+        # Slaves share a profile's namers (a value's name says nothing of its slave), and at a
+        # scanner table's value registers, whose meaning is each slave's own mapping's, those
+        # mapped alike (kept by target and address there: _namer_at).
         key = (profile.id, reported)
         namers = self._namers.get(key) if self.fast else {}
         if namers is None:
@@ -261,12 +261,18 @@ class ProfileApplier:
 
     def _namer_at(self, namers: dict[int | tuple[int | None, int], AddressNamer], profile: Profile,
                   slave: int | None, address: int, reported: bool) -> AddressNamer:
-        """The namer of ``address`` among ``namers`` (made and kept there if new)."""
-        scoped = _value_table(profile, address) is not None
-        namer = namers.get((slave, address)) if scoped else None
+        """The namer of ``address`` among ``namers`` (made and kept there if new). A scanner
+        table's value register holds what its slave's mapping points it at: kept by that target
+        (``None``: no slave), so that slaves mapped alike share its namer and the values it made
+        (16 drives polled by one PLC: their scanners are mapped alike, factory-set)."""
+        table = _value_table(profile, address)
+        key: int | tuple[int | None, int] = address
+        if table is not None:
+            slot = address - table.value_registers
+            key = (None if slave is None else self._indirections.mapping(slave, table)[slot], address)
+        namer = namers.get(key)
         if namer is None:
-            namer = self._namer(profile, slave, address, reported)
-            namers[(slave, address) if scoped else address] = namer
+            namer = namers[key] = self._namer(profile, slave, address, reported)
             self._kept += 1
         return namer
 
