@@ -25,6 +25,7 @@ one by one.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from operator import itemgetter
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -47,6 +48,8 @@ SAMPLED = 512
 #: An odd 64-bit multiplier (Knuth's, from the golden ratio) that spreads a frame's digest
 #: before its role, kind, address and count are mixed in.
 _MIX = np.int64(-7046029254386353131)
+#: A named value's text in the summary (``None``: it shows none).
+_TEXT = itemgetter(1)
 #: The most a request may ask for, by function (0: not a function kept in columns).
 MOST = np.zeros(17, np.int64)
 for _function, _most in MAX_QUANTITY.items():
@@ -98,14 +101,15 @@ class ColumnarNames(NamedTuple):
         (:func:`~decoders.modbus.columnar_text.formatted`), or one by one (``fast=False``, or a text
         holds a newline, which ``formatted`` cuts at)."""
         words = np.empty(len(self.table) + 1, object)  # the last: for -1, nothing shown
-        words[:-1] = [text for _, text in self.table]
+        named_texts = list(map(_TEXT, self.table))
+        words[:-1] = named_texts
         shown = np.flatnonzero(words[self.row] != None)  # noqa: E711 - elementwise, on objects
         if not len(shown):
             return texts
         said = words[self.row[shown]]
         counts = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[shown], minlength=len(sizes))
         starts = np.cumsum(counts) - counts
-        if not fast or any("\n" in text for text in words[:-1].tolist() if text is not None):
+        if not fast or "\n" in "".join(filter(None, named_texts)):
             each = said.tolist()
             for position in np.flatnonzero(counts).tolist():
                 start = int(starts[position])

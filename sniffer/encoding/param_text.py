@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Sequence
+from operator import itemgetter
 from typing import Any, Generic, TypeVar
 
 import orjson
@@ -143,6 +144,9 @@ KEPT_PARAMS = 65536
 Made = TypeVar("Made")
 
 
+_SECOND = itemgetter(1)
+
+
 class KeptByParam(Generic[Made]):
     """What a writer makes of profiled params (``make``), made once per param and kept by the
     param's identity: a profile's namer hands the same param to every frame with that value, and
@@ -162,6 +166,15 @@ class KeptByParam(Generic[Made]):
                 self.kept.clear()
             kept = self.kept[id(param)] = (param, self._make(param))
         return kept
+
+    def made(self, params: list[ParamValue]) -> list[Made]:
+        """What was made of each of ``params`` (made and kept now where new): the kept ones looked
+        up in C (a batch's table of named values is thousands, mostly kept already)."""
+        found: list[Any] = list(map(self.kept.get, map(id, params)))
+        for place in [place for place, entry in enumerate(found) if entry is None]:
+            found[place] = self.entry(params[place])
+        made: list[Made] = list(map(_SECOND, found))  # none is None now
+        return made
 
 
 #: Each profiled param's JSON in a frame record, and its ``/slave/N/params`` member.

@@ -377,7 +377,7 @@ def _with_names(rows: NumericValues, names: list[NamedValue]) -> tuple[npt.NDArr
     """:func:`_numeric_columns` where a profile names some rows: theirs as :func:`_named_block`
     has them, each named value's laid out once and taken by the rows."""
     t_ns, columns = _numeric_columns(dataclasses.replace(rows, names=None))
-    table = [_NAMED_ROWS.entry(param)[1] for param, _ in names]
+    table = _NAMED_ROWS.made([param for param, _ in names])
     _, code, name, _, number, text, unit, available = zip(*table, _NO_ROW, strict=True)  # the last: for -1
     rows_named = rows.name >= 0
     taken = pa.array(np.where(rows_named, rows.name, len(names)))  # unnamed: the last entry
