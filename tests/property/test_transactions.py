@@ -67,10 +67,15 @@ def test_transactions_follow_the_rule(traffic: list[list[bytes]], cuts: list[int
         every_row = list(range(len(batch)))
         kept = every_row if data.draw(st.booleans()) else [row for row in every_row if data.draw(st.booleans())]
         batches.append((batch, kept))
-    encoder, got = TransactionEncoder(), []
+    encoder, columns, got, in_columns = TransactionEncoder(), TransactionEncoder(), [], []
     for batch, kept in batches:
         rows, _ = encoder.rows(batch, np.array(kept, np.int64))
         for row in range(len(rows)):
             record = json.loads(rows.row(row))
             got.append((record["request_index"], record["answer_index"], record["request"], record["answer"]))
+        # The Parquet table's columns, which spell no hex: the same transactions.
+        found = columns.columns(batch, np.array(kept, np.int64))
+        in_columns += [(request, None if answer == NONE else answer) for request, answer in
+                       zip(found["request_index"].tolist(), found["answer_index"].tolist(), strict=True)]
     assert got == expected(batches)
+    assert in_columns == [(request, answer) for request, answer, _, _ in got]
