@@ -269,11 +269,11 @@ def _run(
             delivery.release_chunks()
         if delivery.done:
             break
-    statistics = delivery.finish()
     if delivery.read_bytes == 0:
-        # Scripts must not take an empty recording (a quiet line, a wrong port) for a healthy bus.
+        # Scripts must not take an empty recording (a quiet line, a wrong port) for a healthy bus;
+        # raised before the sinks finish, so that none writes an empty table or summary first.
         raise RtuSniffError(ErrorKind.NO_DATA, "the capture holds no bytes, only its header", path=source)
-    return statistics
+    return delivery.finish()
 
 
 class ChunkSpan:

@@ -58,6 +58,8 @@ def test_bad_file(cli: Cli, tmp_path: Path, bad: tuple[str, str, Content, int, s
         assert len(error_lines) == 1 and words in error_lines[0], result.err
         assert str(tmp_path) in error_lines[0]
         assert "Traceback" not in result.err
+        if command[0] == "stats":  # nothing but the error: no table of nothing before it
+            assert result.out == "", result.out
 
 
 
