@@ -208,10 +208,11 @@ class ColumnarFrames:
         values = np.full(int(sizes.sum()), NO_VALUE, np.int64)
         values[self._param_rows(valued, counts, within)] = value
         place = within_runs(sizes)
-        first_span = np.repeat(np.maximum(self.count, 0), sizes)
-        read = place >= first_span  # an FC 23 request's read span, after its written one
-        address = np.where(read, np.repeat(self.read_address, sizes) + place - first_span,
-                           np.repeat(self.address, sizes) + place)
+        address = np.repeat(self.address, sizes) + place
+        if self.read_count.any():  # FC 23 requests: their read span after their written one
+            first_span = np.repeat(np.maximum(self.count, 0), sizes)
+            read = np.flatnonzero(place >= first_span)
+            address[read] = np.repeat(self.read_address, sizes)[read] + (place - first_span)[read]
         return ColumnarParams(sizes, address, values, None if self.names is None else self.names.row)
 
     def _param_rows(self, valued: npt.NDArray[np.int64], counts: npt.NDArray[np.int64],
