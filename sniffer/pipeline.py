@@ -33,7 +33,7 @@ OPEN_REQUESTS_BEFORE = 64
 #: framing and pairing cost a fixed part per batch, and such batches hold little per frame. From
 #: the readers' 8 192, framing, pairing and counting 1 M frames took 18 to 22 % less time (polling,
 #: mixed, steady; one process), ``stats`` end to end ran 1.01 to 1.29× as fast, for 24 MB more memory;
-#: the outputs that annotate gained less and held 100 to 140 MB more.
+#: the outputs that annotate gained less and held 100 to 140 MB more. (0: batches as read.)
 COUNTING_BATCH_CHUNKS = 32768
 #: ... or of this many bytes, whichever comes first. A capture of host reads holds few chunks per
 #: megabyte (a USB adapter's: 9 000 chunks, 450 kB a batch as read), and framing host timing
