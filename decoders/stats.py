@@ -144,6 +144,23 @@ def _new_tally() -> FunctionTally:
     return FunctionTally(len(_COUNTS), HISTOGRAM_BINS)
 
 
+_SLOT_BITS = 16
+#: Fibonacci hashing's multiplier: the top bits of a signature times it mix all of its bits.
+_MIXER = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _mixed(signatures: npt.NDArray[np.int64]) -> npt.NDArray[np.uint64]:
+    """Each signature's hash: every bit of it weighs on its top bits (a signature's low bits
+    are its CRC, whose values share more than random ones: 9 300 of 12 200 requests' apart)."""
+    mixed: npt.NDArray[np.uint64] = signatures.view(np.uint64) * _MIXER
+    return mixed
+
+
+def _slots(signatures: npt.NDArray[np.int64]) -> npt.NDArray[np.intp]:
+    """Each signature's slot in :class:`LastSeen`: the top 16 bits of its hash."""
+    return (_mixed(signatures) >> np.uint64(64 - _SLOT_BITS)).astype(np.intp)
+
+
 class LastSeen:
     """When each request signature was last seen, in a fixed-size direct-mapped table.
 
@@ -151,21 +168,31 @@ class LastSeen:
     whose slot another one took since is simply not found (its next interval is lost).
     """
 
-    SLOTS = 1 << 16
+    SLOTS = 1 << _SLOT_BITS
 
     def __init__(self) -> None:
         self._signature = np.zeros(self.SLOTS, np.int64)
         self._time = np.full(self.SLOTS, NONE, np.int64)
 
     def lookup(self, signatures: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-        slots = signatures & (self.SLOTS - 1)
+        slots = _slots(signatures)
         found: npt.NDArray[np.int64] = np.where(self._signature[slots] == signatures, self._time[slots], NONE)
         return found
 
     def store(self, signatures: npt.NDArray[np.int64], times: npt.NDArray[np.int64]) -> None:
-        slots = signatures & (self.SLOTS - 1)
+        """When each of ``signatures`` (all different) was seen; of those that share a slot, the
+        one seen last keeps it, whatever their order here."""
+        slots = _slots(signatures)
         self._signature[slots] = signatures
         self._time[slots] = times
+        lost = self._signature[slots] != signatures
+        if lost.any():
+            contested = np.zeros(self.SLOTS, np.bool_)
+            contested[slots[lost]] = True
+            rivals = np.flatnonzero(contested[slots])
+            rivals = rivals[np.argsort(times[rivals])]
+            self._signature[slots[rivals]] = signatures[rivals]
+            self._time[slots[rivals]] = times[rivals]
 
 
 #: The totals :meth:`Statistics.merge` adds up.
@@ -301,7 +328,7 @@ class Statistics:
         frames = batch.frames
         signatures = request_signatures(frames, rows)
         times = frames.t_start_ns[rows]
-        order = np.lexsort((times, signatures))
+        order = _by_signature_then_time(signatures, times)
         signatures, times, pairs = signatures[order], times[order], pairs[order]
         first_of_run = np.ones(len(order), np.bool_)
         first_of_run[1:] = signatures[1:] != signatures[:-1]
@@ -381,6 +408,23 @@ _FLAG_FIELDS = {
     "timeouts": int(FrameFlag.TIMEOUT), "retries": int(FrameFlag.RETRY), "unexpected": int(FrameFlag.UNEXPECTED),
     "gap_1_5": int(FrameFlag.GAP_1_5), "short_idle": int(FrameFlag.SHORT_IDLE),
 }  # fmt: skip
+
+
+def _by_signature_then_time(signatures: npt.NDArray[np.int64], times: npt.NDArray[np.int64]) -> npt.NDArray[np.intp]:
+    """An order that puts equal signatures together, each run in time order, as
+    ``np.lexsort((times, signatures))`` does (runs in another order). When the times are in
+    order already, a run in time order is a run in index order, which two stable radix sorts
+    (numpy sorts 16-bit keys stably by radix) by 32 bits of each signature's hash keep; unless
+    two signatures share a hash. 0.2 ms against 0.7 ms for 12 500 requests."""
+    if bool((times[1:] < times[:-1]).any()):
+        return np.lexsort((times, signatures))
+    mixed = _mixed(signatures) >> np.uint64(32)
+    order = np.argsort(mixed.astype(np.uint16), kind="stable")
+    order = order[np.argsort((mixed[order] >> np.uint64(16)).astype(np.uint16), kind="stable")]
+    grouped, hashes = signatures[order], mixed[order]
+    if ((grouped[1:] != grouped[:-1]) & (hashes[1:] == hashes[:-1])).any():
+        return np.lexsort((times, signatures))
+    return order
 
 
 def request_signatures(frames: FrameBatch, rows: npt.NDArray[np.intp]) -> npt.NDArray[np.int64]:

@@ -7,13 +7,14 @@ tally grows its rows)."""
 from __future__ import annotations
 
 from collections import Counter
+from unittest import mock
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from decoders import stats
+from decoders import stats, stats_tally
 from decoders.message import MessageBatch
 from decoders.stats import Statistics
 from decoders.stats_tally import KEY_SPAN, LATENCY, POLL_PERIOD, FunctionTally, TalliedFunction
@@ -82,11 +83,34 @@ def _taken(tally: FunctionTally) -> list[TalliedFunction]:
     return drained
 
 
+#: A tally's histograms counted cell by cell for every batch, and by sorting its values for every batch.
+_BOTH_WAYS = pytest.mark.parametrize("cells_per_value", [10**9, 0], ids=["counted", "sorted"])
+
+
+@_BOTH_WAYS
 @settings(max_examples=150, deadline=None)
 @given(st.lists(_message, max_size=300), st.lists(st.integers(1, 60), min_size=1, max_size=10),
        st.lists(st.booleans(), min_size=1, max_size=10))
-def test_the_tally_adds_up_as_plain_counting(messages: list[tuple], sizes: list[int],  # type: ignore[type-arg]
-                                             drains_after: list[bool]) -> None:
+def test_the_tally_adds_up_as_plain_counting(cells_per_value: int, messages: list[tuple],  # type: ignore[type-arg]
+                                             sizes: list[int], drains_after: list[bool]) -> None:
+    with mock.patch.object(stats_tally, "DENSE_CELLS_PER_VALUE", cells_per_value):
+        _tallied_as_plain(messages, sizes, drains_after)
+
+
+@_BOTH_WAYS
+def test_a_bus_of_thousands_of_pairs_adds_up_as_plain_counting(cells_per_value: int,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(stats_tally, "DENSE_CELLS_PER_VALUE", cells_per_value)
+    # Rows past 255 (a uint8 key would fold them together when the values are sorted by row).
+    rng = np.random.default_rng(3)
+    pairs = [(slave, function) for slave in range(250) for function in (1, 2, 3, 4, 6, 16, 23, 43)]
+    messages = [(*pairs[int(k)], [True, False, True], int(rng.integers(0, 10**9)), None, None)
+                for k in rng.integers(0, len(pairs), 6000)]
+    _tallied_as_plain(messages, [2000], [False])
+
+
+def _tallied_as_plain(messages: list[tuple], sizes: list[int],  # type: ignore[type-arg]
+                      drains_after: list[bool]) -> None:
     tally = FunctionTally(COUNTERS, BINS)
     drains: list[list[TalliedFunction]] = []
     position = turn = 0
