@@ -88,7 +88,9 @@ class Pieces:
         return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in _PIECE_COLUMNS))
 
     def shifted(self, offset: int) -> Pieces:
-        return Pieces(self.first + offset, self.last + offset, self.is_noise, self.crc_ok, self.flags, self.protocol)
+        """The pieces ``offset`` bytes on, in arrays of their own (a remembered parse's are shared)."""
+        return Pieces(self.first + offset, self.last + offset, self.is_noise.copy(), self.crc_ok.copy(),
+                      self.flags.copy(), self.protocol.copy())
 
     def in_order(self) -> Pieces:
         order = np.argsort(self.first, kind="stable")

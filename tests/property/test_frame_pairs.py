@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from decoders.capture import Chunk, ChunkBatch
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
-from decoders.framing.best_parse import clean_frame_end
+from decoders.framing.best_parse import clean_frame_end, parse_segment
 from decoders.framing.fast import clean_frame_ends
 from decoders.line import LineSettings
 from decoders.synthesis import Transmission, exact_chunks
@@ -141,3 +141,39 @@ def test_an_echo_with_a_longer_reading_is_no_clean_frame() -> None:
     assert clean_frame_end(longer, 0, len(longer)) == 0
     assert clean_frame_ends(longer)[0] == 0
     assert clean_frame_end(_ECHO + b"\x36", 0, 9) == 8
+
+
+def _polling_with_requests_ending_in_zero(exchanges: int) -> list[Chunk]:
+    """FC 3 polling of four slaves (4 to 7: slaves 1 to 3 have no such request) whose requests
+    end in 0x00 and read as a 7-byte answer and a glitch too (start address 0x02xx), their
+    answers drawn anew; every tenth request unanswered at first, then sent again."""
+    rng = random.Random(5)
+    requests = {}
+    for slave in range(4, 8):
+        body = next(body for low in range(256) for count in range(1, 126)
+                    if crc_bytes(body := bytes([slave, 3, 2, low, 0, count]))[1] == 0)
+        requests[slave] = body + crc_bytes(body)
+    transmissions = []
+    for turn in range(exchanges):
+        slave = turn % 4 + 4
+        answer = bytes([slave, 3, 2 * requests[slave][5]]) + rng.randbytes(2 * requests[slave][5])
+        if turn % 10 == 9:  # unanswered, then sent again while it is open
+            transmissions.append(Transmission(requests[slave], 9_000_000))
+        transmissions.append(Transmission(requests[slave], 9_000_000))
+        transmissions.append(Transmission(answer + crc_bytes(answer), 5_000_000))
+    return list(exact_chunks(transmissions, LineSettings.parse("19200 8E1"), T0))
+
+
+def test_a_repeated_segment_is_parsed_once_and_as_the_plain_path_parses_it() -> None:
+    chunks = _polling_with_requests_ending_in_zero(200)
+    line = LineSettings.parse("19200 8E1")
+    with mock.patch("decoders.framer.parse_segment", wraps=parse_segment) as parsed:
+        found = frames(chunks, line, fast=True, batch=37)
+    segments = [call.args[:3] for call in parsed.call_args_list if call.args[1].closed]
+    assert len(segments) == len(set(segments)) < 20  # the four requests, each once in each state
+    assert found == frames(chunks, line, fast=False, batch=37)
+    requests = [data for data, *_ in found if data.endswith(b"\x00") and len(data) == 8]
+    # Sent again while open, a request reads as the answer it awaits and a glitch: its parse
+    # depends on the open request as well as on its bytes.
+    assert len(requests) == 200 and len(found) == 420 + 20
+    assert {open_request for _, _, open_request in segments} == {None, (5, 3), (7, 3)}
