@@ -1,11 +1,14 @@
 """`rtusniff stats` end to end on large captures: frames/s and peak RSS; prints a table.
 
     python -m benchmarks.bench_stats [--frames 1000000 5000000] [--keep DIR] [--traffic polling|mixed|steady|coils|wide]
+        [--stages]
 
 Captures are FC 3 polling at 115200 8N1 (32 slaves, 1 % of frames with a pause
 inside), written as native MCAP captures in pieces; each size is analysed in a
 fresh process that reports its own peak RSS. One core: the process is single
-threaded.
+threaded. ``--stages`` also splits the time of each size into its stages, in one process:
+reading the capture, framing, pairing and counting (the batches decoded once, then counted
+five times: the best of them), start-up left out.
 """
 
 from __future__ import annotations
@@ -15,9 +18,16 @@ import json
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from benchmarks.bench_memory import add_capture_options, benchmark_capture
+from decoders.capture import joined_batches
+from decoders.message import MessageBatch
+from decoders.pipeline import Decoder
+from decoders.stats import Statistics
+from sniffer.io.registry import open_reader
+from sniffer.pipeline import COUNTING_BATCH_BYTES, COUNTING_BATCH_CHUNKS
 
 CHILD = """
 import resource, sys, time
@@ -29,9 +39,38 @@ sys.exit(code)
 """
 
 
+def stages(path: Path) -> str:
+    """Seconds of reading, framing, pairing and counting ``path``, in this process."""
+    start = time.perf_counter()
+    reader = open_reader(str(path))
+    # Joined as `stats` joins them.
+    batches = list(joined_batches(reader.batches(), COUNTING_BATCH_CHUNKS, COUNTING_BATCH_BYTES))
+    read = time.perf_counter() - start
+    decoder = Decoder(reader.info.line, reader.info.timing)
+    framing = pairing = 0.0
+    messages: list[MessageBatch] = []
+    for batch in batches:
+        start = time.perf_counter()
+        frames = decoder.framer.feed(batch)
+        framed = time.perf_counter()
+        messages.append(decoder.matcher.feed(frames))
+        framing, pairing = framing + framed - start, pairing + time.perf_counter() - framed
+    messages.extend(decoder.flush())
+    counting = float("inf")
+    for _ in range(5):
+        start = time.perf_counter()
+        statistics = Statistics()
+        for message in messages:
+            statistics.add_batch(message)
+        assert statistics.per_function is not None
+        counting = min(counting, time.perf_counter() - start)
+    return f"read {read:.3f} s, frame {framing:.3f} s, pair {pairing:.3f} s, count {counting:.3f} s"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, nargs="+", default=[1_000_000, 5_000_000])
+    parser.add_argument("--stages", action="store_true", help="also split each size's time into its stages")
     add_capture_options(parser)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
@@ -45,6 +84,8 @@ def main() -> None:
             wire_mb = json.loads(report.read_text())["bytes"] / 1e6
             print(f"{frames:>10,} {path.stat().st_size / 1e6:>7.1f} {float(seconds):>8.2f} "
                   f"{frames / float(seconds):>10,.0f} {wire_mb / float(seconds):>6.1f} {int(rss_kb) / 1024:>12.1f}")
+            if args.stages:
+                print(f"{'':>10} {stages(path)}")
 
 
 if __name__ == "__main__":
