@@ -144,14 +144,16 @@ def _new_tally() -> FunctionTally:
     return FunctionTally(len(_COUNTS), HISTOGRAM_BINS)
 
 
+#: :class:`LastSeen` has ``2**_SLOT_BITS`` slots.
 _SLOT_BITS = 16
 #: Fibonacci hashing's multiplier: the top bits of a signature times it mix all of its bits.
 _MIXER = np.uint64(0x9E3779B97F4A7C15)
 
 
 def _mixed(signatures: npt.NDArray[np.int64]) -> npt.NDArray[np.uint64]:
-    """Each signature's hash: every bit of it weighs on its top bits (a signature's low bits
-    are its CRC, whose values share more than random ones: 9 300 of 12 200 requests' apart)."""
+    """Each signature's hash: every bit of it weighs on its top bits. (A signature's low bits
+    are its CRC: the 12 200 different requests of a polling batch had 9 300 different ones,
+    fewer than random values would.)"""
     mixed: npt.NDArray[np.uint64] = signatures.view(np.uint64) * _MIXER
     return mixed
 
@@ -415,7 +417,8 @@ def _by_signature_then_time(signatures: npt.NDArray[np.int64], times: npt.NDArra
     ``np.lexsort((times, signatures))`` does (runs in another order). When the times are in
     order already, a run in time order is a run in index order, which two stable radix sorts
     (numpy sorts 16-bit keys stably by radix) by 32 bits of each signature's hash keep; unless
-    two signatures share a hash. 0.2 ms against 0.7 ms for 12 500 requests."""
+    two signatures share a hash. 0.25 to 0.5 ms against 0.7 to 0.9 ms for a batch's 12 000 to
+    16 000 requests, all different or a few hundred repeated."""
     if bool((times[1:] < times[:-1]).any()):
         return np.lexsort((times, signatures))
     mixed = _mixed(signatures) >> np.uint64(32)
