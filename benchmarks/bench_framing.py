@@ -95,16 +95,20 @@ def wide_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
     return transmissions
 
 
+def register_read_at_0x02xx(slave: int, *, ends_in_zero: bool) -> bytes:
+    """An FC 3 request to ``slave`` at 0x02xx (no CRC) whose CRC ends in 0x00, or does not. One
+    that does reads as a 7-byte answer (byte count 2) and a glitch too: the content parser decides.
+    Slaves 1 to 3 have no such request ending in 0x00 (``StopIteration``)."""
+    return next(body for low in range(256) for count in range(1, 126)
+                if (crc_bytes(body := bytes([slave, 3, 2, low, 0, count]))[1] == 0) == ends_in_zero)
+
+
 def zero_ending_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
     """FC 3 polling of 16 slaves, the same request to each every time, 4 of them ending in 0x00
     and reading as a 7-byte answer and a glitch too (start address 0x02xx): segments the fast
     path cannot take whole, so a bus repeats them to the content parser."""
     rng = random.Random(seed)
-    requests = {}
-    for slave in range(4, 20):
-        ending = 0 if slave < 8 else None
-        requests[slave] = next(body for low in range(256) for count in range(1, 126)
-                               if (crc_bytes(body := bytes([slave, 3, 2, low, 0, count]))[1] == 0) == (ending == 0))
+    requests = {slave: register_read_at_0x02xx(slave, ends_in_zero=slave < 8) for slave in range(4, 20)}
     transmissions = []
     for turn in range(frames // 2):
         request = requests[turn % 16 + 4]

@@ -9,6 +9,7 @@ from unittest import mock
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from benchmarks.bench_framing import register_read_at_0x02xx
 from decoders.capture import Chunk, ChunkBatch
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
@@ -148,11 +149,8 @@ def _polling_with_requests_ending_in_zero(exchanges: int) -> list[Chunk]:
     end in 0x00 and read as a 7-byte answer and a glitch too (start address 0x02xx), their
     answers drawn anew; every tenth request unanswered at first, then sent again."""
     rng = random.Random(5)
-    requests = {}
-    for slave in range(4, 8):
-        body = next(body for low in range(256) for count in range(1, 126)
-                    if crc_bytes(body := bytes([slave, 3, 2, low, 0, count]))[1] == 0)
-        requests[slave] = body + crc_bytes(body)
+    requests = {slave: (body := register_read_at_0x02xx(slave, ends_in_zero=True)) + crc_bytes(body)
+                for slave in range(4, 8)}
     transmissions = []
     for turn in range(exchanges):
         slave = turn % 4 + 4
