@@ -13,13 +13,15 @@ recall: valid frames found with exact boundaries / valid frames sent.
 precision: of the CRC-valid frames reported, those that were sent.
 spurious: CRC-valid frames reported that were never sent.
 pieces: frames, damaged frames and noise runs reported exactly as sent.
-paired: answers sent with a valid CRC that the matcher paired with their request.
+paired: answers sent with a valid CRC that the matcher paired with their request (as answers:
+a retry of an FC 5/6 request, which repeats its answer's bytes, paired in its place is none).
 """
 
 from __future__ import annotations
 
 import argparse
-from itertools import pairwise
+from collections.abc import Iterable
+from itertools import accumulate, pairwise
 
 import numpy as np
 
@@ -62,9 +64,19 @@ def paired(corpus: Corpus, expected: list[Expected]) -> tuple[int, int]:
         messages.extend(m for part in decoder.feed(ChunkBatch.from_chunks(corpus.chunks[start : start + 256]))
                         for m in part)
     messages.extend(m for part in decoder.flush() for m in part)
-    answers = sum(1 for m in messages
-                  if m.role in (Role.RESPONSE, Role.EXCEPTION) and m.request_index is not None and m.frame.crc_ok)
-    return answers, sum(1 for e in expected if e.role == "response" and e.crc_ok)
+    # An answer counts where one was sent: a master's retry of an FC 5/6 request, byte for
+    # byte its answer, taken as the answer is no answer paired.
+    sent = {(at, e.data) for at, e in zip(_offsets(e.data for e in expected), expected, strict=True)
+            if e.role == "response" and e.crc_ok}
+    answers = sum(1 for at, m in zip(_offsets(m.frame.data for m in messages), messages, strict=True)
+                  if m.role in (Role.RESPONSE, Role.EXCEPTION) and m.request_index is not None and m.frame.crc_ok
+                  and (at, m.frame.data) in sent)
+    return answers, len(sent)
+
+
+def _offsets(pieces: Iterable[bytes]) -> list[int]:
+    """Where each of consecutive ``pieces`` of the capture's bytes begins."""
+    return list(accumulate((len(piece) for piece in pieces), initial=0))[:-1]
 
 
 def row(name: str, timing: str, framer: str, total: Score, pairs: tuple[int, int] | None) -> str:

@@ -110,6 +110,18 @@ def exchange(rng: random.Random, slave: int) -> tuple[bytes, bytes]:
     return request, adu(ExceptionResponse(function, rng.choice([1, 2, 3, 4, 6]), device_id=slave))
 
 
+def read_ending_in_zero(rng: random.Random, slave: int) -> tuple[bytes, bytes] | None:
+    """An FC 3/4 read of one register at 0x02xx whose CRC ends in 0x00, and its answer: the
+    request reads as a 7-byte answer and a 0x00 glitch too (``None`` if ``slave`` has none)."""
+    for function, address in ((f, 0x0200 + low) for f in (3, 4) for low in range(256)):
+        cls_req, cls_resp = ((regs.ReadHoldingRegistersRequest, regs.ReadHoldingRegistersResponse) if function == 3
+                             else (regs.ReadInputRegistersRequest, regs.ReadInputRegistersResponse))
+        request = adu(cls_req(dev_id=slave, address=address, count=1))
+        if request.endswith(b"\x00"):
+            return request, adu(cls_resp(dev_id=slave, registers=_words(rng, 1)))
+    return None
+
+
 @dataclass(frozen=True)
 class Expected:
     """What the framer should report for one transmission."""
@@ -161,6 +173,11 @@ class Scenario:
     #: FC 8 sub-function 0 requests echoing 1-120 bytes.
     echo_rate: float = 0.0
     slaves: tuple[int, int] = (1, 32)
+    #: A request left unanswered (the slave silent), then sent again after the master's
+    #: timeout, once or twice, before its answer.
+    retry_rate: float = 0.0
+    #: A request replaced by a read ending in 0x00 (:func:`read_ending_in_zero`).
+    zero_ending_rate: float = 0.0
     start_mid_frame: bool = False
     truncate_end: bool = False
 
@@ -181,6 +198,8 @@ SCENARIOS = [
     Scenario("garbage", garbage_rate=0.1, start_mid_frame=True),
     Scenario("bit-errors", corrupt_rate=0.05),
     Scenario("truncated", truncate_end=True),
+    # A master's retries, half of them of requests that read as an answer and a glitch too.
+    Scenario("retries", retry_rate=0.3, zero_ending_rate=0.5),
     Scenario("everything", turnaround=(0.3, 4.0), gap_1_5_rate=0.03, glitch_rate=0.2, garbage_rate=0.03,
              corrupt_rate=0.03, start_mid_frame=True, truncate_end=True),
 ]
@@ -240,7 +259,15 @@ def build(scenario: Scenario, line: LineSettings, exchanges: int = 300, seed: in
         if rng.random() < scenario.echo_rate:
             request = adu(diag.ReturnQueryDataRequest(dev_id=slave, message=rng.randbytes(rng.randint(1, 120))))
             response = request
+        # Rates of 0 draw nothing: the other scenarios' conversations stay as they were.
+        zero_ending = read_ending_in_zero(rng, slave) if scenario.zero_ending_rate and \
+            rng.random() < scenario.zero_ending_rate else None
+        if zero_ending is not None:
+            request, response = zero_ending
         frame(request, idle(*scenario.poll_gap), Expected(request, role="request"), after_request=True)
+        if scenario.retry_rate and rng.random() < scenario.retry_rate:
+            for _ in range(rng.randint(1, 2)):  # unanswered: sent again once the master timed out
+                frame(request, idle(10.0, 40.0), Expected(request, role="request"), after_request=True)
         expected = Expected(response, role="response")
         if len(response) > 6 and rng.random() < scenario.corrupt_rate:
             # A bit error in the data: address, function, byte count and CRC stay readable.

@@ -18,8 +18,14 @@ from decoders.modbus.layouts import LAYOUTS, exception_length
 MIN_ADU = 4
 MAX_ADDRESS = 247
 
-#: (slave, function) of the request that awaits its response, if any.
-OpenRequest = tuple[int, int] | None
+#: (slave, function, bytes) of the request that awaits its response, if any: its bytes tell
+#: a master's retry (the same request again) from an answer (see :mod:`decoders.framing.evidence`).
+OpenRequest = tuple[int, int, bytes] | None
+
+
+def awaits(open_request: OpenRequest, slave: int, function: int) -> bool:
+    """Whether ``open_request`` awaits an answer from ``slave`` to ``function``."""
+    return open_request is not None and open_request[0] == slave and open_request[1] == function
 
 
 def rule_lengths(adu: bytes) -> list[int | None]:
@@ -46,10 +52,10 @@ def after_frame(frame: bytes, open_request: OpenRequest) -> OpenRequest:
     if function & EXCEPTION_BIT:
         return None
     lengths = rule_lengths(frame)
-    answers = open_request == (slave, function) and len(frame) == (lengths[-1] if lengths else -1)
+    answers = awaits(open_request, slave, function) and len(frame) == (lengths[-1] if lengths else -1)
     if answers or slave == BROADCAST_ADDRESS or not lengths or len(frame) != lengths[0]:
         return None
-    return (slave, function)
+    return (slave, function, frame)
 
 
 #: Frame starts or stops: a list, or a column.

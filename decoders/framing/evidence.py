@@ -22,6 +22,10 @@ length by CRC search   -8      no length rule: ~256 lengths tried, 2^8 more chan
 expected direction     +3      where the request and response rules give different lengths:
                                the response reading after a request to the same slave and
                                function, the request reading otherwise
+retried request        +6      a request reading that repeats the open request byte for byte
+                               (a master sends it again after its timeout): the answer
+                               reading it competes with (its first bytes, then a 0x00
+                               glitch) needs the slave's registers to spell the request
 quantity out of range  -4      a read request (FC 1-4) asking for 0 or more than the
                                specification allows (2000 bits, 125 registers): only a faulty
                                master sends one (its slave answers exception 03), while an
@@ -57,7 +61,8 @@ in 0x00 has a CRC-valid prefix, and a frame followed by a 0x00 glitch a CRC-vali
 longer reading. Where both readings fit a length rule (an FC 3 request ending in
 0x00 whose first seven bytes read as a 7-byte answer; an 8-byte request and its
 glitch as a 9-byte answer), the expected direction decides (+3 against the
-glitch's -1 and a boundary's +1). A longer reading that fits no rule (CRC search,
+glitch's -1 and a boundary's +1), unless the request reading is the open request
+again: a master's retry after its timeout (+6). A longer reading that fits no rule (CRC search,
 a whole run) is no candidate at all when a shorter prefix fits one: its CRC is no
 evidence.
 """
@@ -70,7 +75,7 @@ from fastcrc import crc16
 
 from decoders.crc import crc_ok_lengths, prefix_registers
 from decoders.frame import MODBUS, USS, FrameFlag
-from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, rule_lengths
+from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, awaits, rule_lengths
 from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT, FUNCTION_NAMES, MAX_QUANTITY, USER_DEFINED_FUNCTIONS
 from decoders.modbus.layouts import LAYOUTS, MAX_ADU
 from decoders.uss import STX, uss_length
@@ -85,6 +90,7 @@ FUNCTION_USER_DEFINED = -3.0
 FUNCTION_UNKNOWN = -6.0
 LENGTH_SEARCHED = -8.0
 EXPECTED_DIRECTION = 3.0
+RETRIED_REQUEST = 6.0
 QUANTITY_OUT_OF_RANGE = -4.0
 #: The read functions whose request's quantity is weighed (their limits: ``MAX_QUANTITY``).
 READ_FUNCTIONS = (1, 2, 3, 4)
@@ -171,12 +177,17 @@ NO_DIRECTION, REQUEST_READING, RESPONSE_READING, SEARCHED = 0, 1, 2, 3
 Reading = tuple[int, float, FrameFlag, int, int]
 
 
-def direction_bonus(direction: int, header: tuple[int, int], open_request: OpenRequest) -> float:
-    """The expected direction's evidence (see the table above)."""
+def direction_bonus(direction: int, frame: bytes, open_request: OpenRequest) -> float:
+    """The expected direction's evidence, and a retry's, for the reading ``frame`` (see the
+    table above)."""
     if direction in (NO_DIRECTION, SEARCHED):
         return 0.0
-    expects_response = open_request == header
-    return EXPECTED_DIRECTION if (direction == RESPONSE_READING) == expects_response else 0.0
+    if not awaits(open_request, frame[0], frame[1]):
+        return 0.0 if direction == RESPONSE_READING else EXPECTED_DIRECTION
+    if direction == RESPONSE_READING:
+        return EXPECTED_DIRECTION
+    assert open_request is not None
+    return RETRIED_REQUEST if frame == open_request[2] else 0.0
 
 
 #: Runs shorter than this are CRC-searched by one ``fastcrc`` call per length.
@@ -256,7 +267,7 @@ def damaged_flags(head: bytes, *, open_request: OpenRequest, at_capture_end: boo
         return FrameFlag.NONE, False
     size = len(head)
     longer = any(length is None or length > size for length in lengths)
-    if open_request == (head[0], head[1]) and len(lengths) == 2:
+    if awaits(open_request, head[0], head[1]) and len(lengths) == 2:
         response = lengths[1]
         if response is None or response > size:
             return FrameFlag.TRUNCATED, False

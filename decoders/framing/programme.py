@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 from decoders.frame import MODBUS, FrameFlag
 from decoders.framing import evidence as ev
-from decoders.framing.content import MIN_ADU, OpenRequest, after_frame
+from decoders.framing.content import MIN_ADU, OpenRequest, after_frame, awaits
 from decoders.modbus.layouts import MAX_ADU
 
 #: The longest piece the programme can take, with a stray byte on either side.
@@ -174,12 +174,11 @@ class _Programme:
             (s == begin and (region.after_frame or begin == 0)) or s in region.pause_set or s in self.frame_ends
             or s - 1 in region.framing_error_set
         )
-        header = (data[s], data[s + 1]) if s + 1 < stop else (0, 0)
         pauses = region.context.pauses
         for end, score, flags, protocol, direction in self.readings[s - begin]:
             if direction == ev.SEARCHED and not (starts_supported and self._search_end_supported(end)):
                 continue  # a length found by CRC search counts only between supported boundaries
-            total = score + ev.direction_bonus(direction, header, open_request) + self._supported(s)
+            total = score + ev.direction_bonus(direction, data[s:end], open_request) + self._supported(s)
             total += self._supported(end) + (pauses_in(pauses, s, end) * ev.PAUSE_INSIDE if pauses else 0.0)
             self._offer(_Edge(s, end, _FRAME, flags, protocol), here + total)
             self.frame_ends.add(end)
@@ -225,7 +224,7 @@ class _Programme:
             flags, fits = ev.damaged_flags(data[s:end], open_request=open_request, at_capture_end=at_capture_end)
             score = ev.DAMAGED + (ev.DAMAGED_FITS_RULE if fits else 0.0) + pauses_in(pauses, s, end) * ev.PAUSE_INSIDE
             score += header
-            if open_request == (data[s], data[s + 1]):
+            if awaits(open_request, data[s], data[s + 1]):
                 score += ev.EXPECTED_DIRECTION  # the answer the open request awaits, damaged or cut short
             edges.append((_Edge(s, end, _DAMAGED, flags), score))
         return edges
