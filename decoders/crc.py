@@ -76,9 +76,9 @@ def crc_ok_many(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.NDArray[np.b
     valid = np.zeros(len(lengths), np.bool_)
     if not len(lengths):
         return valid
-    wire = np.frombuffer(data, np.uint8)
     starts = offsets[:-1]
     sizes, counts = np.unique(lengths, return_counts=True)
+    words: _Words | None = None
     for size, count in zip(sizes.tolist(), counts.tolist(), strict=True):
         if size < MIN_CHECKED:
             continue
@@ -86,7 +86,8 @@ def crc_ok_many(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.NDArray[np.b
         if count < LOCKSTEP_MIN_FRAMES or size > LOCKSTEP_MAX_LENGTH:
             valid[rows] = [crc16.modbus(data[start : start + size]) == 0 for start in starts[rows].tolist()]
         else:
-            valid[rows] = _lockstep_remainders(wire[starts[rows][:, None] + np.arange(size)]) == 0
+            words = words or _Words(data)
+            valid[rows] = words.remainders(starts[rows], size) == 0
     return valid
 
 
@@ -111,18 +112,40 @@ def _pair_table() -> npt.NDArray[np.uint16]:
 _PAIR_TABLE = _pair_table()
 
 
-def _lockstep_remainders(frames: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint16]:
-    """The CRC register after each row of ``frames`` (one frame per row, all one length)."""
-    count, size = frames.shape
-    register = np.full(count, 0xFFFF, np.uint16)
-    first = size % 2
-    if first:  # an odd length: one byte alone, then pairs
-        register = ((register >> 8) ^ _STEP_TABLE[(register ^ frames[:, 0]) & 0xFF]).astype(np.uint16)
-    pairs = frames[:, first:].astype(np.uint16)
-    words = pairs[:, 0::2] | (pairs[:, 1::2] << 8)
-    for column in range(words.shape[1]):
-        register = _PAIR_TABLE[register ^ words[:, column]]
-    return register
+def _first_byte_table() -> npt.NDArray[np.uint16]:
+    """``table[b]``: the register after the single byte ``b`` from the initial 0xFFFF."""
+    registers = np.full(256, 0xFFFF, np.uint32)
+    table: npt.NDArray[np.uint16] = ((registers >> 8) ^ _STEP_TABLE[(registers ^ np.arange(256, dtype=np.uint32))
+                                                                    & 0xFF]).astype(np.uint16)
+    return table
+
+
+_FIRST_BYTE_TABLE = _first_byte_table()
+
+
+class _Words:
+    """A run of bytes as little-endian 16-bit words from every offset: those from even offsets,
+    then those from odd ones, so any frame's byte pairs are one gather (no bytes widened)."""
+
+    def __init__(self, data: bytes) -> None:
+        self.wire = np.frombuffer(data, np.uint8)
+        self.even = len(data) // 2
+        # From a copy one byte on: a view at an odd offset would be unaligned, slow to copy.
+        odd = np.frombuffer(data[1:], "<u2", count=(len(data) - 1) // 2)
+        self.words = np.concatenate([np.frombuffer(data, "<u2", count=self.even), odd])
+
+    def remainders(self, starts: npt.NDArray[np.int64], size: int) -> npt.NDArray[np.uint16]:
+        """The CRC register after each frame ``data[starts[i]:starts[i] + size]``, all stepped
+        in lockstep: an odd length's first byte alone, then two bytes a step."""
+        first = size % 2
+        # An odd length: its first byte alone, then pairs.
+        register = _FIRST_BYTE_TABLE[self.wire[starts]] if first else np.full(len(starts), 0xFFFF, np.uint16)
+        pairs_at = starts + first
+        at = np.where(pairs_at % 2 == 0, pairs_at // 2, self.even + pairs_at // 2)
+        columns = self.words[at + np.arange(size // 2)[:, None]]  # a row per word of the frames
+        for column in columns:
+            register = _PAIR_TABLE.take(register ^ column)  # take: faster than indexing
+        return register
 
 
 #: Spans up to this long are checked by :func:`crc_ok_spans`.

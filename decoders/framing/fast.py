@@ -33,33 +33,34 @@ _NONE = -1
 
 @dataclass(frozen=True)
 class _RuleTable:
-    """A length rule per function code as arrays: fixed length, or base + byte at position."""
+    """A length rule per function code as arrays: ``base + scale * byte[position]`` (a fixed
+    length: scale 0 and position 0, which every segment has; no rule: base -1)."""
 
-    fixed: npt.NDArray[np.int64]
     position: npt.NDArray[np.int64]
+    scale: npt.NDArray[np.int64]
     base: npt.NDArray[np.int64]
 
     @classmethod
     def build(cls, direction: str) -> _RuleTable:
-        fixed = np.full(256, _NONE, np.int64)
-        position = np.full(256, _NONE, np.int64)
-        base = np.zeros(256, np.int64)
+        position = np.zeros(256, np.int64)
+        scale = np.zeros(256, np.int64)
+        base = np.full(256, _NONE, np.int64)
         for function, layout in LAYOUTS.items():
             rule: LengthRule = getattr(layout, direction)
             if rule.fixed is not None:
-                fixed[function] = rule.fixed
+                base[function] = rule.fixed
             elif rule.position is not None and rule.size == 1:
-                position[function], base[function] = rule.position, rule.base
-        return cls(fixed, position, base)
+                position[function], scale[function], base[function] = rule.position, 1, rule.base
+        return cls(position, scale, base)
 
     def lengths(self, padded: npt.NDArray[np.uint8], starts: Int64Array, functions: npt.NDArray[np.intp],
                 seg_lengths: Int64Array) -> Int64Array:
-        """The rule length of every segment, or -1 where this table cannot say."""
+        """The rule length of every segment, or -1 where this table cannot say (no rule it
+        holds, or a byte count past the segment's end)."""
         position = self.position[functions]
-        counted_ok = (position >= 0) & (position < seg_lengths)
-        count = padded[starts + np.where(counted_ok, position, 0)].astype(np.int64)
-        counted = np.where(counted_ok, self.base[functions] + count, _NONE)
-        return np.where(self.fixed[functions] >= 0, self.fixed[functions], counted)
+        lengths: Int64Array = self.base[functions] + self.scale[functions] * padded[starts + position]
+        lengths[position >= seg_lengths] = _NONE
+        return lengths
 
 
 REQUEST_RULES = _RuleTable.build("request")

