@@ -36,10 +36,10 @@ from decoders.byte_times import ByteClock
 from decoders.capture import ChunkBatch, Int64Array, TimingQuality, UartError, UInt8Array
 from decoders.crc import crc_ok_many
 from decoders.frame import NO_IDLE, FrameBatch, FrameFlag
-from decoders.framing.best_parse import Pieces, SegmentParse, clean_frame_end, parse_segment
+from decoders.framing.best_parse import Pieces, SegmentParse, parse_segment
 from decoders.framing.content import OpenRequest, replayed_open_request
 from decoders.framing.delivery import DeliveryDelay
-from decoders.framing.fast import frame_pair_segments, single_frame_segments, whole_by_own_rule
+from decoders.framing.fast import frame_pair_segments, has_own_rule, single_frame_segments, whole_by_own_rule
 from decoders.framing.programme import Context
 from decoders.line import LineSettings
 from decoders.memo import Memo
@@ -196,18 +196,14 @@ class Framer:
         single = single_frame_segments(data, seg_starts, seg_ends, crc_ok_many(data, bounds))
         if not self.fast:
             single[:] = False
-        else:
-            # Timing and CRC agree on one frame the vectorised test left out (one ending in 0x00,
-            # one whose length rule walks its content).
-            for index in np.flatnonzero(~single).tolist():
-                segment = data[int(seg_starts[index]) : int(seg_ends[index])]
-                single[index] = clean_frame_end(segment, 0, len(segment)) == len(segment) or whole_by_own_rule(segment)
-        known = [Pieces.frames(seg_starts[single], seg_ends[single])]
         slow = np.flatnonzero(~single)
+        paired = None
         if self.fast and len(slow):
-            paired, slow = self._pairs(data, pauses, (seg_starts[slow], seg_ends[slow]), slow)
-            known.append(paired)
-        whole = Pieces.join(known).in_order() if len(known) > 1 else known[0]
+            # Whole frames the vectorised test left out (ending in 0x00, a rule walking the
+            # content) are found with the pairs; the pieces of the pairs are known too.
+            paired, slow = self._pairs(data, pauses, (seg_starts[slow], seg_ends[slow]), slow, single)
+        known = Pieces.frames(seg_starts[single], seg_ends[single])
+        whole = Pieces.join([known, paired]).in_order() if paired is not None and len(paired) else known
         frames = ~whole.is_noise
         frame_bounds = (whole.first[frames], whole.last[frames])
         frames_before = np.searchsorted(frame_bounds[0], seg_starts[slow]).tolist()
@@ -227,15 +223,21 @@ class Framer:
         return Pieces.join([whole, *parsed]).in_order() if parsed else whole
 
     def _pairs(self, data: bytes, pauses: Int64Array, segments: tuple[Int64Array, Int64Array],
-               which: Int64Array) -> tuple[Pieces, Int64Array]:
-        """Of the segments ``which`` (their bounds: ``segments``), the pieces of those that
-        are two frames or a frame and a few stray bytes; and the indexes of the others."""
+               which: Int64Array, single: npt.NDArray[np.bool_]) -> tuple[Pieces, Int64Array]:
+        """Of the segments ``which`` (their bounds: ``segments``): those that are one whole
+        frame marked in ``single``; the pieces of those that are two frames or a frame and a few
+        stray bytes; and the indexes of the others."""
         seg_starts, seg_ends = segments
         pause_at = None
         if self.timing is TimingQuality.EXACT:
             pause_at = np.zeros(len(data), np.bool_)
             pause_at[pauses] = True
-        first_length, second_frame = frame_pair_segments(data, seg_starts, seg_ends, pause_at)
+        first_length, second_frame, whole = frame_pair_segments(data, seg_starts, seg_ends, pause_at)
+        for index in np.flatnonzero(~whole & has_own_rule(data, seg_starts)).tolist():
+            whole[index] = whole_by_own_rule(data[int(seg_starts[index]) : int(seg_ends[index])])
+        single[which[whole]] = True
+        seg_starts, seg_ends, which = seg_starts[~whole], seg_ends[~whole], which[~whole]
+        first_length, second_frame = first_length[~whole], second_frame[~whole]
         known = first_length > 0
         split = seg_starts[known] + first_length[known]
         first = np.concatenate([seg_starts[known], split])

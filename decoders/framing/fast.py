@@ -106,6 +106,18 @@ def single_frame_segments(
     return whole
 
 
+#: Function codes whose length rule the tables cannot hold (a two-byte count, FC 43's objects,
+#: the Altivar's FC 43 negative answer), for :func:`whole_by_own_rule`.
+_OWN_RULE = np.zeros(256, np.bool_)
+_OWN_RULE[[24, 43, 43 | EXCEPTION_BIT]] = True
+
+
+def has_own_rule(data: bytes, starts: Int64Array) -> npt.NDArray[np.bool_]:
+    """Whether the segment at each of ``starts`` has a function code the tables cannot hold."""
+    own: npt.NDArray[np.bool_] = _OWN_RULE[padded_bytes(data)[starts + 1]]
+    return own
+
+
 def whole_by_own_rule(segment: bytes) -> bool:
     """Whether ``segment`` is one valid frame by a length rule the tables cannot hold
     (FC 43's objects, FC 24's two-byte count): the scalar test of the segments the
@@ -200,10 +212,12 @@ MAX_STRAY = MIN_ADU - 1
 
 def frame_pair_segments(
     data: bytes, seg_starts: Int64Array, seg_ends: Int64Array, pause_at: npt.NDArray[np.bool_] | None
-) -> tuple[Int64Array, npt.NDArray[np.bool_]]:
-    """Of segments that are not one whole frame: where each one's first piece ends, for those
-    that are a clean frame followed by another clean frame (a fast answer) or by 1..3 stray
-    bytes (a glitch), else 0; and whether the rest is that second frame.
+) -> tuple[Int64Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Of segments the vectorised single-frame test left out: where each one's first piece
+    ends, for those that are a clean frame followed by another clean frame (a fast answer) or
+    by 1..3 stray bytes (a glitch), else 0; whether the rest is that second frame; and whether
+    the segment is one clean frame after all (:func:`~decoders.framing.best_parse.clean_frame_end`
+    over the whole segment: one ending in 0x00 whose prefix fits no rule).
 
     The parse of such a segment is known without the programme: its frames are anchors of
     :mod:`decoders.framing.best_parse` (clean, no other clean frame starting inside, no
@@ -243,4 +257,4 @@ def frame_pair_segments(
     stray_ok = (stop - split <= MAX_STRAY) & quiet(split, stop)
     known = first_ok & (second_ok | stray_ok)
     first_length = np.where(known, split - begin, 0)
-    return first_length, known & second_ok
+    return first_length, known & second_ok, first_end == stop

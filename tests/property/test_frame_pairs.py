@@ -4,10 +4,13 @@
 from __future__ import annotations
 
 import random
+from collections.abc import Callable
 from unittest import mock
 
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from pymodbus.pdu import file_message as fm
+from pymodbus.pdu import mei_message as mei
 
 from benchmarks.bench_framing import register_read_at_0x02xx
 from decoders.capture import Chunk, ChunkBatch
@@ -17,7 +20,7 @@ from decoders.framing.best_parse import clean_frame_end, parse_segment
 from decoders.framing.fast import clean_frame_ends
 from decoders.line import LineSettings
 from decoders.synthesis import Transmission, exact_chunks
-from tests.corpus import exchange
+from tests.corpus import adu, exchange
 from tests.property.test_framer_properties import LINES, T0
 
 
@@ -175,3 +178,29 @@ def test_a_repeated_segment_is_parsed_once_and_as_the_plain_path_parses_it() -> 
     # parse depends on the open request as well as on its bytes.
     assert len(requests) == 220 and len(found) == 420
     assert {open_request and open_request[:2] for _, _, open_request in segments} == {None, (5, 3), (7, 3)}
+
+
+def _ending_in_zero(body_of: Callable[[int], bytes]) -> bytes:
+    """The first frame ``body_of(k) + CRC`` (k = 0, 1, ...) whose CRC ends in 0x00."""
+    return next(frame for k in range(65536) if (frame := body_of(k) + crc_bytes(body_of(k))).endswith(b"\x00"))
+
+
+def test_whole_frames_the_tables_leave_out_are_taken_without_the_parser() -> None:
+    """Frames ending in 0x00 whose shorter reading fits no rule (a read at 0x00xx, an answer of
+    one register), FC 43 and FC 24 exchanges (rules the tables cannot hold): each one segment,
+    each taken whole in bulk, as the parser takes them."""
+    request = _ending_in_zero(lambda k: bytes([1 + (k >> 8) % 247, 3, 0, k & 0xFF, 0, 1]))
+    answer = _ending_in_zero(lambda k: bytes([9, 3, 2, k >> 8, k & 0xFF]))
+    device = adu(mei.ReadDeviceInformationRequest(dev_id=9, read_code=1, object_id=0))
+    identity = adu(mei.ReadDeviceInformationResponse(dev_id=9, read_code=1, information={0: b"Schneider"}))
+    fifo = adu(fm.ReadFifoQueueRequest(dev_id=9, address=16))
+    queue = adu(fm.ReadFifoQueueResponse(dev_id=9, values=[7]))
+    line = LineSettings.parse("19200 8E1")
+    sent = [request, answer, device, identity, fifo, queue] * 3
+    chunks = list(exact_chunks([Transmission(frame, 5_000_000) for frame in sent], line, T0))
+    with mock.patch("decoders.framer.parse_segment", wraps=parse_segment) as parsed:
+        found = frames(chunks, line, fast=True, batch=4)
+    # The last segment is held until the capture ends, and parsed then.
+    assert not [call for call in parsed.call_args_list if call.args[1].closed and not call.args[1].at_capture_end]
+    assert [data for data, *_ in found] == sent
+    assert found == frames(chunks, line, fast=False, batch=4)
