@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from decoders.framing.fast import REQUEST_RULES, RESPONSE_RULES, padded_bytes
 from decoders.modbus.layouts import LAYOUTS
-from decoders.modbus.shapes import _chosen
+from decoders.modbus.shapes import Column, _request_keys, _response_keys
 
 #: Function codes with a layout, their exception codes, and a few without either.
 functions = st.sampled_from(sorted(LAYOUTS)) | st.sampled_from([code | 0x80 for code in LAYOUTS]) | st.integers(0, 255)
@@ -42,9 +42,30 @@ def test_rule_tables_give_each_segment_its_rule_length(drawn: list[tuple[int, by
         assert found == [_scalar_length(direction, piece) for piece in pieces]
 
 
-@given(st.lists(st.integers(0, 4), min_size=0, max_size=50), st.integers(0, 2**31))
-def test_chosen_keys_are_what_choose_picks(kinds: list[int], seed: int) -> None:
-    rng = np.random.default_rng(seed)
-    choices = [rng.integers(0, 1 << 32, len(kinds)) for _ in range(5)]
-    picked = np.array(kinds, np.intp)
-    assert _chosen(picked, choices).tolist() == np.choose(picked, choices).tolist()
+def _request_keys_by_choose(raw: Column, b2: Column, b3: Column, b4: Column, b5: Column) -> Column:
+    """The plain reference: every key made, then ``np.choose`` by the function code's group."""
+    count, echo = b4 << 8 | b5, (b2 << 24) | (b3 << 16) | (b4 << 8) | b5
+    kinds = np.zeros(256, np.intp)
+    for kind, functions in enumerate(((1, 2), (3, 4, 23), (5, 6, 15, 16, 22), (8,), (43,)), start=1):
+        kinds[list(functions)] = kind
+    keys: Column = np.choose(kinds[raw], [np.zeros_like(b2), (count + 7) // 8, 2 * count, echo, b2 << 8 | b3, b2])
+    return keys
+
+
+def _response_keys_by_choose(raw: Column, b2: Column, b3: Column, b4: Column, b5: Column) -> Column:
+    echo = (b2 << 24) | (b3 << 16) | (b4 << 8) | b5
+    kinds = np.zeros(256, np.intp)
+    for kind, functions in enumerate(((1, 2, 3, 4, 23), (5, 6, 15, 16, 22), (8,), (43,)), start=1):
+        kinds[list(functions)] = kind
+    keys: Column = np.choose(kinds[raw], [np.zeros_like(b2), b2, echo, b2 << 8 | b3, b2])
+    return keys
+
+
+@given(st.lists(st.tuples(functions, st.binary(min_size=4, max_size=4)), min_size=0, max_size=60))
+def test_answer_keys_are_made_per_group_present_as_by_choosing(frames: list[tuple[int, bytes]]) -> None:
+    """Buses of one function (one group: no choice), of several, and frames of none."""
+    raw = np.array([function for function, _ in frames], np.intp)
+    head = np.array([list(rest) for _, rest in frames], np.int64).reshape(-1, 4)
+    b2, b3, b4, b5 = (head[:, k].copy() for k in range(4))
+    assert _request_keys(raw, b2, b3, b4, b5).tolist() == _request_keys_by_choose(raw, b2, b3, b4, b5).tolist()
+    assert _response_keys(raw, b2, b3, b4, b5).tolist() == _response_keys_by_choose(raw, b2, b3, b4, b5).tolist()
