@@ -217,19 +217,21 @@ class Matcher:
         open_position, open_function, open_key = requests.position, requests.function, requests.key
         open_end, open_index, open_data, open_slaves = requests.t_end_ns, requests.index, requests.data, requests.slaves
         data, first_index = frames.data, frames.first_index
-        active_list, runs_at = active.tolist(), runs.tolist()
+        # Read one by one, not as lists: the loop visits few of them, runs settle the rest.
+        at_active, run_at = active.item, runs.item
         # The frames the loop visits, as lists of a window of the batch (see frame_lists).
         base = window_end = 0
         deadline = self._deadline()
         timeout = self.timeout_ns
-        k = 0
-        while k < len(active_list):
-            if runs_at[k] and settled is not None and not open_slaves:
-                self._settle_pairs(settled, k, runs_at[k], first)
-                k += 2 * runs_at[k]
+        k, count = 0, len(active)
+        while k < count:
+            pairs = run_at(k)
+            if pairs and settled is not None and not open_slaves:
+                self._settle_pairs(settled, k, pairs, first)
+                k += 2 * pairs
                 timeout = self.timeout_ns
                 continue
-            i = active_list[k]
+            i = at_active(k)
             k += 1
             if i >= window_end:
                 base, window_end = i, min(i + WINDOW, len(frames))
@@ -286,7 +288,7 @@ class Matcher:
             self._settle_retries(settled.frames, settled.active[k : k + 2 * pairs : 2], first)
         self._asked = True
         settled.runs.append((k, pairs))
-        self._learn_many(settled.gaps[k : k + 2 * pairs : 2].tolist())
+        self._learn_many(settled.gaps[k : k + 2 * pairs : 2])
 
     def _settle_retries(self, frames: FrameBatch, asks: npt.NDArray[np.intp], first: int) -> None:
         """Of a run of pairs, the first request to each slave whose last request got no valid
@@ -364,9 +366,10 @@ class Matcher:
         if self._learned < LEARN_EVERY or self._learned % LEARN_EVERY == 0:
             self._adaptive_timeout_ns = _derived_timeout_ns(max(self._latencies))
 
-    def _learn_many(self, latencies: list[int]) -> None:
+    def _learn_many(self, latencies: npt.NDArray[np.int64]) -> None:
         """Derive the timeout from the longest recent latency: after every answer at first,
-        then every ``LEARN_EVERY`` answers, as the window stood then."""
+        then every ``LEARN_EVERY`` answers, as the window stood then. Only the last
+        ``LATENCY_WINDOW`` latencies before a point count: only those become Python numbers."""
         before = self._learned
         self._learned += len(latencies)
         checkpoints = [n for n in range(before + 1, min(self._learned, LEARN_EVERY - 1) + 1)]
@@ -376,9 +379,9 @@ class Matcher:
         if checkpoints:
             # The window as it stood after the last checkpoint's answer.
             upto = max(checkpoints) - before
-            recent = [*self._latencies, *latencies[:upto]][-LATENCY_WINDOW:]
+            recent = [*self._latencies, *latencies[max(upto - LATENCY_WINDOW, 0) : upto].tolist()][-LATENCY_WINDOW:]
             self._adaptive_timeout_ns = _derived_timeout_ns(max(recent))
-        self._latencies.extend(latencies)
+        self._latencies.extend(latencies[-LATENCY_WINDOW:].tolist())
 
 
 def _derived_timeout_ns(longest_ns: int) -> int:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -230,7 +231,7 @@ def test_latency_window_learned_in_bulk_as_one_by_one() -> None:
         expected.append(timeout)
     matcher, position = Matcher(), 0
     for size in [1, 5, 40, 3, 64, 100, 7, 300, 480]:
-        matcher._learn_many(latencies[position : position + size])
+        matcher._learn_many(np.array(latencies[position : position + size], np.int64))
         position += size
         assert matcher.timeout_ns == expected[position - 1], position
     one_by_one = Matcher()  # the answers the loop visits: _learn_one, interleaved with runs
@@ -239,7 +240,7 @@ def test_latency_window_learned_in_bulk_as_one_by_one() -> None:
         if size == 1:
             one_by_one._learn_one(latencies[position])
         else:
-            one_by_one._learn_many(latencies[position : position + size])
+            one_by_one._learn_many(np.array(latencies[position : position + size], np.int64))
         position += size
         assert one_by_one.timeout_ns == expected[position - 1], position
     for latency in latencies[position:]:
