@@ -6,9 +6,10 @@ recognised here for all segments of a batch at once with numpy lookup tables
 derived from :data:`decoders.modbus.layouts.LAYOUTS`; only the others go through
 the sequential content parser.
 
-A segment whose last byte is 0x00 is always left to the parser: zero bytes after a
-frame keep its CRC valid, so only the parser's rules can tell a frame padded by a
-glitch from a frame that ends in 0x00.
+A segment whose last byte is 0x00 is always left to the parser's rules: zero bytes
+after a frame keep its CRC valid, so only they can tell a frame padded by a glitch from
+a frame that ends in 0x00. The clean-frame rule decides most of them in bulk, with the
+pairs (:func:`frame_pair_segments`); the programme decides the rest.
 """
 
 from __future__ import annotations
@@ -106,15 +107,15 @@ def single_frame_segments(
     return whole
 
 
-#: Function codes whose length rule the tables cannot hold (a two-byte count, FC 43's objects,
-#: the Altivar's FC 43 negative answer), for :func:`whole_by_own_rule`.
-_OWN_RULE = np.zeros(256, np.bool_)
-_OWN_RULE[[24, 43, 43 | EXCEPTION_BIT]] = True
+#: Per function code: whether its length rule is one the tables cannot hold (a two-byte count,
+#: FC 43's objects, the Altivar's FC 43 negative answer), for :func:`whole_by_own_rule`.
+OWN_RULE = np.zeros(256, np.bool_)
+OWN_RULE[[24, 43, 43 | EXCEPTION_BIT]] = True
 
 
 def has_own_rule(data: bytes, starts: Int64Array) -> npt.NDArray[np.bool_]:
     """Whether the segment at each of ``starts`` has a function code the tables cannot hold."""
-    own: npt.NDArray[np.bool_] = _OWN_RULE[padded_bytes(data)[starts + 1]]
+    own: npt.NDArray[np.bool_] = OWN_RULE[padded_bytes(data)[starts + 1]]
     return own
 
 

@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.frame import FrameBatch
-from decoders.framing.fast import REQUEST_RULES, RESPONSE_RULES, padded_bytes
+from decoders.framing.fast import OWN_RULE, REQUEST_RULES, RESPONSE_RULES, padded_bytes
 from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT
 from decoders.modbus.layouts import EXCEPTION_LENGTH, MEI_EXCEPTION_LENGTH, fits_request, fits_response
 
@@ -26,8 +26,6 @@ FITS_REQUEST = 1
 FITS_RESPONSE = 2
 IS_EXCEPTION = 4
 MIN_ADU = 4
-_SPECIAL = np.zeros(256, np.bool_)
-_SPECIAL[[24, 43, 43 | EXCEPTION_BIT]] = True  # rules numpy cannot evaluate
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,7 +57,7 @@ def frame_shapes(frames: FrameBatch) -> Shapes:
     shape = (fits_req | echo) * FITS_REQUEST | (fits_resp | echo) * FITS_RESPONSE
     shape |= exception_fit * (FITS_RESPONSE | IS_EXCEPTION)
     shape = shape.astype(np.int64)
-    _special_shapes(frames, shape, np.flatnonzero(_SPECIAL[raw] & long_enough))
+    _special_shapes(frames, shape, np.flatnonzero(OWN_RULE[raw] & long_enough))
     return Shapes(
         slave=padded[starts].astype(np.int64),
         function=raw.astype(np.int64),
