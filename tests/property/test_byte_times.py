@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from decoders.byte_times import ByteClock, byte_times, byte_times_reference
+from decoders.byte_times import ByteClock, byte_times, byte_times_reference, rounded_char_times
 from decoders.capture import ChunkBatch
 
 T0 = 1_600_000_000_000_000_000
@@ -83,3 +83,12 @@ def test_an_empty_batch_has_no_times() -> None:
     clock = ByteClock.of(empty, 1000.0)
     assert len(clock) == 0
     assert [len(part) for part in clock.silences()] == [0, 0]
+
+
+@given(st.lists(st.lists(st.integers(-5, 70_000), max_size=30), min_size=1, max_size=4), CHAR_TIMES)
+def test_char_times_rounded_by_table_as_by_multiplying(runs: list[list[int]], char_time_ns: float) -> None:
+    """Counts the table holds and grows to hold, and those it does not (negative, past its most)."""
+    for counts in runs:
+        column = np.array(counts, np.int64)
+        assert rounded_char_times(column, char_time_ns).tolist() == \
+            np.rint(column * char_time_ns).astype(np.int64).tolist()
