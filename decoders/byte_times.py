@@ -29,12 +29,11 @@ def byte_times(batch: ChunkBatch, char_time_ns: float) -> tuple[Int64Array, Int6
     if total == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     lengths = np.diff(batch.ends, prepend=0)
-    # offsets[k]: k character times, rounded (the same product the reference rounds)
-    offsets = np.rint(np.arange(int(lengths.max()) + 1, dtype=np.int64) * char_time_ns).astype(np.int64)
     chars_to_chunk_end = np.repeat(batch.ends, lengths)
     chars_to_chunk_end -= np.arange(total, dtype=np.int64)
     starts = np.repeat(batch.t_end_ns, lengths)
-    starts -= offsets[chars_to_chunk_end]
+    # k character times, rounded: the same product the reference rounds
+    starts -= rounded_char_times(chars_to_chunk_end, char_time_ns)
     # Inside a chunk a byte ends where the next one starts; a chunk's last byte ends at its time.
     ends = np.empty_like(starts)
     ends[:-1] = starts[1:]
