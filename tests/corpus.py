@@ -10,6 +10,7 @@ should say about it.
 
 from __future__ import annotations
 
+import functools
 import random
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -45,6 +46,13 @@ def _bools(rng: random.Random, count: int) -> list[bool]:
     return [rng.random() < 0.5 for _ in range(count)]
 
 
+#: The request and response classes of FC 3 and FC 4.
+_REGISTER_READS: dict[int, tuple[type[ModbusPDU], type[ModbusPDU]]] = {
+    3: (regs.ReadHoldingRegistersRequest, regs.ReadHoldingRegistersResponse),
+    4: (regs.ReadInputRegistersRequest, regs.ReadInputRegistersResponse),
+}
+
+
 def exchange(rng: random.Random, slave: int) -> tuple[bytes, bytes]:
     """A request and its response (sometimes an exception), both from pymodbus."""
     kind = rng.choice(["fc1", "fc2", "fc3", "fc4", "fc5", "fc6", "fc8", "fc15", "fc16", "fc22", "fc23", "fc43", "exc"])
@@ -60,11 +68,7 @@ def exchange(rng: random.Random, slave: int) -> tuple[bytes, bytes]:
             cls_resp(dev_id=slave, bits=_bools(rng, count))
         )
     if kind in ("fc3", "fc4"):
-        cls_req, cls_resp = (
-            (regs.ReadHoldingRegistersRequest, regs.ReadHoldingRegistersResponse)
-            if kind == "fc3"
-            else (regs.ReadInputRegistersRequest, regs.ReadInputRegistersResponse)
-        )
+        cls_req, cls_resp = _REGISTER_READS[int(kind[2:])]
         return adu(cls_req(dev_id=slave, address=address, count=count)), adu(
             cls_resp(dev_id=slave, registers=_words(rng, count))
         )
@@ -113,12 +117,21 @@ def exchange(rng: random.Random, slave: int) -> tuple[bytes, bytes]:
 def read_ending_in_zero(rng: random.Random, slave: int) -> tuple[bytes, bytes] | None:
     """An FC 3/4 read of one register at 0x02xx whose CRC ends in 0x00, and its answer: the
     request reads as a 7-byte answer and a 0x00 glitch too (``None`` if ``slave`` has none)."""
+    found = _request_ending_in_zero(slave)
+    if found is None:
+        return None
+    function, request = found
+    return request, adu(_REGISTER_READS[function][1](dev_id=slave, registers=_words(rng, 1)))
+
+
+@functools.cache
+def _request_ending_in_zero(slave: int) -> tuple[int, bytes] | None:
+    """The function and bytes of :func:`read_ending_in_zero`'s request: searched once a slave
+    (up to 512 frames built)."""
     for function, address in ((f, 0x0200 + low) for f in (3, 4) for low in range(256)):
-        cls_req, cls_resp = ((regs.ReadHoldingRegistersRequest, regs.ReadHoldingRegistersResponse) if function == 3
-                             else (regs.ReadInputRegistersRequest, regs.ReadInputRegistersResponse))
-        request = adu(cls_req(dev_id=slave, address=address, count=1))
+        request = adu(_REGISTER_READS[function][0](dev_id=slave, address=address, count=1))
         if request.endswith(b"\x00"):
-            return request, adu(cls_resp(dev_id=slave, registers=_words(rng, 1)))
+            return function, request
     return None
 
 
