@@ -18,6 +18,7 @@ import numpy.typing as npt
 from decoders.capture import UartError
 from decoders.frame import FrameBatch, FrameFlag
 from decoders.framing.fast import padded_bytes
+from decoders.hashing import FIBONACCI
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, ROLE_ORDER, MessageBatch, Role
 from decoders.stats_tally import KEY_SPAN, LATENCY, POLL_PERIOD, FunctionTally
 
@@ -146,15 +147,13 @@ def _new_tally() -> FunctionTally:
 
 #: :class:`LastSeen` has ``2**_SLOT_BITS`` slots.
 _SLOT_BITS = 16
-#: Fibonacci hashing's multiplier: the top bits of a signature times it mix all of its bits.
-_MIXER = np.uint64(0x9E3779B97F4A7C15)
 
 
 def _mixed(signatures: npt.NDArray[np.int64]) -> npt.NDArray[np.uint64]:
-    """Each signature's hash: every bit of it weighs on its top bits. (A signature's low bits
+    """Each signature's Fibonacci hash: every bit of it weighs on its top bits. (A signature's low bits
     are its CRC: the 12 200 different requests of a polling batch had 9 300 different ones,
     fewer than random values would.)"""
-    mixed: npt.NDArray[np.uint64] = signatures.view(np.uint64) * _MIXER
+    mixed: npt.NDArray[np.uint64] = signatures.view(np.uint64) * FIBONACCI
     return mixed
 
 

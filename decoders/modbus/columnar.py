@@ -31,6 +31,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from decoders.hashing import FIBONACCI_SIGNED
 from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.columnar_text import READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, formatted, summaries
 from decoders.modbus.pdu import COIL_ON
@@ -45,9 +46,6 @@ KEPT_REQUESTS = 1024
 DISTINCT_SHARE = 0.9
 #: Frames :func:`alike` samples to tell whether to look further.
 SAMPLED = 512
-#: An odd 64-bit multiplier (Knuth's, from the golden ratio) that spreads a frame's digest
-#: before its role, kind, address and count are mixed in.
-_MIX = np.int64(-7046029254386353131)
 #: A named value's text in the summary (``None``: it shows none).
 _TEXT = itemgetter(1)
 #: The most a request may ask for, by function (0: not a function kept in columns).
@@ -290,7 +288,8 @@ def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
     role = roles[positions].astype(np.int64)
     code = (role << 3 | columnar.kind) << 48 | (columnar.count + 1) << 24 | columnar.address
     with np.errstate(over="ignore"):  # mixed, wrapping: frames alike have it alike
-        mixed = digests(data, starts, ends) * _MIX ^ code
+        # The digest spread (Fibonacci hashing) before its role, kind, address and count are mixed in.
+        mixed = digests(data, starts, ends) * FIBONACCI_SIGNED ^ code
     first = _group_firsts(np.arange(len(positions)), mixed)
     raw = np.frombuffer(data, np.uint8)
     pending = np.flatnonzero(first != np.arange(len(first)))
