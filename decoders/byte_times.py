@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from decoders.capture import ChunkBatch, Int64Array
 
@@ -151,9 +152,44 @@ class ByteClock:
         last: Int64Array = chunk_times - rounded_char_times(chunk_ends - stops, self.char_time_ns)
         return first, last
 
+    def piece_times(self, chunk_starts: Int64Array, first: Int64Array,
+                    starts_piece: npt.NDArray[np.bool_]) -> tuple[Int64Array, Int64Array]:
+        """Earliest start and latest end of the bytes of each piece ``[first[i], first[i+1])`` (the
+        last up to the end of ``starts_piece``, which marks the bytes ``first`` holds; ``chunk_starts``:
+        where chunks begin, sorted): the times of its first and last bytes on a consistent capture,
+        and still ordered on one whose times overlap. Inside a chunk times only grow, so each run of
+        a piece's bytes in one chunk gives its first byte's start and its last byte's end."""
+        stop = len(starts_piece) - 1
+        inside = chunk_starts[(chunk_starts > first[0]) & (chunk_starts < stop)]
+        # Mostly a chunk is a frame: few chunks begin inside a piece.
+        extra = inside[~starts_piece[inside]]
+        ends = _run_ends(first, stop)
+        if not len(extra):
+            return self.run_times(first, ends)
+        # A piece's first run ends where the first chunk inside it begins; the runs of those
+        # chunks (few) are timed apart, and their times folded into their pieces'.
+        holder = np.searchsorted(first, extra) - 1
+        first_inside = np.ones(len(extra), np.bool_)
+        first_inside[1:] = holder[1:] != holder[:-1]
+        ends[holder[first_inside]] = extra[first_inside]
+        t_start, t_end = self.run_times(first, ends)
+        extra_ends = np.minimum(_run_ends(extra, stop), _run_ends(first, stop)[holder])
+        extra_starts, extra_stops = self.run_times(extra, extra_ends)
+        np.minimum.at(t_start, holder, extra_starts)
+        np.maximum.at(t_end, holder, extra_stops)
+        return t_start, t_end
+
     def silences(self) -> tuple[Int64Array, Int64Array]:
         """Where each chunk but the first begins (byte positions, in order) and the silence
         before it, in ns: every silence of the run that is not zero."""
         positions = self.ends[:-1]
         later = np.arange(1, len(self.ends), dtype=np.int64)
         return positions, self._before_end(later, positions, 0) - self.t_end_ns[:-1]
+
+
+def _run_ends(runs: Int64Array, stop: int) -> Int64Array:
+    """Where each run of bytes starting at ``runs`` ends: at the next, the last at ``stop``."""
+    ends = np.empty_like(runs)
+    ends[:-1] = runs[1:]
+    ends[-1] = stop
+    return ends

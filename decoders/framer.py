@@ -292,7 +292,7 @@ class Framer:
         starts_piece = np.zeros(int(last[-1]) + 1 if count else 0, np.bool_)
         starts_piece[first] = True
         if count:
-            t_start, t_end = _piece_times(clock, chunk_starts, first, starts_piece)
+            t_start, t_end = clock.piece_times(chunk_starts, first, starts_piece)
         else:
             t_start = t_end = np.zeros(0, np.int64)
         if self.timing is TimingQuality.HOST and count:
@@ -365,33 +365,3 @@ class Framer:
         flags = np.where(has_gap & ~is_noise, FrameFlag.GAP_1_5, 0)
         flags |= np.where(short & ~is_noise, FrameFlag.SHORT_IDLE, 0)
         return flags.astype(np.uint16)
-
-
-def _piece_times(clock: ByteClock, chunk_starts: Int64Array, first: Int64Array,
-                 starts_piece: npt.NDArray[np.bool_]) -> tuple[Int64Array, Int64Array]:
-    """Earliest start and latest end of the bytes of each piece ``[first[i], first[i+1])`` (the
-    last up to the end of ``starts_piece``, which marks the bytes ``first`` holds): the times of
-    its first and last bytes on a consistent capture, and still ordered on one whose times
-    overlap. Inside a chunk times only grow, so each run of a piece's bytes in one chunk gives
-    its first byte's start and its last byte's end."""
-    stop = len(starts_piece) - 1
-    inside = chunk_starts[(chunk_starts > first[0]) & (chunk_starts < stop)]
-    # Mostly a chunk is a frame: few chunks begin inside a piece.
-    extra = inside[~starts_piece[inside]]
-    if not len(extra):
-        return clock.run_times(first, _run_ends(first, stop))
-    # Both sorted, the extra starts few: each one's place among all runs, and each piece's.
-    at = np.arange(len(first)) + np.searchsorted(extra, first)
-    runs = np.empty(len(first) + len(extra), np.int64)
-    runs[at] = first
-    runs[np.arange(len(extra)) + np.searchsorted(first, extra)] = extra
-    run_starts, run_stops = clock.run_times(runs, _run_ends(runs, stop))
-    return np.minimum.reduceat(run_starts, at), np.maximum.reduceat(run_stops, at)
-
-
-def _run_ends(runs: Int64Array, stop: int) -> Int64Array:
-    """Where each run of bytes starting at ``runs`` ends: at the next, the last at ``stop``."""
-    ends = np.empty_like(runs)
-    ends[:-1] = runs[1:]
-    ends[-1] = stop
-    return ends

@@ -3,6 +3,8 @@ byte for byte, and the clock's silences are every silence of the run."""
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
@@ -92,3 +94,22 @@ def test_char_times_rounded_by_table_as_by_multiplying(runs: list[list[int]], ch
         column = np.array(counts, np.int64)
         assert rounded_char_times(column, char_time_ns).tolist() == \
             np.rint(column * char_time_ns).astype(np.int64).tolist()
+
+
+@given(batches(), CHAR_TIMES, st.data())
+def test_pieces_are_timed_by_their_earliest_start_and_latest_end(batch: ChunkBatch, char_time_ns: float,
+                                                                 data: st.DataObject) -> None:
+    """A piece that chunks cut (a frame of two reads, reads whose times overlap) takes the
+    earliest start and the latest end of its bytes, as the framer times frames."""
+    clock = ByteClock.of(batch, char_time_ns)
+    if not len(clock):
+        return
+    first = sorted(data.draw(st.sets(st.integers(0, len(clock) - 1), min_size=1, max_size=30)))
+    stop = data.draw(st.integers(first[-1] + 1, len(clock)))
+    starts_piece = np.zeros(stop + 1, np.bool_)
+    starts_piece[first] = True
+    t_start, t_end = clock.piece_times(clock.silences()[0], np.array(first, np.int64), starts_piece)
+    starts, ends = byte_times_reference(batch, char_time_ns)
+    bounds = [*first, stop]
+    assert t_start.tolist() == [int(starts[a:b].min()) for a, b in pairwise(bounds)]
+    assert t_end.tolist() == [int(ends[a:b].max()) for a, b in pairwise(bounds)]
