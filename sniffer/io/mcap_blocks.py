@@ -81,9 +81,15 @@ def decode_block(payload: bytes) -> ChunkBatch:
     ends = np.cumsum(lengths)
     if (int(ends[-1]) if count else 0) != len(payload) - data_start:
         raise ValueError("chunk lengths do not add up to the block's data")
-    if count and (np.any(np.diff(times) < 0)):
+    if count and bool((times[1:] < times[:-1]).any()):
         raise ValueError("chunk times decrease inside a block")
     return ChunkBatch(payload[data_start:], ends, times)
+
+
+def longest_chunk(payload: bytes) -> int:
+    """The length of the longest chunk of a block :func:`decode_block` took (its lengths as written)."""
+    (count,) = _COUNT.unpack_from(payload)
+    return int(np.frombuffer(payload, "<u4", count, _COUNT.size + 8 * count).max()) if count else 0
 
 
 def encode_errors(kinds: npt.NDArray[np.uint8]) -> bytes:

@@ -34,7 +34,6 @@ from collections.abc import Iterator
 from dataclasses import replace
 from typing import BinaryIO, cast
 
-import numpy as np
 from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata
@@ -69,6 +68,7 @@ from sniffer.io.mcap_blocks import (
     decode_channels,
     decode_errors,
     encode_block,
+    longest_chunk,
     max_block_bytes,
     side_messages,
 )
@@ -326,7 +326,7 @@ class McapCaptureReader:
         """A block's chunks, with the UART errors and channels its side messages give."""
         try:
             batch = decode_block(record.data)
-            largest = int(np.diff(batch.ends, prepend=0).max()) if len(batch) else 0
+            largest = longest_chunk(record.data)
             if largest > max_read_bytes():
                 raise self._error(read_limit_message(largest))
             if ERRORS_TOPIC in side:

@@ -14,7 +14,7 @@ from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io import mcap_blocks
-from sniffer.io.mcap_blocks import decode_block, encode_block
+from sniffer.io.mcap_blocks import decode_block, encode_block, longest_chunk
 from sniffer.io.mcap_native import McapCaptureReader, McapCaptureWriter
 from tests.conftest import write_foreign_mcap
 
@@ -48,6 +48,25 @@ def test_block_encoding_round_trip() -> None:
 def test_inconsistent_blocks_are_refused(payload: bytes) -> None:
     with pytest.raises(ValueError):
         decode_block(payload)
+
+
+def test_a_block_whose_chunk_times_go_back_is_refused() -> None:
+    batch = sample_batch(5)
+    times = batch.t_end_ns.copy()
+    times[3] = times[1]  # earlier than the chunk before it
+    with pytest.raises(ValueError, match="chunk times decrease inside a block"):
+        decode_block(encode_block(ChunkBatch(batch.data, batch.ends, times)))
+    times[3] = times[2]  # the same time as the chunk before it: allowed
+    assert decode_block(encode_block(ChunkBatch(batch.data, batch.ends, times))).t_end_ns.tolist() == times.tolist()
+
+
+def test_the_longest_chunk_of_a_block_is_read_from_its_lengths() -> None:
+    batch = sample_batch(300)
+    assert longest_chunk(encode_block(batch)) == int(np.diff(batch.ends, prepend=0).max())
+    assert longest_chunk(encode_block(ChunkBatch.empty())) == 0
+    for lengths in ([1, 5, 80], [80, 5, 1], [7]):
+        chunks = [Chunk(1_700_000_000_000_000_000 + k, bytes(n)) for k, n in enumerate(lengths)]
+        assert longest_chunk(encode_block(ChunkBatch.from_chunks(chunks))) == max(lengths)
 
 
 def test_standard_reader_sees_blocks_and_metadata(tmp_path: Path) -> None:
