@@ -39,6 +39,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 import numpy.typing as npt
@@ -50,6 +51,7 @@ from decoders.framing import evidence as ev
 from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, replayed_open_request
 from decoders.framing.fast import clean_frame_ends
 from decoders.framing.programme import MAX_EDGE, Context, Piece, Region, best_pieces
+from decoders.framing.zero_end import weighed_zero_end
 from decoders.modbus.layouts import MAX_ADU
 
 #: Stray bytes allowed between two clean frames that confirm each other.
@@ -128,6 +130,10 @@ def parse_segment(
             return SegmentParse(Pieces.of([]), 0, open_request)
         parse = best_pieces(Region(data, 0, end, context, ev.CrcSearch(data)), open_request)
         return SegmentParse(Pieces.of(parse.pieces), end, parse.open_request)
+    weighed = weighed_zero_end(data, context, open_request)
+    if weighed is not None:  # a frame ending in 0x00 or a shorter one and a glitch, nothing else
+        glitch, open_request = weighed
+        return SegmentParse(_weighed_pieces(end, glitch), end, open_request)
     search = ev.CrcSearch(data)
     if end < SMALL_SEGMENT:
         starts, stops = _anchors_small(data, context)
@@ -152,6 +158,15 @@ def parse_segment(
         return SegmentParse(Pieces.of(pieces), position, open_request)
     columns = Pieces.join([Pieces.frames(anchor_starts, anchor_ends), Pieces.of(pieces)]).in_order()
     return SegmentParse(columns, position, open_request)
+
+
+@cache
+def _weighed_pieces(size: int, glitch: bool) -> Pieces:
+    """A segment of ``size`` bytes as one frame, or as a frame and a glitch byte (shared, as a
+    remembered parse's pieces are: the framer shifts them into arrays of its own)."""
+    if glitch:
+        return Pieces.of([Piece(0, size - 1), Piece(size - 1, size, is_noise=True, crc_ok=False)])
+    return Pieces.of([Piece(0, size)])
 
 
 def _between_anchors(
