@@ -9,9 +9,10 @@ the framing of a polling capture. Weighed here, one takes about 20 µs.
 
 When nothing else in the segment can be read -- no CRC-valid span and no USS telegram starts
 after its first byte, no pause and no framing error lies inside, and its first byte starts
-exactly the two rule readings -- the programme's best path is one of these two (any other path
-is noise bytes, which score below zero, where a rule reading scores at least +6). Each path's
-score is the sum :class:`decoders.framing.programme._Programme` adds up along it:
+exactly the two rule readings -- the programme's best path is one of these two: any other path
+is noise bytes alone, which score below zero, where either reading scores at least 2 bits (a CRC's
+16, less 6 for a read sent to address 0, 3 for a user-defined function, 4 for a quantity out of
+range and 1 for the glitch). Each path's score is the sum the programme adds up along it:
 
 - the whole frame: its reading's evidence (:func:`~decoders.framing.evidence.valid_frames_at`),
   the expected direction or a retry (:func:`~decoders.framing.evidence.direction_bonus`), and
