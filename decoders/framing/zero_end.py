@@ -27,8 +27,6 @@ it. The weights stay in :mod:`decoders.framing.evidence`; the tests hold this to
 
 from __future__ import annotations
 
-from fastcrc import crc16
-
 from decoders.frame import MODBUS, FrameFlag
 from decoders.framing import evidence as ev
 from decoders.framing.content import MIN_ADU, OpenRequest, after_frame
@@ -47,13 +45,14 @@ def weighed_zero_end(data: bytes, context: Context, open_request: OpenRequest) -
     if (not context.closed or context.pauses or context.framing_errors or not MIN_ADU < size <= MAX_ADU
             or data[-1] != 0):
         return None
-    readings = ev.valid_frames_at(data, 0, size, search_unknown=True, search=ev.CrcSearch(data))
+    search = ev.CrcSearch(data)
+    readings = ev.valid_frames_at(data, 0, size, search_unknown=True, search=search)
     if len(readings) != 2 or {end for end, *_ in readings} != {size, size - 1}:
         return None
     if any(flags != FrameFlag.NONE or protocol != MODBUS or direction not in _RULE_DIRECTIONS
            for _, _, flags, protocol, direction in readings):
         return None
-    if not nothing_read_after_first_byte(data):
+    if not nothing_read_after_first_byte(data, search):
         return None
     (whole,) = (reading for reading in readings if reading[0] == size)
     (shorter,) = (reading for reading in readings if reading[0] == size - 1)
@@ -64,13 +63,14 @@ def weighed_zero_end(data: bytes, context: Context, open_request: OpenRequest) -
     return False, after_frame(data, open_request)
 
 
-def nothing_read_after_first_byte(data: bytes) -> bool:
-    """Whether no reading can start after the first byte: every one needs a CRC-valid span
-    (a Modbus frame, by rule or by search) or a USS telegram."""
+def nothing_read_after_first_byte(data: bytes, search: ev.CrcSearch) -> bool:
+    """Whether no reading can start after the first byte of ``data`` (``search``: its CRC
+    search): every one needs a CRC-valid span (a Modbus frame, by rule or by search) or a USS
+    telegram."""
     size = len(data)
     for start in range(1, size - MIN_ADU + 1):
         if data[start] == STX and uss_length(data[start:]) is not None:
             return False
-        if any(crc16.modbus(data[start:stop]) == 0 for stop in range(start + MIN_ADU, size + 1)):
+        if search.lengths(start, size):
             return False
     return True
