@@ -163,17 +163,18 @@ class ByteClock:
         inside = chunk_starts[(chunk_starts > first[0]) & (chunk_starts < stop)]
         # Mostly a chunk is a frame: few chunks begin inside a piece.
         extra = inside[~starts_piece[inside]]
-        ends = _run_ends(first, stop)
+        piece_ends = _run_ends(first, stop)
         if not len(extra):
-            return self.run_times(first, ends)
+            return self.run_times(first, piece_ends)
         # A piece's first run ends where the first chunk inside it begins; the runs of those
         # chunks (few) are timed apart, and their times folded into their pieces'.
         holder = np.searchsorted(first, extra) - 1
         first_inside = np.ones(len(extra), np.bool_)
         first_inside[1:] = holder[1:] != holder[:-1]
-        ends[holder[first_inside]] = extra[first_inside]
-        t_start, t_end = self.run_times(first, ends)
-        extra_ends = np.minimum(_run_ends(extra, stop), _run_ends(first, stop)[holder])
+        first_run_ends = piece_ends.copy()
+        first_run_ends[holder[first_inside]] = extra[first_inside]
+        t_start, t_end = self.run_times(first, first_run_ends)
+        extra_ends = np.minimum(_run_ends(extra, stop), piece_ends[holder])
         extra_starts, extra_stops = self.run_times(extra, extra_ends)
         np.minimum.at(t_start, holder, extra_starts)
         np.maximum.at(t_end, holder, extra_stops)

@@ -114,8 +114,13 @@ OWN_RULE[[24, 43, 43 | EXCEPTION_BIT]] = True
 
 
 def has_own_rule(data: bytes, starts: Int64Array) -> npt.NDArray[np.bool_]:
-    """Whether the segment at each of ``starts`` has a function code the tables cannot hold."""
-    own: npt.NDArray[np.bool_] = OWN_RULE[padded_bytes(data)[starts + 1]]
+    """Whether the segment at each of ``starts`` has a function code the tables cannot hold (a
+    segment of one byte at the end of ``data`` has none). Its bytes are read in place: the
+    starts are few, and a padded copy of the batch would cost more than they do."""
+    wire = np.frombuffer(data, np.uint8)
+    at = starts + 1
+    inside = at < len(wire)
+    own: npt.NDArray[np.bool_] = OWN_RULE[wire[np.where(inside, at, 0)]] & inside
     return own
 
 

@@ -7,6 +7,7 @@ import random
 from collections.abc import Callable
 from unittest import mock
 
+import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from pymodbus.pdu import file_message as fm
@@ -17,7 +18,7 @@ from decoders.capture import Chunk, ChunkBatch
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
 from decoders.framing.best_parse import clean_frame_end, parse_segment
-from decoders.framing.fast import clean_frame_ends
+from decoders.framing.fast import clean_frame_ends, has_own_rule
 from decoders.line import LineSettings
 from decoders.synthesis import Transmission, exact_chunks
 from tests.corpus import adu, exchange
@@ -204,3 +205,11 @@ def test_whole_frames_the_tables_leave_out_are_taken_without_the_parser() -> Non
     assert not [call for call in parsed.call_args_list if call.args[1].closed and not call.args[1].at_capture_end]
     assert [data for data, *_ in found] == sent
     assert found == frames(chunks, line, fast=False, batch=4)
+
+
+def test_own_rules_are_told_by_the_function_code_in_place() -> None:
+    """FC 43 (and its exception) and FC 24 have rules of their own; a one-byte segment at the
+    end of the batch has no function code at all, whatever byte 1 of the batch holds."""
+    data = bytes([43, 43, 0, 0, 5, 3, 0, 0, 6, 24, 0, 0, 7, 43 | 0x80, 0, 0, 9])
+    starts = np.array([0, 4, 8, 12, 16], np.int64)
+    assert has_own_rule(data, starts).tolist() == [True, False, True, True, False]
