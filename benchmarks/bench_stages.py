@@ -42,6 +42,7 @@ from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from decoders.profiles.apply import ProfileApplier
 from decoders.stats import Statistics
+from sniffer.allocator import keep_freed_memory
 from sniffer.cli import GC_YOUNG_THRESHOLD
 from sniffer.encoding.records import FrameRecordEncoder
 from sniffer.encoding.rows import join_rows
@@ -168,6 +169,7 @@ def main() -> None:
     parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated captures in this folder")
     args = parser.parse_args()
     gc.set_threshold(GC_YOUNG_THRESHOLD, *gc.get_threshold()[1:])
+    keep_freed_memory()  # as the command line does
     with tempfile.TemporaryDirectory() as tmp:
         captures = {traffic: benchmark_capture(args.keep or Path(tmp), args.frames, traffic) for traffic in TRAFFIC}
         print(f"frames/s, {args.frames:,} frames per capture")

@@ -27,6 +27,7 @@ from decoders.line import LineSettings
 from decoders.message import MessageBatch
 from decoders.pipeline import Decoder
 from decoders.stats import Statistics
+from sniffer.allocator import keep_freed_memory
 from sniffer.io.registry import open_reader
 from sniffer.pipeline import COUNTING_BATCH_BYTES, COUNTING_BATCH_CHUNKS
 
@@ -42,7 +43,9 @@ sys.exit(code)
 
 def stages(path: Path, repeat: int = 1) -> str:
     """Seconds of reading, framing, pairing and counting ``path``, in this process (framing and
-    pairing: the best of ``repeat`` passes, each with a new decoder)."""
+    pairing: the best of ``repeat`` passes, each with a new decoder); the allocator tuned as
+    the command line tunes it."""
+    keep_freed_memory()
     start = time.perf_counter()
     reader = open_reader(str(path))
     # Joined as `stats` joins them.

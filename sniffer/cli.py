@@ -15,6 +15,7 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
+from sniffer.allocator import keep_freed_memory
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import allow_replacing
 from sniffer.stopping import INTERRUPTED, TERMINATED, TerminatedError, restore_signals, terminate_raises
@@ -98,6 +99,7 @@ def joined_line_settings(argv: Sequence[str]) -> list[str]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     gc.set_threshold(GC_YOUNG_THRESHOLD, *gc.get_threshold()[1:])
+    keep_freed_memory()
     given = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(_command_in(given))
     args = parser.parse_args(joined_line_settings(given))
