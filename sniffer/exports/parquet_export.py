@@ -184,19 +184,24 @@ class ParquetDataset:
                 part.partial.unlink()
 
 
-def summaries(batch: AnnotatedBatch) -> list[str]:
-    """Every message's summary line, by position (of frames left in columns: written from them)."""
-    texts = [decoding.summary for decoding in batch.decodings]
-    columnar = batch.columnar
-    if columnar is not None:
-        for position, text in zip(columnar.positions.tolist(), columnar_parts(columnar, batch.messages).summaries(),
-                                  strict=True):
-            texts[position] = text
+def summaries(batch: AnnotatedBatch) -> npt.NDArray[np.object_]:
+    """Every message's summary line, by position (of frames left in columns: written from them),
+    placed by numpy: a Python loop over a million frames in columns took 60 ms more."""
+    decodings, columnar = batch.decodings, batch.columnar
+    texts = np.empty(len(decodings), object)
+    if columnar is None:
+        texts[:] = [decoding.summary for decoding in decodings]
+        return texts
+    decoded = np.ones(len(decodings), np.bool_)
+    decoded[columnar.positions] = False
+    rows = np.flatnonzero(decoded)
+    texts[rows] = [decodings[row].summary for row in rows.tolist()]
+    texts[columnar.positions] = columnar_parts(columnar, batch.messages).summaries()
     return texts
 
 
 def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], capture: str,
-                  texts: list[str]) -> dict[str, pa.Array]:
+                  texts: npt.NDArray[np.object_]) -> dict[str, pa.Array]:
     """The ``frames`` table's columns of the messages at ``positions`` (``texts``: :func:`summaries`)."""
     messages, frames = batch.messages, batch.messages.frames
     offsets = frames.offsets
@@ -222,8 +227,8 @@ def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], captu
         "latency_ms": pa.array(latency / 1e6, pa.float64(), mask=latency == NONE),
         "length": pa.array((ends - starts).astype(np.int32), pa.int32()),
         "bytes": raw,
-        "summary": pa.array(texts if len(positions) == len(texts) else list(map(texts.__getitem__, positions.tolist())),
-                            pa.string()),
+        # From a list: pyarrow reads one faster than an object array (0.49 against 0.68 ms for 8 000).
+        "summary": pa.array((texts if len(positions) == len(texts) else texts[positions]).tolist(), pa.string()),
         "protocol": dictionary(frames.protocols()[positions], pa.array(["modbus", "uss"])),
     }
     return columns
@@ -244,7 +249,7 @@ def transaction_columns(values: dict[str, npt.NDArray[np.int64]]) -> dict[str, p
     }
 
 
-def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], texts: list[str]) -> tuple[
+def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], texts: npt.NDArray[np.object_]) -> tuple[
         npt.NDArray[np.int64], dict[str, pa.Array]]:
     """The ``anomalies`` table: a row per kind each message at ``positions`` shows, in frame order
     (``texts``: :func:`summaries`)."""
@@ -266,7 +271,7 @@ def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], tex
         "function": nullable(messages.function[row], pa.int16()),
         "kind": dictionary(kind, _KINDS),
         "exception_code": nullable(messages.exception_code[row], pa.int16()),
-        "summary": pa.array(list(map(texts.__getitem__, row.tolist())), pa.string()),
+        "summary": pa.array(texts[row].tolist(), pa.string()),
     }
 
 
