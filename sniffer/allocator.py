@@ -10,14 +10,17 @@ already there; ``M_MMAP_THRESHOLD`` at :data:`MMAP_THRESHOLD` (the largest glibc
 threshold reaches by itself) keeps arrays of up to 32 MB on the heap. Both are needed: a pad
 set alone turns the adaptive threshold off at 128 KB, and asked for once the heap exists (as
 here: the interpreter has started) every array above that came from a fresh mapping, 10 to 15
-times the faults of no pad at all. Measured here (``/usr/bin/time -v rtusniff stats``, the pad given through
-glibc's own ``MALLOC_TOP_PAD_``): 5 M polling frames 80 000 → 12 000 page faults, system time
-0.23 → 0.08 s (median of 8, alternating); a saturated day of 35 M polling frames 21.4 and
-21.9 s → 19.2 and 19.5 s, peak RSS unchanged (68 MB). A pad of 16 MB left mixed, steady and
-USB traffic with more faults than before; 64 MB fits every benchmark traffic.
+times the faults of no pad at all. A pad of 16 MB left mixed, steady and USB traffic with more
+faults than before; 64 MB fits every benchmark traffic.
 
-Pages of the pad count in the resident set only once written, and the set's peak is the same:
-the pad is what the batches' arrays use anyway. Elsewhere (Windows, macOS, musl) nothing is
+Measured here (``/usr/bin/time -v``, each command in a fresh process, with and without,
+alternating): ``stats`` of 5 M polling frames 80 000 → 12 000 page faults, system time 0.23 →
+0.08 s; a saturated day of 35 M polling frames, five rounds, system time 1.1 → 0.2 s and
+wall time a mean of 21.07 → 19.97 s (best 19.18 → 18.03 s), peak RSS unchanged (67 MB).
+
+Pages of the pad count in the resident set only once written, and they are what the batches'
+arrays use anyway: the peak RSS of ``stats`` is the same, of the exports within 10 MB
+(``docs/performance.md``). Elsewhere (Windows, macOS, musl) nothing is
 asked and nothing changes. Where the environment tunes glibc's allocator itself
 (``MALLOC_TOP_PAD_``, ``MALLOC_MMAP_THRESHOLD_``, ``MALLOC_TRIM_THRESHOLD_``, ``GLIBC_TUNABLES``),
 it decides.

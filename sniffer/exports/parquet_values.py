@@ -4,8 +4,8 @@ found (the rule of :mod:`sniffer.encoding.value_rows`).
 Three sources make its rows: values a profile names (a tuple each, names and units as text),
 runs of values no profile names (laid out by numpy), and the frames the annotator left in
 columns (``AnnotatedBatch.columnar``: laid out by numpy from the frames' bytes, no object per
-frame; where a profile names them, each distinct named value's row is made once and the rows
-take their code, name, value, text, unit and validity from it). Each row carries the frame index
+frame; where a profile names them, each distinct named value of a batch is read once and the
+rows take their code, name, value, text, unit and validity from it). Each row carries the frame index
 where it was found (a written value is found at its answer), which puts the three back in one
 order.
 """
