@@ -219,15 +219,13 @@ class ValueCollector(ValueRows):
 
 def _named_block(params: tuple[ParamValue, ...], *, written: bool, crc_ok: bool) -> NamedBlock:
     """The values of ``params`` that carry a raw value, each valid as the rule says."""
-    block = []
-    for param in params:
-        if param.raw is not None:
-            value = param.value
-            number = float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
-            text = value if isinstance(value, str) else None
-            block.append((param.address, param.code, param.name, param.raw, number, text, param.unit,
-                          crc_ok and (param.available or written)))
-    return tuple(block)
+    carried = [param for param in params if param.raw is not None]
+    if not carried:
+        return ()
+    _, _, number, text, _, _ = _named_columns_of(carried)
+    return tuple((param.address, param.code, param.name, param.raw, each_number, each_text, param.unit,
+                  crc_ok and (param.available or written))
+                 for param, each_number, each_text in zip(carried, number, text, strict=True))
 
 
 def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
@@ -375,7 +373,7 @@ def _with_names(rows: NumericValues, names: list[NamedValue]) -> tuple[npt.NDArr
     """:func:`_numeric_columns` where a profile names some rows: theirs as :func:`_named_block`
     has them (reported, the CRC good), each named value's read once and taken by the rows."""
     t_ns, columns = _numeric_columns(dataclasses.replace(rows, names=None))
-    code, name, number, text, unit, available = _named_columns_of([param for param, _ in names])
+    code, name, number, text, unit, available = _named_columns_of([param for param, _ in names] + [_NO_PARAM])
     rows_named = rows.name >= 0
     taken = pa.array(np.where(rows_named, rows.name, len(names)))  # unnamed: the entry after the last
 
@@ -394,18 +392,18 @@ def _with_names(rows: NumericValues, names: list[NamedValue]) -> tuple[npt.NDArr
 
 def _named_columns_of(params: list[ParamValue]) -> tuple[list[str | None], list[str | None], list[float | None],
                                                          list[str | None], list[str | None], list[bool]]:
-    """The code, name, number, text, unit and validity of each of ``params`` as :func:`_named_block`
-    has them, and one entry more, of no param; each column one pass in C or one comprehension.
-    (A param without a raw value, a read request's, is in the table too, but no value row takes
-    it.) Read from the params themselves: rows kept by each param's identity, looked up among
-    the other work of a batch, cost more (0.65 to 0.67 s against 0.53 to 0.55 s for 1 M mixed frames)."""
-    fields = list(map(_PARAM_FIELDS, params))
-    fields.append(_NO_PARAM)
-    code, name, value, unit, available = map(list, zip(*fields, strict=True))
+    """The code, name, number (not a bool), text, unit and availability of each of ``params``
+    (at least one), each column one pass in C or one comprehension: the one rule of what the
+    ``value`` and ``text`` columns hold. Read from the params themselves: rows kept by each
+    param's identity, looked up among the other work of a batch, cost more (0.65 to 0.67 s
+    against 0.53 to 0.55 s for 1 M mixed frames)."""
+    code, name, value, unit, available = map(list, zip(*map(_PARAM_FIELDS, params), strict=True))
     number = [float(each) if isinstance(each, int | float) and not isinstance(each, bool) else None for each in value]
     text = [each if isinstance(each, str) else None for each in value]
     return code, name, number, text, unit, available
 
 
 _PARAM_FIELDS = operator.attrgetter("code", "name", "value", "unit", "available")
-_NO_PARAM = (None, None, None, None, True)
+#: A param naming nothing: the entry the rows no profile names take (null texts, valid). A param
+#: without a raw value, a read request's, is in a batch's table too, but no value row takes it.
+_NO_PARAM = ParamValue(0)
