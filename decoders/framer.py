@@ -39,7 +39,13 @@ from decoders.frame import NO_IDLE, FrameBatch, FrameFlag
 from decoders.framing.best_parse import Pieces, SegmentParse, parse_segment
 from decoders.framing.content import OpenRequest, replayed_open_request
 from decoders.framing.delivery import DeliveryDelay
-from decoders.framing.fast import frame_pair_segments, has_own_rule, single_frame_segments, whole_by_own_rule
+from decoders.framing.fast import (
+    clean_whole,
+    frame_pair_segments,
+    has_own_rule,
+    single_frame_segments,
+    whole_by_own_rule,
+)
 from decoders.framing.programme import Context
 from decoders.line import LineSettings
 from decoders.memo import Memo
@@ -193,15 +199,24 @@ class Framer:
         pieces in bulk, the rest through the content parser (``pauses``: the bytes after a
         silence > t1.5; ``kinds``: the bytes' UART errors)."""
         seg_starts, seg_ends = bounds[:-1], bounds[1:]
-        single = single_frame_segments(data, seg_starts, seg_ends, crc_ok_many(data, bounds))
+        single, zero_ended = single_frame_segments(data, seg_starts, seg_ends, crc_ok_many(data, bounds))
         if not self.fast:
             single[:] = False
-        slow = np.flatnonzero(~single)
+        #: Segments only the programme can cut: no pair, no frame and stray bytes.
+        to_parse = np.zeros(len(single), np.bool_)
+        if self.fast and zero_ended.any():
+            ended = np.flatnonzero(zero_ended)
+            clean, settled = clean_whole(data, seg_starts[ended], seg_ends[ended])
+            single[ended] = clean
+            to_parse[ended] = settled & ~clean
+        slow = np.flatnonzero(~single & ~to_parse)
         paired = None
         if self.fast and len(slow):
             # Whole frames the vectorised test left out (ending in 0x00, a rule walking the
             # content) are found with the pairs; the pieces of the pairs are known too.
             paired, slow = self._pairs(data, pauses, (seg_starts[slow], seg_ends[slow]), slow, single)
+        if to_parse.any():  # apart from the slow ones: in order again
+            slow = np.sort(np.concatenate([slow, np.flatnonzero(to_parse)]))
         known = Pieces.frames(seg_starts[single], seg_ends[single])
         whole = Pieces.join([known, paired]).in_order() if paired is not None and len(paired) else known
         frames = ~whole.is_noise

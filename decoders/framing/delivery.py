@@ -61,8 +61,8 @@ class DeliveryDelay:
         lengths = last - first
         functions = padded[first + 1].astype(np.intp)
         plain = (functions & EXCEPTION_BIT) == 0
-        as_request = plain & (lengths == REQUEST_RULES.lengths(padded, first, functions, lengths))
-        as_response = plain & (lengths == RESPONSE_RULES.lengths(padded, first, functions, lengths))
+        as_request = plain & REQUEST_RULES.fits(padded, first, functions, lengths)
+        as_response = plain & RESPONSE_RULES.fits(padded, first, functions, lengths)
         ask = as_request[:-1] & ~as_response[:-1]
         answer = as_response[1:] & ~as_request[1:]
         same = (padded[first[:-1]] == padded[first[1:]]) & (functions[:-1] == functions[1:]) & (padded[first[1:]] != 0)

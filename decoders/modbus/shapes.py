@@ -47,8 +47,8 @@ def frame_shapes(frames: FrameBatch) -> Shapes:
     b2, b3, b4, b5 = (padded[starts + k].astype(np.int64) for k in (2, 3, 4, 5))
     long_enough = lengths >= MIN_ADU
     exception = (raw & EXCEPTION_BIT) != 0
-    fits_req = long_enough & ~exception & (lengths == REQUEST_RULES.lengths(padded, starts, raw, lengths))
-    fits_resp = long_enough & ~exception & (lengths == RESPONSE_RULES.lengths(padded, starts, raw, lengths))
+    fits_req = long_enough & ~exception & REQUEST_RULES.fits(padded, starts, raw, lengths)
+    fits_resp = long_enough & ~exception & RESPONSE_RULES.fits(padded, starts, raw, lengths)
     exception_fit = long_enough & exception & (
         (lengths == EXCEPTION_LENGTH) | ((raw == (43 | EXCEPTION_BIT)) & (lengths == MEI_EXCEPTION_LENGTH))
     )

@@ -18,8 +18,15 @@ from decoders.capture import Chunk, ChunkBatch
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
 from decoders.framing.best_parse import clean_frame_end, parse_segment
-from decoders.framing.fast import clean_frame_ends, has_own_rule
+from decoders.framing.fast import (
+    clean_frame_ends,
+    clean_whole,
+    frame_pair_segments,
+    has_own_rule,
+    single_frame_segments,
+)
 from decoders.line import LineSettings
+from decoders.modbus.layouts import LAYOUTS
 from decoders.synthesis import Transmission, exact_chunks
 from tests.corpus import adu, exchange
 from tests.property.test_framer_properties import LINES, T0
@@ -139,6 +146,34 @@ def test_clean_frames_found_in_bulk_as_one_by_one(pieces: list[str], data: bytes
     parts = {"echo": echo, "longer": echo + _longer_reading(echo, extra), "noise": data}
     stream = b"".join(parts[name] for name in pieces)
     assert clean_frame_ends(stream).tolist() == [clean_frame_end(stream, k, len(stream)) for k in range(len(stream))]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 255), st.sampled_from(sorted(LAYOUTS)) | st.integers(0, 255),
+                          st.binary(max_size=12), st.integers(0, 3)), min_size=1, max_size=30))
+@example([(1, 8, bytes.fromhex("00001234"), 0), (1, 8, bytes.fromhex("00001234"), 2)])  # echoes
+@example([(1, 3, bytes.fromhex("02abcd"), 1)])  # an 8-byte FC 3 request ending in 0x00, and a 7-byte answer
+def test_segments_ending_in_zero_are_whole_in_columns_as_one_by_one(
+    drawn: list[tuple[int, int, bytes, int]],
+) -> None:
+    """Segments that pass the CRC (a frame, then up to three 0x00 that keep it passing): whole
+    by :func:`clean_whole` only where the scalar clean-frame rule reads the whole segment, FC 8
+    echoes left out."""
+    segments = []
+    for address, function, rest, zeros in drawn:
+        body = bytes([address, function]) + rest
+        segments.append(body + crc_bytes(body) + bytes(zeros))
+    bounds = np.cumsum([0, *map(len, segments)]).astype(np.int64)
+    stream = b"".join(segments)
+    whole, settled = clean_whole(stream, bounds[:-1], bounds[1:])
+    echoes = [segment[1] == 8 and segment[2:4] == b"\0\0" for segment in segments]
+    assert settled.tolist() == [not echo for echo in echoes]
+    assert whole.tolist() == [clean_frame_end(segment, 0, len(segment)) == len(segment) and not echo
+                              for segment, echo in zip(segments, echoes, strict=True)]
+    # Of those that fit their rule, settled and not whole: no pair nor frame and stray bytes.
+    fitting = np.logical_or(*single_frame_segments(stream, bounds[:-1], bounds[1:], np.ones(len(segments), np.bool_)))
+    first_length, _, pair_whole = frame_pair_segments(stream, bounds[:-1], bounds[1:], None)
+    assert not (fitting & settled & ~whole & ((first_length > 0) | pair_whole)).any()
 
 
 def test_an_echo_with_a_longer_reading_is_no_clean_frame() -> None:
