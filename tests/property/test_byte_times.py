@@ -113,3 +113,26 @@ def test_pieces_are_timed_by_their_earliest_start_and_latest_end(batch: ChunkBat
     bounds = [*first, stop]
     assert t_start.tolist() == [int(starts[a:b].min()) for a, b in pairwise(bounds)]
     assert t_end.tolist() == [int(ends[a:b].max()) for a, b in pairwise(bounds)]
+
+
+@given(batches(), CHAR_TIMES, st.data())
+def test_pieces_that_begin_chunks_are_timed_as_the_reference_times_them(
+    batch: ChunkBatch, char_time_ns: float, data: st.DataObject,
+) -> None:
+    """Pieces beginning where chunks begin (most frames are a chunk; a few, two or more), the
+    first one perhaps inside a chunk: their chunks counted, not searched."""
+    clock = ByteClock.of(batch, char_time_ns)
+    if len(clock) < 2:
+        return
+    chunk_starts = np.concatenate([[0], clock.ends[:-1]]).tolist()
+    begin = data.draw(st.sampled_from(chunk_starts) | st.integers(0, len(clock) - 1))
+    later = [start for start in chunk_starts if start > begin]
+    first = [begin, *(sorted(data.draw(st.sets(st.sampled_from(later)))) if later else [])]
+    stop = data.draw(st.integers(first[-1] + 1, len(clock)))
+    starts_piece = np.zeros(stop + 1, np.bool_)
+    starts_piece[first] = True
+    t_start, t_end = clock.piece_times(clock.silences()[0], np.array(first, np.int64), starts_piece)
+    starts, ends = byte_times_reference(batch, char_time_ns)
+    bounds = [*first, stop]
+    assert t_start.tolist() == [int(starts[a:b].min()) for a, b in pairwise(bounds)]
+    assert t_end.tolist() == [int(ends[a:b].max()) for a, b in pairwise(bounds)]
