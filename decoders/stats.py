@@ -439,6 +439,6 @@ def request_signatures(frames: FrameBatch, rows: npt.NDArray[np.intp]) -> npt.ND
     padded = padded_bytes(frames.data)
     head = np.zeros(len(rows), np.int64)
     for k in range(6):
-        head = (head << 8) | padded[starts + k]
-    tail = padded[ends - 2].astype(np.int64) << 8 | padded[ends - 1]
+        head = (head << 8) | padded[k:].take(starts)  # byte k, no index array made
+    tail = padded.take(ends - 2).astype(np.int64) << 8 | padded.take(ends - 1)
     return (head << 16 | tail) ^ ((ends - starts) << 56)

