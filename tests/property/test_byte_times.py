@@ -96,15 +96,11 @@ def test_char_times_rounded_by_table_as_by_multiplying(runs: list[list[int]], ch
             np.rint(column * char_time_ns).astype(np.int64).tolist()
 
 
-@given(batches(), CHAR_TIMES, st.data())
-def test_pieces_are_timed_by_their_earliest_start_and_latest_end(batch: ChunkBatch, char_time_ns: float,
-                                                                 data: st.DataObject) -> None:
-    """A piece that chunks cut (a frame of two reads, reads whose times overlap) takes the
-    earliest start and the latest end of its bytes, as the framer times frames."""
+def _pieces_timed_as_the_reference_times_them(batch: ChunkBatch, char_time_ns: float, first: list[int],
+                                              data: st.DataObject) -> None:
+    """Pieces from each of ``first`` (the last up to a drawn end): the earliest start and the
+    latest end of their bytes by the reference."""
     clock = ByteClock.of(batch, char_time_ns)
-    if not len(clock):
-        return
-    first = sorted(data.draw(st.sets(st.integers(0, len(clock) - 1), min_size=1, max_size=30)))
     stop = data.draw(st.integers(first[-1] + 1, len(clock)))
     starts_piece = np.zeros(stop + 1, np.bool_)
     starts_piece[first] = True
@@ -113,6 +109,18 @@ def test_pieces_are_timed_by_their_earliest_start_and_latest_end(batch: ChunkBat
     bounds = [*first, stop]
     assert t_start.tolist() == [int(starts[a:b].min()) for a, b in pairwise(bounds)]
     assert t_end.tolist() == [int(ends[a:b].max()) for a, b in pairwise(bounds)]
+
+
+@given(batches(), CHAR_TIMES, st.data())
+def test_pieces_are_timed_by_their_earliest_start_and_latest_end(batch: ChunkBatch, char_time_ns: float,
+                                                                 data: st.DataObject) -> None:
+    """A piece that chunks cut (a frame of two reads, reads whose times overlap) takes the
+    earliest start and the latest end of its bytes, as the framer times frames."""
+    size = int(batch.ends[-1])
+    if not size:
+        return
+    first = sorted(data.draw(st.sets(st.integers(0, size - 1), min_size=1, max_size=30)))
+    _pieces_timed_as_the_reference_times_them(batch, char_time_ns, first, data)
 
 
 @given(batches(), CHAR_TIMES, st.data())
@@ -128,11 +136,4 @@ def test_pieces_that_begin_chunks_are_timed_as_the_reference_times_them(
     begin = data.draw(st.sampled_from(chunk_starts) | st.integers(0, len(clock) - 1))
     later = [start for start in chunk_starts if start > begin]
     first = [begin, *(sorted(data.draw(st.sets(st.sampled_from(later)))) if later else [])]
-    stop = data.draw(st.integers(first[-1] + 1, len(clock)))
-    starts_piece = np.zeros(stop + 1, np.bool_)
-    starts_piece[first] = True
-    t_start, t_end = clock.piece_times(clock.silences()[0], np.array(first, np.int64), starts_piece)
-    starts, ends = byte_times_reference(batch, char_time_ns)
-    bounds = [*first, stop]
-    assert t_start.tolist() == [int(starts[a:b].min()) for a, b in pairwise(bounds)]
-    assert t_end.tolist() == [int(ends[a:b].max()) for a, b in pairwise(bounds)]
+    _pieces_timed_as_the_reference_times_them(batch, char_time_ns, first, data)
