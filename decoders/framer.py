@@ -202,7 +202,7 @@ class Framer:
         single, zero_ended = single_frame_segments(data, seg_starts, seg_ends, crc_ok_many(data, bounds))
         if not self.fast:
             single[:] = False
-        #: Segments only the programme can cut: no pair, no frame and stray bytes.
+        # Segments only the programme can cut: no pair, no frame and stray bytes.
         to_parse = np.zeros(len(single), np.bool_)
         if self.fast and zero_ended.any():
             ended = np.flatnonzero(zero_ended)
