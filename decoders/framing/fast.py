@@ -199,17 +199,20 @@ def clean_whole(
     weighs them. Of the settled ones, those not whole are no pair nor a frame and stray bytes
     either (the clean frame at their start, if any, is the whole segment): only the programme
     can cut them."""
-    padded = padded_bytes(data)
+    # Read in place, as has_own_rule reads: the segments are few, a padded copy of the batch
+    # would cost more. A segment that fits a rule has its first MIN_ADU bytes.
+    wire = np.frombuffer(data, np.uint8)
     lengths = ends - starts
-    functions = padded[starts + 1].astype(np.intp)
-    settled = ~((functions == DIAGNOSTICS) & (padded[starts + 2] == 0) & (padded[starts + 3] == 0))
-    whole = ((padded[starts] - np.uint8(1)) < np.uint8(MAX_ADDRESS)) & (lengths >= MIN_ADU) & settled
+    functions = wire[starts + 1].astype(np.intp)
+    settled = ~((functions == DIAGNOSTICS) & (wire[starts + 2] == 0) & (wire[starts + 3] == 0))
+    whole = ((wire[starts] - np.uint8(1)) < np.uint8(MAX_ADDRESS)) & (lengths >= MIN_ADU) & settled
     reaches_end = np.zeros(len(starts), np.bool_)
     for slot in (0, 1):
         at = _CLEAN_POSITION[slot, functions]
-        rule = np.where(at >= 0, _CLEAN_BASE[slot, functions] + padded[starts + np.maximum(at, 0)],
-                        _CLEAN_FIXED[slot, functions])
-        # No rule: 0. A count read past the segment's end gives a length past it too.
+        # A count past the segment's end (read at its last byte instead) gives a length past it.
+        count = wire[np.minimum(starts + np.maximum(at, 0), ends - 1)]
+        rule = np.where(at >= 0, _CLEAN_BASE[slot, functions] + count, _CLEAN_FIXED[slot, functions])
+        # No rule: 0.
         usable = (rule > 0) & (rule <= lengths)
         reaches_end |= usable & (rule == lengths)
         shorter = np.flatnonzero(usable & (rule < lengths) & whole)
