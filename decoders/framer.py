@@ -214,7 +214,7 @@ class Framer:
         if self.fast and len(slow):
             # Whole frames the vectorised test left out (ending in 0x00, a rule walking the
             # content) are found with the pairs; the pieces of the pairs are known too.
-            paired, slow = self._pairs(data, pauses, (seg_starts[slow], seg_ends[slow]), slow, single)
+            paired, slow = self._pairs(data, (pauses, kinds), (seg_starts[slow], seg_ends[slow]), slow, single)
         if to_parse.any():  # apart from the slow ones: in order again
             slow = np.sort(np.concatenate([slow, np.flatnonzero(to_parse)]))
         known = Pieces.frames(seg_starts[single], seg_ends[single])
@@ -237,17 +237,20 @@ class Framer:
             self._at_capture_start = False
         return Pieces.join([whole, *parsed]).in_order() if parsed else whole
 
-    def _pairs(self, data: bytes, pauses: Int64Array, segments: tuple[Int64Array, Int64Array],
+    def _pairs(self, data: bytes, marks: tuple[Int64Array, UInt8Array | None], segments: tuple[Int64Array, Int64Array],
                which: Int64Array, single: npt.NDArray[np.bool_]) -> tuple[Pieces, Int64Array]:
         """Of the segments ``which`` (their bounds: ``segments``): those that are one whole
         frame marked in ``single``; the pieces of those that are two frames or a frame and a few
-        stray bytes; and the indexes of the others."""
+        stray bytes; and the indexes of the others (``marks``: the bytes after a pause, the
+        bytes' UART errors)."""
         seg_starts, seg_ends = segments
+        pauses, kinds = marks
         pause_at = None
         if self.timing is TimingQuality.EXACT:
             pause_at = np.zeros(len(data), np.bool_)
             pause_at[pauses] = True
-        first_length, second_frame, whole = frame_pair_segments(data, seg_starts, seg_ends, pause_at)
+        error_at = None if kinds is None else (kinds & UartError.FRAMING) != 0
+        first_length, second_frame, whole = frame_pair_segments(data, seg_starts, seg_ends, pause_at, error_at)
         for index in np.flatnonzero(~whole & has_own_rule(data, seg_starts)).tolist():
             whole[index] = whole_by_own_rule(data[int(seg_starts[index]) : int(seg_ends[index])])
         single[which[whole]] = True

@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from decoders.capture import UartError
 from decoders.frame import FrameBatch, FrameFlag
-from decoders.framing.fast import padded_bytes
+from decoders.framing.rule_tables import padded_bytes
 from decoders.hashing import FIBONACCI
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, ROLE_ORDER, MessageBatch, Role
 from decoders.stats_tally import KEY_SPAN, LATENCY, POLL_PERIOD, FunctionTally

@@ -49,8 +49,9 @@ from decoders.capture import Int64Array
 from decoders.frame import FrameFlag
 from decoders.framing import evidence as ev
 from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, replayed_open_request
+from decoders.framing.crossing import uncrossed
 from decoders.framing.fast import clean_frame_ends
-from decoders.framing.programme import MAX_EDGE, Context, Piece, Region, best_pieces
+from decoders.framing.programme import MAX_EDGE, Context, Piece, Region, best_pieces, best_pieces_before_anchor
 from decoders.framing.zero_end import weighed_zero_end
 from decoders.modbus.layouts import MAX_ADU
 
@@ -135,11 +136,17 @@ def parse_segment(
         glitch, open_request = weighed
         return SegmentParse(_weighed_pieces(end, glitch), end, open_request)
     search = ev.CrcSearch(data)
+    readings: list[tuple[Int64Array, Int64Array]] | None = None
     if end < SMALL_SEGMENT:
-        starts, stops = _anchors_small(data, context)
+        small_starts, small_stops = _anchors_small(data, context)
+        anchor_starts, anchor_ends = np.array(small_starts, np.int64), np.array(small_stops, np.int64)
     else:
-        anchor_starts, anchor_ends = _anchors_of(_clean_frames(data, context), data, context)
-        starts, stops = anchor_starts.tolist(), anchor_ends.tolist()
+        readings = []
+        anchor_starts, anchor_ends = _anchors_of(_clean_frames(data, search, readings), data, context)
+    kept = uncrossed(data, context, search, (anchor_starts, anchor_ends), readings)
+    if not kept.all():
+        anchor_starts, anchor_ends = anchor_starts[kept], anchor_ends[kept]
+    starts, stops = anchor_starts.tolist(), anchor_ends.tolist()
     pieces, open_request = _between_anchors(data, context, search, (starts, stops), open_request)
     position = stops[-1] if stops else 0
     if context.closed:
@@ -156,6 +163,8 @@ def parse_segment(
         pieces.extend(Piece(a, b) for a, b in zip(starts, stops, strict=True))
         pieces.sort(key=lambda piece: piece.start)
         return SegmentParse(Pieces.of(pieces), position, open_request)
+    if len(starts) < len(anchor_starts):  # the programme dropped some (crossing.py, rule 1)
+        anchor_starts, anchor_ends = np.array(starts, np.int64), np.array(stops, np.int64)
     columns = Pieces.join([Pieces.frames(anchor_starts, anchor_ends), Pieces.of(pieces)]).in_order()
     return SegmentParse(columns, position, open_request)
 
@@ -174,19 +183,32 @@ def _between_anchors(
     open_request: OpenRequest,
 ) -> tuple[list[Piece], OpenRequest]:
     """The programme's pieces between consecutive anchors (not the anchors themselves),
-    and the open request after the last anchor."""
+    and the open request after the last anchor. An anchor a reading from the gap before it
+    crosses is none (:mod:`decoders.framing.crossing`, rule 1): it leaves ``anchors`` (lists,
+    changed in place) and its bytes are parsed with the gap's."""
     starts, stops = anchors
     pieces: list[Piece] = []
-    previous_ends = [0, *stops]
+    gaps = [k for k in range(len(starts)) if starts[k] > (stops[k - 1] if k else 0)]  # anchors after a gap
     since = 0  # anchors since the open request was last known: replayed only where needed
-    for index in [k for k in range(len(starts)) if starts[k] > previous_ends[k]]:
-        position = previous_ends[index]
-        open_request = replayed_open_request(data, anchors, range(since, index), open_request)
+    dropped = 0  # anchors dropped so far: the indexes in ``gaps`` past them are this much less now
+    taken = 0
+    index: int | None = None
+    while index is not None or taken < len(gaps):
+        if index is None:
+            index, taken = gaps[taken] - dropped, taken + 1
+        position = stops[index - 1] if index else 0
+        before = replayed_open_request(data, anchors, range(since, index), open_request)
         region = Region(data, position, starts[index], context, search, after_frame=_after_frame(position, context),
                         before_frame=True)
-        gap = best_pieces(region, open_request)
+        gap = best_pieces_before_anchor(region, before)
+        if gap is None:  # the anchor goes; the next one, if it touched it, ends the gap now
+            del starts[index], stops[index]
+            dropped += 1
+            if index == len(starts) or (taken < len(gaps) and gaps[taken] - dropped == index):
+                index = None
+            continue
         pieces.extend(gap.pieces)
-        open_request, since = gap.open_request, index
+        open_request, since, index = gap.open_request, index, None
     return pieces, replayed_open_request(data, anchors, range(since, len(starts)), open_request)
 
 
@@ -267,11 +289,13 @@ def _anchors_small(data: bytes, context: Context) -> tuple[list[int], list[int]]
     return starts, stops
 
 
-def _clean_frames(data: bytes, context: Context) -> tuple[Int64Array, Int64Array]:
+def _clean_frames(data: bytes, search: ev.CrcSearch,
+                  readings: list[tuple[Int64Array, Int64Array]]) -> tuple[Int64Array, Int64Array]:
     """Clean frames that no other clean frame starts inside of or covers the start of
-    (two readings that overlap are for the programme to weigh)."""
+    (two readings that overlap are for the programme to weigh); the readings by rule found on
+    the way into ``readings`` (:func:`~decoders.framing.fast.clean_frame_ends`)."""
     end = len(data)
-    ends = clean_frame_ends(data)
+    ends = clean_frame_ends(data, registers=search.registers, readings=readings)
     starts_before = np.zeros(end + 1, np.int64)
     np.cumsum(ends > 0, out=starts_before[1:])
     covered_to = np.zeros(end + 1, np.int64)  # covered_to[q]: the furthest end of a frame starting before q

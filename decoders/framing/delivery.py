@@ -22,7 +22,7 @@ import numpy.typing as npt
 
 from decoders.byte_times import ByteClock
 from decoders.capture import Int64Array
-from decoders.framing.fast import REQUEST_RULES, RESPONSE_RULES, padded_bytes
+from decoders.framing.rule_tables import REQUEST_RULES, RESPONSE_RULES, padded_bytes
 from decoders.modbus.codes import EXCEPTION_BIT
 
 

@@ -202,16 +202,21 @@ class CrcSearch:
         self.data = data
         self._registers: npt.NDArray[np.uint32] | None = None
 
+    @property
+    def registers(self) -> npt.NDArray[np.uint32]:
+        """:func:`~decoders.crc.prefix_registers` of the run (computed once, and shared)."""
+        if self._registers is None:
+            self._registers = prefix_registers(self.data)
+        return self._registers
+
     def lengths(self, start: int, stop: int) -> list[int]:
         """Lengths ``MIN_ADU..min(MAX_ADU, stop - start)`` whose span passes the CRC."""
         longest = min(MAX_ADU, stop - start)
-        if len(self.data) < SCALAR_SEARCH_BYTES:
+        if len(self.data) < SCALAR_SEARCH_BYTES and self._registers is None:
             # A short run: prefix registers would cost more than the CRC calls.
             data = self.data
             return [n for n in range(MIN_ADU, longest + 1) if crc16.modbus(data[start : start + n]) == 0]
-        if self._registers is None:
-            self._registers = prefix_registers(self.data)
-        return crc_ok_lengths(self._registers, start, MIN_ADU, longest)
+        return crc_ok_lengths(self.registers, start, MIN_ADU, longest)
 
 
 def valid_frames_at(data: bytes, start: int, stop: int, *, search_unknown: bool, search: CrcSearch) -> list[Reading]:

@@ -16,8 +16,6 @@ also tells which of them only the programme can cut; the others with the pairs
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import numpy.typing as npt
 from fastcrc import crc16
@@ -25,63 +23,18 @@ from fastcrc import crc16
 from decoders.capture import Int64Array
 from decoders.crc import crc_ok_spans, prefix_registers
 from decoders.framing.content import MAX_ADDRESS, MIN_ADU, rule_lengths
-from decoders.framing.evidence import CLEAN_RULES
+from decoders.framing.evidence import CLEAN_RULES, whole_run_frame
+from decoders.framing.rule_tables import (
+    NO_RULE,
+    OWN_RULE,
+    PLAIN_EXCEPTION,
+    REQUEST_RULES,
+    RESPONSE_RULES,
+    checked_readings,
+    padded_bytes,
+)
 from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT
-from decoders.modbus.layouts import EXCEPTION_LENGTH, LAYOUTS, MAX_ADU, LengthRule
-
-#: Bytes read past a segment's start to find byte counts (FC 23's sits at 10).
-_PAD = 16
-_NONE = -1
-
-
-@dataclass(frozen=True)
-class _RuleTable:
-    """A length rule per function code, ``base + scale * byte[position]`` (a fixed length:
-    scale 0 and position 0, which every segment has), as two arrays: ``position`` by function
-    code, and the rule's length by function code and byte read (``-1``: no rule)."""
-
-    position: npt.NDArray[np.intp]
-    #: ``length[function << 8 | byte]``, narrow so that the table (128 kB) stays in the cache.
-    length: npt.NDArray[np.int16]
-
-    @classmethod
-    def build(cls, direction: str) -> _RuleTable:
-        position = np.zeros(256, np.intp)
-        length = np.full((256, 256), _NONE, np.int16)
-        for function, layout in LAYOUTS.items():
-            rule: LengthRule = getattr(layout, direction)
-            if rule.fixed is not None:
-                length[function] = rule.fixed
-            elif rule.position is not None and rule.size == 1:
-                # A byte count comes before at least itself and the CRC: a rule's length is past
-                # its position, which :meth:`fits` needs.
-                assert rule.base > rule.position
-                position[function] = rule.position
-                length[function] = rule.base + np.arange(256)
-        return cls(position, length.ravel())
-
-    def fits(self, padded: npt.NDArray[np.uint8], starts: Int64Array, functions: npt.NDArray[np.intp],
-             seg_lengths: Int64Array) -> npt.NDArray[np.bool_]:
-        """Whether each segment is as long as this table's rule for its function code says.
-        A byte count read past a segment's end (from the next bytes or the padding) never makes
-        it fit: its rule's length is longer than its position, so than the segment."""
-        keys = (functions << 8) | padded[starts + self.position.take(functions)]
-        fitting: npt.NDArray[np.bool_] = self.length.take(keys) == seg_lengths
-        return fitting
-
-
-REQUEST_RULES = _RuleTable.build("request")
-RESPONSE_RULES = _RuleTable.build("response")
-_HAS_LAYOUT = np.zeros(256, np.bool_)
-_HAS_LAYOUT[list(LAYOUTS)] = True
-#: The Altivar's FC 43 negative answer is 6 bytes, not 5; the parser handles it.
-_PLAIN_EXCEPTION = _HAS_LAYOUT.copy()
-_PLAIN_EXCEPTION[43] = False
-
-
-def padded_bytes(data: bytes) -> npt.NDArray[np.uint8]:
-    """``data`` as a byte array with room to read a few bytes past any frame start."""
-    return np.frombuffer(data + bytes(_PAD), np.uint8)
+from decoders.modbus.layouts import EXCEPTION_LENGTH, MAX_ADU
 
 
 def single_frame_segments(
@@ -100,19 +53,13 @@ def single_frame_segments(
     is_exception = (raw_functions & EXCEPTION_BIT) != 0
     fits = np.where(
         is_exception,
-        _PLAIN_EXCEPTION[functions] & (seg_lengths == EXCEPTION_LENGTH),
+        PLAIN_EXCEPTION[functions] & (seg_lengths == EXCEPTION_LENGTH),
         REQUEST_RULES.fits(padded, starts, raw_functions, seg_lengths)
         | RESPONSE_RULES.fits(padded, starts, raw_functions, seg_lengths),
     )
     passing = fits & crc_ok & (seg_lengths >= MIN_ADU) & (seg_lengths <= MAX_ADU) & (addresses <= MAX_ADDRESS)
     zero_ended = padded[np.maximum(ends - 1, 0)] == 0
     return passing & ~zero_ended, passing & zero_ended
-
-
-#: Per function code: whether its length rule is one the tables cannot hold (a two-byte count,
-#: FC 43's objects, the Altivar's FC 43 negative answer), for :func:`whole_by_own_rule`.
-OWN_RULE = np.zeros(256, np.bool_)
-OWN_RULE[[24, 43, 43 | EXCEPTION_BIT]] = True
 
 
 def has_own_rule(data: bytes, starts: Int64Array) -> npt.NDArray[np.bool_]:
@@ -137,7 +84,7 @@ def whole_by_own_rule(segment: bytes) -> bool:
 def _clean_rule_tables() -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
     """``CLEAN_RULES`` as arrays [slot, function]: fixed length, byte-count position, base."""
     fixed = np.zeros((2, 256), np.int64)
-    position = np.full((2, 256), _NONE, np.int64)
+    position = np.full((2, 256), NO_RULE, np.int64)
     base = np.zeros((2, 256), np.int64)
     for function, rules in enumerate(CLEAN_RULES):
         for slot, (length, at, plus) in enumerate(rules):
@@ -151,10 +98,14 @@ _CLEAN_FIXED, _CLEAN_POSITION, _CLEAN_BASE = _clean_rule_tables()
 _HAS_CLEAN_RULE = (_CLEAN_FIXED[0] > 0) | (_CLEAN_POSITION[0] >= 0)
 
 
-def clean_frame_ends(data: bytes, limits: Int64Array | None = None) -> npt.NDArray[np.int64]:
+def clean_frame_ends(data: bytes, limits: Int64Array | None = None, registers: npt.NDArray[np.uint32] | None = None,
+                     readings: list[tuple[Int64Array, Int64Array]] | None = None) -> npt.NDArray[np.int64]:
     """For every position of ``data``: the end of the clean frame starting there, or 0
     (what :func:`decoders.framing.best_parse.clean_frame_end` says, for all positions at once).
-    ``limits``: per position, where its run of bytes stops (default: the end of ``data``)."""
+    ``limits``: per position, where its run of bytes stops (default: the end of ``data``);
+    ``registers``: :func:`prefix_registers` of ``data``, where the caller has them;
+    ``readings``: gets the starts and ends of the CRC-valid readings by rule found on the way
+    (of addresses 1 to 247, :func:`checked_readings` of those, rules the tables hold)."""
     size = len(data)
     ends = np.zeros(size, np.int64)
     if size < MIN_ADU:
@@ -165,7 +116,8 @@ def clean_frame_ends(data: bytes, limits: Int64Array | None = None) -> npt.NDArr
     functions_all = padded[1 : size - MIN_ADU + 2]
     positions = np.flatnonzero((heads - np.uint8(1) < np.uint8(MAX_ADDRESS)) & _HAS_CLEAN_RULE[functions_all])
     functions = functions_all[positions].astype(np.intp)
-    registers = prefix_registers(data)
+    if registers is None:
+        registers = prefix_registers(data)
     valid_count = np.zeros(size, np.int64)
     limit = size if limits is None else limits[positions]
     for slot in (0, 1):
@@ -177,6 +129,8 @@ def clean_frame_ends(data: bytes, limits: Int64Array | None = None) -> npt.NDArr
         good = crc_ok_spans(registers, starts, lengths[usable])
         stops = starts + lengths[usable]
         good_starts, good_stops = starts[good], stops[good]
+        if readings is not None:
+            readings.append((good_starts, good_stops))
         # Two rules giving one length are one reading, not two.
         valid_count[good_starts] += ends[good_starts] != good_stops
         ends[good_starts] = good_stops
@@ -256,7 +210,8 @@ MAX_STRAY = MIN_ADU - 1
 
 
 def frame_pair_segments(
-    data: bytes, seg_starts: Int64Array, seg_ends: Int64Array, pause_at: npt.NDArray[np.bool_] | None
+    data: bytes, seg_starts: Int64Array, seg_ends: Int64Array, pause_at: npt.NDArray[np.bool_] | None,
+    error_at: npt.NDArray[np.bool_] | None = None,
 ) -> tuple[Int64Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """Of segments the vectorised single-frame test left out: where each one's first piece
     ends, for those that are a clean frame followed by another clean frame (a fast answer) or
@@ -267,8 +222,11 @@ def frame_pair_segments(
     The parse of such a segment is known without the programme: its frames are anchors of
     :mod:`decoders.framing.best_parse` (clean, no other clean frame starting inside, no
     pause inside, touching the segment's start or each other), and fewer than ``MIN_ADU``
-    bytes hold no reading, so they are noise. ``pause_at[q]``: byte ``q`` of ``data``
-    follows a silence > t1.5 (``None``: no pauses, host timing).
+    bytes hold no reading, so they are noise; but not where a reading crosses from the frame
+    into the stray bytes, or a frame may start inside the frame (the rules of
+    :mod:`decoders.framing.crossing`, 2 and 3): the programme weighs those. ``pause_at[q]``:
+    byte ``q`` of ``data`` follows a silence > t1.5 (``None``: no pauses, host timing);
+    ``error_at[q]``: the receiver saw byte ``q`` with a framing error (``None``: none).
     """
     count = len(seg_starts)
     lengths = seg_ends - seg_starts
@@ -277,12 +235,13 @@ def frame_pair_segments(
     total = int(offsets[-1])
     bounds = zip(seg_starts.tolist(), seg_ends.tolist(), strict=True)
     joined = b"".join([data[begin:stop] for begin, stop in bounds])
-    ends = clean_frame_ends(joined, np.repeat(offsets[1:], lengths))
+    registers = prefix_registers(joined)
+    ends = clean_frame_ends(joined, np.repeat(offsets[1:], lengths), registers)
     clean_before = np.zeros(total + 1, np.int64)  # [q]: clean frames starting before q
     np.cumsum(ends > 0, out=clean_before[1:])
     pauses_before = np.zeros(total + 1, np.int64)
+    at_data = np.repeat(seg_starts - offsets[:-1], lengths) + np.arange(total)
     if pause_at is not None:
-        at_data = np.repeat(seg_starts - offsets[:-1], lengths) + np.arange(total)
         np.cumsum(pause_at[at_data], out=pauses_before[1:])
     begin, stop = offsets[:-1], offsets[1:]
     first_end = ends[begin]  # segments are never empty: every begin is a position
@@ -301,5 +260,36 @@ def frame_pair_segments(
     second_ok = second_frame & quiet(split, stop)
     stray_ok = (stop - split <= MAX_STRAY) & quiet(split, stop)
     known = first_ok & (second_ok | stray_ok)
+    stray = np.flatnonzero(known & ~second_ok)
+    if len(stray):
+        errors = None if error_at is None else np.flatnonzero(error_at[at_data])
+        known[stray[_reached_into_strays(joined, registers, (begin[stray], split[stray], stop[stray]), errors)]] = False
     first_length = np.where(known, split - begin, 0)
     return first_length, known & second_ok, first_end == stop
+
+
+def _reached_into_strays(data: bytes, registers: npt.NDArray[np.uint32],
+                         segments: tuple[Int64Array, Int64Array, Int64Array],
+                         errors: Int64Array | None) -> npt.NDArray[np.bool_]:
+    """Of segments of a frame ``[begin, split)`` and stray bytes ``[split, stop)``: those where
+    a reading from inside the frame ends among the stray bytes, or a frame may start inside the
+    frame (a reading ends there, or a character with a framing error comes just before: at
+    ``errors``, sorted), or the whole segment passes the CRC (a frame of a bad length, where
+    timing closes it)."""
+    begin, split, stop = segments
+    whole = crc_ok_spans(registers, begin, stop - begin)
+    for index in np.flatnonzero(whole).tolist():  # mostly a 0x00 glitch, which keeps the CRC: no frame of its own
+        whole[index] = whole_run_frame(data, int(begin[index]), int(stop[index]))
+    counts = split - begin
+    owner = np.repeat(np.arange(len(begin)), counts)
+    positions = np.arange(int(counts.sum()), dtype=np.int64) + np.repeat(begin - (np.cumsum(counts) - counts), counts)
+    starts, ends = checked_readings(data, registers, positions, stop[owner])
+    of = np.searchsorted(begin, starts, side="right") - 1
+    reached = whole.copy()
+    reached[of[(ends > split[of]) | (ends < split[of])]] = True  # into the strays, or inside the frame
+    if errors is not None and len(errors):
+        after = errors + 1  # a frame may start after a framing error: inside the frame?
+        at = np.searchsorted(begin, after, side="right") - 1
+        inside = (at >= 0) & (after > begin[np.maximum(at, 0)]) & (after < split[np.maximum(at, 0)])
+        reached[at[inside]] = True
+    return reached

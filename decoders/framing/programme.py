@@ -115,13 +115,17 @@ class _Programme:
         #: Ends of the readings found so far (left to right) by a length rule: a frame may end
         #: there, so a length found by CRC search may start there (as after an anchor).
         self._rule_ends: set[int] = set()
+        #: Whether a reading the programme over the whole segment keeps ends past the region's
+        #: stop, where an anchor starts: then that anchor is no anchor (see
+        #: :mod:`decoders.framing.crossing`, rule 1).
+        self.crossed = False
         self.readings = []
         for s in range(begin, stop):
             found = self._readings_at(s)
             self._rule_ends.update(end for end, *_, direction in found if direction != ev.SEARCHED)
             self.readings.append(found)
-        self.frame_starts = [s for s in range(begin, stop) if self.readings[s - begin]]
-        self.starts_of_frames = set(self.frame_starts)
+        self.starts_of_frames = self._searched_where_supported()
+        self.frame_starts = sorted(self.starts_of_frames)
         size = stop - begin
         self.best = [_NEVER] * (size + 1)
         self.back: list[_Edge | None] = [None] * (size + 1)
@@ -142,15 +146,53 @@ class _Programme:
         region = self.region
         data, stop, context = region.data, region.stop, region.context
         supported = s == region.begin or s in region.pause_set or s in self._rule_ends
-        found = ev.valid_frames_at(data, s, stop, search_unknown=supported, search=region.search)
+        # Before an anchor, every reading the whole segment holds, as the programme over it reads
+        # them (a length rule's count may lie past the region); those past the anchor's start
+        # are its business (``crossed``).
+        reach = len(data) if region.before_frame else stop
+        found = ev.valid_frames_at(data, s, reach, search_unknown=supported, search=region.search)
+        if reach > stop and any(reading[0] > stop for reading in found):
+            self.crossed = self.crossed or any(reading[0] > stop and self._kept_past(reading) for reading in found)
+            found = [reading for reading in found if reading[0] <= stop]
         whole = context.timed and context.closed and s == 0 and stop == len(data)
         if whole and ev.whole_run_frame(data, 0, stop) and not any(reading[0] == stop for reading in found):
             found.append((stop, ev.CRC_MATCH + ev.LENGTH_SEARCHED, FrameFlag.BAD_LENGTH, MODBUS, ev.NO_DIRECTION))
         return found
 
-    def _supported(self, position: int) -> float:
+    def _kept_past(self, reading: ev.Reading) -> bool:
+        """Whether the programme over the whole segment keeps ``reading``, which ends past the
+        region: by rule, or by CRC search where a boundary may support its end (the segment's
+        end, a pause, the start of any reading there)."""
+        end, *_, direction = reading
         region = self.region
-        if position in region.pause_set or (position == region.stop and region.closed_at_stop):
+        data, context = region.data, region.context
+        if direction != ev.SEARCHED or (end == len(data) and context.closed) or end in region.pause_set:
+            return True
+        return bool(ev.valid_frames_at(data, end, len(data), search_unknown=True, search=region.search))
+
+    def _searched_where_supported(self) -> set[int]:
+        """Drops the lengths found by CRC search whose end no boundary supports (the region's
+        closed end, a pause, another reading's start; near the end of a region more bytes may
+        follow, where such a reading may yet end): no evidence, they are no frame start either (a
+        damaged frame may start there). Right to left, as a searched length may end where
+        another one, supported, starts. The starts of the readings left."""
+        region = self.region
+        begin = region.begin
+        starts: set[int] = set()
+        for s in range(region.stop - 1, begin - 1, -1):
+            found = self.readings[s - begin]
+            if any(direction == ev.SEARCHED for *_, direction in found):
+                found = self.readings[s - begin] = [reading for reading in found if reading[4] != ev.SEARCHED
+                                                    or self._search_end_supported(reading[0], starts)]
+            if found:
+                starts.add(s)
+        return starts
+
+    def _supported(self, position: int) -> float:
+        """The evidence of a boundary at ``position``: a pause, or the segment's end (an anchor
+        after the region is none: the programme over the whole segment sees none there)."""
+        region = self.region
+        if position in region.pause_set or (position == len(region.data) and region.closed_at_stop):
             return ev.BOUNDARY_SUPPORTED
         return 0.0
 
@@ -176,7 +218,7 @@ class _Programme:
         )
         pauses = region.context.pauses
         for end, score, flags, protocol, direction in self.readings[s - begin]:
-            if direction == ev.SEARCHED and not (starts_supported and self._search_end_supported(end)):
+            if direction == ev.SEARCHED and not starts_supported:
                 continue  # a length found by CRC search counts only between supported boundaries
             total = score + ev.direction_bonus(direction, data[s:end], open_request) + self._supported(s)
             total += self._supported(end) + (pauses_in(pauses, s, end) * ev.PAUSE_INSIDE if pauses else 0.0)
@@ -196,9 +238,11 @@ class _Programme:
             for edge, score in self._damaged_at(s, open_request):
                 self._offer(edge, here + score)
 
-    def _search_end_supported(self, end: int) -> bool:
+    def _search_end_supported(self, end: int, starts: set[int]) -> bool:
         region = self.region
-        return (end == region.stop and region.closed_at_stop) or end in region.pause_set or end in self.starts_of_frames
+        if region.open_end and end > region.stop - MAX_ADU:
+            return True  # a reading may start there that ends in bytes still to come
+        return (end == region.stop and region.closed_at_stop) or end in region.pause_set or end in starts
 
     def _damaged_at(self, s: int, open_request: OpenRequest) -> list[tuple[_Edge, float]]:
         """Damaged frames from ``s`` to a supported boundary -- the next valid frame, a pause,
@@ -217,11 +261,14 @@ class _Programme:
             boundaries.add(stop)
         # A damaged frame may be followed by its transmitter's glitch before the boundary.
         ends = boundaries | {b - 1 for b in boundaries}
+        # Only a frame that runs to the capture's end (its last byte, or a glitch, the last) may
+        # have been cut off by it.
         at_capture_end = region.context.at_capture_end and region.context.closed
         edges = []
         header = ev.FRAMING_ERROR_HEADER if s in region.framing_error_set else 0.0
         for end in sorted(e for e in ends if e - s >= MIN_ADU):
-            flags, fits = ev.damaged_flags(data[s:end], open_request=open_request, at_capture_end=at_capture_end)
+            flags, fits = ev.damaged_flags(data[s:end], open_request=open_request,
+                                           at_capture_end=at_capture_end and end >= len(data) - 1)
             score = ev.DAMAGED + (ev.DAMAGED_FITS_RULE if fits else 0.0) + pauses_in(pauses, s, end) * ev.PAUSE_INSIDE
             score += header
             if awaits(open_request, data[s], data[s + 1]):
@@ -275,3 +322,10 @@ def best_pieces(region: Region, open_request: OpenRequest) -> Parse:
     """The best parse of ``region`` (see the module docstring); of an ``open_end``
     region, only the part every best path to its last positions agrees on."""
     return _Programme(region, open_request).run()
+
+
+def best_pieces_before_anchor(region: Region, open_request: OpenRequest) -> Parse | None:
+    """:func:`best_pieces` of a region before an anchor (``before_frame``), or ``None`` where
+    a reading from the region ends past its stop (the anchor is none)."""
+    programme = _Programme(region, open_request)
+    return None if programme.crossed else programme.run()

@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.frame import FrameBatch
-from decoders.framing.fast import OWN_RULE, REQUEST_RULES, RESPONSE_RULES, padded_bytes
+from decoders.framing.rule_tables import OWN_RULE, REQUEST_RULES, RESPONSE_RULES, padded_bytes
 from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT
 from decoders.modbus.layouts import EXCEPTION_LENGTH, MEI_EXCEPTION_LENGTH, fits_request, fits_response
 

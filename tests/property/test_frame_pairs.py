@@ -8,7 +8,6 @@ from collections.abc import Callable
 from unittest import mock
 
 import numpy as np
-import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from pymodbus.pdu import file_message as fm
@@ -138,8 +137,6 @@ def test_an_echo_read_at_two_lengths_is_left_to_the_programme(
     assert frames(chunks, line, fast=True, batch=batch) == frames(chunks, line, fast=False, batch=batch)
 
 
-@pytest.mark.xfail(strict=True, reason="a known gap: anchors are not tested against readings crossing their "
-                   "edges (README, Framing, 3)")
 def test_a_reading_crossing_an_anchor_s_end_is_weighed_as_the_reference_weighs_it() -> None:
     """Found by the test above: an FC 1 request (0xBA, slave 186) holding an FC 8 echo that is
     CRC-valid at two lengths, the longer one past the request's end, then one byte."""

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from decoders.framing.fast import REQUEST_RULES, RESPONSE_RULES, padded_bytes
+from decoders.framing.rule_tables import REQUEST_RULES, RESPONSE_RULES, padded_bytes
 from decoders.modbus.layouts import LAYOUTS
 from decoders.modbus.shapes import Column, _request_keys, _response_keys
 

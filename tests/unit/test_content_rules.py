@@ -95,6 +95,30 @@ def test_truncated_at_capture_end_and_mid_frame_start() -> None:
     ]
 
 
+def test_a_searched_length_no_boundary_supports_is_no_frame_start() -> None:
+    """An FC 8 echo cut short (its CRC never came) whose bytes, with those of the write after
+    it, pass the CRC 27 bytes on, inside the write: that length ends where nothing supports it,
+    so it is no reading, and the echo is a damaged frame (not noise, as where a frame starts)."""
+    write = bytes.fromhex("0110000100060c0000000070870000000000003b6b")
+    echo = bytes.fromhex("0508000012345678")
+    request = with_crc(bytes.fromhex("0103000A0002"))
+    assert crc_bytes((echo + write)[:25]) == b"\x00\x00"  # the length CRC search finds
+    assert pieces(request + echo + write) == [(request, False, True, FrameFlag.NONE),
+                                              (echo, False, False, FrameFlag.NONE),
+                                              (write, False, True, FrameFlag.NONE)]
+
+
+def test_only_a_frame_at_the_capture_s_end_may_be_cut_off_by_it() -> None:
+    """Before the capture's last frame, a damaged frame whose length fits a rule fits it (+4),
+    as when the capture goes on (the streaming parse commits it before the end is known)."""
+    damaged = bytearray(REQUEST)
+    damaged[3] ^= 0x01  # an FC 3 request of 8 bytes, 17 as an answer: at the end, maybe cut off
+    for at_end in (False, True):
+        assert pieces(bytes(damaged) + REQUEST + RESPONSE, at_capture_end=at_end)[0] == (
+            bytes(damaged), False, False, FrameFlag.NONE)
+    assert pieces(bytes(damaged), at_capture_end=True) == [(bytes(damaged), False, False, FrameFlag.TRUNCATED)]
+
+
 def test_garbage_without_a_plausible_header_is_noise() -> None:
     junk = bytes.fromhex("FFFE112233")
     assert pieces(junk) == [(junk, True, False, FrameFlag.NONE)]
