@@ -82,10 +82,11 @@ class _Readings:
     def __init__(self, data: bytes, registers: npt.NDArray[np.uint32],
                  known: list[tuple[Int64Array, Int64Array]] | None) -> None:
         self.data, self.registers = data, registers
-        self._known = None if known is None else (np.concatenate([k[0] for k in known]) if known else
-                                                  np.zeros(0, np.int64),
-                                                  np.concatenate([k[1] for k in known]) if known else
-                                                  np.zeros(0, np.int64))
+        self._known: tuple[Int64Array, Int64Array] | None = None
+        if known is not None:
+            none = np.zeros(0, np.int64)
+            self._known = (np.concatenate([none, *(starts for starts, _ in known)]),
+                           np.concatenate([none, *(ends for _, ends in known)]))
 
     def starting(self, near: npt.NDArray[np.bool_]) -> tuple[Int64Array, Int64Array]:
         """Starts and ends of the readings starting where ``near`` holds (per position)."""
