@@ -151,7 +151,7 @@ class _Programme:
         # are its business (``crossed``).
         reach = len(data) if region.before_frame else stop
         found = ev.valid_frames_at(data, s, reach, search_unknown=supported, search=region.search)
-        if reach > stop and any(reading[0] > stop for reading in found):
+        if found and reach > stop and any(reading[0] > stop for reading in found):
             self.crossed = self.crossed or any(reading[0] > stop and self._kept_past(reading) for reading in found)
             found = [reading for reading in found if reading[0] <= stop]
         whole = context.timed and context.closed and s == 0 and stop == len(data)
@@ -179,7 +179,8 @@ class _Programme:
         region = self.region
         begin = region.begin
         starts: set[int] = set()
-        for s in range(region.stop - 1, begin - 1, -1):
+        at = [s for s in range(region.stop - 1, begin - 1, -1) if self.readings[s - begin]]  # most hold none
+        for s in at:
             found = self.readings[s - begin]
             if any(direction == ev.SEARCHED for *_, direction in found):
                 found = self.readings[s - begin] = [reading for reading in found if reading[4] != ev.SEARCHED
