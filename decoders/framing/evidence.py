@@ -54,7 +54,9 @@ A length found by CRC search counts only between supported boundaries too: its
 start at a segment start, a pause or a valid frame's end, its end at a segment end,
 a pause or the start of another valid reading. Random bytes pass a CRC
 search about once in 256 tries (2^-16 per length, 256 lengths): unguarded, a noisy
-line would be full of invented frames.
+line would be full of invented frames. One whose end nothing supports is no reading at
+all: not even a frame start, where a damaged frame could not begin
+(:mod:`decoders.framing.programme`).
 
 Zero bytes after a frame keep its CRC register at zero, so every valid frame ending
 in 0x00 has a CRC-valid prefix, and a frame followed by a 0x00 glitch a CRC-valid
