@@ -240,7 +240,9 @@ def frame_pair_segments(
     clean_before = np.zeros(total + 1, np.int64)  # [q]: clean frames starting before q
     np.cumsum(ends > 0, out=clean_before[1:])
     pauses_before = np.zeros(total + 1, np.int64)
-    at_data = np.repeat(seg_starts - offsets[:-1], lengths) + np.arange(total)
+    # Where each joined byte lies in ``data``: needed only to read the pauses or the errors.
+    at_data = None if pause_at is None and error_at is None else (
+        np.repeat(seg_starts - offsets[:-1], lengths) + np.arange(total))
     if pause_at is not None:
         np.cumsum(pause_at[at_data], out=pauses_before[1:])
     begin, stop = offsets[:-1], offsets[1:]
@@ -262,7 +264,7 @@ def frame_pair_segments(
     known = first_ok & (second_ok | stray_ok)
     stray = np.flatnonzero(known & ~second_ok)
     if len(stray):
-        errors = None if error_at is None else np.flatnonzero(error_at[at_data])
+        errors = None if error_at is None or at_data is None else np.flatnonzero(error_at[at_data])
         known[stray[_reached_into_strays(joined, registers, (begin[stray], split[stray], stop[stray]), errors)]] = False
     first_length = np.where(known, split - begin, 0)
     return first_length, known & second_ok, first_end == stop

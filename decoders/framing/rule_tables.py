@@ -67,10 +67,10 @@ class RuleTable:
 
 REQUEST_RULES = RuleTable.build("request")
 RESPONSE_RULES = RuleTable.build("response")
-HAS_LAYOUT = np.zeros(256, np.bool_)
-HAS_LAYOUT[list(LAYOUTS)] = True
+_HAS_LAYOUT = np.zeros(256, np.bool_)
+_HAS_LAYOUT[list(LAYOUTS)] = True
 #: The Altivar's FC 43 negative answer is 6 bytes, not 5; the parser handles it.
-PLAIN_EXCEPTION = HAS_LAYOUT.copy()
+PLAIN_EXCEPTION = _HAS_LAYOUT.copy()
 PLAIN_EXCEPTION[43] = False
 
 
