@@ -51,6 +51,10 @@ class Sink:
     #: Whether the sink caches what it derives per decoding, so that repeats cost it less
     #: decoded: frames stay in columns for it only in batches of mostly distinct frames.
     caches_per_decoding = False
+    #: Whether ``messages`` takes the plain numbers profiles name in frames left in columns as
+    #: arrays (``ColumnarNames.numbers``, no param object each): when every sink that wants
+    #: messages does, they are named so.
+    takes_number_names = False
     #: Work on a framed batch, where it is framed (see the module docstring); ``None``: none.
     prepare: Callable[[MessageBatch], Any] | None = None
 

@@ -61,8 +61,8 @@ def both_ways(monkeypatch: pytest.MonkeyPatch, cli: Callable[..., Any]) -> Calla
         in_columns = []
         find = annotate.Annotator._columnar
 
-        def counted(self: annotate.Annotator, batch: Any) -> ColumnarFrames | None:
-            found = find(self, batch)
+        def counted(self: annotate.Annotator, batch: Any, **options: Any) -> ColumnarFrames | None:
+            found = find(self, batch, **options)
             in_columns.append(0 if found is None else len(found))
             return found
 
@@ -72,7 +72,7 @@ def both_ways(monkeypatch: pytest.MonkeyPatch, cli: Callable[..., Any]) -> Calla
             assert cli(*columns).code == 0
         with monkeypatch.context() as patch:
             patch.setattr(annotate.Annotator, "annotate_columnar",
-                          lambda self, batch, distinct_only=False: self.annotate_batch(batch))
+                          lambda self, batch, **_: self.annotate_batch(batch))
             assert cli(*plain).code == 0
         return sum(in_columns)
 

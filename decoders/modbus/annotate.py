@@ -96,14 +96,17 @@ class Annotator:
                                    batch.request_index.tolist())
         return AnnotatedBatch(batch, decodings)
 
-    def annotate_columnar(self, batch: MessageBatch, *, distinct_only: bool = False) -> AnnotatedBatch:
+    def annotate_columnar(self, batch: MessageBatch, *, distinct_only: bool = False,
+                          numbers: bool = False) -> AnnotatedBatch:
         """:meth:`annotate_batch`, but the commonest frames stay in columns
         (:mod:`decoders.modbus.columnar`, named by :mod:`decoders.profiles.columns` where a
         profile names their slave): the result's ``columnar``, and its ``rows``
         the rest, decoded as there. The annotator's state after it is the same.
         ``distinct_only``: only in a batch of mostly distinct frames (:func:`mostly_distinct`;
-        the memo serves repeats for less)."""
-        columnar = None if distinct_only and not mostly_distinct(batch, DISTINCT_ENOUGH) else self._columnar(batch)
+        the memo serves repeats for less); ``numbers``: values that are plain numbers named in
+        arrays (:func:`~decoders.profiles.columns.named`), for outputs that take them so."""
+        columnar = (None if distinct_only and not mostly_distinct(batch, DISTINCT_ENOUGH)
+                    else self._columnar(batch, numbers=numbers))
         if columnar is None:
             return self.annotate_batch(batch)
         first, requests = batch.frames.first_index, self._requests
@@ -119,7 +122,7 @@ class Annotator:
                                    batch.frames.protocols()[rows].tolist(), batch.request_index[rows].tolist())
         return AnnotatedBatch(batch, decodings, rows, columnar)
 
-    def _columnar(self, batch: MessageBatch) -> ColumnarFrames | None:
+    def _columnar(self, batch: MessageBatch, *, numbers: bool = False) -> ColumnarFrames | None:
         """The frames of ``batch`` to keep in columns: Modbus frames of slaves whose profile adds
         nothing or names plainly (:mod:`decoders.profiles.columns`), but a slave's from its first
         identification in the batch that may give it another profile on (FC 43 with another
@@ -146,7 +149,7 @@ class Annotator:
         while len(unnamed := unnameable(profiles, batch, columnar, learning)):
             eligible[unnamed] = False
             columnar = find_columnar(batch, eligible, self._earlier_read)
-        return named(profiles, batch, columnar)
+        return named(profiles, batch, columnar, numbers=numbers)
 
     def plain_frames(self, batch: MessageBatch) -> npt.NDArray[np.bool_]:
         """Which frames of ``batch`` are Modbus frames of slaves whose profile adds nothing now."""

@@ -35,7 +35,7 @@ from decoders.hashing import FIBONACCI_SIGNED
 from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.columnar_text import READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, formatted, summaries
 from decoders.modbus.pdu import COIL_ON
-from decoders.profiles.naming import SHOWN_PARAMS, NamedValue, summary_with
+from decoders.profiles.naming import SHOWN_PARAMS, NamedValue, NumberNames, summary_with
 
 #: A param's value where its frame names the address alone.
 NO_VALUE = -1
@@ -86,11 +86,17 @@ class ColumnarParams(NamedTuple):
 class ColumnarNames(NamedTuple):
     """What profiles name of the params of frames kept in columns
     (:mod:`decoders.profiles.columns`): ``row``, per param in :meth:`ColumnarFrames.params` order,
-    its entry in ``table`` (-1: its slave's profile adds nothing); ``table``: each named value
-    (param and summary text) of the batch, once."""
+    its entry (-1: its slave's profile adds nothing); ``table``: each named value (param and
+    summary text) of the batch, once; ``numbers``: the plain numbers named in arrays, entries
+    after the table's (only for outputs that take them, :func:`~decoders.profiles.columns.named`)."""
 
     row: npt.NDArray[np.int64]
     table: list[NamedValue]
+    numbers: NumberNames | None = None
+
+    def objects(self) -> list[NamedValue]:
+        """Every entry as a named value (the plain numbers' made here)."""
+        return self.table if self.numbers is None else self.table + self.numbers.objects()
 
     def suffixed(self, texts: list[str], sizes: npt.NDArray[np.int64], *, fast: bool = True) -> list[str]:
         """``texts`` (the frames' PDU summaries; ``sizes``: how many params each names) followed
@@ -98,8 +104,9 @@ class ColumnarNames(NamedTuple):
         frames that show as many texts at once, by one ``%`` of a template each
         (:func:`~decoders.modbus.columnar_text.formatted`), or one by one (``fast=False``, or a text
         holds a newline, which ``formatted`` cuts at)."""
-        words = np.empty(len(self.table) + 1, object)  # the last: for -1, nothing shown
-        named_texts = list(map(_TEXT, self.table))
+        numbers = [] if self.numbers is None else number_texts(self.numbers, fast=fast)
+        words = np.empty(len(self.table) + len(numbers) + 1, object)  # the last: for -1, nothing shown
+        named_texts = list(map(_TEXT, self.table)) + numbers
         words[:-1] = named_texts
         shown = np.flatnonzero(words[self.row] != None)  # noqa: E711 - elementwise, on objects
         if not len(shown):
@@ -122,6 +129,28 @@ class ColumnarNames(NamedTuple):
             suffixed[frames] = formatted(template, [column.tolist() for column in columns])
         result: list[str] = suffixed.tolist()
         return result
+
+
+def number_texts(numbers: NumberNames, *, fast: bool = True) -> list[str | None]:
+    """Each plain number's text in the summary (``LFR = 50.0 Hz``), as
+    :func:`~decoders.profiles.naming.show` writes it: a register's by one ``%`` of a template
+    (``fast=False``: one by one, as its named value says)."""
+    texts = np.full(len(numbers), None, object)
+    bounds = np.searchsorted(numbers.register, np.arange(len(numbers.registers) + 1)).tolist()
+    for place, plain in enumerate(numbers.registers):
+        start, stop = bounds[place], bounds[place + 1]
+        unit = f" {plain.unit}" if plain.unit else ""
+        if plain.code is None:
+            continue
+        if not fast or "\n" in plain.code + unit:
+            texts[start:stop] = [plain.param(raw, value)[1] for raw, value in
+                                 zip(numbers.raw[start:stop].tolist(), numbers.value[start:stop].tolist(), strict=True)]
+            continue
+        values = numbers.value[start:stop]
+        template = f"{plain.code} = ".replace("%", "%%") + "%s" + unit.replace("%", "%%")
+        texts[start:stop] = formatted(template, [values.astype(np.int64) if plain.integral else values])
+    shown: list[str | None] = texts.tolist()
+    return shown
 
 
 @dataclass(frozen=True)
@@ -177,7 +206,7 @@ class ColumnarFrames:
         if names is not None:
             sizes = self._sizes()
             taken = np.repeat(self._param_starts()[rows], sizes[rows]) + within_runs(sizes[rows])
-            names = ColumnarNames(names.row[taken], names.table)
+            names = names._replace(row=names.row[taken])
         return ColumnarFrames(self.positions[rows], self.function[rows], self.kind[rows], self.address[rows],
                               self.count[rows], self.read_address[rows], self.read_count[rows], self.data[rows],
                               self.byte_count[rows], self.request[rows], self.answer[rows], self.kept_requests,

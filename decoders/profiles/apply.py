@@ -25,7 +25,7 @@ from decoders.modbus.pdu import (
 )
 from decoders.modbus.pdu_serial import DeviceIdResponse
 from decoders.profiles.model import Indirection, Profile
-from decoders.profiles.naming import AddressNamer, NamedValue, summary_with
+from decoders.profiles.naming import AddressNamer, NamedValue, PlainNumbers, summary_with
 
 #: The slave column's value for a frame without a slave (noise).
 NO_SLAVE = -1
@@ -208,8 +208,7 @@ class ProfileApplier:
         """Each of ``raws`` at ``address`` as :meth:`apply_decoding` names it for ``slave`` of
         ``profile`` (``reported``: the device's values) now, kept as there: for frames named in
         columns (:mod:`decoders.profiles.columns`)."""
-        namers = self._kept_namers(profile, reported)
-        namer = namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
+        namer = self._namer_of(profile, slave, reported, address)
         fast, known, named = self.fast, namer.known, []
         for raw in raws:
             value = known.get(raw) if fast else None
@@ -218,6 +217,15 @@ class ProfileApplier:
                 self._kept += 1
             named.append(value)
         return named
+
+    def plain_numbers(self, profile: Profile, slave: int, reported: bool, address: int) -> PlainNumbers | None:
+        """How the values at ``address`` that are plain numbers are named in arrays, as
+        :meth:`named_values` names them (``None``: none is)."""
+        return self._namer_of(profile, slave, reported, address).plain_numbers()
+
+    def _namer_of(self, profile: Profile, slave: int, reported: bool, address: int) -> AddressNamer:
+        namers = self._kept_namers(profile, reported)
+        return namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
 
     def _name_values(self, namers: list[AddressNamer],
                      raws: Sequence[int | None]) -> tuple[list[ParamValue], list[str]]:

@@ -49,6 +49,7 @@ from decoders.modbus.pdu_parse import parse_as, parse_pdu
 from decoders.modbus.pdu_serial import DeviceIdResponse
 from decoders.profiles.apply import FrameFacts, ProfileApplier, limit_remarks, product_code, request_addresses
 from decoders.profiles.model import Indirection, Profile
+from decoders.profiles.naming import NamedValue, NumberNames, PlainNumbers
 
 #: Bits of a param's key (:func:`named`) for its raw word plus one (0: no value), its address (a
 #: read's last register may lie past 65 535) and its slave plus one (0: a register whose name
@@ -185,9 +186,12 @@ def _remarked(applier: ProfileApplier, batch: MessageBatch, profile: Profile, po
     return bool(limit_remarks(profile, facts, parse_pdu(data, is_request=True)))
 
 
-def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames) -> ColumnarFrames:
+def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames, *,
+          numbers: bool = False) -> ColumnarFrames:
     """``columnar`` with the names its frames' profiles give their params (none of them
-    :func:`unnameable`); as it is where no frame's profile names anything."""
+    :func:`unnameable`); as it is where no frame's profile names anything. ``numbers``: values
+    that are plain numbers are named in arrays (:class:`~decoders.profiles.naming.NumberNames`),
+    for outputs that take them so; the others, and all without it, are named values."""
     slaves = _Slaves(applier, batch.slave[columnar.positions].astype(np.int64))
     named_frames = slaves.named & ~np.isin(columnar.function, list(BIT_FUNCTIONS))  # a profile names no coil
     if not named_frames.any():
@@ -201,17 +205,68 @@ def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames
     owner = _value_register_owners(slaves, of, address, batch.slave[columnar.positions].astype(np.int64))
     register = ((((slaves.profile[of] * 2 + reported) << _SLAVE_BITS) | owner) << _ADDRESS_BITS) | address
     distinct, inverse = np.unique((register << _RAW_BITS) | (params.value[rows] + 1), return_inverse=True)
-    registers = distinct >> _RAW_BITS
-    cuts = (np.flatnonzero(np.diff(registers)) + 1).tolist()
-    table = []
-    for start, stop in zip([0, *cuts], [*cuts, len(distinct)], strict=True):
-        key = int(registers[start])
-        group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
-        raws = [None if raw < 0 else raw for raw in ((distinct[start:stop] & _RAW_MASK) - 1).tolist()]
-        table += applier.named_values(slaves.profiles[group >> 1], slave, bool(group & 1), key & _ADDRESS_MASK, raws)
+    entry, table, number_names = _entries(applier, slaves, distinct, numbers=numbers)
     row = np.full(len(params.address), -1, np.int64)
-    row[rows] = inverse.reshape(-1)
-    return dataclasses.replace(columnar, names=ColumnarNames(row, table))
+    row[rows] = entry[inverse.reshape(-1)]
+    return dataclasses.replace(columnar, names=ColumnarNames(row, table, number_names))
+
+
+def _entries(applier: ProfileApplier, slaves: _Slaves, distinct: npt.NDArray[np.int64], *,
+             numbers: bool) -> tuple[npt.NDArray[np.int64], list[NamedValue], NumberNames | None]:
+    """The entry of each distinct value (``distinct``: keys of :func:`named`, ascending), the
+    named values (the first entries) and the plain numbers (the entries after them)."""
+    registers, words = distinct >> _RAW_BITS, (distinct & _RAW_MASK) - 1
+    starts = np.flatnonzero(np.diff(registers, prepend=-1))
+    stops = np.append(starts[1:], len(distinct))
+    named_at = []
+    for key in registers[starts].tolist():
+        group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
+        named_at.append((slaves.profiles[group >> 1], slave, bool(group & 1), key & _ADDRESS_MASK))
+    plains = [applier.plain_numbers(*register) for register in named_at] if numbers else []
+    register_of = np.repeat(np.arange(len(starts)), stops - starts)
+    as_number = _plain(plains, register_of, words)
+    others = np.flatnonzero(~as_number)
+    table: list[NamedValue] = []
+    firsts, lasts = np.searchsorted(others, starts).tolist(), np.searchsorted(others, stops).tolist()
+    for register, first, last in zip(named_at, firsts, lasts, strict=True):
+        if last > first:
+            raws = words[others[first:last]].tolist()
+            table += applier.named_values(*register, [None if raw < 0 else raw for raw in raws])
+    entry = np.empty(len(distinct), np.int64)
+    entry[others] = np.arange(len(others))
+    numbered = np.flatnonzero(as_number)
+    entry[numbered] = np.arange(len(others), len(distinct))
+    return entry, table, _number_names(plains, register_of[numbered], words[numbered])
+
+
+def _plain(plains: list[PlainNumbers | None], register_of: npt.NDArray[np.int64],
+           words: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+    """Which values (of registers ``register_of``, raw words ``words``) are plain numbers."""
+    if not any(plains):
+        return np.zeros(len(words), np.bool_)
+    plain = np.array([found is not None for found in plains], np.bool_)[register_of] & (words >= 0)
+    worded = [place * 0x10000 + found.words for place, found in enumerate(plains) if found is not None]
+    return plain & ~np.isin(register_of * 0x10000 + words, np.concatenate(worded))
+
+
+def _number_names(plains: list[PlainNumbers | None], register_of: npt.NDArray[np.int64],
+                  raws: npt.NDArray[np.int64]) -> NumberNames | None:
+    """The plain numbers (each of register ``register_of``, raw word in ``raws``) as columns."""
+    if not len(raws):
+        return None
+    used, register = np.unique(register_of, return_inverse=True)
+    registers = [plains[place] for place in used.tolist()]
+    values = np.empty(len(raws), np.float64)
+    tables: dict[int, list[int]] = {}  # registers by the table of values they share
+    for place, found in enumerate(registers):
+        assert found is not None
+        tables.setdefault(id(found.value), []).append(place)
+    for places in tables.values():
+        of = np.isin(register, places)
+        found = registers[places[0]]
+        assert found is not None
+        values[of] = found.value[raws[of]]
+    return NumberNames(register.reshape(-1), raws, values, [found for found in registers if found is not None])
 
 
 def _value_register_owners(slaves: _Slaves, of: npt.NDArray[np.int64], address: npt.NDArray[np.int64],

@@ -104,8 +104,8 @@ class ColumnarParts:
         if names is None:
             return None
         if members:
-            return _objects(PARAM_MEMBERS.made([param for param, _ in names.table]))
-        return _objects([b"," + text for text in PARAM_JSON.made([param for param, _ in names.table])])
+            return _objects(PARAM_MEMBERS.made([param for param, _ in names.objects()]))
+        return _objects([b"," + text for text in PARAM_JSON.made([param for param, _ in names.objects()])])
 
     def _param_columns(self) -> ColumnarParams:
         if self._params is None:

@@ -25,8 +25,7 @@ import pyarrow as pa
 from decoders.memo import Memo
 from decoders.message import NONE, AnnotatedBatch, Decoding, ParamValue
 from decoders.modbus.annotate import KEPT_DECODINGS
-from decoders.modbus.columnar import within_runs
-from decoders.profiles.naming import NamedValue
+from decoders.modbus.columnar import ColumnarNames, within_runs
 from sniffer.encoding.value_rows import ValueRow, ValueRows
 from sniffer.exports.parquet_export import dictionary, nullable, times
 from sniffer.exports.value_bulk import REPORTED, VALUE_KINDS, WRITTEN, BulkRows, bulk_rows
@@ -89,8 +88,8 @@ class NumericValues:
     #: where no other row is: 0 for a write's values, 1 for its answer's, as the rule has them).
     order: npt.NDArray[np.int64]
     name: npt.NDArray[np.int64]
-    #: The named values (:attr:`decoders.modbus.columnar.ColumnarNames.table`), ``None``: none.
-    names: list[NamedValue] | None = None
+    #: What the rows' entries are (:class:`decoders.modbus.columnar.ColumnarNames`), ``None``: none.
+    names: ColumnarNames | None = None
 
     def __len__(self) -> int:
         return len(self.t_ns)
@@ -244,7 +243,7 @@ def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
                          np.where(rows.written, index, rows.request), np.ones(len(index), np.bool_),
                          found=rows.found + first, order=np.where(rows.written, 0, 1),
                          name=np.full(len(index), -1, np.int64) if rows.name is None else rows.name,
-                         names=None if names is None else names.table)
+                         names=names)
 
 
 def value_columns(found: CollectedValues, numeric: NumericValues | None = None) -> tuple[
@@ -369,23 +368,38 @@ def _numeric_columns(rows: NumericValues) -> tuple[npt.NDArray[np.int64], dict[s
     }
 
 
-def _with_names(rows: NumericValues, names: list[NamedValue]) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:
+def _with_names(rows: NumericValues, names: ColumnarNames) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:
     """:func:`_numeric_columns` where a profile names some rows: theirs as :func:`_named_block`
-    has them (reported, the CRC good), each named value's read once and taken by the rows."""
+    has them (reported, the CRC good), each named value's read once and taken by the rows; the
+    plain numbers named in arrays (``names.numbers``) from their registers' code, name and unit."""
     t_ns, columns = _numeric_columns(dataclasses.replace(rows, names=None))
-    code, name, number, text, unit, available = _named_columns_of([param for param, _ in names] + [_NO_PARAM])
-    rows_named = rows.name >= 0
-    taken = pa.array(np.where(rows_named, rows.name, len(names)))  # unnamed: the entry after the last
-
-    def picked(column: list[str | None]) -> pa.Array:
-        return pa.array(column, pa.string()).take(taken)
-
-    numbers = np.array(number, np.float64)  # None: NaN, masked below
+    code, name, number, text, unit, available = _named_columns_of([param for param, _ in names.table] + [_NO_PARAM])
+    numbers, registers = names.numbers, [] if names.numbers is None else names.numbers.registers
+    numbered = np.array(number, np.float64)  # None: NaN, masked below
     unnumbered = np.array([value is None for value in number], np.bool_)
-    value = np.where(rows_named, numbers[rows.name], rows.raw.astype(np.float64))
-    valid = rows.valid & (~rows_named | np.array(available, np.bool_)[rows.name] | (rows.kind == WRITTEN))
-    columns.update(code=picked(code), name=picked(name), text=picked(text), unit=picked(unit),
-                   value=pa.array(value, pa.float64(), mask=rows_named & unnumbered[rows.name]),
+    usable = np.array(available, np.bool_)
+    if numbers is not None:  # a plain number is a number, available
+        numbered = np.concatenate([numbered, numbers.value])
+        unnumbered = np.concatenate([unnumbered, np.zeros(len(numbers), np.bool_)])
+        usable = np.concatenate([usable, np.ones(len(numbers), np.bool_)])
+    # Entries laid out as the table's, the one naming nothing (the rows no profile names), the numbers'.
+    unnamed = len(names.table)
+    rows_named = rows.name >= 0
+    entry = np.where(rows_named, rows.name + (rows.name >= unnamed), unnamed)
+    taken = pa.array(entry)
+
+    def picked(column: list[str | None], each_register: list[str | None]) -> pa.Array:
+        texts = pa.array(column, pa.string())
+        if numbers is not None:
+            texts = pa.concat_arrays([texts, pa.array(each_register, pa.string()).take(pa.array(numbers.register))])
+        return texts.take(taken)
+
+    value = np.where(rows_named, numbered[entry], rows.raw.astype(np.float64))
+    valid = rows.valid & (~rows_named | usable[entry] | (rows.kind == WRITTEN))
+    columns.update(code=picked(code, [plain.code for plain in registers]),
+                   name=picked(name, [plain.name for plain in registers]),
+                   text=picked(text, [None] * len(registers)), unit=picked(unit, [plain.unit for plain in registers]),
+                   value=pa.array(value, pa.float64(), mask=rows_named & unnumbered[entry]),
                    valid=pa.array(valid, pa.bool_()))
     return t_ns, columns
 

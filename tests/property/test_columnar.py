@@ -34,7 +34,8 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
     """A read or a write and (mostly) its answer, or something else a bus carries between them;
     answers damaged, repeated or missing now and then, counts and byte counts off now and then."""
     s, function = bytes([draw(SLAVES)]), draw(st.sampled_from([1, 2, 3, 4, 3, 5, 6, 15, 16, 23]))
-    address = draw(st.sampled_from([0, 3201, 8604, 12741, 12701, 65535, 100]))
+    # 3101 and 8400: registers scaled by a tenth, and enumerated (values with texts among plain numbers).
+    address = draw(st.sampled_from([0, 3201, 8604, 12741, 12701, 65535, 100, 3101, 8400]))
     count = draw(st.one_of(st.integers(1, 20), st.sampled_from([0, 123, 124, 125, 126, 1968, 1969, 2000, 2001])))
     off = draw(st.sampled_from([0, 0, 0, -1, 1]))
     if function <= 4:
@@ -113,13 +114,15 @@ def check_names(reads: ColumnarFrames, data: bytes, expected: list[Decoding]) ->
             assert names is None or all(names.row[row] < 0 for row in rows)
         else:
             assert names is not None
-            assert [names.table[names.row[row]][0] for row in rows] == list(decoding.params)
+            entries = names.objects()
+            assert [entries[names.row[row]][0] for row in rows] == list(decoding.params)
 
 
-def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
-    """One batch through both annotators; how many frames were kept in columns."""
+def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch, *, numbers: bool = False) -> int:
+    """One batch through both annotators (``numbers``: plain numbers named in arrays); how many
+    frames were kept in columns."""
     expected = plain.annotate_batch(batch).decodings
-    got = columns.annotate_columnar(batch)
+    got = columns.annotate_columnar(batch, numbers=numbers)
     reads = got.columnar
     kept = set() if reads is None else set(reads.positions.tolist())
     assert got.positions() == [position for position in range(len(batch)) if position not in kept]
@@ -136,7 +139,7 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
         check_names(reads, data, expected)
         if values.name is not None:  # a named value is named as its param is
             assert reads.names is not None
-            table = reads.names.table
+            table = reads.names.objects()
             for name, address, raw in zip(*(column.tolist() for column in (values.name, values.address, values.raw)),
                                           strict=True):
                 if name >= 0:
@@ -152,12 +155,14 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
        st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=atv71", "7=atv312"], ["2=xbt"]]))
 def test_reads_in_columns_say_what_the_plain_path_says(traffic: list[list[bytes]], cuts: list[int],
                                                        profiles: list[str] | None) -> None:
-    """The matcher's batches, cut again anywhere (between a request and its answer too)."""
-    columns, plain = annotator(profiles), annotator(profiles)
-    for batch in matched([data for exchange in traffic for data in exchange]):
-        bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
-        for start, stop in pairwise(bounds):
-            check_batch(columns, plain, slice_messages(batch, start, stop))
+    """The matcher's batches, cut again anywhere (between a request and its answer too); plain
+    numbers named as values, and in arrays."""
+    for numbers in (False, True):
+        columns, plain = annotator(profiles), annotator(profiles)
+        for batch in matched([data for exchange in traffic for data in exchange]):
+            bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
+            for start, stop in pairwise(bounds):
+                check_batch(columns, plain, slice_messages(batch, start, stop), numbers=numbers)
 
 
 def test_polling_is_kept_in_columns_and_answers_read_requests_of_the_batch_before() -> None:
