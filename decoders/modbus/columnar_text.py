@@ -10,7 +10,8 @@ answers, write answers, FC 6 writes, and FC 16 and FC 23 writes of up to eight r
 written faster (``fast``; the comprehensions remain the plain path, and the tests hold both to the PDU's
 summary): one ``%`` of a template repeated for all rows formats their numbers in C, the hex
 words of all answers and writes are laid out by numpy and cut apart in C, and one ``split``
-makes the lines. A million polling frames took 2.0 s of
+makes the lines (register answers of one size are rows of one template, their digits placed
+column by column: half the time of their words laid out and formatted). A million polling frames took 2.0 s of
 ``export --parquet``'s 4.5 s to summarise, f-strings and ``bytes.hex`` a frame at a time.
 """
 
@@ -95,9 +96,7 @@ def _answer_texts(texts: npt.NDArray[Any], rows: npt.NDArray[np.int64], function
         texts[rows[plain]] = _group(frames, data, rows[plain], READ_ANSWER, function)
     quick = np.flatnonzero(~plain)
     if len(quick):
-        words = _hex_word_texts(data, frames.data[rows[quick]], size[quick])
-        registers = (size[quick] // 2).tolist()
-        texts[rows[quick]] = formatted(f"{_TABLES[function]} = %s (%d registers)", [words, registers])
+        texts[rows[quick]] = _answer_lines(f"{_TABLES[function]} = ", data, frames.data[rows[quick]], size[quick])
 
 
 def formatted(template: str, columns: list[Any]) -> list[str]:
@@ -187,6 +186,29 @@ def _hex_word_texts(data: bytes, starts: npt.NDArray[np.int64], sizes: npt.NDArr
     words = text.tobytes().decode("ascii").split("|")
     words.pop()  # after the last payload
     return words
+
+
+def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: npt.NDArray[np.int64]) -> list[str]:
+    """``HR = 0627 04EC (2 registers)`` (``head``: ``HR = ``) of each answer's values
+    ``data[starts[i] : starts[i] + sizes[i]]`` (even sizes), the answers of each size laid out by
+    numpy as rows of one template, each byte's two digits at the same columns of every row, and
+    cut apart by one ``split``: no ``%`` pass, no byte placed one by one."""
+    raw = np.frombuffer(data, np.uint8)
+    lines = np.empty(len(sizes), object)
+    for size in np.unique(sizes).tolist():
+        rows = np.flatnonzero(sizes == size)
+        words = size // 2
+        template = f"{head}{' '.join(['0000'] * words)} ({words} registers)\n"
+        text = np.tile(np.frombuffer(template.encode("ascii"), np.uint8), (len(rows), 1))
+        values = raw[starts[rows][:, None] + np.arange(size)]
+        digits = len(head) + 2 * np.arange(size) + np.arange(size) // 2  # 4 digits and a space a word
+        text[:, digits] = _UPPER_HEX[values >> 4]
+        text[:, digits + 1] = _UPPER_HEX[values & 0x0F]
+        spelt = text.tobytes().decode("ascii").split("\n")
+        spelt.pop()  # after the last line
+        lines[rows] = spelt
+    answered: list[str] = lines.tolist()
+    return answered
 
 
 def _group(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kind: int, function: int) -> list[str]:

@@ -72,7 +72,9 @@ DELTA_COLUMNS = ["t", "t_end", "index", "request_index", "answer_index", "addres
 
 
 def dictionary(codes: npt.NDArray[np.integer], names: pa.Array) -> pa.DictionaryArray:
-    return pa.DictionaryArray.from_arrays(pa.array(codes.astype(np.int32)), names)
+    """``codes`` (each an index of ``names``, as every caller makes them) as a dictionary column;
+    not checked again (a pass over the codes per column, 0.1 ms for 8 000)."""
+    return pa.DictionaryArray.from_arrays(pa.array(codes.astype(np.int32)), names, safe=False)
 
 
 def nullable(values: npt.NDArray[np.integer], kind: pa.DataType) -> pa.Array:
