@@ -29,6 +29,8 @@ from decoders.profiles.naming import AddressNamer, NamedValue, PlainNumbers, sum
 
 #: The slave column's value for a frame without a slave (noise).
 NO_SLAVE = -1
+#: Registers whose plain numbers :meth:`ProfileApplier.plain_numbers` keeps, at most.
+KEPT_PLAIN_REGISTERS = 4096
 KEPT_NAMED_PARAMS = 65536
 PRODUCT_CODE_OBJECT = 1
 
@@ -125,6 +127,9 @@ class ProfileApplier:
         #: :func:`_knows_nothing` of each slave's profile, while the version stays.
         self._adds_nothing: dict[int, bool] = {}
         self._adds_nothing_version = 0
+        #: :meth:`plain_numbers` by (profile, reported, slave, address), while the version stays.
+        self._plain: dict[tuple[str, bool, int, int], PlainNumbers | None] = {}
+        self._plain_version = 0
 
     def adds_nothing(self, slave: int) -> bool:
         """Whether the profile in force for ``slave`` leaves a Modbus message as it is (a slave
@@ -220,8 +225,15 @@ class ProfileApplier:
 
     def plain_numbers(self, profile: Profile, slave: int, reported: bool, address: int) -> PlainNumbers | None:
         """How the values at ``address`` that are plain numbers are named in arrays, as
-        :meth:`named_values` names them (``None``: none is)."""
-        return self._namer_of(profile, slave, reported, address).plain_numbers()
+        :meth:`named_values` names them (``None``: none is). Kept while the version stays (what a
+        register is named depends on nothing else): a batch asks for a hundred registers or so."""
+        if self._plain_version != self.version or len(self._plain) >= KEPT_PLAIN_REGISTERS:
+            self._plain.clear()
+            self._plain_version = self.version
+        key = (profile.id, reported, slave, address)
+        if key not in self._plain:
+            self._plain[key] = self._namer_of(profile, slave, reported, address).plain_numbers()
+        return self._plain[key]
 
     def _namer_of(self, profile: Profile, slave: int, reported: bool, address: int) -> AddressNamer:
         namers = self._kept_namers(profile, reported)

@@ -9,6 +9,7 @@ import struct
 from itertools import pairwise
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -228,6 +229,25 @@ def test_scanner_value_registers_are_named_in_columns_by_each_slave_s_own_mappin
     assert _names(columns, batch) == [
         "read HR 12741 (1): NM1→RFRD", "HR = 05DC (1 registers): NM1→RFRD = 1500 rpm", "read HR 12741 (1): NM1→ETA",
         "HR = 0637 (1 registers): NM1→ETA = 16#0637 operation enabled, reference reached, forward"]
+
+
+@pytest.mark.parametrize("numbers", [False, True])
+def test_a_scanner_value_register_pointed_elsewhere_is_named_anew(numbers: bool) -> None:
+    """Slave 1 points NM1 at RFRD (a plain number, in arrays with ``numbers``), reads it, points it
+    back at ETA (a state word) and reads it again: the second read is named after ETA, as the
+    plain path names it, not after what NM1 was named in the batch before."""
+    columns, plain, shown = annotator(["atv71"]), annotator(["atv71"]), annotator(["atv71"])
+    said = []
+    for target, value in ((8604, 1500), (3201, 0x0637)):
+        teach = [adu(b"\x01\x06", struct.pack(">HH", 12701, target))] * 2
+        for traffic in (teach, _read(1, 12741, (value,))):
+            (batch,) = [batch for batch in matched(traffic) if len(batch)]
+            check_batch(columns, plain, batch, numbers=numbers)
+            reads = shown.annotate_columnar(batch, numbers=numbers).columnar
+            said += [] if reads is None else reads.summaries(batch.frames.data)
+    assert said == ["read HR 12741 (1): NM1→RFRD", "HR = 05DC (1 registers): NM1→RFRD = 1500 rpm",
+                    "read HR 12741 (1): NM1→ETA",
+                    "HR = 0637 (1 registers): NM1→ETA = 16#0637 operation enabled, reference reached, forward"]
 
 
 def test_the_scanner_s_fc_23_exchange_is_kept_in_columns_named_by_the_mapping() -> None:
