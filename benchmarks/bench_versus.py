@@ -1,6 +1,6 @@
 """This checkout against an earlier commit, side by side: the commands alternate; prints a table.
 
-    python -m benchmarks.bench_versus REV [--frames 1000000] [--runs 2] [--keep DIR]
+    python -m benchmarks.bench_versus REV [--frames 1000000] [--runs 2] [--keep DIR] [--threads]
                                           [--only stats:steady jsonl:coils ...]
 
 On a shared machine whose speed drifts by a quarter within minutes, two passes made minutes
@@ -11,11 +11,17 @@ command runs in its own process from its tree (``python -m sniffer`` with the tr
 working directory, which puts that tree's packages first), output to ``/dev/null``. Captures are
 the benchmark captures of ``benchmarks/bench_memory.py``. The table gives every run's seconds
 and the ratio of the medians (earlier / this checkout: above 1 is faster now).
+
+``--threads``: each command runs under :mod:`benchmarks.thread_clock`, and a second line per
+command gives the medians of where its CPU went: the main thread (which annotates and writes,
+and bounds the exports), the decoding process, the Parquet writing thread.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import shutil
 import statistics
 import subprocess
@@ -48,14 +54,24 @@ def _argv(command: str, capture: Path, scratch: Path) -> list[str]:
     return ["export", str(capture), "--parquet", str(output), "-q"]
 
 
-def _seconds(tree: Path, argv: list[str]) -> float:
+def _seconds(tree: Path, argv: list[str], *, threads: bool = False) -> dict[str, float]:
+    """The wall time of ``rtusniff ARGV`` run from ``tree`` (``threads``: also its CPU by thread,
+    :mod:`benchmarks.thread_clock`)."""
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "sniffer", *argv], cwd=tree, stdout=subprocess.DEVNULL,
-                          stderr=subprocess.PIPE, check=False)
+    command = [sys.executable, str(ROOT / "benchmarks" / "thread_clock.py")] if threads else [
+        sys.executable, "-m", "sniffer"]
+    done = subprocess.run([*command, *argv], cwd=tree, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                          check=False, env={**os.environ, "PYTHONPATH": str(tree)})
     seconds = time.perf_counter() - start
     if done.returncode != 0:
         sys.exit(f"bench_versus: rtusniff {' '.join(argv)} in {tree} failed: {done.stderr.decode().strip()}")
-    return seconds
+    clocks: dict[str, float] = json.loads(done.stderr.decode().splitlines()[-1]) if threads else {}
+    return {**clocks, "wall": seconds}
+
+
+def _where(figures: list[dict[str, float]]) -> str:
+    """The medians of the main thread's, the decoding process's and the writing thread's CPU."""
+    return " / ".join(f"{statistics.median(run[key] for run in figures):.2f}" for key in ("main", "children", "writer"))
 
 
 def _case(text: str) -> tuple[str, str]:
@@ -72,6 +88,8 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=1_000_000)
     parser.add_argument("--runs", type=int, default=2)
     parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated captures in this folder")
+    parser.add_argument("--threads", action="store_true",
+                        help="also the CPU of the main thread, the decoding process and the writing thread")
     parser.add_argument("--only", type=_case, nargs="+", default=[_case(c) for c in DEFAULT_CASES],
                         metavar="COMMAND:TRAFFIC")
     args = parser.parse_args()
@@ -88,13 +106,17 @@ def main() -> None:
             print(f"{'command':<8} {'traffic':<8} {commit:>20} {'this checkout':>20} {'ratio':>6}")
             for command, traffic in args.only:
                 capture = benchmark_capture(args.keep or scratch, args.frames, traffic)
-                times: dict[Path, list[float]] = {earlier: [], ROOT: []}
+                runs: dict[Path, list[dict[str, float]]] = {earlier: [], ROOT: []}
                 for _ in range(args.runs):
                     for tree in (earlier, ROOT):
-                        times[tree].append(_seconds(tree, _argv(command, capture, scratch)))
+                        runs[tree].append(_seconds(tree, _argv(command, capture, scratch), threads=args.threads))
+                times = {tree: [run["wall"] for run in figures] for tree, figures in runs.items()}
                 ratio = statistics.median(times[earlier]) / statistics.median(times[ROOT])
                 shown = {tree: ", ".join(f"{s:.2f}" for s in figures) for tree, figures in times.items()}
                 print(f"{command:<8} {traffic:<8} {shown[earlier]:>20} {shown[ROOT]:>20} {ratio:>6.2f}")
+                if args.threads:
+                    where = {tree: _where(figures) for tree, figures in runs.items()}
+                    print(f"{'':<8} {'main/decoding/writer':<8} {where[earlier]:>20} {where[ROOT]:>20}")
                 for leftover in scratch.glob("out-*"):
                     shutil.rmtree(leftover) if leftover.is_dir() else leftover.unlink()
         finally:
