@@ -9,11 +9,15 @@ of the list it was given,
 * per decoded batch: ``frames`` with the framed and paired messages in columns,
   before annotation (``wants_frames``), then ``messages`` with the annotated
   batch (``wants_messages``: only then does the pipeline annotate; its plain reads
-  in columns for sinks that all ``takes_columnar``), then
+  in columns for sinks that all ``takes_columnar``, their plain numbers in arrays for
+  sinks that all ``takes_number_names``), then
   ``prepared`` with what the sink's ``prepare`` made of that batch;
 * ``gap`` where a live capture skipped reads it could not decode in time;
 * ``finish`` once, with the statistics of the whole capture (counted only when
   a sink ``wants_statistics``);
+
+batches of a capture read whole are joined into larger ones where no sink wants chunks
+and every sink that wants messages ``joins_batches`` (or none wants any);
 
 and the command that made the sinks calls ``close`` on each, whatever happened.
 ``prepare`` is the optional part that runs where the messages are framed and paired
@@ -55,6 +59,10 @@ class Sink:
     #: arrays (``ColumnarNames.numbers``, no param object each): when every sink that wants
     #: messages does, they are named so.
     takes_number_names = False
+    #: Whether the sink spends more per batch than per frame, and holds a batch only while it
+    #: writes it: where every sink that wants messages does, the chunks of a capture read whole
+    #: are joined into larger batches (``sniffer.pipeline.JOINED_BATCH_CHUNKS``).
+    joins_batches = False
     #: Work on a framed batch, where it is framed (see the module docstring); ``None``: none.
     prepare: Callable[[MessageBatch], Any] | None = None
 

@@ -1,7 +1,8 @@
 """Commands whose sinks only count (``stats``, ``compare``, ``cut``) decode the chunks read joined
-into larger batches (:data:`sniffer.pipeline.COUNTING_BATCH_CHUNKS`); the statistics are the same
-as from the batches as read, on the samples and on the real recordings. Outputs that annotate
-keep the readers' batches (their memory grows with a batch)."""
+into larger batches (:data:`sniffer.pipeline.COUNTING_BATCH_CHUNKS`), and so does the Parquet
+dataset (:data:`sniffer.pipeline.JOINED_BATCH_CHUNKS`); the statistics and the dataset are the
+same as from the batches as read, on the samples and on the real recordings. Other outputs that
+annotate keep the readers' batches (their memory grows with a batch)."""
 
 from __future__ import annotations
 
@@ -72,15 +73,58 @@ def test_stats_of_real_recordings_joined_are_the_same(cli: Callable[..., CliResu
     _stats_both_ways(cli, capture, fed, monkeypatch)
 
 
+def _parquet_both_ways(cli: Callable[..., CliResult], capture: Path, fed: list[int], folder: Path,
+                       monkeypatch: pytest.MonkeyPatch) -> None:
+    from sniffer.exports.parquet_export import TABLES
+    from tests.test_parquet import table
+
+    batches = []
+    for join in (0, 5 * READ_CHUNKS):
+        monkeypatch.setattr(pipeline, "JOINED_BATCH_CHUNKS", join)
+        fed.clear()
+        result = cli("export", str(capture), "--parquet", str(folder / f"joined-{join}"), "-q", "--profile", "atv71",
+                     "--jobs", "1")
+        assert result.code == 0, result.err
+        batches.append(list(fed))
+    for name in TABLES:
+        assert table(folder / "joined-0", name) == table(folder / f"joined-{5 * READ_CHUNKS}", name), name
+    as_read, joined = batches
+    assert sum(as_read) == sum(joined)
+    if sum(as_read) > 5 * READ_CHUNKS and len(as_read) > 2:
+        assert len(joined) < len(as_read) and max(joined) >= 5 * READ_CHUNKS, (as_read, joined)
+
+
+@pytest.mark.parametrize("capture", CAPTURE_FILES, ids=[path.name for path in CAPTURE_FILES])
+def test_parquet_of_joined_batches_is_the_same(cli: Callable[..., CliResult], capture: Path, fed: list[int],
+                                               tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    _parquet_both_ways(cli, capture, fed, tmp_path, monkeypatch)
+
+
+@pytest.mark.skipif(not available(), reason="../shared/real not present")
+@pytest.mark.parametrize("capture", REAL, ids=[path.name for path in REAL])
+def test_parquet_of_real_recordings_joined_is_the_same(cli: Callable[..., CliResult], capture: Path,
+                                                       fed: list[int], tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    _parquet_both_ways(cli, capture, fed, tmp_path, monkeypatch)
+
+
 def test_outputs_that_annotate_keep_the_batches_as_read(cli: Callable[..., CliResult], fed: list[int],
-                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+                                                        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """JSONL, MCAP, and the Parquet dataset written with either, keep the readers' batches;
+    ``stats`` and the Parquet dataset alone join them."""
     monkeypatch.setattr(pipeline, "COUNTING_BATCH_CHUNKS", 5 * READ_CHUNKS)
+    monkeypatch.setattr(pipeline, "JOINED_BATCH_CHUNKS", 5 * READ_CHUNKS)
     capture = CAPTURES / "atv71-plc-poll.log"
-    assert cli("analyze", str(capture), "--format", "jsonl", "--jobs", "1").code == 0
-    assert sum(fed) > 5 * READ_CHUNKS and max(fed) < 5 * READ_CHUNKS
-    fed.clear()
-    assert cli("stats", str(capture)).code == 0
-    assert max(fed) >= 5 * READ_CHUNKS
+    for command in (["analyze", str(capture), "--format", "jsonl"],
+                    ["export", str(capture), "--mcap", str(tmp_path / "out.mcap"),
+                     "--parquet", str(tmp_path / "both")]):
+        fed.clear()
+        assert cli(*command, "--jobs", "1").code == 0
+        assert sum(fed) > 5 * READ_CHUNKS and max(fed) < 5 * READ_CHUNKS, command
+    for command in (["stats", str(capture)], ["export", str(capture), "--parquet", str(tmp_path / "alone")]):
+        fed.clear()
+        assert cli(*command, "--jobs", "1").code == 0
+        assert max(fed) >= 5 * READ_CHUNKS, command
 
 
 def test_two_processes_join_as_one(fed: list[int], monkeypatch: pytest.MonkeyPatch) -> None:
@@ -112,3 +156,32 @@ def test_two_processes_join_as_one(fed: list[int], monkeypatch: pytest.MonkeyPat
         batches.append(len(delivered))
     assert figures[0] == figures[1] == figures[2] and figures[0]["frames"]
     assert batches[1] == batches[2] < batches[0], batches
+
+
+def test_batches_are_joined_only_where_every_sink_that_takes_messages_joins() -> None:
+    from sniffer.sinks import Sink
+
+    class Joining(Sink):
+        wants_messages = True
+        joins_batches = True
+
+    class Plain(Sink):
+        wants_messages = True
+
+    class Chunks(Sink):
+        wants_chunks = True
+
+    class Counting(Sink):
+        wants_statistics = True
+
+    def joined(*sinks: Sink) -> tuple[int, int] | None:
+        return pipeline.Delivery(list(sinks)).joined()
+
+    counting = (pipeline.COUNTING_BATCH_CHUNKS, pipeline.COUNTING_BATCH_BYTES)
+    assert joined(Counting()) == counting
+    assert joined(Joining()) == joined(Joining(), Counting()) == (pipeline.JOINED_BATCH_CHUNKS,
+                                                                  pipeline.COUNTING_BATCH_BYTES)
+    assert joined(Joining(), Plain()) is None
+    assert joined(Plain()) is None
+    assert joined(Joining(), Chunks()) is None
+    assert joined(Counting(), Chunks()) is None

@@ -104,6 +104,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
     wants_messages = True
     takes_columnar = True
     takes_number_names = True
+    joins_batches = True
 
     def __init__(self, folder: str, args: argparse.Namespace, analysis: Analysis) -> None:
         super().__init__(folder)
