@@ -255,18 +255,16 @@ def _number_names(plains: list[PlainNumbers | None], register_of: npt.NDArray[np
     if not len(raws):
         return None
     used, register = np.unique(register_of, return_inverse=True)
-    registers = [plains[place] for place in used.tolist()]
+    # Every register a plain number lies in has its plain numbers.
+    registers = [found for place in used.tolist() if (found := plains[place]) is not None]
     values = np.empty(len(raws), np.float64)
     tables: dict[int, list[int]] = {}  # registers by the table of values they share
     for place, found in enumerate(registers):
-        assert found is not None
         tables.setdefault(id(found.value), []).append(place)
     for places in tables.values():
         of = np.isin(register, places)
-        found = registers[places[0]]
-        assert found is not None
-        values[of] = found.value[raws[of]]
-    return NumberNames(register.reshape(-1), raws, values, [found for found in registers if found is not None])
+        values[of] = registers[places[0]].value[raws[of]]
+    return NumberNames(register.reshape(-1), raws, values, registers)
 
 
 def _value_register_owners(slaves: _Slaves, of: npt.NDArray[np.int64], address: npt.NDArray[np.int64],
