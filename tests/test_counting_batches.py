@@ -43,21 +43,31 @@ def fed(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[int]]:
     yield sizes
 
 
-def _stats_both_ways(cli: Callable[..., CliResult], capture: Path, fed: list[int],
-                     monkeypatch: pytest.MonkeyPatch) -> None:
+def _both_ways(cli: Callable[..., CliResult], fed: list[int], monkeypatch: pytest.MonkeyPatch, constant: str,
+               command: Callable[[int], list[str]]) -> list[str]:
+    """``command(join)`` run with ``pipeline.<constant>`` at 0 (batches as read), then joining
+    ``5 * READ_CHUNKS``: what each wrote on standard output. The same chunks were fed both times,
+    joined the second where there were many."""
     outputs, batches = [], []
     for join in (0, 5 * READ_CHUNKS):
-        monkeypatch.setattr(pipeline, "COUNTING_BATCH_CHUNKS", join)
+        monkeypatch.setattr(pipeline, constant, join)
         fed.clear()
-        result = cli("stats", str(capture), "--format", "json")
+        result = cli(*command(join))
         assert result.code == 0, result.err
         outputs.append(result.out)
         batches.append(list(fed))
-    assert outputs[0] == outputs[1]
     as_read, joined = batches
     assert sum(as_read) == sum(joined)
     if sum(as_read) > 5 * READ_CHUNKS and len(as_read) > 2:
         assert len(joined) < len(as_read) and max(joined) >= 5 * READ_CHUNKS, (as_read, joined)
+    return outputs
+
+
+def _stats_both_ways(cli: Callable[..., CliResult], capture: Path, fed: list[int],
+                     monkeypatch: pytest.MonkeyPatch) -> None:
+    outputs = _both_ways(cli, fed, monkeypatch, "COUNTING_BATCH_CHUNKS",
+                         lambda _: ["stats", str(capture), "--format", "json"])
+    assert outputs[0] == outputs[1]
 
 
 @pytest.mark.parametrize("capture", CAPTURE_FILES, ids=[path.name for path in CAPTURE_FILES])
@@ -78,20 +88,10 @@ def _parquet_both_ways(cli: Callable[..., CliResult], capture: Path, fed: list[i
     from sniffer.exports.parquet_export import TABLES
     from tests.test_parquet import table
 
-    batches = []
-    for join in (0, 5 * READ_CHUNKS):
-        monkeypatch.setattr(pipeline, "JOINED_BATCH_CHUNKS", join)
-        fed.clear()
-        result = cli("export", str(capture), "--parquet", str(folder / f"joined-{join}"), "-q", "--profile", "atv71",
-                     "--jobs", "1")
-        assert result.code == 0, result.err
-        batches.append(list(fed))
+    _both_ways(cli, fed, monkeypatch, "JOINED_BATCH_CHUNKS", lambda join: [
+        "export", str(capture), "--parquet", str(folder / f"joined-{join}"), "-q", "--profile", "atv71", "--jobs", "1"])
     for name in TABLES:
         assert table(folder / "joined-0", name) == table(folder / f"joined-{5 * READ_CHUNKS}", name), name
-    as_read, joined = batches
-    assert sum(as_read) == sum(joined)
-    if sum(as_read) > 5 * READ_CHUNKS and len(as_read) > 2:
-        assert len(joined) < len(as_read) and max(joined) >= 5 * READ_CHUNKS, (as_read, joined)
 
 
 @pytest.mark.parametrize("capture", CAPTURE_FILES, ids=[path.name for path in CAPTURE_FILES])
