@@ -54,7 +54,7 @@ def _argv(command: str, capture: Path, scratch: Path) -> list[str]:
     return ["export", str(capture), "--parquet", str(output), "-q"]
 
 
-def _seconds(tree: Path, argv: list[str], *, threads: bool = False) -> dict[str, float]:
+def _timed(tree: Path, argv: list[str], *, threads: bool = False) -> dict[str, float]:
     """The wall time of ``rtusniff ARGV`` run from ``tree`` (``threads``: also its CPU by thread,
     :mod:`benchmarks.thread_clock`)."""
     start = time.perf_counter()
@@ -109,7 +109,7 @@ def main() -> None:
                 runs: dict[Path, list[dict[str, float]]] = {earlier: [], ROOT: []}
                 for _ in range(args.runs):
                     for tree in (earlier, ROOT):
-                        runs[tree].append(_seconds(tree, _argv(command, capture, scratch), threads=args.threads))
+                        runs[tree].append(_timed(tree, _argv(command, capture, scratch), threads=args.threads))
                 times = {tree: [run["wall"] for run in figures] for tree, figures in runs.items()}
                 ratio = statistics.median(times[earlier]) / statistics.median(times[ROOT])
                 shown = {tree: ", ".join(f"{s:.2f}" for s in figures) for tree, figures in times.items()}

@@ -45,7 +45,7 @@ class AddressNamer:
     """Names the values of one register (its scanner slot and target resolved), keeping each
     raw word's :data:`NamedValue` in :attr:`known` (its owner bounds their number)."""
 
-    __slots__ = ("_plain", "address", "code", "known", "learns", "name", "parameter", "profile", "specials")
+    __slots__ = ("address", "code", "known", "learns", "name", "parameter", "profile", "specials")
 
     def __init__(self, profile: Profile, address: int, label: tuple[str | None, str | None],
                  parameter: Parameter | None, *, reported: bool, learns: bool) -> None:
@@ -59,14 +59,11 @@ class AddressNamer:
         self.specials = profile.special_meanings if reported else {}
         self.known: dict[int | None, NamedValue] = {}
         self.learns = learns
-        self._plain: PlainNumbers | bool | None = False  # False: not asked yet
 
     def plain_numbers(self) -> PlainNumbers | None:
         """How this register's plain numbers are named in arrays; ``None``: it has none (a state
-        word, a bitfield)."""
-        if self._plain is False:
-            self._plain = _plain_numbers(self)
-        return self._plain if isinstance(self._plain, PlainNumbers) else None
+        word, a bitfield). Made anew: its owner keeps it (``ProfileApplier.plain_numbers``)."""
+        return _plain_numbers(self)
 
     def make(self, raw: int | None) -> NamedValue:
         """The value ``raw`` named (and kept in :attr:`known`)."""

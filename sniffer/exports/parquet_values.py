@@ -387,11 +387,12 @@ def _with_names(rows: NumericValues, names: ColumnarNames) -> tuple[npt.NDArray[
     rows_named = rows.name >= 0
     entry = np.where(rows_named, rows.name + (rows.name >= unnamed), unnamed)
     taken = pa.array(entry)
+    number_registers = None if numbers is None else pa.array(numbers.register)
 
     def picked(column: list[str | None], each_register: list[str | None]) -> pa.Array:
         texts = pa.array(column, pa.string())
-        if numbers is not None:
-            texts = pa.concat_arrays([texts, pa.array(each_register, pa.string()).take(pa.array(numbers.register))])
+        if number_registers is not None:
+            texts = pa.concat_arrays([texts, pa.array(each_register, pa.string()).take(number_registers)])
         return texts.take(taken)
 
     value = np.where(rows_named, numbered[entry], rows.raw.astype(np.float64))
