@@ -136,11 +136,27 @@ def _plain_numbers(namer: AddressNamer) -> PlainNumbers | None:
     values = _SCALED.get((signed, scale))
     if values is None:
         numbers = _RAW_WORDS - 0x10000 * ((_RAW_WORDS & 0x8000) != 0) if signed else _RAW_WORDS
-        values = numbers.astype(np.float64) if scale == 1.0 else np.array(
-            [round(number * scale, 6) for number in numbers.tolist()], np.float64)
+        values = numbers.astype(np.float64) if scale == 1.0 else _rounded_products(numbers, scale)
         _SCALED[(signed, scale)] = values
     return PlainNumbers(namer.address, namer.code, namer.name, None if parameter is None else parameter.unit,
                         scale == 1.0, np.array(sorted(words), np.int64), values)
+
+
+def _rounded_products(numbers: npt.NDArray[np.int64], scale: float) -> npt.NDArray[np.float64]:
+    """``round(number * scale, 6)`` of each number, as Python rounds it, but by numpy: 1.4 ms
+    for the 65 536 raw words against 34 ms a number at a time, which a short capture of a
+    profiled drive paid at start for each sign and scale. Python rounds the exact value of the
+    product to 6 decimals and takes the double nearest that decimal; numpy's ``rint`` of the
+    product times 10⁶, divided by 10⁶ (exact integers, one correctly rounded division), is that
+    double unless the product times 10⁶ lies within its rounding error of a half (or past exact
+    integers): those few are rounded by Python (``tests/unit/test_plain_numbers.py``)."""
+    products = numbers.astype(np.float64) * scale  # the product Python forms: the int made a double first
+    shifted = products * 1e6
+    values: npt.NDArray[np.float64] = np.rint(shifted) / 1e6
+    near_half = np.abs(shifted - np.floor(shifted) - 0.5) <= 2 * np.spacing(np.abs(shifted))
+    doubtful = np.flatnonzero(near_half | ~(np.abs(shifted) < 2.0**50))
+    values[doubtful] = [round(number * scale, 6) for number in numbers[doubtful].tolist()]
+    return values
 
 
 def parameter_value(profile: Profile, parameter: Parameter,

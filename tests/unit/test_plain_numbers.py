@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import struct
 
+import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from decoders.modbus.annotate import Annotator
 from decoders.profiles.apply import ProfileApplier
-from decoders.profiles.naming import AddressNamer
+from decoders.profiles.naming import AddressNamer, _rounded_products
 from sniffer.profiles_io import profile_book, shipped_profiles
 from tests.property.test_annotation_cache import adu, matched
 
@@ -84,3 +87,29 @@ def test_drives_traffic_names_its_plain_numbers_in_arrays_when_asked() -> None:
             [numbered.registers[place] for place in numbered.register.tolist()], numbered.raw.tolist(),
             numbered.value.tolist(), strict=True)] == [("HSP", 438, 43.8), (None, 7, 7.0), ("LCR", 0xFFF6, -10.0)]
         assert all(param.raw in (None, 3, 0x8000) for param, _ in reads.names.table)
+
+
+#: Scales of real parameters (tenths to thousandths, binary fractions, whole multiples), and ones
+#: whose products land on a half of the sixth decimal (5e-7: every odd word) or past exact
+#: integers in millionths (1e12), where numpy's rounding is not Python's and Python rounds.
+SCALES = [0.1, 0.01, 0.001, 1e-4, 1e-6, 1e-7, 5e-7, 2.5e-7, 0.5, 0.25, 0.3, 1 / 3, 2 / 3, 0.15, 1.5, 10.0,
+          1000.0, 0.0625, 60 / 65536, 0.123456789, 3.14159, 1e12]
+
+
+@pytest.mark.parametrize("scale", SCALES)
+@pytest.mark.parametrize("signed", [False, True])
+def test_rounded_products_are_pythons_round_for_every_raw_word(scale: float, signed: bool) -> None:
+    words = np.arange(0x10000, dtype=np.int64)
+    numbers = words - 0x10000 * ((words & 0x8000) != 0) if signed else words
+    expected = np.array([round(number * scale, 6) for number in numbers.tolist()], np.float64)
+    got = _rounded_products(numbers, scale)
+    assert np.array_equal(got, expected)
+    assert np.array_equal(np.signbit(got), np.signbit(expected))  # -0.0 where Python writes it
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(min_value=1e-9, max_value=1e6, allow_nan=False, allow_infinity=False), st.booleans())
+def test_rounded_products_hold_for_any_scale(scale: float, signed: bool) -> None:
+    numbers = np.arange(0x10000, dtype=np.int64) - (0x8000 if signed else 0)
+    expected = np.array([round(number * scale, 6) for number in numbers.tolist()], np.float64)
+    assert np.array_equal(_rounded_products(numbers, scale), expected)
