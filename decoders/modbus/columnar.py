@@ -215,22 +215,26 @@ class ColumnarFrames:
     def values(self, data: bytes) -> ColumnarValues:
         """The values of read answers, writes and the echoes of single writes (a write request's
         at its answer, before the answer's own)."""
-        valued, counts, within, value = self._carried(data)
+        valued = self._valued()
         written = np.isin(self.kind[valued], (WRITE, READ_WRITE))
-        frame = self.positions[valued]
-        found = np.where(written, self.answer[valued], frame)
+        found = np.where(written, self.answer[valued], self.positions[valued])
+        # The frames in the rows' order, so that each column is laid out once, in order (sorting
+        # the rows instead took a fifth of the time of a coil capture's values). Stable: a frame's
+        # values stay in order.
+        order = np.lexsort((~written, found))
+        valued, written, found = valued[order], written[order], found[order]
+        counts, within, value = self._carried(data, valued)
         request = np.where(written, -1, self.request[valued])
-        rows = ColumnarValues(np.repeat(frame, counts), np.repeat(found, counts), np.repeat(written, counts),
-                              np.repeat(self.address[valued], counts) + within, value, np.repeat(request, counts))
-        order = np.lexsort((~rows.written, rows.found))  # stable: a frame's values stay in order
-        name = None if self.names is None else self.names.row[self._param_rows(valued, counts, within)[order]]
-        return ColumnarValues(rows.frame[order], rows.found[order], rows.written[order], rows.address[order],
-                              rows.raw[order], rows.request[order], name)
+        name = None if self.names is None else self.names.row[self._param_rows(valued, counts, within)]
+        return ColumnarValues(np.repeat(self.positions[valued], counts), np.repeat(found, counts),
+                              np.repeat(written, counts), np.repeat(self.address[valued], counts) + within, value,
+                              np.repeat(request, counts), name)
 
     def params(self, data: bytes) -> ColumnarParams:
         """Every frame's params as the plain path's decoding names them, laid end to end: for
         writers that spell them in columns, with no decoding per frame."""
-        valued, counts, within, value = self._carried(data)
+        valued = self._valued()
+        counts, within, value = self._carried(data, valued)
         sizes = self._sizes()
         values = np.full(int(sizes.sum()), NO_VALUE, np.int64)
         values[self._param_rows(valued, counts, within)] = value
@@ -260,23 +264,36 @@ class ColumnarFrames:
         starts: npt.NDArray[np.int64] = np.cumsum(sizes) - sizes
         return starts
 
-    def _carried(self, data: bytes) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64],
-                                             npt.NDArray[np.int64]]:
-        """Which frames carry values (indexes of these columns), how many each, each value's place
-        in its frame, and the values, frame after frame (a register's word; a coil as 0 or 1)."""
-        kind, function = self.kind, self.function
-        valued = np.flatnonzero((kind == READ_ANSWER) | (kind == WRITE) | (kind == READ_WRITE)
-                                | ((kind == WRITE_ANSWER) & (function <= 6)))
+    def _valued(self) -> npt.NDArray[np.int64]:
+        """Which frames carry values (indexes of these columns)."""
+        kind = self.kind
+        valued: npt.NDArray[np.int64] = np.flatnonzero((kind == READ_ANSWER) | (kind == WRITE) | (kind == READ_WRITE)
+                                                       | ((kind == WRITE_ANSWER) & (self.function <= 6)))
+        return valued
+
+    def _carried(self, data: bytes, valued: npt.NDArray[np.int64]) -> tuple[
+            npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+        """How many values each of the frames ``valued`` (:meth:`_valued`, in any order) carries,
+        each value's place in its frame, and the values, frame after frame (a register's word; a
+        coil as 0 or 1)."""
         counts = self.count[valued]
         within = within_runs(counts)
         start = np.repeat(self.data[valued], counts)
-        each_function = np.repeat(function[valued], counts)
-        bits = (each_function <= 2) | (each_function == 15)
-        raw = np.frombuffer(data, np.uint8).astype(np.int64)
-        at = np.where(bits, start + (within >> 3), start + 2 * within)
-        words = (raw[at] << 8) | raw[np.minimum(at + 1, len(raw) - 1)]
-        value = np.where(bits, (raw[at] >> (within & 7)) & 1, np.where(each_function == 5, words == COIL_ON, words))
-        return valued, counts, within, value.astype(np.int64)
+        function = self.function[valued]
+        bit_frames = (function <= 2) | (function == 15)
+        raw = np.frombuffer(data, np.uint8)
+        # Batches of coils alone or registers alone (most) skip the other kind's arithmetic.
+        if bit_frames.all():
+            return counts, within, ((raw[start + (within >> 3)] >> (within & 7)) & 1).astype(np.int64)
+        some_bits = bit_frames.any()
+        bit_rows = np.repeat(bit_frames, counts) if some_bits else None
+        at = start + (2 * within if bit_rows is None else np.where(bit_rows, within >> 3, 2 * within))
+        high = raw[at].astype(np.int64)
+        words = (high << 8) | raw[np.minimum(at + 1, len(raw) - 1)]
+        single_coil = function == 5
+        if single_coil.any():
+            words = np.where(np.repeat(single_coil, counts), words == COIL_ON, words)
+        return counts, within, words if bit_rows is None else np.where(bit_rows, (high >> (within & 7)) & 1, words)
 
 
 def within_runs(counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
