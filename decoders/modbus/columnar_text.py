@@ -6,13 +6,14 @@ the bits of coils read or written taken from one unpacking of their bytes. The t
 line to the summary of the frame's PDU (the plain path: ``tests/property/test_columnar.py``).
 
 Read requests, register answers of up to eight registers (a polled bus's every frame), coil
-answers, write answers, FC 6 writes, and FC 16 and FC 23 writes of up to eight registers are
-written faster (``fast``; the comprehensions remain the plain path, and the tests hold both to the PDU's
-summary): one ``%`` of a template repeated for all rows formats their numbers in C, the hex
-words of all answers and writes are laid out by numpy and cut apart in C, and one ``split``
-makes the lines (register answers of one size are rows of one template, their digits placed
-column by column: half the time of their words laid out and formatted). A million polling frames took 2.0 s of
-``export --parquet``'s 4.5 s to summarise, f-strings and ``bytes.hex`` a frame at a time.
+answers, write answers, FC 5, FC 6 and FC 15 writes, and FC 16 and FC 23 writes of up to eight
+registers are written faster (``fast``; the comprehensions remain the plain path, and the tests
+hold both to the PDU's summary): one ``%`` of a template repeated for all rows formats their
+numbers in C, the hex words of all answers and writes are laid out by numpy and cut apart in C,
+and one ``split`` makes the lines (register answers of one size are rows of one template, their
+digits placed column by column: half the time of their words laid out and formatted; so are the
+bits of coils of one count). A million polling frames took 2.0 s of ``export --parquet``'s
+4.5 s to summarise, f-strings and ``bytes.hex`` a frame at a time.
 """
 
 from __future__ import annotations
@@ -48,8 +49,11 @@ def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list
         rows = np.flatnonzero(group == key)
         kind_of, function_of = key >> 8, key & 0xFF
         table = _TABLES.get(function_of, "")
-        if not fast or function_of == 5:
+        if not fast:
             texts[rows] = _group(frames, data, rows, kind_of, function_of)
+        elif function_of == 5:  # a request and its echo say the same
+            texts[rows] = formatted("write coil %d = %s", [frames.address[rows],
+                                                           _coil_states(_words_at(data, frames.data[rows]))])
         elif function_of == 6:  # a request and its echo say the same
             values = _words_at(data, frames.data[rows])
             texts[rows] = formatted("write HR %d = %d (0x%04X)", [frames.address[rows], values, values])
@@ -63,8 +67,11 @@ def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list
         elif kind_of == READ_WRITE:
             _read_write_texts(texts, rows, data, frames)
         elif kind_of == READ_ANSWER:
-            bits = _bit_texts(data, frames.data[rows], 8 * frames.byte_count[rows])
+            bits = _bit_strings(data, frames.data[rows], 8 * frames.byte_count[rows])
             texts[rows] = formatted(f"{table} = %s (%d bytes)", [bits, frames.byte_count[rows]])
+        elif kind_of == WRITE and function_of == 15:
+            bits = _bit_strings(data, frames.data[rows], frames.count[rows])
+            texts[rows] = formatted("write coils %s = %s", [_spans(frames.address[rows], frames.count[rows]), bits])
         else:
             texts[rows] = _group(frames, data, rows, kind_of, function_of)
     lines: list[str] = texts.tolist()
@@ -209,6 +216,39 @@ def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: 
         lines[rows] = spelt
     answered: list[str] = lines.tolist()
     return answered
+
+
+def _coil_states(values: npt.NDArray[np.int64]) -> list[str]:
+    """``ON``, ``OFF`` or ``invalid 0x1234`` for each FC 5 value."""
+    states = np.full(len(values), "ON", object)
+    states[values == COIL_OFF] = "OFF"
+    invalid = np.flatnonzero((values != COIL_ON) & (values != COIL_OFF))
+    states[invalid] = [f"invalid 0x{value:04X}" for value in values[invalid].tolist()]
+    spelt: list[str] = states.tolist()
+    return spelt
+
+
+def _bit_strings(data: bytes, starts: npt.NDArray[np.int64], counts: npt.NDArray[np.int64]) -> list[str]:
+    """:func:`_bit_texts` laid out by numpy: the texts of one count are rows of one template
+    (its bits' digits, "…" past 32 of them), cut apart by one ``split``; no slice per text."""
+    raw = np.frombuffer(data, np.uint8)
+    texts = np.empty(len(counts), object)
+    for count in np.unique(counts).tolist():
+        rows = np.flatnonzero(counts == count)
+        shown = min(count, _SHOWN_BITS)
+        width = (shown + 7) // 8
+        bits = np.unpackbits(raw[starts[rows][:, None] + np.arange(width)], axis=1, bitorder="little")
+        text = np.full((len(rows), width * 8 + 1), ord("\n"), np.uint8)
+        text[:, :shown] = bits[:, :shown] + ord("0")
+        lines = text[:, : shown + 1]
+        if shown < count:  # "…" where the newline was: rows of its three UTF-8 bytes and the newline
+            lines = np.concatenate([lines[:, :shown], np.tile(np.frombuffer("…\n".encode(), np.uint8),
+                                                              (len(rows), 1))], axis=1)
+        spelt = lines.tobytes().decode("utf-8").split("\n")
+        spelt.pop()  # after the last text
+        texts[rows] = spelt
+    laid_out: list[str] = texts.tolist()
+    return laid_out
 
 
 def _group(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kind: int, function: int) -> list[str]:
