@@ -175,7 +175,7 @@ def test_times_and_indexes_are_stored_as_differences(dataset: Path) -> None:
     where they repeat (the tests above read them back with DuckDB and pyarrow)."""
     import pyarrow.parquet as pq
 
-    from sniffer.exports.parquet_export import DELTA_COLUMNS, DICTIONARY_COLUMNS
+    from sniffer.exports.parquet_export import DELTA_COLUMNS, DICTIONARY_COLUMNS, UNSUMMARISED_COLUMNS
 
     seen = set()
     for file in sorted(dataset.glob("*/bus=atv71-plc-poll/date=*/*.parquet")):
@@ -188,7 +188,36 @@ def test_times_and_indexes_are_stored_as_differences(dataset: Path) -> None:
                 seen.add(name)
             elif name in DICTIONARY_COLUMNS and name == column.path_in_schema:  # not in a list
                 assert "RLE_DICTIONARY" in column.encodings, (file, name)
+            # Min/max statistics where an engine may skip a row group by them; not on texts, bytes, values.
+            assert column.is_stats_set is (name not in UNSUMMARISED_COLUMNS), (file, name)
     assert seen == set(DELTA_COLUMNS)
+
+
+def test_a_dictionary_of_many_values_stops_at_its_page_limit(tmp_path: Path) -> None:
+    """``raw`` and ``value`` are dictionary-encoded while few (coils, states); registers polled
+    at random make 65 536 of them, stored plain past a dictionary page of 32 KiB."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from sniffer.exports.parquet_export import (
+        DELTA_COLUMNS,
+        DICTIONARY_COLUMNS,
+        DICTIONARY_PAGE_BYTES,
+        UNSUMMARISED_COLUMNS,
+    )
+    from sniffer.exports.parquet_writing import RowGroupWriter
+
+    many = np.random.default_rng(1).permutation(50_000)
+    table = pa.table({"raw": pa.array(many, pa.int32()), "value": pa.array(many % 2, pa.float64())})
+    writer = RowGroupWriter(DICTIONARY_COLUMNS, DELTA_COLUMNS, UNSUMMARISED_COLUMNS, DICTIONARY_PAGE_BYTES)
+    writer.write(tmp_path / "values.parquet", table)
+    writer.close()
+    group = pq.ParquetFile(tmp_path / "values.parquet").metadata.row_group(0)
+    raw, value = group.column(0), group.column(1)
+    assert raw.has_dictionary_page and raw.data_page_offset - raw.dictionary_page_offset <= DICTIONARY_PAGE_BYTES + 64
+    assert value.has_dictionary_page and value.data_page_offset - value.dictionary_page_offset < 100  # 0.0 and 1.0
+    assert pq.read_table(tmp_path / "values.parquet").equals(table)
 
 
 def test_a_dataset_is_added_to_and_never_rewritten(tmp_path: Path, cli: Callable[..., Any]) -> None:

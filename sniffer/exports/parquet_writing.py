@@ -27,12 +27,17 @@ _CLOSE, _ABANDON = "close", "abandon"
 class RowGroupWriter:
     """Writes row groups to their files, in the order handed over, in a thread of its own."""
 
-    def __init__(self, dictionary_columns: list[str], delta_columns: list[str]) -> None:
+    def __init__(self, dictionary_columns: list[str], delta_columns: list[str],
+                 unsummarised_columns: frozenset[str] = frozenset(), dictionary_page_bytes: int = 1 << 20) -> None:
         """``dictionary_columns``: the columns dictionary-encoded (those of few distinct values;
-        trying it on the others costs time and bytes); ``delta_columns``: the integer columns
-        stored as differences, where a table has them."""
+        trying it on the others costs time and bytes), each up to a dictionary page of
+        ``dictionary_page_bytes`` a row group (then plain); ``delta_columns``: the integer
+        columns stored as differences, where a table has them; ``unsummarised_columns``: those
+        written without min/max statistics."""
         self._dictionary_columns = dictionary_columns
         self._delta_columns = delta_columns
+        self._unsummarised = unsummarised_columns
+        self._dictionary_page_bytes = dictionary_page_bytes
         self._queue: queue.Queue[tuple[Path, pa.Table] | str] = queue.Queue(QUEUED_WRITES)
         self._writers: dict[Path, pq.ParquetWriter] = {}
         #: The first failure of the thread (a full disk); the thread then drops what comes.
@@ -84,8 +89,10 @@ class RowGroupWriter:
 
     def _writer(self, path: Path, schema: pa.Schema) -> pq.ParquetWriter:
         delta = {name: "DELTA_BINARY_PACKED" for name in self._delta_columns if name in schema.names}
+        summarised = [name for name in schema.names if name not in self._unsummarised]
         return pq.ParquetWriter(path, schema, compression="zstd", use_dictionary=self._dictionary_columns,
-                                column_encoding=delta or None)
+                                column_encoding=delta or None, write_statistics=summarised,
+                                dictionary_pagesize_limit=self._dictionary_page_bytes)
 
     def _close_writers(self) -> None:
         for writer in self._writers.values():
