@@ -101,6 +101,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     gc.set_threshold(GC_YOUNG_THRESHOLD, *gc.get_threshold()[1:])
     keep_freed_memory()
     given = list(sys.argv[1:] if argv is None else argv)
+    if given[:1] == ["--version"]:  # as the parser would say it, without every command's modules (0.29 → 0.08 s)
+        print(tool_version())
+        return 0
     parser = build_parser(_command_in(given))
     args = parser.parse_args(joined_line_settings(given))
     if not hasattr(args, "run"):

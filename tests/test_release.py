@@ -264,3 +264,19 @@ def test_output_that_no_terminal_reads_starts_without_rich_nor_metadata(argv: li
                           timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["False", "True" if argv == ["--version"] else "False"], done.stdout
+
+
+def test_the_version_is_told_without_importing_any_command() -> None:
+    """``rtusniff --version`` (scripts record it) imports no command's modules, nor numpy."""
+    program = textwrap.dedent("""
+        import contextlib, io, sys
+        from sniffer.cli import main
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            code = main(["--version"])
+        print(code, out.getvalue().strip(), any(name.startswith(("sniffer.commands", "numpy")) for name in sys.modules))
+    """)
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, check=False, timeout=120)
+    assert done.returncode == 0, done.stderr
+    code, name, version, imported = done.stdout.split()
+    assert (code, name, imported) == ("0", "rtusniff", "False") and version[0].isdigit()
