@@ -122,14 +122,15 @@ def _shaped_writes(columns: _Columns) -> npt.NDArray[np.int64]:
     function, lengths = columns.function, columns.lengths
     writes = np.flatnonzero(columns.of(_REQUEST, (5, 6, 15, 16)) & ((columns.batch.flags & _TIMEOUT) == 0))
     single = function[writes] <= 6
-    many = writes[~single]
-    many = many[lengths[many] >= _MULTIPLE_HEAD]  # its count and byte count inside the frame
-    count = columns.word(many, 4)
-    byte_count = columns.raw[columns.starts[many] + 6]
-    needed = np.where(function[many] == 15, (count + 7) // 8, 2 * count)
-    fits = (lengths[many] == _MULTIPLE_HEAD + byte_count) & (byte_count == needed) & (count >= 1) & (
-        count <= MOST[function[many]])
-    kept: npt.NDArray[np.int64] = np.union1d(writes[single][lengths[writes[single]] == _SHORT], many[fits])
+    shaped = single & (lengths[writes] == _SHORT)
+    many = np.flatnonzero(~single & (lengths[writes] >= _MULTIPLE_HEAD))  # its count and byte count inside the frame
+    frames = writes[many]
+    count = columns.word(frames, 4)
+    byte_count = columns.raw[columns.starts[frames] + 6]
+    needed = np.where(function[frames] == 15, (count + 7) // 8, 2 * count)
+    shaped[many] = (lengths[frames] == _MULTIPLE_HEAD + byte_count) & (byte_count == needed) & (count >= 1) & (
+        count <= MOST[function[frames]])
+    kept: npt.NDArray[np.int64] = writes[shaped]  # in order, as ``writes`` (union1d sorted them: 2.7 ms a batch)
     return kept
 
 
