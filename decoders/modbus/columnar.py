@@ -138,10 +138,10 @@ def number_texts(numbers: NumberNames, *, fast: bool = True) -> list[str | None]
     texts = np.full(len(numbers), None, object)
     bounds = np.searchsorted(numbers.register, np.arange(len(numbers.registers) + 1)).tolist()
     for place, plain in enumerate(numbers.registers):
-        start, stop = bounds[place], bounds[place + 1]
-        unit = f" {plain.unit}" if plain.unit else ""
         if plain.code is None:
             continue
+        start, stop = bounds[place], bounds[place + 1]
+        unit = f" {plain.unit}" if plain.unit else ""
         if not fast or "\n" in plain.code + unit:
             texts[start:stop] = [plain.param(raw, value)[1] for raw, value in
                                  zip(numbers.raw[start:stop].tolist(), numbers.value[start:stop].tolist(), strict=True)]

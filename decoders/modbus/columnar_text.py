@@ -229,22 +229,19 @@ def _coil_states(values: npt.NDArray[np.int64]) -> list[str]:
 
 
 def _bit_strings(data: bytes, starts: npt.NDArray[np.int64], counts: npt.NDArray[np.int64]) -> list[str]:
-    """:func:`_bit_texts` laid out by numpy: the texts of one count are rows of one template
-    (its bits' digits, "…" past 32 of them), cut apart by one ``split``; no slice per text."""
+    """:func:`_bit_texts` laid out by numpy as :func:`_answer_lines` lays out words: the texts of
+    one count are rows of one template (its bits' digits, "…" past 32 of them), each bit added to
+    its ``0``, cut apart by one ``split``; no slice per text."""
     raw = np.frombuffer(data, np.uint8)
     texts = np.empty(len(counts), object)
     for count in np.unique(counts).tolist():
         rows = np.flatnonzero(counts == count)
         shown = min(count, _SHOWN_BITS)
-        width = (shown + 7) // 8
-        bits = np.unpackbits(raw[starts[rows][:, None] + np.arange(width)], axis=1, bitorder="little")
-        text = np.full((len(rows), width * 8 + 1), ord("\n"), np.uint8)
-        text[:, :shown] = bits[:, :shown] + ord("0")
-        lines = text[:, : shown + 1]
-        if shown < count:  # "…" where the newline was: rows of its three UTF-8 bytes and the newline
-            lines = np.concatenate([lines[:, :shown], np.tile(np.frombuffer("…\n".encode(), np.uint8),
-                                                              (len(rows), 1))], axis=1)
-        spelt = lines.tobytes().decode("utf-8").split("\n")
+        template = ("0" * shown + ("…" if shown < count else "") + "\n").encode()
+        text = np.tile(np.frombuffer(template, np.uint8), (len(rows), 1))
+        bits = np.unpackbits(raw[starts[rows][:, None] + np.arange((shown + 7) // 8)], axis=1, bitorder="little")
+        text[:, :shown] += bits[:, :shown]
+        spelt = text.tobytes().decode("utf-8").split("\n")
         spelt.pop()  # after the last text
         texts[rows] = spelt
     laid_out: list[str] = texts.tolist()

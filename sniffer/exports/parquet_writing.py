@@ -27,8 +27,8 @@ _CLOSE, _ABANDON = "close", "abandon"
 class RowGroupWriter:
     """Writes row groups to their files, in the order handed over, in a thread of its own."""
 
-    def __init__(self, dictionary_columns: list[str], delta_columns: list[str],
-                 unsummarised_columns: frozenset[str] = frozenset(), dictionary_page_bytes: int = 1 << 20) -> None:
+    def __init__(self, dictionary_columns: list[str], delta_columns: list[str], unsummarised_columns: frozenset[str],
+                 dictionary_page_bytes: int) -> None:
         """``dictionary_columns``: the columns dictionary-encoded (those of few distinct values;
         trying it on the others costs time and bytes), each up to a dictionary page of
         ``dictionary_page_bytes`` a row group (then plain); ``delta_columns``: the integer
