@@ -337,6 +337,17 @@ class ProfileApplier:
             applied=profile is not None and self.book.profile_for(slave) is profile,
         )
 
+    def would_learn(self, slave: int, values: list[tuple[int, int | None]]) -> bool:
+        """Whether a frame of ``slave`` carrying ``values`` (address and raw word) would change
+        its scanner tables as :meth:`_learn` does; nothing is learnt here."""
+        for table in self.book.profile_for(slave).indirections:
+            mapping = self._indirections.tables.get((slave, table.prefix), table.defaults)
+            for address, raw in values:
+                slot = address - table.address_registers
+                if 0 <= slot < table.count and raw is not None and mapping[slot] != raw:
+                    return True
+        return False
+
     def _learn(self, profile: Profile, slave: int | None, values: list[tuple[int, int | None]]) -> None:
         """Scanner address registers seen being read or written change the table."""
         if slave is None:

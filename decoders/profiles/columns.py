@@ -16,8 +16,9 @@ A named slave's frame stays in columns only where naming it is that lookup alone
 
 * none of its registers is a scanner table's address register (:func:`unnameable`: one teaches
   the table); a value register, whose name is its own slave's mapping at that frame, only where
-  no frame of the batch may teach its slave's tables (:func:`learning_slaves`: then the mapping
-  the applier holds now holds for the whole batch);
+  no frame of the batch may change its slave's tables (:func:`learning_slaves`: then the mapping
+  the applier holds now holds for the whole batch; a master reading back the mapping it set
+  changes nothing);
 * a request the profile remarks nothing of (:func:`unnameable`: a function it supports, counts
   within its limits; answers in columns are never exceptions, which may get remarks);
 * its profile names no two registers alike and names none by a number (:func:`plain_codes`):
@@ -44,6 +45,7 @@ from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
 from decoders.modbus.codes import BIT_FUNCTIONS
 from decoders.modbus.columnar import ColumnarFrames, ColumnarNames
 from decoders.modbus.columnar_text import READ, READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER
+from decoders.modbus.param_runs import LazyParams, addressed_values
 from decoders.modbus.pdu import Pdu
 from decoders.modbus.pdu_parse import parse_as, parse_pdu
 from decoders.modbus.pdu_serial import DeviceIdResponse
@@ -93,9 +95,12 @@ class _Slaves:
 
 
 def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: EarlierRequest) -> set[int]:
-    """The slaves of ``batch`` whose scanner tables a frame of it may teach: a request (or a
+    """The slaves of ``batch`` whose scanner tables a frame of it may change: a request (or a
     frame of no known role, which the plain path may read as one) naming an address register of
-    its slave's tables, or an answer to a request from before the batch (``earlier``) naming one."""
+    its slave's tables, an answer to one, or an answer to a request from before the batch
+    (``earlier``) naming one, that carries another address than the table holds now
+    (:meth:`~decoders.profiles.apply.ProfileApplier.would_learn`). A master that reads back or
+    writes again the mapping it set (a PLC, every cycle) teaches nothing new."""
     slaves = [slave for slave in np.unique(batch.slave).tolist() if slave != NONE]
     tables = {slave: applier.book.profile_for(slave).indirections for slave in slaves}
     if not any(tables.values()):
@@ -108,22 +113,43 @@ def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: Earli
             if indirections not in kinds:
                 kinds.append(indirections)
             kind_of[slave & 0xFF] = kinds.index(indirections)
-    learning: set[int] = set()
+    asking: list[npt.NDArray[np.int64]] = []
     for rows, low, count in _asked_spans(batch, kind_of):
         kind = kind_of[batch.slave[rows] & 0xFF]
         hit = np.zeros(len(rows), np.bool_)
         for place, indirections in enumerate(kinds):
             for table in indirections:
                 hit |= (kind == place) & _overlap(low, low + count, table.address_registers, table.count)
-        learning.update(batch.slave[rows[hit]].tolist())
+        asking.append(rows[hit])
     first = batch.frames.first_index
+    requests = np.unique(np.concatenate(asking))
+    # What each teaching frame is read against: an answer, its request (a position in the batch,
+    # or a PDU from before it); every other frame, nothing.
+    teaching: list[tuple[int, int | Pdu | None]] = [(position, None) for position in requests.tolist()]
+    answers = np.flatnonzero(np.isin(batch.request_index, requests + first))
+    teaching += zip(answers.tolist(), (batch.request_index[answers] - first).tolist(), strict=True)
     for position in np.flatnonzero((batch.request_index != NONE) & (batch.request_index < first)).tolist():
         slave = int(batch.slave[position])
-        named = request_addresses(earlier(int(batch.request_index[position])))
+        request = earlier(int(batch.request_index[position]))
         if any(0 <= address - table.address_registers < table.count
-               for table in tables.get(slave, ()) for address in named):
-            learning.add(slave)
-    return learning
+               for table in tables.get(slave, ()) for address in request_addresses(request)):
+            teaching.append((position, request))
+    return {int(batch.slave[position]) for position, request in teaching
+            if _teaches(applier, batch, position, request)}
+
+
+def _teaches(applier: ProfileApplier, batch: MessageBatch, position: int, request: int | Pdu | None) -> bool:
+    """Whether the frame at ``position`` (an answer read against ``request``: its position in
+    the batch, or its PDU) carries scanner addresses its slave's tables do not hold now, read as
+    the plain path reads it."""
+    frames = batch.frames
+
+    def pdu_at(at: int) -> Pdu:
+        return parse_as(frames.data[int(frames.offsets[at]) : int(frames.offsets[at + 1])],
+                        ROLE_ORDER[int(batch.role[at])])
+
+    asked = pdu_at(request) if isinstance(request, int) else request
+    return applier.would_learn(int(batch.slave[position]), addressed_values(LazyParams("", pdu_at(position), asked)))
 
 
 def _asked_spans(batch: MessageBatch, kind_of: npt.NDArray[np.int64]) -> list[tuple[npt.NDArray[np.int64], ...]]:

@@ -24,6 +24,9 @@ from sniffer.profiles_io import profile_book
 from tests.property.test_annotation_cache import PRODUCT, adu, matched, said
 
 SLAVES = st.sampled_from([1, 2, 7])
+#: The ATV71's factory scanner mapping (NMA1-8, then NCA1-8) and more words: read back from
+#: 12701, it teaches nothing new.
+FACTORY_SCANNER = struct.pack(">16H", 3201, 8604, 0, 0, 0, 0, 0, 0, 8501, 8602, 0, 0, 0, 0, 0, 0) * 8
 
 
 #: An identification's objects naming another profile than ``PRODUCT``'s (an ATV312).
@@ -42,9 +45,10 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
     if function <= 4:
         request = adu(s, bytes([function]), struct.pack(">HH", address, count))
         size = min(max(((count + 7) // 8 if function <= 2 else 2 * count) + off, 0), 250)
-        answer = adu(s, bytes([function, size]), draw(st.binary(min_size=size, max_size=size)))
+        answer = adu(s, bytes([function, size]), draw(st.one_of(st.binary(min_size=size, max_size=size),
+                                                                 st.just(FACTORY_SCANNER[:size]))))
     elif function <= 6:
-        value = draw(st.sampled_from([0xFF00, 0, 1, 0x8000, 1500]))
+        value = draw(st.sampled_from([0xFF00, 0, 1, 0x8000, 1500, 3201]))  # 3201: the ATV71's factory NMA1
         request = answer = adu(s, bytes([function]), struct.pack(">HH", address, value))
     elif function == 23:  # read ``count`` registers, write some (the scanner's: 12741 read, 12761 written)
         written = draw(st.one_of(st.integers(1, 10), st.sampled_from([0, 121, 122])))
@@ -293,6 +297,35 @@ def test_a_batch_that_teaches_a_slave_s_scanner_keeps_its_value_registers_out_of
     (batch,) = [batch for batch in matched(_read(1, 12701, (8604,)) + _read(1, 12741, (1500,))) if len(batch)]
     pieces = (slice_messages(batch, 0, 1), slice_messages(batch, 1, len(batch)))
     assert [check_batch(columns, plain, piece) for piece in pieces] == [0, 0]
+
+
+def test_a_scanner_mapping_read_back_or_written_again_keeps_value_registers_in_columns() -> None:
+    """A PLC reads back the mapping it set, or writes it again (FC 3, FC 6, FC 16, FC 23), in
+    the same batch as its reads of NM1: that teaches nothing new, so the reads of NM1 stay in
+    columns, named after the mapping, as the plain path names them (only the frames naming
+    NMA1 go the plain path). After the batch that changes NMA1, the same traffic does too."""
+    def refreshed(target: int) -> list[list[bytes]]:
+        words = struct.pack(">H", target)
+        return [_read(1, 12701, (target, 8604)),
+                [adu(b"\x01\x06", struct.pack(">H", 12701), words)] * 2,
+                [adu(b"\x01\x10", struct.pack(">HHB", 12701, 1, 2), words),
+                 adu(b"\x01\x10", struct.pack(">HH", 12701, 1))],
+                [adu(b"\x01\x17", struct.pack(">HHHHB", 3201, 1, 12701, 1, 2), words), adu(b"\x01\x17\x02\x06\x37")]]
+    for refresh in refreshed(3201):
+        columns, plain = annotator(["atv71"]), annotator(["atv71"])
+        traffic = _read(1, 12741, (0x0637,)) + refresh + _read(1, 12741, (0x0637,))
+        (batch,) = [batch for batch in matched(traffic) if len(batch)]
+        assert check_batch(columns, plain, batch) == 4
+        assert _names(annotator(["atv71"]), batch)[1::2] == [
+            "HR = 0637 (1 registers): NM1→ETA = 16#0637 operation enabled, reference reached, forward"] * 2
+    for refresh in refreshed(8604):
+        # In the batch that changes NMA1 the reads of NM1 say different things: the plain path;
+        # in the next, the same traffic teaches nothing new: in columns, named after the new mapping.
+        columns, plain = annotator(["atv71"]), annotator(["atv71"])
+        traffic = _read(1, 12741, (1500,)) + refresh + _read(1, 12741, (1500,))
+        changing, again = [batch for batch in matched(traffic * 2, (len(traffic),)) if len(batch)]
+        assert check_batch(columns, plain, changing) == 0
+        assert check_batch(columns, plain, again) == 4
 
 
 def test_frames_from_a_slave_s_identification_on_are_not_kept_in_columns() -> None:
