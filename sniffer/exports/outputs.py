@@ -152,7 +152,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
         return " + ".join(self._args.capture)
 
     def _add_values(self, columnar: NumericValues | None = None) -> None:
-        from sniffer.exports.parquet_values import value_columns  # noqa: PLC0415 - loaded already
+        from sniffer.exports.parquet_value_columns import value_columns  # noqa: PLC0415 - pyarrow
 
         rows = self._values.take()
         if (rows or (columnar is not None and len(columnar))) and self.exporter is not None:
@@ -167,7 +167,8 @@ class ParquetSink(FileSink["ParquetDataset"]):
             self._latencies.add(value)
 
     def finish(self, statistics: Statistics) -> None:
-        from sniffer.exports.parquet_values import CollectedValues, value_columns  # noqa: PLC0415 - loaded already
+        from sniffer.exports.parquet_value_columns import value_columns  # noqa: PLC0415 - pyarrow
+        from sniffer.exports.parquet_values import CollectedValues  # noqa: PLC0415 - loaded already
 
         with self.writing():
             self._values.finish(statistics)

@@ -12,28 +12,23 @@ order.
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 import operator
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-import pyarrow as pa
 
 from decoders.memo import Memo
 from decoders.message import NONE, AnnotatedBatch, Decoding, ParamValue
 from decoders.modbus.annotate import KEPT_DECODINGS
-from decoders.modbus.columnar import ColumnarNames, within_runs
+from decoders.modbus.columnar import ColumnarNames
 from sniffer.encoding.value_rows import ValueRow, ValueRows
-from sniffer.exports.parquet_export import dictionary, nullable, times
 from sniffer.exports.value_bulk import REPORTED, VALUE_KINDS, WRITTEN, BulkRows, bulk_rows
 
 #: The params of one decoding as the ``values`` table holds them, a tuple per param: address,
 #: code, name, raw, value (numbers), text (what a value says in words), unit, valid.
 NamedBlock = tuple[tuple[object, ...], ...]
-_NAMED_COLUMNS = 8
 #: While decodings do not repeat, one block in this many is kept in the memo, to find out when
 #: they start to (see :class:`ValueCollector`).
 PROBE_EVERY = 16
@@ -96,7 +91,7 @@ class NumericValues:
 
 
 #: The columns of :class:`NumericValues`, laid end to end by :func:`_in_order`.
-_ROW_COLUMNS = [name for name in NumericValues.__dataclass_fields__ if name != "names"]
+ROW_COLUMNS = [name for name in NumericValues.__dataclass_fields__ if name != "names"]
 
 
 class ValueCollector(ValueRows):
@@ -221,7 +216,7 @@ def _named_block(params: tuple[ParamValue, ...], *, written: bool, crc_ok: bool)
     carried = [param for param in params if param.raw is not None]
     if not carried:
         return ()
-    _, _, number, text, _, _ = _named_columns_of(carried)
+    _, _, number, text, _, _ = param_columns(carried)
     return tuple((param.address, param.code, param.name, param.raw, each_number, each_text, param.unit,
                   crc_ok and (param.available or written))
                  for param, each_number, each_text in zip(carried, number, text, strict=True))
@@ -246,167 +241,8 @@ def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
                          names=names)
 
 
-def value_columns(found: CollectedValues, numeric: NumericValues | None = None) -> tuple[
-        npt.NDArray[np.int64], dict[str, pa.Array]]:
-    """The ``values`` table: (t, index, slave, kind, address, code, name, raw, value, text, unit,
-    request index, valid), a row per value, in the order found (``numeric``: more rows, of the
-    frames left in columns)."""
-    parts = [] if numeric is None or not len(numeric) else [numeric]
-    if found.runs:
-        parts.insert(0, _run_values(found))
-    if not parts:
-        return _named_columns(found)[:2]
-    laid_out = parts[0] if len(parts) == 1 else _in_order(parts)
-    numeric_t, numeric_columns = _numeric_columns(laid_out)
-    if not found.named:
-        return numeric_t, numeric_columns
-    named_t, named_columns, named_counts = _named_columns(found)
-    order = np.lexsort((np.concatenate([np.repeat(np.array(found.named_order, np.int64), named_counts),
-                                        laid_out.order]),
-                        np.concatenate([np.repeat(np.array(found.named_at, np.int64), named_counts),
-                                        laid_out.found])))
-    taken = pa.array(order)
-    columns = {name: pa.concat_arrays([named_columns[name], numeric_columns[name]]).take(taken)
-               for name in named_columns}
-    return np.concatenate([named_t, numeric_t])[order], columns
-
-
-def _in_order(parts: list[NumericValues]) -> NumericValues:
-    """The rows of ``parts`` as one, in the order found."""
-    joined = {name: np.concatenate([getattr(part, name) for part in parts]) for name in _ROW_COLUMNS}
-    order = np.lexsort((joined["order"], joined["found"]))
-    names = next((part.names for part in parts if part.names is not None), None)
-    return NumericValues(**{name: column[order] for name, column in joined.items()}, names=names)
-
-
-def _named_columns(found: CollectedValues) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array],
-                                                    npt.NDArray[np.int64]]:
-    """The columns of the rows of profiled params, a row per value; and the values per row. Each
-    distinct block is laid out once, and the rows take from it."""
-    table: dict[int, int] = {}  # by the block's id (every block is held by ``found``): its first row
-    params: list[tuple[object, ...]] = []
-    starts = []
-    for block in found.blocks:
-        start = table.get(id(block))
-        if start is None:
-            start = table[id(block)] = len(params)
-            params += block
-        starts.append(start)
-    counts = np.fromiter(map(len, found.blocks), np.int64, len(found.blocks))
-    total = int(counts.sum())
-    taken = None if len(params) == total else pa.array(  # None: no block twice, the table is the rows
-        np.repeat(np.array(starts, np.int64), counts) + within_runs(counts))
-
-    def column(values: tuple[object, ...], kind: pa.DataType) -> pa.Array:
-        array = pa.array(values, kind)
-        return array if taken is None else array.take(taken)
-
-    own = list(zip(*found.named, strict=True)) or [()] * 5  # the rows' own columns
-
-    def each(field: int) -> npt.NDArray[np.int64]:
-        return np.repeat(np.array(own[field], np.int64), counts)
-
-    t_ns = each(0)
-    address, code, name, raw, number, text, unit, valid = zip(*params, strict=True) if params else (
-        [()] * _NAMED_COLUMNS)
-    return t_ns, {
-        "t": times(t_ns),
-        "index": pa.array(each(1), pa.int64()),
-        "slave": pa.array(each(2), pa.int16()),
-        "kind": dictionary(each(3).astype(np.int32), pa.array(VALUE_KINDS)),
-        "address": column(address, pa.int32()),
-        "code": column(code, pa.string()),
-        "name": column(name, pa.string()),
-        "raw": column(raw, pa.int32()),
-        "value": column(number, pa.float64()),
-        "text": column(text, pa.string()),
-        "unit": column(unit, pa.string()),
-        "request_index": nullable(each(4), pa.int64()),
-        "valid": column(valid, pa.bool_()),
-    }, counts
-
-
-def _run_values(found: CollectedValues) -> NumericValues:
-    """The rows of runs, laid out by numpy."""
-    rows = found.runs
-    runs = [run for row in rows for run in row.runs or ()]
-    run_counts = np.array([run.size for run in runs], np.int64)
-    counts = np.array([sum(run.size for run in row.runs or ()) for row in rows], np.int64)
-    total = int(run_counts.sum())
-    address = np.repeat(np.array([run.address for run in runs], np.int64), run_counts) + within_runs(run_counts)
-    request = [NONE if row.request_index is None else row.request_index for row in rows]
-
-    def each(values: Sequence[int]) -> npt.NDArray[np.int64]:
-        return np.repeat(np.array(values, np.int64), counts)
-
-    return NumericValues(
-        each([row.t_ns for row in rows]), each([row.index for row in rows]), each([row.slave for row in rows]),
-        np.repeat(np.array([VALUE_KINDS.index(row.kind) for row in rows], np.int32), counts), address,
-        np.fromiter(itertools.chain.from_iterable(run.values or () for run in runs), np.int64, total),
-        each(request), np.repeat(np.array([row.valid[0] for row in rows], np.bool_), counts), each(found.run_at),
-        each(found.run_order), np.full(total, -1, np.int64))
-
-
-def _numeric_columns(rows: NumericValues) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:
-    if rows.names is not None and (rows.name >= 0).any():
-        return _with_names(rows, rows.names)
-    no_text = pa.nulls(len(rows), pa.string())
-    return rows.t_ns, {
-        "t": times(rows.t_ns),
-        "index": pa.array(rows.index, pa.int64()),
-        "slave": pa.array(rows.slave, pa.int16()),
-        "kind": dictionary(rows.kind, pa.array(VALUE_KINDS)),
-        "address": pa.array(rows.address, pa.int32()),
-        "code": no_text,
-        "name": no_text,
-        "raw": pa.array(rows.raw, pa.int32()),
-        "value": pa.array(rows.raw.astype(np.float64), pa.float64()),
-        "text": no_text,
-        "unit": no_text,
-        "request_index": nullable(rows.request_index, pa.int64()),
-        "valid": pa.array(rows.valid, pa.bool_()),
-    }
-
-
-def _with_names(rows: NumericValues, names: ColumnarNames) -> tuple[npt.NDArray[np.int64], dict[str, pa.Array]]:
-    """:func:`_numeric_columns` where a profile names some rows: theirs as :func:`_named_block`
-    has them (reported, the CRC good), each named value's read once and taken by the rows; the
-    plain numbers named in arrays (``names.numbers``) from their registers' code, name and unit."""
-    t_ns, columns = _numeric_columns(dataclasses.replace(rows, names=None))
-    code, name, number, text, unit, available = _named_columns_of([param for param, _ in names.table] + [_NO_PARAM])
-    numbers, registers = names.numbers, [] if names.numbers is None else names.numbers.registers
-    numbered = np.array(number, np.float64)  # None: NaN, masked below
-    unnumbered = np.array([value is None for value in number], np.bool_)
-    usable = np.array(available, np.bool_)
-    if numbers is not None:  # a plain number is a number, available
-        numbered = np.concatenate([numbered, numbers.value])
-        unnumbered = np.concatenate([unnumbered, np.zeros(len(numbers), np.bool_)])
-        usable = np.concatenate([usable, np.ones(len(numbers), np.bool_)])
-    # Entries laid out as the table's, the one naming nothing (the rows no profile names), the numbers'.
-    unnamed = len(names.table)
-    rows_named = rows.name >= 0
-    entry = np.where(rows_named, rows.name + (rows.name >= unnamed), unnamed)
-    taken = pa.array(entry)
-    number_registers = None if numbers is None else pa.array(numbers.register)
-
-    def picked(column: list[str | None], each_register: list[str | None]) -> pa.Array:
-        texts = pa.array(column, pa.string())
-        if number_registers is not None:
-            texts = pa.concat_arrays([texts, pa.array(each_register, pa.string()).take(number_registers)])
-        return texts.take(taken)
-
-    value = np.where(rows_named, numbered[entry], rows.raw.astype(np.float64))
-    valid = rows.valid & (~rows_named | usable[entry] | (rows.kind == WRITTEN))
-    columns.update(code=picked(code, [plain.code for plain in registers]),
-                   name=picked(name, [plain.name for plain in registers]),
-                   text=picked(text, [None] * len(registers)), unit=picked(unit, [plain.unit for plain in registers]),
-                   value=pa.array(value, pa.float64(), mask=rows_named & unnumbered[entry]),
-                   valid=pa.array(valid, pa.bool_()))
-    return t_ns, columns
-
-
-def _named_columns_of(params: list[ParamValue]) -> tuple[list[str | None], list[str | None], list[float | None],
-                                                         list[str | None], list[str | None], list[bool]]:
+def param_columns(params: list[ParamValue]) -> tuple[list[str | None], list[str | None], list[float | None],
+                                                     list[str | None], list[str | None], list[bool]]:
     """The code, name, number (not a bool), text, unit and availability of each of ``params``
     (at least one), each column one pass in C or one comprehension: the one rule of what the
     ``value`` and ``text`` columns hold. Read from the params themselves: rows kept by each
@@ -419,6 +255,3 @@ def _named_columns_of(params: list[ParamValue]) -> tuple[list[str | None], list[
 
 
 _PARAM_FIELDS = operator.attrgetter("code", "name", "value", "unit", "available")
-#: A param naming nothing: the entry the rows no profile names take (null texts, valid). A param
-#: without a raw value, a read request's, is in a batch's table too, but no value row takes it.
-_NO_PARAM = ParamValue(0)

@@ -20,7 +20,8 @@ from decoders.stats import Statistics
 from sniffer.encoding import value_rows
 from sniffer.encoding.value_rows import KEPT_WRITES, ValueRow, ValueRows
 from sniffer.exports import value_bulk
-from sniffer.exports.parquet_values import ValueCollector, value_columns
+from sniffer.exports.parquet_value_columns import value_columns
+from sniffer.exports.parquet_values import ValueCollector
 from sniffer.profiles_io import profile_book
 from tests.property.test_annotation_cache import adu, matched
 from tests.property.test_columnar import exchanges, paired_by_hand
