@@ -51,15 +51,13 @@ from decoders.modbus.pdu_parse import parse_as
 from decoders.modbus.quick import QuickRead, register_reads
 from decoders.modbus.value_shapes import ValueShapes
 from decoders.profiles.apply import FrameFacts, ProfileApplier
-from decoders.profiles.columns import learning_slaves, named, plain_codes, reprofiling, unnameable
+from decoders.profiles.columns import frame_profiles, learning_slaves, named, plain_codes, unnameable
 from decoders.uss import parse_uss
 
 #: Decodings kept for repeats, per generation of the memo: what a bus repeats stays while
 #: one-off frames (changing values) pass through (an LRU that costs a dict lookup).
 KEPT_DECODINGS = 8192
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
-#: Read Device Identification (FC 43): an answer may give its slave a profile.
-IDENTIFICATION = 43
 #: The share of distinct frames from which a batch is left in columns for outputs that cache
 #: what they derive per decoding (below it, most frames are repeats the memo serves).
 DISTINCT_ENOUGH = 0.25
@@ -123,33 +121,29 @@ class Annotator:
         return AnnotatedBatch(batch, decodings, rows, columnar)
 
     def _columnar(self, batch: MessageBatch, *, numbers: bool = False) -> ColumnarFrames | None:
-        """The frames of ``batch`` to keep in columns: Modbus frames of slaves whose profile adds
-        nothing or names plainly (:mod:`decoders.profiles.columns`), but a slave's from its first
-        identification in the batch that may give it another profile on (FC 43 with another
-        product code: the profile then names what its frames carry; the plain path decodes from
-        there on), and frames a profile would do more to than name their params."""
+        """The frames of ``batch`` to keep in columns: Modbus frames whose profile adds nothing or
+        names plainly (:mod:`decoders.profiles.columns`; a slave's frames after an identification
+        in the batch that gives it another profile are named by that one, but from a second that
+        gives it yet another on, which the plain path decodes), and frames a profile would do more
+        to than name their params."""
         if not len(batch):
             return None
         profiles = self._profiles
         if profiles is None:
             return find_columnar(batch, self.plain_frames(batch), self._earlier_read)
-        eligible = batch.frames.protocols() != USS
-        slaves = np.unique(batch.slave)
-        plain = [profiles.adds_nothing(slave) for slave in slaves.tolist()]
-        nameable = np.array([adds or plain_codes(profiles.book.profile_for(slave))
-                             for slave, adds in zip(slaves.tolist(), plain, strict=True)], np.bool_)
-        eligible &= nameable[np.searchsorted(slaves, batch.slave)]
-        for first in _first_of_each_slave(batch, reprofiling(profiles, batch,
-                                                             np.flatnonzero(batch.function == IDENTIFICATION))):
-            eligible[first:] &= batch.slave[first:] != batch.slave[first]
+        framed = frame_profiles(profiles, batch)
+        nameable = framed.adds_nothing | np.array([plain_codes(profile) for profile in framed.profiles], np.bool_)
+        eligible = (batch.frames.protocols() != USS) & nameable[framed.place]
+        for slave, stop in framed.stops.items():
+            eligible[stop:] &= batch.slave[stop:] != slave
         columnar = find_columnar(batch, eligible, self._earlier_read)
-        if all(plain):  # no profile names a slave of the batch
+        if framed.adds_nothing.all():  # no profile names a frame of the batch
             return columnar
-        learning = learning_slaves(profiles, batch, self._earlier_request)
-        while len(unnamed := unnameable(profiles, batch, columnar, learning)):
+        learning = learning_slaves(profiles, batch, self._earlier_request, framed)
+        while len(unnamed := unnameable(profiles, batch, columnar, learning, framed)):
             eligible[unnamed] = False
             columnar = find_columnar(batch, eligible, self._earlier_read)
-        return named(profiles, batch, columnar, numbers=numbers)
+        return named(profiles, batch, columnar, framed, numbers=numbers)
 
     def plain_frames(self, batch: MessageBatch) -> npt.NDArray[np.bool_]:
         """Which frames of ``batch`` are Modbus frames of slaves whose profile adds nothing now."""
@@ -262,14 +256,6 @@ class Annotator:
     def _profiled(self, decoding: Decoding, facts: FrameFacts, request: Pdu | None) -> Decoding:
         """``decoding`` as the profiles name it (as it is, without profiles)."""
         return decoding if self._profiles is None else self._profiles.apply_decoding(decoding, facts, request)
-
-
-def _first_of_each_slave(batch: MessageBatch, positions: list[int]) -> list[int]:
-    """The first of ``positions`` (ascending) of each slave."""
-    firsts: dict[int, int] = {}
-    for position in positions:
-        firsts.setdefault(int(batch.slave[position]), position)
-    return list(firsts.values())
 
 
 def mostly_distinct(batch: MessageBatch, share: float) -> bool:

@@ -46,6 +46,8 @@ KEPT_REQUESTS = 1024
 DISTINCT_SHARE = 0.9
 #: Frames :func:`alike` samples to tell whether to look further.
 SAMPLED = 512
+#: Where :func:`alike` mixes a frame's profile into what it compares (above role and kind).
+PROFILE_SHIFT = 55
 #: A named value's text in the summary (``None``: it shows none).
 _TEXT = itemgetter(1)
 #: The most a request may ask for, by function (0: not a function kept in columns).
@@ -93,6 +95,10 @@ class ColumnarNames(NamedTuple):
     row: npt.NDArray[np.int64]
     table: list[NamedValue]
     numbers: NumberNames | None = None
+    #: Each frame's profile (a number per profile), where a slave's frames are named by two in
+    #: the batch (it identified itself as another device): frames alike in their bytes but not
+    #: in it say different things. ``None``: every slave's frames by one.
+    profile: npt.NDArray[np.int64] | None = None
 
     def objects(self) -> list[NamedValue]:
         """Every entry as a named value (the plain numbers' made here)."""
@@ -206,7 +212,7 @@ class ColumnarFrames:
         if names is not None:
             sizes = self._sizes()
             taken = np.repeat(self._param_starts()[rows], sizes[rows]) + within_runs(sizes[rows])
-            names = names._replace(row=names.row[taken])
+            names = names._replace(row=names.row[taken], profile=None if names.profile is None else names.profile[rows])
         return ColumnarFrames(self.positions[rows], self.function[rows], self.kind[rows], self.address[rows],
                               self.count[rows], self.read_address[rows], self.read_count[rows], self.data[rows],
                               self.byte_count[rows], self.request[rows], self.answer[rows], self.kept_requests,
@@ -313,8 +319,9 @@ class Alike(NamedTuple):
 def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
           roles: npt.NDArray[np.integer[Any]]) -> Alike | None:
     """The frames of ``columnar`` whose texts are the same: alike in their bytes, role, kind,
-    first address and count (an answer's are its request's); whatever else a text says (a
-    profile's names) the batch holds for all its frames alike. ``offsets``, ``roles``: the
+    first address and count (an answer's are its request's), and profile where a slave's frames
+    have two in the batch (``ColumnarNames.profile``); whatever else a text says (a profile's
+    names) the batch holds for all its frames alike. ``offsets``, ``roles``: the
     batch's frames'. ``None`` where at least :data:`DISTINCT_SHARE` of a sample of the frames
     (every n-th, :data:`SAMPLED` of them) differ in their CRC, length, slave and function
     (:func:`digests`): there telling them apart costs more than it saves.
@@ -333,6 +340,8 @@ def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
         return None
     role = roles[positions].astype(np.int64)
     code = (role << 3 | columnar.kind) << 48 | (columnar.count + 1) << 24 | columnar.address
+    if columnar.names is not None and columnar.names.profile is not None:
+        code |= columnar.names.profile << PROFILE_SHIFT
     with np.errstate(over="ignore"):  # mixed, wrapping: frames alike have it alike
         # The digest spread (Fibonacci hashing) before its role, kind, address and count are mixed in.
         mixed = digests(data, starts, ends) * FIBONACCI_SIGNED ^ code

@@ -67,7 +67,7 @@ class ProfileBook:
     def identify(self, slave: int, product_code: str) -> Profile | None:
         """The profile a product code names; it applies to ``slave`` from now on unless
         the user chose one for that slave."""
-        profile = self._named_by(product_code)
+        profile = self.named_by(product_code)
         if profile is not None and self._identifies(slave):
             self._identified[slave] = profile
         return profile
@@ -75,14 +75,15 @@ class ProfileBook:
     def profile_after(self, slave: int, product_code: str) -> Profile:
         """The profile ``slave`` would have once it said it is ``product_code`` (:meth:`identify`,
         nothing changed here)."""
-        profile = self._named_by(product_code)
+        profile = self.named_by(product_code)
         return profile if profile is not None and self._identifies(slave) else self.profile_for(slave)
 
     def _identifies(self, slave: int) -> bool:
         """Whether what ``slave`` says it is chooses its profile (none was chosen for it)."""
         return self.automatic and slave not in self.per_slave
 
-    def _named_by(self, product_code: str) -> Profile | None:
+    def named_by(self, product_code: str) -> Profile | None:
+        """The profile ``product_code`` names, if any."""
         for profile in self.known.values():
             if any(product_code.upper().startswith(code.upper()) for code in profile.product_codes):
                 return profile
@@ -124,7 +125,7 @@ class ProfileApplier:
         self._kept = 0
         #: Counts the times the kept namers were let go (see :meth:`named_by`).
         self.generation = 0
-        #: :func:`_knows_nothing` of each slave's profile, while the version stays.
+        #: :func:`knows_nothing` of each slave's profile, while the version stays.
         self._adds_nothing: dict[int, bool] = {}
         self._adds_nothing_version = 0
         #: :meth:`plain_numbers` by (profile, reported, slave, address), while the version stays.
@@ -139,7 +140,7 @@ class ProfileApplier:
             self._adds_nothing_version = self.version
         known = self._adds_nothing.get(slave)
         if known is None:
-            known = self._adds_nothing[slave] = _knows_nothing(self.book.profile_for(None if slave == NO_SLAVE
+            known = self._adds_nothing[slave] = knows_nothing(self.book.profile_for(None if slave == NO_SLAVE
                                                                                       else slave))
         return known
 
@@ -337,10 +338,10 @@ class ProfileApplier:
             applied=profile is not None and self.book.profile_for(slave) is profile,
         )
 
-    def would_learn(self, slave: int, values: list[tuple[int, int | None]]) -> bool:
-        """Whether a frame of ``slave`` carrying ``values`` (address and raw word) would change
-        its scanner tables as :meth:`_learn` does; nothing is learnt here."""
-        for table in self.book.profile_for(slave).indirections:
+    def would_learn(self, profile: Profile, slave: int, values: list[tuple[int, int | None]]) -> bool:
+        """Whether a frame of ``slave`` (named by ``profile``) carrying ``values`` (address and raw
+        word) would change its scanner tables as :meth:`_learn` does; nothing is learnt here."""
+        for table in profile.indirections:
             mapping = self._indirections.tables.get((slave, table.prefix), table.defaults)
             for address, raw in values:
                 slot = address - table.address_registers
@@ -393,7 +394,7 @@ def _value_table(profile: Profile, address: int) -> Indirection | None:
                 None)
 
 
-def _knows_nothing(profile: Profile) -> bool:
+def knows_nothing(profile: Profile) -> bool:
     """A profile with nothing to add (generic): messages pass unchanged."""
     return not (profile.parameters or profile.specials or profile.indirections or profile.exceptions
                 or profile.limits.functions or profile.address_style != "plain" or profile.uss_control_word)

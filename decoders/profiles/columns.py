@@ -23,10 +23,12 @@ A named slave's frame stays in columns only where naming it is that lookup alone
   within its limits; answers in columns are never exceptions, which may get remarks);
 * its profile names no two registers alike and names none by a number (:func:`plain_codes`):
   the MCAP params message holds a frame's values by code, or by address where none names it;
-* not from its slave's identification on, where that may give the slave another profile
-  (:func:`reprofiling`: an FC 43 answer whose product code names a profile other than the one
-  in force; the annotator's rule). A drive identified again as what it is, as masters poll
-  identities now and then, changes nothing.
+* named by the profile the plain path names it by at that frame (:func:`frame_profiles`): its
+  slave's now, and after an FC 43 answer in the batch whose product code names another profile
+  (a drive seen for the first time, identified), that one; frames alike in their bytes but
+  named by two profiles are spelt apart (``ColumnarNames.profile``). Not from a second such
+  answer of the slave in the batch on, one that names yet another profile. A drive identified
+  again as what it is, as masters poll identities now and then, changes nothing.
 
 The annotator leaves the frames :func:`unnameable` finds out and finds the columns again. The
 tests hold every output of frames so named to the plain path (``tests/property/test_columnar.py``,
@@ -37,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -49,7 +52,14 @@ from decoders.modbus.param_runs import LazyParams, addressed_values
 from decoders.modbus.pdu import Pdu
 from decoders.modbus.pdu_parse import parse_as, parse_pdu
 from decoders.modbus.pdu_serial import DeviceIdResponse
-from decoders.profiles.apply import FrameFacts, ProfileApplier, limit_remarks, product_code, request_addresses
+from decoders.profiles.apply import (
+    FrameFacts,
+    ProfileApplier,
+    knows_nothing,
+    limit_remarks,
+    product_code,
+    request_addresses,
+)
 from decoders.profiles.model import Indirection, Profile
 from decoders.profiles.naming import NamedValue, NumberNames, PlainNumbers
 
@@ -66,6 +76,8 @@ _ASKING = [ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST], ROLE_CODE[Role.UN
 _NAMING = (3, 4, 6, 16, 23)
 _SHORTEST_NAMING = 6  # slave, function, address, count
 _READ_WRITE, _READ_WRITE_NAMING = 23, 10  # FC 23 names a second span, written, at bytes 6 to 9
+#: Read Device Identification (FC 43): an answer may give its slave a profile.
+IDENTIFICATION = 43
 
 
 def plain_codes(profile: Profile) -> bool:
@@ -75,47 +87,107 @@ def plain_codes(profile: Profile) -> bool:
     return len(set(codes)) == len(codes) and not any(code.isdigit() for code in codes)
 
 
+@dataclass(frozen=True)
+class FrameProfiles:
+    """The profile each frame of a batch is named by, as the plain path names it in order: its
+    slave's now, and from an identification in the batch (an FC 43 answer) that gives the slave
+    another profile on (:meth:`~decoders.profiles.apply.ProfileBook.profile_after`), that one.
+    ``profiles``: each distinct one, ``adds_nothing``: whether it leaves a frame as it is
+    (:func:`~decoders.profiles.apply.knows_nothing`), ``place``: each frame's; ``stops``: by
+    slave, the position of a second identification in the batch that gives it yet another
+    profile (its frames from there on are decoded one by one)."""
+
+    profiles: list[Profile]
+    adds_nothing: npt.NDArray[np.bool_]
+    place: npt.NDArray[np.int64]
+    stops: dict[int, int]
+    #: Whether a slave's frames have two profiles in the batch.
+    switched: bool = False
+
+    def of(self, position: int) -> Profile:
+        return self.profiles[int(self.place[position])]
+
+
+def frame_profiles(applier: ProfileApplier, batch: MessageBatch) -> FrameProfiles:
+    """The :class:`FrameProfiles` of ``batch``, with the profiles ``applier`` holds now."""
+    book = applier.book
+    profiles: list[Profile] = []
+    places: dict[int, int] = {}
+
+    def place_of(profile: Profile) -> int:
+        place = places.setdefault(id(profile), len(profiles))
+        if place == len(profiles):
+            profiles.append(profile)
+        return place
+
+    slaves, at = np.unique(batch.slave, return_inverse=True)
+    place = np.array([place_of(book.profile_for(None if slave == NONE else slave)) for slave in slaves.tolist()],
+                     np.int64)[at.reshape(-1)]
+    stops: dict[int, int] = {}
+    switched_any = False
+    for slave, identified in _identifications(batch).items():
+        before, switched = book.profile_for(slave), None
+        for position, product in identified:
+            if switched is None:
+                after = book.profile_after(slave, product)
+                if after is not before:
+                    switched = (position, after)
+            elif (named_now := book.named_by(product)) is not None and named_now is not switched[1]:
+                stops[slave] = position
+                break
+        if switched is not None:
+            later = np.flatnonzero(batch.slave[switched[0] + 1 : stops.get(slave, len(batch))] == slave)
+            place[later + switched[0] + 1] = place_of(switched[1])
+            switched_any = True
+    return FrameProfiles(profiles, np.array([knows_nothing(profile) for profile in profiles], np.bool_), place, stops,
+                         switched_any)
+
+
+def _identifications(batch: MessageBatch) -> dict[int, list[tuple[int, str]]]:
+    """By slave, the position and product code of each identification (a valid FC 43 answer
+    giving one) in ``batch``, in order: what the plain path identifies a slave by."""
+    frames = batch.frames
+    offsets, data = frames.offsets, frames.data
+    found: dict[int, list[tuple[int, str]]] = {}
+    positions = np.flatnonzero((batch.function == IDENTIFICATION) & (batch.slave != NONE) & frames.crc_ok)
+    for position, role, slave in zip(positions.tolist(), batch.role[positions].tolist(),
+                                     batch.slave[positions].tolist(), strict=True):
+        pdu = parse_as(data[offsets[position] : offsets[position + 1]], ROLE_ORDER[role])
+        product = product_code(pdu) if isinstance(pdu, DeviceIdResponse) else None
+        if product is not None:
+            found.setdefault(slave, []).append((position, product))
+    return found
+
+
 class _Slaves:
-    """The profile in force for the slave of each frame kept in columns (``profile``: its
-    place in ``profiles``), and whether it names anything (``named``)."""
+    """The profile of each frame kept in columns (``profile``: its place in ``profiles``, as
+    :class:`FrameProfiles` has it), and whether it names anything (``named``)."""
 
-    def __init__(self, applier: ProfileApplier, slaves: npt.NDArray[np.int64]) -> None:
-        distinct, at = np.unique(slaves, return_inverse=True)
-        self.profiles: list[Profile] = []
-        places: dict[int, int] = {}
-        profile_of, names = [], []
-        for slave in distinct.tolist():
-            profile = applier.book.profile_for(slave)
-            profile_of.append(places.setdefault(id(profile), len(places)))
-            if len(places) > len(self.profiles):
-                self.profiles.append(profile)
-            names.append(not applier.adds_nothing(slave))
-        self.profile: npt.NDArray[np.int64] = np.array(profile_of, np.int64)[at]
-        self.named: npt.NDArray[np.bool_] = np.array(names, np.bool_)[at]
+    def __init__(self, framed: FrameProfiles, positions: npt.NDArray[np.int64]) -> None:
+        self.profiles = framed.profiles
+        self.profile: npt.NDArray[np.int64] = framed.place[positions]
+        self.named: npt.NDArray[np.bool_] = ~framed.adds_nothing[self.profile]
 
 
-def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: EarlierRequest) -> set[int]:
+def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: EarlierRequest,
+                    framed: FrameProfiles) -> set[int]:
     """The slaves of ``batch`` whose scanner tables a frame of it may change: a request (or a
     frame of no known role, which the plain path may read as one) naming an address register of
-    its slave's tables, an answer to one, or an answer to a request from before the batch
-    (``earlier``) naming one, that carries another address than the table holds now
+    its profile's tables (``framed``), an answer to one, or an answer to a request from before the
+    batch (``earlier``) naming one, that carries another address than the table holds now
     (:meth:`~decoders.profiles.apply.ProfileApplier.would_learn`). A master that reads back or
     writes again the mapping it set (a PLC, every cycle) teaches nothing new."""
-    slaves = [slave for slave in np.unique(batch.slave).tolist() if slave != NONE]
-    tables = {slave: applier.book.profile_for(slave).indirections for slave in slaves}
-    if not any(tables.values()):
+    if not any(profile.indirections for profile in framed.profiles):
         return set()
-    # Each slave's tables by their place in ``kinds`` (0: none).
+    # Each profile's tables by their place in ``kinds`` (0: none); each frame's.
     kinds: list[tuple[Indirection, ...]] = [()]
-    kind_of = np.zeros(256, np.int64)
-    for slave, indirections in tables.items():
-        if indirections:
-            if indirections not in kinds:
-                kinds.append(indirections)
-            kind_of[slave & 0xFF] = kinds.index(indirections)
+    for profile in framed.profiles:
+        if profile.indirections not in kinds:
+            kinds.append(profile.indirections)
+    frame_kind = np.array([kinds.index(profile.indirections) for profile in framed.profiles], np.int64)[framed.place]
     asking: list[npt.NDArray[np.int64]] = []
-    for rows, low, count in _asked_spans(batch, kind_of):
-        kind = kind_of[batch.slave[rows] & 0xFF]
+    for rows, low, count in _asked_spans(batch, frame_kind):
+        kind = frame_kind[rows]
         hit = np.zeros(len(rows), np.bool_)
         for place, indirections in enumerate(kinds):
             for table in indirections:
@@ -129,16 +201,16 @@ def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: Earli
     answers = np.flatnonzero(np.isin(batch.request_index, requests + first))
     teaching += zip(answers.tolist(), (batch.request_index[answers] - first).tolist(), strict=True)
     for position in np.flatnonzero((batch.request_index != NONE) & (batch.request_index < first)).tolist():
-        slave = int(batch.slave[position])
         request = earlier(int(batch.request_index[position]))
         if any(0 <= address - table.address_registers < table.count
-               for table in tables.get(slave, ()) for address in request_addresses(request)):
+               for table in framed.of(position).indirections for address in request_addresses(request)):
             teaching.append((position, request))
     return {int(batch.slave[position]) for position, request in teaching
-            if _teaches(applier, batch, position, request)}
+            if _teaches(applier, batch, framed, position, request)}
 
 
-def _teaches(applier: ProfileApplier, batch: MessageBatch, position: int, request: int | Pdu | None) -> bool:
+def _teaches(applier: ProfileApplier, batch: MessageBatch, framed: FrameProfiles, position: int,
+             request: int | Pdu | None) -> bool:
     """Whether the frame at ``position`` (an answer read against ``request``: its position in
     the batch, or its PDU) carries scanner addresses its slave's tables do not hold now, read as
     the plain path reads it."""
@@ -149,17 +221,18 @@ def _teaches(applier: ProfileApplier, batch: MessageBatch, position: int, reques
                         ROLE_ORDER[int(batch.role[at])])
 
     asked = pdu_at(request) if isinstance(request, int) else request
-    return applier.would_learn(int(batch.slave[position]), addressed_values(LazyParams("", pdu_at(position), asked)))
+    return applier.would_learn(framed.of(position), int(batch.slave[position]),
+                               addressed_values(LazyParams("", pdu_at(position), asked)))
 
 
-def _asked_spans(batch: MessageBatch, kind_of: npt.NDArray[np.int64]) -> list[tuple[npt.NDArray[np.int64], ...]]:
-    """The registers the frames of ``batch`` that may be requests name, of slaves with tables
-    (``kind_of``, by slave, not 0): their positions, first registers and counts, once for every
+def _asked_spans(batch: MessageBatch, frame_kind: npt.NDArray[np.int64]) -> list[tuple[npt.NDArray[np.int64], ...]]:
+    """The registers the frames of ``batch`` that may be requests name, of profiles with tables
+    (``frame_kind``, by frame, not 0): their positions, first registers and counts, once for every
     such frame and again for the written span of each FC 23."""
     frames = batch.frames
     starts, lengths = frames.offsets[:-1], np.diff(frames.offsets)
     asking = np.flatnonzero(np.isin(batch.role, _ASKING) & np.isin(batch.function, _NAMING)
-                            & (lengths >= _SHORTEST_NAMING) & (batch.slave != NONE) & (kind_of[batch.slave & 0xFF] > 0))
+                            & (lengths >= _SHORTEST_NAMING) & (batch.slave != NONE) & (frame_kind > 0))
     raw = np.frombuffer(frames.data, np.uint8).astype(np.int64)
 
     def word(at: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
@@ -171,14 +244,14 @@ def _asked_spans(batch: MessageBatch, kind_of: npt.NDArray[np.int64]) -> list[tu
             (both, word(starts[both] + 6), word(starts[both] + 8))]
 
 
-def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames,
-               learning: set[int]) -> npt.NDArray[np.int64]:
+def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames, learning: set[int],
+               framed: FrameProfiles) -> npt.NDArray[np.int64]:
     """The positions of the frames of ``columnar`` (found in ``batch``) whose naming is more
     than a lookup: a scanner table's address register, a value register of a slave whose tables
     the batch may teach (``learning``, :func:`learning_slaves`), or a request the profile
     remarks on."""
     frame_slaves = batch.slave[columnar.positions].astype(np.int64)
-    slaves = _Slaves(applier, frame_slaves)
+    slaves = _Slaves(framed, columnar.positions)
     bad = np.zeros(len(columnar), np.bool_)
     if not slaves.named.any():
         return columnar.positions[bad]
@@ -212,13 +285,13 @@ def _remarked(applier: ProfileApplier, batch: MessageBatch, profile: Profile, po
     return bool(limit_remarks(profile, facts, parse_pdu(data, is_request=True)))
 
 
-def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames, *,
+def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames, framed: FrameProfiles, *,
           numbers: bool = False) -> ColumnarFrames:
     """``columnar`` with the names its frames' profiles give their params (none of them
     :func:`unnameable`); as it is where no frame's profile names anything. ``numbers``: values
     that are plain numbers are named in arrays (:class:`~decoders.profiles.naming.NumberNames`),
     for outputs that take them so; the others, and all without it, are named values."""
-    slaves = _Slaves(applier, batch.slave[columnar.positions].astype(np.int64))
+    slaves = _Slaves(framed, columnar.positions)
     named_frames = slaves.named & ~np.isin(columnar.function, list(BIT_FUNCTIONS))  # a profile names no coil
     if not named_frames.any():
         return columnar
@@ -234,7 +307,8 @@ def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames
     entry, table, number_names = _entries(applier, slaves, distinct, numbers=numbers)
     row = np.full(len(params.address), -1, np.int64)
     row[rows] = entry[inverse.reshape(-1)]
-    return dataclasses.replace(columnar, names=ColumnarNames(row, table, number_names))
+    return dataclasses.replace(columnar, names=ColumnarNames(row, table, number_names,
+                                                             slaves.profile if framed.switched else None))
 
 
 def _entries(applier: ProfileApplier, slaves: _Slaves, distinct: npt.NDArray[np.int64], *,
@@ -313,23 +387,3 @@ def _overlap(low: npt.NDArray[np.int64], high: npt.NDArray[np.int64], first: int
     return shared
 
 
-def reprofiling(profiles: ProfileApplier, batch: MessageBatch, positions: npt.NDArray[np.int64]) -> list[int]:
-    """Of the identifications (FC 43 frames) at ``positions``, those that may give their slave
-    another profile, as the plain path reads them: an answer whose product code names a profile
-    other than the one in force for it (a drive identified again, as a master does now and then,
-    changes nothing: its frames after it may stay in columns)."""
-    frames, book = batch.frames, profiles.book
-    offsets, data = frames.offsets, frames.data
-    changing = []
-    for position, role, slave, crc_ok in zip(positions.tolist(), batch.role[positions].tolist(),
-                                             batch.slave[positions].tolist(), frames.crc_ok[positions].tolist(),
-                                             strict=True):
-        if slave == NONE or not crc_ok:
-            continue  # not read for a device at all (ProfileApplier._identify)
-        pdu = parse_as(data[offsets[position] : offsets[position + 1]], ROLE_ORDER[role])
-        if not isinstance(pdu, DeviceIdResponse):
-            continue
-        product = product_code(pdu)
-        if product is not None and book.profile_after(slave, product) is not book.profile_for(slave):
-            changing.append(position)
-    return changing

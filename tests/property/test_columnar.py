@@ -328,32 +328,34 @@ def test_a_scanner_mapping_read_back_or_written_again_keeps_value_registers_in_c
         assert check_batch(columns, plain, again) == 4
 
 
-def test_frames_from_a_slave_s_identification_on_are_not_kept_in_columns() -> None:
+def test_a_slave_s_frames_after_its_identification_are_named_by_its_new_profile() -> None:
     """An FC 43 answer may give its slave a profile (here slave 1 says it is an ATV71): its
-    frames from the batch's first identification on are decoded one by one, the other slaves'
-    stay in columns, and both paths say the same of all of them; in the next batch slave 1's
-    frames are in columns too, named after its profile, until it says it is another drive."""
+    frames after it stay in columns, named after that profile, as the plain path names them
+    once it has read the answer; the same bytes before it, unnamed. Saying again what it is
+    changes nothing; saying it is another drive (an ATV312) names the frames after by that one.
+    A second identification in the batch that gives it yet another profile: its frames from
+    there on are decoded one by one."""
     poll = []
     for slave in (1, 2):
         poll += [adu(bytes([slave]), b"\x03", struct.pack(">HH", 3201, 2)),
                  adu(bytes([slave]), b"\x03\x04\x00\x07\x86\x37")]
     identify = [adu(b"\x01\x2b\x0e\x01\x00"), adu(b"\x01\x2b\x0e\x01\x02\x00\x00\x03", PRODUCT)]
+    other = [identify[0], adu(b"\x01\x2b\x0e\x01\x02\x00\x00\x03", OTHER_PRODUCT)]
     columns, plain = annotator([]), annotator([])
     (batch,) = [batch for batch in matched(poll * 2 + identify + poll * 2) if len(batch)]
-    assert annotator([]).annotate_columnar(batch).columnar.positions.tolist() == [  # type: ignore[union-attr]
-        0, 1, 2, 3, 4, 5, 6, 7, 12, 13, 16, 17]
-    assert check_batch(columns, plain, batch) == 12
-    # The next batch alike: slave 1 has its profile now, and saying again what it is changes
-    # nothing, so that all its polls stay in columns, named after it.
     assert check_batch(columns, plain, batch) == 16
-    got = columns.annotate_columnar(batch)
-    assert got.columnar is not None and got.columnar.names is not None
-    assert got.columnar.positions.tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 10, 11, 12, 13, 14, 15, 16, 17]
-    # Slave 1 says it is another drive (an ATV312): from there its frames are decoded one by one.
-    other = [identify[0], adu(b"\x01\x2b\x0e\x01\x02\x00\x00\x03", OTHER_PRODUCT)]
+    assert _names(annotator([]), batch)[1::8] == [  # slave 1's answers before and after
+        "HR = 0007 8637 (2 registers)", "HR = 0007 8637 (2 registers): ETA = 16#0007 quick stop active, forward"]
+    # The next batch alike: slave 1 has its profile now, and saying again what it is changes nothing.
+    assert check_batch(columns, plain, batch) == 16
     (batch,) = [batch for batch in matched(poll * 2 + other + poll * 2) if len(batch)]
-    assert check_batch(columns, plain, batch) == 12
     assert check_batch(columns, plain, batch) == 16
+    # A slave still generic says it is an ATV71, then an ATV312: decoded one by one from the second.
+    columns, plain = annotator([]), annotator([])
+    (batch,) = [batch for batch in matched(poll + identify + poll + other + poll) if len(batch)]
+    assert check_batch(columns, plain, batch) == 10
+    reads = annotator([]).annotate_columnar(batch).columnar
+    assert reads is not None and reads.positions.tolist() == [0, 1, 2, 3, 6, 7, 8, 9, 14, 15]
 
 
 def paired_by_hand(adus: list[bytes], answered: dict[int, int]) -> MessageBatch:

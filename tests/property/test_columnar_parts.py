@@ -54,7 +54,7 @@ def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch, *, nu
 @settings(max_examples=300, deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
        st.sampled_from([columnar_parts.SLICE_PARAMS, 1, 7, 64]),
-       st.sampled_from([None, ["atv71"], ["2=atv312", "7=xbt"]]), st.booleans())
+       st.sampled_from([None, [], ["atv71"], ["2=atv312", "7=xbt"]]), st.booleans())
 @example([[adu(b"\x07", b"\x03", (65535).to_bytes(2, "big") + (3).to_bytes(2, "big")),
            adu(b"\x07", b"\x03\x06", bytes(range(6)))]], [], 2, None, False)
 def test_parts_spelt_from_columns_are_what_decodings_write(traffic: list[list[bytes]], cuts: list[int],
