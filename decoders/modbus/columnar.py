@@ -360,8 +360,11 @@ def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
         lone = pending[differ]
         first[lone] = _group_firsts(lone, mixed)
         pending = lone[first[lone] != lone]
-    firsts = np.flatnonzero(first == np.arange(len(first)))
-    return Alike(columnar.take(firsts), np.searchsorted(firsts, first))
+    is_first = first == np.arange(len(first))
+    # Each group's row among the firsts: the number of firsts up to its first (a search of the
+    # firsts for each frame cost twice what grouping them did).
+    row = np.cumsum(is_first) - 1
+    return Alike(columnar.take(np.flatnonzero(is_first)), row[first])
 
 
 def _group_firsts(rows: npt.NDArray[np.int64], key: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
