@@ -51,8 +51,12 @@ class LaidRows:
     no_value: npt.NDArray[np.bool_]
     request_index: npt.NDArray[np.int64]
     valid: npt.NDArray[np.bool_]
-    entry: npt.NDArray[np.int64]
+    #: ``None``: no row has a text (rows no profile names), nor a null ``value``.
+    entry: npt.NDArray[np.int64] | None
     texts: tuple[list[str | None], ...]
+
+    def entries(self) -> npt.NDArray[np.int64]:
+        return np.zeros(len(self.t_ns), np.int64) if self.entry is None else self.entry
 
 
 _NUMBER_COLUMNS = [name for name in LaidRows.__dataclass_fields__ if name not in ("entry", "texts")]
@@ -82,17 +86,20 @@ def _joined(named: LaidRows, numeric: LaidRows, laid_out: NumericValues, found: 
     order = np.lexsort((np.concatenate([np.repeat(np.array(found.named_order, np.int64), counts), laid_out.order]),
                         np.concatenate([np.repeat(np.array(found.named_at, np.int64), counts), laid_out.found])))
     columns = {name: np.concatenate([getattr(named, name), getattr(numeric, name)])[order] for name in _NUMBER_COLUMNS}
-    entry = np.concatenate([named.entry, numeric.entry + len(named.texts[0])])[order]
+    entry = np.concatenate([named.entries(), numeric.entries() + len(named.texts[0])])[order]
     texts = tuple(mine + theirs for mine, theirs in zip(named.texts, numeric.texts, strict=True))
     return LaidRows(**columns, entry=entry, texts=texts)
 
 
 def _arrow(rows: LaidRows) -> dict[str, pa.Array]:
     """The table's columns of ``rows``."""
-    entry = pa.array(rows.entry)
-    texts = {column: pa.nulls(len(rows.entry), pa.string()) if all(each is None for each in table)
-             else pa.array(table, pa.string()).take(entry)
-             for column, table in zip(TEXT_COLUMNS, rows.texts, strict=True)}
+    no_text = pa.nulls(len(rows.t_ns), pa.string())  # one for every column without a text
+    if rows.entry is None:
+        texts = dict.fromkeys(TEXT_COLUMNS, no_text)
+    else:
+        entry = pa.array(rows.entry)
+        texts = {column: no_text if all(each is None for each in table) else pa.array(table, pa.string()).take(entry)
+                 for column, table in zip(TEXT_COLUMNS, rows.texts, strict=True)}
     return {
         "t": times(rows.t_ns),
         "index": pa.array(rows.index, pa.int64()),
@@ -102,7 +109,8 @@ def _arrow(rows: LaidRows) -> dict[str, pa.Array]:
         "code": texts["code"],
         "name": texts["name"],
         "raw": pa.array(rows.raw, pa.int32()),
-        "value": pa.array(rows.value, pa.float64(), mask=rows.no_value if rows.no_value.any() else None),
+        "value": pa.array(rows.value, pa.float64(),
+                          mask=None if rows.entry is None or not rows.no_value.any() else rows.no_value),
         "text": texts["text"],
         "unit": texts["unit"],
         "request_index": nullable(rows.request_index, pa.int64()),
@@ -145,8 +153,7 @@ def _numeric_rows(rows: NumericValues) -> LaidRows:
     raw = rows.raw.astype(np.float64)
     if rows.names is None or not (rows.name >= 0).any():
         return LaidRows(rows.t_ns, rows.index, rows.slave, rows.kind, rows.address, rows.raw, raw,
-                        np.zeros(len(rows), np.bool_), rows.request_index, rows.valid, np.zeros(len(rows), np.int64),
-                        _NO_TEXTS)
+                        np.zeros(len(rows), np.bool_), rows.request_index, rows.valid, None, _NO_TEXTS)
     names = rows.names
     code, name, number, text, unit, available = param_columns([param for param, _ in names.table] + [_NO_PARAM])
     numbered = np.array([np.nan if each is None else each for each in number], np.float64)
