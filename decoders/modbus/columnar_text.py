@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from decoders.modbus.pdu import COIL_OFF, COIL_ON
+from decoders.modbus.pdu import COIL_STATES
 from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_payload
 
 if TYPE_CHECKING:
@@ -36,7 +36,6 @@ READ, READ_ANSWER, WRITE, WRITE_ANSWER, READ_WRITE = 0, 1, 2, 3, 4
 _TABLES = {1: "coils", 2: "inputs", 3: "HR", 4: "IR", 15: "coils", 16: "HR", 23: "HR"}
 _SHOWN_BITS = 32  # a summary writes 32 bits, then "…"
 _SHOWN_BYTES = _SHOWN_BITS // 8
-_COIL_STATES = {COIL_ON: "ON", COIL_OFF: "OFF"}
 
 
 def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list[str]:
@@ -219,10 +218,11 @@ def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: 
 
 
 def _coil_states(values: npt.NDArray[np.int64]) -> list[str]:
-    """``ON``, ``OFF`` or ``invalid 0x1234`` for each FC 5 value."""
-    states = np.full(len(values), "ON", object)
-    states[values == COIL_OFF] = "OFF"
-    invalid = np.flatnonzero((values != COIL_ON) & (values != COIL_OFF))
+    """``ON``, ``OFF`` or ``invalid 0x1234`` for each FC 5 value (:data:`COIL_STATES`)."""
+    states = np.empty(len(values), object)
+    for value, state in COIL_STATES.items():
+        states[values == value] = state
+    invalid = np.flatnonzero(~np.isin(values, list(COIL_STATES)))
     states[invalid] = [f"invalid 0x{value:04X}" for value in values[invalid].tolist()]
     spelt: list[str] = states.tolist()
     return spelt
@@ -265,7 +265,7 @@ def _group(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kin
     if function in (5, 6):  # a request and its echo say the same
         values = _words_at(data, frames.data[rows]).tolist()
         if function == 5:
-            return [f"write coil {a} = {_COIL_STATES.get(v) or f'invalid 0x{v:04X}'}"
+            return [f"write coil {a} = {COIL_STATES.get(v) or f'invalid 0x{v:04X}'}"
                     for a, v in zip(address, values, strict=True)]
         return [f"write HR {a} = {v} (0x{v:04X})" for a, v in zip(address, values, strict=True)]
     spans = [f"{a}" if c == 1 else f"{a}..{a + c - 1}" for a, c in zip(address, count, strict=True)]

@@ -38,6 +38,8 @@ from decoders.modbus.pdu_text import hex_words
 
 COIL_ON = 0xFF00
 COIL_OFF = 0x0000
+#: What an FC 5 write's value says (any other value: ``invalid 0x…``).
+COIL_STATES = {COIL_ON: "ON", COIL_OFF: "OFF"}
 
 
 def _range(address: int, count: int) -> str:
@@ -123,7 +125,7 @@ class WriteSingle:
 
     def summary(self) -> str:
         if self.function == 5:
-            state = {COIL_ON: "ON", COIL_OFF: "OFF"}.get(self.value, f"invalid 0x{self.value:04X}")
+            state = COIL_STATES.get(self.value, f"invalid 0x{self.value:04X}")
             return f"write coil {self.address} = {state}"
         return f"write HR {self.address} = {self.value} (0x{self.value:04X})"
 

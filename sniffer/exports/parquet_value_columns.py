@@ -138,12 +138,17 @@ def _named_rows(found: CollectedValues) -> LaidRows:
         return np.repeat(np.array(own[field], np.int64), counts)
 
     address, code, name, raw, number, text, unit, valid = zip(*params, strict=True) if params else ([()] * 8)
+    numbered, unnumbered = _numbers(number)
     return LaidRows(
         each(0), each(1), each(2), each(3).astype(np.int32), np.array(address, np.int64)[entry],
-        np.array(raw, np.int64)[entry], np.array([np.nan if each is None else each for each in number],
-                                                 np.float64)[entry],
-        np.array([each is None for each in number], np.bool_)[entry], each(4), np.array(valid, np.bool_)[entry],
+        np.array(raw, np.int64)[entry], numbered[entry], unnumbered[entry], each(4), np.array(valid, np.bool_)[entry],
         entry, (list(code), list(name), list(text), list(unit)))
+
+
+def _numbers(number: Sequence[float | None]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_]]:
+    """The ``value`` column's numbers (NaN where there is none), and where there is none (null)."""
+    return (np.array([np.nan if each is None else each for each in number], np.float64),
+            np.array([each is None for each in number], np.bool_))
 
 
 def _numeric_rows(rows: NumericValues) -> LaidRows:
@@ -156,8 +161,7 @@ def _numeric_rows(rows: NumericValues) -> LaidRows:
                         np.zeros(len(rows), np.bool_), rows.request_index, rows.valid, None, _NO_TEXTS)
     names = rows.names
     code, name, number, text, unit, available = param_columns([param for param, _ in names.table] + [_NO_PARAM])
-    numbered = np.array([np.nan if each is None else each for each in number], np.float64)
-    unnumbered = np.array([each is None for each in number], np.bool_)
+    numbered, unnumbered = _numbers(number)
     usable = np.array(available, np.bool_)
     texts = (code, name, text, unit)
     numbers = names.numbers
