@@ -51,7 +51,8 @@ from decoders.modbus.pdu_parse import parse_as
 from decoders.modbus.quick import QuickRead, register_reads
 from decoders.modbus.value_shapes import ValueShapes
 from decoders.profiles.apply import FrameFacts, ProfileApplier
-from decoders.profiles.columns import frame_profiles, learning_slaves, named, plain_codes, unnameable
+from decoders.profiles.column_names import named
+from decoders.profiles.columns import frame_profiles, learning_slaves, plain_codes, unnameable
 from decoders.uss import parse_uss
 
 #: Decodings kept for repeats, per generation of the memo: what a bus repeats stays while
@@ -97,12 +98,12 @@ class Annotator:
     def annotate_columnar(self, batch: MessageBatch, *, distinct_only: bool = False,
                           numbers: bool = False) -> AnnotatedBatch:
         """:meth:`annotate_batch`, but the commonest frames stay in columns
-        (:mod:`decoders.modbus.columnar`, named by :mod:`decoders.profiles.columns` where a
+        (:mod:`decoders.modbus.columnar`, named by :mod:`decoders.profiles.column_names` where a
         profile names their slave): the result's ``columnar``, and its ``rows``
         the rest, decoded as there. The annotator's state after it is the same.
         ``distinct_only``: only in a batch of mostly distinct frames (:func:`mostly_distinct`;
         the memo serves repeats for less); ``numbers``: values that are plain numbers named in
-        arrays (:func:`~decoders.profiles.columns.named`), for outputs that take them so."""
+        arrays (:func:`~decoders.profiles.column_names.named`), for outputs that take them so."""
         columnar = (None if distinct_only and not mostly_distinct(batch, DISTINCT_ENOUGH)
                     else self._columnar(batch, numbers=numbers))
         if columnar is None:

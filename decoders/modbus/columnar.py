@@ -11,7 +11,7 @@ named after the one it writes.
 :meth:`ColumnarFrames.summaries` writes their summary lines and :meth:`ColumnarFrames.values`
 their values, as the PDUs, :mod:`decoders.modbus.param_runs` and the value rows' rule do. Where
 a profile names a frame's slave, :class:`ColumnarNames` holds what it names of the params
-(:mod:`decoders.profiles.columns`), and the summaries end with their texts. The tests hold all
+(:mod:`decoders.profiles.column_names`), and the summaries end with their texts. The tests hold all
 of it, and the annotator's state after each batch, to the plain path
 (:meth:`Annotator.annotate_batch`).
 
@@ -87,7 +87,7 @@ class ColumnarParams(NamedTuple):
 
 class ColumnarNames(NamedTuple):
     """What profiles name of the params of frames kept in columns
-    (:mod:`decoders.profiles.columns`): ``row``, per param in :meth:`ColumnarFrames.params` order,
+    (:mod:`decoders.profiles.column_names`): ``row``, per param in :meth:`ColumnarFrames.params` order,
     its entry (-1: its slave's profile adds nothing); ``table``: each named value (param and
     summary text) of the batch, once; ``numbers``: the plain numbers named in arrays, entries
     after the table's (only for outputs that take them, :func:`~decoders.profiles.columns.named`)."""
@@ -188,6 +188,10 @@ class ColumnarFrames:
     earlier_requests: list[int]
     #: The names profiles give the params (``None``: no frame's slave has a profile that names).
     names: ColumnarNames | None = None
+    #: The frames that read alike (:func:`alike`), where :func:`~decoders.profiles.columns.named`
+    #: grouped them to name each group once; writers spell their texts by the same groups.
+    #: ``None``: not grouped (no profile names a frame, or they are mostly distinct).
+    groups: Alike | None = None
 
     def __len__(self) -> int:
         return len(self.positions)
@@ -252,6 +256,15 @@ class ColumnarFrames:
             address[read] = np.repeat(self.read_address, sizes)[read] + (place - first_span)[read]
         return ColumnarParams(sizes, address, values, None if self.names is None else self.names.row)
 
+    def grouped_params(self, groups: Alike) -> npt.NDArray[np.int64]:
+        """For each param of these frames (:meth:`params` order), where the same param of its
+        group's first (``groups``: :func:`alike`'s) is among the params of the firsts."""
+        sizes = self._sizes()
+        first_sizes = sizes[groups.firsts]
+        starts = np.cumsum(first_sizes) - first_sizes
+        places: npt.NDArray[np.int64] = np.repeat(starts[groups.inverse], sizes) + within_runs(sizes)
+        return places
+
     def _param_rows(self, valued: npt.NDArray[np.int64], counts: npt.NDArray[np.int64],
                     within: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
         """Where each value of :meth:`_carried` is among the params of :meth:`params`."""
@@ -309,20 +322,21 @@ def within_runs(counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
 
 
 class Alike(NamedTuple):
-    """Frames kept in columns that read alike (:func:`alike`): ``distinct``, the first of each
-    (:meth:`ColumnarFrames.take`), and ``inverse``: for each frame, in order, its row there."""
+    """Frames kept in columns that read alike (:func:`alike`): ``firsts``, the first of each
+    group (rows of the columns, ascending), and ``inverse``: for each frame, in order, its
+    group's place among ``firsts``."""
 
-    distinct: ColumnarFrames
+    firsts: npt.NDArray[np.int64]
     inverse: npt.NDArray[np.int64]
 
 
 def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
-          roles: npt.NDArray[np.integer[Any]]) -> Alike | None:
+          roles: npt.NDArray[np.integer[Any]], profile: npt.NDArray[np.int64] | None = None) -> Alike | None:
     """The frames of ``columnar`` whose texts are the same: alike in their bytes, role, kind,
     first address and count (an answer's are its request's), and profile where a slave's frames
-    have two in the batch (``ColumnarNames.profile``); whatever else a text says (a profile's
-    names) the batch holds for all its frames alike. ``offsets``, ``roles``: the
-    batch's frames'. ``None`` where at least :data:`DISTINCT_SHARE` of a sample of the frames
+    have two in the batch (``profile``, by default ``ColumnarNames.profile``); whatever else a
+    text says (a profile's names) the batch holds for all its frames alike. ``offsets``,
+    ``roles``: the batch's frames'. ``None`` where at least :data:`DISTINCT_SHARE` of a sample of the frames
     (every n-th, :data:`SAMPLED` of them) differ in their CRC, length, slave and function
     (:func:`digests`): there telling them apart costs more than it saves.
 
@@ -340,8 +354,10 @@ def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
         return None
     role = roles[positions].astype(np.int64)
     code = (role << 3 | columnar.kind) << 48 | (columnar.count + 1) << 24 | columnar.address
-    if columnar.names is not None and columnar.names.profile is not None:
-        code |= columnar.names.profile << PROFILE_SHIFT
+    if profile is None and columnar.names is not None:
+        profile = columnar.names.profile
+    if profile is not None:
+        code |= profile << PROFILE_SHIFT
     with np.errstate(over="ignore"):  # mixed, wrapping: frames alike have it alike
         # The digest spread (Fibonacci hashing) before its role, kind, address and count are mixed in.
         mixed = digests(data, starts, ends) * FIBONACCI_SIGNED ^ code
@@ -364,7 +380,7 @@ def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
     # Each group's row among the firsts: the number of firsts up to its first (a search of the
     # firsts for each frame cost twice what grouping them did).
     row = np.cumsum(is_first) - 1
-    return Alike(columnar.take(np.flatnonzero(is_first)), row[first])
+    return Alike(np.flatnonzero(is_first), row[first])
 
 
 def _group_firsts(rows: npt.NDArray[np.int64], key: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:

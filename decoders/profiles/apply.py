@@ -213,7 +213,7 @@ class ProfileApplier:
                      raws: list[int | None]) -> list[NamedValue]:
         """Each of ``raws`` at ``address`` as :meth:`apply_decoding` names it for ``slave`` of
         ``profile`` (``reported``: the device's values) now, kept as there: for frames named in
-        columns (:mod:`decoders.profiles.columns`)."""
+        columns (:mod:`decoders.profiles.column_names`)."""
         namer = self._namer_of(profile, slave, reported, address)
         fast, known, named = self.fast, namer.known, []
         for raw in raws:

@@ -1,15 +1,9 @@
-"""Profiles applied as array lookups: frames of named slaves kept in columns.
+"""Profiles applied as array lookups: which frames of named slaves stay in columns.
 
-Where a profile names a slave's registers, a frame's params are named values (code, name,
-value, unit, and a text for the summary), each what the register's namer
-(:class:`~decoders.profiles.naming.AddressNamer`) makes of its address and raw word. The frames
-the annotator keeps in columns (:mod:`decoders.modbus.columnar`) get theirs at once here
-(:func:`named`): every param of a named slave's frame is a key (its profile, whether the device
-reported it, its address, its raw word, and at a scanner table's value register its slave, whose
-own mapping names it), each distinct key of the batch is named once through
-the applier, which keeps what its namers made as for any frame, and each param takes its entry
-(:class:`~decoders.modbus.columnar.ColumnarNames`). A batch of drives polled for values that
-change names a few thousand distinct values for tens of thousands of frames.
+Where a profile names a slave's registers, the frames the annotator keeps in columns
+(:mod:`decoders.modbus.columnar`) get their names at once, as lookups of each distinct
+param (:mod:`decoders.profiles.column_names`). This module says which frames may be named so,
+and by which profile.
 
 A named slave's frame stays in columns only where naming it is that lookup alone, all that
 :meth:`~decoders.profiles.apply.ProfileApplier.apply_decoding` would do to it:
@@ -37,7 +31,6 @@ tests hold every output of frames so named to the plain path (``tests/property/t
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -45,9 +38,8 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
-from decoders.modbus.codes import BIT_FUNCTIONS
-from decoders.modbus.columnar import ColumnarFrames, ColumnarNames
-from decoders.modbus.columnar_text import READ, READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER
+from decoders.modbus.columnar import ColumnarFrames
+from decoders.modbus.columnar_text import READ, READ_WRITE, WRITE
 from decoders.modbus.param_runs import LazyParams, addressed_values
 from decoders.modbus.pdu import Pdu
 from decoders.modbus.pdu_parse import parse_as, parse_pdu
@@ -61,13 +53,7 @@ from decoders.profiles.apply import (
     request_addresses,
 )
 from decoders.profiles.model import Indirection, Profile
-from decoders.profiles.naming import NamedValue, NumberNames, PlainNumbers
 
-#: Bits of a param's key (:func:`named`) for its raw word plus one (0: no value), its address (a
-#: read's last register may lie past 65 535) and its slave plus one (0: a register whose name
-#: no slave's mapping changes).
-_RAW_BITS, _ADDRESS_BITS, _SLAVE_BITS = 17, 20, 9
-_RAW_MASK, _ADDRESS_MASK, _SLAVE_MASK = (1 << _RAW_BITS) - 1, (1 << _ADDRESS_BITS) - 1, (1 << _SLAVE_BITS) - 1
 #: The request of an answer from before the batch, by its frame index (``None``: not kept).
 EarlierRequest = Callable[[int], "Pdu | None"]
 #: Frames that may be requests, and what the plain path may read as one (a frame of no known role).
@@ -163,7 +149,7 @@ def _identifications(batch: MessageBatch) -> dict[int, list[tuple[int, str]]]:
     return found
 
 
-class _Slaves:
+class ColumnProfiles:
     """The profile of each frame kept in columns (``profile``: its place in ``profiles``, as
     :class:`FrameProfiles` has it), and whether it names anything (``named``)."""
 
@@ -195,7 +181,7 @@ def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: Earli
         hit = np.zeros(len(rows), np.bool_)
         for place, indirections in enumerate(kinds):
             for table in indirections:
-                hit |= (kind == place) & _overlap(low, low + count, table.address_registers, table.count)
+                hit |= (kind == place) & overlap(low, low + count, table.address_registers, table.count)
         asking.append(rows[hit])
     first = batch.frames.first_index
     requests = np.unique(np.concatenate(asking))
@@ -255,7 +241,7 @@ def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarF
     the batch may teach (``learning``, :func:`learning_slaves`), or a request the profile
     remarks on."""
     frame_slaves = batch.slave[columnar.positions].astype(np.int64)
-    slaves = _Slaves(framed, columnar.positions)
+    slaves = ColumnProfiles(framed, columnar.positions)
     bad = np.zeros(len(columnar), np.bool_)
     if not slaves.named.any():
         return columnar.positions[bad]
@@ -267,8 +253,8 @@ def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarF
         of = slaves.named & (slaves.profile == place)
         for table in profile.indirections:
             for low, high in spans:
-                bad |= of & _overlap(low, high, table.address_registers, table.count)
-                bad |= of & taught & _overlap(low, high, table.value_registers, table.count)
+                bad |= of & overlap(low, high, table.address_registers, table.count)
+                bad |= of & taught & overlap(low, high, table.value_registers, table.count)
     requests = np.flatnonzero(slaves.named & np.isin(columnar.kind, (READ, WRITE, READ_WRITE)) & ~bad)
     if len(requests):
         # A request's remarks depend on its profile, function and counts alone: one of each asked.
@@ -289,101 +275,7 @@ def _remarked(applier: ProfileApplier, batch: MessageBatch, profile: Profile, po
     return bool(limit_remarks(profile, facts, parse_pdu(data, is_request=True)))
 
 
-def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames, framed: FrameProfiles, *,
-          numbers: bool = False) -> ColumnarFrames:
-    """``columnar`` with the names its frames' profiles give their params (none of them
-    :func:`unnameable`); as it is where no frame's profile names anything. ``numbers``: values
-    that are plain numbers are named in arrays (:class:`~decoders.profiles.naming.NumberNames`),
-    for outputs that take them so; the others, and all without it, are named values."""
-    slaves = _Slaves(framed, columnar.positions)
-    named_frames = slaves.named & ~np.isin(columnar.function, list(BIT_FUNCTIONS))  # a profile names no coil
-    if not named_frames.any():
-        return columnar
-    params = columnar.params(batch.frames.data)
-    frame = np.repeat(np.arange(len(columnar)), params.sizes)
-    rows = np.flatnonzero(named_frames[frame])
-    of = frame[rows]
-    reported = np.isin(columnar.kind, (READ_ANSWER, WRITE_ANSWER))[of].astype(np.int64)
-    address = params.address[rows]
-    owner = _value_register_owners(slaves, of, address, batch.slave[columnar.positions].astype(np.int64))
-    register = ((((slaves.profile[of] * 2 + reported) << _SLAVE_BITS) | owner) << _ADDRESS_BITS) | address
-    distinct, inverse = np.unique((register << _RAW_BITS) | (params.value[rows] + 1), return_inverse=True)
-    entry, table, number_names = _entries(applier, slaves, distinct, numbers=numbers)
-    row = np.full(len(params.address), -1, np.int64)
-    row[rows] = entry[inverse.reshape(-1)]
-    return dataclasses.replace(columnar, names=ColumnarNames(row, table, number_names,
-                                                             slaves.profile if framed.switched else None))
-
-
-def _entries(applier: ProfileApplier, slaves: _Slaves, distinct: npt.NDArray[np.int64], *,
-             numbers: bool) -> tuple[npt.NDArray[np.int64], list[NamedValue], NumberNames | None]:
-    """The entry of each distinct value (``distinct``: keys of :func:`named`, ascending), the
-    named values (the first entries) and the plain numbers (the entries after them)."""
-    registers, words = distinct >> _RAW_BITS, (distinct & _RAW_MASK) - 1
-    starts = np.flatnonzero(np.diff(registers, prepend=-1))
-    stops = np.append(starts[1:], len(distinct))
-    named_at = []
-    for key in registers[starts].tolist():
-        group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
-        named_at.append((slaves.profiles[group >> 1], slave, bool(group & 1), key & _ADDRESS_MASK))
-    plains = [applier.plain_numbers(*register) for register in named_at] if numbers else []
-    register_of = np.repeat(np.arange(len(starts)), stops - starts)
-    as_number = _plain(plains, register_of, words)
-    others = np.flatnonzero(~as_number)
-    table: list[NamedValue] = []
-    firsts, lasts = np.searchsorted(others, starts).tolist(), np.searchsorted(others, stops).tolist()
-    for register, first, last in zip(named_at, firsts, lasts, strict=True):
-        if last > first:
-            raws = words[others[first:last]].tolist()
-            table += applier.named_values(*register, [None if raw < 0 else raw for raw in raws])
-    entry = np.empty(len(distinct), np.int64)
-    entry[others] = np.arange(len(others))
-    numbered = np.flatnonzero(as_number)
-    entry[numbered] = np.arange(len(others), len(distinct))
-    return entry, table, _number_names(plains, register_of[numbered], words[numbered])
-
-
-def _plain(plains: list[PlainNumbers | None], register_of: npt.NDArray[np.int64],
-           words: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
-    """Which values (of registers ``register_of``, raw words ``words``) are plain numbers."""
-    if not any(plains):
-        return np.zeros(len(words), np.bool_)
-    plain = np.array([found is not None for found in plains], np.bool_)[register_of] & (words >= 0)
-    worded = [place * 0x10000 + found.words for place, found in enumerate(plains) if found is not None]
-    return plain & ~np.isin(register_of * 0x10000 + words, np.concatenate(worded))
-
-
-def _number_names(plains: list[PlainNumbers | None], register_of: npt.NDArray[np.int64],
-                  raws: npt.NDArray[np.int64]) -> NumberNames | None:
-    """The plain numbers (each of register ``register_of``, raw word in ``raws``) as columns."""
-    if not len(raws):
-        return None
-    used, register = np.unique(register_of, return_inverse=True)
-    # Every register a plain number lies in has its plain numbers.
-    registers = [found for place in used.tolist() if (found := plains[place]) is not None]
-    values = np.empty(len(raws), np.float64)
-    tables: dict[int, list[int]] = {}  # registers by the table of values they share
-    for place, found in enumerate(registers):
-        tables.setdefault(id(found.value), []).append(place)
-    for places in tables.values():
-        of = np.isin(register, places)
-        values[of] = registers[places[0]].value[raws[of]]
-    return NumberNames(register.reshape(-1), raws, values, registers)
-
-
-def _value_register_owners(slaves: _Slaves, of: npt.NDArray[np.int64], address: npt.NDArray[np.int64],
-                           frame_slaves: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-    """For each param (of frame ``of``, at ``address``): its slave plus one where it is a scanner
-    table's value register (named by that slave's mapping), 0 elsewhere (named alike for all)."""
-    owner = np.zeros(len(of), np.int64)
-    for place, profile in enumerate(slaves.profiles):
-        for table in profile.indirections:
-            inside = (slaves.profile[of] == place) & _overlap(address, address + 1, table.value_registers, table.count)
-            owner[inside] = frame_slaves[of[inside]] + 1
-    return owner
-
-
-def _overlap(low: npt.NDArray[np.int64], high: npt.NDArray[np.int64], first: int,
+def overlap(low: npt.NDArray[np.int64], high: npt.NDArray[np.int64], first: int,
              count: int) -> npt.NDArray[np.bool_]:
     """Whether each span of registers ``low`` up to ``high`` (excluded) shares one with the
     ``count`` registers from ``first`` (a scanner table's)."""

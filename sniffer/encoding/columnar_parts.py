@@ -46,9 +46,10 @@ class ColumnarParts:
 
     def __init__(self, columnar: ColumnarFrames, data: bytes, messages: MessageBatch | None = None) -> None:
         self.columnar, self._data = columnar, data
-        found = None if messages is None else alike(columnar, data, messages.frames.offsets, messages.role)
+        found = None if messages is None else (
+            columnar.groups or alike(columnar, data, messages.frames.offsets, messages.role))
         #: The frames spelt, and for each frame its row among them (``None``: each its own).
-        self._spelt = columnar if found is None else found.distinct
+        self._spelt = columnar if found is None else columnar.take(found.firsts)
         self._inverse: npt.NDArray[np.int64] | None = None if found is None else found.inverse
         self._summaries: list[str] | None = None
         self._params: ColumnarParams | None = None

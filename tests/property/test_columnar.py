@@ -172,7 +172,7 @@ def test_reads_in_columns_say_what_the_plain_path_says(traffic: list[list[bytes]
 
 def test_polling_is_kept_in_columns_and_answers_read_requests_of_the_batch_before() -> None:
     """Not vacuous: polling is all in columns, across a cut between request and answer; a slave
-    a profile names too, its values named."""
+    a profile names too, its values named, each frame polled again named as the first."""
     poll = []
     for slave in (1, 2):
         poll += [adu(bytes([slave]), b"\x03", struct.pack(">HH", 3201, 2)),
@@ -184,6 +184,8 @@ def test_polling_is_kept_in_columns_and_answers_read_requests_of_the_batch_befor
     assert [check_batch(columns, plain, piece) for piece in pieces] == [5, 7]
     reads = columns.annotate_columnar(batch).columnar
     assert reads is not None and reads.names is not None
+    # Named once per distinct frame (each slave's request and answer), the groups kept for writers.
+    assert reads.groups is not None and reads.groups.firsts.tolist() == [0, 1, 2, 3]
     assert reads.summaries(batch.frames.data)[1:4] == [
         "HR = 0007 8637 (2 registers)", "read HR 3201..3202 (2): ETA",
         "HR = 0007 8637 (2 registers): ETA = 16#0007 quick stop active, forward"]

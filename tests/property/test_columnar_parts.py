@@ -103,7 +103,7 @@ def test_answers_alike_in_bytes_to_other_requests_are_told_apart() -> None:
     assert columnar is not None and len(columnar) == 40
     found = columnar_module.alike(columnar, batch.frames.data, batch.frames.offsets, batch.role)
     assert found is not None
-    assert len(found.distinct) == 4 and found.inverse.tolist() == [0, 1, 2, 3] * 10
+    assert len(found.firsts) == 4 and found.inverse.tolist() == [0, 1, 2, 3] * 10
     check_parts(Annotator(), Annotator(), batch)
     distinct = next(iter(matched([adu(b"\x05", b"\x03" + address.to_bytes(2, "big") + b"\x00\x01")
                                   for address in range(50)])))
@@ -129,7 +129,7 @@ def test_answers_whose_crc_agrees_are_compared_byte_for_byte() -> None:
     assert columnar is not None and len(columnar) == 20
     found = columnar_module.alike(columnar, batch.frames.data, batch.frames.offsets, batch.role)
     assert found is not None
-    assert len(found.distinct) == 3 and found.inverse.tolist() == [0, 1, 0, 2] * 5
+    assert len(found.firsts) == 3 and found.inverse.tolist() == [0, 1, 0, 2] * 5
     answers = next(iter(matched([request, answer, request, other, request, other, request, answer] * 3)))
     columnar = Annotator().annotate_columnar(answers).columnar
     assert columnar is not None
