@@ -35,8 +35,9 @@ from decoders.message import (
     MessageBatch,
     Role,
 )
+from decoders.modbus.alike import digests
 from decoders.modbus.codes import function_name
-from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames, digests
+from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
 from decoders.modbus.columnar_find import find_columnar
 from decoders.modbus.param_runs import LazyParams
 from decoders.modbus.pdu import (
@@ -261,7 +262,7 @@ class Annotator:
 
 def mostly_distinct(batch: MessageBatch, share: float) -> bool:
     """Whether at least ``share`` of the batch's frames differ from one another, as told by
-    their CRC, length, slave and function (:func:`~decoders.modbus.columnar.digests`)."""
+    their CRC, length, slave and function (:func:`~decoders.modbus.alike.digests`)."""
     frames = batch.frames
     if not len(batch):
         return False

@@ -16,38 +16,31 @@ of it, and the annotator's state after each batch, to the plain path
 (:meth:`Annotator.annotate_batch`).
 
 Half the frames of a batch of mixed traffic, and nearly all of steady traffic, repeat one
-another (a request polled again, a drive's unchanged status). :func:`alike` finds which read
-alike, so that writers spell their texts once per batch and share them
-(:mod:`sniffer.encoding.columnar_parts`); the memo does that across batches for frames decoded
-one by one.
+another (a request polled again, a drive's unchanged status): :mod:`decoders.modbus.alike`
+finds which read alike, so that they are named and spelt once per batch.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from operator import itemgetter
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-from decoders.hashing import FIBONACCI_SIGNED
 from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.columnar_text import READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, formatted, summaries
 from decoders.modbus.pdu import COIL_ON
 from decoders.profiles.naming import SHOWN_PARAMS, NamedValue, NumberNames, summary_with
 
+if TYPE_CHECKING:
+    from decoders.modbus.alike import Alike
+
 #: A param's value where its frame names the address alone.
 NO_VALUE = -1
 #: Requests are read against by answers that come within this many frames of them.
 KEPT_REQUESTS = 1024
-#: The share of frames kept in columns, distinct at first sight, from which :func:`alike` leaves
-#: them all to be spelt.
-DISTINCT_SHARE = 0.9
-#: Frames :func:`alike` samples to tell whether to look further.
-SAMPLED = 512
-#: Where :func:`alike` mixes a frame's profile into what it compares (above role and kind).
-PROFILE_SHIFT = 55
 #: A named value's text in the summary (``None``: it shows none).
 _TEXT = itemgetter(1)
 #: The most a request may ask for, by function (0: not a function kept in columns).
@@ -188,9 +181,10 @@ class ColumnarFrames:
     earlier_requests: list[int]
     #: The names profiles give the params (``None``: no frame's slave has a profile that names).
     names: ColumnarNames | None = None
-    #: The frames that read alike (:func:`alike`), where :func:`~decoders.profiles.columns.named`
-    #: grouped them to name each group once; writers spell their texts by the same groups.
-    #: ``None``: not grouped (no profile names a frame, or they are mostly distinct).
+    #: The frames that read alike (:func:`~decoders.modbus.alike.alike`), where naming grouped
+    #: them (:func:`~decoders.profiles.column_names.named`) to name each group once; writers
+    #: spell their texts by the same groups. ``None``: not grouped (no profile names a frame,
+    #: or they are mostly distinct).
     groups: Alike | None = None
 
     def __len__(self) -> int:
@@ -258,7 +252,8 @@ class ColumnarFrames:
 
     def grouped_params(self, groups: Alike) -> npt.NDArray[np.int64]:
         """For each param of these frames (:meth:`params` order), where the same param of its
-        group's first (``groups``: :func:`alike`'s) is among the params of the firsts."""
+        group's first (``groups``: :func:`~decoders.modbus.alike.alike`'s) is among the params
+        of the firsts."""
         sizes = self._sizes()
         first_sizes = sizes[groups.firsts]
         starts = np.cumsum(first_sizes) - first_sizes
@@ -319,84 +314,3 @@ def within_runs(counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     """For runs of ``counts`` items laid end to end, each item's place in its run (0, 1, … 0, …)."""
     within: npt.NDArray[np.int64] = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
     return within
-
-
-class Alike(NamedTuple):
-    """Frames kept in columns that read alike (:func:`alike`): ``firsts``, the first of each
-    group (rows of the columns, ascending), and ``inverse``: for each frame, in order, its
-    group's place among ``firsts``."""
-
-    firsts: npt.NDArray[np.int64]
-    inverse: npt.NDArray[np.int64]
-
-
-def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
-          roles: npt.NDArray[np.integer[Any]], profile: npt.NDArray[np.int64] | None = None) -> Alike | None:
-    """The frames of ``columnar`` whose texts are the same: alike in their bytes, role, kind,
-    first address and count (an answer's are its request's), and profile where a slave's frames
-    have two in the batch (``profile``, by default ``ColumnarNames.profile``); whatever else a
-    text says (a profile's names) the batch holds for all its frames alike. ``offsets``,
-    ``roles``: the batch's frames'. ``None`` where at least :data:`DISTINCT_SHARE` of a sample of the frames
-    (every n-th, :data:`SAMPLED` of them) differ in their CRC, length, slave and function
-    (:func:`digests`): there telling them apart costs more than it saves.
-
-    Frames are grouped by a number mixed of those and of their role, kind, address and count,
-    and each is then compared with its group's first, byte for byte and in role, kind, address
-    and count: those that differ (frames whose CRC, length, slave and function agree, as frames
-    of a bus polled for a day do now and then) are grouped again among themselves."""
-    positions = columnar.positions
-    if len(positions) < 2:
-        return None
-    starts, ends = offsets[positions], offsets[positions + 1]
-    lengths = ends - starts
-    step = max(len(positions) // SAMPLED, 1)
-    if len(np.unique(digests(data, starts[::step], ends[::step]))) >= DISTINCT_SHARE * len(starts[::step]):
-        return None
-    role = roles[positions].astype(np.int64)
-    code = (role << 3 | columnar.kind) << 48 | (columnar.count + 1) << 24 | columnar.address
-    if profile is None and columnar.names is not None:
-        profile = columnar.names.profile
-    if profile is not None:
-        code |= profile << PROFILE_SHIFT
-    with np.errstate(over="ignore"):  # mixed, wrapping: frames alike have it alike
-        # The digest spread (Fibonacci hashing) before its role, kind, address and count are mixed in.
-        mixed = digests(data, starts, ends) * FIBONACCI_SIGNED ^ code
-    first = _group_firsts(np.arange(len(positions)), mixed)
-    raw = np.frombuffer(data, np.uint8)
-    pending = np.flatnonzero(first != np.arange(len(first)))
-    while len(pending):
-        # Against the group's first (their lengths are alike unless the mix collides); those that
-        # differ are grouped again among themselves, until every frame is its group's first or alike it.
-        theirs = first[pending]
-        sizes = np.minimum(lengths[pending], lengths[theirs])
-        within = within_runs(sizes)
-        at, at_first = np.repeat(starts[pending], sizes) + within, np.repeat(starts[theirs], sizes) + within
-        differ = (code[pending] != code[theirs]) | (lengths[pending] != lengths[theirs])
-        differ[np.repeat(np.arange(len(pending)), sizes)[raw[at] != raw[at_first]]] = True
-        lone = pending[differ]
-        first[lone] = _group_firsts(lone, mixed)
-        pending = lone[first[lone] != lone]
-    is_first = first == np.arange(len(first))
-    # Each group's row among the firsts: the number of firsts up to its first (a search of the
-    # firsts for each frame cost twice what grouping them did).
-    row = np.cumsum(is_first) - 1
-    return Alike(np.flatnonzero(is_first), row[first])
-
-
-def _group_firsts(rows: npt.NDArray[np.int64], key: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-    """For each of ``rows`` (ascending), the first of them with its ``key``."""
-    _, found, group = np.unique(key[rows], return_index=True, return_inverse=True)  # found: the first of each
-    first: npt.NDArray[np.int64] = rows[found[group.ravel()]]
-    return first
-
-
-def digests(data: bytes, starts: npt.NDArray[np.int64], ends: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-    """A number per frame (``data[start:end]``) that frames alike share and frames that differ
-    seldom do: its CRC (last two bytes), length, slave and function (first two bytes; a frame
-    too short reads zeros or its own bytes again)."""
-    raw = np.zeros(len(data) + 1, np.int64)  # a byte more: frames of no bytes read it
-    raw[:-1] = np.frombuffer(data, np.uint8)
-    last = raw[np.maximum(ends - 1, 0)] << 8 | raw[np.maximum(ends - 2, 0)]
-    first = raw[starts] | raw[np.minimum(starts + 1, len(data))] << 8
-    digest: npt.NDArray[np.int64] = last | (ends - starts) << 16 | first << 32
-    return digest

@@ -12,7 +12,7 @@ which keeps what its namers made as for any frame, and each param takes its entr
 (:class:`~decoders.modbus.columnar.ColumnarNames`). A batch of drives polled for values that
 change names a few thousand distinct values for tens of thousands of frames.
 
-Frames that read alike (:func:`~decoders.modbus.columnar.alike`: the same bytes, role, kind,
+Frames that read alike (:func:`~decoders.modbus.alike.alike`: the same bytes, role, kind,
 span and profile, so the same names) are named once, by the first of each group, and each
 frame's params take their entries from it; the groups stay with the columns
 (``ColumnarFrames.groups``), and writers spell each group's texts once by them. Measured on
@@ -28,8 +28,9 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.message import MessageBatch
+from decoders.modbus.alike import alike
 from decoders.modbus.codes import BIT_FUNCTIONS
-from decoders.modbus.columnar import ColumnarFrames, ColumnarNames, alike
+from decoders.modbus.columnar import ColumnarFrames, ColumnarNames
 from decoders.modbus.columnar_text import READ_ANSWER, WRITE_ANSWER
 from decoders.profiles.apply import ProfileApplier
 from decoders.profiles.columns import ColumnProfiles, FrameProfiles, overlap
@@ -49,7 +50,7 @@ def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames
     that are plain numbers are named in arrays (:class:`~decoders.profiles.naming.NumberNames`),
     for outputs that take them so; the others, and all without it, are named values.
 
-    Frames that read alike (:func:`~decoders.modbus.columnar.alike`: same bytes, kind, span and
+    Frames that read alike (:func:`~decoders.modbus.alike.alike`: same bytes, kind, span and
     profile, hence the same names) are named once, by their group's first, and the groups kept
     in the result for writers to spell each group once: a bus polled for values that seldom
     change names a few frames of the batch instead of sorting all its params' values."""

@@ -27,7 +27,8 @@ import numpy.typing as npt
 import orjson
 
 from decoders.message import ROLE_NAMES, MessageBatch
-from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, alike, within_runs
+from decoders.modbus.alike import alike
+from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
 from sniffer.encoding.param_text import NO_VALUE_END, PARAM_JSON, PARAM_MEMBERS, WORDS, param_start, param_tables
 from sniffer.encoding.rows import Pieces
 
@@ -41,7 +42,7 @@ _tables: dict[str, npt.NDArray[Any]] = {}
 class ColumnarParts:
     """The texts of the frames of ``columnar`` (``data``: their batch's bytes), each list in
     the order of ``columnar.positions``; each made when first asked for. With ``messages``
-    (their batch), frames that read alike (:func:`~decoders.modbus.columnar.alike`: a drive's
+    (their batch), frames that read alike (:func:`~decoders.modbus.alike.alike`: a drive's
     unchanged status, a request polled again) are spelt once, and their texts shared."""
 
     def __init__(self, columnar: ColumnarFrames, data: bytes, messages: MessageBatch | None = None) -> None:

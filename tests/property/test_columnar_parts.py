@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from decoders.frame import MODBUS
 from decoders.message import MessageBatch, slice_messages
-from decoders.modbus import columnar as columnar_module
+from decoders.modbus import alike as alike_module
 from decoders.modbus.annotate import Annotator
 from sniffer.encoding import columnar_parts
 from sniffer.encoding.columnar_parts import ColumnarParts
@@ -36,7 +36,7 @@ def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch, *, nu
     positions = columnar.positions.tolist()
     encoder = FrameRecordEncoder()
     logged = [_decoding_parts(expected[p], int(batch.role[p])) for p in positions]
-    with patch.object(columnar_module, "DISTINCT_SHARE", 2.0):
+    with patch.object(alike_module, "DISTINCT_SHARE", 2.0):
         each_once = ColumnarParts(columnar, batch.frames.data, batch)
     for parts in (ColumnarParts(columnar, batch.frames.data), each_once):
         tails = parts.record_tails()
@@ -101,7 +101,7 @@ def test_answers_alike_in_bytes_to_other_requests_are_told_apart() -> None:
     batch = next(iter(matched(polled * 10)))
     columnar = Annotator().annotate_columnar(batch).columnar
     assert columnar is not None and len(columnar) == 40
-    found = columnar_module.alike(columnar, batch.frames.data, batch.frames.offsets, batch.role)
+    found = alike_module.alike(columnar, batch.frames.data, batch.frames.offsets, batch.role)
     assert found is not None
     assert len(found.firsts) == 4 and found.inverse.tolist() == [0, 1, 2, 3] * 10
     check_parts(Annotator(), Annotator(), batch)
@@ -109,7 +109,7 @@ def test_answers_alike_in_bytes_to_other_requests_are_told_apart() -> None:
                                   for address in range(50)])))
     columnar = Annotator().annotate_columnar(distinct).columnar
     assert columnar is not None
-    assert columnar_module.alike(columnar, distinct.frames.data, distinct.frames.offsets, distinct.role) is None
+    assert alike_module.alike(columnar, distinct.frames.data, distinct.frames.offsets, distinct.role) is None
 
 
 def test_answers_whose_crc_agrees_are_compared_byte_for_byte() -> None:
@@ -127,12 +127,12 @@ def test_answers_whose_crc_agrees_are_compared_byte_for_byte() -> None:
     batch = next(iter(matched([request, answer, request, other] * 5)))
     columnar = Annotator().annotate_columnar(batch).columnar
     assert columnar is not None and len(columnar) == 20
-    found = columnar_module.alike(columnar, batch.frames.data, batch.frames.offsets, batch.role)
+    found = alike_module.alike(columnar, batch.frames.data, batch.frames.offsets, batch.role)
     assert found is not None
     assert len(found.firsts) == 3 and found.inverse.tolist() == [0, 1, 0, 2] * 5
     answers = next(iter(matched([request, answer, request, other, request, other, request, answer] * 3)))
     columnar = Annotator().annotate_columnar(answers).columnar
     assert columnar is not None
-    found = columnar_module.alike(columnar, answers.frames.data, answers.frames.offsets, answers.role)
+    found = alike_module.alike(columnar, answers.frames.data, answers.frames.offsets, answers.role)
     assert found is not None and found.inverse.tolist() == [0, 1, 0, 2, 0, 2, 0, 1] * 3
     check_parts(Annotator(), Annotator(), batch)
