@@ -289,25 +289,42 @@ class ColumnarFrames:
             npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
         """How many values each of the frames ``valued`` (:meth:`_valued`, in any order) carries,
         each value's place in its frame, and the values, frame after frame (a register's word; a
-        coil as 0 or 1)."""
+        coil as 0 or 1). Coils and registers are each taken from their own frames' bytes only: a
+        coil capture has a dozen values a frame, and reading every value both ways took three
+        times as long."""
         counts = self.count[valued]
         within = within_runs(counts)
-        start = np.repeat(self.data[valued], counts)
-        function = self.function[valued]
+        function, starts = self.function[valued], self.data[valued]
         bit_frames = (function <= 2) | (function == 15)
         raw = np.frombuffer(data, np.uint8)
-        # Batches of coils alone or registers alone (most) skip the other kind's arithmetic.
         if bit_frames.all():
-            return counts, within, ((raw[start + (within >> 3)] >> (within & 7)) & 1).astype(np.int64)
-        some_bits = bit_frames.any()
-        bit_rows = np.repeat(bit_frames, counts) if some_bits else None
-        at = start + (2 * within if bit_rows is None else np.where(bit_rows, within >> 3, 2 * within))
-        high = raw[at].astype(np.int64)
-        words = (high << 8) | raw[np.minimum(at + 1, len(raw) - 1)]
-        single_coil = function == 5
-        if single_coil.any():
-            words = np.where(np.repeat(single_coil, counts), words == COIL_ON, words)
-        return counts, within, words if bit_rows is None else np.where(bit_rows, (high >> (within & 7)) & 1, words)
+            return counts, within, _bits(raw, starts, counts).astype(np.int64)
+        values = np.empty(len(within), np.int64)
+        bit_rows = np.repeat(bit_frames, counts)
+        if bit_frames.any():
+            values[bit_rows] = _bits(raw, starts[bit_frames], counts[bit_frames])
+        word_frames, word_rows = ~bit_frames, ~bit_rows
+        at = np.repeat(starts[word_frames], counts[word_frames]) + 2 * within[word_rows]
+        words = raw[at].astype(np.int64) << 8 | raw[at + 1]
+        single_coil = np.repeat(function[word_frames] == 5, counts[word_frames])
+        values[word_rows] = np.where(single_coil, words == COIL_ON, words)
+        return counts, within, values
+
+
+def _bits(raw: npt.NDArray[np.uint8], starts: npt.NDArray[np.int64],
+          counts: npt.NDArray[np.int64]) -> npt.NDArray[np.uint8]:
+    """The first ``counts[i]`` bits from byte ``starts[i]`` of ``raw``, least significant first,
+    frame after frame: their bytes unpacked at once, the bits past each count (up to 7, in its
+    last byte) dropped."""
+    sizes = (counts + 7) >> 3
+    bits = np.unpackbits(raw[np.repeat(starts, sizes) + within_runs(sizes)], bitorder="little")
+    unused = 8 * sizes - counts
+    if not unused.any():
+        return bits
+    kept = np.ones(len(bits), np.bool_)
+    kept[np.repeat(np.cumsum(8 * sizes) - unused, unused) + within_runs(unused)] = False
+    shown: npt.NDArray[np.uint8] = bits[kept]
+    return shown
 
 
 def within_runs(counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
