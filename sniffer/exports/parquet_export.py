@@ -82,7 +82,13 @@ UNSUMMARISED_COLUMNS = frozenset({"summary", "bytes", "flags", "code", "name", "
 #: addresses, so on 1 M frames the ``values`` table was 31 % smaller on coils (a row per coil),
 #: 6 % on polling, 3 to 4 % larger on mixed and steady traffic (a few registers a frame, of
 #: scattered addresses), in as much time.
-DELTA_COLUMNS = ["t", "t_end", "index", "request_index", "answer_index", "address"]
+#: But the ``values``' time: a frame's values share its time, and stored plain, zstd takes the
+#: repeats. Measured on 1 M frames, that column plain against differences: 20 % smaller on coils,
+#: 12 % on polling, 2 % on mixed and steady traffic; written in 0.66 times as long on coils and
+#: 0.74 on polling, in as long on mixed and steady traffic. Those of frames and transactions,
+#: a time a row, take differences: half as large and faster.
+DELTA_COLUMNS = {table: ["t", "t_end", "index", "request_index", "answer_index", "address"] for table in TABLES} | {
+    "values": ["index", "request_index", "address"]}
 
 
 def dictionary(codes: npt.NDArray[np.integer], names: pa.Array) -> pa.DictionaryArray:
@@ -104,6 +110,7 @@ def times(t_ns: npt.NDArray[np.int64]) -> pa.Array:
 class _Part:
     """One file of the dataset being written: its final name, the partial file, rows held."""
 
+    table: str
     final: Path
     partial: Path
     held: list[pa.RecordBatch] = field(default_factory=list)
@@ -155,11 +162,12 @@ class ParquetDataset:
             raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "this capture is in the dataset already (a file of the same "
                                 "capture id); a dataset's files are never rewritten", path=str(final))
         final.parent.mkdir(parents=True, exist_ok=True)
-        return _Part(final, final.with_name(f".{final.name}.partial"))
+        return _Part(table, final, final.with_name(f".{final.name}.partial"))
 
     def _write(self, part: _Part) -> None:
         """The rows ``part`` holds, handed to the writing thread as one row group."""
-        self._writer.write(part.partial, pa.Table.from_batches(part.held).replace_schema_metadata(self._metadata))
+        rows = pa.Table.from_batches(part.held).replace_schema_metadata(self._metadata)
+        self._writer.write(part.partial, part.table, rows)
         part.held, part.rows = [], 0
 
     def close(self) -> None:

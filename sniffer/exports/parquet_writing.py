@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import queue
 import threading
+from collections.abc import Mapping
 from pathlib import Path
 
 import pyarrow as pa
@@ -27,18 +28,18 @@ _CLOSE, _ABANDON = "close", "abandon"
 class RowGroupWriter:
     """Writes row groups to their files, in the order handed over, in a thread of its own."""
 
-    def __init__(self, dictionary_columns: list[str], delta_columns: list[str], unsummarised_columns: frozenset[str],
-                 dictionary_page_bytes: int) -> None:
+    def __init__(self, dictionary_columns: list[str], delta_columns: Mapping[str, list[str]],
+                 unsummarised_columns: frozenset[str], dictionary_page_bytes: int) -> None:
         """``dictionary_columns``: the columns dictionary-encoded (those of few distinct values;
         trying it on the others costs time and bytes), each up to a dictionary page of
-        ``dictionary_page_bytes`` a row group (then plain); ``delta_columns``: the integer
-        columns stored as differences, where a table has them; ``unsummarised_columns``: those
+        ``dictionary_page_bytes`` a row group (then plain); ``delta_columns``: by table, the
+        integer columns stored as differences; ``unsummarised_columns``: those
         written without min/max statistics."""
         self._dictionary_columns = dictionary_columns
         self._delta_columns = delta_columns
         self._unsummarised = unsummarised_columns
         self._dictionary_page_bytes = dictionary_page_bytes
-        self._queue: queue.Queue[tuple[Path, pa.Table] | str] = queue.Queue(QUEUED_WRITES)
+        self._queue: queue.Queue[tuple[Path, str, pa.Table] | str] = queue.Queue(QUEUED_WRITES)
         self._writers: dict[Path, pq.ParquetWriter] = {}
         #: The first failure of the thread (a full disk); the thread then drops what comes.
         self.failure: Exception | None = None
@@ -47,11 +48,11 @@ class RowGroupWriter:
         self._thread = threading.Thread(target=self._run, name="rtusniff-parquet", daemon=True)
         self._thread.start()
 
-    def write(self, path: Path, table: pa.Table) -> None:
-        """``table`` as the next row group of ``path`` (created with its schema at the first);
-        an earlier write's failure is raised here."""
+    def write(self, path: Path, name: str, table: pa.Table) -> None:
+        """``table`` (rows of the table ``name``) as the next row group of ``path`` (created
+        with its schema at the first); an earlier write's failure is raised here."""
         self._raise_failure()
-        self._queue.put((path, table))
+        self._queue.put((path, name, table))
 
     def close(self) -> None:
         """Every row group written and every file closed; a failure is raised."""
@@ -78,17 +79,18 @@ class RowGroupWriter:
                 return
             if self.failure is not None:
                 continue  # drained, so that the caller never waits on a full queue
-            path, table = item
+            path, name, table = item
             try:
                 writer = self._writers.get(path)
                 if writer is None:
-                    writer = self._writers[path] = self._writer(path, table.schema)
+                    writer = self._writers[path] = self._writer(path, name, table.schema)
                 writer.write_table(table)
             except Exception as exc:  # an OSError mostly: told to the caller at its next call
                 self.failure = exc
 
-    def _writer(self, path: Path, schema: pa.Schema) -> pq.ParquetWriter:
-        delta = {name: "DELTA_BINARY_PACKED" for name in self._delta_columns if name in schema.names}
+    def _writer(self, path: Path, name: str, schema: pa.Schema) -> pq.ParquetWriter:
+        delta = {column: "DELTA_BINARY_PACKED" for column in self._delta_columns.get(name, ())
+                 if column in schema.names}
         summarised = [name for name in schema.names if name not in self._unsummarised]
         return pq.ParquetWriter(path, schema, compression="zstd", use_dictionary=self._dictionary_columns,
                                 column_encoding=delta or None, write_statistics=summarised,
