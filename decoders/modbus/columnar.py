@@ -97,21 +97,31 @@ class ColumnarNames(NamedTuple):
         """Every entry as a named value (the plain numbers' made here)."""
         return self.table if self.numbers is None else self.table + self.numbers.objects()
 
+    def shown(self, sizes: npt.NDArray[np.int64], *, fast: bool = True) -> tuple[
+            list[str | None], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+        """What the frames' summaries show of their named values (``sizes``: how many params each
+        frame names): the text of every entry (``None``: it shows none), the entries shown, frame
+        after frame, and how many each frame shows."""
+        numbers = [] if self.numbers is None else number_texts(self.numbers, fast=fast)
+        named_texts = list(map(_TEXT, self.table)) + numbers
+        words = np.empty(len(named_texts) + 1, object)  # the last: for -1, nothing shown
+        words[:-1] = named_texts
+        shown = np.flatnonzero(words[self.row] != None)  # noqa: E711 - elementwise, on objects
+        counts = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[shown], minlength=len(sizes))
+        return named_texts, self.row[shown], counts
+
     def suffixed(self, texts: list[str], sizes: npt.NDArray[np.int64], *, fast: bool = True) -> list[str]:
         """``texts`` (the frames' PDU summaries; ``sizes``: how many params each names) followed
         by their named values' texts, as :func:`~decoders.profiles.naming.summary_with` writes them:
         frames that show as many texts at once, by one ``%`` of a template each
         (:func:`~decoders.modbus.columnar_text.formatted`), or one by one (``fast=False``, or a text
         holds a newline, which ``formatted`` cuts at)."""
-        numbers = [] if self.numbers is None else number_texts(self.numbers, fast=fast)
-        words = np.empty(len(self.table) + len(numbers) + 1, object)  # the last: for -1, nothing shown
-        named_texts = list(map(_TEXT, self.table)) + numbers
-        words[:-1] = named_texts
-        shown = np.flatnonzero(words[self.row] != None)  # noqa: E711 - elementwise, on objects
-        if not len(shown):
+        named_texts, entries, counts = self.shown(sizes, fast=fast)
+        if not len(entries):
             return texts
-        said = words[self.row[shown]]
-        counts = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[shown], minlength=len(sizes))
+        words = np.empty(len(named_texts), object)
+        words[:] = named_texts
+        said = words[entries]
         starts = np.cumsum(counts) - counts
         if not fast or "\n" in "".join(filter(None, named_texts)):
             each = said.tolist()
@@ -199,8 +209,17 @@ class ColumnarFrames:
     def summaries(self, data: bytes, *, fast: bool = True) -> list[str]:
         """Each frame's summary line, as its PDU's ``summary()`` writes it
         (:mod:`decoders.modbus.columnar_text`; ``fast``: in bulk), with what its profile names."""
-        texts = summaries(self, data, fast=fast)
-        return texts if self.names is None else self.names.suffixed(texts, self._sizes(), fast=fast)
+        return self.named_summaries(summaries(self, data, fast=fast), fast=fast)
+
+    def named_summaries(self, texts: list[str], *, fast: bool = True) -> list[str]:
+        """``texts`` (each frame's summary as its PDU writes it) followed by what its profile
+        names (:meth:`ColumnarNames.suffixed`; a new list)."""
+        return list(texts) if self.names is None else self.names.suffixed(list(texts), self._sizes(), fast=fast)
+
+    def shown_names(self) -> tuple[list[str | None], npt.NDArray[np.int64], npt.NDArray[np.int64]] | None:
+        """What each frame's summary shows of its named values (:meth:`ColumnarNames.shown`);
+        ``None``: no profile names a frame."""
+        return None if self.names is None else self.names.shown(self._sizes())
 
     def take(self, rows: npt.NDArray[np.int64]) -> ColumnarFrames:
         """The frames at ``rows`` (indexes of these columns) as columns of their own, to spell their

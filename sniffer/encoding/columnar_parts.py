@@ -29,6 +29,7 @@ import orjson
 from decoders.message import ROLE_NAMES, MessageBatch
 from decoders.modbus.alike import alike
 from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
+from decoders.modbus.columnar_text import summaries as base_summaries
 from sniffer.encoding.param_text import NO_VALUE_END, PARAM_JSON, PARAM_MEMBERS, WORDS, param_start, param_tables
 from sniffer.encoding.rows import Pieces
 
@@ -52,6 +53,7 @@ class ColumnarParts:
         #: The frames spelt, and for each frame its row among them (``None``: each its own).
         self._spelt = columnar if found is None else columnar.take(found.firsts)
         self._inverse: npt.NDArray[np.int64] | None = None if found is None else found.inverse
+        self._base_summaries: list[str] | None = None
         self._summaries: list[str] | None = None
         self._params: ColumnarParams | None = None
 
@@ -59,13 +61,30 @@ class ColumnarParts:
     def positions(self) -> npt.NDArray[np.int64]:
         return self.columnar.positions
 
+    @property
+    def spelt(self) -> ColumnarFrames:
+        """The frames spelt: one per group of frames alike (all of them, where none are grouped)."""
+        return self._spelt
+
+    @property
+    def inverse(self) -> npt.NDArray[np.int64] | None:
+        """For each frame, its row among :attr:`spelt` (``None``: each its own)."""
+        return self._inverse
+
     def summaries(self) -> list[str]:
         return self._each(self._spelt_summaries())
+
+    def base_summaries(self) -> list[str]:
+        """The summaries of the frames spelt as their PDUs write them, without what profiles name
+        (:func:`~decoders.modbus.columnar_text.summaries`)."""
+        if self._base_summaries is None:
+            self._base_summaries = base_summaries(self._spelt, self._data)
+        return self._base_summaries
 
     def _spelt_summaries(self) -> list[str]:
         """The summaries of the frames spelt (one per group of frames alike)."""
         if self._summaries is None:
-            self._summaries = self._spelt.summaries(self._data)
+            self._summaries = self._spelt.named_summaries(self.base_summaries())
         return self._summaries
 
     def record_tails(self) -> Pieces:

@@ -130,7 +130,8 @@ class ParquetSink(FileSink["ParquetDataset"]):
                                                                                  metadata.items()})
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        from sniffer.exports.parquet_export import anomaly_columns, frame_columns, summaries  # noqa: PLC0415
+        from sniffer.exports.parquet_export import anomaly_columns, frame_columns  # noqa: PLC0415
+        from sniffer.exports.parquet_summaries import summaries  # noqa: PLC0415 - pyarrow
         from sniffer.exports.parquet_values import columnar_values  # noqa: PLC0415 - loaded already
 
         self.frames_written += len(batch.messages)
