@@ -83,7 +83,7 @@ class ColumnarNames(NamedTuple):
     (:mod:`decoders.profiles.column_names`): ``row``, per param in :meth:`ColumnarFrames.params` order,
     its entry (-1: its slave's profile adds nothing); ``table``: each named value (param and
     summary text) of the batch, once; ``numbers``: the plain numbers named in arrays, entries
-    after the table's (only for outputs that take them, :func:`~decoders.profiles.columns.named`)."""
+    after the table's (only for outputs that take them, :func:`~decoders.profiles.column_names.named`)."""
 
     row: npt.NDArray[np.int64]
     table: list[NamedValue]

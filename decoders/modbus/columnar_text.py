@@ -64,8 +64,6 @@ def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list
     return said
 
 
-
-
 def _answer_texts(texts: npt.NDArray[Any], rows: npt.NDArray[np.int64], function: int, data: bytes,
                   frames: ColumnarFrames) -> None:
     """``HR = 0627 04EC (2 registers)`` into ``texts`` at ``rows``; answers of more than
@@ -100,14 +98,6 @@ def _words_at(data: bytes, at: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     return words
 
 
-
-
-
-
-
-
-
-
 def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: npt.NDArray[np.int64]) -> list[str]:
     """``HR = 0627 04EC (2 registers)`` (``head``: ``HR = ``) of each answer's values
     ``data[starts[i] : starts[i] + sizes[i]]`` (even sizes), the answers of each size laid out by
@@ -129,10 +119,6 @@ def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: 
         lines[rows] = spelt
     answered: list[str] = lines.tolist()
     return answered
-
-
-
-
 
 
 def _fields(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kind: int,
