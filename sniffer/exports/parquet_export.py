@@ -233,7 +233,7 @@ def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], captu
         "latency_ms": pa.array(latency / 1e6, pa.float64(), mask=latency == NONE),
         "length": pa.array((ends - starts).astype(np.int32), pa.int32()),
         "bytes": raw,
-        "summary": summaries.of(positions),
+        "summary": summaries.of(None if len(positions) == len(batch.messages) else positions),
         "protocol": dictionary(frames.protocols()[positions], pa.array(["modbus", "uss"])),
     }
     return columns
