@@ -8,7 +8,7 @@ profile whose product codes match, from then on.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -341,26 +341,29 @@ class ProfileApplier:
     def would_learn(self, profile: Profile, slave: int, values: list[tuple[int, int | None]]) -> bool:
         """Whether a frame of ``slave`` (named by ``profile``) carrying ``values`` (address and raw
         word) would change its scanner tables as :meth:`_learn` does; nothing is learnt here."""
-        for table in profile.indirections:
-            mapping = self._indirections.tables.get((slave, table.prefix), table.defaults)
-            for address, raw in values:
-                slot = address - table.address_registers
-                if 0 <= slot < table.count and raw is not None and mapping[slot] != raw:
-                    return True
-        return False
+        tables = self._indirections.tables
+        return any(tables.get((slave, table.prefix), table.defaults)[slot] != raw
+                   for table, slot, raw in _address_slots(profile, values))
 
     def _learn(self, profile: Profile, slave: int | None, values: list[tuple[int, int | None]]) -> None:
         """Scanner address registers seen being read or written change the table."""
         if slave is None:
             return
-        for table in profile.indirections:
-            for address, raw in values:
-                slot = address - table.address_registers
-                if 0 <= slot < table.count and raw is not None:
-                    mapping = self._indirections.mapping(slave, table)
-                    if mapping[slot] != raw:
-                        mapping[slot] = raw
-                        self.version += 1
+        for table, slot, raw in _address_slots(profile, values):
+            mapping = self._indirections.mapping(slave, table)
+            if mapping[slot] != raw:
+                mapping[slot] = raw
+                self.version += 1
+
+
+def _address_slots(profile: Profile, values: list[tuple[int, int | None]]) -> Iterator[tuple[Indirection, int, int]]:
+    """Each of ``values`` (address and raw word) that sets an address register of one of
+    ``profile``'s scanner tables: the table, the register's slot in it, the address it holds."""
+    for table in profile.indirections:
+        for address, raw in values:
+            slot = address - table.address_registers
+            if 0 <= slot < table.count and raw is not None:
+                yield table, slot, raw
 
 
 def identity_objects(pdu: DeviceIdResponse) -> dict[int, str]:

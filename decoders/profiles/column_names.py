@@ -55,7 +55,7 @@ def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames
     in the result for writers to spell each group once: a bus polled for values that seldom
     change names a few frames of the batch instead of sorting all its params' values."""
     slaves = ColumnProfiles(framed, columnar.positions)
-    if not (slaves.named & ~np.isin(columnar.function, list(BIT_FUNCTIONS))).any():  # a profile names no coil
+    if not _named_frames(columnar, slaves).any():
         return columnar
     profile = slaves.profile if framed.switched else None
     groups = alike(columnar, batch.frames.data, batch.frames.offsets, batch.role, profile)
@@ -73,8 +73,7 @@ def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: Column
     the frames of ``columnar`` (``slaves``: theirs)."""
     params = columnar.params(batch.frames.data)
     frame = np.repeat(np.arange(len(columnar)), params.sizes)
-    named_frames = slaves.named & ~np.isin(columnar.function, list(BIT_FUNCTIONS))
-    rows = np.flatnonzero(named_frames[frame])
+    rows = np.flatnonzero(_named_frames(columnar, slaves)[frame])
     of = frame[rows]
     reported = np.isin(columnar.kind, (READ_ANSWER, WRITE_ANSWER))[of].astype(np.int64)
     address = params.address[rows]
@@ -85,6 +84,13 @@ def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: Column
     row = np.full(len(params.address), -1, np.int64)
     row[rows] = entry[inverse.reshape(-1)]
     return row, table, number_names
+
+
+def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArray[np.bool_]:
+    """Which frames of ``columnar`` (``slaves``: theirs) their profile names values of: a
+    profile names registers, never coils."""
+    named: npt.NDArray[np.bool_] = slaves.named & ~np.isin(columnar.function, list(BIT_FUNCTIONS))
+    return named
 
 
 def _entries(applier: ProfileApplier, slaves: ColumnProfiles, distinct: npt.NDArray[np.int64], *,
