@@ -198,6 +198,29 @@ def test_times_and_indexes_are_stored_as_differences(dataset: Path) -> None:
     assert {name for _, name in seen} == {name for names in DELTA_COLUMNS.values() for name in names}
 
 
+def test_columns_every_row_has_are_required(dataset: Path, tmp_path: Path) -> None:
+    """Every table's columns that every row has are declared so (no definition levels to write),
+    the others optional; a table of files written before, every column optional, reads as one."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from sniffer.exports.parquet_export import REQUIRED_COLUMNS
+
+    for table, required in REQUIRED_COLUMNS.items():
+        file = next(dataset.glob(f"{table}/bus=atv71-plc-poll/date=*/*.parquet"))
+        schema = pq.read_schema(file)
+        assert {field.name for field in schema if not field.nullable} == required, table
+        assert table == "latencies" or {"t", "index"} & required, table
+        older = tmp_path / table / "bus=older" / "date=2020-01-01" / "0.parquet"
+        older.parent.mkdir(parents=True)
+        written = pq.read_table(file)
+        pq.write_table(written.cast(pa.schema([field.with_nullable(True) for field in written.schema])), older)
+        shutil.copytree(file.parent.parent, tmp_path / table / file.parent.parent.name)
+        both = duckdb.sql(f"SELECT count(*) FROM read_parquet('{tmp_path / table}/*/*/*.parquet')").fetchall()
+        assert both == [(2 * written.num_rows,)]
+        assert ds.dataset(tmp_path / table, partitioning="hive").to_table().num_rows == 2 * written.num_rows
+
+
 def test_a_dictionary_of_many_values_stops_at_its_page_limit(tmp_path: Path) -> None:
     """``raw`` and ``value`` are dictionary-encoded while few (coils, states); registers polled
     at random make 65 536 of them, stored plain past a dictionary page of 32 KiB."""
