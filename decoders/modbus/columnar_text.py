@@ -20,6 +20,7 @@ polling frames took 2.0 s of ``export --parquet``'s 4.5 s to summarise, f-string
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -27,7 +28,20 @@ import numpy.typing as npt
 
 from decoders.modbus.pdu import COIL_STATES
 from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_payload
-from decoders.modbus.text_layout import UPPER_HEX, Field, bits, chosen, decimal, hex_words, lines, present, upper_hex
+from decoders.modbus.text_layout import (
+    UPPER_HEX,
+    Field,
+    PackedLines,
+    bits,
+    chosen,
+    decimal,
+    fixed_width,
+    hex_words,
+    lines,
+    packed,
+    present,
+    upper_hex,
+)
 
 if TYPE_CHECKING:
     from decoders.modbus.columnar import ColumnarFrames
@@ -41,41 +55,59 @@ _SHOWN_BITS = 32  # a summary writes 32 bits, then "…"
 _SHOWN_BYTES = _SHOWN_BITS // 8
 
 
+#: A group's lines: Python strings, or packed for a column (:func:`summary_pieces`).
+Lines = list[str] | PackedLines
+
+
 def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list[str]:
     """Each frame's summary line, as its PDU's ``summary()`` writes it (``data``: the batch's;
     ``fast``: see the module docstring, ``False`` is the plain path)."""
+    texts = np.empty(len(frames.kind), object)
+    for rows, spelt in _pieces(frames, data, fast=fast, pack=False):
+        texts[rows] = spelt
+    said: list[str] = texts.tolist()
+    return said
+
+
+def summary_pieces(frames: ColumnarFrames, data: bytes) -> list[tuple[npt.NDArray[np.int64], Lines]]:
+    """:func:`summaries` in pieces, for writers of columns: the lines of the frames at each
+    piece's rows, packed (:class:`~decoders.modbus.text_layout.PackedLines`) where laid out by
+    numpy, as strings where spelt one by one; every frame in one piece."""
+    return list(_pieces(frames, data, fast=True, pack=True))
+
+
+def _pieces(frames: ColumnarFrames, data: bytes, *, fast: bool, pack: bool) -> Iterator[tuple[npt.NDArray[np.int64],
+                                                                                                Lines]]:
+    """The frames' lines by kind and function (``pack``: packed where laid out by numpy)."""
     kind, function = frames.kind, frames.function
-    texts = np.empty(len(kind), object)
     group = kind * 256 + function
     for key in np.unique(group).tolist():
         rows = np.flatnonzero(group == key)
         kind_of, function_of = key >> 8, key & 0xFF
         if not fast:
-            texts[rows] = _group(frames, data, rows, kind_of, function_of)
+            yield rows, _group(frames, data, rows, kind_of, function_of)
         elif kind_of == READ_ANSWER and function_of >= 3:
-            _answer_texts(texts, rows, function_of, data, frames)
+            yield from _answer_texts(rows, function_of, data, frames, pack=pack)
         elif kind_of in (WRITE, READ_WRITE) and function_of in (16, 23):
-            _register_write_texts(texts, rows, kind_of, data, frames)
+            yield from _register_write_texts(rows, kind_of, data, frames, pack=pack)
         elif function_of in (5, 6) or kind_of in (READ, WRITE_ANSWER) or function_of in (1, 2, 15):
-            texts[rows] = lines(_fields(frames, data, rows, kind_of, function_of), len(rows))
+            yield rows, (packed if pack else lines)(_fields(frames, data, rows, kind_of, function_of), len(rows))
         else:
-            texts[rows] = _group(frames, data, rows, kind_of, function_of)
-    said: list[str] = texts.tolist()
-    return said
+            yield rows, _group(frames, data, rows, kind_of, function_of)
 
 
-def _answer_texts(texts: npt.NDArray[Any], rows: npt.NDArray[np.int64], function: int, data: bytes,
-                  frames: ColumnarFrames) -> None:
-    """``HR = 0627 04EC (2 registers)`` into ``texts`` at ``rows``; answers of more than
+def _answer_texts(rows: npt.NDArray[np.int64], function: int, data: bytes, frames: ColumnarFrames, *,
+                  pack: bool) -> Iterator[tuple[npt.NDArray[np.int64], Lines]]:
+    """``HR = 0627 04EC (2 registers)`` of the frames at ``rows``; answers of more than
     :data:`HEX_WORDS_SHOWN` registers by the plain path (their byte counts are even: an odd
     one is never kept in columns, :mod:`decoders.modbus.columnar_find`)."""
     size = frames.byte_count[rows]
     plain = size > 2 * HEX_WORDS_SHOWN
     if plain.any():
-        texts[rows[plain]] = _group(frames, data, rows[plain], READ_ANSWER, function)
-    quick = np.flatnonzero(~plain)
-    if len(quick):
-        texts[rows[quick]] = _answer_lines(f"{_TABLES[function]} = ", data, frames.data[rows[quick]], size[quick])
+        yield rows[plain], _group(frames, data, rows[plain], READ_ANSWER, function)
+    quick = rows[~plain]
+    for at, spelt in _answer_lines(f"{_TABLES[function]} = ", data, frames.data[quick], size[~plain], pack=pack):
+        yield quick[at], spelt
 
 
 def formatted(template: str, columns: list[Any]) -> list[str]:
@@ -98,27 +130,29 @@ def _words_at(data: bytes, at: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     return words
 
 
-def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: npt.NDArray[np.int64]) -> list[str]:
+def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: npt.NDArray[np.int64], *,
+                  pack: bool) -> Iterator[tuple[npt.NDArray[np.int64], Lines]]:
     """``HR = 0627 04EC (2 registers)`` (``head``: ``HR = ``) of each answer's values
-    ``data[starts[i] : starts[i] + sizes[i]]`` (even sizes), the answers of each size laid out by
-    numpy as rows of one template, each byte's two digits at the same columns of every row, and
-    cut apart by one ``split``: no ``%`` pass, no byte placed one by one."""
+    ``data[starts[i] : starts[i] + sizes[i]]`` (even sizes), the answers of each size (each
+    piece's rows) laid out by numpy as rows of one template, each byte's two digits at the same
+    columns of every row, and cut apart by one ``split`` (``pack``: packed as they are): no
+    ``%`` pass, no byte placed one by one."""
     raw = np.frombuffer(data, np.uint8)
-    lines = np.empty(len(sizes), object)
     for size in np.unique(sizes).tolist():
         rows = np.flatnonzero(sizes == size)
         words = size // 2
-        template = f"{head}{' '.join(['0000'] * words)} ({words} registers)\n"
+        template = f"{head}{' '.join(['0000'] * words)} ({words} registers)" + ("" if pack else "\n")
         text = np.tile(np.frombuffer(template.encode("ascii"), np.uint8), (len(rows), 1))
         values = raw[starts[rows][:, None] + np.arange(size)]
         digits = len(head) + 2 * np.arange(size) + np.arange(size) // 2  # 4 digits and a space a word
         text[:, digits] = UPPER_HEX[values >> 4]
         text[:, digits + 1] = UPPER_HEX[values & 0x0F]
+        if pack:
+            yield rows, fixed_width(text)
+            continue
         spelt = text.tobytes().decode("ascii").split("\n")
         spelt.pop()  # after the last line
-        lines[rows] = spelt
-    answered: list[str] = lines.tolist()
-    return answered
+        yield rows, spelt
 
 
 def _fields(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kind: int,
@@ -155,15 +189,15 @@ def _span(address: npt.NDArray[np.int64], count: npt.NDArray[np.int64]) -> list[
     return [decimal(address), present(more, ".."), present(more, decimal(address + count - 1))]
 
 
-def _register_write_texts(texts: npt.NDArray[Any], rows: npt.NDArray[np.int64], kind: int, data: bytes,
-                          frames: ColumnarFrames) -> None:
+def _register_write_texts(rows: npt.NDArray[np.int64], kind: int, data: bytes, frames: ColumnarFrames, *,
+                          pack: bool) -> Iterator[tuple[npt.NDArray[np.int64], Lines]]:
     """``write HR 8501..8502 = 000F 03FE`` (FC 16) or ``read HR 12741..12742 (2), write HR
-    12761..12762 = 000F 046C`` (FC 23) into ``texts`` at ``rows``; writes of more than
+    12761..12762 = 000F 046C`` (FC 23) of the frames at ``rows``; writes of more than
     :data:`HEX_WORDS_SHOWN` registers by the plain path."""
     count = frames.count[rows]
     plain = count > HEX_WORDS_SHOWN
     if plain.any():
-        texts[rows[plain]] = _group(frames, data, rows[plain], kind, frames.function[rows[0]])
+        yield rows[plain], _group(frames, data, rows[plain], kind, frames.function[rows[0]])
     at = rows[~plain]
     if not len(at):
         return
@@ -172,7 +206,7 @@ def _register_write_texts(texts: npt.NDArray[Any], rows: npt.NDArray[np.int64], 
     if kind == READ_WRITE:
         read_count = frames.read_count[at]
         fields = ["read HR ", *_span(frames.read_address[at], read_count), " (", decimal(read_count), "), ", *fields]
-    texts[at] = lines(fields, len(at))
+    yield at, (packed if pack else lines)(fields, len(at))
 
 
 def _group(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kind: int, function: int) -> list[str]:

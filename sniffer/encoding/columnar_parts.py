@@ -29,6 +29,7 @@ import orjson
 from decoders.message import ROLE_NAMES, MessageBatch
 from decoders.modbus.alike import alike
 from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
+from decoders.modbus.columnar_text import Lines, summary_pieces
 from decoders.modbus.columnar_text import summaries as base_summaries
 from sniffer.encoding.param_text import NO_VALUE_END, PARAM_JSON, PARAM_MEMBERS, WORDS, param_start, param_tables
 from sniffer.encoding.rows import Pieces
@@ -80,6 +81,11 @@ class ColumnarParts:
         if self._base_summaries is None:
             self._base_summaries = base_summaries(self._spelt, self._data)
         return self._base_summaries
+
+    def base_summary_pieces(self) -> list[tuple[npt.NDArray[np.int64], Lines]]:
+        """:meth:`base_summaries` in pieces by row of :attr:`spelt`, packed where numpy lays them
+        out (:func:`~decoders.modbus.columnar_text.summary_pieces`): for writers of columns."""
+        return summary_pieces(self._spelt, self._data)
 
     def _spelt_summaries(self) -> list[str]:
         """The summaries of the frames spelt (one per group of frames alike)."""

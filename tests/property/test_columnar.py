@@ -9,6 +9,7 @@ import struct
 from itertools import pairwise
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -17,7 +18,7 @@ from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, MessageBatch, Role, slice_messages
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
-from decoders.modbus.columnar_text import READ_WRITE, WRITE
+from decoders.modbus.columnar_text import READ_WRITE, WRITE, Lines, summaries, summary_pieces
 from decoders.modbus.param_runs import LazyParams, addressed_values
 from decoders.profiles.apply import ProfileApplier
 from sniffer.profiles_io import profile_book
@@ -123,6 +124,17 @@ def check_names(reads: ColumnarFrames, data: bytes, expected: list[Decoding]) ->
             assert [entries[names.row[row]][0] for row in rows] == list(decoding.params)
 
 
+def pieces_said(pieces: list[tuple[npt.NDArray[np.int64], Lines]], count: int) -> list[str]:
+    """The lines of :func:`summary_pieces`, each put at its frame (every frame once)."""
+    said: list[str | None] = [None] * count
+    for rows, lines in pieces:
+        for row, line in zip(rows.tolist(), lines if isinstance(lines, list) else lines.strings(), strict=True):
+            assert said[row] is None
+            said[row] = line
+    assert None not in said
+    return [line for line in said if line is not None]
+
+
 def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch, *, numbers: bool = False) -> int:
     """One batch through both annotators (``numbers``: plain numbers named in arrays); how many
     frames were kept in columns."""
@@ -139,6 +151,7 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch, *, nu
         said_by_pdus = [expected[position].summary for position in reads.positions.tolist()]
         assert reads.summaries(data) == said_by_pdus
         assert reads.summaries(data, fast=False) == said_by_pdus
+        assert pieces_said(summary_pieces(reads, data), len(reads)) == summaries(reads, data)
         values = reads.values(data)
         assert list(zip(*values[:6], strict=True)) == expected_values(batch, expected, reads)
         check_names(reads, data, expected)
