@@ -104,9 +104,10 @@ class ColumnarNames(NamedTuple):
         after frame, and how many each frame shows."""
         numbers = [] if self.numbers is None else number_texts(self.numbers, fast=fast)
         named_texts = list(map(_TEXT, self.table)) + numbers
-        words = np.empty(len(named_texts) + 1, object)  # the last: for -1, nothing shown
-        words[:-1] = named_texts
-        shown = np.flatnonzero(words[self.row] != None)  # noqa: E711 - elementwise, on objects
+        # Whether each entry shows a text, the last for -1 (none): a lookup of booleans, not
+        # a comparison of every param's object with None.
+        showing = np.fromiter((text is not None for text in named_texts), np.bool_, len(named_texts))
+        shown = np.flatnonzero(np.append(showing, False)[self.row])
         counts = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[shown], minlength=len(sizes))
         return named_texts, self.row[shown], counts
 

@@ -7,8 +7,8 @@ the names' texts (``HR = 05DC (1 registers): NM1→ETA = 16#05DC warning, …``)
 MCAP :meth:`~decoders.modbus.columnar.ColumnarNames.suffixed` writes each line as a Python
 string, and the Parquet column then read them all again. Here Arrow joins them from their
 parts instead (:func:`_named_lines`): the frames' lines as their PDUs write them, and a column
-per place of the named texts they show (taken from the small table of the batch's named texts,
-each with the ``: `` or ``, `` before it), joined by one ``binary_join_element_wise`` for the
+per place of the named texts they show (taken from the small table of the batch's named texts),
+joined with the ``: `` or ``, `` before each by one ``binary_join_element_wise`` for the
 frames showing as many; one ``take`` then lays out every message's line, those decoded one by
 one among them. Measured on the same 32 batches of 1 M mixed frames, both ways alternating
 (thread time): the summary column 0.74 → 0.61 s; steady traffic, whose few distinct frames
@@ -17,11 +17,12 @@ show few names, 0.19 s either way.
 The lines as PDUs write them come in pieces, a kind of frame at a time
 (:func:`~decoders.modbus.columnar_text.summary_pieces`), and those numpy lays out come packed as
 a string column's buffers (:class:`~decoders.modbus.text_layout.PackedLines`): the column is
-made of their bytes, no Python string per line, and one ``take`` (:func:`taken`) orders them
+made of their bytes, no Python string per line, and one ``take`` orders them
 with the rest. Measured on 1 M frames (thread time of :func:`summaries`, two runs of each alternating with the
 Python strings read into the column): coils 0.52 and 0.51 → 0.39 and 0.38 s, polling 0.34 →
 0.31 s, mixed 0.71 and 0.53 → 0.52 and 0.51 s; steady 0.175 → 0.185 s (its few distinct
-frames spell few lines). Traffic no profile names never imports ``pyarrow.compute``.
+frames spell few lines). Arrow's functions are called by name
+(:mod:`sniffer.exports.arrow_compute`): no export imports ``pyarrow.compute``.
 """
 
 from __future__ import annotations
@@ -36,6 +37,9 @@ from decoders.message import AnnotatedBatch
 from decoders.modbus.columnar_text import Lines
 from decoders.profiles.naming import SHOWN_PARAMS
 from sniffer.encoding.columnar_parts import columnar_parts
+from sniffer.exports.arrow_compute import arrow_call, taken
+
+_FIRST, _AFTER, _MORE, _NOTHING = (pa.scalar(text, pa.string()) for text in (": ", ", ", " …", ""))
 
 
 class Summaries:
@@ -77,17 +81,6 @@ def summaries(batch: AnnotatedBatch) -> Summaries:
     return Summaries(column=taken(pa.concat_arrays([lines, pa.array(plain, pa.string())]), where))
 
 
-def taken(column: pa.Array, rows: npt.NDArray[np.int64]) -> pa.Array:
-    """The rows of ``column`` at ``rows``, by Arrow's ``take`` called by name: through
-    ``pyarrow._compute``, 5 ms to import, where ``pyarrow.compute`` (which makes a Python function
-    of every compute function as it is imported) takes 35 to 43 ms, at the start of every export."""
-    try:
-        from pyarrow._compute import call_function  # noqa: PLC0415 - see the docstring
-    except ImportError:  # a pyarrow that moved it: the documented name
-        from pyarrow.compute import call_function  # noqa: PLC0415
-    return call_function("take", [column, pa.array(rows, pa.int64())])
-
-
 def _base_lines(pieces: list[tuple[npt.NDArray[np.int64], Lines]]) -> tuple[pa.Array, npt.NDArray[np.int64]]:
     """The lines of the pieces (:meth:`~sniffer.encoding.columnar_parts.ColumnarParts.base_summary_pieces`)
     one after the other as a column, packed ones taken as their buffers are; and where each
@@ -114,11 +107,7 @@ def _named_lines(base: pa.Array, base_at: npt.NDArray[np.int64], named_texts: li
     their PDUs write them, frame ``i``'s at ``base_at[i]``; ``named_texts``, ``entries``, ``counts``:
     :meth:`~decoders.modbus.columnar.ColumnarNames.shown`), the frames that show as many laid
     out together; and where each frame's line is among them."""
-    import pyarrow.compute as pc  # noqa: PLC0415 - only where profiles name frames (see the module docstring)
-
-    # Each named text with what comes before it: the first a line shows, and each after it.
-    first = pa.array([None if text is None else f": {text}" for text in named_texts], pa.string())
-    after = pa.array([None if text is None else f", {text}" for text in named_texts], pa.string())
+    texts = pa.array(named_texts, pa.string())
     starts = np.cumsum(counts) - counts
     pieces: list[Any] = []
     place = np.empty(len(base_at), np.int64)
@@ -127,10 +116,12 @@ def _named_lines(base: pa.Array, base_at: npt.NDArray[np.int64], named_texts: li
         frames = np.flatnonzero(counts == count)
         line = taken(base, base_at[frames])
         if count:
-            shown = [(after if at else first).take(pa.array(entries[starts[frames] + at]))
-                     for at in range(min(count, SHOWN_PARAMS))]
-            more = [pa.scalar(" …")] if count > SHOWN_PARAMS else []
-            line = pc.binary_join_element_wise(line, *shown, *more, "")
+            # Each named text shown with what comes before it: ": " the first, ", " each after it.
+            shown = []
+            for at in range(min(count, SHOWN_PARAMS)):
+                shown += [_AFTER if at else _FIRST, taken(texts, entries[starts[frames] + at])]
+            more = [_MORE] if count > SHOWN_PARAMS else []
+            line = arrow_call("binary_join_element_wise", line, *shown, *more, _NOTHING)
         pieces.append(line)
         place[frames] = laid + np.arange(len(frames))
         laid += len(frames)

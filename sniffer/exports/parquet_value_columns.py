@@ -23,6 +23,7 @@ import pyarrow as pa
 
 from decoders.message import NONE, ParamValue
 from decoders.modbus.columnar import within_runs
+from sniffer.exports.arrow_compute import taken
 from sniffer.exports.parquet_export import dictionary, nullable, times
 from sniffer.exports.parquet_values import ROW_COLUMNS, CollectedValues, NumericValues, param_columns
 from sniffer.exports.value_bulk import VALUE_KINDS, WRITTEN
@@ -98,7 +99,7 @@ def _arrow(rows: LaidRows) -> dict[str, pa.Array]:
         texts = dict.fromkeys(TEXT_COLUMNS, no_text)
     else:
         entry = pa.array(rows.entry)
-        texts = {column: no_text if all(each is None for each in table) else pa.array(table, pa.string()).take(entry)
+        texts = {column: no_text if all(each is None for each in table) else taken(pa.array(table, pa.string()), entry)
                  for column, table in zip(TEXT_COLUMNS, rows.texts, strict=True)}
     return {
         "t": times(rows.t_ns),

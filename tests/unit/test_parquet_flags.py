@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -28,10 +29,14 @@ def test_each_frame_s_flags_are_their_names_in_order(masks: list[int]) -> None:
     assert _flag_lists(flags).equals(expected)
 
 
-def test_the_flags_of_an_export_need_no_compute_module(tmp_path: Path) -> None:
-    """An export of traffic no profile names (polling, coils) never imports ``pyarrow.compute``
-    (40 ms at its start)."""
-    argv = ["export", str(CAPTURES / "xbt-hmi.log"), "--parquet", str(tmp_path / "set"), "--jobs", "1"]
+@pytest.mark.parametrize("capture", [["xbt-hmi.log"], ["atv71-plc-poll.mcap", "--profile", "atv71"]],
+                         ids=["unnamed", "named"])
+def test_an_export_needs_no_compute_module(tmp_path: Path, capture: list[str]) -> None:
+    """An export never imports ``pyarrow.compute`` (40 ms at its start): the flags need no
+    compute function, the summaries call theirs by name (:mod:`sniffer.exports.arrow_compute`),
+    where profiles name frames too."""
+    name, *options = capture
+    argv = ["export", str(CAPTURES / name), *options, "--parquet", str(tmp_path / "set"), "--jobs", "1"]
     program = textwrap.dedent(f"""
         import sys
         from sniffer.cli import main
