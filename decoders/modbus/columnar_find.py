@@ -40,6 +40,15 @@ _MULTIPLE_HEAD = 9  # bytes of a multiple write but its values
 _SHORTEST_ANSWER = 6  # a read's answer with one byte of data
 _READ_WRITE_HEAD = 13  # bytes of an FC 23 request but its values
 
+#: Where a frame's data (values or bits) starts, by its kind and whether its function is FC 5 or
+#: FC 6 (a single write's value, or its echo's): -1, none (a read request, a multiple write's
+#: answer).
+_DATA_AT = np.full((5, 2), -1, np.int64)
+_DATA_AT[READ_ANSWER] = 3
+_DATA_AT[WRITE] = (7, 4)
+_DATA_AT[WRITE_ANSWER, 1] = 4
+_DATA_AT[READ_WRITE] = (11, 4)
+
 #: The function, first address and count of a read request kept before the batch, by its frame
 #: index (``None``: none such).
 EarlierRead = Callable[[int], "tuple[int, int, int] | None"]
@@ -52,9 +61,10 @@ class _Columns:
         frames = batch.frames
         self.batch, self.first, self.size = batch, frames.first_index, len(batch)
         self.starts, self.lengths = frames.offsets[:-1], np.diff(frames.offsets)
-        self.raw = np.frombuffer(frames.data, np.uint8).astype(np.int64)
+        self.raw = np.frombuffer(frames.data, np.uint8)  # widened where read (:meth:`byte`, :meth:`word`)
         self.function = batch.function.astype(np.int64)
         self.good = eligible & frames.crc_ok
+        self._of_role = {role: self.good & (batch.role == role) for role in (_REQUEST, _RESPONSE)}
         self.request = batch.request_index
         #: Each frame's kind, first address and count, as the rules find them (-1: not kept).
         self.kind = np.full(self.size, -1, np.int64)
@@ -64,14 +74,22 @@ class _Columns:
         self.read_address = np.full(self.size, -1, np.int64)
         self.read_count = np.zeros(self.size, np.int64)
 
+    def byte(self, positions: npt.NDArray[np.int64], offset: int) -> npt.NDArray[np.int64]:
+        """The byte at ``offset`` of each frame at ``positions``."""
+        byte: npt.NDArray[np.int64] = self.raw[self.starts[positions] + offset].astype(np.int64)
+        return byte
+
     def word(self, positions: npt.NDArray[np.int64], offset: int) -> npt.NDArray[np.int64]:
+        """The big-endian word at ``offset`` of each frame at ``positions``."""
         at = self.starts[positions] + offset
-        word: npt.NDArray[np.int64] = (self.raw[at] << 8) | self.raw[at + 1]
+        word: npt.NDArray[np.int64] = (self.raw[at].astype(np.int64) << 8) | self.raw[at + 1]
         return word
 
     def of(self, role: int, functions: tuple[int, ...]) -> npt.NDArray[np.bool_]:
-        """Good frames of ``role`` and one of ``functions``."""
-        found: npt.NDArray[np.bool_] = self.good & (self.batch.role == role) & np.isin(self.function, functions)
+        """Good frames of ``role`` (a request or an answer) and one of ``functions``."""
+        table = np.zeros(257, np.bool_)  # by function; NONE (-1) reads the last, never one of them
+        table[list(functions)] = True
+        found: npt.NDArray[np.bool_] = self._of_role[role] & table[self.function]
         return found
 
 
@@ -106,13 +124,13 @@ def find_columnar(batch: MessageBatch, eligible: npt.NDArray[np.bool_], earlier:
     answer_of[named[named >= 0]] = answers[named >= 0]
     starts = columns.starts[positions]
     kinds, functions = kind[positions], function[positions]
-    byte_count = np.where(kinds == READ_ANSWER, columns.raw[starts + 2], 0)
-    data = np.select([kinds == READ_ANSWER, functions <= 6, kinds == WRITE, kinds == READ_WRITE],
-                     [starts + 3, starts + 4, starts + 7, starts + 11], -1)
+    byte_count = np.where(kinds == READ_ANSWER, columns.raw[starts + 2], 0).astype(np.int64)
+    data_at = _DATA_AT[kinds, (functions <= 6).astype(np.intp)]
+    data = np.where(data_at >= 0, starts + data_at, -1)
     return ColumnarFrames(
         positions=positions, function=functions, kind=kinds, address=address[positions], count=count[positions],
         read_address=columns.read_address[positions], read_count=columns.read_count[positions],
-        data=np.where(kinds == READ, -1, data), byte_count=byte_count,
+        data=data, byte_count=byte_count,
         request=np.where((kinds == READ_ANSWER) | (kinds == WRITE_ANSWER), columns.request[positions], NONE),
         answer=answer_of[positions], kept_requests=reads[~consumed[reads]], earlier_requests=earlier_requests)
 
@@ -126,7 +144,7 @@ def _shaped_writes(columns: _Columns) -> npt.NDArray[np.int64]:
     many = np.flatnonzero(~single & (lengths[writes] >= _MULTIPLE_HEAD))  # its count and byte count inside the frame
     frames = writes[many]
     count = columns.word(frames, 4)
-    byte_count = columns.raw[columns.starts[frames] + 6]
+    byte_count = columns.byte(frames, 6)
     needed = np.where(function[frames] == 15, (count + 7) // 8, 2 * count)
     shaped[many] = (lengths[frames] == _MULTIPLE_HEAD + byte_count) & (byte_count == needed) & (count >= 1) & (
         count <= MOST[function[frames]])
@@ -142,7 +160,7 @@ def _read_writes(columns: _Columns) -> None:
     asks = np.flatnonzero(columns.of(_REQUEST, (23,)) & ((columns.batch.flags & _TIMEOUT) == 0)
                           & (lengths >= _READ_WRITE_HEAD))
     read_count, write_count = columns.word(asks, 4), columns.word(asks, 8)
-    byte_count = columns.raw[columns.starts[asks] + 10]
+    byte_count = columns.byte(asks, 10)
     read_most, write_most = MAX_READ_WRITE_QUANTITY
     asks = asks[(lengths[asks] == _READ_WRITE_HEAD + byte_count) & (byte_count == 2 * write_count)
                 & (read_count >= 1) & (read_count <= read_most) & (write_count >= 1) & (write_count <= write_most)]
@@ -156,9 +174,15 @@ def _first_answers(columns: _Columns) -> npt.NDArray[np.int64]:
     :data:`KEPT_REQUESTS` frames of it."""
     answers = np.flatnonzero(columns.of(_RESPONSE, (1, 2, 3, 4, 5, 6, 15, 16, 23)) & (columns.request != NONE))
     naming = np.flatnonzero(columns.request != NONE)
-    named, first_naming = np.unique(columns.request[naming], return_index=True)
+    named = columns.request[naming]
+    if len(named) and (named[1:] >= named[:-1]).all():  # in order, as a bus answers: each run's first
+        firsts = np.flatnonzero(np.concatenate(([True], named[1:] != named[:-1])))
+    else:
+        firsts = np.unique(named, return_index=True)[1]
+    first_naming = np.zeros(columns.size, np.bool_)
+    first_naming[naming[firsts]] = True
     request = columns.request[answers]
-    is_first = naming[first_naming[np.searchsorted(named, request)]] == answers
+    is_first = first_naming[answers]
     distance = columns.first + answers - request
     kept: npt.NDArray[np.int64] = answers[is_first & (distance > 0) & (distance <= KEPT_REQUESTS)]
     return kept
@@ -173,7 +197,7 @@ def _read_answers(columns: _Columns, answers: npt.NDArray[np.int64], earlier: Ea
     kind, address, count = columns.kind, columns.address, columns.count
     reads = answers[((function[answers] <= 4) | (function[answers] == 23))
                     & (columns.lengths[answers] >= _SHORTEST_ANSWER)]
-    byte_count = columns.raw[columns.starts[reads] + 2]
+    byte_count = columns.byte(reads, 2)
     fits = (byte_count == columns.lengths[reads] - 5) & (byte_count > 0) & ~(
         (function[reads] >= 3) & (byte_count % 2 == 1))
     reads = reads[fits]
@@ -185,7 +209,7 @@ def _read_answers(columns: _Columns, answers: npt.NDArray[np.int64], earlier: Ea
     here, local, read_write = here[fits], local[fits], read_write[fits]
     kind[here], address[here] = READ_ANSWER, np.where(read_write, columns.read_address[local], address[local])
     registers = function[here] >= 3
-    answer_bytes = columns.raw[columns.starts[here] + 2]
+    answer_bytes = columns.byte(here, 2)
     count[here] = np.where(registers, answer_bytes // 2, np.minimum(count[local], 8 * answer_bytes))
     earlier_requests = []
     for position, index in zip(reads[~inside].tolist(), request[~inside].tolist(), strict=True):
