@@ -86,12 +86,13 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
     return [request, answer] if answer else [request]
 
 
-def matched(adus: list[bytes], cuts: tuple[int, ...] = ()) -> list[MessageBatch]:
-    """The frames paired by the matcher, fed to it in pieces ending at ``cuts``."""
+def matched(adus: list[bytes], cuts: tuple[int, ...] = (), noise: frozenset[int] = frozenset()) -> list[MessageBatch]:
+    """The frames paired by the matcher, fed to it in pieces ending at ``cuts``; those at
+    ``noise`` framed as noise."""
     frames, t = [], 0
     for index, data in enumerate(adus):
         t += 5_000_000
-        frames.append(Frame(index, t, t + 1000 * len(data), data, crc_ok(data), FrameFlag.NONE))
+        frames.append(Frame(index, t, t + 1000 * len(data), data, crc_ok(data), FrameFlag.NONE, index in noise))
     if not frames:
         return []
     matcher = Matcher()
@@ -107,15 +108,17 @@ def said(decoding: Decoding) -> tuple[object, ...]:
 
 @settings(max_examples=max(300, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=60), st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=xbt", "7=atv71"]]),
-       st.sampled_from([0, 1, 5, annotate_module.ONE_BY_ONE]), st.sampled_from([0, annotate_module.TOGETHER_FROM]))
+       st.sampled_from([0, 1, 5, annotate_module.ONE_BY_ONE]), st.sampled_from([0, annotate_module.TOGETHER_FROM]),
+       st.frozensets(st.integers(0, 120), max_size=12))
 def test_cached_decodings_equal_decoding_each_frame(traffic: list[list[bytes]], profiles: list[str] | None,
-                                                    one_by_one: int, together_from: float) -> None:
+                                                    one_by_one: int, together_from: float,
+                                                    noise: frozenset[int]) -> None:
     """Also the lean path: frames of slaves no profile speaks for (none at all: ``None``; the
     generic one: ``[]``), decoded without message objects, their params named when read; the
     register reads of a batch decoded together past its first ``one_by_one`` new frames (once
-    they are ``together_from`` of the frames passed); and
+    they are ``together_from`` of the frames passed); noise (one decoding per length); and
     the profiles' kept namers and values against naming every value anew (``fast=False``)."""
-    batches = matched([data for exchange in traffic for data in exchange])
+    batches = matched([data for exchange in traffic for data in exchange], noise=noise)
     with (patch.object(annotate_module, "ONE_BY_ONE", one_by_one),
           patch.object(annotate_module, "TOGETHER_FROM", together_from)):
         _check_cached_decodings(batches, profiles)
