@@ -32,6 +32,7 @@ decoded (:mod:`sniffer.exports.parquet_writing`).
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -57,6 +58,7 @@ TIME = pa.timestamp("ns", tz="UTC")
 _ROLES = pa.array([role.value for role in ROLE_ORDER])
 _OUTCOMES = pa.array(OUTCOMES)
 _KINDS = pa.array(list(KINDS))
+_PROTOCOLS = pa.array(["modbus", "uss"])
 #: Columns of few distinct values, dictionary-encoded in the files (the others, times, indexes,
 #: bytes and summaries, would only grow a dictionary to throw away: 40 % of the time it takes to
 #: write a frame table, and 25 % more bytes, measured on 1 M frames).
@@ -229,6 +231,12 @@ def _schema(table: str, columns: dict[str, pa.Array]) -> pa.Schema:
     return pa.schema([pa.field(name, column.type, nullable=name not in required) for name, column in columns.items()])
 
 
+@functools.lru_cache(maxsize=64)
+def _one_text(text: str) -> pa.Array:
+    """``text`` as a column of one (made once: 0.1 ms each time, a batch's dictionary)."""
+    return pa.array([text], pa.string())
+
+
 def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], capture: str,
                   summaries: Summaries) -> dict[str, pa.Array]:
     """The ``frames`` table's columns of the messages at ``positions`` (``summaries``: their
@@ -240,7 +248,7 @@ def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], captu
     flag_lists = _flag_lists(messages.flags[positions])
     latency = messages.latency_ns[positions]
     columns = {
-        "capture": dictionary(np.zeros(len(positions), np.int32), pa.array([capture])),
+        "capture": dictionary(np.zeros(len(positions), np.int32), _one_text(capture)),
         "index": pa.array(positions + frames.first_index, pa.int64()),
         "t": times(frames.t_start_ns[positions]),
         "t_end": times(frames.t_end_ns[positions]),
@@ -255,24 +263,23 @@ def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], captu
         "length": pa.array((ends - starts).astype(np.int32), pa.int32()),
         "bytes": raw,
         "summary": summaries.of(None if len(positions) == len(batch.messages) else positions),
-        "protocol": dictionary(frames.protocols()[positions], pa.array(["modbus", "uss"])),
+        "protocol": dictionary(frames.protocols()[positions], _PROTOCOLS),
     }
     return columns
 
 
 def _flag_lists(flags: npt.NDArray[np.integer]) -> pa.ListArray:
     """Each frame's flags as a list of their names: the names of each distinct set of flags
-    repeated by numpy, the list column made from its offsets (``take`` of the lists of each set
-    would import ``pyarrow.compute``, 40 ms at the start of an export that needs it nowhere else)."""
-    masks, which = np.unique(flags, return_inverse=True)
+    repeated by numpy, the list column made from its offsets."""
+    masks, which = _distinct_masks(flags)
     names = [flag_names_of(int(mask)) for mask in masks.tolist()]
     sizes = np.array([len(each) for each in names], np.int64)
     firsts = np.cumsum(sizes) - sizes
-    lengths = sizes[which.reshape(-1)]
+    lengths = sizes[which]
     offsets = np.zeros(len(lengths) + 1, np.int32)
     np.cumsum(lengths, out=offsets[1:])
     every_name = np.array([name for each in names for name in each] or [""], object)
-    taken = every_name[np.repeat(firsts[which.reshape(-1)], lengths) + within_runs(lengths)]
+    taken = every_name[np.repeat(firsts[which], lengths) + within_runs(lengths)]
     return pa.ListArray.from_arrays(pa.array(offsets, pa.int32()), pa.array(taken.tolist(), pa.string()))
 
 
@@ -315,6 +322,15 @@ def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], sum
         "exception_code": nullable(messages.exception_code[row], pa.int16()),
         "summary": summaries.of(row),
     }
+
+
+def _distinct_masks(flags: npt.NDArray[np.integer]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """The distinct sets of flags, in order, and each frame's place among them: counted by
+    ``bincount`` and looked up (``np.unique`` sorts the batch: 0.5 ms a batch of 32 000)."""
+    present = np.flatnonzero(np.bincount(flags)) if len(flags) else np.zeros(0, np.int64)
+    place = np.zeros(int(present[-1]) + 1 if len(present) else 0, np.int64)
+    place[present] = np.arange(len(present))
+    return present, place[flags]
 
 
 def _binary(data: bytes, starts: npt.NDArray[np.int64], ends: npt.NDArray[np.int64]) -> pa.Array:
