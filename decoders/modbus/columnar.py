@@ -104,10 +104,11 @@ class ColumnarNames(NamedTuple):
         after frame, and how many each frame shows."""
         numbers = [] if self.numbers is None else number_texts(self.numbers, fast=fast)
         named_texts = list(map(_TEXT, self.table)) + numbers
-        # Whether each entry shows a text, the last for -1 (none): a lookup of booleans, not
-        # a comparison of every param's object with None.
-        showing = np.fromiter((text is not None for text in named_texts), np.bool_, len(named_texts))
-        shown = np.flatnonzero(np.append(showing, False)[self.row])
+        # Whether each entry shows a text, the last for -1 (none): a lookup of booleans, not a
+        # comparison of every param's object with None; a plain number's as its register's.
+        showing = np.concatenate([np.fromiter((text is not None for _, text in self.table), np.bool_, len(self.table)),
+                                  _number_shows(self.numbers), [False]])
+        shown = np.flatnonzero(showing[self.row])
         counts = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[shown], minlength=len(sizes))
         return named_texts, self.row[shown], counts
 
@@ -139,6 +140,16 @@ class ColumnarNames(NamedTuple):
             suffixed[frames] = formatted(template, [column.tolist() for column in columns])
         result: list[str] = suffixed.tolist()
         return result
+
+
+def _number_shows(numbers: NumberNames | None) -> npt.NDArray[np.bool_]:
+    """Whether each plain number shows a text (:func:`number_texts` writes one): where its
+    register has a code."""
+    if numbers is None:
+        return np.zeros(0, np.bool_)
+    coded = np.fromiter((plain.code is not None for plain in numbers.registers), np.bool_, len(numbers.registers))
+    shows: npt.NDArray[np.bool_] = coded[numbers.register]
+    return shows
 
 
 def number_texts(numbers: NumberNames, *, fast: bool = True) -> list[str | None]:
