@@ -60,6 +60,9 @@ EarlierRequest = Callable[[int], "Pdu | None"]
 _ASKING = [ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST], ROLE_CODE[Role.UNKNOWN]]
 #: Functions whose requests name registers: where their first address and count lie.
 _NAMING = (3, 4, 6, 16, 23)
+#: The same as lookups: by role code, and by function (NONE, -1, reads the last: never one).
+_ASKING_ROLES = np.isin(np.arange(len(ROLE_ORDER)), _ASKING)
+_NAMING_FUNCTIONS = np.isin(np.arange(257), _NAMING)
 _SHORTEST_NAMING = 6  # slave, function, address, count
 _READ_WRITE, _READ_WRITE_NAMING = 23, 10  # FC 23 names a second span, written, at bytes 6 to 9
 #: Read Device Identification (FC 43): an answer may give its slave a profile.
@@ -184,7 +187,10 @@ def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: Earli
                 hit |= (kind == place) & overlap(low, low + count, table.address_registers, table.count)
         asking.append(rows[hit])
     first = batch.frames.first_index
-    requests = np.unique(np.concatenate(asking))
+    asks = np.zeros(len(batch), np.bool_)  # the frames of either span, in order (a mask: no sort)
+    for rows in asking:
+        asks[rows] = True
+    requests = np.flatnonzero(asks)
     # What each teaching frame is read against: an answer, its request (a position in the batch,
     # or a PDU from before it); every other frame, nothing.
     teaching: list[tuple[int, int | Pdu | None]] = [(position, None) for position in requests.tolist()]
@@ -221,12 +227,13 @@ def _asked_spans(batch: MessageBatch, frame_kind: npt.NDArray[np.int64]) -> list
     such frame and again for the written span of each FC 23."""
     frames = batch.frames
     starts, lengths = frames.offsets[:-1], np.diff(frames.offsets)
-    asking = np.flatnonzero(np.isin(batch.role, _ASKING) & np.isin(batch.function, _NAMING)
+    asking = np.flatnonzero(_ASKING_ROLES[batch.role] & _NAMING_FUNCTIONS[batch.function]
                             & (lengths >= _SHORTEST_NAMING) & (batch.slave != NONE) & (frame_kind > 0))
-    raw = np.frombuffer(frames.data, np.uint8).astype(np.int64)
+    raw = np.frombuffer(frames.data, np.uint8)  # widened where read: not the batch's every byte
 
     def word(at: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-        return (raw[at] << 8) | raw[at + 1]
+        word: npt.NDArray[np.int64] = (raw[at].astype(np.int64) << 8) | raw[at + 1]
+        return word
 
     at = starts[asking]
     both = asking[(batch.function[asking] == _READ_WRITE) & (lengths[asking] >= _READ_WRITE_NAMING)]
@@ -260,7 +267,9 @@ def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarF
         # A request's remarks depend on its profile, function and counts alone: one of each asked.
         key = ((slaves.profile[requests] << 48) | (columnar.read_count[requests] << 32)
                | (columnar.function[requests] << 16) | columnar.count[requests])
-        _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+        _, inverse = np.unique(key, return_inverse=True)  # no return_index: its stable sort costs more
+        first = np.empty(int(inverse.max()) + 1, np.int64)
+        first[inverse] = np.arange(len(inverse))  # a row of each key (any: the key decides)
         remarked = np.array([_remarked(applier, batch, slaves.profiles[int(slaves.profile[row])],
                                        int(columnar.positions[row])) for row in requests[first].tolist()], np.bool_)
         bad[requests[remarked[inverse]]] = True

@@ -51,3 +51,20 @@ def test_every_answer_is_counted_once_in_its_bin(transactions: list[tuple[int, .
         assert bins, (key, latency)
     assert rows == sorted(rows, key=lambda row: (row[0], row[1] if row[1] is not None else -1,
                                                  row[2] if row[2] is not None else -1, row[3]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(TRANSACTIONS, st.integers(1, 3))
+def test_batches_of_bins_already_held_add_to_them(transactions: list[tuple[int, ...]], repeats: int) -> None:
+    """A batch whose every bin is held already (the usual batch of a running bus) adds its counts
+    to theirs: the same transactions ``repeats`` more times count ``repeats`` more times."""
+    part = np.array(transactions, np.int64).reshape(-1, 5)
+    once, again = LatencyHistograms(), LatencyHistograms()
+    for histograms, times in ((once, 1), (again, 1 + repeats)):
+        for _ in range(times):
+            histograms.add({"t_ns": part[:, 0], "slave": part[:, 1], "function": part[:, 2],
+                            "outcome": part[:, 3], "latency_ns": part[:, 4]})
+    (t_once, first), (t_again, more) = once.columns(), again.columns()
+    assert t_again.tolist() == t_once.tolist()
+    assert more["answers"].to_pylist() == [(1 + repeats) * count for count in first["answers"].to_pylist()]
+    assert all(more[name].equals(first[name]) for name in ("slave", "function", "from_ms", "to_ms"))
