@@ -22,6 +22,7 @@ finds which read alike, so that they are named and spelt once per batch.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 from operator import itemgetter
 from typing import TYPE_CHECKING, NamedTuple
@@ -43,6 +44,8 @@ NO_VALUE = -1
 KEPT_REQUESTS = 1024
 #: A named value's text in the summary (``None``: it shows none).
 _TEXT = itemgetter(1)
+#: The most members :func:`one_of` compares values with one by one.
+_FEW_MEMBERS = 8
 #: The most a request may ask for, by function (0: not a function kept in columns).
 MOST = np.zeros(17, np.int64)
 for _function, _most in MAX_QUANTITY.items():
@@ -251,7 +254,7 @@ class ColumnarFrames:
         """The values of read answers, writes and the echoes of single writes (a write request's
         at its answer, before the answer's own)."""
         valued = self._valued()
-        written = np.isin(self.kind[valued], (WRITE, READ_WRITE))
+        written = one_of(self.kind[valued], (WRITE, READ_WRITE))
         found = np.where(written, self.answer[valued], self.positions[valued])
         # The frames in the rows' order, so that each column is laid out once, in order (sorting
         # the rows instead took a fifth of the time of a coil capture's values). Stable: a frame's
@@ -356,6 +359,19 @@ def _bits(raw: npt.NDArray[np.uint8], starts: npt.NDArray[np.int64],
     kept[np.repeat(np.cumsum(8 * sizes) - unused, unused) + within_runs(unused)] = False
     shown: npt.NDArray[np.uint8] = bits[kept]
     return shown
+
+
+def one_of(values: npt.NDArray[np.integer], members: Collection[int]) -> npt.NDArray[np.bool_]:
+    """Whether each of ``values`` is one of ``members``: for a few, their equalities or'ed
+    (``np.isin`` took 0.2 to 0.34 ms for 30 000 values and two to five members, this 0.01 to
+    0.05 ms), for more ``np.isin``."""
+    if len(members) > _FEW_MEMBERS:
+        found: npt.NDArray[np.bool_] = np.isin(values, list(members))
+        return found
+    found = np.zeros(values.shape, np.bool_)
+    for member in members:
+        found |= values == member
+    return found
 
 
 def within_runs(counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:

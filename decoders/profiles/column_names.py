@@ -30,7 +30,7 @@ import numpy.typing as npt
 from decoders.message import MessageBatch
 from decoders.modbus.alike import alike
 from decoders.modbus.codes import BIT_FUNCTIONS
-from decoders.modbus.columnar import ColumnarFrames, ColumnarNames
+from decoders.modbus.columnar import ColumnarFrames, ColumnarNames, one_of
 from decoders.modbus.columnar_text import READ_ANSWER, WRITE_ANSWER
 from decoders.profiles.apply import ProfileApplier
 from decoders.profiles.columns import ColumnProfiles, FrameProfiles, overlap
@@ -75,7 +75,7 @@ def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: Column
     frame = np.repeat(np.arange(len(columnar)), params.sizes)
     rows = np.flatnonzero(_named_frames(columnar, slaves)[frame])
     of = frame[rows]
-    reported = np.isin(columnar.kind, (READ_ANSWER, WRITE_ANSWER))[of].astype(np.int64)
+    reported = one_of(columnar.kind, (READ_ANSWER, WRITE_ANSWER))[of].astype(np.int64)
     address = params.address[rows]
     owner = _value_register_owners(slaves, of, address, batch.slave[columnar.positions].astype(np.int64))
     register = ((((slaves.profile[of] * 2 + reported) << _SLAVE_BITS) | owner) << _ADDRESS_BITS) | address
@@ -89,7 +89,7 @@ def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: Column
 def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArray[np.bool_]:
     """Which frames of ``columnar`` (``slaves``: theirs) their profile names values of: a
     profile names registers, never coils."""
-    named: npt.NDArray[np.bool_] = slaves.named & ~np.isin(columnar.function, list(BIT_FUNCTIONS))
+    named: npt.NDArray[np.bool_] = slaves.named & ~one_of(columnar.function, BIT_FUNCTIONS)
     return named
 
 

@@ -38,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
-from decoders.modbus.columnar import ColumnarFrames
+from decoders.modbus.columnar import ColumnarFrames, one_of
 from decoders.modbus.columnar_text import READ, READ_WRITE, WRITE
 from decoders.modbus.param_runs import LazyParams, addressed_values
 from decoders.modbus.pdu import Pdu
@@ -255,14 +255,14 @@ def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarF
     # The registers each frame names: its span, and an FC 23 request's read span (none elsewhere).
     spans = [(columnar.address, columnar.address + np.maximum(columnar.count, 0)),
              (columnar.read_address, columnar.read_address + columnar.read_count)]
-    taught = np.isin(frame_slaves, list(learning))
+    taught = one_of(frame_slaves, learning)
     for place, profile in enumerate(slaves.profiles):
         of = slaves.named & (slaves.profile == place)
         for table in profile.indirections:
             for low, high in spans:
                 bad |= of & overlap(low, high, table.address_registers, table.count)
                 bad |= of & taught & overlap(low, high, table.value_registers, table.count)
-    requests = np.flatnonzero(slaves.named & np.isin(columnar.kind, (READ, WRITE, READ_WRITE)) & ~bad)
+    requests = np.flatnonzero(slaves.named & one_of(columnar.kind, (READ, WRITE, READ_WRITE)) & ~bad)
     if len(requests):
         # A request's remarks depend on its profile, function and counts alone: one of each asked.
         key = ((slaves.profile[requests] << 48) | (columnar.read_count[requests] << 32)

@@ -27,6 +27,7 @@ import numpy.typing as npt
 
 from decoders.frame import FrameFlag
 from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Role
+from decoders.modbus.columnar import one_of
 from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.value_rows import KEPT_WRITES, WRITES
 
@@ -68,10 +69,10 @@ def bulk_rows(batch: AnnotatedBatch, positions: list[int], pending: Collection[i
     kept = np.array(positions, np.int64)
     role, slave, request = messages.role[kept], messages.slave[kept], messages.request_index[kept]
     crc = messages.frames.crc_ok[kept]
-    writes = np.isin(role, (_REQUEST, _BROADCAST)) & np.isin(messages.function[kept], _WRITE_FUNCTIONS) & (
+    writes = one_of(role, (_REQUEST, _BROADCAST)) & one_of(messages.function[kept], _WRITE_FUNCTIONS) & (
         slave != NONE)
     may_wait = writes & (role == _REQUEST) & crc & ((messages.flags[kept] & FrameFlag.TIMEOUT) == 0)
-    answering = np.isin(role, (_RESPONSE, _EXCEPTION)) & (request != NONE)
+    answering = one_of(role, (_RESPONSE, _EXCEPTION)) & (request != NONE)
     first_answer = _first_answers(kept + first, request, answering)
     if len(pending) + _most_waiting(may_wait, first_answer) > KEPT_WRITES:
         return None
