@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from decoders.crc import crc_bytes, crc_ok
@@ -247,6 +247,41 @@ def test_latency_window_learned_in_bulk_as_one_by_one() -> None:
         one_by_one._learn_one(latency)
         position += 1
         assert one_by_one.timeout_ns == expected[position - 1], position
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.integers(1, 600_000_000), min_size=1, max_size=900),
+       st.lists(st.integers(1, 400), min_size=1, max_size=40))
+def test_any_runs_of_answers_learn_as_one_by_one(latencies: list[int], sizes: list[int]) -> None:
+    """The timeout after each run of answers learned at once is the one learned answer by answer,
+    whatever the runs' lengths and the latencies (the window's longest found without a list)."""
+    reference, runs, position = Matcher(), Matcher(), 0
+    for size in sizes:
+        part = latencies[position : position + size]
+        if not part:
+            break
+        for latency in part:
+            reference._learn_one(latency)
+        runs._learn_many(np.array(part, np.int64))
+        position += len(part)
+        assert runs.timeout_ns == reference.timeout_ns, position
+
+
+def test_a_run_sees_the_longest_latency_at_its_window_s_very_edge() -> None:
+    """One long latency among short ones, at every place around the window's far edge when a
+    run of answers is learned after others: it counts exactly while the window holds it."""
+    from decoders.modbus.matcher import LATENCY_WINDOW, LEARN_EVERY
+
+    for before, run in ((LATENCY_WINDOW + 40, 3 * LEARN_EVERY), (LATENCY_WINDOW, LEARN_EVERY), (70, 26)):
+        for spike in range(before - LATENCY_WINDOW, before):
+            latencies = [1_000_000] * (before + run)
+            latencies[max(spike, 0)] = 400_000_000
+            reference, runs = Matcher(), Matcher()
+            for latency in latencies:
+                reference._learn_one(latency)
+            runs._learn_many(np.array(latencies[:before], np.int64))
+            runs._learn_many(np.array(latencies[before:], np.int64))
+            assert runs.timeout_ns == reference.timeout_ns, (before, run, spike)
 
 
 def test_tick_times_out_and_releases_by_the_clock() -> None:
