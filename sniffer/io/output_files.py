@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import errno
 import os
-import secrets
 import stat
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -85,7 +84,7 @@ def published_whole(path: str, *, keep_when_interrupted: bool = False) -> Iterat
         yield path
         return
     target = Path(path)
-    part = str(target.with_name(f".{target.stem}.{secrets.token_hex(4)}.part{target.suffix}"))
+    part = str(target.with_name(f".{target.stem}.{os.urandom(4).hex()}.part{target.suffix}"))
     try:
         yield part
     except KeyboardInterrupt:
