@@ -22,6 +22,7 @@ from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch, MessageBatch
 from decoders.stats import Statistics
+from sniffer.exports.latency_bins import latency_bins
 from sniffer.exports.pcap_export import PcapExporter
 from sniffer.exports.transactions import TransactionEncoder
 from sniffer.pipeline import Analysis
@@ -112,7 +113,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
         self._finished = False
         self.files: list[str] = []
         encoder = TransactionEncoder()
-        self.prepare = lambda batch: encoder.columns(batch, np.arange(len(batch)))
+        self.prepare = lambda batch: _with_latency_bins(encoder.columns(batch, np.arange(len(batch))))
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         from sniffer.exports.parquet_export import ParquetDataset  # noqa: PLC0415 - pyarrow
@@ -165,7 +166,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
         if self.exporter is not None:
             with self.writing():
                 self.exporter.add("transactions", value["t_ns"], transaction_columns(value))
-            self._latencies.add(value)
+            self._latencies.add(value["latency_bins"], value["latency_counts"])
 
     def finish(self, statistics: Statistics) -> None:
         from sniffer.exports.parquet_value_columns import value_columns  # noqa: PLC0415 - pyarrow
@@ -206,6 +207,14 @@ class PcapSink(FileSink[PcapExporter]):
         if self.exporter is not None:
             with self.writing():
                 self.exporter.batch(batch)
+
+
+def _with_latency_bins(transactions: dict[str, npt.NDArray[np.int64]]) -> dict[str, npt.NDArray[np.int64]]:
+    """A batch's transactions with the bins their answers' latencies fall in and how many in each
+    (``latency_bins``, ``latency_counts``): binned in the decoding process (see
+    :mod:`sniffer.exports.latency_bins`)."""
+    transactions["latency_bins"], transactions["latency_counts"] = latency_bins(transactions)
+    return transactions
 
 
 def _metadata(args: argparse.Namespace, analysis: Analysis) -> dict[str, str]:

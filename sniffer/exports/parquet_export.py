@@ -46,6 +46,7 @@ from decoders.frame import flag_names_of
 from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch
 from decoders.modbus.columnar import within_runs
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.latency_bins import DAY_NS
 from sniffer.exports.parquet_summaries import Summaries
 from sniffer.exports.parquet_writing import RowGroupWriter
 from sniffer.exports.transactions import OUTCOMES
@@ -53,7 +54,6 @@ from sniffer.exports.transactions import OUTCOMES
 TABLES = ("frames", "transactions", "values", "anomalies", "latencies")
 #: Rows gathered per file before they are written as a row group.
 ROW_GROUP_ROWS = 1 << 17
-DAY_NS = 86_400 * 1_000_000_000
 TIME = pa.timestamp("ns", tz="UTC")
 _ROLES = pa.array([role.value for role in ROLE_ORDER])
 _OUTCOMES = pa.array(OUTCOMES)

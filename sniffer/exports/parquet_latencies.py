@@ -18,11 +18,10 @@ import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
 
-from decoders.stats import HISTOGRAM_BINS, bin_floor_ns, histogram_bins
-from sniffer.exports.parquet_export import DAY_NS, nullable
-from sniffer.exports.transactions import OUTCOMES
+from decoders.stats import HISTOGRAM_BINS, bin_floor_ns
+from sniffer.exports.latency_bins import DAY_NS
+from sniffer.exports.parquet_export import nullable
 
-_ANSWERED = OUTCOMES.index("answered")
 #: Each bin's bounds in milliseconds (the last holds everything above its floor).
 _FROM_MS = bin_floor_ns(np.arange(HISTOGRAM_BINS, dtype=np.int64)) / 1e6
 _TO_MS = np.append(_FROM_MS[1:], np.inf)
@@ -33,18 +32,16 @@ class LatencyHistograms:
     that hold any are kept (a histogram has 2 084 bins; a drive's answers fill a few dozen)."""
 
     def __init__(self) -> None:
-        #: Each bin held, by one number (:func:`_bin_keys`), ascending, and its count.
+        #: Each bin held, by one number (:func:`~sniffer.exports.latency_bins.bin_keys`), ascending,
+        #: and its count.
         self._keys = np.zeros(0, np.int64)
         self._counts = np.zeros(0, np.int64)
 
-    def add(self, transactions: dict[str, npt.NDArray[np.int64]]) -> None:
-        """Transactions as :meth:`~sniffer.exports.transactions.TransactionEncoder.columns` gives them."""
-        answered = np.flatnonzero(transactions["outcome"] == _ANSWERED)
-        if not len(answered):
+    def add(self, found: npt.NDArray[np.int64], counts: npt.NDArray[np.int64]) -> None:
+        """Bins of a batch and their counts, as :func:`~sniffer.exports.latency_bins.latency_bins`
+        gives them."""
+        if not len(found):
             return
-        keys = _bin_keys(transactions["t_ns"][answered] // DAY_NS, transactions["slave"][answered],
-                         transactions["function"][answered], histogram_bins(transactions["latency_ns"][answered]))
-        found, counts = np.unique(keys, return_counts=True)
         self._keys, where = np.unique(np.concatenate([self._keys, found]), return_inverse=True)
         merged = np.zeros(len(self._keys), np.int64)
         np.add.at(merged, where, np.concatenate([self._counts, counts]))
@@ -63,10 +60,3 @@ class LatencyHistograms:
             "answers": pa.array(self._counts, pa.int64()),
         }
 
-
-def _bin_keys(days: npt.NDArray[np.int64], slaves: npt.NDArray[np.int64], functions: npt.NDArray[np.int64],
-              bins: npt.NDArray[np.intp]) -> npt.NDArray[np.int64]:
-    """Day, slave, function and bin as one number that sorts as they do. Slave and function are
-    0..255, or NONE (a USS telegram has no function): 9 bits each once one is added."""
-    keys: npt.NDArray[np.int64] = ((days * 512 + slaves + 1) * 512 + functions + 1) * HISTOGRAM_BINS + bins
-    return keys

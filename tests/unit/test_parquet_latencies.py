@@ -1,6 +1,6 @@
 """The ``latencies`` table's histograms: every answered request counted once, in the bin that
 holds its latency, by day, slave and function (USS telegrams have none), however the
-transactions come in batches."""
+transactions come in batches (binned by :func:`latency_bins`, as the decoding process does)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from decoders.message import NONE
-from sniffer.exports.parquet_export import DAY_NS
+from sniffer.exports.latency_bins import DAY_NS, latency_bins
 from sniffer.exports.parquet_latencies import LatencyHistograms
 from sniffer.exports.transactions import OUTCOMES
 
@@ -32,8 +32,8 @@ def test_every_answer_is_counted_once_in_its_bin(transactions: list[tuple[int, .
     bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(transactions)), len(transactions)]
     for start, stop in pairwise(bounds):
         part = np.array(transactions[start:stop], np.int64).reshape(-1, 5)
-        histograms.add({"t_ns": part[:, 0], "slave": part[:, 1], "function": part[:, 2], "outcome": part[:, 3],
-                        "latency_ns": part[:, 4]})
+        histograms.add(*latency_bins({"t_ns": part[:, 0], "slave": part[:, 1], "function": part[:, 2],
+                                      "outcome": part[:, 3], "latency_ns": part[:, 4]}))
     t_ns, columns = histograms.columns()
     rows = list(zip(t_ns.tolist(), *(columns[name].to_pylist() for name in
                                       ("slave", "function", "from_ms", "to_ms", "answers")), strict=True))
@@ -62,8 +62,8 @@ def test_batches_of_bins_already_held_add_to_them(transactions: list[tuple[int, 
     once, again = LatencyHistograms(), LatencyHistograms()
     for histograms, times in ((once, 1), (again, 1 + repeats)):
         for _ in range(times):
-            histograms.add({"t_ns": part[:, 0], "slave": part[:, 1], "function": part[:, 2],
-                            "outcome": part[:, 3], "latency_ns": part[:, 4]})
+            histograms.add(*latency_bins({"t_ns": part[:, 0], "slave": part[:, 1], "function": part[:, 2],
+                                          "outcome": part[:, 3], "latency_ns": part[:, 4]}))
     (t_once, first), (t_again, more) = once.columns(), again.columns()
     assert t_again.tolist() == t_once.tolist()
     assert more["answers"].to_pylist() == [(1 + repeats) * count for count in first["answers"].to_pylist()]
