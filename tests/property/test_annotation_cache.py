@@ -108,19 +108,24 @@ def said(decoding: Decoding) -> tuple[object, ...]:
 
 @settings(max_examples=max(300, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=60), st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=xbt", "7=atv71"]]),
-       st.sampled_from([0, 1, 5, annotate_module.ONE_BY_ONE]), st.sampled_from([0, annotate_module.TOGETHER_FROM]),
+       st.tuples(st.sampled_from([0, 1, 5, annotate_module.ONE_BY_ONE]),
+                 st.sampled_from([0, annotate_module.TOGETHER_FROM]),
+                 st.sampled_from([0, 3, annotate_module._FACTS_ONE_BY_ONE])),
        st.frozensets(st.integers(0, 120), max_size=12))
 def test_cached_decodings_equal_decoding_each_frame(traffic: list[list[bytes]], profiles: list[str] | None,
-                                                    one_by_one: int, together_from: float,
+                                                    thresholds: tuple[int, float, int],
                                                     noise: frozenset[int]) -> None:
     """Also the lean path: frames of slaves no profile speaks for (none at all: ``None``; the
     generic one: ``[]``), decoded without message objects, their params named when read; the
     register reads of a batch decoded together past its first ``one_by_one`` new frames (once
-    they are ``together_from`` of the frames passed); noise (one decoding per length); and
+    they are ``together_from`` of the frames passed); noise; each frame's facts read one by one
+    or from lists past ``facts_one_by_one`` frames; and
     the profiles' kept namers and values against naming every value anew (``fast=False``)."""
+    one_by_one, together_from, facts_one_by_one = thresholds
     batches = matched([data for exchange in traffic for data in exchange], noise=noise)
     with (patch.object(annotate_module, "ONE_BY_ONE", one_by_one),
-          patch.object(annotate_module, "TOGETHER_FROM", together_from)):
+          patch.object(annotate_module, "TOGETHER_FROM", together_from),
+          patch.object(annotate_module, "_FACTS_ONE_BY_ONE", facts_one_by_one)):
         _check_cached_decodings(batches, profiles)
 
 
