@@ -21,6 +21,8 @@ from __future__ import annotations
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from decoders.frame import FrameFlag
 from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, ParamValue, Role
 from decoders.modbus.param_runs import LazyParams, ParamRun
@@ -104,28 +106,31 @@ class ValueRows(Sink):
         messages, frames = batch.messages, batch.messages.frames
         first = frames.first_index
         self._first_frame(frames.t_start_ns)
-        role, slave, function = messages.role.tolist(), messages.slave.tolist(), messages.function.tolist()
-        crc, flags, request = frames.crc_ok.tolist(), messages.flags.tolist(), messages.request_index.tolist()
-        t_start = frames.t_start_ns.tolist()
+        # The columns of these positions alone: a batch hands most of its frames to the rows in
+        # bulk and a few here (listing its whole columns took 1.8 ms a batch).
+        at = np.array(positions, np.int64)
+        role, slave, function, crc, flags, request, t_start = (column[at].tolist() for column in (
+            messages.role, messages.slave, messages.function, frames.crc_ok, messages.flags, messages.request_index,
+            frames.t_start_ns))
         as_runs = self.takes_runs and self._choice.everything
-        for position in positions:
+        for place, position in enumerate(positions):
             self.emitting = first + position
             decoding: Decoding = batch.decodings[position]
-            kind = role[position]
-            if kind in (_RESPONSE, _EXCEPTION) and request[position] != NONE:
-                self._answered(request[position], valid=kind == _RESPONSE and bool(crc[position]))
+            kind = role[place]
+            if kind in (_RESPONSE, _EXCEPTION) and request[place] != NONE:
+                self._answered(request[place], valid=kind == _RESPONSE and bool(crc[place]))
             runs = decoding.runs if as_runs and isinstance(decoding, LazyParams) else None
-            if slave[position] == NONE or not (decoding.params if runs is None else runs):
+            if slave[place] == NONE or not (decoding.params if runs is None else runs):
                 continue
-            row = ValueRow(t_start[position], first + position, slave[position], "",
+            row = ValueRow(t_start[place], first + position, slave[place], "",
                            () if runs is not None else decoding.params,
-                           None if request[position] == NONE else request[position], runs=runs,
+                           None if request[place] == NONE else request[place], runs=runs,
                            decoding=decoding if runs is None else None)
             if kind == _RESPONSE:
                 row.kind = "reported"
-                self._emit(row, crc_ok=bool(crc[position]))
-            elif kind in (_REQUEST, _BROADCAST) and function[position] in WRITES:
-                self._written(row, kind=kind, crc_ok=bool(crc[position]), timed_out=bool(flags[position] & _TIMEOUT))
+                self._emit(row, crc_ok=bool(crc[place]))
+            elif kind in (_REQUEST, _BROADCAST) and function[place] in WRITES:
+                self._written(row, kind=kind, crc_ok=bool(crc[place]), timed_out=bool(flags[place] & _TIMEOUT))
 
     def _written(self, row: ValueRow, *, kind: int, crc_ok: bool, timed_out: bool) -> None:
         row.kind, row.request_index = "written", row.index
