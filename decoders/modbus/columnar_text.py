@@ -16,6 +16,11 @@ rows at once; 1.9 times as fast as one ``%`` of a template repeated for all rows
 formatted each number from a Python object), and one ``split`` makes the lines. A million
 polling frames took 2.0 s of ``export --parquet``'s 4.5 s to summarise, f-strings and
 ``bytes.hex`` a frame at a time.
+
+:func:`summaries` gives the lines as Python strings (JSONL, MCAP, the table);
+:func:`summary_pieces` the same lines a kind of frame at a time, those laid out by numpy packed
+as a string column's buffers (:class:`~decoders.modbus.text_layout.PackedLines`), for the
+Parquet column, which then needs no Python string per line. The tests hold both to each other.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, MessageBatch, Role, slice_messages
 from decoders.modbus.annotate import Annotator
-from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames, one_of
+from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
 from decoders.modbus.columnar_text import READ_WRITE, WRITE, Lines, summaries, summary_pieces
 from decoders.modbus.param_runs import LazyParams, addressed_values
 from decoders.profiles.apply import ProfileApplier
@@ -486,10 +486,3 @@ def test_a_profile_names_no_coil() -> None:
     atv71 = annotator(["atv71"]).annotate_batch(batch).decodings
     assert atv71[7].summary == "HR = 05DC (1 registers): NM1→ETA = 16#05DC warning, reference reached, forward"
 
-
-@settings(max_examples=300, deadline=None)
-@given(st.lists(st.integers(-2, 300), max_size=60), st.frozensets(st.integers(-2, 300), max_size=12))
-def test_one_of_is_isin(values: list[int], members: frozenset[int]) -> None:
-    """``one_of`` (equalities or'ed for a few members) says what ``np.isin`` says, for any number."""
-    column = np.array(values, np.int64)
-    assert one_of(column, members).tolist() == np.isin(column, list(members)).tolist()
