@@ -304,9 +304,11 @@ def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], sum
     (``summaries``: their batch's)."""
     messages, frames = batch.messages, batch.messages.frames
     masks = anomaly_masks(messages)
+    # The few messages showing any, first: each kind then picks from them, not from the batch.
+    showing = positions[np.logical_or.reduce(list(masks.values()))[positions]]
     rows, kinds = [], []
     for kind_index, mask in enumerate(masks.values()):
-        found = positions[mask[positions]]
+        found = showing[mask[showing]]
         rows.append(found)
         kinds.append(np.full(len(found), kind_index, np.int32))
     row, kind = np.concatenate(rows), np.concatenate(kinds)
