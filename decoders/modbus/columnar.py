@@ -31,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.modbus.codes import MAX_QUANTITY
-from decoders.modbus.columnar_text import READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, formatted, summaries
+from decoders.modbus.columnar_text import READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, formatted, summaries, words_at
 from decoders.modbus.pdu import COIL_ON
 from decoders.profiles.naming import SHOWN_PARAMS, NamedValue, NumberNames, summary_with
 
@@ -339,7 +339,7 @@ class ColumnarFrames:
             values[bit_rows] = _bits(raw, starts[bit_frames], counts[bit_frames])
         word_frames, word_rows = ~bit_frames, ~bit_rows
         at = np.repeat(starts[word_frames], counts[word_frames]) + 2 * within[word_rows]
-        words = raw[at].astype(np.int64) << 8 | raw[at + 1]
+        words = words_at(raw, at)
         single_coil = np.repeat(function[word_frames] == 5, counts[word_frames])
         values[word_rows] = np.where(single_coil, words == COIL_ON, words)
         return counts, within, values

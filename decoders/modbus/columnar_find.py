@@ -31,7 +31,7 @@ from decoders.frame import FrameFlag
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from decoders.modbus.codes import MAX_READ_WRITE_QUANTITY
 from decoders.modbus.columnar import KEPT_REQUESTS, MOST, ColumnarFrames
-from decoders.modbus.columnar_text import READ, READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER
+from decoders.modbus.columnar_text import READ, READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, words_at
 
 _REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
 _TIMEOUT = int(FrameFlag.TIMEOUT)
@@ -81,9 +81,7 @@ class _Columns:
 
     def word(self, positions: npt.NDArray[np.int64], offset: int) -> npt.NDArray[np.int64]:
         """The big-endian word at ``offset`` of each frame at ``positions``."""
-        at = self.starts[positions] + offset
-        word: npt.NDArray[np.int64] = (self.raw[at].astype(np.int64) << 8) | self.raw[at + 1]
-        return word
+        return words_at(self.raw, self.starts[positions] + offset)
 
     def of(self, role: int, functions: tuple[int, ...]) -> npt.NDArray[np.bool_]:
         """Good frames of ``role`` (a request or an answer) and one of ``functions``."""

@@ -128,9 +128,9 @@ def formatted(template: str, columns: list[Any]) -> list[str]:
     return lines
 
 
-def _words_at(data: bytes, at: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-    """The big-endian 16-bit word at each of ``at``."""
-    raw = np.frombuffer(data, np.uint8)  # the words' bytes taken, then widened: not the batch's every byte
+def words_at(raw: npt.NDArray[np.uint8], at: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    """The big-endian 16-bit word at each of ``at`` in a batch's bytes ``raw``: the words' bytes
+    taken, then widened (not the batch's every byte)."""
     words: npt.NDArray[np.int64] = (raw[at].astype(np.int64) << 8) | raw[at + 1]
     return words
 
@@ -168,7 +168,7 @@ def _fields(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], ki
     table = _TABLES.get(function, "")
     address = frames.address[rows]
     if function in (5, 6):  # a request and its echo say the same
-        values = _words_at(data, frames.data[rows])
+        values = words_at(np.frombuffer(data, np.uint8), frames.data[rows])
         if function == 6:
             return ["write HR ", decimal(address), " = ", decimal(values), " (0x", upper_hex(values, 4), ")"]
         states = list(COIL_STATES.values())
@@ -229,7 +229,7 @@ def _group(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kin
         bits = _bit_texts(data, frames.data[rows], 8 * frames.byte_count[rows])
         return [f"{table} = {b} ({n} bytes)" for b, n in zip(bits, size, strict=True)]
     if function in (5, 6):  # a request and its echo say the same
-        values = _words_at(data, frames.data[rows]).tolist()
+        values = words_at(np.frombuffer(data, np.uint8), frames.data[rows]).tolist()
         if function == 5:
             return [f"write coil {a} = {COIL_STATES.get(v) or f'invalid 0x{v:04X}'}"
                     for a, v in zip(address, values, strict=True)]

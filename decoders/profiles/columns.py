@@ -39,7 +39,7 @@ import numpy.typing as npt
 
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
 from decoders.modbus.columnar import ColumnarFrames, one_of
-from decoders.modbus.columnar_text import READ, READ_WRITE, WRITE
+from decoders.modbus.columnar_text import READ, READ_WRITE, WRITE, words_at
 from decoders.modbus.param_runs import LazyParams, addressed_values
 from decoders.modbus.pdu import Pdu
 from decoders.modbus.pdu_parse import parse_as, parse_pdu
@@ -229,16 +229,11 @@ def _asked_spans(batch: MessageBatch, frame_kind: npt.NDArray[np.int64]) -> list
     starts, lengths = frames.offsets[:-1], np.diff(frames.offsets)
     asking = np.flatnonzero(_ASKING_ROLES[batch.role] & _NAMING_FUNCTIONS[batch.function]
                             & (lengths >= _SHORTEST_NAMING) & (batch.slave != NONE) & (frame_kind > 0))
-    raw = np.frombuffer(frames.data, np.uint8)  # widened where read: not the batch's every byte
-
-    def word(at: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-        word: npt.NDArray[np.int64] = (raw[at].astype(np.int64) << 8) | raw[at + 1]
-        return word
-
+    raw = np.frombuffer(frames.data, np.uint8)
     at = starts[asking]
     both = asking[(batch.function[asking] == _READ_WRITE) & (lengths[asking] >= _READ_WRITE_NAMING)]
-    return [(asking, word(at + 2), np.where(batch.function[asking] == 6, 1, word(at + 4))),
-            (both, word(starts[both] + 6), word(starts[both] + 8))]
+    return [(asking, words_at(raw, at + 2), np.where(batch.function[asking] == 6, 1, words_at(raw, at + 4))),
+            (both, words_at(raw, starts[both] + 6), words_at(raw, starts[both] + 8))]
 
 
 def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames, learning: set[int],
