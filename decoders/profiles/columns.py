@@ -60,9 +60,6 @@ EarlierRequest = Callable[[int], "Pdu | None"]
 _ASKING = [ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST], ROLE_CODE[Role.UNKNOWN]]
 #: Functions whose requests name registers: where their first address and count lie.
 _NAMING = (3, 4, 6, 16, 23)
-#: The same as lookups: by role code, and by function (NONE, -1, reads the last: never one).
-_ASKING_ROLES = np.isin(np.arange(len(ROLE_ORDER)), _ASKING)
-_NAMING_FUNCTIONS = np.isin(np.arange(257), _NAMING)
 _SHORTEST_NAMING = 6  # slave, function, address, count
 _READ_WRITE, _READ_WRITE_NAMING = 23, 10  # FC 23 names a second span, written, at bytes 6 to 9
 #: Read Device Identification (FC 43): an answer may give its slave a profile.
@@ -227,7 +224,7 @@ def _asked_spans(batch: MessageBatch, frame_kind: npt.NDArray[np.int64]) -> list
     such frame and again for the written span of each FC 23."""
     frames = batch.frames
     starts, lengths = frames.offsets[:-1], np.diff(frames.offsets)
-    asking = np.flatnonzero(_ASKING_ROLES[batch.role] & _NAMING_FUNCTIONS[batch.function]
+    asking = np.flatnonzero(one_of(batch.role, _ASKING) & one_of(batch.function, _NAMING)
                             & (lengths >= _SHORTEST_NAMING) & (batch.slave != NONE) & (frame_kind > 0))
     raw = np.frombuffer(frames.data, np.uint8)
     at = starts[asking]

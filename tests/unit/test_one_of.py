@@ -11,7 +11,7 @@ from decoders.modbus.columnar import one_of
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(st.integers(-2, 300), max_size=60), st.frozensets(st.integers(-2, 300), max_size=12))
+@given(st.lists(st.integers(-2, 300), max_size=60), st.frozensets(st.integers(-2, 300), max_size=24))
 def test_one_of_is_isin(values: list[int], members: frozenset[int]) -> None:
     """``one_of`` (equalities or'ed for a few members) says what ``np.isin`` says, for any number."""
     column = np.array(values, np.int64)
