@@ -8,6 +8,7 @@ import signal
 import struct
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -19,7 +20,7 @@ from mcap.reader import make_reader
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from decoders.pipeline import Decoder
-from sniffer.decoding_process import ChildDecoding, decode_here
+from sniffer.decoding_process import RECEIVED_AHEAD, ChildDecoding, decode_here
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.registry import open_reader
 from tests.conftest import SAMPLE_LOG, SAMPLE_MCAP, CliResult
@@ -175,7 +176,11 @@ def test_a_child_that_dies_is_one_error() -> None:
     assert raised.value.kind is ErrorKind.RUNTIME
 
 
-def test_stopping_early_stops_the_child() -> None:
+def receiving_threads() -> list[threading.Thread]:
+    return [thread for thread in threading.enumerate() if thread.name == "rtusniff-receive"]
+
+
+def test_stopping_early_stops_the_child_and_the_receiving_thread() -> None:
     child = ChildDecoding(Reader(repeat=10**6), Decoder(LINE, TimingQuality.EXACT), with_chunks=False)
     try:
         first = next(iter(child))
@@ -183,6 +188,21 @@ def test_stopping_early_stops_the_child() -> None:
     finally:
         child.close()
     assert_reaped(child)
+    assert not receiving_threads()
+
+
+def test_steps_are_received_ahead_while_the_parent_works() -> None:
+    """A thread takes the next steps off the pipe while the parent is busy with one."""
+    child = ChildDecoding(Reader(repeat=10**6), Decoder(LINE, TimingQuality.EXACT), with_chunks=False)
+    try:
+        next(iter(child))
+        deadline = time.monotonic() + 30
+        while child._received.qsize() < RECEIVED_AHEAD and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert child._received.qsize() == RECEIVED_AHEAD
+    finally:
+        child.close()
+    assert not receiving_threads()
 
 
 def test_ctrl_c_leaves_a_valid_export_and_no_child(tmp_path: Path) -> None:
