@@ -148,4 +148,10 @@ def _command_in(argv: list[str]) -> str | None:
 
 
 def entry_point() -> None:
-    sys.exit(main())
+    code = main()
+    # The interpreter's last collections, as it exits, walk every object left (the modules of
+    # numpy and pyarrow, profiles, caches): measured here, 0.2 s after an export of 1 M frames
+    # and 0.35 s after `stats` of 1 M, once everything is written and closed. Frozen, they are
+    # left to the process's end.
+    gc.freeze()
+    sys.exit(code)
