@@ -133,6 +133,16 @@ def test_the_child_sends_every_step_then_the_warnings() -> None:
     assert_reaped(child)
 
 
+def test_the_first_batch_goes_as_read_and_the_rest_joined() -> None:
+    """The parent starts on the first batch while the child joins the next ones."""
+    read = Reader(repeat=3)
+    as_read = [len(batch) for batch in read.batches()]
+    assert len(as_read) >= 3
+    steps = decode_here(Reader(repeat=3), Decoder(LINE, TimingQuality.EXACT), join=(10**6, 10**9))
+    chunks = [len(step.chunks) for step in steps if step.chunks is not None]
+    assert chunks == [as_read[0], sum(as_read[1:])]
+
+
 def fail_with_bad_data() -> None:
     raise RtuSniffError(ErrorKind.BAD_DATA, "bad hex digit 'Z'", path="c.log", location="line 9")
 
