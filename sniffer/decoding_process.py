@@ -192,13 +192,15 @@ class ChildDecoding(Generic[Prepared]):
 
     def _receive_all(self) -> None:
         """In the receiving thread: every item the child sends, then ``None`` if the pipe ended
-        without the child's last word."""
+        without the child's last word (or a failure, if one did not unpickle)."""
         while True:
+            item: DecodingStep[Prepared] | _Ended | _Failed | None
             try:
                 item = self._receive.recv()
             except (EOFError, OSError):
-                self._received.put(None)
-                return
+                item = None
+            except Exception as exc:  # a step that does not unpickle here: the parent raises it
+                item = _Failed(exc, traceback.format_exc(), [])
             self._received.put(item)
             if not isinstance(item, DecodingStep):
                 return

@@ -180,6 +180,29 @@ def test_an_error_that_does_not_pickle_comes_back_as_its_text() -> None:
         steps_in_child(Reader(fail_unpicklably))
 
 
+def refuse_to_load() -> None:
+    raise ValueError("this step does not load")
+
+
+class Unloadable:
+    """Pickles, but fails to unpickle (in the parent)."""
+
+    def __reduce__(self) -> tuple[Callable[[], None], tuple[()]]:
+        return refuse_to_load, ()
+
+
+def test_a_step_that_does_not_unpickle_is_raised_not_waited_for() -> None:
+    child = ChildDecoding(Reader(), Decoder(LINE, TimingQuality.EXACT), with_chunks=False,
+                          prepare=lambda batch: Unloadable())
+    try:
+        with pytest.raises(ValueError, match="this step does not load"):
+            list(child)
+    finally:
+        child.close()
+    assert_reaped(child)
+    assert not receiving_threads()
+
+
 def test_a_child_that_dies_is_one_error() -> None:
     with pytest.raises(RtuSniffError, match=r"ended without a word \(killed by SIGKILL\)") as raised:
         steps_in_child(Reader(lambda: os.kill(os.getpid(), signal.SIGKILL)))
