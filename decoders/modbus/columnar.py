@@ -25,7 +25,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from dataclasses import dataclass
 from operator import itemgetter
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -53,20 +53,31 @@ for _function, _most in MAX_QUANTITY.items():
 
 
 class ColumnarValues(NamedTuple):
-    """The values frames kept in columns carry, a row each, in the order the value rows' rule
-    finds them (:mod:`sniffer.encoding.value_rows`): ``frame``: the position of the frame that
-    carries it; ``found``: where the row is found (a written value: at its write's answer);
-    ``written``: written, not reported; ``request``: the request's frame index."""
+    """The values frames kept in columns carry, in the order the value rows' rule finds them
+    (:mod:`sniffer.encoding.value_rows`), as runs: a frame's values one after another. Per run:
+    ``frame``, the position of the frame that carries them; ``counts``, how many; ``found``,
+    where they are found (a write's values: at its answer); ``written``, written, not reported;
+    ``request``, the request's frame index (-1 for written values). Per value: its ``address``
+    and ``raw`` value (a register's word; a coil as 0 or 1), 32 bits as the Parquet columns have
+    them, and ``name``. A column of the runs is made one of the values by :meth:`each`: the
+    writers repeat the few columns they need, which a row per value for every column made
+    first took a third of the time of (1 M coil frames, 12.7 M values)."""
 
     frame: npt.NDArray[np.int64]
+    counts: npt.NDArray[np.int64]
     found: npt.NDArray[np.int64]
     written: npt.NDArray[np.bool_]
-    address: npt.NDArray[np.int64]
-    raw: npt.NDArray[np.int64]
     request: npt.NDArray[np.int64]
+    address: npt.NDArray[np.int32]
+    raw: npt.NDArray[np.int32]
     #: Each value's entry in the frames' :attr:`ColumnarNames.table` (-1: unnamed); ``None``: no
     #: frame is named.
     name: npt.NDArray[np.int64] | None = None
+
+    def each(self, column: npt.NDArray[Any]) -> npt.NDArray[Any]:
+        """``column`` (a value per run) as a value per value."""
+        repeated: npt.NDArray[Any] = np.repeat(column, self.counts)
+        return repeated
 
 
 class ColumnarParams(NamedTuple):
@@ -261,21 +272,20 @@ class ColumnarFrames:
         # values stay in order.
         order = np.lexsort((~written, found))
         valued, written, found = valued[order], written[order], found[order]
-        counts, within, value = self._carried(data, valued)
+        counts, value = self._carried(data, valued)
         request = np.where(written, -1, self.request[valued])
-        name = None if self.names is None else self.names.row[self._param_rows(valued, counts, within)]
-        return ColumnarValues(np.repeat(self.positions[valued], counts), np.repeat(found, counts),
-                              np.repeat(written, counts), np.repeat(self.address[valued], counts) + within, value,
-                              np.repeat(request, counts), name)
+        name = None if self.names is None else self.names.row[self._param_rows(valued, counts)]
+        address = spread(self.address[valued], counts, dtype=np.int32)
+        return ColumnarValues(self.positions[valued], counts, found, written, request, address, value, name)
 
     def params(self, data: bytes) -> ColumnarParams:
         """Every frame's params as the plain path's decoding names them, laid end to end: for
         writers that spell them in columns, with no decoding per frame."""
         valued = self._valued()
-        counts, within, value = self._carried(data, valued)
+        counts, value = self._carried(data, valued)
         sizes = self._sizes()
         values = np.full(int(sizes.sum()), NO_VALUE, np.int64)
-        values[self._param_rows(valued, counts, within)] = value
+        values[self._param_rows(valued, counts)] = value
         place = within_runs(sizes)
         address = np.repeat(self.address, sizes) + place
         if self.read_count.any():  # FC 23 requests: their read span after their written one
@@ -294,11 +304,9 @@ class ColumnarFrames:
         places: npt.NDArray[np.int64] = np.repeat(starts[groups.inverse], sizes) + within_runs(sizes)
         return places
 
-    def _param_rows(self, valued: npt.NDArray[np.int64], counts: npt.NDArray[np.int64],
-                    within: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    def _param_rows(self, valued: npt.NDArray[np.int64], counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
         """Where each value of :meth:`_carried` is among the params of :meth:`params`."""
-        rows: npt.NDArray[np.int64] = np.repeat(self._param_starts()[valued], counts) + within
-        return rows
+        return spread(self._param_starts()[valued], counts)
 
     def _sizes(self) -> npt.NDArray[np.int64]:
         """How many params each frame names (its count, and an FC 23 request's read count; none
@@ -319,45 +327,39 @@ class ColumnarFrames:
                                                        | ((kind == WRITE_ANSWER) & (self.function <= 6)))
         return valued
 
-    def _carried(self, data: bytes, valued: npt.NDArray[np.int64]) -> tuple[
-            npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    def _carried(self, data: bytes, valued: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64],
+                                                                              npt.NDArray[np.int32]]:
         """How many values each of the frames ``valued`` (:meth:`_valued`, in any order) carries,
-        each value's place in its frame, and the values, frame after frame (a register's word; a
-        coil as 0 or 1). Coils and registers are each taken from their own frames' bytes only: a
-        coil capture has a dozen values a frame, and reading every value both ways took three
-        times as long."""
+        and the values, frame after frame (a register's word; a coil as 0 or 1). Coils and
+        registers are each taken from their own frames' bytes only: a coil capture has a dozen
+        values a frame, and reading every value both ways took three times as long."""
         counts = self.count[valued]
-        within = within_runs(counts)
         function, starts = self.function[valued], self.data[valued]
         bit_frames = (function <= 2) | (function == 15)
         raw = np.frombuffer(data, np.uint8)
         if bit_frames.all():
-            return counts, within, _bits(raw, starts, counts).astype(np.int64)
-        values = np.empty(len(within), np.int64)
+            return counts, _bits(raw, starts, counts).astype(np.int32)
+        values = np.empty(int(counts.sum()), np.int32)
         bit_rows = np.repeat(bit_frames, counts)
         if bit_frames.any():
             values[bit_rows] = _bits(raw, starts[bit_frames], counts[bit_frames])
         word_frames, word_rows = ~bit_frames, ~bit_rows
-        at = np.repeat(starts[word_frames], counts[word_frames]) + 2 * within[word_rows]
-        words = words_at(raw, at)
+        words = words_at(raw, spread(starts[word_frames], counts[word_frames], 2))
         single_coil = np.repeat(function[word_frames] == 5, counts[word_frames])
         values[word_rows] = np.where(single_coil, words == COIL_ON, words)
-        return counts, within, values
+        return counts, values
 
 
 def _bits(raw: npt.NDArray[np.uint8], starts: npt.NDArray[np.int64],
           counts: npt.NDArray[np.int64]) -> npt.NDArray[np.uint8]:
     """The first ``counts[i]`` bits from byte ``starts[i]`` of ``raw``, least significant first,
-    frame after frame: their bytes unpacked at once, the bits past each count (up to 7, in its
-    last byte) dropped."""
+    frame after frame: their bytes unpacked at once, then each frame's first bits taken (up to
+    7 past each count, in its last byte, left)."""
     sizes = (counts + 7) >> 3
-    bits = np.unpackbits(raw[np.repeat(starts, sizes) + within_runs(sizes)], bitorder="little")
-    unused = 8 * sizes - counts
-    if not unused.any():
+    bits = np.unpackbits(raw[spread(starts, sizes)], bitorder="little")
+    if not (8 * sizes - counts).any():
         return bits
-    kept = np.ones(len(bits), np.bool_)
-    kept[np.repeat(np.cumsum(8 * sizes) - unused, unused) + within_runs(unused)] = False
-    shown: npt.NDArray[np.uint8] = bits[kept]
+    shown: npt.NDArray[np.uint8] = bits[spread(8 * (np.cumsum(sizes) - sizes), counts)]
     return shown
 
 
@@ -372,6 +374,19 @@ def one_of(values: npt.NDArray[np.integer], members: Collection[int]) -> npt.NDA
     for member in members:
         found |= values == member
     return found
+
+
+def spread(bases: npt.NDArray[np.integer[Any]], counts: npt.NDArray[np.int64], step: int = 1,
+           dtype: type[np.signedinteger[Any]] = np.int64) -> npt.NDArray[Any]:
+    """For runs of ``counts`` items laid end to end, ``bases[i] + step * place`` of each item of
+    run ``i`` (``place``: the item's in its run), as ``dtype``: what ``np.repeat(bases, counts)
+    + step * within_runs(counts)`` makes, with one repeat instead of two (a third less time for
+    the 400 000 values of a batch of coil frames)."""
+    total = int(counts.sum())
+    firsts = np.cumsum(counts) - counts
+    spread_out: npt.NDArray[Any] = np.repeat((bases - step * firsts).astype(dtype), counts)
+    spread_out += np.arange(0, step * total, step, dtype=dtype)
+    return spread_out
 
 
 def within_runs(counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -45,10 +46,10 @@ class LaidRows:
 
     t_ns: npt.NDArray[np.int64]
     index: npt.NDArray[np.int64]
-    slave: npt.NDArray[np.int64]
+    slave: npt.NDArray[np.integer[Any]]
     kind: npt.NDArray[np.int32]
-    address: npt.NDArray[np.int64]
-    raw: npt.NDArray[np.int64]
+    address: npt.NDArray[np.integer[Any]]
+    raw: npt.NDArray[np.integer[Any]]
     value: npt.NDArray[np.float64]
     no_value: npt.NDArray[np.bool_]
     request_index: npt.NDArray[np.int64]

@@ -15,6 +15,7 @@ from __future__ import annotations
 import itertools
 import operator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -72,10 +73,12 @@ class NumericValues:
 
     t_ns: npt.NDArray[np.int64]
     index: npt.NDArray[np.int64]
-    slave: npt.NDArray[np.int64]
+    #: Slaves, addresses and raw values: in the columns' own types where laid out by numpy
+    #: (16 and 32 bits, so Arrow takes them as they are), 64 bits where collected.
+    slave: npt.NDArray[np.integer[Any]]
     kind: npt.NDArray[np.int32]
-    address: npt.NDArray[np.int64]
-    raw: npt.NDArray[np.int64]
+    address: npt.NDArray[np.integer[Any]]
+    raw: npt.NDArray[np.integer[Any]]
     request_index: npt.NDArray[np.int64]
     valid: npt.NDArray[np.bool_]
     found: npt.NDArray[np.int64]
@@ -231,14 +234,15 @@ def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
     messages, frames = batch.messages, batch.messages.frames
     first = frames.first_index
     rows = columnar.values(frames.data)
-    index = rows.frame + first
-    names = columnar.names
-    return NumericValues(frames.t_start_ns[rows.frame], index, messages.slave[rows.frame].astype(np.int64),
-                         np.where(rows.written, WRITTEN, REPORTED).astype(np.int32), rows.address, rows.raw,
-                         np.where(rows.written, index, rows.request), np.ones(len(index), np.bool_),
-                         found=rows.found + first, order=np.where(rows.written, 0, 1),
-                         name=np.full(len(index), -1, np.int64) if rows.name is None else rows.name,
-                         names=names)
+    each, written, count = rows.each, rows.written, len(rows.raw)
+    index = rows.frame + first  # of each run's frame
+    # Read-only: -1 for every row; no one writes a row's entry.
+    name = np.broadcast_to(np.int64(-1), count) if rows.name is None else rows.name
+    return NumericValues(each(frames.t_start_ns[rows.frame]), each(index), each(messages.slave[rows.frame]),
+                         each(np.where(written, WRITTEN, REPORTED).astype(np.int32)), rows.address, rows.raw,
+                         each(np.where(written, index, rows.request)), np.ones(count, np.bool_),
+                         found=each(rows.found + first), order=each(np.where(written, 0, 1)), name=name,
+                         names=columnar.names)
 
 
 def param_columns(params: list[ParamValue]) -> tuple[list[str | None], list[str | None], list[float | None],
