@@ -23,6 +23,8 @@ from typing import TypeVar
 import numpy as np
 import numpy.typing as npt
 
+from decoders.distinct import distinct
+
 Number = TypeVar("Number", bound=np.integer)
 #: A pair's key: ``slave * KEY_SPAN + function`` (both 0..255).
 KEY_SPAN = 256
@@ -88,7 +90,7 @@ class FunctionTally:
         rows = self._row_of[keys]
         unknown = rows == _NO_ROW
         if unknown.any():
-            new = np.unique(keys[unknown])
+            new = distinct(keys[unknown])
             first = len(self._keys)
             self._grow(first + len(new))
             self._row_of[new] = np.arange(first, first + len(new))

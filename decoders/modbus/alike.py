@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from decoders.distinct import distinct
 from decoders.hashing import FIBONACCI_SIGNED
 
 if TYPE_CHECKING:
@@ -68,7 +69,7 @@ def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
     starts, ends = offsets[positions], offsets[positions + 1]
     lengths = ends - starts
     step = max(len(positions) // SAMPLED, 1)
-    if len(np.unique(digests(data, starts[::step], ends[::step]))) >= DISTINCT_SHARE * len(starts[::step]):
+    if len(distinct(digests(data, starts[::step], ends[::step]))) >= DISTINCT_SHARE * len(starts[::step]):
         return None
     role = roles[positions].astype(np.int64)
     code = (role << 3 | columnar.kind) << 48 | (columnar.count + 1) << 24 | columnar.address

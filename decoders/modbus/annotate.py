@@ -22,6 +22,7 @@ from collections.abc import Iterable
 import numpy as np
 import numpy.typing as npt
 
+from decoders.distinct import distinct
 from decoders.frame import USS
 from decoders.memo import Memo
 from decoders.message import (
@@ -153,7 +154,7 @@ class Annotator:
         """Which frames of ``batch`` are Modbus frames of slaves whose profile adds nothing now."""
         plain: npt.NDArray[np.bool_] = batch.frames.protocols() != USS
         if self._profiles is not None:
-            slaves = np.unique(batch.slave)
+            slaves = distinct(batch.slave)
             adds_nothing = np.array([self._profiles.adds_nothing(int(slave)) for slave in slaves.tolist()], np.bool_)
             plain &= adds_nothing[np.searchsorted(slaves, batch.slave)]
         return plain
@@ -268,7 +269,7 @@ def mostly_distinct(batch: MessageBatch, share: float) -> bool:
     frames = batch.frames
     if not len(batch):
         return False
-    return len(np.unique(digests(frames.data, frames.offsets[:-1], frames.offsets[1:]))) >= share * len(batch)
+    return len(distinct(digests(frames.data, frames.offsets[:-1], frames.offsets[1:]))) >= share * len(batch)
 
 
 class _Fresh:

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from decoders.distinct import distinct
 from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.columnar_text import READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, formatted, summaries, words_at
 from decoders.modbus.pdu import COIL_ON
@@ -147,7 +148,7 @@ class ColumnarNames(NamedTuple):
             return texts
         suffixed = np.empty(len(texts), object)
         suffixed[:] = texts
-        for count in np.unique(counts[counts > 0]).tolist():
+        for count in distinct(counts[counts > 0]).tolist():
             frames = np.flatnonzero(counts == count)
             template = "%s: " + ", ".join(["%s"] * min(count, SHOWN_PARAMS)) + (" …" if count > SHOWN_PARAMS else "")
             columns = [suffixed[frames]] + [said[starts[frames] + place] for place in range(min(count, SHOWN_PARAMS))]

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from decoders.distinct import distinct
 from decoders.modbus.pdu import COIL_STATES
 from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_payload
 from decoders.modbus.text_layout import (
@@ -143,7 +144,7 @@ def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: 
     columns of every row, and cut apart by one ``split`` (``pack``: packed as they are): no
     ``%`` pass, no byte placed one by one."""
     raw = np.frombuffer(data, np.uint8)
-    for size in np.unique(sizes).tolist():
+    for size in distinct(sizes).tolist():
         rows = np.flatnonzero(sizes == size)
         words = size // 2
         template = f"{head}{' '.join(['0000'] * words)} ({words} registers)" + ("" if pack else "\n")

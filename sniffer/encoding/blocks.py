@@ -15,6 +15,7 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
+from decoders.distinct import distinct
 from sniffer.encoding.rows import Integers, Pieces
 
 #: Writes a field into its columns of the matrix (rows × the field's width).
@@ -83,7 +84,7 @@ class Block:
 
     def choice(self, keys: Integers, pieces: list[bytes]) -> Block:
         """The piece each key picks, right-aligned in the width of the widest picked."""
-        used = np.unique(keys).tolist()
+        used = distinct(keys).tolist()
         width = max((len(pieces[key]) for key in used), default=0)
         table = np.full((len(pieces), width), _SPACE, np.uint8)
         for key in used:

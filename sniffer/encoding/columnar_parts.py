@@ -26,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 import orjson
 
+from decoders.distinct import distinct
 from decoders.message import ROLE_NAMES, MessageBatch
 from decoders.modbus.alike import alike
 from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
@@ -148,7 +149,7 @@ def _in_slices(params: ColumnarParams, spell: Callable[[ColumnarParams, slice], 
     total = int(ends[-1]) if len(ends) else 0
     if total <= SLICE_PARAMS:
         return spell(params, slice(None))
-    cuts = np.unique(np.searchsorted(ends, np.arange(SLICE_PARAMS, total, SLICE_PARAMS), side="right")).tolist()
+    cuts = distinct(np.searchsorted(ends, np.arange(SLICE_PARAMS, total, SLICE_PARAMS), side="right")).tolist()
     texts: list[bytes] = []
     sizes: list[npt.NDArray[np.int64]] = []
     for first, last in zip([0, *cuts], [*cuts, len(ends)], strict=True):

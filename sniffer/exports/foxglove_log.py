@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from decoders.distinct import distinct
 from sniffer.encoding.rows import Column, Integers, Pieces, Rows, Table, column_sizes, join_rows
 
 SCHEMA_NAME = "foxglove.Log"
@@ -106,7 +107,7 @@ class LogEncoder:
         """The ``seconds`` field (proto3 leaves a zero out) of every second in ``seconds``."""
         if len(self._seconds) > 4096:  # a day has 86 400: keep the recent ones
             self._seconds.clear()
-        for second in np.unique(seconds).tolist():
+        for second in distinct(seconds).tolist():
             if second not in self._seconds:
                 self._seconds[second] = _number(1, second) if second else b""
         return self._seconds

@@ -34,6 +34,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, ChunkBatch
+from decoders.distinct import distinct
 from decoders.line import LineSettings
 from decoders.memo import Memo
 from decoders.message import NONE, ROLE_NAMES, AnnotatedBatch, Decoding, MessageBatch
@@ -230,7 +231,7 @@ class DecodedChannels:
         rows = np.flatnonzero(carried)
         if not len(rows):
             return
-        for slave in np.unique(slaves[rows]).tolist():
+        for slave in distinct(slaves[rows]).tolist():
             if not self._param_channels[slave]:
                 self._param_channels[slave] = self._writer.add_channel(
                     f"/slave/{slave}/params", "json", self._params_schema, {}

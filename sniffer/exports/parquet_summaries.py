@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
 
+from decoders.distinct import distinct
 from decoders.message import AnnotatedBatch
 from decoders.modbus.columnar_text import Lines
 from decoders.profiles.naming import SHOWN_PARAMS
@@ -112,7 +113,7 @@ def _named_lines(base: pa.Array, base_at: npt.NDArray[np.int64], named_texts: li
     pieces: list[Any] = []
     place = np.empty(len(base_at), np.int64)
     laid = 0
-    for count in np.unique(counts).tolist():
+    for count in distinct(counts).tolist():
         frames = np.flatnonzero(counts == count)
         line = taken(base, base_at[frames])
         if count:

@@ -22,6 +22,7 @@ from operator import attrgetter, itemgetter
 import numpy as np
 import numpy.typing as npt
 
+from decoders.distinct import distinct
 from decoders.memo import Memo
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, AnnotatedBatch, Decoding, ParamValue, Role
 from decoders.modbus.annotate import KEPT_DECODINGS
@@ -144,7 +145,7 @@ class RerunExporter:
         """The frames of slaves: log lines, parameter values, states, latencies, error points."""
         messages, frames = batch.messages, batch.messages.frames
         index = positions + frames.first_index
-        for unknown in np.unique(slave[self._slave_ids[slave, 0] < 0]).tolist():
+        for unknown in distinct(slave[self._slave_ids[slave, 0] < 0]).tolist():
             self._known_slave(unknown)
         parts = self._parts_of(batch, positions)
         flags = messages.flags[positions]

@@ -20,6 +20,7 @@ from decoders.anomalies import anomaly_masks
 from decoders.capture import CaptureInfo
 from decoders.compare import Change
 from decoders.damage import RetryDiff
+from decoders.distinct import distinct
 from decoders.line import LineSettings
 from decoders.message import ROLE_CODE, AnnotatedBatch, DeviceIdentity, MessageBatch, Role
 from decoders.stats import Statistics
@@ -120,7 +121,7 @@ class ReportCollector(Sink):
         answered = np.isin(messages.role, _ANSWERS) & frames.crc_ok & (messages.latency_ns >= 0)
         slaves = messages.slave[answered]
         times, latency_ms = t_start[answered], messages.latency_ns[answered] / 1e6
-        for slave in np.unique(slaves).tolist():
+        for slave in distinct(slaves).tolist():
             self.slaves.add(slave)
             mine = slaves == slave
             timeline.add(f"latency:{slave}:max", "max", times[mine], latency_ms[mine])
