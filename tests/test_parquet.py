@@ -62,20 +62,34 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return folder
 
 
+def assert_frames_are_records(rows: list[dict[str, Any]], records: list[dict[str, Any]]) -> None:
+    rows = sorted(rows, key=lambda r: r["index"])
+    assert [r["index"] for r in rows] == [r["index"] for r in records]
+    for row, record in zip(rows, records, strict=True):
+        assert row["bytes"].hex() == record["hex"] and row["role"] == record["role"]
+        assert row["flags"] == record["flags"] and row["summary"] == record["summary"]
+        assert (row["slave"], row["function"], row["request_index"]) == \
+            (record["slave"], record["function"], record["request_index"])
+        assert row["t"] == record["t_ns"] and row["crc_ok"] == record["crc_ok"]
+        expected = None if record["latency_s"] is None else record["latency_s"] * 1e3
+        assert row["latency_ms"] == pytest.approx(expected)
+
+
 def test_frames_are_the_frame_records(dataset: Path, cli: Callable[..., Any]) -> None:
     for sample in SAMPLES:
         records = [r for r in cli("analyze", str(CAPTURES / sample), "--format", "jsonl", "--profile", "atv71").jsonl()
                    if r["kind"] == "frame"]
-        rows = sorted((r for r in table(dataset, "frames") if r["bus"] == Path(sample).stem), key=lambda r: r["index"])
-        assert [r["index"] for r in rows] == [r["index"] for r in records]
-        for row, record in zip(rows, records, strict=True):
-            assert row["bytes"].hex() == record["hex"] and row["role"] == record["role"]
-            assert row["flags"] == record["flags"] and row["summary"] == record["summary"]
-            assert (row["slave"], row["function"], row["request_index"]) == \
-                (record["slave"], record["function"], record["request_index"])
-            assert row["t"] == record["t_ns"] and row["crc_ok"] == record["crc_ok"]
-            expected = None if record["latency_s"] is None else record["latency_s"] * 1e3
-            assert row["latency_ms"] == pytest.approx(expected)
+        assert_frames_are_records([r for r in table(dataset, "frames") if r["bus"] == Path(sample).stem], records)
+
+
+def test_a_window_exports_its_frames_alone(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    """Frames of part of a batch: each column picks the window's rows."""
+    window = ["--around", "20", "--context", "7"]
+    sample = str(CAPTURES / "atv71-plc-poll.mcap")
+    assert cli("export", sample, *window, "--parquet", str(tmp_path), "-q").code == 0
+    records = [r for r in cli("analyze", sample, "--format", "jsonl", *window).jsonl() if r["kind"] == "frame"]
+    assert [r["index"] for r in records] == list(range(13, 28))
+    assert_frames_are_records(table(tmp_path, "frames"), records)
 
 
 def test_values_are_what_values_says(dataset: Path, cli: Callable[..., Any]) -> None:

@@ -36,6 +36,7 @@ import functools
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -242,28 +243,33 @@ def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], captu
     """The ``frames`` table's columns of the messages at ``positions`` (``summaries``: their
     batch's, :func:`~sniffer.exports.parquet_summaries.summaries`)."""
     messages, frames = batch.messages, batch.messages.frames
+    every = len(positions) == len(messages)  # every message, in order: the columns as they are
+
+    def at(column: npt.NDArray[Any]) -> npt.NDArray[Any]:
+        return column if every else column[positions]
+
     offsets = frames.offsets
-    starts, ends = offsets[:-1][positions], offsets[1:][positions]
+    starts, ends = at(offsets[:-1]), at(offsets[1:])
     raw = _binary(frames.data, starts, ends)
-    flag_lists = _flag_lists(messages.flags[positions])
-    latency = messages.latency_ns[positions]
+    flag_lists = _flag_lists(at(messages.flags))
+    latency = at(messages.latency_ns)
     columns = {
         "capture": dictionary(np.zeros(len(positions), np.int32), _one_text(capture)),
         "index": pa.array(positions + frames.first_index, pa.int64()),
-        "t": times(frames.t_start_ns[positions]),
-        "t_end": times(frames.t_end_ns[positions]),
-        "slave": nullable(messages.slave[positions], pa.int16()),
-        "function": nullable(messages.function[positions], pa.int16()),
-        "role": dictionary(messages.role[positions], _ROLES),
-        "crc_ok": pa.array(frames.crc_ok[positions], pa.bool_()),
-        "exception_code": nullable(messages.exception_code[positions], pa.int16()),
+        "t": times(at(frames.t_start_ns)),
+        "t_end": times(at(frames.t_end_ns)),
+        "slave": nullable(at(messages.slave), pa.int16()),
+        "function": nullable(at(messages.function), pa.int16()),
+        "role": dictionary(at(messages.role), _ROLES),
+        "crc_ok": pa.array(at(frames.crc_ok), pa.bool_()),
+        "exception_code": nullable(at(messages.exception_code), pa.int16()),
         "flags": flag_lists,
-        "request_index": nullable(messages.request_index[positions], pa.int64()),
+        "request_index": nullable(at(messages.request_index), pa.int64()),
         "latency_ms": pa.array(latency / 1e6, pa.float64(), mask=latency == NONE),
         "length": pa.array((ends - starts).astype(np.int32), pa.int32()),
         "bytes": raw,
-        "summary": summaries.of(None if len(positions) == len(batch.messages) else positions),
-        "protocol": dictionary(frames.protocols()[positions], _PROTOCOLS),
+        "summary": summaries.of(None if every else positions),
+        "protocol": dictionary(at(frames.protocols()), _PROTOCOLS),
     }
     return columns
 
