@@ -255,7 +255,7 @@ class ColumnarFrames:
         names = self.names
         if names is not None:
             sizes = self._sizes()
-            taken = np.repeat(self._param_starts()[rows], sizes[rows]) + within_runs(sizes[rows])
+            taken = spread(self._param_starts()[rows], sizes[rows])
             names = names._replace(row=names.row[taken], profile=None if names.profile is None else names.profile[rows])
         return ColumnarFrames(self.positions[rows], self.function[rows], self.kind[rows], self.address[rows],
                               self.count[rows], self.read_address[rows], self.read_count[rows], self.data[rows],
@@ -302,7 +302,7 @@ class ColumnarFrames:
         sizes = self._sizes()
         first_sizes = sizes[groups.firsts]
         starts = np.cumsum(first_sizes) - first_sizes
-        places: npt.NDArray[np.int64] = np.repeat(starts[groups.inverse], sizes) + within_runs(sizes)
+        places: npt.NDArray[np.int64] = spread(starts[groups.inverse], sizes)
         return places
 
     def _param_rows(self, valued: npt.NDArray[np.int64], counts: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:

@@ -87,7 +87,7 @@ def _pieces(frames: ColumnarFrames, data: bytes, *, fast: bool, pack: bool) -> I
     """The frames' lines by kind and function (``pack``: packed where laid out by numpy)."""
     kind, function = frames.kind, frames.function
     group = kind * 256 + function
-    for key in np.flatnonzero(np.bincount(group)).tolist():  # the keys there are (a sort: 5 times as long)
+    for key in distinct(group).tolist():
         rows = np.flatnonzero(group == key)
         kind_of, function_of = key >> 8, key & 0xFF
         if not fast:

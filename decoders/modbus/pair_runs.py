@@ -15,7 +15,7 @@ import numpy.typing as npt
 from decoders.frame import FrameBatch
 from decoders.message import ROLE_CODE, Role
 from decoders.modbus.codes import BROADCAST_ADDRESS
-from decoders.modbus.columnar import within_runs
+from decoders.modbus.columnar import spread
 from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, IS_EXCEPTION, Shapes
 
 _REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
@@ -95,7 +95,7 @@ class SettledRuns:
             at = np.arange(start, start + 2 * count, 2)
         else:
             starts, pairs = np.array(self.runs, np.int64).T
-            at = np.repeat(starts, pairs) + 2 * within_runs(pairs)
+            at = spread(starts, pairs, 2)
         asks, answers = self.active[at], self.active[at + 1]
         columns["role"][first + asks] = _REQUEST
         columns["role"][first + answers] = _RESPONSE

@@ -29,7 +29,7 @@ import orjson
 from decoders.distinct import distinct
 from decoders.message import ROLE_NAMES, MessageBatch
 from decoders.modbus.alike import alike
-from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, within_runs
+from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, spread
 from decoders.modbus.columnar_text import Lines, summary_pieces
 from decoders.modbus.columnar_text import summaries as base_summaries
 from sniffer.encoding.param_text import NO_VALUE_END, PARAM_JSON, PARAM_MEMBERS, WORDS, param_start, param_tables
@@ -172,7 +172,7 @@ def _record_tails(params: ColumnarParams, summaries: list[bytes], named: npt.NDA
     layout = _Layout(2 * sizes + 4)
     base = layout.base
     layout.put(base, b'"params":[')
-    at = np.repeat(base + 1, sizes) + 2 * within_runs(sizes)
+    at = spread(base + 1, sizes, 2)
     starts, start_sizes = _by_address("starts", address)
     words = np.maximum(value, 0)
     ends, end_sizes = _table("value_ends")[words], _sizes("value_ends")[words]
@@ -214,7 +214,7 @@ def _numeric_members(params: ColumnarParams, named: npt.NDArray[Any] | None) -> 
     counts = np.bincount(frame[kept], minlength=len(sizes))
     # A frame's pieces: a key and a value per param, then '}' (nothing, when it carried none).
     layout = _Layout(2 * counts + 1)
-    at = np.repeat(layout.base, counts) + 2 * within_runs(counts)
+    at = spread(layout.base, counts, 2)
     keys, key_sizes = _by_address("keys", address[kept])
     words = np.maximum(value[kept], 0)  # a register's word or a coil's 0 or 1: looked up, not formatted
     numbers, number_sizes = _table("numbers")[words], _sizes("numbers")[words]

@@ -18,7 +18,7 @@ import numpy.typing as npt
 from decoders.frame import FrameFlag, flag_set
 from decoders.message import NONE, ROLE_NAMES, MessageBatch
 from decoders.modbus.annotate import mostly_distinct
-from decoders.modbus.columnar import within_runs
+from decoders.modbus.columnar import spread
 from sniffer.encoding.blocks import Block, times_matrix
 from sniffer.encoding.float_text import float_texts
 from sniffer.encoding.rows import Column, Pieces, Table, hex_texts, join_rows, number_texts, or_null
@@ -133,7 +133,7 @@ def identities_at(batch: MessageBatch, positions: npt.NDArray[np.int64]) -> Piec
     """:func:`_identities` of the frames at ``positions`` only."""
     frames = batch.frames
     starts, sizes = frames.offsets[positions], np.diff(frames.offsets)[positions]
-    taken = np.frombuffer(frames.data, np.uint8)[np.repeat(starts, sizes) + within_runs(sizes)]
+    taken = np.frombuffer(frames.data, np.uint8)[spread(starts, sizes)]
     offsets = np.zeros(len(positions) + 1, np.int64)
     np.cumsum(sizes, out=offsets[1:])
     return _identity_pieces(batch, hex_texts(taken.tobytes(), offsets, quoted=True), positions)

@@ -45,7 +45,7 @@ import pyarrow as pa
 from decoders.anomalies import KINDS, anomaly_masks
 from decoders.frame import flag_names_of
 from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch
-from decoders.modbus.columnar import within_runs
+from decoders.modbus.columnar import spread
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.latency_bins import DAY_NS
 from sniffer.exports.parquet_summaries import Summaries
@@ -285,7 +285,7 @@ def _flag_lists(flags: npt.NDArray[np.integer]) -> pa.ListArray:
     offsets = np.zeros(len(lengths) + 1, np.int32)
     np.cumsum(lengths, out=offsets[1:])
     every_name = np.array([name for each in names for name in each] or [""], object)
-    taken = every_name[np.repeat(firsts[which], lengths) + within_runs(lengths)]
+    taken = every_name[spread(firsts[which], lengths)]
     return pa.ListArray.from_arrays(pa.array(offsets, pa.int32()), pa.array(taken.tolist(), pa.string()))
 
 

@@ -23,7 +23,7 @@ import numpy.typing as npt
 import pyarrow as pa
 
 from decoders.message import NONE, ParamValue
-from decoders.modbus.columnar import within_runs
+from decoders.modbus.columnar import spread
 from sniffer.exports.arrow_compute import taken
 from sniffer.exports.parquet_export import dictionary, nullable, times
 from sniffer.exports.parquet_values import ROW_COLUMNS, CollectedValues, NumericValues, param_columns
@@ -134,7 +134,7 @@ def _named_rows(found: CollectedValues) -> LaidRows:
             params += block
         starts.append(start)
     counts = np.fromiter(map(len, found.blocks), np.int64, len(found.blocks))
-    entry = np.repeat(np.array(starts, np.int64), counts) + within_runs(counts)
+    entry = spread(np.array(starts, np.int64), counts)
     own = list(zip(*found.named, strict=True)) or [()] * 5  # the rows' own columns
 
     def each(field: int) -> npt.NDArray[np.int64]:
@@ -204,7 +204,7 @@ def _run_values(found: CollectedValues) -> NumericValues:
     run_counts = np.array([run.size for run in runs], np.int64)
     counts = np.array([sum(run.size for run in row.runs or ()) for row in rows], np.int64)
     total = int(run_counts.sum())
-    address = np.repeat(np.array([run.address for run in runs], np.int64), run_counts) + within_runs(run_counts)
+    address = spread(np.array([run.address for run in runs], np.int64), run_counts)
     request = [NONE if row.request_index is None else row.request_index for row in rows]
 
     def each(values: Sequence[int]) -> npt.NDArray[np.int64]:
