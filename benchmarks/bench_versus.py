@@ -1,7 +1,7 @@
 """This checkout against an earlier commit, side by side: the commands alternate; prints a table.
 
-    python -m benchmarks.bench_versus REV [--frames 1000000] [--runs 2] [--keep DIR] [--threads]
-                                          [--only stats:steady jsonl:coils ...]
+    python -m benchmarks.bench_versus REV [--frames 1000000] [--runs 2] [--keep DIR]
+                                          [--threads | --instructions] [--only stats:steady jsonl:coils ...]
 
 On a shared machine whose speed drifts by a quarter within minutes, two passes made minutes
 apart say little about a change; here every command runs on ``REV`` and on this checkout one
@@ -15,6 +15,13 @@ and the ratio of the medians (earlier / this checkout: above 1 is faster now).
 ``--threads``: each command runs under :mod:`benchmarks.thread_clock`, and a second line per
 command gives the medians of where its CPU went: the main thread (which annotates and writes,
 and bounds the exports), the decoding process, the Parquet writing thread.
+
+``--instructions``: instead of seconds, the instructions each command executes (billions),
+counted by valgrind's callgrind in every process (the decoding process's on a second line), with
+``PYTHONHASHSEED=0``. A machine's load and clock move seconds by ±10 % here; they do not move
+these counts, which differ by a few hundredths of a percent from run to run: a change of 2 %
+shows. One run takes about 60 s for 100 000 frames (``--frames 100000``); instructions are not
+time (a cache miss costs more than an addition), so a change that counts less is then timed.
 """
 
 from __future__ import annotations
@@ -69,6 +76,39 @@ def _timed(tree: Path, argv: list[str], *, threads: bool = False) -> dict[str, f
     return {**clocks, "wall": seconds}
 
 
+def _counted(tree: Path, argv: list[str], scratch: Path) -> dict[str, float]:
+    """The instructions (billions) ``rtusniff ARGV`` run from ``tree`` executes: ``wall`` all
+    its processes', ``children`` those of the processes it started (callgrind, one count per
+    process)."""
+    counts = scratch / f"callgrind-{time.monotonic_ns()}"
+    counts.mkdir()
+    with subprocess.Popen(["valgrind", "--tool=callgrind", "--trace-children=yes",
+                           f"--callgrind-out-file={counts}/%p", sys.executable, "-m", "sniffer", *argv],
+                          cwd=tree, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                          env={**os.environ, "PYTHONPATH": str(tree), "PYTHONHASHSEED": "0"}) as run:
+        _, errors = run.communicate()
+    if run.returncode != 0:
+        sys.exit(f"bench_versus: rtusniff {' '.join(argv)} under callgrind in {tree} failed: "
+                 f"{errors.decode().strip()[-500:]}")
+    # valgrind runs the command in its own process: the file named by its id is the command's.
+    by_process = {int(path.name): callgrind_total(path.read_text()) for path in counts.iterdir()}
+    shutil.rmtree(counts)
+    total = sum(by_process.values())
+    return {"wall": total / 1e9, "children": (total - by_process[run.pid]) / 1e9}
+
+
+def callgrind_total(text: str) -> int:
+    """The instructions a callgrind output file counts (its ``totals:`` line, else its ``summary:``)."""
+    found: dict[str, int] = {}
+    for line in text.splitlines():
+        key, _, value = line.partition(":")
+        if key in ("totals", "summary") and value.strip():
+            found[key] = int(value.split()[0])
+    if not found:
+        raise ValueError("no totals: or summary: line in a callgrind output")
+    return found.get("totals", found.get("summary", 0))
+
+
 def _where(figures: list[dict[str, float]]) -> str:
     """The medians of the main thread's, the decoding process's and the writing thread's CPU."""
     return " / ".join(f"{statistics.median(run[key] for run in figures):.2f}" for key in ("main", "children", "writer"))
@@ -90,6 +130,8 @@ def main() -> None:
     parser.add_argument("--keep", type=Path, help="keep (and reuse) the generated captures in this folder")
     parser.add_argument("--threads", action="store_true",
                         help="also the CPU of the main thread, the decoding process and the writing thread")
+    parser.add_argument("--instructions", action="store_true",
+                        help="instructions executed (callgrind; billions) instead of seconds")
     parser.add_argument("--only", type=_case, nargs="+", default=[_case(c) for c in DEFAULT_CASES],
                         metavar="COMMAND:TRAFFIC")
     args = parser.parse_args()
@@ -102,18 +144,26 @@ def main() -> None:
             for tree in (earlier, ROOT):
                 subprocess.run([sys.executable, "-m", "compileall", "-q", "sniffer", "decoders"], cwd=tree,
                                stdout=subprocess.DEVNULL, check=True)
-            print(f"{args.frames:,} frames, {args.runs} runs each, alternating; seconds")
+            unit = "billions of instructions (callgrind)" if args.instructions else "seconds"
+            print(f"{args.frames:,} frames, {args.runs} runs each, alternating; {unit}")
             print(f"{'command':<8} {'traffic':<8} {commit:>20} {'this checkout':>20} {'ratio':>6}")
             for command, traffic in args.only:
                 capture = benchmark_capture(args.keep or scratch, args.frames, traffic)
                 runs: dict[Path, list[dict[str, float]]] = {earlier: [], ROOT: []}
                 for _ in range(args.runs):
                     for tree in (earlier, ROOT):
-                        runs[tree].append(_timed(tree, _argv(command, capture, scratch), threads=args.threads))
+                        argv = _argv(command, capture, scratch)
+                        runs[tree].append(_counted(tree, argv, scratch) if args.instructions else
+                                          _timed(tree, argv, threads=args.threads))
                 times = {tree: [run["wall"] for run in figures] for tree, figures in runs.items()}
                 ratio = statistics.median(times[earlier]) / statistics.median(times[ROOT])
-                shown = {tree: ", ".join(f"{s:.2f}" for s in figures) for tree, figures in times.items()}
-                print(f"{command:<8} {traffic:<8} {shown[earlier]:>20} {shown[ROOT]:>20} {ratio:>6.2f}")
+                digits, ratio_digits = (3, 4) if args.instructions else (2, 2)
+                shown = {tree: ", ".join(f"{s:.{digits}f}" for s in figures) for tree, figures in times.items()}
+                print(f"{command:<8} {traffic:<8} {shown[earlier]:>20} {shown[ROOT]:>20} {ratio:>6.{ratio_digits}f}")
+                if args.instructions:
+                    children = {tree: ", ".join(f"{run['children']:.3f}" for run in figures)
+                                for tree, figures in runs.items()}
+                    print(f"{'':<8} {'children':<8} {children[earlier]:>20} {children[ROOT]:>20}")
                 if args.threads:
                     where = {tree: _where(figures) for tree, figures in runs.items()}
                     print(f"{'':<8} {'main/decoding/writer':<8} {where[earlier]:>20} {where[ROOT]:>20}")
