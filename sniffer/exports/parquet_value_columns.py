@@ -26,7 +26,7 @@ from decoders.message import NONE, ParamValue
 from decoders.modbus.columnar import spread
 from sniffer.exports.arrow_compute import taken
 from sniffer.exports.parquet_export import dictionary, nullable, times
-from sniffer.exports.parquet_values import ROW_COLUMNS, CollectedValues, NumericValues, param_columns
+from sniffer.exports.parquet_values import ROW_COLUMNS, RUN_COLUMNS, CollectedValues, NumericValues, param_columns
 from sniffer.exports.value_bulk import VALUE_KINDS, WRITTEN
 
 _VALUE_KINDS = pa.array(VALUE_KINDS)  # made once: 0.1 ms each time, a batch's dictionary
@@ -86,8 +86,9 @@ def value_columns(found: CollectedValues, numeric: NumericValues | None = None) 
 def _joined(named: LaidRows, numeric: LaidRows, laid_out: NumericValues, found: CollectedValues) -> LaidRows:
     """The rows of both, in the order found (where each was found, then found when)."""
     counts = np.fromiter(map(len, found.blocks), np.int64, len(found.blocks))
-    order = np.lexsort((np.concatenate([np.repeat(np.array(found.named_order, np.int64), counts), laid_out.order]),
-                        np.concatenate([np.repeat(np.array(found.named_at, np.int64), counts), laid_out.found])))
+    numeric_found, numeric_order = laid_out.found_and_order()
+    order = np.lexsort((np.concatenate([np.repeat(np.array(found.named_order, np.int64), counts), numeric_order]),
+                        np.concatenate([np.repeat(np.array(found.named_at, np.int64), counts), numeric_found])))
     columns = {name: np.concatenate([getattr(named, name), getattr(numeric, name)])[order] for name in _NUMBER_COLUMNS}
     entry = np.concatenate([named.entries(), numeric.entries() + len(named.texts[0])])[order]
     texts = tuple(mine + theirs for mine, theirs in zip(named.texts, numeric.texts, strict=True))
@@ -190,11 +191,15 @@ def _numeric_rows(rows: NumericValues) -> LaidRows:
 
 
 def _in_order(parts: list[NumericValues]) -> NumericValues:
-    """The rows of ``parts`` as one, in the order found."""
-    joined = {name: np.concatenate([getattr(part, name) for part in parts]) for name in ROW_COLUMNS}
-    order = np.lexsort((joined["order"], joined["found"]))
+    """The rows of ``parts`` as one, in the order found: their runs put in order (a stable sort,
+    as of the rows: a run's rows share their keys), then the rows run by run."""
+    joined = {name: np.concatenate([getattr(part, name) for part in parts]) for name in ROW_COLUMNS + RUN_COLUMNS}
+    sizes = joined["run_sizes"]
+    runs = np.lexsort((joined["run_order"], joined["run_found"]))
+    rows = spread((np.cumsum(sizes) - sizes)[runs], sizes[runs])
     names = next((part.names for part in parts if part.names is not None), None)
-    return NumericValues(**{name: column[order] for name, column in joined.items()}, names=names)
+    return NumericValues(**{name: joined[name][rows] for name in ROW_COLUMNS},
+                         **{name: joined[name][runs] for name in RUN_COLUMNS}, names=names)
 
 
 def _run_values(found: CollectedValues) -> NumericValues:
@@ -214,6 +219,6 @@ def _run_values(found: CollectedValues) -> NumericValues:
         each([row.t_ns for row in rows]), each([row.index for row in rows]), each([row.slave for row in rows]),
         np.repeat(np.array([VALUE_KINDS.index(row.kind) for row in rows], np.int32), counts), address,
         np.fromiter(itertools.chain.from_iterable(run.values or () for run in runs), np.int64, total),
-        each(request), np.repeat(np.array([row.valid[0] for row in rows], np.bool_), counts), each(found.run_at),
-        each(found.run_order), np.full(total, -1, np.int64))
+        each(request), np.repeat(np.array([row.valid[0] for row in rows], np.bool_), counts),
+        np.full(total, -1, np.int64), counts, np.array(found.run_at, np.int64), np.array(found.run_order, np.int64))
 

@@ -67,9 +67,12 @@ class CollectedValues:
 
 @dataclass(frozen=True)
 class NumericValues:
-    """Rows of values in columns (``found``: the frame index each was found at): of runs no
-    profile names, and of frames left in columns, whose profiles may name them (``name``: each
-    row's entry in ``names``, -1 where none does)."""
+    """Rows of values in columns: of runs no profile names, and of frames left in columns, whose
+    profiles may name them (``name``: each row's entry in ``names``, -1 where none does). Rows
+    come in runs (``run_sizes``: the rows of each, one after the other), each found at once: the
+    frame index where (``run_found``) and its place among what was found there (``run_order``);
+    kept per run, the rows' own are made only where rows are put in order among others
+    (:meth:`found_and_order`): for 1 M coil frames, two columns of 12.7 M rows fewer."""
 
     t_ns: npt.NDArray[np.int64]
     index: npt.NDArray[np.int64]
@@ -81,20 +84,27 @@ class NumericValues:
     raw: npt.NDArray[np.integer[Any]]
     request_index: npt.NDArray[np.int64]
     valid: npt.NDArray[np.bool_]
-    found: npt.NDArray[np.int64]
-    #: The place of each row's run among the rows found (for frames in columns, which are found
-    #: where no other row is: 0 for a write's values, 1 for its answer's, as the rule has them).
-    order: npt.NDArray[np.int64]
     name: npt.NDArray[np.int64]
+    run_sizes: npt.NDArray[np.int64]
+    run_found: npt.NDArray[np.int64]
+    #: The place of each run among the rows found (for frames in columns, which are found where
+    #: no other row is: 0 for a write's values, 1 for its answer's, as the rule has them).
+    run_order: npt.NDArray[np.int64]
     #: What the rows' entries are (:class:`decoders.modbus.columnar.ColumnarNames`), ``None``: none.
     names: ColumnarNames | None = None
 
     def __len__(self) -> int:
         return len(self.t_ns)
 
+    def found_and_order(self) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+        """Each row's run's ``run_found`` and ``run_order``."""
+        return np.repeat(self.run_found, self.run_sizes), np.repeat(self.run_order, self.run_sizes)
 
-#: The columns of :class:`NumericValues`, laid end to end by :func:`_in_order`.
-ROW_COLUMNS = [name for name in NumericValues.__dataclass_fields__ if name != "names"]
+
+#: The columns of :class:`NumericValues` with a value per row, laid end to end by ``_in_order``.
+ROW_COLUMNS = ["t_ns", "index", "slave", "kind", "address", "raw", "request_index", "valid", "name"]
+#: Those with a value per run.
+RUN_COLUMNS = ["run_sizes", "run_found", "run_order"]
 
 
 class ValueCollector(ValueRows):
@@ -240,9 +250,9 @@ def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
     name = np.broadcast_to(np.int64(-1), count) if rows.name is None else rows.name
     return NumericValues(each(frames.t_start_ns[rows.frame]), each(index), each(messages.slave[rows.frame]),
                          each(np.where(written, WRITTEN, REPORTED).astype(np.int32)), rows.address, rows.raw,
-                         each(np.where(written, index, rows.request)), np.ones(count, np.bool_),
-                         found=each(rows.found + first), order=each(np.where(written, 0, 1)), name=name,
-                         names=columnar.names)
+                         each(np.where(written, index, rows.request)), np.ones(count, np.bool_), name=name,
+                         run_sizes=rows.counts, run_found=rows.found + first,
+                         run_order=np.where(written, 0, 1).astype(np.int64), names=columnar.names)
 
 
 def param_columns(params: list[ParamValue]) -> tuple[list[str | None], list[str | None], list[float | None],
