@@ -156,10 +156,12 @@ class ParquetDataset:
         batch = pa.RecordBatch.from_arrays(list(columns.values()), schema=schema)
         if not len(t_ns):
             return
-        days = t_ns // DAY_NS
-        first, last = int(days.min()), int(days.max())
+        # The first and last day from the least and greatest time: a day for every row is made
+        # only for a batch across midnight (dividing 12.7 M times took 40 ms of 1 M coil frames).
+        first, last = int(t_ns.min()) // DAY_NS, int(t_ns.max()) // DAY_NS
+        days = t_ns // DAY_NS if first != last else None
         for day in range(first, last + 1):
-            rows = batch if first == last else batch.filter(pa.array(days == day))
+            rows = batch if days is None else batch.filter(pa.array(days == day))
             if rows.num_rows:
                 self._hold(table, day, rows)
         self.rows[table] += batch.num_rows
