@@ -101,10 +101,10 @@ class NumericValues:
         return np.repeat(self.run_found, self.run_sizes), np.repeat(self.run_order, self.run_sizes)
 
 
-#: The columns of :class:`NumericValues` with a value per row, laid end to end by ``_in_order``.
-ROW_COLUMNS = ["t_ns", "index", "slave", "kind", "address", "raw", "request_index", "valid", "name"]
-#: Those with a value per run.
+#: The columns of :class:`NumericValues` with a value per run, and those with a value per row,
+#: laid end to end by ``_in_order``.
 RUN_COLUMNS = ["run_sizes", "run_found", "run_order"]
+ROW_COLUMNS = [name for name in NumericValues.__dataclass_fields__ if name not in (*RUN_COLUMNS, "names")]
 
 
 class ValueCollector(ValueRows):
