@@ -352,5 +352,5 @@ def _binary(data: bytes, starts: npt.NDArray[np.int64], ends: npt.NDArray[np.int
         body = data[int(starts[0]) : int(ends[-1])]  # contiguous: every frame of the batch
     else:
         raw = np.frombuffer(data, np.uint8)
-        body = raw[np.repeat(starts - offsets[:-1], lengths) + np.arange(int(offsets[-1]))].tobytes()
+        body = raw[spread(starts, lengths)].tobytes()
     return pa.Array.from_buffers(pa.binary(), len(starts), [None, pa.py_buffer(offsets), pa.py_buffer(body)])
