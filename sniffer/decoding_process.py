@@ -4,9 +4,9 @@ An export spends more per frame building and writing messages than reading, fram
 pairing cost; in one process the two add up. Here a forked child runs
 :class:`decoders.pipeline.Decoder` over the reader and sends each step (the chunks read, the
 message batches they completed) through a pipe, pickled: columns, a few hundred bytes a frame
-at most. A thread of the parent receives them, up to :data:`RECEIVED_AHEAD` ahead of their use.
-The parent annotates and runs the view, exactly as in one process, so the output is the same
-byte for byte.
+at most, their arrays' memory written as it lies (:mod:`sniffer.step_pipe`). A thread of the
+parent receives them, up to :data:`RECEIVED_AHEAD` ahead of their use. The parent annotates
+and runs the view, exactly as in one process, so the output is the same byte for byte.
 
 The child is forked before the view starts any thread. It ignores Ctrl-C (the parent stops
 it), and it ends when the parent stops reading (the pipe breaks) or kills it. Its failures come
@@ -25,8 +25,7 @@ import threading
 import traceback
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
-from multiprocessing.connection import Connection, Pipe
-from typing import Generic, NoReturn, TypeVar
+from typing import Generic, NoReturn, TypeVar, cast
 
 from decoders.capture import ChunkBatch, joined_batches
 from decoders.message import MessageBatch
@@ -34,6 +33,7 @@ from decoders.pipeline import Decoder
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.base import CaptureReader
 from sniffer.io.following import QUIET_NS
+from sniffer.step_pipe import receive_item, send_item
 
 #: Pipe buffer asked for (Linux; 64 KiB otherwise): about three batches, so that the child runs
 #: ahead of the parent without a context switch per 64 KiB.
@@ -150,13 +150,13 @@ class ChildDecoding(Generic[Prepared]):
         join: tuple[int, int] | None = None,
     ) -> None:
         self._reader = reader
-        self._receive, send = Pipe(duplex=False)
+        self._receive, send = os.pipe()
         _widen(send)
         pid = os.fork()
         if pid == 0:
-            self._receive.close()
+            os.close(self._receive)
             _child(send, decode_here(reader, decoder, prepare, join=join), reader, with_chunks)
-        send.close()
+        os.close(send)
         self._child = _Child(pid)
         #: The child's process id.
         self.pid = pid
@@ -188,7 +188,7 @@ class ChildDecoding(Generic[Prepared]):
         while self._receiver.is_alive():
             with contextlib.suppress(queue.Empty):  # room for the thread's last item
                 self._received.get(timeout=0.05)
-        self._receive.close()
+        os.close(self._receive)
 
     def _receive_all(self) -> None:
         """In the receiving thread: every item the child sends, then ``None`` if the pipe ended
@@ -196,7 +196,7 @@ class ChildDecoding(Generic[Prepared]):
         while True:
             item: DecodingStep[Prepared] | _Ended | _Failed | None
             try:
-                item = self._receive.recv()
+                item = cast("DecodingStep[Prepared] | _Ended | _Failed", receive_item(self._receive))
             except (EOFError, OSError):
                 item = None
             except Exception as exc:  # a step that does not unpickle here: the parent raises it
@@ -228,7 +228,7 @@ class _Child:
 
 
 def _child(
-    send: Connection, steps: Iterator[DecodingStep[Prepared]], reader: CaptureReader, with_chunks: bool
+    send: int, steps: Iterator[DecodingStep[Prepared]], reader: CaptureReader, with_chunks: bool
 ) -> NoReturn:
     """Decode and send until done; never returns, never runs the parent's clean-up (``os._exit``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -242,7 +242,7 @@ def _child(
 
 
 def _decode_and_send(
-    send: Connection, steps: Iterator[DecodingStep[Prepared]], reader: CaptureReader, with_chunks: bool
+    send: int, steps: Iterator[DecodingStep[Prepared]], reader: CaptureReader, with_chunks: bool
 ) -> int:
     """0 when all is sent; 1 when the parent stopped reading (it has its own error to tell, or
     was interrupted). Only sending is guarded: an ``OSError`` of the reader is a failure to report."""
@@ -252,15 +252,15 @@ def _decode_and_send(
     return 0 if _sent(send, _Ended(reader.warnings)) else 1
 
 
-def _sent(send: Connection, item: object) -> bool:
+def _sent(send: int, item: object) -> bool:
     try:
-        send.send(item)
+        send_item(send, item)
     except OSError:
         return False
     return True
 
 
-def _report(send: Connection, exc: BaseException, warnings: list[str]) -> None:
+def _report(send: int, exc: BaseException, warnings: list[str]) -> None:
     failure = _Failed(exc, traceback.format_exc(), warnings)
     try:
         _sent(send, failure)
@@ -268,7 +268,7 @@ def _report(send: Connection, exc: BaseException, warnings: list[str]) -> None:
         _sent(send, _Failed(RuntimeError(f"{type(exc).__name__}: {exc}"), failure.child_traceback, warnings))
 
 
-def _widen(send: Connection) -> None:
+def _widen(send: int) -> None:
     try:
         import fcntl  # noqa: PLC0415 (POSIX only; the child process exists only where os.fork does)
     except ImportError:
@@ -277,4 +277,4 @@ def _widen(send: Connection) -> None:
     if setting is not None:
         # A limit on pipe sizes (/proc/sys/fs/pipe-max-size) leaves the default: it works, slower.
         with contextlib.suppress(OSError):
-            fcntl.fcntl(send.fileno(), setting, PIPE_SIZE)
+            fcntl.fcntl(send, setting, PIPE_SIZE)

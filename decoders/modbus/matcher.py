@@ -40,6 +40,7 @@ frames outside such runs one by one, reading them from short windows of lists
 
 from __future__ import annotations
 
+import itertools
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -368,19 +369,20 @@ class Matcher:
 
     def _learn_many(self, latencies: npt.NDArray[np.int64]) -> None:
         """Derive the timeout from the longest recent latency: after every answer at first,
-        then every ``LEARN_EVERY`` answers, as the window stood then. Only the last
-        ``LATENCY_WINDOW`` latencies before a point count: only those become Python numbers."""
+        then every ``LEARN_EVERY`` answers, as the window stood then. Only the last of those
+        checkpoints counts, and only the last ``LATENCY_WINDOW`` latencies before it."""
         before = self._learned
         self._learned += len(latencies)
-        checkpoints = [n for n in range(before + 1, min(self._learned, LEARN_EVERY - 1) + 1)]
-        last_multiple = self._learned - self._learned % LEARN_EVERY
-        if last_multiple > before:
-            checkpoints.append(last_multiple)
-        if checkpoints:
-            # The window as it stood after the last checkpoint's answer.
-            upto = max(checkpoints) - before
-            recent = [*self._latencies, *latencies[max(upto - LATENCY_WINDOW, 0) : upto].tolist()][-LATENCY_WINDOW:]
-            self._adaptive_timeout_ns = _derived_timeout_ns(max(recent))
+        first_ones = min(self._learned, LEARN_EVERY - 1)
+        last = max(first_ones if first_ones > before else 0, self._learned - self._learned % LEARN_EVERY)
+        if last > before:
+            upto = last - before  # these answers up to the checkpoint's
+            longest = int(latencies[max(upto - LATENCY_WINDOW, 0) : upto].max())
+            earlier = LATENCY_WINDOW - upto  # the window's part before these answers
+            if earlier > 0 and self._latencies:
+                skipped = max(len(self._latencies) - earlier, 0)
+                longest = max(longest, *itertools.islice(self._latencies, skipped, None))
+            self._adaptive_timeout_ns = _derived_timeout_ns(longest)
         self._latencies.extend(latencies[-LATENCY_WINDOW:].tolist())
 
 

@@ -272,8 +272,13 @@ def test_a_run_sees_the_longest_latency_at_its_window_s_very_edge() -> None:
     run of answers is learned after others: it counts exactly while the window holds it."""
     from decoders.modbus.matcher import LATENCY_WINDOW, LEARN_EVERY
 
-    for before, run in ((LATENCY_WINDOW + 40, 3 * LEARN_EVERY), (LATENCY_WINDOW, LEARN_EVERY), (70, 26)):
-        for spike in range(before - LATENCY_WINDOW, before):
+    # The window at the run's last checkpoint: partly before the run (earlier runs), or wholly
+    # inside it (a run longer than the window), with one earlier answer in it, or none.
+    cases = ((LATENCY_WINDOW + 40, 3 * LEARN_EVERY), (LATENCY_WINDOW, LEARN_EVERY), (70, 26),
+             (LEARN_EVERY + 1, LATENCY_WINDOW - 1), (LEARN_EVERY, LATENCY_WINDOW + 44))
+    for before, run in cases:
+        checkpoint = (before + run) // LEARN_EVERY * LEARN_EVERY
+        for spike in range(checkpoint - LATENCY_WINDOW - 2, checkpoint):
             latencies = [1_000_000] * (before + run)
             latencies[max(spike, 0)] = 400_000_000
             reference, runs = Matcher(), Matcher()
