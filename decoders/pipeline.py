@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -13,9 +14,10 @@ from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.line_check import LineRateCheck
 from decoders.message import NONE, Message, MessageBatch
-from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
-from decoders.profiles.apply import ProfileApplier, ProfileBook
+
+if TYPE_CHECKING:
+    from decoders.profiles.apply import ProfileBook
 
 #: The most the delivery delay may raise the response timeout to.
 DELIVERY_FLOOR_CAP_NS = 3_000_000_000
@@ -70,6 +72,9 @@ def decode(
     batches: Iterable[ChunkBatch], line: LineSettings, timing: TimingQuality, profiles: ProfileBook | None = None
 ) -> Iterator[Message]:
     """All decoded messages of a capture, streaming; ``profiles`` name the registers."""
+    from decoders.modbus.annotate import Annotator  # noqa: PLC0415 - framing and pairing need not import it
+    from decoders.profiles.apply import ProfileApplier  # noqa: PLC0415 - the same
+
     decoder = Decoder(line, timing)
     annotator = Annotator(ProfileApplier(profiles) if profiles is not None else None)
     for batch in batches:

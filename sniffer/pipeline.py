@@ -6,7 +6,7 @@ from collections.abc import Callable, Iterable, Sequence
 from contextlib import closing
 from dataclasses import dataclass, replace
 from functools import partial
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -15,9 +15,7 @@ from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.frame import FrameBatch
 from decoders.line import LineSettings
 from decoders.message import AnnotatedBatch, MessageBatch, slice_messages
-from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
-from decoders.profiles.apply import ProfileApplier, ProfileBook
 from decoders.stats import SkippedReads, Statistics
 from sniffer.decoding_process import ChildDecoding, DecodingStep, decode_here
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -25,6 +23,10 @@ from sniffer.io.base import CaptureReader
 from sniffer.io.following import FollowingReader
 from sniffer.selection import EVERYTHING, Selection, Window
 from sniffer.sinks import Sink
+
+if TYPE_CHECKING:
+    from decoders.modbus.annotate import Annotator
+    from decoders.profiles.apply import ProfileBook
 
 #: Frames before a window whose requests are decoded for the answers inside it.
 OPEN_REQUESTS_BEFORE = 64
@@ -132,8 +134,10 @@ class Delivery:
         self._frame_sinks = [sink for sink in sinks if sink.wants_frames]
         self._message_sinks = [sink for sink in sinks if sink.wants_messages]
         self._counts = any(sink.wants_statistics for sink in sinks)
-        applier = ProfileApplier(profiles) if profiles is not None else None
-        self._annotator = Annotator(applier) if self._message_sinks else None
+        self._profiles = profiles
+        #: Made at the start (:meth:`start`): with two processes, after the decoding process is
+        #: forked, so that it does not wait for the decoders it never runs to be imported.
+        self._annotator: Annotator | None = None
         self._keep = keep
         #: Whether plain frames stay in columns (every message sink takes them; nothing filtered).
         self._in_columns = keep is None and not selection.windowed and selection.limit is None and all(
@@ -157,6 +161,11 @@ class Delivery:
         return None if self._window is None else self._window.missed()
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        if self._message_sinks:
+            from decoders.modbus.annotate import Annotator  # noqa: PLC0415 - imported after the fork (see above)
+            from decoders.profiles.apply import ProfileApplier  # noqa: PLC0415 - the same
+
+            self._annotator = Annotator(ProfileApplier(self._profiles) if self._profiles is not None else None)
         for sink in self.sinks:
             sink.start(source, info, line)
 

@@ -35,6 +35,7 @@ from decoders.framing.rule_tables import (
 )
 from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT
 from decoders.modbus.layouts import EXCEPTION_LENGTH, MAX_ADU
+from decoders.runs import spread
 
 
 def single_frame_segments(
@@ -241,8 +242,7 @@ def frame_pair_segments(
     np.cumsum(ends > 0, out=clean_before[1:])
     pauses_before = np.zeros(total + 1, np.int64)
     # Where each joined byte lies in ``data``: needed only to read the pauses or the errors.
-    at_data = None if pause_at is None and error_at is None else (
-        np.repeat(seg_starts - offsets[:-1], lengths) + np.arange(total))
+    at_data = None if pause_at is None and error_at is None else spread(seg_starts, lengths)
     if pause_at is not None:
         np.cumsum(pause_at[at_data], out=pauses_before[1:])
     begin, stop = offsets[:-1], offsets[1:]
@@ -284,7 +284,7 @@ def _reached_into_strays(data: bytes, registers: npt.NDArray[np.uint32],
         whole[index] = whole_run_frame(data, int(begin[index]), int(stop[index]))
     counts = split - begin
     owner = np.repeat(np.arange(len(begin)), counts)
-    positions = np.arange(int(counts.sum()), dtype=np.int64) + np.repeat(begin - (np.cumsum(counts) - counts), counts)
+    positions = spread(begin, counts)
     starts, ends = checked_readings(data, registers, positions, stop[owner])
     of = np.searchsorted(begin, starts, side="right") - 1
     reached = whole.copy()

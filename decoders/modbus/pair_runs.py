@@ -15,8 +15,8 @@ import numpy.typing as npt
 from decoders.frame import FrameBatch
 from decoders.message import ROLE_CODE, Role
 from decoders.modbus.codes import BROADCAST_ADDRESS
-from decoders.modbus.columnar import spread
 from decoders.modbus.shapes import FITS_REQUEST, FITS_RESPONSE, IS_EXCEPTION, Shapes
+from decoders.runs import spread
 
 _REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
 

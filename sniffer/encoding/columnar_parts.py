@@ -29,9 +29,10 @@ import orjson
 from decoders.distinct import distinct
 from decoders.message import ROLE_NAMES, MessageBatch
 from decoders.modbus.alike import alike
-from decoders.modbus.columnar import ColumnarFrames, ColumnarParams, spread
+from decoders.modbus.columnar import ColumnarFrames, ColumnarParams
 from decoders.modbus.columnar_text import Lines, summary_pieces
 from decoders.modbus.columnar_text import summaries as base_summaries
+from decoders.runs import spread
 from sniffer.encoding.param_text import NO_VALUE_END, PARAM_JSON, PARAM_MEMBERS, WORDS, param_start, param_tables
 from sniffer.encoding.rows import Pieces
 

@@ -18,7 +18,7 @@ import numpy.typing as npt
 from decoders.frame import FrameFlag, flag_set
 from decoders.message import NONE, ROLE_NAMES, MessageBatch
 from decoders.modbus.annotate import mostly_distinct
-from decoders.modbus.columnar import spread
+from decoders.runs import spread
 from sniffer.encoding.blocks import Block, times_matrix
 from sniffer.encoding.float_text import float_texts
 from sniffer.encoding.rows import Column, Pieces, Table, hex_texts, join_rows, number_texts, or_null

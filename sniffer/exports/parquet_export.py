@@ -45,7 +45,7 @@ import pyarrow as pa
 from decoders.anomalies import KINDS, anomaly_masks
 from decoders.frame import flag_names_of
 from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch
-from decoders.modbus.columnar import spread
+from decoders.runs import spread
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.latency_bins import DAY_NS
 from sniffer.exports.parquet_summaries import Summaries

@@ -23,7 +23,7 @@ import numpy.typing as npt
 import pyarrow as pa
 
 from decoders.message import NONE, ParamValue
-from decoders.modbus.columnar import spread
+from decoders.runs import spread
 from sniffer.exports.arrow_compute import taken
 from sniffer.exports.parquet_export import dictionary, nullable, times
 from sniffer.exports.parquet_values import ROW_COLUMNS, RUN_COLUMNS, CollectedValues, NumericValues, param_columns

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from decoders.modbus.columnar import spread, within_runs
+from decoders.runs import spread, within_runs
 
 
 @given(st.lists(st.tuples(st.integers(-70_000, 70_000), st.integers(0, 40)), max_size=30), st.integers(1, 8),

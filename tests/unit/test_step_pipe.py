@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
 import threading
@@ -32,10 +33,8 @@ def pipe() -> Iterator[tuple[int, int]]:
     read, write = os.pipe()
     yield read, write
     for fd in (read, write):
-        try:
+        with contextlib.suppress(OSError):  # closed by the test
             os.close(fd)
-        except OSError:
-            pass  # closed by the test
 
 
 def _through(pipe: tuple[int, int], *items: object) -> list[object]:
@@ -57,7 +56,8 @@ def _equal(a: object, b: object) -> bool:
     if isinstance(a, list | tuple):
         return type(a) is type(b) and len(a) == len(b) and all(map(_equal, a, b))  # type: ignore[arg-type]
     if isinstance(a, _Step):
-        return isinstance(b, _Step) and all(_equal(getattr(a, f), getattr(b, f)) for f in ("name", "data", "columns", "parts"))
+        fields = ("name", "data", "columns", "parts")
+        return isinstance(b, _Step) and all(_equal(getattr(a, f), getattr(b, f)) for f in fields)
     return a == b
 
 
