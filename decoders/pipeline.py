@@ -17,7 +17,7 @@ from decoders.message import NONE, Message, MessageBatch
 from decoders.modbus.matcher import Matcher
 
 if TYPE_CHECKING:
-    from decoders.profiles.apply import ProfileBook
+    from decoders.profiles.book import ProfileBook
 
 #: The most the delivery delay may raise the response timeout to.
 DELIVERY_FLOOR_CAP_NS = 3_000_000_000

@@ -25,7 +25,7 @@ from decoders.framer import LIVE_IDLE_NS
 from decoders.line import LineSettings
 from decoders.message import MessageBatch
 from decoders.pipeline import Decoder
-from decoders.profiles.apply import ProfileBook
+from decoders.profiles.book import ProfileBook
 from decoders.stats import SkippedReads
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.streams import StreamSink

@@ -26,7 +26,7 @@ from sniffer.sinks import Sink
 
 if TYPE_CHECKING:
     from decoders.modbus.annotate import Annotator
-    from decoders.profiles.apply import ProfileBook
+    from decoders.profiles.book import ProfileBook
 
 #: Frames before a window whose requests are decoded for the answers inside it.
 OPEN_REQUESTS_BEFORE = 64

@@ -6,7 +6,7 @@ from functools import cache
 from importlib.resources import files
 from pathlib import Path
 
-from decoders.profiles.apply import ProfileBook
+from decoders.profiles.book import ProfileBook
 from decoders.profiles.model import Profile
 from decoders.profiles.parse import ProfileError, parse_profile
 from sniffer.errors import ErrorKind, RtuSniffError

@@ -288,9 +288,9 @@ class ColumnarFrames:
         sizes = self._sizes()
         values = np.full(int(sizes.sum()), NO_VALUE, np.int64)
         values[self._param_rows(valued, counts)] = value
-        place = within_runs(sizes)
-        address = np.repeat(self.address, sizes) + place
+        address = spread(self.address, sizes)
         if self.read_count.any():  # FC 23 requests: their read span after their written one
+            place = within_runs(sizes)
             first_span = np.repeat(np.maximum(self.count, 0), sizes)
             read = np.flatnonzero(place >= first_span)
             address[read] = np.repeat(self.read_address, sizes)[read] + (place - first_span)[read]

@@ -77,7 +77,7 @@ def plain_codes(profile: Profile) -> bool:
 class FrameProfiles:
     """The profile each frame of a batch is named by, as the plain path names it in order: its
     slave's now, and from an identification in the batch (an FC 43 answer) that gives the slave
-    another profile on (:meth:`~decoders.profiles.apply.ProfileBook.profile_after`), that one.
+    another profile on (:meth:`~decoders.profiles.book.ProfileBook.profile_after`), that one.
     ``profiles``: each distinct one, ``adds_nothing``: whether it leaves a frame as it is
     (:func:`~decoders.profiles.apply.knows_nothing`), ``place``: each frame's; ``stops``: by
     slave, the position of a second identification in the batch that gives it yet another
