@@ -183,12 +183,16 @@ class ChildDecoding(Generic[Prepared]):
             return
 
     def close(self) -> None:
-        """Stops the child (unless it said it ended) and the receiving thread."""
+        """Stops the child (unless it said it ended) and the receiving thread; closes the pipe.
+        Once: a second call does nothing (a file descriptor is never closed twice, its number may
+        be another file's by then)."""
         self._child.stop()  # its end of the pipe closes: the thread's next receive ends
         while self._receiver.is_alive():
             with contextlib.suppress(queue.Empty):  # room for the thread's last item
                 self._received.get(timeout=0.05)
-        os.close(self._receive)
+        if self._receive >= 0:
+            os.close(self._receive)
+            self._receive = -1
 
     def _receive_all(self) -> None:
         """In the receiving thread: every item the child sends, then ``None`` if the pipe ended

@@ -215,6 +215,7 @@ def receiving_threads() -> list[threading.Thread]:
 
 def test_stopping_early_stops_the_child_and_the_receiving_thread() -> None:
     child = ChildDecoding(Reader(repeat=10**6), Decoder(LINE, TimingQuality.EXACT), with_chunks=False)
+    pipe = child._receive
     try:
         first = next(iter(child))
         assert first.chunks is None and first.batches
@@ -222,6 +223,9 @@ def test_stopping_early_stops_the_child_and_the_receiving_thread() -> None:
         child.close()
     assert_reaped(child)
     assert not receiving_threads()
+    with pytest.raises(OSError):
+        os.fstat(pipe)  # the pipe closed with them
+    child.close()  # once: nothing more to close
 
 
 def test_steps_are_received_ahead_while_the_parent_works() -> None:
