@@ -328,8 +328,14 @@ def test_bulk_runs_with_failed_slaves_are_the_loop(steps: list[tuple[str, int, i
                                     FrameFlag.NONE))
                 index, now = index + 1, now + latency_ms
         now += pause_ms
+    bulk, loop = _matched_both_ways(frames, splits, None if timeout_ms is None else timeout_ms * MS)
+    assert bulk == loop
+
+
+def _matched_both_ways(frames: list[Frame], splits: list[int],
+                       timeout_ns: int | None = None) -> list[list[tuple[object, ...]]]:
+    """What the matcher makes of ``frames`` in bulk and frame by frame, fed in batches of ``splits``."""
     results = []
-    timeout_ns = None if timeout_ms is None else timeout_ms * MS
     for bulk in (True, False):
         matcher, out, position, cut = Matcher(response_timeout_ns=timeout_ns, bulk=bulk), [], 0, 0
         while position < len(frames):
@@ -338,4 +344,36 @@ def test_bulk_runs_with_failed_slaves_are_the_loop(steps: list[tuple[str, int, i
             position, cut = position + size, cut + 1
         out += matcher.flush()
         results.append([(m.role, m.flags, m.request_index, m.latency_ns) for m in out])
-    assert results[0] == results[1]
+    return results
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.sampled_from([3, 3, 3, 3, 90]), max_size=300),
+       st.lists(st.sampled_from([3, 12, 45, 90]), max_size=90), st.integers(20, 700), st.integers(2, 40),
+       st.lists(st.integers(1, 90), min_size=1, max_size=4))
+def test_runs_beside_an_open_request_are_the_loop(before: list[int], after: list[int], late_ms: int, gap_ms: int,
+                                                  splits: list[int]) -> None:
+    """Slave 5's request left open (its answer comes late, past or within the timeout) while
+    slave 2's pairs go on, their latencies moving the derived timeout at its checkpoints (after
+    each of the first 31 answers, then every 32nd; up, or down as a long latency leaves the last
+    256): the pairs settled in bulk beside the open request leave its timeout, its answer and
+    their own pairing as the frame-by-frame loop does."""
+    times: list[tuple[int, bytes]] = []
+    now = 0
+    for latency in [*before, None, *after]:
+        if latency is None:
+            opened, now = now, now + gap_ms
+            times.append((opened, READ_5))
+            continue
+        times += [(now, READ_2), (now + latency, ANSWER_2)]
+        now += latency + gap_ms
+    asks = range(2 * len(before) + 1, len(times), 2)  # where slave 2's requests after the open one are
+    late = next((k for k in asks if times[k][0] > opened + late_ms), len(times))
+    times.insert(late, (opened + late_ms, ANSWER_5))  # between two of slave 2's pairs
+    frames, end = [], 0
+    for index, (start_ms, data) in enumerate(times):
+        start = max(start_ms * MS, end + MS)
+        end = start + len(data) * MS // 10
+        frames.append(Frame(index, start, end, data, True, FrameFlag.NONE))
+    bulk, loop = _matched_both_ways(frames, splits)
+    assert bulk == loop
