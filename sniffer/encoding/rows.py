@@ -19,6 +19,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from decoders.runs import spread
+
 #: A field of every row: the same bytes for all, or one piece per row.
 Column = bytes | Sequence[bytes]
 
@@ -162,7 +164,7 @@ def hex_texts(data: bytes, offsets: npt.NDArray[np.int64], *, quoted: bool = Fal
     np.cumsum(sizes[:-1] + 1, out=starts[1:])
     text = np.full(int(sizes.sum()) + count - 1, ord("|"), np.uint8)
     digits_at = starts + quotes // 2
-    byte_places = np.repeat(digits_at - 2 * (offsets[:-1] - offsets[0]), np.diff(offsets)) + 2 * np.arange(len(raw))
+    byte_places = spread(digits_at, np.diff(offsets), 2)  # two digits a byte, from each piece's first
     text[byte_places] = _HEX_DIGITS[raw >> 4]
     text[byte_places + 1] = _HEX_DIGITS[raw & 0x0F]
     if quoted:
