@@ -34,7 +34,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # run as a script:
 INSTRUMENTED = {
     "text": ("sniffer.io", "decoders.capture"),
     "mcap": ("sniffer.io", "decoders.capture"),
-    "framer": ("decoders.framer", "decoders.framing", "decoders.frame", "decoders.crc", "decoders.runs"),
+    "framer": ("decoders.framer", "decoders.framing", "decoders.frame", "decoders.crc", "decoders.runs",
+               "decoders.byte_times", "decoders.capture", "decoders.memo", "decoders.uss", "decoders.modbus.layouts"),
     "decoders": ("decoders.modbus", "decoders.profiles", "decoders.uss", "decoders.uss_pairing", "decoders.frame",
                  "decoders.message", "sniffer.encoding"),
     "profile": ("decoders.profiles",),
