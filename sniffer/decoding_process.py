@@ -73,18 +73,25 @@ class _Failed:
     warnings: list[str]
 
 
-def decoding_jobs(requested: str, *, follow: bool = False) -> int:
+def decoding_jobs(requested: str, *, follow: bool = False, paced: bool = False) -> int:
     """Processes to decode with: ``"1"``, ``"2"``, or ``"auto"`` (two where there are two cores
     for this process and ``os.fork``). Following a growing file decodes in one: the writer sets
-    the pace, and Ctrl-C (sent to this process alone by ``kill -INT``) must reach the reader."""
+    the pace, and Ctrl-C (sent to this process alone by ``kill -INT``) must reach the reader.
+    A paced replay (``paced``: ``--speed``, or a viewer watching a file) decodes in one too: its
+    pace bounds it, not the CPU, and its clock must start when this process reads its first
+    batch, after waiting for a viewer to subscribe. A decoding process would start the clock at
+    once and read on while this one waits, and the viewer would get the replay's first part in
+    one burst."""
     if requested not in ("auto", "1", "2"):
         if not requested.isdigit() or int(requested) < 1:
             raise RtuSniffError(ErrorKind.USAGE, f"--jobs {requested}: give auto, or a number of processes")
         requested = "2"  # one capture is decoded in two processes at most (more: --each)
-    if follow:
+    if follow or paced:
         if requested == "2":
             raise RtuSniffError(ErrorKind.USAGE, "--jobs 2 with --follow: a followed recording is decoded as it is "
-                                "written, in one process; leave --jobs out")
+                                "written, in one process; leave --jobs out" if follow else
+                                "--jobs 2 with a paced replay (--speed, or a live viewer watching a file): a replay "
+                                "is decoded in one process, at its pace; leave --jobs out, or give --speed max")
         return 1
     if requested == "2" and not hasattr(os, "fork"):
         raise RtuSniffError(ErrorKind.USAGE, "--jobs 2: this platform cannot fork a decoding process "

@@ -35,6 +35,9 @@ class FoxgloveClient:
         self.statuses: list[dict[str, Any]] = []
         self.server_info: dict[str, Any] | None = None
         self.subscribed = threading.Event()
+        #: When the first subscription was sent (time.monotonic): a replay that waits for a
+        #: viewer starts after it.
+        self.subscribed_at: float | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=lambda: asyncio.run(self._run()), daemon=True)
         self.error: BaseException | None = None
@@ -105,6 +108,8 @@ class FoxgloveClient:
                 self.channels[channel["id"]] = channel  # subscription id = channel id
             await ws.send(json.dumps({"op": "subscribe",
                                       "subscriptions": [{"id": c["id"], "channelId": c["id"]} for c in new]}))
+            if not self.subscribed.is_set():
+                self.subscribed_at = time.monotonic()
             self.subscribed.set()
         elif record["op"] == "status":
             self.statuses.append(record)

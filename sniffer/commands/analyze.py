@@ -22,6 +22,7 @@ from sniffer.commands.common import (
     check_outputs,
     open_analysis,
     open_output,
+    replay_speed,
     source_name,
     tell_written,
 )
@@ -83,6 +84,7 @@ FORMATS: dict[str, Callable[[TextIO, argparse.Namespace], Sink]] = {"table": tab
 def run(args: argparse.Namespace) -> int:
     check_outputs([args.output], capture_paths(args), force=args.force)
     check_streams(args)
+    jobs = decoding_jobs(args.jobs, follow=args.follow, paced=replay_speed(args) is not None)
     with ExitStack() as stack:
         out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)
@@ -94,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
         flushing = [FlushEachBatch(out)] if args.follow else []
         progress = stack.enter_context(progress_for(args, reader, streaming=args.output in (None, "-")))
         statistics = analyze(reader, source_name(args), analysis, [progress.sink, sink, *flushing, *streams],
-                             jobs=decoding_jobs(args.jobs, follow=args.follow))
+                             jobs=jobs)
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format}, {shown_frames(sink, statistics.frames):,} frames")])
     return 0

@@ -157,8 +157,8 @@ def add_jobs_option(parser: argparse.ArgumentParser) -> None:
         default="auto",
         metavar="auto|1|2|N",
         help="processes to decode with: 2 reads, frames and pairs in a second process while this one "
-        "annotates and writes (faster on two cores, same output); default auto: 2 where there are two cores. "
-        "With --each: captures decoded at once (auto: one per core)",
+        "annotates and writes (faster on two cores, same output); default auto: 2 where there are two cores "
+        "(1 with --follow and for a paced replay). With --each: captures decoded at once (auto: one per core)",
     )
 
 

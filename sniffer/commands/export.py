@@ -19,6 +19,7 @@ from sniffer.commands.common import (
     check_outputs,
     human_size,
     open_analysis,
+    replay_speed,
     source_name,
 )
 from sniffer.decoding_process import decoding_jobs
@@ -83,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
                             "or redirect it to a file")
     check_outputs([args.mcap, args.rrd, args.pcap], capture_paths(args), force=args.force)
     check_streams(args)
+    jobs = decoding_jobs(args.jobs, follow=args.follow, paced=replay_speed(args) is not None)
     with ExitStack() as stack:
         # Each file is written beside its name and put in place once whole: an export that fails
         # half way (a damaged capture, times MCAP cannot hold) leaves nothing that passes for one;
@@ -93,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
         sinks = output_sinks(argparse.Namespace(**{**vars(args), **parts}), analysis, stack)
         progress = stack.enter_context(progress_for(args, reader, streaming=args.pcap == "-"))
         analyze(reader, source_name(args), analysis, [progress.sink, *(sink for _, sink in sinks)],
-                jobs=decoding_jobs(args.jobs, follow=args.follow))
+                jobs=jobs)
     if not args.quiet:
         _tell_written(args, sinks)
     return 0
