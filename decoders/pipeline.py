@@ -73,10 +73,9 @@ def decode(
 ) -> Iterator[Message]:
     """All decoded messages of a capture, streaming; ``profiles`` name the registers."""
     from decoders.modbus.annotate import Annotator  # noqa: PLC0415 - framing and pairing need not import it
-    from decoders.profiles.apply import ProfileApplier  # noqa: PLC0415 - the same
 
     decoder = Decoder(line, timing)
-    annotator = Annotator(ProfileApplier(profiles) if profiles is not None else None)
+    annotator = Annotator.naming_by(profiles)
     for batch in batches:
         for messages in decoder.feed(batch):
             yield from annotator.annotate_all(messages)

@@ -88,10 +88,10 @@ def decoding_jobs(requested: str, *, follow: bool = False, paced: bool = False) 
         requested = "2"  # one capture is decoded in two processes at most (more: --each)
     if follow or paced:
         if requested == "2":
-            raise RtuSniffError(ErrorKind.USAGE, "--jobs 2 with --follow: a followed recording is decoded as it is "
-                                "written, in one process; leave --jobs out" if follow else
-                                "--jobs 2 with a paced replay (--speed, or a live viewer watching a file): a replay "
-                                "is decoded in one process, at its pace; leave --jobs out, or give --speed max")
+            why = ("--follow: a followed recording is decoded as it is written, in one process; leave --jobs out"
+                   if follow else "a paced replay (--speed, or a live viewer watching a file): a replay is decoded "
+                   "in one process, at its pace; leave --jobs out, or give --speed max")
+            raise RtuSniffError(ErrorKind.USAGE, f"--jobs 2 with {why}")
         return 1
     if requested == "2" and not hasattr(os, "fork"):
         raise RtuSniffError(ErrorKind.USAGE, "--jobs 2: this platform cannot fork a decoding process "

@@ -163,9 +163,8 @@ class Delivery:
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         if self._message_sinks:
             from decoders.modbus.annotate import Annotator  # noqa: PLC0415 - imported after the fork (see above)
-            from decoders.profiles.apply import ProfileApplier  # noqa: PLC0415 - the same
 
-            self._annotator = Annotator(ProfileApplier(self._profiles) if self._profiles is not None else None)
+            self._annotator = Annotator.naming_by(self._profiles)
         for sink in self.sinks:
             sink.start(source, info, line)
 

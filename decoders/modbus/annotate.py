@@ -53,6 +53,7 @@ from decoders.modbus.pdu_parse import parse_as
 from decoders.modbus.quick import QuickRead, register_reads
 from decoders.modbus.value_shapes import ValueShapes
 from decoders.profiles.apply import FrameFacts, ProfileApplier
+from decoders.profiles.book import ProfileBook
 from decoders.profiles.column_names import named
 from decoders.profiles.columns import frame_profiles, learning_slaves, plain_codes, unnameable
 from decoders.uss import parse_uss
@@ -91,6 +92,11 @@ class Annotator:
         self._decodings: Memo[DecodingKey, tuple[Decoding, AnswerContext]] = Memo(KEPT_DECODINGS)
         #: Frames decoded from their values alone where one of their shape was decoded before.
         self._shapes = ValueShapes(profiles)
+
+    @classmethod
+    def naming_by(cls, book: ProfileBook | None) -> Annotator:
+        """An annotator naming values by the profiles of ``book`` (``None``: naming none)."""
+        return cls(ProfileApplier(book) if book is not None else None)
 
     def annotate_batch(self, batch: MessageBatch) -> AnnotatedBatch:
         """Every message of the batch, decoded; repeats share one :class:`Decoding`.
