@@ -52,7 +52,7 @@ def inputs(scratch: Path, frames: int, quick: bool) -> Iterator[tuple[str, Path,
         yield f"real-{two_probes.name}", two_probes, ["--line", "19200 8E1", "--channel", "0", "--channel", "1"]
     if quick:
         return
-    from benchmarks.bench_memory import benchmark_capture  # noqa: PLC0415 - numpy and the writers, only here
+    from benchmarks.bench_memory import benchmark_capture  # numpy and the writers: only here
 
     for traffic in TRAFFICS:
         yield f"generated-{traffic}", benchmark_capture(scratch, frames, traffic), []
@@ -109,8 +109,8 @@ def _stable(text: bytes, folder: Path) -> bytes:
 def _parquet_as_text(folder: Path) -> None:
     """Each Parquet file of ``folder`` replaced by its schema and rows as text (a file's bytes
     carry the writer's version)."""
-    import pyarrow as pa  # noqa: PLC0415 - only for exports
-    import pyarrow.parquet as pq  # noqa: PLC0415
+    import pyarrow as pa  # only for exports
+    import pyarrow.parquet as pq
 
     for path in sorted(folder.rglob("*.parquet")):
         table = pq.read_table(path)
@@ -127,7 +127,7 @@ def _parquet_as_text(folder: Path) -> None:
 
 def _mcap_as_text(path: Path) -> None:
     """An MCAP file replaced by its records as text (its metadata carries the export's time)."""
-    from mcap.reader import make_reader  # noqa: PLC0415 - only for exports
+    from mcap.reader import make_reader  # only for exports
 
     lines: list[bytes] = []
     with path.open("rb") as stream:
