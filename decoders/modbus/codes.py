@@ -10,6 +10,11 @@ BROADCAST_ADDRESS = 0
 #: request for more is invalid, and a slave answers it with exception 03.
 MAX_QUANTITY: dict[int, int] = {1: 2000, 2: 2000, 3: 125, 4: 125, 15: 1968, 16: 123}
 MAX_READ_WRITE_QUANTITY = (125, 121)  # FC 23: read, write
+#: The data table each function reads or writes, as summaries name it.
+TABLE_NAMES: dict[int, str] = {1: "coils", 2: "inputs", 3: "HR", 4: "IR", 5: "coil", 6: "HR", 15: "coils", 16: "HR",
+                               23: "HR"}
+#: The Modicon reference base of each table, by the function code that reads or writes it.
+REFERENCE_BASE: dict[int, int] = {1: 1, 2: 10001, 3: 40001, 4: 30001, 5: 1, 6: 40001, 15: 1, 16: 40001, 23: 40001}
 #: Functions that read or write coils and discrete inputs: bits, a table of their own beside the
 #: registers (a coil at 3201 is not register 3201).
 BIT_FUNCTIONS = frozenset({1, 2, 5, 15})

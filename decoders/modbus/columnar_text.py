@@ -32,6 +32,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.distinct import distinct
+from decoders.modbus.codes import TABLE_NAMES
 from decoders.modbus.pdu import COIL_STATES
 from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_payload
 from decoders.modbus.text_layout import (
@@ -56,7 +57,6 @@ if TYPE_CHECKING:
 #: a write request (FC 5, 6, 15, 16; kept only with its answer), its answer, an FC 23 request
 #: (read and write at once; kept only with its answer).
 READ, READ_ANSWER, WRITE, WRITE_ANSWER, READ_WRITE = 0, 1, 2, 3, 4
-_TABLES = {1: "coils", 2: "inputs", 3: "HR", 4: "IR", 15: "coils", 16: "HR", 23: "HR"}
 _SHOWN_BITS = 32  # a summary writes 32 bits, then "…"
 _SHOWN_BYTES = _SHOWN_BITS // 8
 
@@ -112,7 +112,7 @@ def _answer_texts(rows: npt.NDArray[np.int64], function: int, data: bytes, frame
     if plain.any():
         yield rows[plain], _group(frames, data, rows[plain], READ_ANSWER, function)
     quick = rows[~plain]
-    for at, spelt in _answer_lines(f"{_TABLES[function]} = ", data, frames.data[quick], size[~plain], pack=pack):
+    for at, spelt in _answer_lines(f"{TABLE_NAMES[function]} = ", data, frames.data[quick], size[~plain], pack=pack):
         yield quick[at], spelt
 
 
@@ -166,7 +166,7 @@ def _fields(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], ki
     """The fields of the summaries of the frames at ``rows``, all of one kind and function (FC 5
     and FC 6 of either kind, reads and write answers of any function, coil answers and FC 15
     writes), for :func:`~decoders.modbus.text_layout.lines`; ``_group`` spells the same."""
-    table = _TABLES.get(function, "")
+    table = TABLE_NAMES.get(function, "")
     address = frames.address[rows]
     if function in (5, 6):  # a request and its echo say the same
         values = words_at(np.frombuffer(data, np.uint8), frames.data[rows])
@@ -217,7 +217,7 @@ def _register_write_texts(rows: npt.NDArray[np.int64], kind: int, data: bytes, f
 
 def _group(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kind: int, function: int) -> list[str]:
     """The summaries of the frames at ``rows``, all of one kind and function."""
-    table = _TABLES.get(function, "")
+    table = TABLE_NAMES.get(function, "")
     address, count = frames.address[rows].tolist(), frames.count[rows].tolist()
     start, size = frames.data[rows].tolist(), frames.byte_count[rows].tolist()
     if kind == READ:

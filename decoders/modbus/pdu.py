@@ -15,6 +15,7 @@ from decoders.modbus.codes import (
     ALTIVAR_MEI_ERRORS,
     MAX_QUANTITY,
     MAX_READ_WRITE_QUANTITY,
+    TABLE_NAMES,
     USER_DEFINED_FUNCTIONS,
     exception_name,
     function_name,
@@ -71,9 +72,6 @@ def _bit_string(bits: tuple[int, ...], limit: int = 32) -> str:
     return shown + ("…" if len(bits) > limit else "")
 
 
-_TABLES = {1: "coils", 2: "inputs", 3: "HR", 4: "IR"}
-
-
 # The PDU classes below are not frozen (treat PDUs as immutable: nothing assigns to one): a frozen
 # dataclass sets each field through ``object.__setattr__``, 3x slower to build, and a PDU is built
 # for every frame decoded anew. ``unsafe_hash``: hashed by value, as a frozen one would be.
@@ -87,7 +85,7 @@ class ReadRequest:
 
     def summary(self) -> str:
         count = _quantity(self.count, MAX_QUANTITY[self.function])
-        return f"read {_TABLES[self.function]} {_range(self.address, self.count)} ({count})"
+        return f"read {TABLE_NAMES[self.function]} {_range(self.address, self.count)} ({count})"
 
 
 @dataclass(slots=True, unsafe_hash=True)
@@ -99,7 +97,7 @@ class BitsResponse:
     bits: tuple[int, ...]  # 0 and 1
 
     def summary(self) -> str:
-        return f"{_TABLES[self.function]} = {_bit_string(self.bits)} ({self.byte_count} bytes)"
+        return f"{TABLE_NAMES[self.function]} = {_bit_string(self.bits)} ({self.byte_count} bytes)"
 
 
 @dataclass(slots=True, unsafe_hash=True)

@@ -16,11 +16,10 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.message import ROLE_CODE, MessageBatch, Role
-from decoders.modbus.codes import MAX_QUANTITY
+from decoders.modbus.codes import MAX_QUANTITY, TABLE_NAMES
 from decoders.modbus.pdu import Pdu, ReadRequest, RegistersResponse
 from decoders.modbus.pdu_text import hex_payload
 
-_TABLE = {3: "HR", 4: "IR"}
 _REQUEST, _RESPONSE = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.RESPONSE]
 READ_REQUEST_BYTES = 8
 
@@ -49,7 +48,7 @@ def register_reads(batch: MessageBatch, eligible: npt.NDArray[np.bool_]) -> dict
         for position, code, first, number in zip(requests[fine].tolist(), function[requests][fine].tolist(),
                                                  address[fine].tolist(), count[fine].tolist(), strict=True):
             span = f"{first}" if number == 1 else f"{first}..{first + number - 1}"
-            decoded[position] = (f"read {_TABLE[code]} {span} ({number})", ReadRequest(code, first, number),
+            decoded[position] = (f"read {TABLE_NAMES[code]} {span} ({number})", ReadRequest(code, first, number),
                                  (ReadRequest, code, first, number))
     if len(answers):
         byte_count = raw[starts[answers] + 2].astype(np.int64)
@@ -61,6 +60,6 @@ def register_reads(batch: MessageBatch, eligible: npt.NDArray[np.bool_]) -> dict
             payload = data[start + 3 : start + 3 + size]
             words = size // 2
             values = struct.unpack(f">{words}H", payload)
-            decoded[position] = (f"{_TABLE[code]} = {hex_payload(payload)} ({words} registers)",
+            decoded[position] = (f"{TABLE_NAMES[code]} = {hex_payload(payload)} ({words} registers)",
                                  RegistersResponse(code, size, values), _ANSWER_CONTEXT)
     return decoded

@@ -14,6 +14,7 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
+from decoders.modbus.codes import REFERENCE_BASE, TABLE_NAMES
 from decoders.modbus.pdu import (
     COIL_ON,
     Pdu,
@@ -28,9 +29,6 @@ from decoders.modbus.pdu import (
 KINDS = ("u16", "s16", "hex", "u32", "s32", "f32")
 WORD_ORDERS = ("big", "little")
 ADDRESSINGS = ("wire", "1", "4x")
-#: The Modicon reference base of each table, by the function code that reads it.
-REFERENCE_BASE = {1: 1, 2: 10001, 3: 40001, 4: 30001, 5: 1, 6: 40001, 15: 1, 16: 40001, 23: 40001}
-TABLE_NAMES = {1: "coils", 2: "inputs", 3: "HR", 4: "IR", 5: "coil", 6: "HR", 15: "coils", 16: "HR", 23: "HR"}
 #: Values written out before "… (+N)".
 SHOWN_VALUES = 16
 
