@@ -79,7 +79,8 @@ def runs(capture: Path, out: Path) -> Iterator[tuple[str, list[str]]]:
 
 
 def snapshot(tree: Path, out: Path, scratch: Path, frames: int, quick: bool) -> None:
-    """Every output of rtusniff run from ``tree``, under ``out``."""
+    """Every output of rtusniff run from ``tree``, under ``out`` (the inputs are this checkout's,
+    whichever tree runs: outputs name their input)."""
     env = {**os.environ, "PYTHONPATH": str(tree), "COLUMNS": "200"}
     for name, capture, extra in inputs(scratch, frames, quick):
         folder = out / name
@@ -90,19 +91,21 @@ def snapshot(tree: Path, out: Path, scratch: Path, frames: int, quick: bool) -> 
             written = folder / output
             if not written.exists():
                 written.write_bytes(done.stdout)
-            (folder / f"{output}.exit").write_text(f"{done.returncode}\n{_stable(done.stderr, folder).decode()}")
+            said = _stable(done.stderr, folder, scratch)
+            (folder / f"{output}.exit").write_bytes(b"%d\n%s" % (done.returncode, said))
             if written.is_dir():
                 _parquet_as_text(written)
             elif output.endswith(".mcap") and done.returncode == 0:
                 _mcap_as_text(written)
-            elif output.endswith((".md", ".html")):
-                written.write_bytes(_stable(written.read_bytes(), folder))
+            for text in [written] if written.is_file() else sorted(written.rglob("*.txt")):
+                text.write_bytes(_stable(text.read_bytes(), folder, scratch))
         print(f"output_snapshot: {tree.name or tree}: {name}", file=sys.stderr)
 
 
-def _stable(text: bytes, folder: Path) -> bytes:
-    """``text`` without the lines that change from run to run, and without the scratch folder."""
-    text = text.replace(str(folder).encode(), b"OUT")
+def _stable(text: bytes, folder: Path, scratch: Path) -> bytes:
+    """``text`` without the lines that change from run to run, the output and scratch folders
+    (generated captures) named alike in every run."""
+    text = text.replace(str(folder).encode(), b"OUT").replace(str(scratch).encode(), b"SCRATCH")
     return b"\n".join(line for line in text.split(b"\n") if not VOLATILE.search(line))
 
 
@@ -118,7 +121,9 @@ def _parquet_as_text(folder: Path) -> None:
         columns = [column.cast(pa.int64()) if pa.types.is_timestamp(column.type) else column
                    for column in table.columns]
         rows = pa.table(columns, names=table.column_names).to_pylist()
-        path.with_suffix(".txt").write_text(f"{table.schema}\n" + "\n".join(map(repr, rows)) + "\n")
+        metadata = sorted((table.schema.metadata or {}).items())
+        path.with_suffix(".txt").write_text(f"{table.schema.remove_metadata()}\n{metadata!r}\n"
+                                            + "\n".join(map(repr, rows)) + "\n")
         path.unlink()
     for path in sorted(folder.rglob("*")):
         if path.is_file() and path.suffix != ".txt":
@@ -143,7 +148,7 @@ def _mcap_as_text(path: Path) -> None:
         stream.seek(0)
         for attachment in make_reader(stream).iter_attachments():
             lines.append(b"attachment %s %d %s" % (attachment.name.encode(), attachment.log_time, attachment.data))
-    path.with_suffix(".mcap.txt").write_bytes(_stable(b"\n".join(lines), path.parent))
+    path.with_suffix(".mcap.txt").write_bytes(b"\n".join(lines))
     path.unlink()
 
 
