@@ -142,8 +142,6 @@ class Delivery:
         #: Whether plain frames stay in columns (every message sink takes them; nothing filtered).
         self._in_columns = keep is None and not selection.windowed and selection.limit is None and all(
             sink.takes_columnar for sink in self._message_sinks)
-        self._distinct_only = any(sink.caches_per_decoding for sink in self._message_sinks)
-        self._numbers = all(sink.takes_number_names for sink in self._message_sinks)
         self._window = Window(selection) if selection.windowed else None
         #: Frames the message sinks may still get (``--limit``), ``None``: no limit.
         self._left = selection.limit
@@ -212,7 +210,7 @@ class Delivery:
         kept = None
         if self._annotator is not None:
             annotator = self._annotator
-            annotated = (annotator.annotate_columnar(batch, distinct_only=self._distinct_only, numbers=self._numbers)
+            annotated = (annotator.annotate_columnar(batch)
                          if self._in_columns
                          else annotator.annotate_batch(batch))
             kept = annotated if self._keep is None else annotated.select(self._keep(annotated))

@@ -9,8 +9,7 @@ of the list it was given,
 * per decoded batch: ``frames`` with the framed and paired messages in columns,
   before annotation (``wants_frames``), then ``messages`` with the annotated
   batch (``wants_messages``: only then does the pipeline annotate; its plain reads
-  in columns for sinks that all ``takes_columnar``, their plain numbers in arrays for
-  sinks that all ``takes_number_names``), then
+  in columns for sinks that all ``takes_columnar``), then
   ``prepared`` with what the sink's ``prepare`` made of that batch;
 * ``gap`` where a live capture skipped reads it could not decode in time;
 * ``finish`` once, with the statistics of the whole capture (counted only when
@@ -52,13 +51,6 @@ class Sink:
     #: Whether ``messages`` takes plain frames left in columns (``AnnotatedBatch.columnar``): when
     #: every sink that wants messages does, and nothing is filtered, they are left so.
     takes_columnar = False
-    #: Whether the sink caches what it derives per decoding, so that repeats cost it less
-    #: decoded: frames stay in columns for it only in batches of mostly distinct frames.
-    caches_per_decoding = False
-    #: Whether ``messages`` takes the plain numbers profiles name in frames left in columns as
-    #: arrays (``ColumnarNames.numbers``, no param object each): when every sink that wants
-    #: messages does, they are named so.
-    takes_number_names = False
     #: Whether the sink spends more per batch than per frame, and holds a batch only while it
     #: writes it: where every sink that wants messages does, the chunks of a capture read whole
     #: are joined into larger batches (``sniffer.pipeline.JOINED_BATCH_CHUNKS``).

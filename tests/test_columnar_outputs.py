@@ -52,7 +52,7 @@ CASES = pytest.mark.parametrize(("capture", "setting"), [
 
 @pytest.fixture
 def both_ways(monkeypatch: pytest.MonkeyPatch, cli: Callable[..., Any]) -> Callable[..., int]:
-    """Runs a command twice, frames in columns wherever they qualify (repeats too), then none;
+    """Runs a command twice, frames in columns wherever they qualify, then none;
     how many frames the first run kept in columns."""
     from decoders.modbus import annotate
     from decoders.modbus.columnar import ColumnarFrames
@@ -68,7 +68,6 @@ def both_ways(monkeypatch: pytest.MonkeyPatch, cli: Callable[..., Any]) -> Calla
 
         with monkeypatch.context() as patch:
             patch.setattr(annotate.Annotator, "_columnar", counted)
-            patch.setattr(annotate, "DISTINCT_ENOUGH", 0.0)
             assert cli(*columns).code == 0
         with monkeypatch.context() as patch:
             patch.setattr(annotate.Annotator, "annotate_columnar",

@@ -34,6 +34,7 @@ from decoders.distinct import distinct
 from decoders.hashing import FIBONACCI_SIGNED
 
 if TYPE_CHECKING:
+    from decoders.message import MessageBatch
     from decoders.modbus.columnar import ColumnarFrames
 
 #: The share of frames kept in columns, distinct at first sight, from which :func:`alike` leaves
@@ -152,3 +153,12 @@ def digests(data: bytes, starts: npt.NDArray[np.int64], ends: npt.NDArray[np.int
     first = byte(np.minimum(starts, top)) | byte(np.minimum(starts + 1, top)) << 8
     digest: npt.NDArray[np.int64] = last | (ends - starts) << 16 | first << 32
     return digest
+
+
+def mostly_distinct(batch: MessageBatch, share: float) -> bool:
+    """Whether at least ``share`` of the batch's frames differ from one another, as told by
+    their CRC, length, slave and function (:func:`digests`)."""
+    frames = batch.frames
+    if not len(batch):
+        return False
+    return len(distinct(digests(frames.data, frames.offsets[:-1], frames.offsets[1:]))) >= share * len(batch)

@@ -36,7 +36,6 @@ from decoders.message import (
     MessageBatch,
     Role,
 )
-from decoders.modbus.alike import digests
 from decoders.modbus.codes import function_name
 from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
 from decoders.modbus.columnar_find import find_columnar
@@ -64,9 +63,6 @@ KEPT_DECODINGS = 8192
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
 #: Frames of a batch :class:`_Fresh` reads the facts of one by one before it lists its columns.
 _FACTS_ONE_BY_ONE = 256
-#: The share of distinct frames from which a batch is left in columns for outputs that cache
-#: what they derive per decoding (below it, most frames are repeats the memo serves).
-DISTINCT_ENOUGH = 0.25
 #: Frames of a batch decoded one by one before its register reads may be decoded together;
 #: they are once the new frames are this share of the frames passed. A read costs 1.1 µs
 #: decoded with the others (all of them, repeats too), 2.6 µs alone (polling, 2026-11-25).
@@ -105,17 +101,12 @@ class Annotator:
                                    batch.request_index.tolist())
         return AnnotatedBatch(batch, decodings)
 
-    def annotate_columnar(self, batch: MessageBatch, *, distinct_only: bool = False,
-                          numbers: bool = False) -> AnnotatedBatch:
+    def annotate_columnar(self, batch: MessageBatch) -> AnnotatedBatch:
         """:meth:`annotate_batch`, but the commonest frames stay in columns
         (:mod:`decoders.modbus.columnar`, named by :mod:`decoders.profiles.column_names` where a
         profile names their slave): the result's ``columnar``, and its ``rows``
-        the rest, decoded as there. The annotator's state after it is the same.
-        ``distinct_only``: only in a batch of mostly distinct frames (:func:`mostly_distinct`;
-        the memo serves repeats for less); ``numbers``: values that are plain numbers named in
-        arrays (:func:`~decoders.profiles.column_names.named`), for outputs that take them so."""
-        columnar = (None if distinct_only and not mostly_distinct(batch, DISTINCT_ENOUGH)
-                    else self._columnar(batch, numbers=numbers))
+        the rest, decoded as there. The annotator's state after it is the same."""
+        columnar = self._columnar(batch)
         if columnar is None:
             return self.annotate_batch(batch)
         first, requests = batch.frames.first_index, self._requests
@@ -131,7 +122,7 @@ class Annotator:
                                    batch.frames.protocols()[rows].tolist(), batch.request_index[rows].tolist())
         return AnnotatedBatch(batch, decodings, rows, columnar)
 
-    def _columnar(self, batch: MessageBatch, *, numbers: bool = False) -> ColumnarFrames | None:
+    def _columnar(self, batch: MessageBatch) -> ColumnarFrames | None:
         """The frames of ``batch`` to keep in columns: Modbus frames whose profile adds nothing or
         names plainly (:mod:`decoders.profiles.columns`; a slave's frames after an identification
         in the batch that gives it another profile are named by that one, but from a second that
@@ -154,7 +145,7 @@ class Annotator:
         while len(unnamed := unnameable(profiles, batch, columnar, learning, framed)):
             eligible[unnamed] = False
             columnar = find_columnar(batch, eligible, self._earlier_read)
-        return named(profiles, batch, columnar, framed, numbers=numbers)
+        return named(profiles, batch, columnar, framed)
 
     def plain_frames(self, batch: MessageBatch) -> npt.NDArray[np.bool_]:
         """Which frames of ``batch`` are Modbus frames of slaves whose profile adds nothing now."""
@@ -267,15 +258,6 @@ class Annotator:
     def _profiled(self, decoding: Decoding, facts: FrameFacts, request: Pdu | None) -> Decoding:
         """``decoding`` as the profiles name it (as it is, without profiles)."""
         return decoding if self._profiles is None else self._profiles.apply_decoding(decoding, facts, request)
-
-
-def mostly_distinct(batch: MessageBatch, share: float) -> bool:
-    """Whether at least ``share`` of the batch's frames differ from one another, as told by
-    their CRC, length, slave and function (:func:`~decoders.modbus.alike.digests`)."""
-    frames = batch.frames
-    if not len(batch):
-        return False
-    return len(distinct(digests(frames.data, frames.offsets[:-1], frames.offsets[1:]))) >= share * len(batch)
 
 
 class _Fresh:

@@ -34,7 +34,7 @@ from decoders.distinct import distinct
 from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.columnar_text import READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, formatted, summaries, words_at
 from decoders.modbus.pdu import COIL_ON
-from decoders.profiles.naming import SHOWN_PARAMS, NamedValue, NumberNames, summary_with
+from decoders.profiles.naming import SHOWN_PARAMS, NamedValue, summary_with
 from decoders.runs import spread, within_runs
 
 if TYPE_CHECKING:
@@ -98,32 +98,25 @@ class ColumnarNames(NamedTuple):
     """What profiles name of the params of frames kept in columns
     (:mod:`decoders.profiles.column_names`): ``row``, per param in :meth:`ColumnarFrames.params` order,
     its entry (-1: its slave's profile adds nothing); ``table``: each named value (param and
-    summary text) of the batch, once; ``numbers``: the plain numbers named in arrays, entries
-    after the table's (only for outputs that take them, :func:`~decoders.profiles.column_names.named`)."""
+    summary text) of the batch, once."""
 
     row: npt.NDArray[np.int64]
     table: list[NamedValue]
-    numbers: NumberNames | None = None
     #: Each frame's profile (a number per profile), where a slave's frames are named by two in
     #: the batch (it identified itself as another device): frames alike in their bytes but not
     #: in it say different things. ``None``: every slave's frames by one.
     profile: npt.NDArray[np.int64] | None = None
 
-    def objects(self) -> list[NamedValue]:
-        """Every entry as a named value (the plain numbers' made here)."""
-        return self.table if self.numbers is None else self.table + self.numbers.objects()
-
-    def shown(self, sizes: npt.NDArray[np.int64], *, fast: bool = True) -> tuple[
+    def shown(self, sizes: npt.NDArray[np.int64]) -> tuple[
             list[str | None], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
         """What the frames' summaries show of their named values (``sizes``: how many params each
         frame names): the text of every entry (``None``: it shows none), the entries shown, frame
         after frame, and how many each frame shows."""
-        numbers = [] if self.numbers is None else number_texts(self.numbers, fast=fast)
-        named_texts = list(map(_TEXT, self.table)) + numbers
+        named_texts = list(map(_TEXT, self.table))
         # Whether each entry shows a text, the last for -1 (none): a lookup of booleans, not a
-        # comparison of every param's object with None; a plain number's as its register's.
+        # comparison of every param's object with None.
         showing = np.concatenate([np.fromiter((text is not None for _, text in self.table), np.bool_, len(self.table)),
-                                  _number_shows(self.numbers), [False]])
+                                  [False]])
         shown = np.flatnonzero(showing[self.row])
         counts = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[shown], minlength=len(sizes))
         return named_texts, self.row[shown], counts
@@ -134,7 +127,7 @@ class ColumnarNames(NamedTuple):
         frames that show as many texts at once, by one ``%`` of a template each
         (:func:`~decoders.modbus.columnar_text.formatted`), or one by one (``fast=False``, or a text
         holds a newline, which ``formatted`` cuts at)."""
-        named_texts, entries, counts = self.shown(sizes, fast=fast)
+        named_texts, entries, counts = self.shown(sizes)
         if not len(entries):
             return texts
         words = np.empty(len(named_texts), object)
@@ -156,38 +149,6 @@ class ColumnarNames(NamedTuple):
             suffixed[frames] = formatted(template, [column.tolist() for column in columns])
         result: list[str] = suffixed.tolist()
         return result
-
-
-def _number_shows(numbers: NumberNames | None) -> npt.NDArray[np.bool_]:
-    """Whether each plain number shows a text (:func:`number_texts` writes one): where its
-    register has a code."""
-    if numbers is None:
-        return np.zeros(0, np.bool_)
-    coded = np.fromiter((plain.code is not None for plain in numbers.registers), np.bool_, len(numbers.registers))
-    shows: npt.NDArray[np.bool_] = coded[numbers.register]
-    return shows
-
-
-def number_texts(numbers: NumberNames, *, fast: bool = True) -> list[str | None]:
-    """Each plain number's text in the summary (``LFR = 50.0 Hz``), as
-    :func:`~decoders.profiles.naming.show` writes it: a register's by one ``%`` of a template
-    (``fast=False``: one by one, as its named value says)."""
-    texts = np.full(len(numbers), None, object)
-    bounds = np.searchsorted(numbers.register, np.arange(len(numbers.registers) + 1)).tolist()
-    for place, plain in enumerate(numbers.registers):
-        if plain.code is None:
-            continue
-        start, stop = bounds[place], bounds[place + 1]
-        unit = f" {plain.unit}" if plain.unit else ""
-        if not fast or "\n" in plain.code + unit:
-            texts[start:stop] = [plain.param(raw, value)[1] for raw, value in
-                                 zip(numbers.raw[start:stop].tolist(), numbers.value[start:stop].tolist(), strict=True)]
-            continue
-        values = numbers.value[start:stop]
-        template = f"{plain.code} = ".replace("%", "%%") + "%s" + unit.replace("%", "%%")
-        texts[start:stop] = formatted(template, [values.astype(np.int64) if plain.integral else values])
-    shown: list[str | None] = texts.tolist()
-    return shown
 
 
 @dataclass(frozen=True)

@@ -26,12 +26,10 @@ from decoders.modbus.pdu import (
 from decoders.modbus.pdu_serial import DeviceIdResponse
 from decoders.profiles.book import ProfileBook
 from decoders.profiles.model import Indirection, Profile
-from decoders.profiles.naming import AddressNamer, NamedValue, PlainNumbers, summary_with
+from decoders.profiles.naming import AddressNamer, NamedValue, summary_with
 
 #: The slave column's value for a frame without a slave (noise).
 NO_SLAVE = -1
-#: Registers whose plain numbers :meth:`ProfileApplier.plain_numbers` keeps, at most.
-KEPT_PLAIN_REGISTERS = 4096
 KEPT_NAMED_PARAMS = 65536
 PRODUCT_CODE_OBJECT = 1
 
@@ -84,9 +82,6 @@ class ProfileApplier:
         #: :func:`knows_nothing` of each slave's profile, while the version stays.
         self._adds_nothing: dict[int, bool] = {}
         self._adds_nothing_version = 0
-        #: :meth:`plain_numbers` by (profile, reported, slave, address), while the version stays.
-        self._plain: dict[tuple[str, bool, int, int], PlainNumbers | None] = {}
-        self._plain_version = 0
 
     def adds_nothing(self, slave: int) -> bool:
         """Whether the profile in force for ``slave`` leaves a Modbus message as it is (a slave
@@ -179,18 +174,6 @@ class ProfileApplier:
                 self._kept += 1
             named.append(value)
         return named
-
-    def plain_numbers(self, profile: Profile, slave: int, reported: bool, address: int) -> PlainNumbers | None:
-        """How the values at ``address`` that are plain numbers are named in arrays, as
-        :meth:`named_values` names them (``None``: none is). Kept while the version stays (what a
-        register is named depends on nothing else): a batch asks for a hundred registers or so."""
-        if self._plain_version != self.version or len(self._plain) >= KEPT_PLAIN_REGISTERS:
-            self._plain.clear()
-            self._plain_version = self.version
-        key = (profile.id, reported, slave, address)
-        if key not in self._plain:
-            self._plain[key] = self._namer_of(profile, slave, reported, address).plain_numbers()
-        return self._plain[key]
 
     def _namer_of(self, profile: Profile, slave: int, reported: bool, address: int) -> AddressNamer:
         namers = self._kept_namers(profile, reported)

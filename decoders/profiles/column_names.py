@@ -34,7 +34,7 @@ from decoders.modbus.columnar import ColumnarFrames, ColumnarNames, one_of
 from decoders.modbus.columnar_text import READ_ANSWER, WRITE_ANSWER
 from decoders.profiles.apply import ProfileApplier
 from decoders.profiles.columns import ColumnProfiles, FrameProfiles, overlap
-from decoders.profiles.naming import NamedValue, NumberNames, PlainNumbers
+from decoders.profiles.naming import NamedValue
 
 #: Bits of a param's key (:func:`named`) for its raw word plus one (0: no value), its address (a
 #: read's last register may lie past 65 535) and its slave plus one (0: a register whose name
@@ -43,12 +43,10 @@ _RAW_BITS, _ADDRESS_BITS, _SLAVE_BITS = 17, 20, 9
 _RAW_MASK, _ADDRESS_MASK, _SLAVE_MASK = (1 << _RAW_BITS) - 1, (1 << _ADDRESS_BITS) - 1, (1 << _SLAVE_BITS) - 1
 
 
-def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames, framed: FrameProfiles, *,
-          numbers: bool = False) -> ColumnarFrames:
+def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames,
+          framed: FrameProfiles) -> ColumnarFrames:
     """``columnar`` with the names its frames' profiles give their params (none of them
-    :func:`unnameable`); as it is where no frame's profile names anything. ``numbers``: values
-    that are plain numbers are named in arrays (:class:`~decoders.profiles.naming.NumberNames`),
-    for outputs that take them so; the others, and all without it, are named values.
+    :func:`unnameable`); as it is where no frame's profile names anything.
 
     Frames that read alike (:func:`~decoders.modbus.alike.alike`: same bytes, kind, span and
     profile, hence the same names) are named once, by their group's first, and the groups kept
@@ -61,16 +59,16 @@ def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames
     groups = alike(columnar, batch.frames.data, batch.frames.offsets, batch.role, profile)
     spelt = columnar if groups is None else columnar.take(groups.firsts)
     spelt_profiles = ColumnProfiles(framed, spelt.positions)
-    row, table, number_names = _named_params(applier, batch, spelt, spelt_profiles, numbers=numbers)
+    row, table = _named_params(applier, batch, spelt, spelt_profiles)
     if groups is not None:  # each frame's params named as its group's first's
         row = row[columnar.grouped_params(groups)]
-    return dataclasses.replace(columnar, names=ColumnarNames(row, table, number_names, profile), groups=groups)
+    return dataclasses.replace(columnar, names=ColumnarNames(row, table, profile), groups=groups)
 
 
-def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames, slaves: ColumnProfiles, *,
-                  numbers: bool) -> tuple[npt.NDArray[np.int64], list[NamedValue], NumberNames | None]:
-    """Each param's entry (``ColumnarNames.row``), the named values and the plain numbers of
-    the frames of ``columnar`` (``slaves``: theirs)."""
+def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames,
+                  slaves: ColumnProfiles) -> tuple[npt.NDArray[np.int64], list[NamedValue]]:
+    """Each param's entry (``ColumnarNames.row``) and the named values of the frames of
+    ``columnar`` (``slaves``: theirs)."""
     params = columnar.params(batch.frames.data)
     frame = np.repeat(np.arange(len(columnar)), params.sizes)
     rows = np.flatnonzero(_named_frames(columnar, slaves)[frame])
@@ -80,10 +78,10 @@ def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: Column
     owner = _value_register_owners(slaves, of, address, batch.slave[columnar.positions].astype(np.int64))
     register = ((((slaves.profile[of] * 2 + reported) << _SLAVE_BITS) | owner) << _ADDRESS_BITS) | address
     distinct, inverse = np.unique((register << _RAW_BITS) | (params.value[rows] + 1), return_inverse=True)
-    entry, table, number_names = _entries(applier, slaves, distinct, numbers=numbers)
+    entry, table = _entries(applier, slaves, distinct)
     row = np.full(len(params.address), -1, np.int64)
     row[rows] = entry[inverse.reshape(-1)]
-    return row, table, number_names
+    return row, table
 
 
 def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArray[np.bool_]:
@@ -93,60 +91,19 @@ def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArr
     return named
 
 
-def _entries(applier: ProfileApplier, slaves: ColumnProfiles, distinct: npt.NDArray[np.int64], *,
-             numbers: bool) -> tuple[npt.NDArray[np.int64], list[NamedValue], NumberNames | None]:
-    """The entry of each distinct value (``distinct``: keys of :func:`named`, ascending), the
-    named values (the first entries) and the plain numbers (the entries after them)."""
+def _entries(applier: ProfileApplier, slaves: ColumnProfiles,
+             distinct: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], list[NamedValue]]:
+    """The entry of each distinct value (``distinct``: keys of :func:`named`, ascending) and the
+    named values, register after register (an entry each)."""
     registers, words = distinct >> _RAW_BITS, (distinct & _RAW_MASK) - 1
     starts = np.flatnonzero(np.diff(registers, prepend=-1))
     stops = np.append(starts[1:], len(distinct))
-    named_at = []
-    for key in registers[starts].tolist():
-        group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
-        named_at.append((slaves.profiles[group >> 1], slave, bool(group & 1), key & _ADDRESS_MASK))
-    plains = [applier.plain_numbers(*register) for register in named_at] if numbers else []
-    register_of = np.repeat(np.arange(len(starts)), stops - starts)
-    as_number = _plain(plains, register_of, words)
-    others = np.flatnonzero(~as_number)
     table: list[NamedValue] = []
-    firsts, lasts = np.searchsorted(others, starts).tolist(), np.searchsorted(others, stops).tolist()
-    for register, first, last in zip(named_at, firsts, lasts, strict=True):
-        if last > first:
-            raws = words[others[first:last]].tolist()
-            table += applier.named_values(*register, [None if raw < 0 else raw for raw in raws])
-    entry = np.empty(len(distinct), np.int64)
-    entry[others] = np.arange(len(others))
-    numbered = np.flatnonzero(as_number)
-    entry[numbered] = np.arange(len(others), len(distinct))
-    return entry, table, _number_names(plains, register_of[numbered], words[numbered])
-
-
-def _plain(plains: list[PlainNumbers | None], register_of: npt.NDArray[np.int64],
-           words: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
-    """Which values (of registers ``register_of``, raw words ``words``) are plain numbers."""
-    if not any(plains):
-        return np.zeros(len(words), np.bool_)
-    plain = np.array([found is not None for found in plains], np.bool_)[register_of] & (words >= 0)
-    worded = [place * 0x10000 + found.words for place, found in enumerate(plains) if found is not None]
-    return plain & ~np.isin(register_of * 0x10000 + words, np.concatenate(worded))
-
-
-def _number_names(plains: list[PlainNumbers | None], register_of: npt.NDArray[np.int64],
-                  raws: npt.NDArray[np.int64]) -> NumberNames | None:
-    """The plain numbers (each of register ``register_of``, raw word in ``raws``) as columns."""
-    if not len(raws):
-        return None
-    used, register = np.unique(register_of, return_inverse=True)
-    # Every register a plain number lies in has its plain numbers.
-    registers = [found for place in used.tolist() if (found := plains[place]) is not None]
-    values = np.empty(len(raws), np.float64)
-    tables: dict[int, list[int]] = {}  # registers by the table of values they share
-    for place, found in enumerate(registers):
-        tables.setdefault(id(found.value), []).append(place)
-    for places in tables.values():
-        of = np.isin(register, places)
-        values[of] = registers[places[0]].value[raws[of]]
-    return NumberNames(register.reshape(-1), raws, values, registers)
+    for key, first, last in zip(registers[starts].tolist(), starts.tolist(), stops.tolist(), strict=True):
+        group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
+        register = (slaves.profiles[group >> 1], slave, bool(group & 1), key & _ADDRESS_MASK)
+        table += applier.named_values(*register, [None if raw < 0 else raw for raw in words[first:last].tolist()])
+    return np.arange(len(distinct), dtype=np.int64), table
 
 
 def _value_register_owners(slaves: ColumnProfiles, of: npt.NDArray[np.int64], address: npt.NDArray[np.int64],

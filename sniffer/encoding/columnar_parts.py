@@ -98,10 +98,17 @@ class ColumnarParts:
     def record_tails(self) -> Pieces:
         """Each frame's JSONL record part from ``params`` to the end of ``remarks``
         (``FrameRecordEncoder._decoding_part``)."""
+        return self._each_piece(self.spelt_record_tails())
+
+    def spelt_record_tails(self) -> Pieces:
+        """:meth:`record_tails` of the frames spelt (one per group of frames alike)."""
         summaries = list(map(orjson.dumps, self._spelt_summaries()))
         named = self._named_texts(members=False)
-        return self._each_piece(_in_slices(self._param_columns(),
-                                           lambda params, frames: _record_tails(params, summaries[frames], named)))
+        return _in_slices(self._param_columns(), lambda params, frames: _record_tails(params, summaries[frames], named))
+
+    def each(self, spelt: list[Text]) -> list[Text]:
+        """A text per frame from one per frame spelt (:attr:`spelt`): frames alike share theirs."""
+        return self._each(spelt)
 
     def log_heads(self, roles: npt.NDArray[np.integer[Any]]) -> list[bytes]:
         """Each frame's log text after its index: `` response: HR = …`` (``roles``: the batch's)."""
@@ -133,8 +140,8 @@ class ColumnarParts:
         if names is None:
             return None
         if members:
-            return _objects(PARAM_MEMBERS.made([param for param, _ in names.objects()]))
-        return _objects([b"," + text for text in PARAM_JSON.made([param for param, _ in names.objects()])])
+            return _objects(PARAM_MEMBERS.made([param for param, _ in names.table]))
+        return _objects([b"," + text for text in PARAM_JSON.made([param for param, _ in names.table])])
 
     def _param_columns(self) -> ColumnarParams:
         if self._params is None:

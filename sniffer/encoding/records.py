@@ -169,7 +169,7 @@ class FrameRecordEncoder:
         else:
             facts = _FrameFacts(messages)
             found = self._parts.get_all(decodings, lambda row: self._frame_parts(facts, rest[row], decodings[row]))
-            identities = in_columns_too(batch, lambda parts: identities_at(messages, parts.positions),
+            identities = in_columns_too(batch, lambda parts: parts.each(identities_at(messages, parts.spelt.positions)),
                                         [parts[0] for parts in found])
             tails = in_columns_too(batch, lambda parts: parts.record_tails(), [parts[1] for parts in found])
             middle = [identities, b',"flags":', own.middles, tails]
@@ -261,9 +261,11 @@ def in_columns_too(batch: AnnotatedBatch, spell: Callable[[ColumnarParts], Seque
 
 
 def _joined_parts(messages: MessageBatch, parts: ColumnarParts) -> list[bytes]:
-    """The records of frames in columns from ``hex`` to the end of ``remarks``."""
-    identities = identities_at(messages, parts.positions)
-    return [b",".join((identity, tail)) for identity, tail in zip(identities, parts.record_tails(), strict=True)]
+    """The records of frames in columns from ``hex`` to the end of ``remarks``: spelt once per
+    group of frames alike (the same bytes and role, so the same identity too)."""
+    identities = identities_at(messages, parts.spelt.positions)
+    return parts.each([b",".join((identity, tail))
+                       for identity, tail in zip(identities, parts.spelt_record_tails(), strict=True)])
 
 
 class _Protocols:

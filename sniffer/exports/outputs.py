@@ -46,7 +46,6 @@ class McapSink(FileSink["McapExporter"]):
     wants_chunks = True
     wants_messages = True
     takes_columnar = True
-    caches_per_decoding = True
 
     def __init__(self, path: str, args: argparse.Namespace, analysis: Analysis) -> None:
         super().__init__(path)
@@ -104,7 +103,6 @@ class ParquetSink(FileSink["ParquetDataset"]):
 
     wants_messages = True
     takes_columnar = True
-    takes_number_names = True
     joins_batches = True
 
     def __init__(self, folder: str, args: argparse.Namespace, analysis: Analysis) -> None:

@@ -157,8 +157,7 @@ def _numbers(number: Sequence[float | None]) -> tuple[npt.NDArray[np.float64], n
 
 def _numeric_rows(rows: NumericValues) -> LaidRows:
     """The rows laid out by numpy; where a profile names some (``rows.names``), theirs as
-    :func:`~sniffer.exports.parquet_values.named_block` has them (reported, the CRC good), the
-    plain numbers named in arrays (``names.numbers``) from their registers' code, name and unit."""
+    :func:`~sniffer.exports.parquet_values.named_block` has them (reported, the CRC good)."""
     raw = rows.raw.astype(np.float64)
     if rows.names is None or not (rows.name >= 0).any():
         return LaidRows(rows.t_ns, rows.index, rows.slave, rows.kind, rows.address, rows.raw, raw,
@@ -167,27 +166,13 @@ def _numeric_rows(rows: NumericValues) -> LaidRows:
     code, name, number, text, unit, available = param_columns([param for param, _ in names.table] + [_NO_PARAM])
     numbered, unnumbered = _numbers(number)
     usable = np.array(available, np.bool_)
-    texts = (code, name, text, unit)
-    numbers = names.numbers
     unnamed = len(names.table)  # the entry of _NO_PARAM: the rows no profile names
     rows_named = rows.name >= 0
-    # Entries as ``names`` has them: the table's, then the numbers' after _NO_PARAM.
-    entry = np.where(rows_named, rows.name + (rows.name >= unnamed), unnamed)
-    text_entry = entry
-    if numbers is not None:  # a plain number is a number, available; its texts are its register's
-        numbered = np.concatenate([numbered, numbers.value])
-        unnumbered = np.concatenate([unnumbered, np.zeros(len(numbers), np.bool_)])
-        usable = np.concatenate([usable, np.ones(len(numbers), np.bool_)])
-        beyond = entry > unnamed
-        text_entry = entry.copy()
-        text_entry[beyond] = unnamed + 1 + numbers.register[entry[beyond] - unnamed - 1]
-        registers = numbers.registers
-        texts = (code + [plain.code for plain in registers], name + [plain.name for plain in registers],
-                 text + [None] * len(registers), unit + [plain.unit for plain in registers])
+    entry = np.where(rows_named, rows.name, unnamed)
     value = np.where(rows_named, numbered[entry], raw)
     valid = rows.valid & (~rows_named | usable[entry] | (rows.kind == WRITTEN))
     return LaidRows(rows.t_ns, rows.index, rows.slave, rows.kind, rows.address, rows.raw, value,
-                    rows_named & unnumbered[entry], rows.request_index, valid, text_entry, texts)
+                    rows_named & unnumbered[entry], rows.request_index, valid, entry, (code, name, text, unit))
 
 
 def _in_order(parts: list[NumericValues]) -> NumericValues:

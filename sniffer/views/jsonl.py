@@ -37,7 +37,6 @@ class JsonlView(Sink):
     wants_messages = True
     wants_statistics = True
     takes_columnar = True
-    caches_per_decoding = True
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._frames.channels = info.channels

@@ -180,10 +180,8 @@ class PlainTableView(_FrameTable):
         self._kept: AnnotatedBatch | None = None
         #: A frame left in columns (a plain read, write or answer) is written with its summary
         #: from the columns (:meth:`ColumnarFrames.summaries`), which is all this table says of
-        #: it; a ``--registers`` reading needs the decoding. In batches of mostly distinct frames
-        #: only: the annotator's memo serves repeats for less.
+        #: it; a ``--registers`` reading needs the decoding.
         self.takes_columnar = summary_of is decoding_summary
-        self.caches_per_decoding = True
         #: Comment lines waiting for the next frame shown.
         self._marks: list[str] = []
         self.prepare = self._lay_out

@@ -10,7 +10,6 @@ from itertools import pairwise
 
 import numpy as np
 import numpy.typing as npt
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -120,7 +119,7 @@ def check_names(reads: ColumnarFrames, data: bytes, expected: list[Decoding]) ->
             assert names is None or all(names.row[row] < 0 for row in rows)
         else:
             assert names is not None
-            entries = names.objects()
+            entries = names.table
             assert [entries[names.row[row]][0] for row in rows] == list(decoding.params)
 
 
@@ -135,11 +134,10 @@ def pieces_said(pieces: list[tuple[npt.NDArray[np.int64], Lines]], count: int) -
     return [line for line in said if line is not None]
 
 
-def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch, *, numbers: bool = False) -> int:
-    """One batch through both annotators (``numbers``: plain numbers named in arrays); how many
-    frames were kept in columns."""
+def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
+    """One batch through both annotators; how many frames were kept in columns."""
     expected = plain.annotate_batch(batch).decodings
-    got = columns.annotate_columnar(batch, numbers=numbers)
+    got = columns.annotate_columnar(batch)
     reads = got.columnar
     kept = set() if reads is None else set(reads.positions.tolist())
     assert got.positions() == [position for position in range(len(batch)) if position not in kept]
@@ -160,7 +158,7 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch, *, nu
         check_names(reads, data, expected)
         if values.name is not None:  # a named value is named as its param is
             assert reads.names is not None
-            table = reads.names.objects()
+            table = reads.names.table
             for name, address, raw in zip(*(column.tolist() for column in (values.name, values.address, values.raw)),
                                           strict=True):
                 if name >= 0:
@@ -176,14 +174,12 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch, *, nu
        st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=atv71", "7=atv312"], ["2=xbt"]]))
 def test_reads_in_columns_say_what_the_plain_path_says(traffic: list[list[bytes]], cuts: list[int],
                                                        profiles: list[str] | None) -> None:
-    """The matcher's batches, cut again anywhere (between a request and its answer too); plain
-    numbers named as values, and in arrays."""
-    for numbers in (False, True):
-        columns, plain = annotator(profiles), annotator(profiles)
-        for batch in matched([data for exchange in traffic for data in exchange]):
-            bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
-            for start, stop in pairwise(bounds):
-                check_batch(columns, plain, slice_messages(batch, start, stop), numbers=numbers)
+    """The matcher's batches, cut again anywhere (between a request and its answer too)."""
+    columns, plain = annotator(profiles), annotator(profiles)
+    for batch in matched([data for exchange in traffic for data in exchange]):
+        bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
+        for start, stop in pairwise(bounds):
+            check_batch(columns, plain, slice_messages(batch, start, stop))
 
 
 def test_polling_is_kept_in_columns_and_answers_read_requests_of_the_batch_before() -> None:
@@ -253,9 +249,8 @@ def test_scanner_value_registers_are_named_in_columns_by_each_slave_s_own_mappin
         "HR = 0637 (1 registers): NM1→ETA = 16#0637 operation enabled, reference reached, forward"]
 
 
-@pytest.mark.parametrize("numbers", [False, True])
-def test_a_scanner_value_register_pointed_elsewhere_is_named_anew(numbers: bool) -> None:
-    """Slave 1 points NM1 at RFRD (a plain number, in arrays with ``numbers``), reads it, points it
+def test_a_scanner_value_register_pointed_elsewhere_is_named_anew() -> None:
+    """Slave 1 points NM1 at RFRD (a plain number), reads it, points it
     back at ETA (a state word) and reads it again: the second read is named after ETA, as the
     plain path names it, not after what NM1 was named in the batch before."""
     columns, plain, shown = annotator(["atv71"]), annotator(["atv71"]), annotator(["atv71"])
@@ -264,8 +259,8 @@ def test_a_scanner_value_register_pointed_elsewhere_is_named_anew(numbers: bool)
         teach = [adu(b"\x01\x06", struct.pack(">HH", 12701, target))] * 2
         for traffic in (teach, _read(1, 12741, (value,))):
             (batch,) = [batch for batch in matched(traffic) if len(batch)]
-            check_batch(columns, plain, batch, numbers=numbers)
-            reads = shown.annotate_columnar(batch, numbers=numbers).columnar
+            check_batch(columns, plain, batch)
+            reads = shown.annotate_columnar(batch).columnar
             said += [] if reads is None else reads.summaries(batch.frames.data)
     assert said == ["read HR 12741 (1): NM1→RFRD", "HR = 05DC (1 registers): NM1→RFRD = 1500 rpm",
                     "read HR 12741 (1): NM1→ETA",

@@ -25,12 +25,11 @@ from tests.property.test_annotation_cache import adu, matched
 from tests.property.test_columnar import annotator, exchanges
 
 
-def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch, *, numbers: bool = False) -> int:
-    """One batch through both annotators (``numbers``: plain numbers named in arrays); how many
-    frames were spelt from columns. The parts spelt frame by frame, and with alike frames spelt
-    once (however few are alike)."""
+def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
+    """One batch through both annotators; how many frames were spelt from columns. The parts
+    spelt frame by frame, and with alike frames spelt once (however few are alike)."""
     expected = plain.annotate_batch(batch).decodings
-    columnar = columns.annotate_columnar(batch, numbers=numbers).columnar
+    columnar = columns.annotate_columnar(batch).columnar
     if columnar is None:
         return 0
     positions = columnar.positions.tolist()
@@ -54,21 +53,19 @@ def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch, *, nu
 @settings(max_examples=300, deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
        st.sampled_from([columnar_parts.SLICE_PARAMS, 1, 7, 64]),
-       st.sampled_from([None, [], ["atv71"], ["2=atv312", "7=xbt"]]), st.booleans())
+       st.sampled_from([None, [], ["atv71"], ["2=atv312", "7=xbt"]]))
 @example([[adu(b"\x07", b"\x03", (65535).to_bytes(2, "big") + (3).to_bytes(2, "big")),
-           adu(b"\x07", b"\x03\x06", bytes(range(6)))]], [], 2, None, False)
+           adu(b"\x07", b"\x03\x06", bytes(range(6)))]], [], 2, None)
 def test_parts_spelt_from_columns_are_what_decodings_write(traffic: list[list[bytes]], cuts: list[int],
-                                                           slice_params: int, profiles: list[str] | None,
-                                                           numbers: bool) -> None:
+                                                           slice_params: int, profiles: list[str] | None) -> None:
     """Batches cut anywhere, so that an answer's request may be in the batch before; the params
-    spelt in slices of any size; slaves a profile names (:mod:`decoders.profiles.columns`) or not,
-    their plain numbers named as values or in arrays."""
+    spelt in slices of any size; slaves a profile names (:mod:`decoders.profiles.columns`) or not."""
     columns, plain = annotator(profiles), annotator(profiles)
     with patch.object(columnar_parts, "SLICE_PARAMS", slice_params):
         for batch in matched([data for exchange in traffic for data in exchange]):
             bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
             for start, stop in pairwise(bounds):
-                check_parts(columns, plain, slice_messages(batch, start, stop), numbers=numbers)
+                check_parts(columns, plain, slice_messages(batch, start, stop))
 
 
 def test_polling_and_coils_are_spelt_from_columns() -> None:
