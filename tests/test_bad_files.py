@@ -145,7 +145,7 @@ def test_a_full_disk_on_standard_output_is_exit_11() -> None:
 @pytest.mark.parametrize("suffix", [".log", ".mcap"])
 def test_a_capture_cut_short_anywhere_reads_up_to_the_cut(cli: Cli, tmp_path: Path, suffix: str) -> None:
     """A copy or a recording cut short at any byte: what came before the cut is read, with a
-    warning naming where; only a cut inside the header is an error (README, "Capture formats")."""
+    warning naming where; only a cut inside the header is an error (docs/capture-formats.md)."""
     from tests.conftest import SAMPLE_LOG
 
     original = (SAMPLE_LOG if suffix == ".log" else SAMPLE_MCAP).read_bytes()

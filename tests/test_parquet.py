@@ -24,12 +24,14 @@ from tests.real_recordings import RECORDINGS, TEXT, available
 duckdb = pytest.importorskip("duckdb")
 CAPTURES = Path(__file__).resolve().parents[1] / "captures"
 SAMPLES = ["atv71-plc-poll.mcap", "xbt-hmi.mcap", "atv312-setup.mcap", "nord-uss.mcap"]
-README = Path(__file__).resolve().parents[1] / "README.md"
+#: Where the documented queries are: the README, and the exports' page.
+DOCUMENTS = [Path(__file__).resolve().parents[1] / name for name in ("README.md", "docs/exports.md")]
 
 
 def readme_query(table_name: str) -> str:
-    """The README's DuckDB query over ``table_name`` (its dataset folder: ``{dataset}``)."""
-    blocks = re.findall(r"```sql\n(.*?)```", README.read_text(encoding="utf-8"), re.DOTALL)
+    """The documented DuckDB query over ``table_name`` (its dataset folder: ``{dataset}``)."""
+    text = "".join(document.read_text(encoding="utf-8") for document in DOCUMENTS)
+    blocks = re.findall(r"```sql\n(.*?)```", text, re.DOTALL)
     (query,) = [block for block in blocks if f"'plant/{table_name}/" in block]
     return query.replace("'plant/", "'{dataset}/").rstrip().removesuffix(";")
 
