@@ -36,6 +36,7 @@ REAL = ROOT.parent / "shared" / "real"
 TRAFFICS = ("polling", "mixed", "steady", "coils", "wide")
 #: What differs between trees though their outputs agree: the tool's version.
 VERSION = re.compile(rb"rtusniff \d+\.\d+\.\d+\S*")
+SIZE = re.compile(rb"\b\d+(\.\d+)? [kMG]?B\b")
 
 
 def inputs(scratch: Path, frames: int, quick: bool) -> Iterator[tuple[str, Path, list[str]]]:
@@ -96,7 +97,7 @@ def snapshot(tree: Path, out: Path, scratch: Path, frames: int, quick: bool) -> 
             if written.is_dir():
                 _parquet_as_text(written)
             elif output.endswith(".mcap") and done.returncode == 0:
-                _mcap_as_text(written)
+                written = _mcap_as_text(written)
             for text in [written] if written.is_file() else sorted(written.rglob("*.txt")):
                 text.write_bytes(_stable(text.read_bytes(), folder, scratch))
         print(f"output_snapshot: {tree.name or tree}: {name}", file=sys.stderr)
@@ -106,7 +107,8 @@ def _stable(text: bytes, folder: Path, scratch: Path) -> bytes:
     """``text`` with the output and scratch folders (generated captures) and the tool's version
     written alike in every run."""
     text = text.replace(str(folder).encode(), b"OUT").replace(str(scratch).encode(), b"SCRATCH")
-    return VERSION.sub(b"rtusniff VERSION", text)
+    # A written file's size, as the commands tell it, moves with the length of the folder's name.
+    return SIZE.sub(b"SIZE", VERSION.sub(b"rtusniff VERSION", text))
 
 
 def _parquet_as_text(folder: Path) -> None:
@@ -130,8 +132,8 @@ def _parquet_as_text(folder: Path) -> None:
             path.unlink()
 
 
-def _mcap_as_text(path: Path) -> None:
-    """An MCAP file replaced by its records as text (its metadata carries the export's time)."""
+def _mcap_as_text(path: Path) -> Path:
+    """An MCAP file replaced by its records as text (its bytes carry the writer's version)."""
     from mcap.reader import make_reader  # only for exports
 
     lines: list[bytes] = []
@@ -148,8 +150,10 @@ def _mcap_as_text(path: Path) -> None:
         stream.seek(0)
         for attachment in make_reader(stream).iter_attachments():
             lines.append(b"attachment %s %d %s" % (attachment.name.encode(), attachment.log_time, attachment.data))
-    path.with_suffix(".mcap.txt").write_bytes(b"\n".join(lines))
+    text = path.with_suffix(".mcap.txt")
+    text.write_bytes(b"\n".join(lines))
     path.unlink()
+    return text
 
 
 def differing(left: Path, right: Path) -> list[str]:
