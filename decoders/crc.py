@@ -1,7 +1,7 @@
 """CRC-16/MODBUS (init 0xFFFF, reflected polynomial 0xA001, sent low byte first).
 
-The per-frame function is the Rust ``fastcrc`` package: measured here at ~13 M
-frames/s against 0.9 M for the pure-Python table (``benchmarks/bench_crc.py``).
+The per-frame function is the Rust ``fastcrc`` package, many times the pure-Python table's
+speed (``benchmarks/bench_crc.py``).
 The table version stays as the reference the tests hold ``fastcrc`` to.
 """
 

@@ -416,8 +416,7 @@ def _by_signature_then_time(signatures: npt.NDArray[np.int64], times: npt.NDArra
     ``np.lexsort((times, signatures))`` does (runs in another order). When the times are in
     order already, a run in time order is a run in index order, which two stable radix sorts
     (numpy sorts 16-bit keys stably by radix) by 32 bits of each signature's hash keep; unless
-    two signatures share a hash. 0.25 to 0.5 ms against 0.7 to 0.9 ms for a batch's 12 000 to
-    16 000 requests, all different or a few hundred repeated."""
+    two signatures share a hash: a third to a half of ``lexsort``'s time on a batch's requests."""
     if bool((times[1:] < times[:-1]).any()):
         return np.lexsort((times, signatures))
     mixed = _mixed(signatures) >> np.uint64(32)

@@ -2,8 +2,8 @@
 
 A batch of 8 192 frames touches every pair of slave and function of a bus; added to their
 :class:`~decoders.stats.FunctionStats` one by one, each batch cost a Python step per pair and
-counter and a histogram merge per pair (0.5 s of the 2.2 s that ``stats`` took over a million
-coil frames of 128 pairs). Here a batch adds to arrays with a row per pair: its counters, its two
+counter and a histogram merge per pair (a quarter of ``stats``'s time on a bus of many pairs).
+Here a batch adds to arrays with a row per pair: its counters, its two
 histograms (latency, poll period) and their exact minima and maxima, by numpy. The statistics
 take the rows out (:meth:`FunctionTally.drain`, then :meth:`FunctionTally.clear`) when they are
 read, which is far less often than batches come.

@@ -13,10 +13,8 @@ here: the interpreter has started) every array above that came from a fresh mapp
 times the faults of no pad at all. A pad of 16 MB left mixed, steady and USB traffic with more
 faults than before; 64 MB fits every benchmark traffic.
 
-Measured here (``/usr/bin/time -v``, each command in a fresh process, with and without,
-alternating): ``stats`` of 5 M polling frames 80 000 → 12 000 page faults, system time 0.23 →
-0.08 s; a saturated day of 35 M polling frames, five rounds, system time 1.1 → 0.2 s and
-wall time a mean of 21.07 → 19.97 s (best 19.18 → 18.03 s), peak RSS unchanged (67 MB).
+With both, a long ``stats`` takes a sixth of the page faults and far less system time, for
+the same peak RSS (``/usr/bin/time -v`` with and without, alternating).
 
 Pages of the pad count in the resident set only once written, and they are what the batches'
 arrays use anyway: the peak RSS of ``stats`` is the same, of the exports within 10 MB

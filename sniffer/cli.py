@@ -101,7 +101,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     gc.set_threshold(GC_YOUNG_THRESHOLD, *gc.get_threshold()[1:])
     keep_freed_memory()
     given = list(sys.argv[1:] if argv is None else argv)
-    if given[:1] == ["--version"]:  # as the parser would say it, without every command's modules (0.29 → 0.08 s)
+    if given[:1] == ["--version"]:  # as the parser would say it, without every command's modules
         print(tool_version())
         return 0
     parser = build_parser(_command_in(given))
@@ -150,8 +150,7 @@ def _command_in(argv: list[str]) -> str | None:
 def entry_point() -> None:
     code = main()
     # The interpreter's last collections, as it exits, walk every object left (the modules of
-    # numpy and pyarrow, profiles, caches): measured here, 0.2 s after an export of 1 M frames
-    # and 0.35 s after `stats` of 1 M, once everything is written and closed. Frozen, they are
-    # left to the process's end.
+    # numpy and pyarrow, profiles, caches), a noticeable wait once everything is written and
+    # closed. Frozen, they are left to the process's end.
     gc.freeze()
     sys.exit(code)

@@ -40,8 +40,8 @@ from sniffer.step_pipe import receive_item, send_item
 PIPE_SIZE = 1 << 20
 #: Steps a thread of the parent receives ahead of their use, at most. A step is one to two MB
 #: pickled, more than the pipe holds, so the parent reading it waits on the child writing the
-#: rest: with three threads busy on two cores, 5 to 15 ms at a time, 0.2 s of 1 M mixed frames
-#: (measured here). Received by a thread of their own, the steps come while the parent works.
+#: rest, while three threads share two cores. Received by a thread of their own, the steps come
+#: while the parent works.
 RECEIVED_AHEAD = 2
 
 

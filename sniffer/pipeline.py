@@ -32,26 +32,20 @@ if TYPE_CHECKING:
 OPEN_REQUESTS_BEFORE = 64
 #: Chunks read are joined into batches of this many where the sinks take neither messages nor
 #: raw chunks (``stats``, ``compare``, ``cut``), and the capture is not followed as it grows:
-#: framing and pairing cost a fixed part per batch, and such batches hold little per frame. From
-#: the readers' 8 192, framing, pairing and counting 1 M frames took 18 to 22 % less time (polling,
-#: mixed, steady; one process), ``stats`` end to end ran 1.01 to 1.29× as fast, for 24 MB more memory;
-#: the outputs that annotate gained less and held 100 to 140 MB more. (0: batches as read.)
+#: framing and pairing cost a fixed part per batch, and such batches hold little per frame; the
+#: outputs that annotate hold a batch's objects and would gain less for much more memory.
+#: (0: batches as read.)
 COUNTING_BATCH_CHUNKS = 65536
-#: ... or of this many bytes, whichever comes first. A capture of host reads holds few chunks per
-#: megabyte (a USB adapter's: 8 192 chunks, 410 to 550 kB a batch as read), and framing host timing
-#: holds a batch's bytes many times over: joined to 1 MiB, ``stats`` of 1 M such frames peaked at
-#: 191 MB instead of 110 MB. At 400 000 bytes a batch of exact timing is joined (about 41 000
-#: chunks of 11 bytes), one of host reads is left as read. From 256 KiB (24 500 such chunks) to
-#: here, a saturated day of polling took 16.0 instead of 16.9 s of CPU, peak RSS 72 instead of
-#: 65 MB; mixed, steady and coils 1 to 3 % less, USB unchanged.
+#: ... or of this many bytes, whichever comes first: framing host timing holds a batch's bytes
+#: many times over, and a capture of host reads holds few chunks per megabyte, so a batch of
+#: exact timing is joined (about 41 000 chunks of 11 bytes) where one of host reads is left as read.
 COUNTING_BATCH_BYTES = 400_000
 #: Chunks read are joined into batches of this many (or of :data:`COUNTING_BATCH_BYTES`) where
 #: every sink that takes messages spends more per batch than per frame and holds a batch only
 #: while it writes it (``Sink.joins_batches``: the Parquet dataset), none takes raw chunks, and
-#: the capture is not followed. Four times the readers' 8 192: ``export --parquet`` of 1 M frames
-#: (five runs alternating, median wall s) polling 1.80 → 1.60, mixed 3.64 → 3.45, steady 3.04 →
-#: 2.60, coils 2.95 → 2.53, peak RSS 9 to 55 MB more; at 65 536 no faster, 15 to 106 MB more.
-#: JSONL, which holds its records' texts per batch, ran 5 to 15 % slower so, for 115 to 165 MB more.
+#: the capture is not followed. Four times the readers' 8 192: larger batches were no faster and
+#: held more; JSONL, which holds its records' texts per batch, runs slower so. The figures that
+#: chose these three: ``docs/performance.md`` and the history of this file.
 JOINED_BATCH_CHUNKS = 32768
 
 

@@ -9,13 +9,10 @@ Read requests, register answers of up to eight registers (a polled bus's every f
 answers, write answers, FC 5, FC 6 and FC 15 writes, and FC 16 and FC 23 writes of up to eight
 registers are written faster (``fast``; the comprehensions remain the plain path, and the tests
 hold both to the PDU's summary). Register answers of one size are rows of one template, each
-byte's two digits placed at the same columns of every row (half the time of their words laid
-out and formatted by ``%``); every other kind is laid out field by field by
-:mod:`decoders.modbus.text_layout` (numbers' digits, hex words and coils' bits computed for all
-rows at once; 1.9 times as fast as one ``%`` of a template repeated for all rows, which
-formatted each number from a Python object), and one ``split`` makes the lines. A million
-polling frames took 2.0 s of ``export --parquet``'s 4.5 s to summarise, f-strings and
-``bytes.hex`` a frame at a time.
+byte's two digits placed at the same columns of every row; every other kind is laid out field
+by field by :mod:`decoders.modbus.text_layout` (numbers' digits, hex words and coils' bits
+computed for all rows at once, not formatted from a Python object each), and one ``split``
+makes the lines.
 
 :func:`summaries` gives the lines as Python strings (JSONL, MCAP, the table);
 :func:`summary_pieces` the same lines a kind of frame at a time, those laid out by numpy packed

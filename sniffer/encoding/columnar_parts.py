@@ -13,8 +13,8 @@ are joined by one ``join``. Built per frame from a decoding
 frame and a param run, then a lookup in a memo that new frames always miss.
 
 The texts are exactly those the plain path writes from the decodings: the tests hold them to
-it (``tests/property/test_columnar_parts.py``). One ``join`` of a whole batch's pieces, cut into
-views, measured slower than a ``join`` per frame, on registers and on coils alike (2026-11-26).
+it (``tests/property/test_columnar_parts.py``). A ``join`` per frame: one ``join`` of a whole
+batch's pieces, cut into views, was slower on registers and on coils alike.
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """Arrow's compute functions called by name, without importing ``pyarrow.compute``.
 
 ``pyarrow.compute`` makes a Python function of every one of Arrow's compute functions as it is
-imported: 35 to 43 ms, measured at the start of ``export --parquet``, which needs two of them
+imported, a noticeable part of the start of ``export --parquet``, which needs two of them
 (``take``, and ``binary_join_element_wise`` where profiles name frames). ``call_function``, which
-those Python functions call, lives in ``pyarrow._compute``, imported in 5 ms; it is imported from
+those Python functions call, lives in ``pyarrow._compute``, imported in a fraction of that; it is imported from
 the documented ``pyarrow.compute`` only where a pyarrow moved it.
 """
 

@@ -10,18 +10,13 @@ parts instead (:func:`_named_lines`): the frames' lines as their PDUs write them
 per place of the named texts they show (taken from the small table of the batch's named texts),
 joined with the ``: `` or ``, `` before each by one ``binary_join_element_wise`` for the
 frames showing as many; one ``take`` then lays out every message's line, those decoded one by
-one among them. Measured on the same 32 batches of 1 M mixed frames, both ways alternating
-(thread time): the summary column 0.74 → 0.61 s; steady traffic, whose few distinct frames
-show few names, 0.19 s either way.
+one among them: less work than Python strings read by the column again, where frames show names.
 
 The lines as PDUs write them come in pieces, a kind of frame at a time
 (:func:`~decoders.modbus.columnar_text.summary_pieces`), and those numpy lays out come packed as
 a string column's buffers (:class:`~decoders.modbus.text_layout.PackedLines`): the column is
 made of their bytes, no Python string per line, and one ``take`` orders them with the rest.
-Measured on 1 M frames (thread time of :func:`summaries`, two runs of each alternating with the
-Python strings read into the column): coils 0.52 and 0.51 → 0.39 and 0.38 s, polling 0.34 →
-0.31 s, mixed 0.71 and 0.53 → 0.52 and 0.51 s; steady 0.175 → 0.185 s (its few distinct
-frames spell few lines). Arrow's functions are called by name
+Arrow's functions are called by name
 (:mod:`sniffer.exports.arrow_compute`): no export imports ``pyarrow.compute``.
 """
 
