@@ -73,5 +73,5 @@ set +e
 "$bin/rtusniff" analyze missing.log >/dev/null 2>&1
 [ $? -eq 3 ] || { echo "ci: wheel: a missing file does not exit 3" >&2; failed=$((failed + 1)); }
 set -e
-echo "wheel: $ran passed, $failed failed"
+echo "ci: the wheel's commands: $ran ran, $failed failed"
 [ "$failed" -eq 0 ]

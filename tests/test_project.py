@@ -40,3 +40,13 @@ def test_exit_codes_are_documented() -> None:
     readme = (ROOT / "README.md").read_text()
     for kind in ErrorKind:
         assert re.search(rf"^\| {kind.exit_code} \|", readme, re.M), kind
+
+
+def test_ci_runs_every_command_from_the_installed_wheel() -> None:
+    """What only a wheel can get wrong (entry points, package data) shows when a command runs
+    from it: CI's wheel check runs each one."""
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert "wheel_commands.sh" in ci
+    script = (ROOT / ".ci" / "wheel_commands.sh").read_text()
+    for name in COMMAND_NAMES:
+        assert re.search(rf'"\$bin/rtusniff" {name}\b', script), name
