@@ -287,7 +287,7 @@ def test_jsonl_is_what_the_standard_json_module_writes(cli: Cli) -> None:
 
 def test_the_objects_left_are_frozen_before_the_interpreter_exits(monkeypatch: pytest.MonkeyPatch) -> None:
     """The exit code is kept, and the interpreter's last collections skip what the run left
-    (their walk took 0.2 to 0.35 s after 1 M frames: docs/performance.md)."""
+    (a noticeable wait after a long export)."""
     monkeypatch.setattr(rtusniff_cli, "main", lambda: 3)
     frozen = gc.get_freeze_count()
     try:

@@ -1,5 +1,5 @@
-"""``benchmarks/function_clock.py``, which the per-function figures of ``docs/performance.md``
-come from: it times the functions named, where they are defined and where imported by name, and
+"""``benchmarks/function_clock.py``, which measures where a command's main thread spends its
+time: it times the functions named, where they are defined and where imported by name, and
 leaves the command's exit code and output as they are."""
 
 from __future__ import annotations
