@@ -27,8 +27,8 @@ from rich.table import Table
 from benchmarks.bench_memory import add_capture_options, benchmark_capture
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch
 from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from decoders.stats import Statistics

@@ -30,8 +30,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import FrameFlag
-from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Role
+from decoders.message import NONE, ROLE_CODE, Role
 from sniffer.errors import ErrorKind, RtuSniffError
 
 FLAG_NAMES = {name: flag for flag in FrameFlag if flag for name in flag.names}

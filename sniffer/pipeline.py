@@ -12,9 +12,10 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import FrameBatch
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch, MessageBatch, slice_messages
+from decoders.message import MessageBatch, slice_messages
 from decoders.pipeline import Decoder
 from decoders.stats import SkippedReads, Statistics
 from sniffer.decoding_process import ChildDecoding, DecodingStep, decode_here

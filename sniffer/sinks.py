@@ -35,8 +35,9 @@ from contextlib import contextmanager
 from typing import Any, Generic, Protocol, TypeVar
 
 from decoders.capture import CaptureInfo, ChunkBatch
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch, MessageBatch
+from decoders.message import MessageBatch
 from decoders.stats import SkippedReads, Statistics
 from sniffer.errors import ErrorKind, RtuSniffError
 

@@ -8,7 +8,7 @@ import json
 import re
 from pathlib import Path
 
-from decoders.message import AnnotatedBatch
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from sniffer.encoding.fields import FRAME_FIELD_NAMES, FRAME_FIELDS, OPTIONAL_FRAME_FIELD_NAMES

@@ -29,8 +29,8 @@ import pytest
 from benchmarks.bench_memory import benchmark_capture
 from decoders.anomalies import KINDS
 from decoders.capture import CaptureInfo, TimingQuality
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch
 from decoders.stats import Statistics
 from sniffer.cli import build_parser
 from sniffer.commands import report, stats

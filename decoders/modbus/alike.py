@@ -25,17 +25,17 @@ thread (the frames compared byte by byte, grouped by ``np.unique``); see ``docs/
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from decoders.distinct import distinct
 from decoders.hashing import FIBONACCI_SIGNED
+from decoders.modbus.columnar import Alike, ColumnarFrames
 
 if TYPE_CHECKING:
     from decoders.message import MessageBatch
-    from decoders.modbus.columnar import ColumnarFrames
 
 #: The share of frames kept in columns, distinct at first sight, from which :func:`alike` leaves
 #: them all to be spelt.
@@ -45,15 +45,6 @@ SAMPLED = 512
 #: Where :func:`alike` mixes a frame's profile into what it compares (above role and kind).
 PROFILE_SHIFT = 55
 _ALL_BYTES = np.uint64(0xFFFF_FFFF_FFFF_FFFF)
-
-
-class Alike(NamedTuple):
-    """Frames kept in columns that read alike (:func:`alike`): ``firsts``, the first of each
-    group (rows of the columns, ascending), and ``inverse``: for each frame, in order, its
-    group's place among ``firsts``."""
-
-    firsts: npt.NDArray[np.int64]
-    inverse: npt.NDArray[np.int64]
 
 
 def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],

@@ -22,20 +22,11 @@ from collections.abc import Iterable
 import numpy as np
 import numpy.typing as npt
 
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
 from decoders.frame import USS
 from decoders.memo import Memo
-from decoders.message import (
-    IN_COLUMNS,
-    NONE,
-    ROLE_CODE,
-    ROLE_ORDER,
-    AnnotatedBatch,
-    Decoding,
-    Message,
-    MessageBatch,
-    Role,
-)
+from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, ROLE_ORDER, Decoding, Message, MessageBatch, Role
 from decoders.modbus.codes import function_name
 from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
 from decoders.modbus.columnar_find import find_columnar

@@ -25,7 +25,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from dataclasses import dataclass
 from operator import itemgetter
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -36,9 +36,6 @@ from decoders.modbus.columnar_text import READ_ANSWER, READ_WRITE, WRITE, WRITE_
 from decoders.modbus.pdu import COIL_ON
 from decoders.profiles.naming import SHOWN_PARAMS, NamedValue, summary_with
 from decoders.runs import spread, within_runs
-
-if TYPE_CHECKING:
-    from decoders.modbus.alike import Alike
 
 #: A param's value where its frame names the address alone.
 NO_VALUE = -1
@@ -52,6 +49,15 @@ _FEW_MEMBERS = 8
 MOST = np.zeros(17, np.int64)
 for _function, _most in MAX_QUANTITY.items():
     MOST[_function] = _most
+
+
+class Alike(NamedTuple):
+    """Frames kept in columns that read alike (:func:`decoders.modbus.alike.alike`): ``firsts``, the first of each
+    group (rows of the columns, ascending), and ``inverse``: for each frame, in order, its
+    group's place among ``firsts``."""
+
+    firsts: npt.NDArray[np.int64]
+    inverse: npt.NDArray[np.int64]
 
 
 class ColumnarValues(NamedTuple):

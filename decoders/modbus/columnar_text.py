@@ -23,7 +23,7 @@ Parquet column, which then needs no Python string per line. The tests hold both 
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -47,9 +47,6 @@ from decoders.modbus.text_layout import (
     upper_hex,
 )
 
-if TYPE_CHECKING:
-    from decoders.modbus.columnar import ColumnarFrames
-
 #: What a frame kept in columns is: a read request (FC 1-4), its answer (or an FC 23 request's),
 #: a write request (FC 5, 6, 15, 16; kept only with its answer), its answer, an FC 23 request
 #: (read and write at once; kept only with its answer).
@@ -62,7 +59,30 @@ _SHOWN_BYTES = _SHOWN_BITS // 8
 Lines = list[str] | PackedLines
 
 
-def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list[str]:
+class SummaryColumns(Protocol):
+    """What a summary line is written from: the columns of frames kept in columns
+    (:class:`~decoders.modbus.columnar.ColumnarFrames` has them), a row per frame; ``data``:
+    where its values start in the batch's bytes."""
+
+    @property
+    def function(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def kind(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def address(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def count(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def read_address(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def read_count(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def data(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def byte_count(self) -> npt.NDArray[np.int64]: ...
+
+
+def summaries(frames: SummaryColumns, data: bytes, *, fast: bool = True) -> list[str]:
     """Each frame's summary line, as its PDU's ``summary()`` writes it (``data``: the batch's;
     ``fast``: see the module docstring, ``False`` is the plain path)."""
     texts = np.empty(len(frames.kind), object)
@@ -72,14 +92,14 @@ def summaries(frames: ColumnarFrames, data: bytes, *, fast: bool = True) -> list
     return said
 
 
-def summary_pieces(frames: ColumnarFrames, data: bytes) -> list[tuple[npt.NDArray[np.int64], Lines]]:
+def summary_pieces(frames: SummaryColumns, data: bytes) -> list[tuple[npt.NDArray[np.int64], Lines]]:
     """:func:`summaries` in pieces, for writers of columns: the lines of the frames at each
     piece's rows, packed (:class:`~decoders.modbus.text_layout.PackedLines`) where laid out by
     numpy, as strings where spelt one by one; every frame in one piece."""
     return list(_pieces(frames, data, fast=True, pack=True))
 
 
-def _pieces(frames: ColumnarFrames, data: bytes, *, fast: bool, pack: bool) -> Iterator[tuple[npt.NDArray[np.int64],
+def _pieces(frames: SummaryColumns, data: bytes, *, fast: bool, pack: bool) -> Iterator[tuple[npt.NDArray[np.int64],
                                                                                                 Lines]]:
     """The frames' lines by kind and function (``pack``: packed where laid out by numpy)."""
     kind, function = frames.kind, frames.function
@@ -99,7 +119,7 @@ def _pieces(frames: ColumnarFrames, data: bytes, *, fast: bool, pack: bool) -> I
             yield rows, _group(frames, data, rows, kind_of, function_of)
 
 
-def _answer_texts(rows: npt.NDArray[np.int64], function: int, data: bytes, frames: ColumnarFrames, *,
+def _answer_texts(rows: npt.NDArray[np.int64], function: int, data: bytes, frames: SummaryColumns, *,
                   pack: bool) -> Iterator[tuple[npt.NDArray[np.int64], Lines]]:
     """``HR = 0627 04EC (2 registers)`` of the frames at ``rows``; answers of more than
     :data:`HEX_WORDS_SHOWN` registers by the plain path (their byte counts are even: an odd
@@ -158,7 +178,7 @@ def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: 
         yield rows, spelt
 
 
-def _fields(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kind: int,
+def _fields(frames: SummaryColumns, data: bytes, rows: npt.NDArray[np.int64], kind: int,
             function: int) -> list[Field | str]:
     """The fields of the summaries of the frames at ``rows``, all of one kind and function (FC 5
     and FC 6 of either kind, reads and write answers of any function, coil answers and FC 15
@@ -192,7 +212,7 @@ def _span(address: npt.NDArray[np.int64], count: npt.NDArray[np.int64]) -> list[
     return [decimal(address), present(more, ".."), present(more, decimal(address + count - 1))]
 
 
-def _register_write_texts(rows: npt.NDArray[np.int64], kind: int, data: bytes, frames: ColumnarFrames, *,
+def _register_write_texts(rows: npt.NDArray[np.int64], kind: int, data: bytes, frames: SummaryColumns, *,
                           pack: bool) -> Iterator[tuple[npt.NDArray[np.int64], Lines]]:
     """``write HR 8501..8502 = 000F 03FE`` (FC 16) or ``read HR 12741..12742 (2), write HR
     12761..12762 = 000F 046C`` (FC 23) of the frames at ``rows``; writes of more than
@@ -212,7 +232,7 @@ def _register_write_texts(rows: npt.NDArray[np.int64], kind: int, data: bytes, f
     yield at, (packed if pack else lines)(fields, len(at))
 
 
-def _group(frames: ColumnarFrames, data: bytes, rows: npt.NDArray[np.int64], kind: int, function: int) -> list[str]:
+def _group(frames: SummaryColumns, data: bytes, rows: npt.NDArray[np.int64], kind: int, function: int) -> list[str]:
     """The summaries of the frames at ``rows``, all of one kind and function."""
     table = TABLE_NAMES.get(function, "")
     address, count = frames.address[rows].tolist(), frames.count[rows].tolist()

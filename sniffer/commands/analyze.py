@@ -7,7 +7,8 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from typing import TextIO
 
-from decoders.message import AnnotatedBatch, MessageBatch
+from decoders.decoded_batch import AnnotatedBatch
+from decoders.message import MessageBatch
 from sniffer.commands.common import (
     add_capture_argument,
     add_decoding_options,

@@ -9,18 +9,11 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, uart_error_name
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import PROTOCOL_NAMES, FrameBatch, FrameFlag
 from decoders.line import LineSettings
 from decoders.memo import Memo
-from decoders.message import (
-    NONE,
-    ROLE_NAMES,
-    AnnotatedBatch,
-    Decoding,
-    DeviceIdentity,
-    Message,
-    MessageBatch,
-)
+from decoders.message import NONE, ROLE_NAMES, Decoding, DeviceIdentity, Message, MessageBatch
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.columnar_parts import ColumnarParts, columnar_parts

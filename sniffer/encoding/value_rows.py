@@ -23,8 +23,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import FrameFlag
-from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Decoding, ParamValue, Role
+from decoders.message import NONE, ROLE_CODE, Decoding, ParamValue, Role
 from decoders.modbus.param_runs import LazyParams, ParamRun
 from decoders.stats import Statistics
 from sniffer.sinks import Sink

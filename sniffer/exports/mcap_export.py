@@ -34,10 +34,11 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, ChunkBatch
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
 from decoders.line import LineSettings
 from decoders.memo import Memo
-from decoders.message import NONE, ROLE_NAMES, AnnotatedBatch, Decoding, MessageBatch
+from decoders.message import NONE, ROLE_NAMES, Decoding, MessageBatch
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.frame_fields import BlockFields, block_fields

@@ -19,8 +19,9 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, ChunkBatch
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch, MessageBatch
+from decoders.message import MessageBatch
 from decoders.stats import Statistics
 from sniffer.exports.latency_bins import latency_bins
 from sniffer.exports.pcap_export import PcapExporter

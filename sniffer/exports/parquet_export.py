@@ -43,8 +43,9 @@ import numpy.typing as npt
 import pyarrow as pa
 
 from decoders.anomalies import KINDS, anomaly_masks
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import flag_names_of
-from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch
+from decoders.message import NONE, ROLE_ORDER
 from decoders.runs import spread
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.latency_bins import DAY_NS

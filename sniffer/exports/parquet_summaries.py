@@ -28,8 +28,8 @@ import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
 
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
-from decoders.message import AnnotatedBatch
 from decoders.modbus.columnar_text import Lines
 from decoders.profiles.naming import SHOWN_PARAMS
 from sniffer.encoding.columnar_parts import columnar_parts

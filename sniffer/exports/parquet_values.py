@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.memo import Memo
-from decoders.message import NONE, AnnotatedBatch, Decoding, ParamValue
+from decoders.message import NONE, Decoding, ParamValue
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.columnar import ColumnarNames
 from sniffer.encoding.value_rows import ValueRow, ValueRows

@@ -24,7 +24,8 @@ from typing import Generic, TypeVar
 import numpy as np
 import numpy.typing as npt
 
-from decoders.message import ROLE_CODE, AnnotatedBatch, ParamValue, Role
+from decoders.decoded_batch import AnnotatedBatch
+from decoders.message import ROLE_CODE, ParamValue, Role
 
 #: Writes whose answer does not repeat the written values.
 WRITES_ANSWERED_WITHOUT_VALUES = (15, 16, 23)

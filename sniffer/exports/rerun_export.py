@@ -22,9 +22,10 @@ from operator import attrgetter, itemgetter
 import numpy as np
 import numpy.typing as npt
 
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
 from decoders.memo import Memo
-from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, AnnotatedBatch, Decoding, ParamValue, Role
+from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, Decoding, ParamValue, Role
 from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
 from sniffer.exports.published import PublishedValues, plotted

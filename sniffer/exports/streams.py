@@ -26,8 +26,9 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.capture import CaptureInfo
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch, MessageBatch
+from decoders.message import MessageBatch
 from decoders.stats import SkippedReads
 from sniffer.encoding.rows import Rows
 from sniffer.errors import ErrorKind, RtuSniffError

@@ -25,8 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import FrameFlag
-from decoders.message import NONE, ROLE_CODE, AnnotatedBatch, Role
+from decoders.message import NONE, ROLE_CODE, Role
 from decoders.modbus.columnar import one_of
 from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.value_rows import KEPT_WRITES, WRITES

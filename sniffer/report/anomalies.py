@@ -17,7 +17,8 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.anomalies import KINDS
-from decoders.message import ROLE_CODE, AnnotatedBatch, Role
+from decoders.decoded_batch import AnnotatedBatch
+from decoders.message import ROLE_CODE, Role
 from sniffer.views.clock import Clock
 from sniffer.views.frame_cells import decoding_summary, frame_cells, frame_notes, summary_cells
 

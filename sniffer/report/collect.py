@@ -20,9 +20,10 @@ from decoders.anomalies import anomaly_masks
 from decoders.capture import CaptureInfo
 from decoders.compare import Change
 from decoders.damage import RetryDiff
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
 from decoders.line import LineSettings
-from decoders.message import ROLE_CODE, AnnotatedBatch, DeviceIdentity, MessageBatch, Role
+from decoders.message import ROLE_CODE, DeviceIdentity, MessageBatch, Role
 from decoders.stats import Statistics
 from decoders.timeline import Timeline
 from sniffer.exports.outputs import sha256_of

@@ -20,7 +20,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from decoders.message import ROLE_CODE, AnnotatedBatch, Decoding, Role
+from decoders.decoded_batch import AnnotatedBatch
+from decoders.message import ROLE_CODE, Decoding, Role
 from decoders.timeline import Merge, Timeline
 from sniffer.encoding.value_rows import WRITES
 

@@ -9,8 +9,9 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.damage import crc_note, uart_error_note
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import _NAMES_BY_VALUE, NO_IDLE, FrameFlag
-from decoders.message import NONE, ROLE_ORDER, AnnotatedBatch, Decoding, MessageBatch, Role
+from decoders.message import NONE, ROLE_ORDER, Decoding, MessageBatch, Role
 from sniffer.views.clock import Clock
 from sniffer.views.layout import ALWAYS, Cells, Column
 

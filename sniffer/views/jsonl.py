@@ -6,8 +6,8 @@ import os
 from typing import Any, BinaryIO, TextIO
 
 from decoders.capture import CaptureInfo
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch
 from decoders.stats import SkippedReads, Statistics
 from sniffer.encoding.frame_fields import FrameFields, frame_fields
 from sniffer.encoding.param_text import encode_record

@@ -12,7 +12,8 @@ import numpy as np
 from rich.console import Console, ConsoleOptions, RenderResult
 from rich.text import Text
 
-from decoders.message import ROLE_CODE, AnnotatedBatch, MessageBatch, Role
+from decoders.decoded_batch import AnnotatedBatch
+from decoders.message import ROLE_CODE, MessageBatch, Role
 from decoders.stats import Histogram, Statistics
 from sniffer.sinks import Sink
 from sniffer.views.clock import Clock

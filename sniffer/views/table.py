@@ -21,8 +21,9 @@ import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.damage import RetryDiff
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
-from decoders.message import AnnotatedBatch, MessageBatch, slice_messages
+from decoders.message import MessageBatch, slice_messages
 from decoders.stats import Statistics
 from sniffer.encoding.columnar_parts import columnar_parts
 from sniffer.sinks import Sink

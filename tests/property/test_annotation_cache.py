@@ -23,8 +23,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from decoders.crc import crc_bytes, crc_ok
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import Frame, FrameFlag, flag_set, frames_to_batch
-from decoders.message import AnnotatedBatch, Decoding, MessageBatch, ParamValue
+from decoders.message import Decoding, MessageBatch, ParamValue
 from decoders.modbus import annotate as annotate_module
 from decoders.modbus import value_shapes
 from decoders.modbus.annotate import Annotator

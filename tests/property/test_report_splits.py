@@ -14,7 +14,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from decoders.message import UNDECODED, AnnotatedBatch, MessageBatch
+from decoders.decoded_batch import AnnotatedBatch
+from decoders.message import UNDECODED, MessageBatch
 from decoders.timeline import Timeline
 from sniffer.report.collect import Provenance, ReportCollector
 from tests.property.test_statistics_splits import _slice, whole_capture
