@@ -337,3 +337,19 @@ def test_glitches_on_a_real_line_leave_the_characters(cli: Cli, session: Path) -
     flipped = [bin(a ^ b).count("1") for a, b in zip(got, named, strict=True)]
     assert all(bits <= 1 for bits in flipped)
     assert (sum(flipped) == 1) == (session.stem in ("glitch_0x4f_2", "glitch_0x53"))
+
+
+def test_a_probe_named_twice_is_refused_and_a_name_before_a_number_is_said(cli: Cli) -> None:
+    """The Brainchild recording's probes are named "0" and "1" (numbers 1 and 2): ``--channel 1
+    --channel 2`` named probe 2 twice (by its name, then by its number) and read the same line
+    as RX and TX, which gave noise and exit 0; it is one error line naming both. ``--channel 1``
+    alone is the probe named "1", which a warning says."""
+    session = SIGROK / "uart" / "modbus_rtu" / "brainchild_io_16do" / "brainchild-io-16do.sr"
+    twice = cli("analyze", str(session), "--line", "19200 8E1", "--channel", "1", "--channel", "2")
+    assert twice.code == 2 and twice.out == "", twice.err
+    assert twice.err.count("\n") == 1 and "--channel 1 and --channel 2 both name probe 2" in twice.err
+    alone = cli("stats", str(session), "--line", "19200 8E1", "--channel", "1")
+    assert alone.code == 0, alone.err
+    assert "--channel 1 is probe 2, named '1'" in alone.err and "probe 1 is named '0'" in alone.err
+    by_name = cli("stats", str(session), "--line", "19200 8E1", "--channel", "0", "--channel", "1")
+    assert by_name.code == 0 and "--channel" not in by_name.err, by_name.err

@@ -290,9 +290,9 @@ def open_output(path: str | None, stack: ExitStack) -> TextIO:
 
 def add_channel_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--channel", action="append", metavar="NAME|NUMBER",
-                        help="for a logic analyzer's recording (.sr): the probe the bus is on, by name or number "
-                        "from 1; twice for RX and TX on two probes (merged in time order). Default: the only "
-                        "probe that changes")
+                        help="for a logic analyzer's recording (.sr, Saleae .csv): the probe the bus is on, by "
+                        "name (matched first) or number from 1; twice for RX and TX on two probes (merged in "
+                        "time order). Default: the only probe that changes")
 
 
 def add_input_format_option(parser: argparse.ArgumentParser) -> None:

@@ -95,6 +95,41 @@ def channel_number(requested: str, names: dict[int, str]) -> int | None:
     return next((number for number in names if str(number) == requested), None)
 
 
+class ChannelChoiceError(ValueError):
+    """``--channel`` named no channel, or one channel twice: the message says which."""
+
+
+def chosen_channels(requested: tuple[str, ...], names: dict[int, str],
+                    what: str = "channel") -> tuple[list[int], list[str]]:
+    """The channels the ``--channel`` options name among ``names`` (number from 1 → name), in
+    order, and a warning for each that its name matched where its number names another channel
+    (sigrok names probes "0", "1", …: ``--channel 1`` is the probe named "1", the second), unless
+    another option is a name that is no number (``--channel 0 --channel 1``: names, plainly).
+    Raises :class:`ChannelChoiceError` for a name that matches nothing, and for two options
+    that name one channel: the same bytes read twice are no RX and TX. ``what``: what the
+    recording calls a channel, in the messages (a sigrok session's are probes)."""
+    chosen: list[int] = []
+    said: list[str] = []
+    numbers = {str(index): index for index in names}
+    plainly_names = any(channel in names.values() and channel not in numbers for channel in requested)
+    for channel in requested:
+        number = channel_number(channel, names)
+        if number is None:
+            listed = ", ".join(f"{index}={name}" for index, name in sorted(names.items()))
+            raise ChannelChoiceError(f"--channel {channel}: no such {what} (here: {listed})")
+        if number in chosen:
+            earlier = requested[chosen.index(number)]
+            raise ChannelChoiceError(
+                f"--channel {earlier} and --channel {channel} both name {what} {number} "
+                f"(named {names[number]!r}; a name is matched before a number): name two different {what}s")
+        by_number = numbers.get(channel)
+        if by_number is not None and by_number != number and not plainly_names:
+            said.append(f"--channel {channel} is {what} {number}, named {channel!r} (a name is matched before "
+                        f"a number: {what} {by_number} is named {names[by_number]!r})")
+        chosen.append(number)
+    return chosen, said
+
+
 @dataclass(frozen=True)
 class CaptureFormat:
     """One capture format, declared by its module in :mod:`sniffer.io.formats` as ``FORMAT``.

@@ -31,7 +31,7 @@ import numpy as np
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality, UartError
 from decoders.uart import character_chunks, decode_transitions, merge_characters
 from sniffer.errors import CaptureFormatError, ErrorKind
-from sniffer.io.base import ReaderOptions, channel_number
+from sniffer.io.base import ChannelChoiceError, ReaderOptions, chosen_channels
 
 LOGIC2 = ("name", "type", "start_time", "duration", "data")
 LOGIC1 = ("Time [s]", "Value", "Parity Error", "Framing Error")
@@ -232,15 +232,13 @@ class SaleaeDigitalReader:
             raise CaptureFormatError(ErrorKind.USAGE, f"{len(channels)} --channel options: a bus has one line, or "
                                      "two (RX and TX)", path=self.path, location="line 1")
         if channels:
-            return [self._named(names, channel) for channel in channels]
+            try:
+                numbers, said = chosen_channels(channels, {i + 1: name for i, name in enumerate(names)})
+            except ChannelChoiceError as exc:
+                raise CaptureFormatError(ErrorKind.USAGE, str(exc), path=self.path, location="line 1") from None
+            self.warnings += [f"{self.path}: {warning}" for warning in said]
+            return [number - 1 for number in numbers]
         return [self._changing(names, matrix)]
-
-    def _named(self, names: list[str], channel: str) -> int:
-        number = channel_number(channel, {i + 1: name for i, name in enumerate(names)})
-        if number is None:
-            raise CaptureFormatError(ErrorKind.USAGE, f"--channel {channel}: no such channel (this export "
-                                     f"has {', '.join(names)})", path=self.path, location="line 1")
-        return number - 1
 
     def _changing(self, names: list[str], matrix: np.ndarray) -> int:
         changing = [i for i in range(len(names)) if len(matrix) and np.any(matrix[:, i] != matrix[0, i])]

@@ -26,7 +26,7 @@ from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from decoders.uart import UartCharacters, UartDecoder, character_chunks, merge_characters, shortest_pulse_baud
 from sniffer.errors import CaptureFormatError, ErrorKind
-from sniffer.io.base import ReaderOptions, channel_number
+from sniffer.io.base import ChannelChoiceError, ReaderOptions, chosen_channels
 
 NS_PER_S = 1_000_000_000
 #: Samples looked at (whole sample files) to tell the line's settings when ``--line`` does not.
@@ -127,14 +127,11 @@ class SigrokSessionReader:
 
     def _choose_probes(self, channels: tuple[str, ...]) -> list[int]:
         if channels:
-            probes = []
-            for channel in channels:
-                probe = channel_number(channel, self._probes)
-                if probe is None:
-                    listed = ", ".join(f"{index}={name}" for index, name in sorted(self._probes.items()))
-                    raise self._error(f"--channel {channel}: no such probe (this session has {listed})",
-                                      ErrorKind.USAGE)
-                probes.append(probe)
+            try:
+                probes, said = chosen_channels(channels, self._probes, "probe")
+            except ChannelChoiceError as exc:
+                raise self._error(str(exc), ErrorKind.USAGE) from None
+            self.warnings += [f"{self.path}: {warning}" for warning in said]
             return probes
         # The probes that change anywhere: the first sample files may hold an idle line only.
         changing: set[int] = set()
