@@ -353,3 +353,24 @@ def test_a_probe_named_twice_is_refused_and_a_name_before_a_number_is_said(cli: 
     assert "--channel 1 is probe 2, named '1'" in alone.err and "probe 1 is named '0'" in alone.err
     by_name = cli("stats", str(session), "--line", "19200 8E1", "--channel", "0", "--channel", "1")
     assert by_name.code == 0 and "--channel" not in by_name.err, by_name.err
+
+
+@pytest.mark.parametrize("output", sorted((SHARED_REAL / "sigrok-test" / "modbus").glob("*.output")),
+                         ids=lambda path: path.name)
+def test_the_modbus_decoder_s_annotations_are_told_apart_from_the_uart_s(cli: Cli, tmp_path: Path,
+                                                                        output: Path) -> None:
+    """sigrok's own Modbus decoder output (sigrok-test's expected decodes) given as input read as
+    UART characters until its first data annotation, '0x8200 / 33280' is not a byte (exit 7). It
+    is one line naming the decoder and the command that exports the UART's annotations; beside
+    the UART's own lines, it is left out with a warning."""
+    said = cli("analyze", str(output), "--input-format", "sigrok-cli", "--line", "9600 8N1")
+    assert said.code == 7 and said.out == "", said.err
+    assert said.err.count("\n") == 1 and "the annotations of sigrok's 'modbus' decoder" in said.err
+    assert "-A uart --protocol-decoder-samplenum --protocol-decoder-ann-class" in said.err
+    uart = EXPECTED / "hello_world_8n1_115200.output"
+    stacked = tmp_path / "stacked.txt"
+    stacked.write_text(uart.read_text() + output.read_text())
+    alone = cli("analyze", str(uart), "--input-format", "sigrok-cli", "--line", "115200 8N1", "--format", "jsonl")
+    both = cli("analyze", str(stacked), "--input-format", "sigrok-cli", "--line", "115200 8N1", "--format", "jsonl")
+    assert both.code == 0 and "'modbus' decoder left out" in both.err
+    assert both.jsonl()[1:] == alone.jsonl()[1:]

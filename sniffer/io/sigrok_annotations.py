@@ -32,7 +32,10 @@ from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ReaderOptions
 
 #: START-END decoder: class: "text" ... (greedy: sigrok's ascii format writes a quote unescaped: """).
-LINE = re.compile(r"(\d+)-(\d+) [\w.-]+: ([\w-]+): \"(.*)\"\s*$")
+LINE = re.compile(r"(\d+)-(\d+) ([\w.-]+): ([\w-]+): \"(.*)\"\s*$")
+#: What to run for the annotations read here (said where a file holds another decoder's only).
+UART_COMMAND = ("sigrok-cli -i REC.sr -P uart:baudrate=BAUD:rx=RX -A uart --protocol-decoder-samplenum "
+                "--protocol-decoder-ann-class")
 NS_PER_S = 1_000_000_000
 #: Data annotations looked at to tell the sample rate.
 RATE_SAMPLE = 256
@@ -51,9 +54,18 @@ class SigrokAnnotationsReader:
         except UnicodeDecodeError as exc:
             raise CaptureFormatError(ErrorKind.BAD_DATA, f"not text: byte 0x{exc.object[exc.start]:02X}",
                                      path=path, location=f"byte {exc.start}") from None
+        if not values and self._others:
+            decoder, number = next(iter(self._others.items()))
+            raise CaptureFormatError(ErrorKind.BAD_DATA, f"the annotations of sigrok's {decoder!r} decoder, not of its "
+                                     f"UART decoder, which rtusniff decodes from: export them with {UART_COMMAND}",
+                                     path=path, location=f"line {number}")
         if not values:
             raise CaptureFormatError(ErrorKind.NO_DATA, "no rx-data or tx-data annotations (run sigrok-cli with "
                                      "-A uart and --protocol-decoder-samplenum)", path=path, location="line 1")
+        if self._others:
+            listed = ", ".join(repr(decoder) for decoder in self._others)
+            self.warnings.append(f"{path}: the annotations of sigrok's {listed} decoder left out: the UART "
+                                 "decoder's characters are what rtusniff decodes")
         if options.line is None:
             raise CaptureFormatError(ErrorKind.NO_LINE_SETTINGS, "sigrok-cli's annotations do not say the UART "
                                      "settings: give --line, e.g. --line 9600 8N1", path=path, location="line 1")
@@ -85,6 +97,8 @@ class SigrokAnnotationsReader:
         #: The last character read per direction (``rx``, ``tx``): what an error line marks.
         last: dict[str, int] = {}
         self._errors = 0
+        #: Decoders other than the UART's, with the first line of each (a stacked decoder's output).
+        self._others: dict[str, int] = {}
         for number, raw in enumerate(text, start=1):
             line = raw.strip()
             if not line:
@@ -94,16 +108,19 @@ class SigrokAnnotationsReader:
                 raise CaptureFormatError(ErrorKind.BAD_DATA, "not a sigrok-cli annotation line with sample numbers "
                                          "and class (START-END uart: CLASS: \"TEXT\")", path=self.path,
                                          location=f"line {number}")
-            kind = match[3]
+            if not match[3].startswith("uart"):
+                self._others.setdefault(match[3], number)
+                continue
+            kind = match[4]
             direction = kind.split("-", 1)[0]
             if kind.endswith("-data"):
                 last[direction] = len(values)
                 starts.append(int(match[1]))
                 ends.append(int(match[2]))
-                values.append(self._value(match[4], number))
+                values.append(self._value(match[5], number))
                 kinds.append(0)
                 directions.append(direction)
-            elif (error := _error_kind(kind, match[4])) is not None:
+            elif (error := _error_kind(kind, match[5])) is not None:
                 self._errors += 1
                 if direction in last:
                     kinds[last[direction]] |= error
