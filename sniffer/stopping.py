@@ -3,7 +3,8 @@ without cutting a record in two, and its writes are never cut.
 
 :func:`terminate_raises`: SIGTERM (``kill PID``, a service manager stopping a job) raises
 :class:`TerminatedError` where the default would end the process at once, so that what a
-command was writing is abandoned or closed as on Ctrl-C (no ``.partial`` file is left).
+command was writing is abandoned or closed as on Ctrl-C (no ``.partial`` file is left); SIGINT
+raises ``KeyboardInterrupt`` in every command, also where a shell started it ignored.
 
 SIGINT and SIGTERM stop a live capture at once, except while records are being written: then the
 first signal stops it once the write is done (:class:`StopRequest`). A write interrupted by a
@@ -85,11 +86,14 @@ class StopRequest:
 
 
 def terminate_raises() -> dict[int, _SignalHandler]:
-    """SIGTERM raises :class:`TerminatedError` from now on (the main thread only); the previous
-    handler, for :func:`restore_signals`."""
+    """SIGTERM raises :class:`TerminatedError` from now on, and SIGINT ``KeyboardInterrupt`` even
+    where the process started with it ignored (a shell script's background job: ``kill -INT``
+    must stop an ``export &`` as it stops a capture); the main thread only. The previous
+    handlers, for :func:`restore_signals`."""
     if threading.current_thread() is not threading.main_thread():
         return {}
-    return {signal.SIGTERM: signal.signal(signal.SIGTERM, _raise_terminated)}
+    return {signal.SIGTERM: signal.signal(signal.SIGTERM, _raise_terminated),
+            signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler)}
 
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:

@@ -272,3 +272,27 @@ def test_ctrl_c_leaves_a_valid_export_and_no_child(tmp_path: Path) -> None:
     with output.open("rb") as f:
         summary = make_reader(f).get_summary()
     assert summary is not None and "/modbus/frames" in {c.topic for c in summary.channels.values()}
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_kill_int_stops_an_export_a_script_started_in_the_background(tmp_path: Path, jobs: str) -> None:
+    """A shell script's background job starts with SIGINT ignored; ``kill -INT`` ran such an
+    export to the end with exit 0. It stops it as Ctrl-C does: exit 130, the export closed whole."""
+    output = tmp_path / "background.mcap"
+    command = [sys.executable, "-m", "sniffer", "export", "-", "--mcap", str(output), "--jobs", jobs]
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited across exec, as a shell does it
+    try:
+        export = subprocess.Popen(command, stdin=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                  start_new_session=True, env={**os.environ, "CI": "1"})
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert export.stdin is not None
+    export.stdin.write(SAMPLE_LOG.read_text())  # no end of input: it waits for more
+    export.stdin.flush()
+    time.sleep(3.0)
+    export.send_signal(signal.SIGINT)
+    _, err = export.communicate(timeout=60)
+    assert export.returncode == 130 and err == "interrupted\n", err
+    with output.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and "/modbus/frames" in {c.topic for c in summary.channels.values()}
