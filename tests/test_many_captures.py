@@ -16,6 +16,7 @@ from decoders.capture import TimingQuality
 from decoders.pipeline import Decoder
 from decoders.stats import Statistics
 from sniffer.io.registry import open_reader
+from tests.real_recordings import REAL
 
 CAPTURES = Path(__file__).resolve().parents[1] / "captures"
 
@@ -75,6 +76,28 @@ def test_stats_of_a_folder(tmp_path: Path, cli: Callable[..., Any], jobs: str) -
     assert merged["frames"] == sum(s["frames"] for s in alone) and merged["source"] == "3 of 4 captures"
     assert merged["crc_errors"] == sum(s["crc_errors"] for s in alone)
     assert merged["duration_s"] == pytest.approx(sum(s["duration_s"] for s in alone))
+    by_source = {Path(c["source"]).name: (c["line"], c["timing"]) for c in merged["captures"]}
+    assert by_source == {name: (s["line"], s["timing"]) for name, s in
+                         zip(("atv71-plc-poll.mcap", "xbt-hmi.mcap", "atv312-setup.log"), alone, strict=True)}
+
+
+def test_stats_of_a_folder_says_each_capture_s_line(cli: Callable[..., Any]) -> None:
+    """The real recordings: five flow-meter captures at 9600 8N1 and one I/O module at 19200 8E1.
+    The table's heading said the first capture's ``19200 8E1`` for all six; it says ``mixed`` and
+    lists each setting with its captures, the JSON document each capture."""
+    folder = REAL / "sigrok-cli-text"
+    table = cli("stats", "--each", str(folder), "--jobs", "1")
+    assert table.code == 0, table.err
+    heading = [line for line in table.out.splitlines() if line.startswith("#")][:3]
+    assert heading[0].startswith("# 6 of 6 captures  line mixed  timing exact")
+    assert "line 19200 8E1, timing exact: 1 capture (" in heading[1] and "brainchild" in heading[1]
+    assert "line 9600 8N1, timing exact: 5 captures (" in heading[2] and heading[2].endswith(", …)")
+    document = json.loads(cli("stats", "--each", str(folder), "--format", "json", "--jobs", "1").out)
+    assert document["line"] == "mixed" and document["timing"] == "exact"
+    assert sorted(c["line"] for c in document["captures"]) == ["19200 8E1"] + ["9600 8N1"] * 5
+    same = json.loads(cli("stats", "--each", str(folder / "sr_flowmeter_graph_tool.log"),
+                          str(folder / "sr_flowmeter_target0_val0.log"), "--format", "json").out)
+    assert same["line"] == "9600 8N1" and len(same["captures"]) == 2
 
 
 def test_a_folder_into_one_dataset(tmp_path: Path, cli: Callable[..., Any]) -> None:

@@ -87,9 +87,11 @@ def _run_each(args: argparse.Namespace) -> int:
     merged, first, tally = Statistics(), None, Tally(len(files))
     quiet = argparse.Namespace(**{**vars(args), "quiet": True})  # no progress bars from the pool
     bar = shown(args, streaming=False)
+    captures = []
     for side in each_result(files, _counted, quiet, jobs_for_each(args.jobs), tally, show=bar):
         first = first or side
         merged.merge(side.statistics)
+        captures.append({"source": side.source, "line": side.line, "timing": side.timing})
     done = tally.done
     with ExitStack() as stack:
         out = open_output(args.output, stack)
@@ -97,6 +99,7 @@ def _run_each(args: argparse.Namespace) -> int:
         if first is not None:
             line = LineSettings.parse(first.line)
             view.start(f"{done} of {len(files)} captures", CaptureInfo(line, TimingQuality(first.timing)), line)
+            view.each_capture(captures)
             view.finish(merged)
     if args.output not in (None, "-") and first is not None:
         tell_written(args, [(args.output, f"{args.format} statistics of {merged.frames:,} frames, {done} captures")])

@@ -73,18 +73,35 @@ class StatsView(Sink):
         self._as_json = as_json
         self._header: dict[str, object] = {}
         self._latency_measured = True
+        #: ``--each``: each capture's source, line and timing (provenance per capture).
+        self._captures: list[dict[str, str]] = []
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
         self._latency_measured = info.timing is TimingQuality.EXACT
 
+    def each_capture(self, captures: list[dict[str, str]]) -> None:
+        """``--each``: the captures counted (``source``, ``line``, ``timing`` each), in order. The
+        header's line and timing are theirs where all agree, else ``mixed``; the table then lists
+        every setting with its captures, the JSON document every capture."""
+        self._captures = captures
+        for key in ("line", "timing"):
+            if len({capture[key] for capture in captures}) > 1:
+                self._header[key] = "mixed"
+        self._latency_measured = any(capture["timing"] == TimingQuality.EXACT.value for capture in captures)
+
     def finish(self, statistics: Statistics) -> None:
         if self._as_json:
             measured = {"latency_measured": self._latency_measured}
-            self._out.write(json.dumps({**self._header, **measured, **statistics.to_dict()}, indent=2) + "\n")
+            each = {"captures": self._captures} if self._captures else {}
+            self._out.write(json.dumps({**self._header, **measured, **each, **statistics.to_dict()}, indent=2) + "\n")
             return
         header = self._header
         self._note(f"{header['source']}  line {header['line']}  timing {header['timing']}")
+        if "mixed" in (header["line"], header["timing"]):
+            for setting, sources in _by_setting(self._captures).items():
+                shown = ", ".join(sources[:SOURCES_SHOWN]) + (", …" if len(sources) > SOURCES_SHOWN else "")
+                self._note(f"  {setting}: {len(sources)} capture{'s' if len(sources) != 1 else ''} ({shown})")
         self._out.write(self._bus_lines(statistics))
         self._out.write("\n")
         self._note("per slave and function (latency and poll period in ms)")
@@ -154,3 +171,15 @@ class StatsView(Sink):
 
 _STYLES = {"exceptions": "red", "crc": "red", "timeouts": "red", "retries": "yellow", "unexpected": "yellow",
            "gap_1_5": "yellow", "short_idle": "yellow"}
+
+
+#: Captures named per line setting in the table of ``stats --each`` (the JSON lists all).
+SOURCES_SHOWN = 3
+
+
+def _by_setting(captures: list[dict[str, str]]) -> dict[str, list[str]]:
+    """The captures' sources by their line and timing (``9600 8N1, timing exact``), in order met."""
+    settings: dict[str, list[str]] = {}
+    for capture in captures:
+        settings.setdefault(f"line {capture['line']}, timing {capture['timing']}", []).append(capture["source"])
+    return settings
