@@ -374,3 +374,38 @@ def test_the_modbus_decoder_s_annotations_are_told_apart_from_the_uart_s(cli: Cl
     both = cli("analyze", str(stacked), "--input-format", "sigrok-cli", "--line", "115200 8N1", "--format", "jsonl")
     assert both.code == 0 and "'modbus' decoder left out" in both.err
     assert both.jsonl()[1:] == alone.jsonl()[1:]
+
+
+def _held_low_at_start(session: Path, copy: Path, probe_bit: int, samples: int) -> None:
+    """``session`` with its probe ``probe_bit`` (0-based) held low for its first ``samples``
+    samples: a line low when the analyzer started (a break, a driver's enable, a character under
+    way), the rest of the real recording as it is."""
+    with zipfile.ZipFile(session) as source, zipfile.ZipFile(copy, "w", zipfile.ZIP_DEFLATED) as target:
+        for item in source.infolist():
+            data = source.read(item.filename)
+            if item.filename == "logic-1-1":
+                words = np.frombuffer(data, np.uint8).copy()
+                words[:samples] &= ~np.uint8(1 << probe_bit)
+                data = words.tobytes()
+            target.writestr(item, data)
+
+
+def test_a_line_low_where_the_recording_starts_reads_as_its_characters_say(cli: Cli, tmp_path: Path) -> None:
+    """The real flow-meter recording, its bus probe held low for its first 2 ms: read inverted by
+    the level of the first sample, the clean bus became noise and framing errors. Its characters
+    decide now: the frames are the recording's own, a warning says the line starts low yet reads
+    as it is, and ``--invert`` still forces the other way."""
+    session = SIGROK / "uart" / "modbus_rtu" / "flowmeter" / "flowmeter_graph_tool.sr"
+    low = tmp_path / "starts-low.sr"
+    _held_low_at_start(session, low, probe_bit=2, samples=8_000)  # probe3 = RXTX, 4 MHz
+    line = ("--line", "9600 8N1")
+    original = [f for f in cli("analyze", str(session), *line, "--format", "jsonl").jsonl() if f["kind"] == "frame"]
+    read = cli("analyze", str(low), *line, "--format", "jsonl")
+    assert read.code == 0, read.err
+    frames = [f for f in read.jsonl() if f["kind"] == "frame"]
+    assert [f["hex"] for f in frames if f["role"] != "noise"] == [f["hex"] for f in original if f["role"] != "noise"]
+    assert "probe RXTX is low where the recording starts, yet reads as it is" in read.err
+    as_is = json.loads(cli("stats", str(low), *line, "--format", "json").out)
+    forced = cli("stats", str(low), *line, "--invert", "--format", "json")
+    assert forced.code == 0 and "reads it inverted" not in forced.err
+    assert json.loads(forced.out)["noise_bytes"] > 10 * max(as_is["noise_bytes"], 1)

@@ -204,7 +204,8 @@ def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureRe
 def reader_options(args: argparse.Namespace) -> ReaderOptions:
     """What the command's options tell a capture reader: ``--line``, ``--timing``, ``--channel``."""
     return ReaderOptions(line=line_override(args), timing=TimingQuality(args.timing) if args.timing else None,
-                         channels=tuple(getattr(args, "channel", None) or ()), follow=getattr(args, "follow", False))
+                         channels=tuple(getattr(args, "channel", None) or ()), follow=getattr(args, "follow", False),
+                         invert=getattr(args, "invert", None))
 
 
 def replay_speed(args: argparse.Namespace) -> float | None:
@@ -293,6 +294,10 @@ def add_channel_option(parser: argparse.ArgumentParser) -> None:
                         help="for a logic analyzer's recording (.sr, Saleae .csv): the probe the bus is on, by "
                         "name (matched first) or number from 1; twice for RX and TX on two probes (merged in "
                         "time order). Default: the only probe that changes")
+    parser.add_argument("--invert", action=argparse.BooleanOptionalAction, default=None,
+                        help="for a logic analyzer's recording: read its lines inverted (idling low), or not "
+                        "(--no-invert). Default: the way their samples decode with fewer framing and parity "
+                        "errors, said in a warning when inverted")
 
 
 def add_input_format_option(parser: argparse.ArgumentParser) -> None:

@@ -84,6 +84,9 @@ class ReaderOptions:
     channels: tuple[str, ...] = ()
     #: ``--follow``: keep reading as the file grows (:mod:`sniffer.io.following`).
     follow: bool = False
+    #: ``--invert``/``--no-invert``: read a logic analyzer's lines inverted or not; ``None``: as
+    #: their samples decode best (:mod:`sniffer.io.polarity`).
+    invert: bool | None = None
 
 
 def channel_number(requested: str, names: dict[int, str]) -> int | None:

@@ -27,11 +27,13 @@ from dataclasses import replace
 from typing import TextIO
 
 import numpy as np
+import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality, UartError
 from decoders.uart import character_chunks, decode_transitions, merge_characters
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ChannelChoiceError, ReaderOptions, chosen_channels
+from sniffer.io.polarity import chosen_polarity
 
 LOGIC2 = ("name", "type", "start_time", "duration", "data")
 LOGIC1 = ("Time [s]", "Value", "Parity Error", "Framing Error")
@@ -182,12 +184,17 @@ def _batch(times: list[int], values: bytearray, kinds: bytearray) -> ChunkBatch:
                       marks if marks.any() else None)
 
 
+#: Rows of a digital export (a row where a channel changes) decoded both ways to tell a line's polarity.
+POLARITY_ROWS = 200_000
+
+
 class SaleaeDigitalReader:
     """Saleae Logic's raw digital export (CSV: ``Time [s],<channel>,<channel>…``, a row where a
     channel changes, ``0``/``1``), decoded as UART by :func:`decoders.uart.decode_transitions`:
     the bus's channel is ``--channel`` (a name, or a number from 1) or the only one that changes,
     ``--channel`` twice for RX and TX (merged in time order, each character keeping its channel);
-    a line low where the export starts is read inverted; ``--line`` gives the UART settings."""
+    a line is read inverted where its transitions say so (:mod:`sniffer.io.polarity`); ``--line``
+    gives the UART settings."""
 
     def __init__(self, path: str, options: ReaderOptions) -> None:
         self.path = path
@@ -218,13 +225,25 @@ class SaleaeDigitalReader:
         columns = self._columns(names, matrix, options.channels)
         self._levels = [matrix[:, column] for column in columns]
         self._line = options.line
-        self._inverted = [bool(len(levels)) and not bool(levels[0]) for levels in self._levels]
+        self._inverted = [self._polarity(levels, names[column], options.invert)
+                          for levels, column in zip(self._levels, columns, strict=True)]
         said = ", ".join(f"{names[column]}{' (inverted)' if inverted else ''}"
                          for column, inverted in zip(columns, self._inverted, strict=True))
         notes = (f"Saleae digital export {path}: channel {said}, decoded as UART {options.line.format()} by "
                  "rtusniff; times are seconds from the capture's start",)
         self.info = CaptureInfo(options.line, TimingQuality.EXACT, notes,
                                 tuple(names[c] for c in columns) if len(columns) > 1 else ())
+
+    def _polarity(self, levels: npt.NDArray[np.bool_], name: str, forced: bool | None) -> bool:
+        """Whether a channel reads inverted: the way it decodes with fewer framing errors
+        (:func:`~sniffer.io.polarity.chosen_polarity`), said in a warning where it is inverted."""
+        first = slice(0, POLARITY_ROWS)
+        inverted, said = chosen_polarity(
+            lambda upside_down: decode_transitions(self._times[first], levels[first], self._line, inverted=upside_down),
+            starts_low=bool(len(levels)) and not bool(levels[0]), forced=forced, name=f"channel {name}")
+        if said is not None:
+            self.warnings.append(f"{self.path}: {said}")
+        return inverted
 
     def _columns(self, names: list[str], matrix: np.ndarray, channels: tuple[str, ...]) -> list[int]:
         """The columns of ``--channel`` (at most two: RX and TX), else of the only one that changes."""

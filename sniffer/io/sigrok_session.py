@@ -3,7 +3,7 @@
 A session is a zip: ``metadata`` (an INI text: sample rate, unit size, the probes' names) and
 ``logic-1-1``, ``logic-1-2``, … (the samples, ``unitsize`` bytes each, bit ``k`` for probe
 ``k + 1``). The line's probe is ``--channel`` (a name or a number from 1), or the only one that
-changes; a line that idles low is read inverted. The UART settings come from ``--line``; a
+changes; a line that idles low is read inverted (:mod:`sniffer.io.polarity`). The UART settings come from ``--line``; a
 session does not say them, so without it the baud rate is read from the shortest pulses and the
 format is the one of 8E1, 8N1, 8O1, 8N2 that decodes with the fewest errors (a warning says so). Each
 character becomes a chunk stamped with the end of its stop bit: exact timing. The session has no
@@ -21,12 +21,14 @@ from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
+import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from decoders.uart import UartCharacters, UartDecoder, character_chunks, merge_characters, shortest_pulse_baud
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ChannelChoiceError, ReaderOptions, chosen_channels
+from sniffer.io.polarity import chosen_polarity, errors_in
 
 NS_PER_S = 1_000_000_000
 #: Samples looked at (whole sample files) to tell the line's settings when ``--line`` does not.
@@ -53,8 +55,8 @@ class SigrokSessionReader:
         try:
             self._read_metadata()
             self._probes_used = self._choose_probes(options.channels)
-            self._inverted = [self._idles_low(probe) for probe in self._probes_used]
             self._line = self._line_settings(options)
+            self._inverted = [self._polarity(probe, options.invert) for probe in self._probes_used]
         except BaseException:
             self._zip.close()
             raise
@@ -144,11 +146,26 @@ class SigrokSessionReader:
                               "with --channel NAME or NUMBER (twice for RX and TX)", ErrorKind.USAGE)
         return sorted(changing)
 
-    def _idles_low(self, probe: int) -> bool:
-        """A line that is low where the recording starts idles low: read it inverted (a logic
-        analyzer is started on a quiet line; the levels during traffic say nothing: a string of
-        characters can hold the line low longer than any pause)."""
-        return not bool(self._level(self._samples(self._chunks[0]), probe)[0])
+    def _polarity(self, probe: int, forced: bool | None) -> bool:
+        """Whether ``probe`` reads inverted: the way its first samples decode with fewer errors
+        (:func:`~sniffer.io.polarity.chosen_polarity`), said in a warning where it is inverted."""
+        level = self._first_levels(probe)
+        inverted, said = chosen_polarity(lambda inverted: UartDecoder(self._line, self._rate, inverted).feed(level),
+                                         starts_low=bool(len(level)) and not bool(level[0]), forced=forced,
+                                         name=f"probe {self._probes[probe]}")
+        if said is not None:
+            self.warnings.append(f"{self.path}: {said}")
+        return inverted
+
+    def _first_levels(self, probe: int) -> npt.NDArray[np.bool_]:
+        """``probe``'s levels over the first :data:`DETECTION_SAMPLES` samples (whole sample files)."""
+        pieces, count = [], 0
+        for name in self._chunks:
+            pieces.append(self._level(self._samples(name), probe))
+            count += len(pieces[-1])
+            if count >= DETECTION_SAMPLES:
+                break
+        return np.concatenate(pieces) if pieces else np.zeros(0, np.bool_)
 
     def _line_settings(self, options: ReaderOptions) -> LineSettings:
         """``--line``, else what the samples show: the baud rate of the shortest pulses, and of
@@ -156,24 +173,21 @@ class SigrokSessionReader:
         parity errors (said in a warning: ``--line`` makes it sure)."""
         if options.line is not None:
             return options.line
-        pieces, count = [], 0
-        for name in self._chunks:
-            pieces.append(self._level(self._samples(name), self._probes_used[0]))
-            count += len(pieces[-1])
-            if count >= DETECTION_SAMPLES:
-                break
-        level = np.concatenate(pieces)
+        level = self._first_levels(self._probes_used[0])
         baud = shortest_pulse_baud(level, self._rate)
         if baud is None:
             raise self._error("a sigrok session does not say its UART settings, and its samples show too few "
                               "pulses to tell: give --line, e.g. --line 9600 8N1", ErrorKind.NO_LINE_SETTINGS)
         scores = []
+        # Either way up unless forced: which is the line's own polarity's business (_polarity).
+        ways = (False, True) if options.invert is None else (options.invert,)
         for spelled in DETECTED_FORMATS:
             line = LineSettings.parse(f"{baud} {spelled}")
-            characters = UartDecoder(line, self._rate, self._inverted[0]).feed(level)
-            errors = int((characters.framing_errors | characters.parity_errors).sum())
-            scores.append((errors / max(len(characters), 1), DETECTED_FORMATS.index(spelled), line, errors,
-                           len(characters)))
+            for inverted in ways:
+                characters = UartDecoder(line, self._rate, inverted).feed(level)
+                errors = errors_in(characters)
+                scores.append((errors / max(len(characters), 1), DETECTED_FORMATS.index(spelled), line, errors,
+                               len(characters)))
         _, _, line, errors, count = min(scores, key=lambda score: score[:2])
         if count == 0:
             raise self._error(f"no UART characters at {baud} Bd in the first samples: give --line",
