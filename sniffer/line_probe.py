@@ -22,6 +22,10 @@ CANDIDATES = [
 ]  # fmt: skip
 
 
+#: How far (a share of the bytes heard) another setting must read worse for the choice to be sure.
+SURE_MARGIN = 0.1
+
+
 @dataclass(frozen=True)
 class Trial:
     line: LineSettings
@@ -49,12 +53,22 @@ def probe_line(port: str, seconds: float, candidates: list[str] | None = None) -
     best = next(t for t in heard if t.share >= top - 0.01)
     others = sorted((t for t in heard if t is not best), key=lambda t: -t.share)
     runner_up = f"; next best {others[0].line.format()}: {others[0].share:.0%}" if others else ""
-    sure = "sure" if best.share >= 0.9 and best.frames >= 3 else "not sure"
-    report = (f"line {best.line.format()} chosen ({sure}): {best.share:.0%} of {best.heard} bytes formed "
-              f"{best.frames} valid frames{runner_up}")
+    report = (f"line {best.line.format()} chosen ({certainty(best, others)}): {best.share:.0%} of {best.heard} "
+              f"bytes formed {best.frames} valid frames{runner_up}")
     if best.valid == 0:
         raise RtuSniffError(ErrorKind.RUNTIME, f"no setting gives valid frames ({report}); give --line", path=port)
     return best.line, report
+
+
+def certainty(best: Trial, others: list[Trial]) -> str:
+    """How sure the choice is: ``sure`` where nearly every byte heard formed valid frames and no
+    other setting came near (a pseudo-terminal, which has no baud rate, gives every setting 100 %:
+    that is a tie, and a tie is never sure); else ``not sure``, naming the settings that tied."""
+    tied = [trial for trial in others if trial.share >= best.share - SURE_MARGIN]
+    if tied:
+        names = ", ".join(trial.line.format() for trial in tied[:3]) + (", …" if len(tied) > 3 else "")
+        return f"not sure: {names} read as well; the commoner setting is taken"
+    return "sure" if best.share >= 0.9 and best.frames >= 3 else "not sure"
 
 
 def _listen(port: str, line: LineSettings, seconds: float) -> Trial:

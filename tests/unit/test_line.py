@@ -38,3 +38,17 @@ def test_parse_and_format_round_trip() -> None:
 def test_parse_rejects(text: str) -> None:
     with pytest.raises(ValueError):
         LineSettings.parse(text)
+
+
+def test_a_tie_in_line_auto_is_never_called_sure() -> None:
+    """``--line auto`` on a line where several settings read as well (a pseudo-terminal has no
+    baud rate: every setting gave 100 %) called the first of them sure."""
+    from sniffer.line_probe import Trial, certainty
+
+    def trial(text: str, valid: int, frames: int = 10) -> Trial:
+        return Trial(LineSettings.parse(text), 100, valid, frames)
+
+    assert certainty(trial("19200 8E1", 100), [trial("9600 8E1", 100), trial("19200 8N1", 40)]) == (
+        "not sure: 9600 8E1 read as well; the commoner setting is taken")
+    assert certainty(trial("19200 8E1", 98), [trial("9600 8E1", 30)]) == "sure"
+    assert certainty(trial("19200 8E1", 60), [trial("9600 8E1", 10)]) == "not sure"
