@@ -214,19 +214,34 @@ def _chain(following: npt.NDArray[np.int64], start_ok: npt.NDArray[np.bool_], co
     return np.array(taken, np.int64)
 
 
-def shortest_pulse_baud(level: Samples, samplerate: float) -> int | None:
-    """The standard baud rate the shortest pulses of ``level`` suggest (a bit is the shortest
-    time the line holds a level), or ``None`` without enough edges."""
+#: The rates serial ports and Modbus devices use, the commonest first (where two read alike, the
+#: earlier is taken), then rates only some UARTs or other buses use (DMX, MIDI-like, 1 Mbd).
+STANDARD_BAUDS = (9600, 19200, 38400, 57600, 115200, 4800, 2400, 1200, 230400, 460800, 921600, 14400, 28800,
+                  76800, 600, 300, 250000, 500000, 1000000)
+#: A standard rate is a candidate where the line's pulses measure within this share of it: a bit
+#: a few samples long is measured to a sample, so 460 800 Bd at 5 MHz (10.85 samples a bit) is as
+#: near 500 000 Bd as to itself, and which one the characters read with fewer errors says.
+BAUD_TOLERANCE = 0.12
+
+
+def pulse_baud(level: Samples, samplerate: float) -> float | None:
+    """The baud rate the line's one-bit pulses measure, or ``None`` with too few edges. A bit is
+    the shortest time the line holds a level; its pulses, sampled, last a whole number of samples
+    either side of it, so those near the shortest are averaged rather than the shortest taken."""
     edges = np.flatnonzero(level[1:] != level[:-1])
     if len(edges) < 20:
         return None
     runs = np.diff(edges)
-    bit = float(np.percentile(runs, 2))
-    measured = samplerate / max(bit, 1.0)
-    standard = [300, 600, 1200, 2400, 4800, 9600, 14400, 19200, 28800, 38400, 57600, 76800, 115200, 230400,
-                250000, 460800, 500000, 921600, 1000000]
-    best = min(standard, key=lambda baud: abs(baud - measured) / baud)
-    return best if abs(best - measured) / best < 0.08 else None
+    shortest = float(np.percentile(runs, 2))
+    one_bit = runs[(runs >= shortest) & (runs < 1.5 * shortest)]
+    return samplerate / max(float(one_bit.mean()), 1.0)
+
+
+def baud_candidates(measured: float) -> list[int]:
+    """The standard rates within :data:`BAUD_TOLERANCE` of ``measured``, the nearest first (ties:
+    the commoner first)."""
+    near = [baud for baud in STANDARD_BAUDS if abs(baud - measured) / baud < BAUD_TOLERANCE]
+    return sorted(near, key=lambda baud: (round(abs(baud - measured) / baud, 3), STANDARD_BAUDS.index(baud)))
 
 
 def decode_transitions(times_s: npt.NDArray[np.float64], levels: npt.NDArray[np.bool_], line: CharacterShape,

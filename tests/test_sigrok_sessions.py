@@ -409,3 +409,20 @@ def test_a_line_low_where_the_recording_starts_reads_as_its_characters_say(cli: 
     forced = cli("stats", str(low), *line, "--invert", "--format", "json")
     assert forced.code == 0 and "reads it inverted" not in forced.err
     assert json.loads(forced.out)["noise_bytes"] > 10 * max(as_is["noise_bytes"], 1)
+
+
+@pytest.mark.parametrize("session", sorted((SIGROK / "uart" / "hello_world").glob("*/hello_world_8*.sr")),
+                         ids=lambda path: path.stem)
+def test_the_line_s_settings_are_read_from_every_real_recording(cli: Cli, session: Path) -> None:
+    """sigrok's hello-world recordings at every rate from 1 200 to 921 600 Bd, told no --line:
+    460 800 Bd read as 500 000 8O1 and 921 600 as 1 000 000 (one-bit pulses a few samples long,
+    measured by the shortest alone), 115 200 Bd at 1 MHz was refused ("too few pulses"). Each
+    reads as its own rate and format now, and a setting that reads as well is named."""
+    rate, spelled = session.stem.split("_")[-1], session.stem.split("_")[-2].upper()
+    said = cli("stats", str(session))
+    assert said.code == 0, said.err
+    found = re.search(r"read best as (\d+) (\w+) \((\d+) of (\d+) characters with an error", said.err)
+    assert found is not None, said.err
+    assert (found[1], found[2]) == (rate, spelled) and found[3] == "0"
+    if spelled == "8N1":
+        assert f"; {rate} 8N2 read as well" in said.err

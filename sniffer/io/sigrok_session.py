@@ -25,7 +25,7 @@ import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
-from decoders.uart import UartCharacters, UartDecoder, character_chunks, merge_characters, shortest_pulse_baud
+from decoders.uart import UartCharacters, UartDecoder, baud_candidates, character_chunks, merge_characters, pulse_baud
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ChannelChoiceError, ReaderOptions, chosen_channels
 from sniffer.io.polarity import chosen_polarity, errors_in
@@ -174,27 +174,33 @@ class SigrokSessionReader:
         if options.line is not None:
             return options.line
         level = self._first_levels(self._probes_used[0])
-        baud = shortest_pulse_baud(level, self._rate)
-        if baud is None:
+        measured = pulse_baud(level, self._rate)
+        if measured is None:
             raise self._error("a sigrok session does not say its UART settings, and its samples show too few "
                               "pulses to tell: give --line, e.g. --line 9600 8N1", ErrorKind.NO_LINE_SETTINGS)
+        bauds = baud_candidates(measured)
+        if not bauds:
+            raise self._error(f"a sigrok session does not say its UART settings, and its shortest pulses measure "
+                              f"{measured:,.0f} Bd, near no standard rate: give --line", ErrorKind.NO_LINE_SETTINGS)
         scores = []
         # Either way up unless forced: which is the line's own polarity's business (_polarity).
         ways = (False, True) if options.invert is None else (options.invert,)
-        for spelled in DETECTED_FORMATS:
+        for place, (baud, spelled) in enumerate((baud, spelled) for baud in bauds for spelled in DETECTED_FORMATS):
             line = LineSettings.parse(f"{baud} {spelled}")
             for inverted in ways:
                 characters = UartDecoder(line, self._rate, inverted).feed(level)
                 errors = errors_in(characters)
-                scores.append((errors / max(len(characters), 1), DETECTED_FORMATS.index(spelled), line, errors,
-                               len(characters)))
-        _, _, line, errors, count = min(scores, key=lambda score: score[:2])
+                scores.append((errors / max(len(characters), 1), place, line, errors, len(characters)))
+        share, _, line, errors, count = min(scores, key=lambda score: score[:2])
         if count == 0:
-            raise self._error(f"no UART characters at {baud} Bd in the first samples: give --line",
+            raise self._error(f"no UART characters at {line.baud} Bd in the first samples: give --line",
                               ErrorKind.NO_LINE_SETTINGS)
+        alike = sorted({other.format() for other_share, _, other, _, other_count in scores
+                        if other != line and other_count and other_share <= share + 0.01})
+        tie = f"; {', '.join(alike)} read as well" if alike else ""
         self.warnings.append(f"{self.path}: no --line; the samples read best as {line.format()} ({errors} of "
-                             f"{count} characters with an error in the first {len(level):,} samples); give --line "
-                             "to be sure")
+                             f"{count} characters with an error in the first {len(level):,} samples{tie}); give "
+                             "--line to be sure")
         return line
 
     def batches(self) -> Iterator[ChunkBatch]:
