@@ -12,6 +12,8 @@ of the list it was given,
   in columns for sinks that all ``takes_columnar``), then
   ``prepared`` with what the sink's ``prepare`` made of that batch;
 * ``gap`` where a live capture skipped reads it could not decode in time;
+* ``interrupted`` where Ctrl-C stopped the command before the last batch (an output kept as far
+  as it got says so in itself where its format can);
 * ``finish`` once, with the statistics of the whole capture (counted only when
   a sink ``wants_statistics``);
 
@@ -80,6 +82,10 @@ class Sink:
 
     def finish(self, statistics: Statistics) -> None:
         """After the last batch."""
+
+    def interrupted(self) -> None:
+        """The command was interrupted (Ctrl-C) before the last batch; ``close`` follows. An
+        output kept as far as it got says so in itself where its format can."""
 
     def close(self) -> None:
         """Release what the sink holds; called once, after ``finish`` or after a failure."""

@@ -4,6 +4,7 @@ the same way, the child never left behind."""
 from __future__ import annotations
 
 import os
+import re
 import signal
 import struct
 import subprocess
@@ -266,18 +267,35 @@ def test_ctrl_c_leaves_a_valid_export_and_no_child(tmp_path: Path) -> None:
     time.sleep(3.0)  # the interpreter starts, forks, and both wait
     os.killpg(export.pid, signal.SIGINT)
     _, err = export.communicate(timeout=60)
-    assert export.returncode == 130 and err == "interrupted\n", err
+    assert export.returncode == 130, err
     with pytest.raises(ProcessLookupError):
         os.killpg(export.pid, 0)  # nobody left in the group: the child is gone too
-    with output.open("rb") as f:
-        summary = make_reader(f).get_summary()
+    assert_kept_incomplete(output, err)
+
+
+def assert_kept_incomplete(output: Path, err: str) -> None:
+    """An interrupted export: nothing under its own name, the part exported kept under a name and
+    in a metadata record that say incomplete, and a line saying where and how many frames."""
+    kept = output.with_name(f"{output.stem}.incomplete{output.suffix}")
+    assert not output.exists() and kept.exists()
+    frames = int(re.search(rf"interrupted: {re.escape(str(output))} kept incomplete as {re.escape(str(kept))} "
+                           r"\(([\d,]+) frames\)\n", err)[1].replace(",", ""))  # type: ignore[index]
+    assert err.endswith("interrupted\n")
+    with kept.open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
     assert summary is not None and "/modbus/frames" in {c.topic for c in summary.channels.values()}
+    assert metadata["rtusniff.incomplete"] == {"reason": "interrupted", "frames": str(frames)}
+    with kept.open("rb") as f:
+        written = sum(1 for _ in make_reader(f).iter_messages(topics=["/modbus/frames"]))
+    assert written == frames
 
 
 @pytest.mark.parametrize("jobs", ["1", "2"])
 def test_kill_int_stops_an_export_a_script_started_in_the_background(tmp_path: Path, jobs: str) -> None:
     """A shell script's background job starts with SIGINT ignored; ``kill -INT`` ran such an
-    export to the end with exit 0. It stops it as Ctrl-C does: exit 130, the export closed whole."""
+    export to the end with exit 0. It stops it as Ctrl-C does: exit 130, the export kept, incomplete."""
     output = tmp_path / "background.mcap"
     command = [sys.executable, "-m", "sniffer", "export", "-", "--mcap", str(output), "--jobs", jobs]
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited across exec, as a shell does it
@@ -292,7 +310,5 @@ def test_kill_int_stops_an_export_a_script_started_in_the_background(tmp_path: P
     time.sleep(3.0)
     export.send_signal(signal.SIGINT)
     _, err = export.communicate(timeout=60)
-    assert export.returncode == 130 and err == "interrupted\n", err
-    with output.open("rb") as f:
-        summary = make_reader(f).get_summary()
-    assert summary is not None and "/modbus/frames" in {c.topic for c in summary.channels.values()}
+    assert export.returncode == 130, err
+    assert_kept_incomplete(output, err)

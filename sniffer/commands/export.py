@@ -85,20 +85,42 @@ def run(args: argparse.Namespace) -> int:
     check_outputs([args.mcap, args.rrd, args.pcap], capture_paths(args), force=args.force)
     check_streams(args)
     jobs = decoding_jobs(args.jobs, follow=args.follow, paced=replay_speed(args) is not None)
-    with ExitStack() as stack:
-        # Each file is written beside its name and put in place once whole: an export that fails
-        # half way (a damaged capture, times MCAP cannot hold) leaves nothing that passes for one;
-        # Ctrl-C keeps what was exported until then, closed properly.
-        parts = {option: stack.enter_context(published_whole(getattr(args, option), keep_when_interrupted=True))
-                 for option, _, _ in OUTPUTS if getattr(args, option) and option != "parquet"}
-        reader, analysis = open_analysis(args, stack)
-        sinks = output_sinks(argparse.Namespace(**{**vars(args), **parts}), analysis, stack)
-        progress = stack.enter_context(progress_for(args, reader, streaming=args.pcap == "-"))
-        analyze(reader, source_name(args), analysis, [progress.sink, *(sink for _, sink in sinks)],
-                jobs=jobs)
+    # Each file is written beside its name and put in place once whole: an export that fails
+    # half way (a damaged capture, times MCAP cannot hold) leaves nothing that passes for one;
+    # Ctrl-C keeps what was exported until then, closed properly, under a name that says it is
+    # incomplete (the MCAP in a metadata record too), and says where.
+    kept: dict[str, list[str]] = {option: [] for option, _, _ in OUTPUTS}
+    sinks: list[tuple[str, FileSink[Any]]] = []
+    try:
+        with ExitStack() as stack:
+            parts = {option: stack.enter_context(published_whole(getattr(args, option),
+                                                                 kept_when_interrupted=kept[option]))
+                     for option, _, _ in OUTPUTS if getattr(args, option) and option != "parquet"}
+            reader, analysis = open_analysis(args, stack)
+            sinks = output_sinks(argparse.Namespace(**{**vars(args), **parts}), analysis, stack)
+            progress = stack.enter_context(progress_for(args, reader, streaming=args.pcap == "-"))
+            try:
+                analyze(reader, source_name(args), analysis, [progress.sink, *(sink for _, sink in sinks)],
+                        jobs=jobs)
+            except KeyboardInterrupt:
+                for _, sink in sinks:
+                    sink.interrupted()
+                raise
+    except KeyboardInterrupt:
+        _tell_kept(args, sinks, kept)
+        raise
     if not args.quiet:
         _tell_written(args, sinks)
     return 0
+
+
+def _tell_kept(args: argparse.Namespace, sinks: list[tuple[str, FileSink[Any]]], kept: dict[str, list[str]]) -> None:
+    """After Ctrl-C: where each output was kept, incomplete, and how many frames it holds."""
+    for option, kind, _ in OUTPUTS:
+        frames = next((sink.frames_written for named, sink in sinks if named == kind), 0)
+        for name in kept[option]:
+            print(f"interrupted: {getattr(args, option)} kept incomplete as {name} ({frames:,} frames)",
+                  file=sys.stderr)
 
 
 #: The outputs ``export`` offers: option → (what it is called in messages, the sink for a path).

@@ -304,6 +304,11 @@ class McapExporter(DecodedChannels):
         rows = join_rows([payloads], len(payloads), HEADER_SIZE)
         self._write(rows, np.array(channels, np.uint16), np.array(times, np.int64))
 
+    def incomplete(self, frames: int) -> None:
+        """Metadata record ``rtusniff.incomplete``: the export was interrupted after ``frames``
+        frames (what it holds; a reader of the capture sees its raw chunks up to there)."""
+        self._mcap.add_metadata("rtusniff.incomplete", {"reason": "interrupted", "frames": str(frames)})
+
     def close(self) -> None:
         try:
             self._mcap.close()

@@ -69,7 +69,6 @@ class McapSink(FileSink["McapExporter"]):
                 self.exporter.raw(batch)
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        self.frames_written += len(batch.messages)
         self._kept = batch  # written with what was prepared for it
 
     def prepared(self, value: Prepared) -> None:
@@ -78,7 +77,14 @@ class McapSink(FileSink["McapExporter"]):
             with self.writing():
                 if batch is not None:
                     self.exporter.messages(batch, value.fields)
+                    self.frames_written += len(batch.messages)
                 self.exporter.transactions(value.transactions, value.t_ns)
+
+    def interrupted(self) -> None:
+        """A metadata record says the file is incomplete, and how many frames it holds."""
+        if self.exporter is not None:
+            with self.writing():
+                self.exporter.incomplete(self.frames_written)
 
 
 class RerunSink(FileSink["RerunExporter"]):

@@ -10,7 +10,8 @@
   destroys nothing, and nothing ever deletes it.
 * :func:`published_whole` writes a copy (``convert``, ``cut``, ``report``) beside its path and
   puts it in place only once it is whole: a copy that broke off leaves nothing behind, and only
-  the part file this process created is ever removed.
+  the part file this process created is ever removed. An export interrupted by Ctrl-C is kept
+  under a name that says so (``poll.incomplete.mcap``), never under the name of a whole one.
 """
 
 from __future__ import annotations
@@ -75,11 +76,12 @@ def _open(path: str, *, binary: bool, encoding: str | None) -> IO[Any]:
 
 
 @contextmanager
-def published_whole(path: str, *, keep_when_interrupted: bool = False) -> Iterator[str]:
+def published_whole(path: str, *, kept_when_interrupted: list[str] | None = None) -> Iterator[str]:
     """The path to write ``path``'s content to: a part file beside it, renamed to ``path`` when
     the block ends without error and removed when it fails. ``-``, a device or a pipe: ``path``
-    itself (nothing to remove). ``keep_when_interrupted``: Ctrl-C puts the part in place too (an
-    export closed properly up to where the user stopped it is what they asked for)."""
+    itself (nothing to remove). ``kept_when_interrupted``: Ctrl-C keeps the part, closed as far
+    as it got, under :func:`incomplete_name` (appended to the list): what the user stopped is
+    theirs, but nothing may pass it for a whole export."""
     if path == "-" or is_device(path):
         yield path
         return
@@ -88,8 +90,8 @@ def published_whole(path: str, *, keep_when_interrupted: bool = False) -> Iterat
     try:
         yield part
     except KeyboardInterrupt:
-        if keep_when_interrupted and os.path.exists(part):
-            _publish(part, path)
+        if kept_when_interrupted is not None and os.path.exists(part):
+            kept_when_interrupted.append(_publish_incomplete(part, path))
         else:
             _discard(part)
         raise
@@ -107,6 +109,26 @@ def published_whole(path: str, *, keep_when_interrupted: bool = False) -> Iterat
     except BaseException:
         _discard(part)
         raise
+
+
+def incomplete_name(path: str, attempt: int = 0) -> str:
+    """Where an interrupted output of ``path`` is kept: ``poll.incomplete.mcap`` (then
+    ``poll.incomplete-2.mcap``, … where that exists)."""
+    target = Path(path)
+    return str(target.with_name(f"{target.stem}.incomplete{f'-{attempt + 1}' if attempt else ''}{target.suffix}"))
+
+
+def _publish_incomplete(part: str, path: str) -> str:
+    """``part`` put in place under the first free :func:`incomplete_name` of ``path``; that name."""
+    for attempt in range(1000):
+        name = incomplete_name(path, attempt)
+        try:
+            _publish(part, name)
+        except RtuSniffError:  # it exists: the next one
+            continue
+        return name
+    _discard(part)
+    raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "1 000 incomplete exports of it exist already", path=path)
 
 
 def _discard(part: str) -> None:
