@@ -118,12 +118,11 @@ def test_a_replay_into_foxglove_carries_the_mcap_exports_channels(tmp_path: Path
         assert client.messages[topic] == in_file[topic], topic
     slaves = [topic for topic in in_file if topic.startswith("/slave/")]
     for topic in slaves:
-        # A slave's channel is advertised when it first carries values; a client subscribes on
-        # the advertisement, so it misses what is sent before its subscription arrives (on a
-        # loaded machine several values), never a value after one it got.
-        got, expected = client.messages[topic], in_file[topic]
-        assert got == expected[len(expected) - len(got):], topic
-    assert sum(len(client.messages[topic]) for topic in slaves) >= len(slaves)
+        # A slave's channel is advertised when it first carries values, and a client subscribes
+        # on the advertisement: the channel holds its values until then, so none is missed (9
+        # of 10, 8 of 9, 4 of 5 arrived before).
+        assert client.messages[topic] == in_file[topic], topic
+    assert slaves
     schemas = {channel["topic"]: (channel["schemaName"], channel["encoding"]) for channel in client.channels.values()}
     assert schemas["/modbus/frames"] == ("rtusniff.Frame", "json")
     assert schemas["/modbus/log"] == ("foxglove.Log", "protobuf")

@@ -8,8 +8,11 @@ What a slow viewer costs: ``Channel.log`` only queues (the SDK sends from its ow
 so neither the reader nor the decoding waits for a viewer. The SDK keeps up to ``BACKLOG``
 messages per client and drops the oldest beyond them; a client that stops reading is thus
 bounded in memory, and one that goes away is forgotten. Channels nobody has subscribed to
-are not sent at all (``has_sinks``). This module imports the SDK (a native library): it is
-imported only when a stream is asked for.
+are not sent at all (``has_sinks``), with one exception: a channel advertised while a client
+watches (a slave's ``/slave/N/params`` when it first carries values) holds its messages until a
+client subscribes to it, at most :data:`FRESH_WAIT_S`: the client subscribes on the
+advertisement, a round trip later, and would miss the values sent before. This module imports
+the SDK (a native library): it is imported only when a stream is asked for.
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ from sniffer.exports.mcap_writer import HEADER_SIZE, MessageBlock
 BACKLOG = 65536
 #: How long the last messages get to reach the clients before the server stops.
 CLOSE_GRACE_S = 0.5
+#: How long a channel advertised while a client watches holds its messages for a subscriber.
+FRESH_WAIT_S = 2.0
 
 
 class _Subscriptions(ServerListener):
@@ -58,6 +63,9 @@ class FoxgloveServerWriter:
         self.host, self.port = host, self._server.port
         self._schemas: list[foxglove.Schema] = []
         self._channels: list[foxglove.Channel] = []
+        #: Channels advertised while a client watched, not yet subscribed to: when each was
+        #: advertised, and its messages held (payload, log time) in order.
+        self._fresh: dict[int, tuple[float, list[tuple[bytes, int]]]] = {}
 
     @property
     def url(self) -> str:
@@ -73,6 +81,8 @@ class FoxgloveServerWriter:
         channel = foxglove.Channel(topic, schema=schema, message_encoding=message_encoding,
                                          context=self._context, metadata=metadata)
         self._channels.append(channel)
+        if self.watched():
+            self._fresh[len(self._channels)] = (time.monotonic(), [])
         return len(self._channels)
 
     def watched(self) -> bool:
@@ -80,8 +90,11 @@ class FoxgloveServerWriter:
         return any(channel.has_sinks() for channel in self._channels)
 
     def write(self, block: MessageBlock) -> None:
-        """Each message to its channel's subscribers, without the room reserved for MCAP's header."""
-        listened = np.array([False, *(channel.has_sinks() for channel in self._channels)])
+        """Each message to its channel's subscribers, without the room reserved for MCAP's header;
+        a fresh channel's held until a client subscribes to it (see the module docstring)."""
+        held = self._settle_fresh()
+        listened = np.array([False, *(channel.has_sinks() or index in held
+                                      for index, channel in enumerate(self._channels, 1))])
         rows = np.flatnonzero(listened[block.channels])
         if not len(rows):
             return
@@ -89,7 +102,24 @@ class FoxgloveServerWriter:
         starts, ends = (offsets[:-1] + HEADER_SIZE)[rows].tolist(), offsets[1:][rows].tolist()
         channels, times = block.channels[rows].tolist(), block.log_times[rows].tolist()
         for start, end, channel, t_ns in zip(starts, ends, channels, times, strict=True):
-            self._channels[channel - 1].base.log(data[start:end], t_ns, None)
+            if channel in held:
+                held[channel].append((data[start:end], t_ns))
+            else:
+                self._channels[channel - 1].base.log(data[start:end], t_ns, None)
+
+    def _settle_fresh(self) -> dict[int, list[tuple[bytes, int]]]:
+        """The fresh channels still held (their lists take this block's messages): a subscribed
+        one gets what it held, in order, and one nobody took within :data:`FRESH_WAIT_S` lets go."""
+        now = time.monotonic()
+        for index, (advertised, messages) in list(self._fresh.items()):
+            channel = self._channels[index - 1]
+            if channel.has_sinks():
+                for payload, t_ns in messages:
+                    channel.base.log(payload, t_ns, None)
+            elif now - advertised < FRESH_WAIT_S:
+                continue
+            del self._fresh[index]
+        return {index: messages for index, (_, messages) in self._fresh.items()}
 
     def status(self, text: str) -> None:
         """A warning every connected client shows (the Foxglove app: in its problems list)."""
@@ -98,6 +128,10 @@ class FoxgloveServerWriter:
     def close(self) -> None:
         """Stops serving, once the SDK's threads had a moment to send what was queued last (it
         offers no way to wait for its queues)."""
+        deadline = time.monotonic() + CLOSE_GRACE_S
+        while any(messages for _, messages in self._fresh.values()) and time.monotonic() < deadline:
+            time.sleep(0.05)  # a subscription on its way: what the channel held goes to it
+            self._settle_fresh()
         if self.watched():
             time.sleep(CLOSE_GRACE_S)
         self._server.stop()
