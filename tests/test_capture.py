@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import resource
 import select
 import signal
@@ -328,6 +329,11 @@ def test_live_view_shows_slaves_and_frames(tmp_path: Path, line_tap: tuple[Path,
     assert "requests" in out and "lat p50 ms" in out and "lat ms" in out  # slaves, then frames
     assert "SFr = 4.0 kHz" in out
     assert "timing host" in out
+    # Host timing measures no latency on the wire: the slaves' p50 and p95 are those between read
+    # times, marked "~" as the frames' are (they stayed empty while the frames showed "~0.6").
+    header = next(line for line in out.splitlines() if "lat p50 ms" in line)
+    row = out.splitlines()[out.splitlines().index(header) + 1]
+    assert re.search(r"~\d+\.\d\s+~\d+\.\d", row), (header, row)
 
 
 def test_rotation_and_port_listing_options(cli: Any, tmp_path: Path) -> None:

@@ -75,6 +75,9 @@ class LiveView(Sink):
         self._kept = 0
         #: End times of recent requests by frame index, for the latency of their answers.
         self._requests: OrderedDict[int, int] = OrderedDict()
+        #: Per slave, the latencies between host read times of its answers (the ``~`` figures):
+        #: what the slaves' table shows where the timing measures none on the wire.
+        self.read_latency: dict[int, Histogram] = {}
 
     def messages(self, batch: AnnotatedBatch) -> None:
         if not len(batch):
@@ -93,15 +96,16 @@ class LiveView(Sink):
         live tap reads a port, and the decoder publishes no host latency), by position."""
         frames, first = messages.frames, messages.frames.first_index
         texts = [""] * len(messages)
-        answered = messages.request_index.tolist()
+        answered, slaves = messages.request_index.tolist(), messages.slave.tolist()
         for position, role in enumerate(messages.role.tolist()):
             if role == _REQUEST:
                 self._requests[first + position] = int(frames.t_end_ns[position])
                 if len(self._requests) > KEPT_FRAMES:
                     self._requests.popitem(last=False)
             elif answered[position] in self._requests:
-                latency = int(frames.t_start_ns[position]) - self._requests[answered[position]]
-                texts[position] = f"~{max(latency, 0) / 1e6:.1f}"
+                latency = max(int(frames.t_start_ns[position]) - self._requests[answered[position]], 0)
+                texts[position] = f"~{latency / 1e6:.1f}"
+                self.read_latency.setdefault(slaves[position], Histogram()).add(latency)
         return texts
 
     def recent_frames(self) -> list[tuple[AnnotatedBatch, list[str]]]:
@@ -164,8 +168,11 @@ def _row_texts(layout: Layout, cells: dict[str, Cells]) -> list[str]:
                           for key, c in cells.items()}, 1) for row in range(count)]
 
 
-def slave_cells(statistics: Statistics) -> tuple[dict[str, Cells], int, int]:
-    """Counters and latency per slave, the busiest first: the cells, the rows, the slaves."""
+def slave_cells(statistics: Statistics, read_latency: dict[int, Histogram] | None = None) -> tuple[
+        dict[str, Cells], int, int]:
+    """Counters and latency per slave, the busiest first: the cells, the rows, the slaves. Where
+    the timing measures no latency on the wire (host reads), the percentiles of ``read_latency``
+    (between read times), marked ``~`` as the frames' rows mark theirs."""
     per_slave: dict[int, list[int]] = {}
     latency: dict[int, Histogram] = {}
     for (slave, _), stats in statistics.per_function.items():
@@ -185,9 +192,14 @@ def slave_cells(statistics: Statistics) -> tuple[dict[str, Cells], int, int]:
         for key, count in zip(("requests", "responses", "exceptions", "crc", "timeouts"), counts, strict=True):
             texts[key].append(str(count))
         texts["slave"].append(str(slave))
+        between_reads = (read_latency or {}).get(slave) if not latency[slave].count else None
         for key, q in (("p50", 50), ("p95", 95)):
+            if between_reads is not None:
+                # Host timing: between read times, not on the wire; still the best the tap knows.
+                value = between_reads.percentile(q)
+                texts[key].append("" if value is None else f"~{value / 1e6:.1f}")
+                continue
             value = latency[slave].percentile(q)
-            # Host timing: latencies between reads, not on the wire; still the best the tap knows.
             texts[key].append("" if value is None else f"{value / 1e6:.1f}")
         texts["fill"].append("")
     return {key: Cells(values) for key, values in texts.items()}, min(len(order), SHOWN_SLAVES), len(order)
@@ -207,7 +219,7 @@ class LiveScreen:
     def __init__(self, view: LiveView, statistics: Statistics) -> None:
         self.view = view
         self.status = view.status(statistics)
-        self.slaves = slave_cells(statistics)
+        self.slaves = slave_cells(statistics, view.read_latency)
         self.recent = view.recent_frames()
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
