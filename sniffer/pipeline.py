@@ -205,9 +205,7 @@ class Delivery:
         kept = None
         if self._annotator is not None:
             annotator = self._annotator
-            annotated = (annotator.annotate_columnar(batch)
-                         if self._in_columns
-                         else annotator.annotate_batch(batch))
+            annotated = annotator.annotate_columnar(batch) if self._in_columns else annotator.annotate_batch(batch)
             kept = annotated if self._keep is None else annotated.select(self._keep(annotated))
         if self._left is not None:
             batch, kept = self._limited(batch, kept)

@@ -77,10 +77,9 @@ def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: Column
     owner = _value_register_owners(slaves, of, address, batch.slave[columnar.positions].astype(np.int64))
     register = ((((slaves.profile[of] * 2 + reported) << _SLAVE_BITS) | owner) << _ADDRESS_BITS) | address
     distinct, inverse = np.unique((register << _RAW_BITS) | (params.value[rows] + 1), return_inverse=True)
-    entry, table = _entries(applier, slaves, distinct)
     row = np.full(len(params.address), -1, np.int64)
-    row[rows] = entry[inverse.reshape(-1)]
-    return row, table
+    row[rows] = inverse.reshape(-1)  # each distinct value is an entry of the table, in order
+    return row, _named_table(applier, slaves, distinct)
 
 
 def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArray[np.bool_]:
@@ -90,10 +89,9 @@ def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArr
     return named
 
 
-def _entries(applier: ProfileApplier, slaves: ColumnProfiles,
-             distinct: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], list[NamedValue]]:
-    """The entry of each distinct value (``distinct``: keys of :func:`named`, ascending) and the
-    named values, register after register (an entry each)."""
+def _named_table(applier: ProfileApplier, slaves: ColumnProfiles, distinct: npt.NDArray[np.int64]) -> list[NamedValue]:
+    """Each distinct value named (``distinct``: keys of :func:`named`, ascending), in their order:
+    register after register, a register's raw words by the applier at once."""
     registers, words = distinct >> _RAW_BITS, (distinct & _RAW_MASK) - 1
     starts = np.flatnonzero(np.diff(registers, prepend=-1))
     stops = np.append(starts[1:], len(distinct))
@@ -102,7 +100,7 @@ def _entries(applier: ProfileApplier, slaves: ColumnProfiles,
         group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
         register = (slaves.profiles[group >> 1], slave, bool(group & 1), key & _ADDRESS_MASK)
         table += applier.named_values(*register, [None if raw < 0 else raw for raw in words[first:last].tolist()])
-    return np.arange(len(distinct), dtype=np.int64), table
+    return table
 
 
 def _value_register_owners(slaves: ColumnProfiles, of: npt.NDArray[np.int64], address: npt.NDArray[np.int64],

@@ -296,8 +296,8 @@ def add_channel_option(parser: argparse.ArgumentParser) -> None:
                         "time order). Default: the only probe that changes")
     parser.add_argument("--invert", action=argparse.BooleanOptionalAction, default=None,
                         help="for a logic analyzer's recording: read its lines inverted (idling low), or not "
-                        "(--no-invert). Default: the way their samples decode with fewer framing and parity "
-                        "errors, said in a warning when inverted")
+                        "(--no-invert). Default: as the first sample's level says, unless the other way reads "
+                        "with clearly fewer framing errors; a warning says when a line is read inverted")
 
 
 def add_input_format_option(parser: argparse.ArgumentParser) -> None:

@@ -235,7 +235,7 @@ class SaleaeDigitalReader:
                                 tuple(names[c] for c in columns) if len(columns) > 1 else ())
 
     def _polarity(self, levels: npt.NDArray[np.bool_], name: str, forced: bool | None) -> bool:
-        """Whether a channel reads inverted: the way it decodes with fewer framing errors
+        """Whether a channel reads inverted, by what its first rows decode to
         (:func:`~sniffer.io.polarity.chosen_polarity`), said in a warning where it is inverted."""
         first = slice(0, POLARITY_ROWS)
         inverted, said = chosen_polarity(

@@ -3,9 +3,10 @@
 A session is a zip: ``metadata`` (an INI text: sample rate, unit size, the probes' names) and
 ``logic-1-1``, ``logic-1-2``, … (the samples, ``unitsize`` bytes each, bit ``k`` for probe
 ``k + 1``). The line's probe is ``--channel`` (a name or a number from 1), or the only one that
-changes; a line that idles low is read inverted (:mod:`sniffer.io.polarity`). The UART settings come from ``--line``; a
-session does not say them, so without it the baud rate is read from the shortest pulses and the
-format is the one of 8E1, 8N1, 8O1, 8N2 that decodes with the fewest errors (a warning says so). Each
+changes; a line that idles low is read inverted (:mod:`sniffer.io.polarity`). The UART settings
+come from ``--line``; a session does not say them, so without it the standard rates near what the
+line's one-bit pulses measure are tried with 8E1, 8N1, 8O1, 8N2 and either polarity, and the
+setting that decodes with the fewest errors is taken (a warning says so). Each
 character becomes a chunk stamped with the end of its stop bit: exact timing. The session has no
 clock time: sample 0 is the time the zip stores for its ``metadata`` (to the second, its zone
 unknown, read as UTC). Characters with a framing or parity error are kept, and counted in a warning.
@@ -147,7 +148,7 @@ class SigrokSessionReader:
         return sorted(changing)
 
     def _polarity(self, probe: int, forced: bool | None) -> bool:
-        """Whether ``probe`` reads inverted: the way its first samples decode with fewer errors
+        """Whether ``probe`` reads inverted, by what its first samples decode to
         (:func:`~sniffer.io.polarity.chosen_polarity`), said in a warning where it is inverted."""
         level = self._first_levels(probe)
         inverted, said = chosen_polarity(lambda inverted: UartDecoder(self._line, self._rate, inverted).feed(level),
@@ -168,9 +169,10 @@ class SigrokSessionReader:
         return np.concatenate(pieces) if pieces else np.zeros(0, np.bool_)
 
     def _line_settings(self, options: ReaderOptions) -> LineSettings:
-        """``--line``, else what the samples show: the baud rate of the shortest pulses, and of
-        the character formats a Modbus line uses the one that reads with the fewest framing and
-        parity errors (said in a warning: ``--line`` makes it sure)."""
+        """``--line``, else what the samples show: of the standard rates near what the one-bit
+        pulses measure (:func:`~decoders.uart.baud_candidates`) and the character formats a Modbus
+        line uses, the one that reads with the fewest framing and parity errors (said in a warning,
+        with the settings that read as well: ``--line`` makes it sure)."""
         if options.line is not None:
             return options.line
         level = self._first_levels(self._probes_used[0])
