@@ -21,6 +21,7 @@ import numpy as np
 from decoders.damage import uart_error_note
 from decoders.frame import FrameFlag, flag_set
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, MessageBatch, Role
+from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import open_new
 
 LINKTYPE_USER0 = 147
@@ -67,7 +68,14 @@ def pcap_records(batch: MessageBatch) -> bytes:
     count = len(frames)
     lengths = np.diff(frames.offsets)
     headers = np.empty(count, _RECORD)
-    headers["seconds"], headers["nanos"] = np.divmod(frames.t_start_ns, 1_000_000_000)
+    seconds, nanos = np.divmod(frames.t_start_ns, 1_000_000_000)
+    outside = (seconds < 0) | (seconds > 0xFFFFFFFF)
+    if count and outside.any():  # numpy would wrap them into the 32 bits without a word
+        first = int(np.argmax(outside))
+        raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"frame #{frames.first_index + first} starts "
+                            f"{int(seconds[first]):,} s from 1970, outside what a classic pcap's 32-bit seconds "
+                            "hold (1970 to 2106): write .pcapng, whose times have 64 bits")
+    headers["seconds"], headers["nanos"] = seconds, nanos
     headers["captured"] = headers["length"] = lengths
     out = np.empty(count * _RECORD.itemsize + len(frames.data), np.uint8)
     # Record i starts after i headers and the bytes of the frames before it.

@@ -319,10 +319,15 @@ class McapCaptureReader:
         """A metadata field that holds a JSON list of strings (notes, channel names)."""
         try:
             values = json.loads(text)
-        except ValueError:
+        except (ValueError, RecursionError):  # RecursionError: '[' nested thousands deep
             values = None
         if not isinstance(values, list) or not all(isinstance(value, str) for value in values):
             raise self._error(f"bad {what}: not a JSON list of strings")
+        for value in values:
+            try:
+                value.encode("utf-8")
+            except UnicodeEncodeError as error:  # "\ud800" in the JSON: no character, no output can write it
+                raise self._error(f"bad {what}: {error.object[error.start]!r} is a lone surrogate, not text") from None
         return tuple(values)
 
     def _block(self, record: Message, side: dict[str, bytes]) -> ChunkBatch:

@@ -20,7 +20,7 @@ import numpy as np
 
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from sniffer.errors import CaptureFormatError, ErrorKind
-from sniffer.io.base import ReaderOptions
+from sniffer.io.base import ReaderOptions, max_read_bytes, read_limit_message
 
 USER_LINK_TYPES = range(147, 163)
 LINKTYPE_RTAC_SERIAL = 250
@@ -34,6 +34,8 @@ _BYTE_ORDER_MAGIC = 0x1A2B3C4D
 _INTERFACE, _ENHANCED, _SIMPLE, _OBSOLETE_PACKET = 1, 6, 3, 2
 BATCH_CHUNKS = 4096
 NS_PER_S = 1_000_000_000
+#: Times are kept as 64-bit nanoseconds.
+MAX_TIME_NS = 2**63 - 1
 
 
 class PcapCaptureReader:
@@ -101,13 +103,14 @@ class PcapCaptureReader:
             if len(head) != record.size:
                 raise self._error(f"cut short in a record header ({len(head)} of {record.size} bytes)")
             seconds, fraction, captured, _ = record.unpack(head)
+            self._check_size(captured, "record")
             yield seconds * NS_PER_S + fraction * scale, self._payload(self._read(captured, "a record"), link_type), 0
 
     # pcapng.
 
     def _pcapng_records(self) -> Iterator[tuple[int, bytes, int]]:
         order = "<"
-        interfaces: list[tuple[int, int]] = []  # per interface: (link type, picoseconds per tick)
+        interfaces: list[tuple[int, tuple[int, int]]] = []  # per interface: (link type, (base, power) of a tick)
 
         def blocks() -> Iterator[tuple[int, bytes]]:
             nonlocal order, interfaces
@@ -124,12 +127,14 @@ class PcapCaptureReader:
                     length = struct.unpack(order + "I", head[4:])[0]
                     if length < 28 or length % 4:
                         raise self._error(f"section header length {length} is not a pcapng one's")
+                    self._check_size(length - 16, "section header")
                     body = magic + self._read(length - 16, "a section header")
                     interfaces = []
                 else:
                     kind, length = struct.unpack(order + "II", head)
                     if length < 12 or length % 4:
                         raise self._error(f"block length {length} is not a pcapng block's")
+                    self._check_size(length - 12, "block")
                     body = self._read(length - 12, "a block")
                 self._read(4, "a block's closing length")
                 yield kind, body
@@ -138,7 +143,7 @@ class PcapCaptureReader:
             for kind, body in blocks():
                 if kind == _INTERFACE:
                     link_type = struct.unpack(order + "H", body[:2])[0]
-                    interfaces.append((link_type, _tick_ps(body[8:], order)))
+                    interfaces.append((link_type, _resolution(body[8:], order)))
                 elif kind == _ENHANCED:
                     self._record += 1
                     if len(body) < 20:
@@ -146,16 +151,23 @@ class PcapCaptureReader:
                     interface, high, low, captured, _ = struct.unpack(order + "IIIII", body[:20])
                     if interface >= len(interfaces):
                         raise self._error(f"names interface {interface}, which no interface block described")
-                    link_type, tick = interfaces[interface]
+                    link_type, (base, power) = interfaces[interface]
                     self._check_link_type(link_type, f"record {self._record}")
                     channel = _direction(body[20 + (captured + 3) // 4 * 4 :], order)
-                    yield ((high << 32) | low) * tick // 1000, self._payload(body[20 : 20 + captured], link_type), \
-                        channel
+                    # Exact in integers whatever the resolution (2^-127 s a tick, or 10^0).
+                    t_ns = ((high << 32) | low) * NS_PER_S // base**power
+                    yield t_ns, self._payload(body[20 : 20 + captured], link_type), channel
                 elif kind in (_SIMPLE, _OBSOLETE_PACKET):
                     self._record += 1
                     raise self._error("a packet block without a time (simple or obsolete): not a serial capture's")
 
         return records()
+
+    def _check_size(self, size: int, what: str) -> None:
+        """A record over the read limit is refused before it is read (a length of 4 GiB in a
+        small file, or 60 MiB of one record: no serial port delivers either)."""
+        if size > max_read_bytes() + 4096:  # room for a block's fields and options
+            raise self._error(f"a {what} that {read_limit_message(size)}")
 
     def _check_link_type(self, link_type: int, where: str) -> None:
         if link_type not in USER_LINK_TYPES and link_type not in (LINKTYPE_RTAC_SERIAL, LINKTYPE_RAW_IP):
@@ -180,6 +192,8 @@ class PcapCaptureReader:
         channels: list[int] = []
         previous = -1
         for t_ns, data, channel in self._records:
+            if t_ns > MAX_TIME_NS:
+                raise self._error(f"a time {t_ns // NS_PER_S:,} s after 1970, beyond the year 2262")
             if t_ns < previous:
                 raise self._error("goes back in time from the record before", ErrorKind.DECREASING_TIME)
             previous = t_ns
@@ -225,9 +239,9 @@ def _direction(options: bytes, order: str) -> int:
     return 0
 
 
-def _tick_ps(options: bytes, order: str) -> int:
-    """Picoseconds per timestamp tick of an interface, from its ``if_tsresol`` option (default:
-    microseconds)."""
+def _resolution(options: bytes, order: str) -> tuple[int, int]:
+    """An interface's timestamp tick from its ``if_tsresol`` option, as (base, power): a tick is
+    ``base ** -power`` seconds (default: microseconds, (10, 6))."""
     at = 0
     while at + 4 <= len(options):
         code, length = struct.unpack(order + "HH", options[at : at + 4])
@@ -235,8 +249,6 @@ def _tick_ps(options: bytes, order: str) -> int:
             break
         if code == 9 and length >= 1:
             resolution = options[at + 4]
-            power = resolution & 0x7F
-            seconds = 2.0 ** -power if resolution & 0x80 else 10.0 ** -power
-            return round(seconds * 1e12)
+            return (2 if resolution & 0x80 else 10), resolution & 0x7F
         at += 4 + (length + 3) // 4 * 4
-    return 1_000_000  # a microsecond
+    return 10, 6

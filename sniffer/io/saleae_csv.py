@@ -22,6 +22,8 @@ naming the file and its line.
 from __future__ import annotations
 
 import csv
+import math
+import re
 from collections.abc import Iterator
 from dataclasses import replace
 from typing import TextIO
@@ -39,6 +41,8 @@ LOGIC2 = ("name", "type", "start_time", "duration", "data")
 LOGIC1 = ("Time [s]", "Value", "Parity Error", "Framing Error")
 BATCH_CHUNKS = 4096
 NS_PER_S = 1_000_000_000
+#: A byte as Logic writes it in each radix: 0x48, 0b01001000, 72.
+_NUMBER = re.compile(r"0[xX]([0-9A-Fa-f]{1,2})|0[bB]([01]{1,8})|([0-9]{1,3})")
 _ESCAPES = {"\\0": 0, "\\t": 9, "\\n": 10, "\\r": 13, "\\\\": 92, "' '": 32}
 
 
@@ -133,13 +137,12 @@ class SaleaeCsvReader:
             value = ord(cell[1])
         elif len(cell) == 1:
             value = ord(cell)
-        else:
-            try:
-                value = int(cell, 0)
-            except ValueError:
-                value = None
+        elif (number := _NUMBER.fullmatch(cell)) is not None:
+            # Logic's radixes, ASCII digits only (int() would take "0x1_2", "0o17" or "٧٢" too)
+            digits, base = next((text, base) for text, base in zip(number.groups(), (16, 2, 10), strict=True) if text)
+            value = int(digits, base)
         if value is None or not 0 <= value <= 0xFF:
-            raise self._error(f"{cell!r} is not a byte (0x48, 72, 'H')")
+            raise self._error(f"{cell!r} is not a byte (0x48, 72, 0b01001000, 'H')")
         return value
 
     def batches(self) -> Iterator[ChunkBatch]:
@@ -167,6 +170,14 @@ class SaleaeCsvReader:
 
     def close(self) -> None:
         self._file.close()
+
+
+def _finite_seconds(text: str) -> float:
+    """A digital export's time; ``ValueError`` for one that is no number, NaN or infinite."""
+    seconds = float(text)
+    if not math.isfinite(seconds) or abs(seconds) >= 2**33:
+        raise ValueError(f"time {text.strip()!r} is not a time in seconds")
+    return seconds
 
 
 def error_kind(text: str) -> int:
@@ -207,7 +218,7 @@ class SaleaeDigitalReader:
                 times, states = [], []
                 for row in rows:
                     if row:
-                        times.append(float(row[0]))
+                        times.append(_finite_seconds(row[0]))
                         states.append([cell.strip() == "1" for cell in row[1 : 1 + len(names)]])
                         if len(states[-1]) != len(names):
                             raise ValueError(f"{len(row)} columns where the header has {len(names) + 1}")

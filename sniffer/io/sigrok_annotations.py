@@ -31,8 +31,10 @@ from decoders.line import Parity
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ReaderOptions
 
-#: START-END decoder: class: "text" ... (greedy: sigrok's ascii format writes a quote unescaped: """).
-LINE = re.compile(r"(\d+)-(\d+) ([\w.-]+): ([\w-]+): \"(.*)\"\s*$")
+#: START-END decoder: class: "text" ... (greedy: sigrok's ascii format writes a quote unescaped: """);
+#: sample numbers of ASCII digits that fit 64 bits.
+LINE = re.compile(r"([0-9]{1,18})-([0-9]{1,18}) ([\w.-]+): ([\w-]+): \"(.*)\"\s*$")
+_HEX_BYTE = re.compile("[0-9A-Fa-f]{1,2}")
 #: What to run for the annotations read here (said where a file holds another decoder's only).
 UART_COMMAND = ("sigrok-cli -i REC.sr -P uart:baudrate=BAUD:rx=RX -A uart --protocol-decoder-samplenum "
                 "--protocol-decoder-ann-class")
@@ -114,6 +116,9 @@ class SigrokAnnotationsReader:
             kind = match[4]
             direction = kind.split("-", 1)[0]
             if kind.endswith("-data"):
+                if direction not in ("rx", "tx"):  # sigrok's UART decoder has these two
+                    raise CaptureFormatError(ErrorKind.BAD_DATA, f"class {kind!r} is neither rx-data nor tx-data",
+                                             path=self.path, location=f"line {number}")
                 last[direction] = len(values)
                 starts.append(int(match[1]))
                 ends.append(int(match[2]))
@@ -133,10 +138,8 @@ class SigrokAnnotationsReader:
             return ord(text)
         elif len(text) == 2 and text[0] == "\\":
             return ord(text[1])
-        try:
-            value = int(text, 16)
-        except ValueError:
-            value = -1
+        # Two ASCII hex digits, as sigrok writes them (int() would take "0x1f", "1_2" or "٧٢" too).
+        value = int(text, 16) if _HEX_BYTE.fullmatch(text) else -1
         if not 0 <= value <= 0xFF:
             raise CaptureFormatError(ErrorKind.BAD_DATA, f"{text!r} is not a byte as sigrok's hex or ascii format "
                                      "writes it", path=self.path, location=f"line {number}")

@@ -17,6 +17,7 @@ from __future__ import annotations
 import configparser
 import re
 import zipfile
+import zlib
 from calendar import timegm
 from collections.abc import Iterator
 from dataclasses import replace
@@ -36,7 +37,13 @@ NS_PER_S = 1_000_000_000
 DETECTION_SAMPLES = 4_000_000
 #: The character formats tried then, the likelier first (Modbus RTU's default is 8E1).
 DETECTED_FORMATS = ("8E1", "8N1", "8O1", "8N2")
-_RATE = re.compile(r"([\d.]+)\s*([kMG]?)Hz", re.IGNORECASE)
+_RATE = re.compile(r"([0-9]{1,12}(?:\.[0-9]{1,12})?)\s*([kMG]?)Hz", re.IGNORECASE)
+#: Beyond any logic analyzer.
+MAX_RATE_HZ = 100e9
+#: Sample bytes read at a time: memory stays bounded whatever a sample file holds.
+PIECE_BYTES = 16 * 2**20
+#: The metadata is a few hundred bytes; more than this is no sigrok metadata.
+MAX_METADATA_BYTES = 2**20
 _SCALE = {"": 1.0, "k": 1e3, "m": 1e6, "g": 1e9}
 #: The earliest date a zip entry can hold (MS-DOS dates).
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
@@ -87,8 +94,15 @@ class SigrokSessionReader:
 
     def _read_metadata(self) -> None:
         try:
-            text = self._zip.read("metadata").decode("utf-8", "replace")
-            stamp = self._zip.getinfo("metadata").date_time
+            entry = self._zip.getinfo("metadata")
+            if entry.file_size > MAX_METADATA_BYTES:
+                raise self._error(f"metadata of {entry.file_size:,} bytes: sigrok writes a few hundred "
+                                  f"(read up to {MAX_METADATA_BYTES:,})", ErrorKind.BAD_HEADER)
+            with self._zip.open(entry) as metadata:
+                text = metadata.read(MAX_METADATA_BYTES).decode("utf-8", "replace")
+            stamp = entry.date_time
+        except CaptureFormatError:
+            raise
         except Exception as exc:
             raise self._error(f"no readable metadata in the zip: {exc}", ErrorKind.BAD_HEADER) from None
         parser = configparser.ConfigParser(interpolation=None, strict=False)
@@ -97,13 +111,10 @@ class SigrokSessionReader:
             device = parser["device 1"]
         except (configparser.Error, KeyError):
             raise self._error("metadata has no [device 1] section", ErrorKind.BAD_HEADER) from None
-        rate = _RATE.fullmatch(device.get("samplerate", "").strip())
-        if rate is None:
-            raise self._error(f"metadata: samplerate {device.get('samplerate')!r} is not a rate", ErrorKind.BAD_HEADER)
-        self._rate = float(rate[1]) * _SCALE[rate[2].lower()]
-        self._unit = int(device.get("unitsize", "1"))
+        self._rate = self._sample_rate(device.get("samplerate", ""))
+        self._unit = self._unit_size(device.get("unitsize", "1"))
         self._capturefile = device.get("capturefile", "logic-1")
-        self._probes = {int(key[5:]): value for key, value in device.items() if re.fullmatch(r"probe\d+", key)}
+        self._probes = self._probe_names(device)
         if not self._probes:
             analog = device.get("total analog", "0")
             raise self._error("no logic probes (rtusniff decodes digital samples; this session has "
@@ -115,15 +126,61 @@ class SigrokSessionReader:
             raise self._error(f"no sample files ({self._capturefile}-1, …) in the zip")
         self._chunks = names
 
-    def _samples(self, name: str) -> np.ndarray:
+    def _sample_rate(self, text: str) -> float:
+        rate = _RATE.fullmatch(text.strip())
+        hz = float(rate[1]) * _SCALE[rate[2].lower()] if rate is not None else 0.0
+        if not 0 < hz <= MAX_RATE_HZ:
+            raise self._error(f"metadata: samplerate {_shown(text)} is not a rate (1 Hz to 100 GHz)",
+                              ErrorKind.BAD_HEADER)
+        return hz
+
+    def _unit_size(self, text: str) -> int:
+        if not re.fullmatch(r"[1-8]", text.strip()):
+            raise self._error(f"metadata: unitsize {_shown(text)} is not 1 to 8 (bytes per sample)",
+                              ErrorKind.BAD_HEADER)
+        return int(text)
+
+    def _probe_names(self, device: configparser.SectionProxy) -> dict[int, str]:
+        """``probeN = NAME`` for each logic probe: N from 1 to the bits a sample holds."""
+        probes = {}
+        for key, value in device.items():
+            number = re.fullmatch(r"probe(\d+)", key, re.ASCII)
+            if number is None:
+                continue
+            if not (len(number[1]) <= 3 and 1 <= int(number[1]) <= 8 * self._unit):
+                raise self._error(f"metadata: {_shown(key)} is no probe of a session of {self._unit}-byte samples "
+                                  f"(probe1 to probe{8 * self._unit})", ErrorKind.BAD_HEADER)
+            probes[int(number[1])] = value
+        return probes
+
+    def _samples(self, name: str) -> Iterator[np.ndarray]:
+        """The samples of one sample file, in pieces of at most :data:`PIECE_BYTES`: a file of
+        gigabytes (a long capture, or a zip bomb of a few kilobytes) is read in bounded memory."""
         try:
-            raw = self._zip.read(name)
-        except Exception as exc:
+            with self._zip.open(name) as entry:
+                carry = b""
+                while raw := entry.read(PIECE_BYTES):
+                    raw = carry + raw
+                    usable = len(raw) - len(raw) % self._unit
+                    carry = raw[usable:]
+                    yield self._words(raw[:usable])
+        except (zipfile.BadZipFile, OSError, EOFError, zlib.error, NotImplementedError, RuntimeError) as exc:
             raise CaptureFormatError(ErrorKind.BAD_DATA, f"cannot read {name}: {exc}", path=self.path,
                                      location=name) from None
-        usable = len(raw) - len(raw) % self._unit
-        words = np.frombuffer(raw[:usable], dtype=f"<u{self._unit}" if self._unit in (1, 2, 4, 8) else np.uint8)
-        return words
+
+    def _words(self, raw: bytes) -> np.ndarray:
+        """Samples as unsigned integers, bit ``k`` for probe ``k + 1`` (3, 5, 6, 7-byte samples
+        widened to 4 or 8 bytes)."""
+        if self._unit in (1, 2, 4, 8):
+            return np.frombuffer(raw, dtype=f"<u{self._unit}")
+        width = 4 if self._unit < 4 else 8
+        padded = np.zeros((len(raw) // self._unit, width), np.uint8)
+        padded[:, : self._unit] = np.frombuffer(raw, np.uint8).reshape(-1, self._unit)
+        return padded.view(f"<u{width}").ravel()
+
+    def _pieces(self) -> Iterator[np.ndarray]:
+        for name in self._chunks:
+            yield from self._samples(name)
 
     def _level(self, words: np.ndarray, probe: int) -> np.ndarray:
         return ((words >> (probe - 1)) & 1).astype(np.bool_)
@@ -138,8 +195,7 @@ class SigrokSessionReader:
             return probes
         # The probes that change anywhere: the first sample files may hold an idle line only.
         changing: set[int] = set()
-        for name in self._chunks:
-            words = self._samples(name)
+        for words in self._pieces():
             changing |= {index for index in self._probes if np.any(np.diff(self._level(words, index)))}
         if len(changing) != 1:
             listed = ", ".join(f"{index}={self._probes[index]}" for index in sorted(changing or self._probes))
@@ -161,8 +217,8 @@ class SigrokSessionReader:
     def _first_levels(self, probe: int) -> npt.NDArray[np.bool_]:
         """``probe``'s levels over the first :data:`DETECTION_SAMPLES` samples (whole sample files)."""
         pieces, count = [], 0
-        for name in self._chunks:
-            pieces.append(self._level(self._samples(name), probe))
+        for words in self._pieces():
+            pieces.append(self._level(words, probe))
             count += len(pieces[-1])
             if count >= DETECTION_SAMPLES:
                 break
@@ -209,8 +265,7 @@ class SigrokSessionReader:
         decoders = [UartDecoder(self._line, self._rate, inverted) for inverted in self._inverted]
         pending: list[UartCharacters] = []
         read = 0
-        for name in self._chunks:
-            words = self._samples(name)
+        for words in self._pieces():
             pending += [self._on_channel(decoder.feed(self._level(words, probe)), channel)
                         for channel, (decoder, probe) in enumerate(zip(decoders, self._probes_used, strict=True), 1)]
             read += len(words)
@@ -248,6 +303,10 @@ class SigrokSessionReader:
 
     def close(self) -> None:
         self._zip.close()
+
+
+def _shown(text: str, limit: int = 24) -> str:
+    return repr(text) if len(text) <= limit else f"{text[:limit]!r}… ({len(text):,} characters)"
 
 
 def _merged(parts: list[UartCharacters], *, before: float) -> tuple[UartCharacters | None, list[UartCharacters]]:

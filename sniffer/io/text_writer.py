@@ -10,6 +10,7 @@ import sys
 from typing import TextIO
 
 from decoders.capture import CaptureInfo, ChunkBatch, uart_error_name
+from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import open_new_text
 from sniffer.io.registry import STDIO
 
@@ -24,6 +25,46 @@ def format_time_ns(t_ns: int) -> str:
     """Seconds since the epoch with all nine fractional digits."""
     seconds, nanos = divmod(t_ns, NS_PER_S)
     return f"{seconds}.{nanos:09d}"
+
+
+#: The characters a channel name keeps as they are in the text format; every other one (a
+#: space, ``%``, ``#``, a control or non-ASCII character) is written as ``%XX`` per UTF-8 byte.
+_NAME_KEPT = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_.-+:()[]/@=,;~!*'&$")
+#: The token of the empty name (a lone ``%`` is no escape).
+EMPTY_NAME = "%"
+
+
+def channel_token(name: str) -> str:
+    """A channel name as one token of ``# channels:`` and ``# channel:``: a name from any reader
+    (a newline in a probe name, a space in Saleae's ``Channel 0``, ``Empfänger``) round-trips
+    and never becomes a line of its own."""
+    if not name:
+        return EMPTY_NAME
+    if name == NO_CHANNEL:
+        return "%2D"
+    return "".join(char if char in _NAME_KEPT else "".join(f"%{byte:02X}" for byte in char.encode("utf-8",
+                                                                                               "surrogatepass"))
+                   for char in name)
+
+
+def channel_name(token: str) -> str:
+    """The name a token stands for; ``ValueError`` for a ``%`` not followed by two hex digits or
+    bytes that are not UTF-8 (a name without ``%`` is itself, as plain v1 files write it)."""
+    if token == EMPTY_NAME:
+        return ""
+    if "%" not in token:
+        return token
+    parts = token.split("%")
+    data = bytearray(parts[0].encode("ascii", "surrogateescape"))
+    for part in parts[1:]:
+        if len(part) < 2 or any(c not in "0123456789abcdefABCDEF" for c in part[:2]):
+            raise ValueError(f"'%{part[:2]}' is not an escape (%XX, two hex digits)")
+        data.append(int(part[:2], 16))
+        data.extend(part[2:].encode("ascii", "surrogateescape"))
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"escaped bytes are not UTF-8 ({error.reason})") from None
 
 
 
@@ -43,32 +84,50 @@ def comment_lines(note: str) -> list[str]:
     return lines
 
 
+def _refuse_repeated(path: str, names: tuple[str, ...]) -> None:
+    """The text format says a line by its name: two lines of one name cannot be told apart."""
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"two of the capture's lines are named {name!r}, which the "
+                                "text format cannot tell apart (write .mcap, which keeps them apart)", path=path)
+        seen.add(name)
+
+
 class TextCaptureWriter:
     """Writes the header at once, then one line per chunk."""
 
     def __init__(self, path: str, info: CaptureInfo) -> None:
+        _refuse_repeated(path, info.channels)
         self._stream: TextIO = sys.stdout if path == STDIO else open_new_text(path, encoding="ascii")
         header = [MAGIC]
         if info.line is not None:
             header.append(f"# line: {info.line.format()}")
         header.append(f"# timing: {info.timing.value}")
         if info.channels:
-            header.append(f"# channels: {' '.join(info.channels)}")
+            header.append(f"# channels: {' '.join(map(channel_token, info.channels))}")
         header.extend(line for note in info.notes for line in comment_lines(note))
         self._stream.write("\n".join(header) + "\n")
         self.flush()  # on disk at once: a capture killed before its first line still says what it is
         self._channels = info.channels
         self._channel = 0
+        #: Chunks without bytes (an MCAP can hold them) have no data line: a note at the end says
+        #: how many and when the first was, so that nothing read goes unsaid.
+        self._empty_chunks = 0
+        self._first_empty_ns = 0
 
     def write_batch(self, batch: ChunkBatch) -> None:
         lines = []
         for chunk in batch.chunks():
             if not chunk.data:
-                raise ValueError("the text format cannot hold a chunk without bytes")
+                self._first_empty_ns = self._first_empty_ns if self._empty_chunks else chunk.t_end_ns
+                self._empty_chunks += 1
+                continue
             if chunk.channel != self._channel:
                 self._channel = chunk.channel
-                name = self._channels[chunk.channel - 1] if 0 < chunk.channel <= len(self._channels) else NO_CHANNEL
-                lines.append(f"# channel: {name}\n")
+                known = 0 < chunk.channel <= len(self._channels)
+                token = channel_token(self._channels[chunk.channel - 1]) if known else NO_CHANNEL
+                lines.append(f"# channel: {token}\n")
             lines.append(f"{format_time_ns(chunk.t_end_ns)} {chunk.data.hex(' ').upper()}\n")
             if chunk.uart_errors:
                 marks = ", ".join(f"{position} {uart_error_name(kind)}" for position, kind in chunk.uart_errors)
@@ -89,6 +148,9 @@ class TextCaptureWriter:
         return self._stream.tell() if self._stream is not sys.stdout else 0
 
     def close(self) -> None:
+        if self._empty_chunks:
+            self.add_notes([f"{self._empty_chunks} chunk(s) without bytes, the first at "
+                            f"{format_time_ns(self._first_empty_ns)}, have no data line in this format"])
         self.flush()
         if self._stream is not sys.stdout:
             self._stream.close()

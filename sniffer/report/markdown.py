@@ -1,8 +1,16 @@
 """The Markdown report (``report --format md``): provenance, the bus, the health table and the
-first anomalies of each kind with their hex, to paste into a GitHub, GitLab or Jira ticket."""
+first anomalies of each kind with their hex, to paste into a GitHub, GitLab or Jira ticket.
+
+A pasted report renders only what rtusniff wrote: every text that came from elsewhere (file
+names, notes, FC 43 device identification, a summary of a frame's bytes) is escaped by
+:func:`_text` (each character that could start HTML, an image, a link, emphasis or a table cell
+gets a backslash; line breaks become spaces), and frames go in a fence longer than any run of
+backticks they hold.
+"""
 
 from __future__ import annotations
 
+import re
 from typing import TextIO
 
 from decoders.anomalies import KINDS
@@ -24,11 +32,11 @@ EXAMPLES = 3
 
 
 def write_markdown(out: TextIO, collector: ReportCollector, comparison: Comparison | None = None) -> None:
-    lines = [f"# {_inline(report_title(collector))}", "", "| | |", "|---|---|"]
+    lines = [f"# {_text(report_title(collector))}", "", "| | |", "|---|---|"]
     lines += [f"| {label} | {_cell(value, code=label in ('SHA-256', 'command'))} |"
               for label, value in provenance_facts(collector)]
     lines += ["", "## Bus", ""]
-    lines += [f"- {label}: **{value}**" if grade == "bad" else f"- {label}: {value}"
+    lines += [f"- {label}: **{_text(value)}**" if grade == "bad" else f"- {label}: {_text(value)}"
               for label, value, grade in bus_summary(collector)]
     lines += ["", *_health(collector), *(_comparison(comparison) if comparison else []), *_anomalies(collector)]
     out.write("\n".join(lines) + "\n")
@@ -45,7 +53,7 @@ def _health(collector: ReportCollector) -> list[str]:
     for row in rows:
         cells = [_cell(row.cells[key]) for key, _, _ in HEALTH_COLUMNS]
         if row.grade == "bad":
-            cells[[key for key, _, _ in HEALTH_COLUMNS].index("error_rate")] = f"**{row.cells['error_rate']}**"
+            cells[[key for key, _, _ in HEALTH_COLUMNS].index("error_rate")] = f"**{_cell(row.cells['error_rate'])}**"
         lines.append("| " + " | ".join(cells) + " |")
     return [*lines, ""]
 
@@ -72,7 +80,7 @@ def _anomalies(collector: ReportCollector) -> list[str]:
     capture = capture_argument(collector)
     lines = ["## Anomalies", "", "| kind | frames | meaning |", "|---|---:|---|"]
     lines += [f"| {KINDS[kind][0]} | {log.counts[kind]:,} | {KINDS[kind][1]} |" for kind in found]
-    lines += ["", f"Any of them in full: `rtusniff analyze {capture} --around INDEX --context 5`"
+    lines += ["", f"Any of them in full: {_code(f'rtusniff analyze {capture} --around INDEX --context 5')}"
               + (" (FILE: the file an example names)." if collector.provenance.merged else "."), ""]
     for kind in found:
         examples = [anomaly for anomaly in log.kept[kind] if anomaly.with_context][:EXAMPLES]
@@ -85,22 +93,39 @@ def _anomalies(collector: ReportCollector) -> list[str]:
 def _example(anomaly: Anomaly) -> list[str]:
     row = anomaly.row
     rows = [*anomaly.before, row, *anomaly.after]
-    where = f" of {_inline(row.capture)}" if row.capture else ""
-    return [f"#{row.index}{where} at {row.time} UTC:", "", "```text",
-            *[_frame_line(frame, focus=frame.index == row.index) for frame in rows], "```", ""]
+    where = f" of {_text(row.capture)}" if row.capture else ""
+    lines = [_frame_line(frame, focus=frame.index == row.index) for frame in rows]
+    fence = "`" * max([3, *(len(run) + 1 for line in lines for run in _BACKTICKS.findall(line))])
+    return [f"#{row.index}{where} at {row.time} UTC:", "", f"{fence}text", *lines, fence, ""]
 
 
 def _frame_line(row: FrameRow, *, focus: bool) -> str:
     fields = [f"#{row.index}", row.time.split(" ")[1], f"slave {row.slave or '-'}", f"fc {row.function or '-'}",
               row.role, f"CRC {row.crc}" if row.crc else "", row.flags, row.hex]
     text = "  ".join(field for field in fields if field)
-    return f"{'>' if focus else ' '} {text}  | {row.summary}"
+    return _one_line(f"{'>' if focus else ' '} {text}  | {row.summary}")
 
 
-def _inline(text: str) -> str:
-    return text.replace("`", "'")
+_BACKTICKS = re.compile("`+")
+#: Characters that start Markdown (CommonMark, GFM, GitHub's math) where they stand in a line;
+#: ``_`` inside a word starts nothing (GFM), so ``make_samples.py`` stays as it is.
+_ACTIVE = re.compile(r"([\\`*\[\]<>!|~&$#]|(?<![A-Za-z0-9])_|_(?![A-Za-z0-9]))")
+_LINE_BREAKS = re.compile(r"[\x00-\x1f\x7f\u2028\u2029\x85]")
+
+
+def _one_line(text: str) -> str:
+    return _LINE_BREAKS.sub(" ", text)
+
+
+def _text(text: str) -> str:
+    """Text from elsewhere, rendered as the characters it holds and nothing else."""
+    return _ACTIVE.sub(r"\\\1", _one_line(text))
+
+
+def _code(text: str) -> str:
+    """A code span: nothing in it renders; a backtick would end it, and ``|`` a table cell."""
+    return f"`{_one_line(text).replace('`', chr(39)).replace('|', chr(92) + '|')}`"
 
 
 def _cell(text: str, *, code: bool = False) -> str:
-    escaped = text.replace("|", "\\|").replace("\n", " ")
-    return f"`{escaped.replace('`', chr(39))}`" if code else escaped
+    return _code(text) if code else _text(text)

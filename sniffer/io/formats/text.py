@@ -30,7 +30,7 @@ from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import CaptureFormat, max_read_bytes, read_limit_message
 from sniffer.io.following import GrowingFile
 from sniffer.io.registry import STDIO
-from sniffer.io.text_writer import MAGIC, NO_CHANNEL, NS_PER_S, TextCaptureWriter, format_time_ns
+from sniffer.io.text_writer import MAGIC, NO_CHANNEL, NS_PER_S, TextCaptureWriter, channel_name, format_time_ns
 
 _MAGIC_ANY_VERSION = re.compile(r"#\s*rtu-capture\s+v(\S+)")
 #: Times are kept as 64-bit nanoseconds.
@@ -160,10 +160,13 @@ class TextCaptureReader:
         return CaptureInfo(line=line, timing=timing or TimingQuality.HOST, notes=tuple(notes), channels=channels)
 
     def _header_channels(self, previous: tuple[str, ...], value: str) -> tuple[str, ...]:
-        names = tuple(value.split())
+        try:
+            names = tuple(channel_name(token) for token in value.split())
+        except ValueError as error:
+            raise self._error(ErrorKind.BAD_HEADER, f"'# channels:' {error}") from None
         if previous:
             raise self._error(ErrorKind.BAD_HEADER, "second '# channels:' header")
-        if not names or len(set(names)) != len(names) or NO_CHANNEL in names or len(names) > 255:
+        if not names or len(set(names)) != len(names) or NO_CHANNEL in value.split() or len(names) > 255:
             raise self._error(ErrorKind.BAD_HEADER, f"'# channels: {value.strip()}' must name up to 255 different "
                               "lines, e.g. '# channels: RX TX'")
         return names
@@ -172,6 +175,10 @@ class TextCaptureReader:
         """The 1-based code of a ``# channel:`` line's name (0 for ``-``)."""
         if name == NO_CHANNEL:
             return 0
+        try:
+            name = channel_name(name)
+        except ValueError as error:
+            raise self._error(ErrorKind.BAD_DATA, f"'# channel:' {error}", line_number) from None
         if name not in channels:
             said = " ".join(channels) if channels else "none (no '# channels:' header)"
             raise self._error(ErrorKind.BAD_DATA, f"channel {name!r} is not one of the header's: {said}", line_number)

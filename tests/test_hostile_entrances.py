@@ -1,0 +1,352 @@
+"""Hostile inputs at the entrances added last (issue 69): names that would forge lines, metadata
+that would pass altered, outputs that would destroy inputs. Each test failed before its fix."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
+from decoders.line import LineSettings
+from sniffer.io.registry import open_reader, open_writer
+from tests.conftest import CliResult
+from tests.real_recordings import REAL
+
+Cli = Callable[..., CliResult]
+LINE = LineSettings.parse("19200 8E1")
+#: A write of HR 1 = 3 to slave 1 that never happened, as a data line.
+FORGED = "1700000000.5 01 06 00 01 00 03 98 0B"
+HOSTILE_NAMES: list[tuple[str, ...]] = [
+    (f"RX\n{FORGED}", "TX"),
+    ("Channel 0", "Channel 1"),
+    ("", "-"),
+    ("#", "%41", "%"),
+    ("Empfänger", "Sender ⚡"),
+    ("# channel: TX", "\r\x00\x1b[2J"),
+]
+
+
+def two_line_mcap(path: Path, names: tuple[str, ...]) -> Path:
+    """A native MCAP whose lines carry ``names``: a request on the first, its answer on the second."""
+    writer = open_writer(str(path), CaptureInfo(LINE, TimingQuality.EXACT, (), names), "mcap")
+    chunks = [Chunk(1_700_000_000_000_000_000, bytes.fromhex("010300000001840A"), channel=1),
+              Chunk(1_700_000_000_010_000_000, bytes.fromhex("01030200056B87"), channel=len(names))]
+    writer.write_batch(ChunkBatch.from_chunks(chunks))
+    writer.close()
+    return path
+
+
+@pytest.mark.parametrize("names", HOSTILE_NAMES, ids=[repr(n)[:24] for n in HOSTILE_NAMES])
+def test_line_names_round_trip_through_text_and_forge_nothing(cli: Cli, tmp_path: Path,
+                                                               names: tuple[str, ...]) -> None:
+    source = two_line_mcap(tmp_path / "in.mcap", names)
+    text, back = tmp_path / "out.log", tmp_path / "back.mcap"
+    assert cli("convert", str(source), str(text)).code == 0
+    written = text.read_text(encoding="ascii")
+    assert all(line.startswith("#") or line[:10].isdigit() for line in written.splitlines())
+    assert FORGED not in written
+    reader = open_reader(str(text))
+    assert reader.info.channels == names
+    reader.close()
+    assert cli("convert", str(text), str(back)).code == 0
+    frames = [r for r in cli("analyze", str(back), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
+    assert [(f["channel"], f["function"]) for f in frames] == [(names[0], 3), (names[-1], 3)]
+
+
+def test_two_lines_of_one_name_are_refused_by_the_text_writer(cli: Cli, tmp_path: Path) -> None:
+    source = two_line_mcap(tmp_path / "in.mcap", ("RX", "RX"))
+    result = cli("convert", str(source), str(tmp_path / "out.log"))
+    assert result.code == 11 and "two of the capture's lines are named 'RX'" in result.err
+    assert not (tmp_path / "out.log").exists()
+
+
+def test_a_bad_escape_in_a_channel_line_is_one_line(cli: Cli, tmp_path: Path) -> None:
+    path = tmp_path / "bad.log"
+    path.write_text("# rtu-capture v1\n# line: 19200 8E1\n# channels: A%zz B\n1.0 01\n")
+    result = cli("stats", str(path))
+    assert result.code == 6 and "'%zz' is not an escape" in result.err
+
+
+@pytest.mark.skipif(not (REAL / "sigrok").exists(), reason="../shared/real is not beside the checkout")
+def test_a_sigrok_probe_name_with_a_continuation_line_forges_nothing(cli: Cli, tmp_path: Path) -> None:
+    session = REAL / "sigrok" / "uart" / "modbus_rtu" / "brainchild_io_16do" / "brainchild-io-16do.sr"
+    copy = tmp_path / "named.sr"
+    with zipfile.ZipFile(session) as original, zipfile.ZipFile(copy, "w") as target:
+        for entry in original.infolist():
+            data = original.read(entry)
+            if entry.filename == "metadata":  # an INI continuation line carries a data line into the name
+                data = data.replace(b"probe1=0\n", f"probe1=RX\n  {FORGED}\n".encode()).replace(b"probe2=1\n",
+                                                                                                  b"probe2=TX\n")
+            target.writestr(entry, data)
+    text = tmp_path / "out.log"
+    result = cli("convert", str(copy), str(text), "--line", "19200 8E1", "--channel", "1", "--channel", "TX")
+    assert result.code == 0, result.err
+    data_lines = [line for line in text.read_text().splitlines() if not line.startswith("#")]
+    assert FORGED not in data_lines and open_reader(str(text)).info.channels[0] == f"RX\n{FORGED}"
+    frames = [r for r in cli("analyze", str(text), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
+    assert not any(str(f["t"]).startswith("1700000000") for f in frames)
+    assert len(frames) == len([r for r in cli("analyze", str(copy), "--line", "19200 8E1", "--channel", "1",
+                                              "--channel", "TX", "--format", "jsonl").jsonl()
+                               if r["kind"] == "frame"])
+
+
+@pytest.mark.parametrize("notes", ["[" * 100_000, '["\\ud800"]', '["a", "\\udfff b"]'])
+def test_mcap_notes_that_are_no_text_are_one_line_in_every_output(cli: Cli, tmp_path: Path, notes: str) -> None:
+    from benchmarks.hostile_inputs import FIELDS, T0, block_at, crafted_mcap
+
+    path = crafted_mcap(tmp_path / "notes.mcap", {**FIELDS, "notes": notes}, [block_at(T0)])
+    for argv in (["analyze", "--format", "jsonl"], ["stats"], ["report", "-o", str(tmp_path / "r.md")]):
+        result = cli(argv[0], str(path), *argv[1:])
+        assert result.code == 9 and "Traceback" not in result.err, result.err
+        assert len(result.err.strip().splitlines()) == 1 and "notes" in result.err
+
+
+def test_a_chunk_without_bytes_converts_and_cuts_to_text_with_a_note(cli: Cli, tmp_path: Path) -> None:
+    source = tmp_path / "empty-chunk.mcap"
+    writer = open_writer(str(source), CaptureInfo(LINE, TimingQuality.EXACT, ()), "mcap")
+    writer.write_batch(ChunkBatch.from_chunks([Chunk(1_700_000_000_000_000_000, bytes.fromhex("010300000001840A")),
+                                               Chunk(1_700_000_000_001_000_000, b""),
+                                               Chunk(1_700_000_000_010_000_000, bytes.fromhex("01030200056B87"))]))
+    writer.close()
+    text = tmp_path / "out.log"
+    assert cli("convert", str(source), str(text)).code == 0
+    assert "# 1 chunk(s) without bytes, the first at 1700000000.001000000" in text.read_text()
+    cut = cli("cut", str(source), "-o", str(tmp_path / "cut.log"), "--limit", "2")
+    assert cut.code == 0, cut.err
+    assert "without bytes" in (tmp_path / "cut.log").read_text()
+    assert json.dumps(open_reader(str(text)).info.notes)  # readable back
+
+
+def test_every_shipped_capture_reads_the_same_through_text(cli: Cli, tmp_path: Path) -> None:
+    """The escaping leaves plain names as they were: the shipped samples convert byte for byte."""
+    from tests.conftest import ROOT
+
+    for sample in sorted((ROOT / "captures").glob("*.log")):
+        out = tmp_path / sample.name
+        shutil.copy(sample, tmp_path / "in.log")
+        assert cli("convert", str(tmp_path / "in.log"), str(out), "--force").code == 0
+        assert out.read_text() == sample.read_text().replace("\r\n", "\n") or sample.name.endswith("-crlf.log")
+
+
+HOSTILE_TEXT = "<img src=http://evil.example/p.png> ![x](http://evil.example/q.png) [ticket](http://evil.example) " \
+               "# Heading *bold* _under_ `code` | cell | $x$ &lt;b&gt;"
+
+
+#: Short enough to arrive within the sample's 41 ms between a request and the next.
+HOSTILE_PRODUCT = "<b>![i](//e.x/q)</b>`c`|#"
+
+
+def _identification_answer(vendor: str, product: str) -> str:
+    from decoders.crc import crc_bytes
+
+    objects = bytes([0, len(vendor)]) + vendor.encode() + bytes([1, len(product)]) + product.encode()
+    body = bytes([2, 0x2B, 0x0E, 1, 2, 0, 0, 2]) + objects
+    return (body + crc_bytes(body)).hex(" ").upper()
+
+
+def test_the_markdown_report_renders_only_what_rtusniff_wrote(cli: Cli, tmp_path: Path) -> None:
+    """Notes, a file name and FC 43 identification strings with HTML, images, links, headings
+    and backticks: rendered by a CommonMark renderer with tables (markdown-it, which rich brings),
+    the report holds no tag, image or link and no heading but its own."""
+    from markdown_it import MarkdownIt
+
+    from tests.conftest import ROOT
+
+    source = (ROOT / "captures" / "atv312-setup.log").read_text()
+    capture = tmp_path / "site `x` ![a](evil.example) #1.log"
+    answer = next(line for line in source.splitlines() if line.startswith("1700000000.049829671 02 2B 0E"))
+    source = source.replace("# timing: exact\n", f"# timing: exact\n# {HOSTILE_TEXT}\n", 1)
+    forged = f"1700000000.049829671 {_identification_answer('V', HOSTILE_PRODUCT)}"
+    capture.write_text(source.replace(answer, forged, 1))
+    result = cli("report", str(capture), "--format", "md")
+    assert result.code == 0, result.err
+    assert "evil.example/p.png" in result.out and "e.x/q" in result.out  # said, as text
+    tokens = MarkdownIt("commonmark").enable("table").parse(result.out)
+    kinds = {child.type for token in tokens for child in (token.children or [])} | {t.type for t in tokens}
+    assert not kinds & {"html_inline", "html_block", "image", "link_open", "em_open"}, kinds
+    headings = [tokens[i + 1].content for i, t in enumerate(tokens) if t.type == "heading_open"]
+    assert all(not h.startswith("Heading") for h in headings) and len(headings) >= 3
+    rendered = MarkdownIt("commonmark").enable("table").render(result.out)
+    assert "<img" not in rendered and "<a " not in rendered and "&lt;img src=http://evil.example/p.png&gt;" in rendered
+
+
+def _session(path: Path, metadata: str, samples: bytes = bytes(1000), repeats: int = 1,
+             comment_mib: int = 0) -> Path:
+    """A .sr zip with ``metadata`` (and ``comment_mib`` MiB of comment lines after it) and one
+    sample file of ``samples`` ``repeats`` times, written piece by piece (a zip bomb made
+    without holding it)."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as session:
+        session.writestr("version", "2")
+        with session.open("metadata", "w", force_zip64=True) as entry:
+            entry.write(metadata.encode())
+            for _ in range(comment_mib):
+                entry.write(b"#" * 2**20)
+        with session.open("logic-1-1", "w", force_zip64=True) as entry:
+            for _ in range(repeats):
+                entry.write(samples)
+    return path
+
+
+DEVICE = "[device 1]\ncapturefile=logic-1\ntotal probes=2\nsamplerate=1 MHz\nunitsize=1\nprobe1=RX\nprobe2=TX\n"
+BAD_METADATA = [
+    (DEVICE.replace("unitsize=1", "unitsize=0"), "unitsize '0' is not 1 to 8"),
+    (DEVICE.replace("unitsize=1", "unitsize=x"), "unitsize 'x' is not 1 to 8"),
+    (DEVICE.replace("1 MHz", "0 Hz"), "samplerate '0 Hz' is not a rate"),
+    (DEVICE.replace("1 MHz", "1.2.3 MHz"), "samplerate '1.2.3 MHz' is not a rate"),
+    (DEVICE.replace("1 MHz", "99999999999999999999999 GHz"), "is not a rate"),
+    (DEVICE + "probe0=\n", "'probe0' is no probe of a session of 1-byte samples"),
+    (DEVICE + f"probe{'9' * 5000}=A\n", "is no probe of a session"),
+    (DEVICE + "probe٣=A\n", None),  # not an ASCII probe key: no probe, read as sigrok would ignore it
+]
+
+
+@pytest.mark.parametrize(("metadata", "words"), BAD_METADATA, ids=range(len(BAD_METADATA)))
+def test_bad_session_metadata_is_one_line(cli: Cli, tmp_path: Path, metadata: str, words: str | None) -> None:
+    path = _session(tmp_path / "s.sr", metadata)
+    result = cli("stats", str(path), "--line", "9600 8N1", "--channel", "RX")
+    assert "Traceback" not in result.err
+    if words is None:
+        assert result.code == 14, result.err  # an idle line: no bytes
+        return
+    assert result.code == 6 and len(result.err.strip().splitlines()) == 1 and words in result.err, result.err
+
+
+def test_session_bombs_are_read_in_bounded_memory(tmp_path: Path) -> None:
+    """A 512 MiB metadata is refused by its declared size; a sample file of 1 GiB (a megabyte
+    zipped) is read in pieces: the run ends with one line, in well under the bomb's size."""
+    import subprocess
+    import sys
+
+    metadata_bomb = _session(tmp_path / "m.sr", DEVICE, comment_mib=512)
+    # An idle line: nothing to decode, a gigabyte to go through.
+    sample_bomb = _session(tmp_path / "b.sr", DEVICE, bytes([0xFF]) * 2**20, repeats=2**10)
+    assert metadata_bomb.stat().st_size < 2**20 * 2 and sample_bomb.stat().st_size < 2**20 * 2
+    for path, code, words in ((metadata_bomb, 6, "metadata of 536,871,"), (sample_bomb, 14, "holds no bytes")):
+        done = subprocess.run([sys.executable, "-c", "import resource, sys\nfrom sniffer.cli import main\n"
+                               "code = main(sys.argv[1:])\n"
+                               "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\nsys.exit(code)",
+                               "stats", str(path), "--line", "9600 8N1", "--channel", "RX"],
+                              capture_output=True, text=True, timeout=120, check=False)
+        assert done.returncode == code and words in done.stderr, done.stderr
+        assert int(done.stdout.split()[-1]) < 400 * 1024, done.stdout  # KiB: well under the gigabyte
+
+
+def _pcap(records: list[tuple[int, bytes, int]]) -> bytes:
+    """A classic nanosecond pcap, link type 147: (seconds, bytes, declared captured length)."""
+    import struct
+
+    out = struct.pack("<IHHiIII", 0xA1B23C4D, 2, 4, 0, 0, 65535, 147)
+    for seconds, data, declared in records:
+        out += struct.pack("<IIII", seconds, 0, declared, len(data)) + data
+    return out
+
+
+def _pcapng(tsresol: int, ticks: int) -> bytes:
+    import struct
+
+    def block(kind: int, body: bytes) -> bytes:
+        body += bytes(-len(body) % 4)
+        return struct.pack("<II", kind, len(body) + 12) + body + struct.pack("<I", len(body) + 12)
+
+    section = block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1))
+    interface = block(1, struct.pack("<HHI", 147, 0, 65535) + struct.pack("<HHB3x", 9, 1, tsresol) + bytes(4))
+    frame = bytes.fromhex("010300000001840A")
+    packet = block(6, struct.pack("<IIIII", 0, ticks >> 32, ticks & 0xFFFFFFFF, len(frame), len(frame)) + frame)
+    return section + interface + packet
+
+
+PCAPS = [
+    ("4 GiB record", "c.pcap", _pcap([(1, b"\x01\x03", 2**32 - 1)]), 7,
+     "record 1: a record that holds one read of 4,294,967,295"),
+    ("60 MiB record", "c.pcap", _pcap([(1, bytes(60 * 2**20), 60 * 2**20)]), 7, "over the 1 MiB rtusniff reads"),
+    ("4 GiB block", "c.pcapng", _pcapng(6, 1)[:60] + b"\x06\x00\x00\x00\xfc\xff\xff\xff", 7,
+     "a block that holds one read of 4,294,967,280"),
+    ("tsresol 10^0", "c.pcapng", _pcapng(0, 2**63), 7, "beyond the year 2262"),
+    ("tsresol 2^-127", "c.pcapng", _pcapng(0x80 | 127, 2**64 - 1), 0, ""),
+    ("tsresol 10^-127", "c.pcapng", _pcapng(127, 2**64 - 1), 0, ""),
+]
+
+
+@pytest.mark.parametrize("case", PCAPS, ids=[case[0] for case in PCAPS])
+def test_hostile_pcaps_are_one_line_in_bounded_memory(cli: Cli, tmp_path: Path,
+                                                     case: tuple[str, str, bytes, int, str]) -> None:
+    _, name, content, code, words = case
+    path = tmp_path / name
+    path.write_bytes(content)
+    result = cli("stats", str(path), "--line", "19200 8E1")
+    assert result.code == code and words in result.err and "Traceback" not in result.err, result.err
+    if code:
+        assert len(result.err.strip().splitlines()) == 1
+
+
+def test_a_pcapng_of_a_fine_resolution_gives_exact_times(cli: Cli, tmp_path: Path) -> None:
+    path = tmp_path / "ps.pcapng"
+    path.write_bytes(_pcapng(10, 17_000_000_001_234_567_891))  # tenths of nanoseconds
+    frames = [r for r in cli("analyze", str(path), "--line", "19200 8E1", "--format", "jsonl").jsonl()
+              if r["kind"] == "frame"]
+    assert frames[0]["t_end_ns"] == 1_700_000_000_123_456_789
+
+
+def test_classic_pcap_refuses_times_it_cannot_hold(cli: Cli, tmp_path: Path) -> None:
+    source = tmp_path / "late.log"
+    source.write_text("# rtu-capture v1\n# line: 19200 8E1\n# timing: exact\n"
+                      "4300000000.000000000 01 03 00 00 00 01 84 0A\n")
+    result = cli("export", str(source), "--pcap", str(tmp_path / "late.pcap"))
+    assert result.code == 11 and "write .pcapng" in result.err and not (tmp_path / "late.pcap").exists()
+    assert cli("export", str(source), "--pcap", str(tmp_path / "late.pcapng")).code == 0
+    frames = [r for r in cli("analyze", str(tmp_path / "late.pcapng"), "--line", "19200 8E1", "--format",
+                             "jsonl").jsonl() if r["kind"] == "frame"]
+    assert frames[0]["t_ns"] // 10**9 == 4_299_999_999
+
+
+@pytest.mark.parametrize("value", ["0x1_2", "0o17", "0b1_01", "٧٢", "1_0", " 0x", "0x100", "256", "0b111111111"])
+def test_saleae_values_are_logic_s_radixes_only(cli: Cli, tmp_path: Path, value: str) -> None:
+    path = tmp_path / "a.csv"
+    path.write_text(f'name,type,start_time,duration,data\n"Async Serial","data",0.001,0.0005,{value}\n',
+                    encoding="utf-8")
+    result = cli("stats", str(path), "--line", "19200 8E1")
+    assert result.code == 7 and "is not a byte" in result.err, result.err
+
+
+def test_saleae_radixes_read_as_before(cli: Cli, tmp_path: Path) -> None:
+    path = tmp_path / "a.csv"
+    rows = [f'"Async Serial","data",{0.001 + i * 0.0006:.4f},0.0005,{v}' for i, v in
+            enumerate(["0x01", "03", "0b00000000", "0X00", "0x00", "0x01", "0x84", "0x0A"])]
+    path.write_text("name,type,start_time,duration,data\n" + "\n".join(rows) + "\n")
+    frames = [r for r in cli("analyze", str(path), "--line", "19200 8E1", "--format", "jsonl").jsonl()
+              if r["kind"] == "frame"]
+    assert [f["hex"] for f in frames] == ["010300000001840a"]
+
+
+@pytest.mark.parametrize("time", ["nan", "inf", "-inf", "1e300"])
+def test_saleae_digital_times_that_are_no_times_are_one_line(cli: Cli, tmp_path: Path, time: str) -> None:
+    path = tmp_path / "d.csv"
+    path.write_text(f"Time [s],Channel 0\n0.000000000,1\n0.001,0\n{time},1\n")
+    result = cli("stats", str(path), "--line", "9600 8N1")
+    assert result.code == 7 and "not a time in seconds" in result.err and "Traceback" not in result.err
+
+
+@pytest.mark.parametrize(("line", "words"), [
+    ("1" * 5000 + "-" + "2" * 5000 + ' uart-1: rx-data: "01"', "not a sigrok-cli annotation line"),
+    ('١٢-٣٤ uart-1: rx-data: "01"', "not a sigrok-cli annotation line"),
+    ('12-34 uart-1: rx-data: "0x1"', "'0x1' is not a byte"),
+    ('12-34 uart-1: rx-data: "1_2"', "'1_2' is not a byte"),
+    ('12-34 uart-1: q7-data: "01"', "class 'q7-data' is neither rx-data nor tx-data"),
+])
+def test_sigrok_cli_text_that_is_none_of_sigrok_s_is_one_line(cli: Cli, tmp_path: Path, line: str, words: str) -> None:
+    path = tmp_path / "a.txt"
+    path.write_text('10-20 uart-1: rx-data: "02"\n' + line + "\n", encoding="utf-8")
+    result = cli("stats", str(path), "--line", "9600 8N1", "--input-format", "sigrok-cli")
+    assert result.code == 7 and words in result.err and len(result.err) < 400, result.err
+
+
+def test_three_hundred_directions_are_refused(cli: Cli, tmp_path: Path) -> None:
+    path = tmp_path / "a.txt"
+    path.write_text("".join(f'{10 * i}-{10 * i + 9} uart-1: d{i}-data: "02"\n' for i in range(300)))
+    result = cli("stats", str(path), "--line", "9600 8N1", "--input-format", "sigrok-cli")
+    assert result.code == 7 and "neither rx-data nor tx-data" in result.err and "Traceback" not in result.err
