@@ -23,9 +23,10 @@ MESSAGE_DATA = 1
 
 
 class FoxgloveClient:
-    def __init__(self, url: str, *, read: bool = True) -> None:
-        """``read=False``: connect and subscribe, then never read again (a viewer that hangs)."""
-        self.url, self._read = url, read
+    def __init__(self, url: str, *, read: bool = True, origin: str | None = None) -> None:
+        """``read=False``: connect and subscribe, then never read again (a viewer that hangs);
+        ``origin``: the ``Origin`` a browser would send for the page that connects."""
+        self.url, self._read, self._origin = url, read, origin
         self.channels: dict[int, dict[str, Any]] = {}
         self.messages: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
         #: When each message arrived (time.monotonic), by topic.
@@ -69,7 +70,8 @@ class FoxgloveClient:
             deadline = time.monotonic() + 30
             while True:  # the server may not be up yet
                 try:
-                    connection = await websockets.connect(self.url, subprotocols=[SUBPROTOCOL], max_size=None)  # type: ignore[list-item]
+                    connection = await websockets.connect(self.url, subprotocols=[SUBPROTOCOL],  # type: ignore[list-item]
+                                                          max_size=None, origin=self._origin)  # type: ignore[arg-type]
                     break
                 except OSError:
                     if time.monotonic() > deadline or self._stop.is_set():

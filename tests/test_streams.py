@@ -231,3 +231,80 @@ def test_a_taken_port_is_one_line() -> None:
 
 def _json_lines(text: str) -> list[dict[str, Any]]:
     return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
+
+
+def test_web_pages_of_other_origins_cannot_watch_the_bus() -> None:
+    """A page at evil.example open in the user's browser gets 403 and nothing of the bus (one
+    line says so); the Foxglove app's origin, a desktop shell's and a program without one get in."""
+    process = rtusniff("analyze", str(SAMPLE), "--foxglove", "0", "--speed", "8", "--format", "jsonl")
+    said: list[str] = []
+    url = foxglove_url(process, said)
+    evil = [FoxgloveClient(url, origin=origin)
+            for origin in ("http://evil.example", "null", "https://app.foxglove.dev.evil.example")]
+    for client in evil:
+        with client:
+            client._thread.join(timeout=10)
+    with FoxgloveClient(url, origin="https://app.foxglove.dev") as app, FoxgloveClient(url, origin="file://") as shell, \
+            FoxgloveClient(url) as program:
+        _, err = process.communicate(timeout=WAIT_S)
+        time.sleep(0.5)
+    assert process.returncode == 0, err
+    for client in evil:
+        assert "403" in str(client.error) and client.server_info is None and not client.messages, client.error
+    refused = [line for line in said + err.splitlines() if "refused a client" in line]
+    assert len(refused) == 3 and "'http://evil.example' is not the Foxglove app's" in refused[0], refused
+    for client in (app, shell, program):
+        assert client.error is None and len(client.messages["/modbus/frames"]) == 52
+
+
+def test_a_token_keeps_out_who_was_not_given_the_url() -> None:
+    process = rtusniff("analyze", str(SAMPLE), "--foxglove", "0", "--foxglove-token", "--speed", "8")
+    url = foxglove_url(process)
+    assert re.fullmatch(r"ws://127\.0\.0\.1:\d+/\?token=[A-Za-z0-9_-]{22}", url), url
+    with FoxgloveClient(url.split("?")[0]) as without, FoxgloveClient(url.replace("token=", "token=x")) as wrong:
+        without._thread.join(timeout=10)
+        wrong._thread.join(timeout=10)
+    with FoxgloveClient(url) as given:
+        _, err = process.communicate(timeout=WAIT_S)
+        time.sleep(0.5)
+    assert "403" in str(without.error) and "403" in str(wrong.error)
+    assert given.error is None and len(given.messages["/modbus/frames"]) == 52, err
+
+
+@pytest.mark.parametrize(("origin", "target", "token", "refused"), [
+    (None, "/", None, False),
+    ("https://app.foxglove.dev", "/", None, False),
+    ("https://APP.foxglove.dev/", "/", None, False),
+    ("file://", "/", None, False),
+    ("app://foxglove", "/", None, False),
+    ("https://foxglove.example.com", "/", None, True),
+    ("http://localhost:8080", "/", None, True),
+    ("null", "/", None, True),
+    (None, "/", "s3cret-s3cret-s3cret", True),
+    (None, "/?token=s3cret-s3cret-s3cret", "s3cret-s3cret-s3cret", False),
+    ("http://evil.example", "/?token=s3cret-s3cret-s3cret", "s3cret-s3cret-s3cret", True),
+])
+def test_who_the_door_lets_in(origin: str | None, target: str, token: str | None, refused: bool) -> None:
+    from sniffer.exports.foxglove_gate import FOXGLOVE_ORIGINS, refusal
+
+    assert (refusal(origin, target, FOXGLOVE_ORIGINS, token) is not None) == refused
+
+
+def test_the_sdk_server_listens_where_no_page_guesses() -> None:
+    from sniffer.exports.foxglove_gate import inner_host
+
+    hosts = {inner_host() for _ in range(5)}
+    if sys.platform.startswith("linux"):
+        assert "127.0.0.1" not in hosts and len(hosts) > 1
+    assert all(host.startswith("127.") for host in hosts)
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (["--foxglove-token", "abc"], "--foxglove-token and --foxglove-allow-origin go with --foxglove"),
+    (["--foxglove", "0", "--foxglove-token", "short"], "--foxglove-token: at least 16"),
+    (["--foxglove", "0", "--foxglove-allow-origin", "evil.example"], "--foxglove-allow-origin evil.example: give"),
+])
+def test_wrong_door_options_are_one_line(args: list[str], said: str) -> None:
+    process = rtusniff("analyze", str(SAMPLE), *args)
+    _, err = process.communicate(timeout=WAIT_S)
+    assert process.returncode == 2 and err.count("\n") == 1 and said in err, err

@@ -12,7 +12,8 @@ are not sent at all (``has_sinks``), with one exception: a channel advertised wh
 watches (a slave's ``/slave/N/params`` when it first carries values) holds its messages until a
 client subscribes to it, at most :data:`FRESH_WAIT_S`: the client subscribes on the
 advertisement, a round trip later, and would miss the values sent before. This module imports
-the SDK (a native library): it is imported only when a stream is asked for.
+the SDK (a native library): it is imported only when a stream is asked for. Clients reach the
+SDK's server only through :mod:`sniffer.exports.foxglove_gate`, which keeps web pages out.
 """
 
 from __future__ import annotations
@@ -20,12 +21,14 @@ from __future__ import annotations
 import threading
 import time
 from typing import Any
+from urllib.parse import quote
 
 import foxglove
 import numpy as np
 from foxglove.websocket import ServerListener, StatusLevel
 
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.foxglove_gate import Door, FoxgloveGate, inner_host
 from sniffer.exports.mcap_writer import HEADER_SIZE, MessageBlock
 
 #: Messages queued per client before the oldest are dropped (about 3 per frame: 20 s of a
@@ -51,16 +54,26 @@ class FoxgloveServerWriter:
     """A :class:`~sniffer.exports.mcap_export.MessageWriter` that serves each message to the
     Foxglove clients subscribed to its channel."""
 
-    def __init__(self, host: str, port: int, name: str) -> None:
+    def __init__(self, host: str, port: int, name: str, door: Door) -> None:
+        """Serves on ``host:port`` through a :class:`~sniffer.exports.foxglove_gate.FoxgloveGate`
+        that lets in whom ``door`` says; the SDK's own server listens behind it."""
         self._context = foxglove.Context()
         self.subscriptions = _Subscriptions()
         try:
-            self._server = foxglove.start_server(name=name, host=host, port=port, context=self._context,
+            inner = inner_host()
+            self._server = foxglove.start_server(name=name, host=inner, port=0, context=self._context,
                                                  server_listener=self.subscriptions, message_backlog_size=BACKLOG)
-        except Exception as exc:  # the SDK raises its own error type for a port that is taken
-            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot serve Foxglove on {host}:{port}: {exc}",
+        except Exception as exc:  # the SDK raises its own error type
+            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot start the Foxglove server: {exc}",
                                 path="--foxglove") from None
-        self.host, self.port = host, self._server.port
+        try:
+            self._gate = FoxgloveGate(host, port, (inner, self._server.port), allowed_origins=door.allowed_origins,
+                                      token=door.token, tell=door.tell)
+        except OSError as exc:
+            self._server.stop()
+            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot serve Foxglove on {host}:{port}: {exc.strerror}",
+                                path="--foxglove") from None
+        self.host, self.port, self._token = host, self._gate.port, door.token
         self._schemas: list[foxglove.Schema] = []
         self._channels: list[foxglove.Channel] = []
         #: Channels advertised while a client watched, not yet subscribed to: when each was
@@ -70,7 +83,7 @@ class FoxgloveServerWriter:
     @property
     def url(self) -> str:
         host = f"[{self.host}]" if ":" in self.host else self.host
-        return f"ws://{host}:{self.port}"
+        return f"ws://{host}:{self.port}" + (f"/?token={quote(self._token)}" if self._token else "")
 
     def add_schema(self, name: str, encoding: str, data: bytes) -> int:
         self._schemas.append(foxglove.Schema(name=name, encoding=encoding, data=data))
@@ -135,3 +148,4 @@ class FoxgloveServerWriter:
         if self.watched():
             time.sleep(CLOSE_GRACE_S)
         self._server.stop()
+        self._gate.close()

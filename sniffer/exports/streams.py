@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
+import secrets
 import shutil
 import sys
 from collections.abc import Callable, Iterator
@@ -32,6 +34,7 @@ from decoders.message import MessageBatch
 from decoders.stats import SkippedReads
 from sniffer.encoding.rows import Rows
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.foxglove_gate import Door
 from sniffer.sinks import FileSink
 
 if TYPE_CHECKING:
@@ -45,6 +48,8 @@ _WARNING = 3
 SPAWN_PORT = 9876
 #: The Foxglove app's default connection.
 DEFAULT_PORT = 8765
+#: ``--foxglove-token`` alone: make one.
+NEW_TOKEN = "\0new"
 
 
 def parse_address(text: str) -> tuple[str, int]:
@@ -68,6 +73,12 @@ def add_stream_options(parser: argparse.ArgumentParser, *, replay: bool) -> None
                        help=f"serve the decoded traffic to the Foxglove app over its WebSocket protocol (default port "
                        f"{DEFAULT_PORT}, this machine only; 0.0.0.0:PORT lets other machines connect): the MCAP "
                        "export's channels, so one layout serves both")
+    group.add_argument("--foxglove-token", nargs="?", const=NEW_TOKEN, metavar="SECRET",
+                       help="with --foxglove, let in only clients whose URL carries ?token=SECRET (alone: a new random "
+                       "one, printed in the URL to open); for a port other machines reach")
+    group.add_argument("--foxglove-allow-origin", action="append", metavar="ORIGIN",
+                       help="with --foxglove, also let in WebSockets from this web origin (a self-hosted Foxglove, "
+                       "e.g. https://foxglove.example.com); web pages of other origins are refused")
     group.add_argument("--rerun", metavar="spawn|ADDRESS",
                        help="stream to a Rerun viewer: 'spawn' starts one (needs a display); ADDRESS is a running "
                        "viewer's (PORT, HOST:PORT or rerun+http://HOST:PORT/proxy; start one with 'rerun')")
@@ -99,9 +110,11 @@ class FoxgloveSink(FileSink["DecodedChannels"]):
 
     wants_messages = True
 
-    def __init__(self, address: str, tell: Callable[[str], None], *, wait_for_viewer: bool = False) -> None:
+    def __init__(self, address: str, tell: Callable[[str], None], *, wait_for_viewer: bool = False,
+                 door: Door | None = None) -> None:
         super().__init__(None)
         self._host, self._port = parse_address(address)
+        self._door = door or Door(tell=tell)
         self._tell, self._wait = tell, wait_for_viewer
         self.server: FoxgloveServerWriter | None = None
         from sniffer.exports.mcap_export import transaction_encoder  # noqa: PLC0415 - only for a stream
@@ -120,13 +133,16 @@ class FoxgloveSink(FileSink["DecodedChannels"]):
         from sniffer.exports.foxglove_server import FoxgloveServerWriter  # noqa: PLC0415 - a native library
         from sniffer.exports.mcap_export import DecodedChannels  # noqa: PLC0415
 
-        self.server = FoxgloveServerWriter(self._host, self._port, f"rtusniff: {source}")
+        self.server = FoxgloveServerWriter(self._host, self._port, f"rtusniff: {source}", self._door)
         self.exporter = DecodedChannels(self.server, info, target="the Foxglove stream")
         self._tell(f"Foxglove: open {self.server.url} (Open connection → Foxglove WebSocket)")
         if self._host in ("127.0.0.1", "localhost", "::1"):
             port = self.server.port
-            self._tell(f"  this machine only; from another: --foxglove 0.0.0.0:{port}, "
+            self._tell(f"  this machine only; from another: --foxglove 0.0.0.0:{port} --foxglove-token, "
                        f"or ssh -L {port}:localhost:{port}")
+        elif self._door.token is None:
+            self._tell(f"  any machine that reaches port {self.server.port} can watch; --foxglove-token lets in only "
+                       "those given the URL")
         if self._wait:
             self._tell("waiting for a Foxglove client to subscribe before replaying; Ctrl-C to stop")
             while not self.server.subscriptions.first.wait(0.2):
@@ -242,16 +258,33 @@ def stream_sinks(args: argparse.Namespace, *, replay: bool, rrd: str | None = No
     sinks: list[FileSink[Any]] = []
     if args.foxglove is not None:
         wait = replay and not getattr(args, "follow", False) and getattr(args, "speed", None) != "max"
-        sinks.append(FoxgloveSink(args.foxglove, _tell_stderr, wait_for_viewer=wait))
+        door = Door(tuple(args.foxglove_allow_origin or ()), _token(args.foxglove_token), _tell_stderr)
+        sinks.append(FoxgloveSink(args.foxglove, _tell_stderr, wait_for_viewer=wait, door=door))
     if args.rerun is not None:
         sinks.append(RerunStreamSink(rrd, args.rerun, _tell_stderr))
     return sinks
+
+
+def _token(given: str | None) -> str | None:
+    """``--foxglove-token``: none, a new random one (the option alone), or the one given."""
+    if given is None:
+        return None
+    return secrets.token_urlsafe(16) if given == NEW_TOKEN else given
 
 
 def check_streams(args: argparse.Namespace) -> None:
     """Wrong addresses and a viewer that cannot start are usage errors before anything runs."""
     if args.foxglove is not None:
         parse_address(args.foxglove)
+    elif args.foxglove_token is not None or args.foxglove_allow_origin:
+        raise RtuSniffError(ErrorKind.USAGE, "--foxglove-token and --foxglove-allow-origin go with --foxglove")
+    for origin in args.foxglove_allow_origin or ():
+        if not re.fullmatch(r"[a-z][a-z0-9+.-]*://[^\s/]+", origin, re.IGNORECASE):
+            raise RtuSniffError(ErrorKind.USAGE, f"--foxglove-allow-origin {origin}: give an origin as a browser "
+                                "sends it, e.g. https://foxglove.example.com")
+    if args.foxglove_token not in (None, NEW_TOKEN) and not re.fullmatch(r"[A-Za-z0-9_.~-]{16,}", args.foxglove_token):
+        raise RtuSniffError(ErrorKind.USAGE, "--foxglove-token: at least 16 letters, digits or _.~- (or the option "
+                            "alone for a new random one)")
     if args.rerun == "spawn":
         check_viewer_can_start("--rerun spawn")
     elif args.rerun is not None:
