@@ -244,8 +244,8 @@ def test_web_pages_of_other_origins_cannot_watch_the_bus() -> None:
     for client in evil:
         with client:
             client._thread.join(timeout=10)
-    with FoxgloveClient(url, origin="https://app.foxglove.dev") as app, FoxgloveClient(url, origin="file://") as shell, \
-            FoxgloveClient(url) as program:
+    app, shell, program = (FoxgloveClient(url, origin=origin) for origin in ("https://app.foxglove.dev", "file://", None))
+    with app, shell, program:
         _, err = process.communicate(timeout=WAIT_S)
         time.sleep(0.5)
     assert process.returncode == 0, err
