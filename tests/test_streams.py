@@ -244,7 +244,8 @@ def test_web_pages_of_other_origins_cannot_watch_the_bus() -> None:
     for client in evil:
         with client:
             client._thread.join(timeout=10)
-    app, shell, program = (FoxgloveClient(url, origin=origin) for origin in ("https://app.foxglove.dev", "file://", None))
+    origins = ("https://app.foxglove.dev", "file://", None)
+    app, shell, program = (FoxgloveClient(url, origin=origin) for origin in origins)
     with app, shell, program:
         _, err = process.communicate(timeout=WAIT_S)
         time.sleep(0.5)
