@@ -58,12 +58,11 @@ def add_each_options(parser: argparse.ArgumentParser, merged: str) -> None:
 
 def capture_files(paths: list[str]) -> list[str]:
     """The files of ``paths``: each file as named, each directory's capture files in name order."""
-    suffixes = {suffix for found in formats_for("read").values() for suffix in found.suffixes}
+    suffixes = _capture_suffixes()
     files: list[str] = []
     for path in paths:
         if path != "-" and os.path.isdir(path):
-            inside = sorted(str(found) for found in Path(path).rglob("*")
-                            if found.is_file() and found.suffix.lower() in suffixes and not found.name.startswith("."))
+            inside = captures_in(path)
             if not inside:
                 raise RtuSniffError(ErrorKind.FILE_NOT_FOUND, "holds no capture file "
                                     f"({', '.join(sorted(suffixes))})", path=path)
@@ -73,6 +72,17 @@ def capture_files(paths: list[str]) -> list[str]:
         else:
             files.append(path)
     return files
+
+
+def _capture_suffixes() -> set[str]:
+    return {suffix for found in formats_for("read").values() for suffix in found.suffixes}
+
+
+def captures_in(directory: str) -> list[str]:
+    """The capture files under ``directory`` (by suffix, hidden files left out), in name order."""
+    suffixes = _capture_suffixes()
+    return sorted(str(found) for found in Path(directory).rglob("*")
+                  if found.is_file() and found.suffix.lower() in suffixes and not found.name.startswith("."))
 
 
 def jobs_for_each(requested: str) -> int:

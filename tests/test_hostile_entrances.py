@@ -216,6 +216,7 @@ def test_bad_session_metadata_is_one_line(cli: Cli, tmp_path: Path, metadata: st
     assert result.code == 6 and len(result.err.strip().splitlines()) == 1 and words in result.err, result.err
 
 
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the peak memory from /proc")
 def test_session_bombs_are_read_in_bounded_memory(tmp_path: Path) -> None:
     """A 512 MiB metadata is refused by its declared size; a sample file of 1 GiB (a megabyte
     zipped) is read in pieces: the run ends with one line, in well under the bomb's size."""
@@ -227,9 +228,10 @@ def test_session_bombs_are_read_in_bounded_memory(tmp_path: Path) -> None:
     sample_bomb = _session(tmp_path / "b.sr", DEVICE, bytes([0xFF]) * 2**20, repeats=2**10)
     assert metadata_bomb.stat().st_size < 2**20 * 2 and sample_bomb.stat().st_size < 2**20 * 2
     for path, code, words in ((metadata_bomb, 6, "metadata of 536,871,"), (sample_bomb, 14, "holds no bytes")):
-        done = subprocess.run([sys.executable, "-c", "import resource, sys\nfrom sniffer.cli import main\n"
-                               "code = main(sys.argv[1:])\n"
-                               "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\nsys.exit(code)",
+        # VmHWM: the peak of this process's own memory (ru_maxrss counts the forking parent's too)
+        done = subprocess.run([sys.executable, "-c", "import re, sys\nfrom sniffer.cli import main\n"
+                               "code = main(sys.argv[1:])\nstatus = open('/proc/self/status').read()\n"
+                               "print(re.search(r'VmHWM:\\s*(\\d+)', status)[1])\nsys.exit(code)",
                                "stats", str(path), "--line", "9600 8N1", "--channel", "RX"],
                               capture_output=True, text=True, timeout=120, check=False)
         assert done.returncode == code and words in done.stderr, done.stderr
@@ -350,3 +352,56 @@ def test_three_hundred_directions_are_refused(cli: Cli, tmp_path: Path) -> None:
     path.write_text("".join(f'{10 * i}-{10 * i + 9} uart-1: d{i}-data: "02"\n' for i in range(300)))
     result = cli("stats", str(path), "--line", "9600 8N1", "--input-format", "sigrok-cli")
     assert result.code == 7 and "neither rx-data nor tx-data" in result.err and "Traceback" not in result.err
+
+
+def _sample_copy(folder: Path, name: str = "a.log") -> Path:
+    from tests.conftest import ROOT
+
+    folder.mkdir(exist_ok=True)
+    target = folder / name
+    shutil.copy(ROOT / "captures" / "atv71-plc-poll.log", target)
+    return target
+
+
+def test_each_never_writes_over_a_capture_of_its_folder(cli: Cli, tmp_path: Path) -> None:
+    folder = tmp_path / "site"
+    capture = _sample_copy(folder, "x.log")
+    before = capture.read_bytes()
+    for command in (["stats", "--each"], ["report", "--each", "--format", "md"]):
+        result = cli(command[0], str(folder), *command[1:], "-o", str(capture), "--force")
+        assert result.code == 2 and "is the input" in result.err and capture.read_bytes() == before, result.err
+
+
+@pytest.mark.parametrize("command", [["analyze"], ["stats"], ["values"], ["report", "--format", "md"],
+                                     ["export", "--mcap"]])
+def test_standard_input_is_never_written_over(tmp_path: Path, command: list[str]) -> None:
+    import subprocess
+    import sys
+
+    capture = _sample_copy(tmp_path)
+    before = capture.read_bytes()
+    argv = [*command, str(capture)] if command[-1] == "--mcap" else [*command, "-o", str(capture)]
+    with capture.open("rb") as stdin:
+        done = subprocess.run([sys.executable, "-m", "sniffer", argv[0], "-", *argv[1:], "--force"], stdin=stdin,
+                              capture_output=True, text=True, check=False)
+    assert done.returncode == 2 and "is the input on standard input" in done.stderr, done.stderr
+    assert capture.read_bytes() == before
+
+
+def test_follow_never_writes_over_a_file_of_its_rotation(cli: Cli, tmp_path: Path) -> None:
+    capture = _sample_copy(tmp_path, "site.log")
+    rotated = _sample_copy(tmp_path, "site-0002.log")
+    before = rotated.read_bytes()
+    for name in ("site-0002.log", "site-0003.log"):
+        result = cli("analyze", "--follow", str(capture), "-o", str(tmp_path / name), "--force")
+        assert result.code == 2 and "is a file of the rotation --follow" in result.err, result.err
+    assert rotated.read_bytes() == before and not (tmp_path / "site-0003.log").exists()
+
+
+@pytest.mark.parametrize("command", ["analyze", "stats", "values"])
+def test_a_failed_run_leaves_no_output_file(cli: Cli, tmp_path: Path, command: str) -> None:
+    broken = tmp_path / "broken.log"
+    broken.write_text("# rtu-capture v1\n# line: 19200 8E1\n1.0 01 03 00 00 00 01 84 0A\n2.0 01 ZZ\n")
+    out = tmp_path / "out.txt"
+    result = cli(command, str(broken), "-o", str(out))
+    assert result.code == 7 and not out.exists() and not list(tmp_path.glob(".out*")), result.err

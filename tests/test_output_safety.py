@@ -141,13 +141,17 @@ def test_capture_refuses_a_name_an_earlier_rotation_used(cli: Cli, tmp_path: Pat
 
 
 def test_an_export_that_fails_leaves_nothing_and_names_the_file(cli: Cli, tmp_path: Path) -> None:
-    """Times before 1970 (a logic analyzer's clock starts at 0) cannot go into MCAP: one error naming
-    the MCAP file, exit 11, and neither output left half written; pcap takes such times."""
+    """Times before 1970 (a logic analyzer's clock starts at 0) cannot go into MCAP, pcap or
+    pcapng: one error naming the file, exit 11, and no output left half written."""
     early = tmp_path / "early.log"
     early.write_text("# rtu-capture v1\n# line: 19200 8E1\n# timing: exact\n0.001 02030C1E0004276C\n"
                      "0.010 0203080028025801F4000052B0\n")
-    result = cli("export", str(early), "--mcap", str(tmp_path / "x.mcap"), "--pcap", str(tmp_path / "x.pcap"))
+    result = cli("export", str(early), "--mcap", str(tmp_path / "x.mcap"), "--rrd", str(tmp_path / "x.rrd"))
     assert result.code == 11 and result.err.count("\n") == 1
     assert result.err.startswith(f"error: {tmp_path / 'x.mcap'}: a frame starts 0.003583 s before 1970")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["early.log"]
-    assert cli("export", str(early), "--pcap", str(tmp_path / "x.pcap")).code == 0
+    # Nor in pcap or pcapng, whose times are unsigned too (they were wrapped to 2106, or a traceback).
+    for name in ("x.pcap", "x.pcapng"):
+        refused = cli("export", str(early), "--pcap", str(tmp_path / name))
+        assert refused.code == 11 and "frame #0 starts -0.003583 s from 1970" in refused.err, refused.err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["early.log"]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import stat
 import sys
 from contextlib import ExitStack
 from dataclasses import replace
@@ -16,9 +17,11 @@ from sniffer.filters import parse_filters
 from sniffer.io.base import CaptureReader, ReaderOptions
 from sniffer.io.chain import open_capture
 from sniffer.io.following import FollowingReader, followed_path, stopping_on_signals
-from sniffer.io.output_files import allow_replacing, open_new_text
+from sniffer.io.output_files import allow_replacing, open_new_text, published_whole
+from sniffer.io.rotation import same_rotation
 from sniffer.io.pacing import PacedReader, parse_speed
 from sniffer.io.registry import format_help, formats_for
+from sniffer.many_captures import captures_in
 from sniffer.pipeline import Analysis, effective_line
 from sniffer.profiles_io import profile_book
 from sniffer.selection import add_selection_options, selection_from
@@ -226,22 +229,41 @@ def close_reader(reader: CaptureReader) -> None:
         print(f"warning: {warning}", file=sys.stderr)
 
 
-def check_outputs(outputs: list[str | None], inputs: list[str], *, force: bool) -> None:
+def check_outputs(outputs: list[str | None], inputs: list[str], *, force: bool, following: bool = False) -> None:
     """Refuse an output that is an input (the same file, also through a link or another
-    spelling), two outputs that are one file, and an existing output without ``--force``:
-    no command ever truncates a capture it reads. ``-`` and ``None`` are standard streams."""
+    spelling; a capture inside a folder read with ``--each``; the file standard input is
+    redirected from; with ``--follow``, a file of the followed recording's rotation), two
+    outputs that are one file, and an existing output without ``--force``: no command ever
+    truncates a capture it reads. ``-`` and ``None`` are standard streams."""
     files = [path for path in outputs if path is not None and path != "-"]
     allow_replacing(files if force else [])
+    sources = [found for source in inputs for found in (captures_in(source) if os.path.isdir(source) else [source])]
     for position, path in enumerate(files):
-        for source in inputs:
-            if source != "-" and _same_file(path, source):
-                raise RtuSniffError(ErrorKind.USAGE, f"is the input {source}: rtusniff never writes over a "
-                                    "capture it reads; choose another output", path=path)
+        for source in sources:
+            if source == "-" and _is_standard_input(path) or source != "-" and _same_file(path, source):
+                raise RtuSniffError(ErrorKind.USAGE, f"is the input {_input_name(source)}: rtusniff never writes over "
+                                    "a capture it reads; choose another output", path=path)
+            if following and source != "-" and same_rotation(source, path):
+                raise RtuSniffError(ErrorKind.USAGE, f"is a file of the rotation --follow {source} reads; choose "
+                                    "another output", path=path)
         if any(_same_file(path, other) for other in files[:position]):
             raise RtuSniffError(ErrorKind.USAGE, "named as two outputs", path=path)
         # Only files: writing to a device or a pipe (-o /dev/null) destroys nothing.
         if os.path.isfile(path) and not force:
             raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; add --force to overwrite it", path=path)
+
+
+def _input_name(source: str) -> str:
+    return "on standard input" if source == "-" else source
+
+
+def _is_standard_input(path: str) -> bool:
+    """Whether ``path`` is the file standard input reads (``rtusniff analyze - -o x < x``)."""
+    try:
+        mine, theirs = os.fstat(sys.stdin.fileno()), os.stat(path)
+    except (OSError, ValueError, AttributeError):  # no such file yet, or no standard input
+        return False
+    return (mine.st_dev, mine.st_ino) == (theirs.st_dev, theirs.st_ino) and stat.S_ISREG(mine.st_mode)
 
 
 def _same_file(a: str, b: str) -> bool:
@@ -279,12 +301,15 @@ def add_force_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file (never the input)")
 
 
-def open_output(path: str | None, stack: ExitStack) -> TextIO:
-    """Standard output, or the file ``-o`` names."""
+def open_output(path: str | None, stack: ExitStack, *, as_it_goes: bool = False) -> TextIO:
+    """Standard output, or the file ``-o`` names: written under a part name and given its own
+    when the command ends well (a failed run leaves nothing that looks like a result), or
+    ``as_it_goes`` under its own name from the start (``--follow``: for ``tail -f``)."""
     if path is None or path == "-":
         return sys.stdout
     try:
-        return stack.enter_context(open_new_text(path))
+        target = path if as_it_goes else stack.enter_context(published_whole(path))
+        return stack.enter_context(open_new_text(target))
     except OSError as exc:
         raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"cannot write: {exc.strerror}", path=path) from None
 

@@ -60,7 +60,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run(args: argparse.Namespace) -> int:
-    check_outputs([args.output], capture_paths(args), force=args.force)
+    check_outputs([args.output], capture_paths(args), force=args.force, following=getattr(args, "follow", False))
     with ExitStack() as stack:
         reader, analysis = open_analysis(args, stack)
         if not analysis.selection.windowed and analysis.selection.limit is None:

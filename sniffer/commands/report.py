@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     comparison = _comparison(args, collector) if args.baseline else None
     # Written only once everything is read: a capture that fails leaves no half report behind.
     with published_whole(args.output or "-") as target, ExitStack() as stack:
-        WRITERS[kind](open_output(target, stack), collector, comparison)
+        WRITERS[kind](open_output(target, stack, as_it_goes=True), collector, comparison)
     if args.output not in (None, "-"):
         captures = f", {len(collector.provenance.files)} captures" if args.each else ""
         tell_written(args, [(args.output, f"{kind} report of {collector.statistics.frames:,} frames{captures}")])

@@ -19,7 +19,7 @@ from typing import BinaryIO
 import numpy as np
 
 from decoders.damage import uart_error_note
-from decoders.frame import FrameFlag, flag_set
+from decoders.frame import FrameBatch, FrameFlag, flag_set
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, MessageBatch, Role
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import open_new
@@ -62,19 +62,29 @@ class PcapExporter:
             self._file.close()
 
 
+#: The last moment a classic pcap's unsigned 32-bit seconds hold.
+CLASSIC_LAST_NS = (2**32) * 1_000_000_000 - 1
+
+
+def _refuse_outside(frames: FrameBatch, last_ns: int, holds: str) -> None:
+    """One error for the first frame whose start is before 1970 or after ``last_ns``: the formats'
+    times are unsigned, and numpy or struct would wrap them without a word."""
+    outside = (frames.t_start_ns < 0) | (frames.t_start_ns > last_ns)
+    if len(frames) and outside.any():
+        first = int(np.argmax(outside))
+        raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"frame #{frames.first_index + first} starts "
+                            f"{int(frames.t_start_ns[first]) / 1e9:,.6f} s from 1970, outside what {holds}")
+
+
 def pcap_records(batch: MessageBatch) -> bytes:
     """Every frame of ``batch`` as a pcap record (header, then its bytes), built in columns."""
     frames = batch.frames
     count = len(frames)
     lengths = np.diff(frames.offsets)
     headers = np.empty(count, _RECORD)
+    _refuse_outside(frames, CLASSIC_LAST_NS, "a classic pcap's 32-bit seconds hold (1970 to 2106): write .pcapng, "
+                    "whose times have 64 bits")
     seconds, nanos = np.divmod(frames.t_start_ns, 1_000_000_000)
-    outside = (seconds < 0) | (seconds > 0xFFFFFFFF)
-    if count and outside.any():  # numpy would wrap them into the 32 bits without a word
-        first = int(np.argmax(outside))
-        raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"frame #{frames.first_index + first} starts "
-                            f"{int(seconds[first]):,} s from 1970, outside what a classic pcap's 32-bit seconds "
-                            "hold (1970 to 2106): write .pcapng, whose times have 64 bits")
     headers["seconds"], headers["nanos"] = seconds, nanos
     headers["captured"] = headers["length"] = lengths
     out = np.empty(count * _RECORD.itemsize + len(frames.data), np.uint8)
@@ -117,6 +127,7 @@ def pcapng_blocks(batch: MessageBatch) -> bytes:
     """An enhanced packet block per frame: its bytes at its start time, its direction (a request
     goes out from the master, an answer comes in) and a comment saying what rtusniff made of it."""
     frames = batch.frames
+    _refuse_outside(frames, 2**63 - 1, "a pcapng's unsigned times hold (from 1970)")
     blocks = []
     data, offsets, frame_rows = frames.data, frames.offsets.tolist(), frames.rows()
     columns = zip(frames.t_start_ns.tolist(), batch.role.tolist(), batch.request_index.tolist(),

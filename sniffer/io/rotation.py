@@ -33,3 +33,13 @@ def next_rotated(path: str) -> str | None:
     if found is None:
         return None
     return f"{found['stem']}-{int(found['number']) + 1:04d}{found['suffix']}"
+
+
+def same_rotation(path: str, other: str) -> bool:
+    """Whether ``other`` is a file of the rotation ``path`` is (or is a file of): a follower of
+    ``path`` reads it, now or when the recorder opens it."""
+    def base(name: str) -> tuple[str, str]:
+        found = _ROTATED.match(name)
+        target = Path(found["stem"] + found["suffix"]) if found else Path(name)
+        return str(target.resolve().with_suffix("")), target.suffix
+    return _ROTATED.match(other) is not None and base(path) == base(other)
