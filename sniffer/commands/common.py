@@ -18,9 +18,9 @@ from sniffer.io.base import CaptureReader, ReaderOptions
 from sniffer.io.chain import open_capture
 from sniffer.io.following import FollowingReader, followed_path, stopping_on_signals
 from sniffer.io.output_files import allow_replacing, open_new_text, published_whole
-from sniffer.io.rotation import same_rotation
 from sniffer.io.pacing import PacedReader, parse_speed
 from sniffer.io.registry import format_help, formats_for
+from sniffer.io.rotation import same_rotation
 from sniffer.many_captures import captures_in
 from sniffer.pipeline import Analysis, effective_line
 from sniffer.profiles_io import profile_book
@@ -240,7 +240,7 @@ def check_outputs(outputs: list[str | None], inputs: list[str], *, force: bool, 
     sources = [found for source in inputs for found in (captures_in(source) if os.path.isdir(source) else [source])]
     for position, path in enumerate(files):
         for source in sources:
-            if source == "-" and _is_standard_input(path) or source != "-" and _same_file(path, source):
+            if (source == "-" and _is_standard_input(path)) or (source != "-" and _same_file(path, source)):
                 raise RtuSniffError(ErrorKind.USAGE, f"is the input {_input_name(source)}: rtusniff never writes over "
                                     "a capture it reads; choose another output", path=path)
             if following and source != "-" and same_rotation(source, path):
