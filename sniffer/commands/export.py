@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     if args.pcap == "-" and sys.stdout.isatty():
         raise RtuSniffError(ErrorKind.USAGE, "--pcap -: binary pcap to a terminal; pipe it (| wireshark -k -i -) "
                             "or redirect it to a file")
-    check_outputs([args.mcap, args.rrd, args.pcap], capture_paths(args), force=args.force, following=getattr(args, "follow", False))
+    check_outputs([args.mcap, args.rrd, args.pcap], capture_paths(args), force=args.force, following=args.follow)
     check_streams(args)
     jobs = decoding_jobs(args.jobs, follow=args.follow, paced=replay_speed(args) is not None)
     # Each file is written beside its name and put in place once whole: an export that fails
