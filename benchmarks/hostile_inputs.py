@@ -59,6 +59,39 @@ def chunk_bomb(path: Path, claimed: int = 7 * 2**30) -> Path:
     return path
 
 
+def _chunk_record(compression: str, data: bytes, claimed: int) -> bytes:
+    """An MCAP Chunk record (opcode 0x06) holding ``data`` compressed as ``compression``."""
+    import struct
+
+    name = compression.encode()
+    body = (struct.pack("<QQQI", T0, T0, claimed, 0) + struct.pack("<I", len(name)) + name
+            + struct.pack("<Q", len(data)) + data)
+    return b"\x06" + struct.pack("<Q", len(body)) + body
+
+
+def inflate_bomb(path: Path, compression: str, inflated_mib: int = 256, claimed: int = 100) -> Path:
+    """A small MCAP whose first chunk declares ``claimed`` bytes but holds a ``compression``
+    frame of ``inflated_mib`` MiB (a zstd frame that says so in its header; lz4 says nothing)."""
+    piece = bytes(2**20)
+    if compression == "zstd":
+        import zstandard
+
+        compressor = zstandard.ZstdCompressor().compressobj(size=inflated_mib * 2**20)
+        data = b"".join(compressor.compress(piece) for _ in range(inflated_mib)) + compressor.flush()
+    else:
+        import lz4.frame
+
+        compressor = lz4.frame.LZ4FrameCompressor()
+        data = compressor.begin() + b"".join(compressor.compress(piece) for _ in range(inflated_mib)) + \
+            compressor.flush()
+    crafted_mcap(path, FIELDS, [block_at(T0)])
+    original = path.read_bytes()
+    at = first_chunk_offset(original)
+    length = int.from_bytes(original[at + 1 : at + 9], "little")
+    path.write_bytes(original[:at] + _chunk_record(compression, data, claimed) + original[at + 9 + length :])
+    return path
+
+
 def crafted_mcap_files(folder: Path) -> list[Path]:
     """Every crafted MCAP shape: claims, notes, times, sizes."""
     shapes: list[tuple[str, dict[str, str], list[ChunkBatch], str | None]] = [
@@ -75,7 +108,8 @@ def crafted_mcap_files(folder: Path) -> list[Path]:
     ]
     made = [crafted_mcap(folder / f"crafted-{name}.mcap", fields, blocks, late)
             for name, fields, blocks, late in shapes]
-    return [*made, chunk_bomb(folder / "crafted-bomb.mcap")]
+    bombs = [inflate_bomb(folder / f"crafted-{kind}-bomb.mcap", kind) for kind in ("zstd", "lz4")]
+    return [*made, *bombs, chunk_bomb(folder / "crafted-bomb.mcap")]
 
 
 def hostile_text_files(folder: Path) -> list[Path]:

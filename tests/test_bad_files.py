@@ -34,7 +34,7 @@ BAD_FILES: list[tuple[str, str, Content, int, str]] = [
     ("binary garbage", "c.log", HEADER.encode() + b"\x89PNG\r\n\x1a\n\x00\xff", 7, "c.log:line 4: not text"),
     ("MCAP cut before its first block", "c.mcap", SAMPLE_MCAP.read_bytes()[:800], 14,
      "c.mcap: the capture holds no bytes"),
-    ("corrupted MCAP", "c.mcap", corrupted_mcap, 9, "c.mcap:byte 334: damaged MCAP"),
+    ("corrupted MCAP", "c.mcap", corrupted_mcap, 9, "c.mcap:byte 47: damaged MCAP"),
     ("not an MCAP", "c.mcap", HEADER.encode(), 9, "c.mcap:byte 0"),
     ("MCAP from another tool", "c.mcap", write_foreign_mcap, 9, "c.mcap:byte 138: not an rtusniff capture"),
     ("unknown format", "c.erf", b"\x00\x11\x22\x33\x1c\x00\x00\x00", 5, "c.erf: cannot tell the capture format"),

@@ -71,6 +71,7 @@ from sniffer.io.mcap_blocks import (
     max_block_bytes,
     side_messages,
 )
+from sniffer.io.mcap_checks import inflated, seal_fault, sealed
 from sniffer.io.output_files import open_new
 from sniffer.tool_version import tool_version
 
@@ -87,7 +88,7 @@ def info_metadata(info: CaptureInfo) -> dict[str, str]:
         fields["line"] = info.line.format()
     if info.channels:
         fields["channels"] = json.dumps(list(info.channels))
-    return fields
+    return sealed(fields)
 
 
 class McapCaptureWriter:
@@ -138,7 +139,7 @@ class McapCaptureWriter:
 
     def add_notes(self, notes: list[str]) -> None:
         if notes:
-            self._writer.add_metadata(NOTES_METADATA_NAME, {"notes": json.dumps(notes)})
+            self._writer.add_metadata(NOTES_METADATA_NAME, sealed({"notes": json.dumps(notes)}))
 
     def flush(self) -> None:
         self._file.flush()
@@ -161,9 +162,10 @@ class McapCaptureWriter:
 class McapCaptureReader:
     """Reads the metadata at open; :meth:`batches` decodes the blocks in file order."""
 
-    def __init__(self, path: str, *, follow: bool = False) -> None:
+    def __init__(self, path: str, *, follow: bool = False, line_given: bool = False) -> None:
         self.path = path
         self._follow = follow
+        self._line_given = line_given
         self._file: BinaryIO = cast(BinaryIO, GrowingFile(path)) if follow else open(path, "rb")  # noqa: SIM115
         self._size = os.fstat(self._file.fileno()).st_size
         # A damaged length field must not make the reader allocate gigabytes: no record is
@@ -206,7 +208,7 @@ class McapCaptureReader:
         try:
             for record in self._records:
                 if isinstance(record, McapChunk):
-                    yield from breakup_chunk(self._checked(record), validate_crc=True)
+                    yield from breakup_chunk(inflated(self._checked(record)), validate_crc=True)
                 else:
                     yield record
                 self._good = self._file.tell()
@@ -271,7 +273,21 @@ class McapCaptureReader:
             "(an MCAP written by another tool?)"
         )
 
+    def _check_seal(self, fields: dict[str, str], name: str) -> None:
+        """A metadata record whose seal fails is damage (:mod:`sniffer.io.mcap_checks`); with
+        ``--line`` the capture's data is still read, the user told what cannot be trusted."""
+        fault = seal_fault(fields)
+        if fault is None:
+            return
+        if self._line_given:
+            self.warnings.append(f"{self.path}: the '{name}' metadata is damaged ({fault}): read with --line as given; "
+                                 "its timing, notes and channel names may be wrong")
+            return
+        raise self._error(f"damaged MCAP: the '{name}' metadata record {fault} (a flipped bit: the line settings, "
+                          "timing and notes cannot be trusted); give --line to read the data anyway")
+
     def _parse_info(self, fields: dict[str, str]) -> CaptureInfo:
+        self._check_seal(fields, METADATA_NAME)
         if fields.get("format_version") != FORMAT_VERSION:
             raise CaptureFormatError(
                 ErrorKind.UNKNOWN_FORMAT,
@@ -313,6 +329,7 @@ class McapCaptureReader:
                 if len(batch):
                     yield batch
             elif isinstance(record, Metadata) and record.name == NOTES_METADATA_NAME:
+                self._check_seal(record.metadata, NOTES_METADATA_NAME)
                 self.late_notes.extend(self._texts(record.metadata.get("notes", "[]"), f"'{NOTES_METADATA_NAME}'"))
 
     def _texts(self, text: str, what: str) -> tuple[str, ...]:

@@ -11,7 +11,7 @@ MAGIC = b"\x89MCAP"
 def _open_reader(path: str, options: ReaderOptions) -> CaptureReader:
     from sniffer.io.mcap_native import McapCaptureReader  # noqa: PLC0415 - mcap and zstandard only when used
 
-    return McapCaptureReader(path, follow=options.follow)
+    return McapCaptureReader(path, follow=options.follow, line_given=options.line is not None)
 
 
 def _open_writer(path: str, info: CaptureInfo) -> CaptureWriter:
