@@ -474,3 +474,32 @@ def test_a_record_without_a_seal_reads_as_before_unless_a_key_is_unknown(cli: Cl
     flipped_key = crafted_mcap(tmp_path / "key.mcap", {**FIELDS, "lime": "39200 8E1"}, [block_at(T0)])
     result = cli("stats", str(flipped_key))
     assert result.code == 9 and "field 'lime' is none rtusniff writes" in result.err, result.err
+
+
+def test_a_dataset_holds_a_capture_once_whatever_its_bus_or_name(cli: Cli, tmp_path: Path) -> None:
+    """12 exports of one capture (other --bus, copied names) gave 624 rows for its 52 frames."""
+    import pyarrow.dataset as ds
+
+    capture = _sample_copy(tmp_path)
+    copy = _sample_copy(tmp_path, "copy-of-a.log")
+    dataset = tmp_path / "plant"
+    assert cli("export", str(capture), "--parquet", str(dataset)).code == 0
+    for argv in ([str(capture), "--bus", "line-2"], [str(copy)], [str(copy), "--bus", "a"]):
+        result = cli("export", *argv, "--parquet", str(dataset))
+        assert result.code == 11 and "in the dataset already, as bus 'a'" in result.err, result.err
+    assert ds.dataset(dataset / "frames", partitioning="hive").count_rows() == 52
+
+
+@pytest.mark.parametrize("bus", ["..", ".", "a/b", "a\nb", "a\x1bb", " a", "a:b", "x" * 101, "a\u2028b"])
+def test_bus_names_that_are_no_folder_names_are_refused(cli: Cli, tmp_path: Path, bus: str) -> None:
+    capture = _sample_copy(tmp_path)
+    result = cli("export", str(capture), "--parquet", str(tmp_path / "plant"), "--bus", bus)
+    assert result.code == 2 and "--bus" in result.err and len(result.err.strip().splitlines()) == 1, result.err
+    assert not (tmp_path / "plant").exists() or not any((tmp_path / "plant").rglob("*.parquet"))
+
+
+def test_a_capture_file_named_as_no_bus_is_told_to_give_one(cli: Cli, tmp_path: Path) -> None:
+    capture = _sample_copy(tmp_path, "..log")
+    result = cli("export", str(capture), "--parquet", str(tmp_path / "plant"))
+    assert result.code == 2 and "give --bus NAME" in result.err, result.err
+    assert cli("export", str(capture), "--parquet", str(tmp_path / "plant"), "--bus", "line-1").code == 0

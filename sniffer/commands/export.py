@@ -187,8 +187,10 @@ def check_dataset(args: argparse.Namespace) -> None:
         return
     if args.parquet == "-" or (os.path.exists(args.parquet) and not os.path.isdir(args.parquet)):
         raise RtuSniffError(ErrorKind.USAGE, "--parquet takes a folder (a dataset of many files)", path=args.parquet)
-    if args.bus is not None and (not args.bus or any(c in args.bus for c in "/\\=")):
-        raise RtuSniffError(ErrorKind.USAGE, f"--bus {args.bus!r}: a name without '/', '\\' or '='")
+    from sniffer.exports.parquet_export import bus_name_fault  # noqa: PLC0415 - pyarrow, only for --parquet
+
+    if args.bus is not None and (fault := bus_name_fault(args.bus)) is not None:
+        raise RtuSniffError(ErrorKind.USAGE, f"--bus {args.bus!r}: {fault}")
 
 
 def _run_each(args: argparse.Namespace) -> int:

@@ -34,6 +34,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -54,6 +55,18 @@ from sniffer.exports.parquet_writing import RowGroupWriter
 from sniffer.exports.transactions import OUTCOMES
 
 TABLES = ("frames", "transactions", "values", "anomalies", "latencies")
+#: What a bus name may hold: it names a folder (``bus=NAME``) that every engine reads back as is.
+_BUS_NAME = re.compile(r"[^\x00-\x1f\x7f/\\=:*?\"<>|]{1,100}")
+
+
+def bus_name_fault(name: str) -> str | None:
+    """Why ``name`` cannot name a bus partition; ``None`` when it can."""
+    if not _BUS_NAME.fullmatch(name) or not name.isprintable():
+        return ("a name of 1 to 100 printable characters without '/', '\\', '=', ':', '*', '?', '\"', '<', '>', '|' "
+                "or a control character")
+    if name.strip(". ") == "" or name != name.strip():
+        return "a name that is more than dots and does not begin or end with a space"
+    return None
 #: Rows gathered per file before they are written as a row group.
 ROW_GROUP_ROWS = 1 << 17
 TIME = pa.timestamp("ns", tz="UTC")
@@ -139,6 +152,10 @@ class ParquetDataset:
 
     def __init__(self, folder: str, bus: str, capture_id: str, metadata: dict[str, str]) -> None:
         self.folder, self.bus, self.capture_id = Path(folder), bus, capture_id
+        fault = bus_name_fault(bus)
+        if fault is not None:
+            raise RtuSniffError(ErrorKind.USAGE, f"bus {bus!r} (the capture file's name): {fault}; give --bus NAME")
+        self._refuse_a_capture_held()
         self._metadata = {key.encode(): value.encode() for key, value in metadata.items()}
         self._parts: dict[tuple[str, int], _Part] = {}
         #: Rows written per table.
@@ -175,6 +192,15 @@ class ParquetDataset:
         part.rows += rows.num_rows
         if part.rows >= ROW_GROUP_ROWS:
             self._write(part)
+
+    def _refuse_a_capture_held(self) -> None:
+        """A capture is in a dataset once, whatever its bus or its file's name: its id (of its
+        bytes' SHA-256) names one file per table and day, so any file of that name says it."""
+        for held in sorted(self.folder.glob(f"*/bus=*/date=*/{self.capture_id}.parquet"))[:1]:
+            bus = held.parent.parent.name.removeprefix("bus=")
+            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"this capture is in the dataset already, as bus {bus!r} (a "
+                                "file of the same capture id: its bytes' SHA-256); a dataset holds a capture once",
+                                path=str(held))
 
     def _new_part(self, table: str, day: int) -> _Part:
         date = np.datetime64(day, "D").astype(str)
