@@ -503,3 +503,46 @@ def test_a_capture_file_named_as_no_bus_is_told_to_give_one(cli: Cli, tmp_path: 
     result = cli("export", str(capture), "--parquet", str(tmp_path / "plant"))
     assert result.code == 2 and "give --bus NAME" in result.err, result.err
     assert cli("export", str(capture), "--parquet", str(tmp_path / "plant"), "--bus", "line-1").code == 0
+
+
+FOLLOW_HEAD = "# rtu-capture v1\n# line: 19200 8E1\n# timing: exact\n"
+POLL = "1700000000.{:03d}000000 01 03 00 00 00 01 84 0A\n"
+
+
+@pytest.mark.parametrize("change", ["truncated", "replaced", "removed", "rewritten"])
+def test_following_a_file_that_is_changed_under_it_stops_and_says_so(tmp_path: Path, change: str) -> None:
+    """``stats --follow`` of a text recording that is truncated, replaced by a rename, removed
+    or rewritten: it stops within a moment (a text recording is otherwise followed until
+    Ctrl-C), prints the statistics of what it read and a warning naming the change, exit 0."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    path = tmp_path / "site.log"
+    path.write_text(FOLLOW_HEAD + "".join(POLL.format(i * 20) for i in range(10)))
+    follower = subprocess.Popen([sys.executable, "-m", "sniffer", "stats", "--follow", str(path), "--format", "json"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(2.0)  # read to its end, waiting
+    if change == "truncated":
+        with path.open("r+") as f:
+            f.truncate(len(FOLLOW_HEAD) + 10)
+    elif change == "replaced":
+        other = tmp_path / "other.log"
+        other.write_text(FOLLOW_HEAD + POLL.format(900))
+        os.replace(other, path)
+    elif change == "removed":
+        path.unlink()
+    else:  # in place, the same length: no moment where it is shorter
+        with path.open("r+") as f:
+            f.seek(path.stat().st_size - len("84 0A\n"))
+            f.write("84 39\n")
+    try:
+        out, err = follower.communicate(timeout=15)
+    finally:
+        follower.kill()
+    assert follower.returncode == 0, err
+    assert json.loads(out)["frames"] == 10
+    words = {"truncated": "truncated to", "replaced": "replaced by another file", "removed": "removed or renamed",
+             "rewritten": "rewritten while followed"}[change]
+    assert f"{path}: {words}" in err and "following stopped at byte" in err, err

@@ -68,28 +68,76 @@ def stopping_on_signals() -> Iterator[None]:
 
 
 class GrowingFile:
-    """A read-only binary file whose reads wait for the bytes a writer has yet to add."""
+    """A read-only binary file whose reads wait for the bytes a writer has yet to add.
 
-    def __init__(self, path: str, *, poll_s: float = POLL_S, sleep: Callable[[float], None] = time.sleep) -> None:
+    While it waits it also watches that the file it follows is still the one it read: one that
+    shrinks below what was read (truncated), whose name now leads to another file (replaced by a
+    rename, or removed), or whose last bytes read are no longer there (rewritten) ends following
+    as Ctrl-C does, with what was read decoded, and ``lost`` saying which (the readers add it to
+    their warnings)."""
+
+    #: Bytes before the read position kept to tell a rewritten file.
+    TAIL = 64
+
+    def __init__(self, path: str, *, poll_s: float = POLL_S, sleep: Callable[[float], None] = time.sleep,
+                 warnings: list[str] | None = None) -> None:
         self.name = path
         self._file: BinaryIO = open(path, "rb")  # noqa: SIM115 - closed by close()
         self._poll_s, self._sleep = poll_s, sleep
+        self._warnings = warnings if warnings is not None else []
+        #: Why following ended before the file did (``None`` while it is the file read).
+        self.lost: str | None = None
+        self._tail = b""
+        self._mtime_ns = os.fstat(self._file.fileno()).st_mtime_ns
+
+    def _kept(self, piece: bytes) -> bytes:
+        self._tail = (self._tail + piece)[-self.TAIL :]
+        return piece
+
+    def _waits(self) -> bool:
+        """Nothing more to read yet: whether to wait for it (else reads end where they are)."""
+        if STOP.is_set() or self.lost is not None:
+            return False
+        self.lost = self._change()
+        if self.lost is not None:
+            self._warnings.append(f"{self.name}: {self.lost}: following stopped at byte {self._file.tell():,}; "
+                                  "what was read before is decoded")
+            return False
+        self._sleep(self._poll_s)
+        return True
+
+    def _change(self) -> str | None:
+        position, mine = self._file.tell(), os.fstat(self._file.fileno())
+        if mine.st_size < position:
+            return f"truncated to {mine.st_size:,} bytes while followed"
+        try:
+            named = os.stat(self.name)
+        except OSError:
+            return "removed or renamed while followed"
+        if (named.st_dev, named.st_ino) != (mine.st_dev, mine.st_ino):
+            return "replaced by another file of its name while followed"
+        if mine.st_mtime_ns != self._mtime_ns and self._tail:
+            self._mtime_ns = mine.st_mtime_ns
+            self._file.seek(position - len(self._tail))
+            again = self._file.read(len(self._tail))
+            self._file.seek(position)
+            if again != self._tail:
+                return "rewritten while followed (the bytes last read changed)"
+        return None
 
     def read(self, size: int = -1) -> bytes:
         """``size`` bytes, waiting as long as it takes for them (all there is: ``size`` < 0)."""
         if size < 0:
-            return self._file.read()
+            return self._kept(self._file.read())
         pieces: list[bytes] = []
         wanted = size
         while wanted > 0:
             piece = self._file.read(wanted)
             if piece:
-                pieces.append(piece)
+                pieces.append(self._kept(piece))
                 wanted -= len(piece)
-            elif STOP.is_set():
+            elif not self._waits():
                 break
-            else:
-                self._sleep(self._poll_s)
         return b"".join(pieces)
 
     def readline(self, limit: int = -1) -> bytes:
@@ -97,20 +145,18 @@ class GrowingFile:
         pieces: list[bytes] = []
         taken = 0
         while True:
-            piece = self._file.readline(limit - taken if limit >= 0 else -1)
+            piece = self._kept(self._file.readline(limit - taken if limit >= 0 else -1))
             pieces.append(piece)
             taken += len(piece)
             if piece.endswith(b"\n") or (limit >= 0 and taken >= limit):
                 return b"".join(pieces)
-            if not piece:
-                if STOP.is_set():
-                    return b""  # a line still being written when following stopped: not read
-                self._sleep(self._poll_s)
+            if not piece and not self._waits():
+                return b""  # a line still being written when following stopped: not read
 
     @property
     def stopped(self) -> bool:
         """Whether following was stopped (the reads now end where the file ends)."""
-        return STOP.is_set()
+        return STOP.is_set() or self.lost is not None
 
     def caught_up(self) -> bool:
         """Whether everything written so far has been read (a reader then hands on what it holds)."""

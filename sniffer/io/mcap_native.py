@@ -166,7 +166,10 @@ class McapCaptureReader:
         self.path = path
         self._follow = follow
         self._line_given = line_given
-        self._file: BinaryIO = cast(BinaryIO, GrowingFile(path)) if follow else open(path, "rb")  # noqa: SIM115
+        #: Said once reading is done: e.g. a recording that was cut short.
+        self.warnings: list[str] = []
+        self._file: BinaryIO = (cast(BinaryIO, GrowingFile(path, warnings=self.warnings)) if follow
+                                else open(path, "rb"))  # noqa: SIM115
         self._size = os.fstat(self._file.fileno()).st_size
         # A damaged length field must not make the reader allocate gigabytes: no record is
         # longer than the file (a file that grows: than a block may be).
@@ -181,8 +184,6 @@ class McapCaptureReader:
         self._last_ns = 0
         self._good = 0
         self.late_notes: list[str] = []
-        #: Said once reading is done: e.g. a recording that was cut short.
-        self.warnings: list[str] = []
         self.info = self._read_info()
 
     def close(self) -> None:

@@ -65,7 +65,10 @@ class TextCaptureReader:
     def __init__(self, path: str, *, follow: bool = False) -> None:
         self.path = path
         self._follow = follow
-        self._stream: BinaryIO = (sys.stdin.buffer if path == STDIO else cast(BinaryIO, GrowingFile(path)) if follow
+        #: Said once reading is done: e.g. a recording that was cut short.
+        self.warnings: list[str] = []
+        self._stream: BinaryIO = (sys.stdin.buffer if path == STDIO else
+                                  cast(BinaryIO, GrowingFile(path, warnings=self.warnings)) if follow
                                   else open(path, "rb"))  # noqa: SIM115
         self._line_number = 0
         self._unterminated = False
@@ -75,7 +78,6 @@ class TextCaptureReader:
         self._channel = 0
         #: Comment lines found among the data lines, known once :meth:`batches` is done.
         self.late_notes: list[str] = []
-        self.warnings: list[str] = []
         #: Notes kept so far (header and late) and the bytes they hold; comment lines past the
         #: limits are counted, not kept (a stream of comments must not grow memory without end).
         self._notes_kept = self._note_bytes = self._notes_dropped = 0
