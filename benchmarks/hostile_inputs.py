@@ -136,6 +136,8 @@ HEAD = "[profile]\nid='x'\nname='x'\nsources=['m']\n"
 HOSTILE_PROFILES: list[tuple[str, str]] = [
     (HEAD + "x = " + "[" * 500 + "]" * 500 + "\n", "nests 500 levels deep"),
     (HEAD + "a" + ".a" * 20_000 + " = 1\n", "nests 20000 levels deep"),
+    (HEAD + '"=".a' + ".a" * 20_000 + " = 1\n", "nests 20001 levels deep"),  # a quoted '=' hid the dots
+    (HEAD + "x = {" + "a.a." * 10_000 + "a = 1}\n", "nests 20000 levels deep"),
     ("parameter = [1, 2]\n" + HEAD, "parameter[0]: 1 is not a table"),  # top-level keys come first
     (HEAD + "[exception]\ncode = 2\n", "file.exception: {'code': 2} is not a list"),
     (HEAD + "[[exception]]\ncode = 2\nexplanation = 'e'\nsource = 's'\n[exception.addresses]\na = 1\n",

@@ -101,11 +101,16 @@ def _shape(reader: _Reader, text: str) -> None:
     if len(text) > MAX_PROFILE_BYTES:
         raise reader.fail("file", f"is {len(text):,} characters; a profile has at most {MAX_PROFILE_BYTES:,}")
     depth = deepest = 0
+    # Dots of a dotted key (a.b.c = 1) outside strings, counted until its '=' ("="."a"... = 1
+    # hid them from a count on the line's text before its first '=').
+    dots = key_dots = 0
+    in_value = False
     quoted = ""
     comment = escaped = False
-    for char in text:  # brackets outside strings and comments; an approximation is enough here
+    for char in text:  # brackets and key dots outside strings and comments; an approximation is enough
         if comment:
-            comment = char != "\n"
+            if char == "\n":
+                comment, in_value, key_dots = False, False, 0
         elif quoted:
             if escaped:
                 escaped = False
@@ -117,12 +122,20 @@ def _shape(reader: _Reader, text: str) -> None:
             comment = True
         elif char in "\"'":
             quoted = char
-        elif char in "[{":
+        elif char in "\n{,":
+            in_value, key_dots = False, 0
+            depth += char == "{"
+            deepest = max(deepest, depth)
+        elif char == "=":
+            in_value = True
+        elif char == "." and not in_value:
+            key_dots += 1
+            dots = max(dots, key_dots)
+        elif char in "[":
             depth += 1
             deepest = max(deepest, depth)
         elif char in "]}":
             depth -= 1
-    dots = max((line.split("=", 1)[0].count(".") for line in text.splitlines() if "=" in line), default=0)
     if max(deepest, dots) > MAX_NESTING:
         raise reader.fail("file", f"nests {max(deepest, dots)} levels deep; a profile nests at most {MAX_NESTING}")
 
