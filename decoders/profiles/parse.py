@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Iterator
 from typing import Any
 
 from decoders.profiles.model import (
@@ -100,17 +101,21 @@ def _shape(reader: _Reader, text: str) -> None:
     """Refuse what no profile needs before the TOML parser sees it (see ``MAX_NESTING``)."""
     if len(text) > MAX_PROFILE_BYTES:
         raise reader.fail("file", f"is {len(text):,} characters; a profile has at most {MAX_PROFILE_BYTES:,}")
-    depth = deepest = 0
-    # Dots of a dotted key (a.b.c = 1) outside strings, counted until its '=' ("="."a"... = 1
-    # hid them from a count on the line's text before its first '=').
-    dots = key_dots = 0
-    in_value = False
+    nesting = _nesting(_outside_strings(text))
+    if nesting > MAX_NESTING:
+        raise reader.fail("file", f"nests {nesting} levels deep; a profile nests at most {MAX_NESTING}")
+
+
+def _outside_strings(text: str) -> Iterator[str]:
+    """The characters of ``text`` outside strings and comments (an approximation is enough
+    here), a comment's or string's closing newline kept."""
     quoted = ""
     comment = escaped = False
-    for char in text:  # brackets and key dots outside strings and comments; an approximation is enough
+    for char in text:
         if comment:
-            if char == "\n":
-                comment, in_value, key_dots = False, False, 0
+            comment = char != "\n"
+            if not comment:
+                yield char
         elif quoted:
             if escaped:
                 escaped = False
@@ -118,26 +123,35 @@ def _shape(reader: _Reader, text: str) -> None:
                 escaped = True
             elif char in (quoted, "\n"):
                 quoted = ""
+                if char == "\n":
+                    yield char
         elif char == "#":
             comment = True
         elif char in "\"'":
             quoted = char
-        elif char in "\n{,":
+        else:
+            yield char
+
+
+def _nesting(chars: Iterator[str]) -> int:
+    """How deep brackets nest, or how many parts a dotted key has (a.b.c = 1: counted until its
+    own '=', so that a quoted "=" key before it hides nothing), whichever is more."""
+    depth = deepest = dots = key_dots = 0
+    in_value = False
+    for char in chars:
+        if char in "\n{,":  # a key may start here
             in_value, key_dots = False, 0
-            depth += char == "{"
+        if char in "[{":
+            depth += 1
             deepest = max(deepest, depth)
+        elif char in "]}":
+            depth -= 1
         elif char == "=":
             in_value = True
         elif char == "." and not in_value:
             key_dots += 1
             dots = max(dots, key_dots)
-        elif char in "[":
-            depth += 1
-            deepest = max(deepest, depth)
-        elif char in "]}":
-            depth -= 1
-    if max(deepest, dots) > MAX_NESTING:
-        raise reader.fail("file", f"nests {max(deepest, dots)} levels deep; a profile nests at most {MAX_NESTING}")
+    return max(deepest, dots)
 
 
 def _kind_name(kind: type | tuple[type, ...]) -> str:
