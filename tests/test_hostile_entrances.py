@@ -546,3 +546,52 @@ def test_following_a_file_that_is_changed_under_it_stops_and_says_so(tmp_path: P
     words = {"truncated": "truncated to", "replaced": "replaced by another file", "removed": "removed or renamed",
              "rewritten": "rewritten while followed"}[change]
     assert f"{path}: {words}" in err and "following stopped at byte" in err, err
+
+
+def _many_registers(path: Path, reads: int) -> Path:
+    """A capture of ``reads`` answered reads of 125 registers, each at addresses of its own:
+    as many wide columns as values, each row holding 125 of them."""
+    from decoders.crc import crc_bytes
+
+    def frame(body: bytes) -> str:
+        return (body + crc_bytes(body)).hex(" ").upper()
+
+    lines = []
+    for read in range(reads):
+        t = 1_700_000_000 + read * 0.2
+        address = read * 125
+        lines.append(f"{t:.6f} {frame(bytes([1, 3]) + address.to_bytes(2, 'big') + (125).to_bytes(2, 'big'))}")
+        lines.append(f"{t + 0.1:.6f} {frame(bytes([1, 3, 250]) + bytes(250))}")
+    path.write_text("# rtu-capture v1\n# line: 115200 8N1\n# timing: exact\n" + "\n".join(lines) + "\n")
+    return path
+
+
+def test_wide_values_are_bounded_with_the_figures(cli: Cli, tmp_path: Path) -> None:
+    """Columns that grow with the capture (a read of its own addresses each time): 400 reads
+    would be 400 rows × 50 000 columns; over the bound it is refused, naming the figures."""
+    import sniffer.views.values as values
+
+    capture = _many_registers(tmp_path / "many.log", 400)
+    out = tmp_path / "wide.csv"
+    original = values.MAX_WIDE_CELLS
+    values.MAX_WIDE_CELLS = 1_000_000
+    try:
+        result = cli("values", str(capture), "--wide", "-o", str(out))
+    finally:
+        values.MAX_WIDE_CELLS = original
+    assert result.code == 2 and "--wide would write 400 rows of 50,000 parameters" in result.err, result.err
+    assert not out.exists()
+    assert cli("values", str(capture), "--wide", "--format", "jsonl", "-o", str(out)).code == 0  # no empty cells
+
+
+def test_wide_values_held_are_bounded(cli: Cli, tmp_path: Path) -> None:
+    import sniffer.views.values as values
+
+    capture = _many_registers(tmp_path / "many.log", 40)
+    original = values.MAX_WIDE_VALUES
+    values.MAX_WIDE_VALUES = 1_000
+    try:
+        result = cli("values", str(capture), "--wide")
+    finally:
+        values.MAX_WIDE_VALUES = original
+    assert result.code == 2 and "--wide holds every value until the end" in result.err and result.out == ""

@@ -23,11 +23,18 @@ from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import ParamValue
 from decoders.stats import Statistics
+from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.encoding.value_rows import ValueChoice, ValueRow, ValueRows
 
 LONG_COLUMNS = ("time", "t_ns", "index", "slave", "kind", "address", "code", "name", "raw", "value", "unit",
                 "request_index", "valid")
 WIDE_FIXED = ("time", "t_ns", "index", "slave", "kind")
+#: ``--wide`` holds every value until the end, and its CSV has a cell for every row and column:
+#: beyond these it is refused with the figures (a 3.5 MB capture once made 4.4 GB of CSV).
+MAX_WIDE_VALUES = 20_000_000
+MAX_WIDE_CELLS = 100_000_000
+
+
 class ValuesView(ValueRows):
     """Writes the rows (see the module docstring) as CSV or JSON Lines."""
 
@@ -38,6 +45,7 @@ class ValuesView(ValueRows):
         self._origin_ns: int | None = None
         self._csv = csv.writer(out, lineterminator="\n")
         self._held: list[tuple[ValueRow, int]] = []
+        self._held_values = 0
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         if not self._json and not self._wide:
@@ -50,6 +58,11 @@ class ValuesView(ValueRows):
     def output(self, row: ValueRow) -> None:
         if self._wide:
             self._held.append((row, len(self._held)))
+            self._held_values += len(row.params)
+            if self._held_values > MAX_WIDE_VALUES:
+                raise RtuSniffError(ErrorKind.USAGE, f"--wide holds every value until the end, and this capture has "
+                                    f"more than {MAX_WIDE_VALUES:,}: write the long form (without --wide), or choose "
+                                    "fewer with --slave, --param or --changes")
         elif self._json:
             self._out.write("".join(json.dumps(record, ensure_ascii=False) + "\n" for record in self._records(row)))
         else:
@@ -82,6 +95,11 @@ class ValuesView(ValueRows):
                           **{_column(row.slave, p): p.value for p in row.params}}
                 self._out.write(json.dumps(record, ensure_ascii=False) + "\n")
             return
+        cells = len(held) * (len(WIDE_FIXED) + len(order))
+        if cells > MAX_WIDE_CELLS:
+            raise RtuSniffError(ErrorKind.USAGE, f"--wide would write {len(held):,} rows of {len(order):,} parameters "
+                                f"({cells:,} cells, most of them empty): over the {MAX_WIDE_CELLS:,} it writes; choose "
+                                "fewer with --slave, --param or --changes, or write the long form or --format jsonl")
         self._csv.writerow([*WIDE_FIXED, *order])
         for row, _ in held:
             values = {_column(row.slave, p): p.value for p in row.params}
