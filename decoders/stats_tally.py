@@ -149,14 +149,16 @@ class FunctionTally:
         ]
 
     def clear(self) -> None:
-        """The tally afresh (its rows kept for the pairs it knows)."""
-        used = len(self._keys)
-        self._counts[:used] = 0
-        self._histograms[:, :used] = 0
-        self._sizes[:, :used] = 0
-        self._lows[:, :used], self._highs[:, :used] = _EMPTY_LOW, _EMPTY_HIGH
+        """The tally afresh (its rows kept for the pairs it knows). Only the rows given since
+        the last clear hold anything: clearing those alone keeps a bus of thousands of pairs
+        from clearing megabytes for each batch (compare of two such captures took minutes)."""
+        seen = np.flatnonzero(self._seen[: len(self._keys)])
+        self._counts[seen] = 0
+        self._histograms[:, seen] = 0
+        self._sizes[:, seen] = 0
+        self._lows[:, seen], self._highs[:, seen] = _EMPTY_LOW, _EMPTY_HIGH
         self._exceptions.clear()
-        self._seen[:used] = False
+        self._seen[seen] = False
         self.held = 0
 
     def _histogram(self, histogram: int, row: int) -> TalliedHistogram | None:

@@ -569,7 +569,7 @@ def _many_registers(path: Path, reads: int) -> Path:
 def test_wide_values_are_bounded_with_the_figures(cli: Cli, tmp_path: Path) -> None:
     """Columns that grow with the capture (a read of its own addresses each time): 400 reads
     would be 400 rows × 50 000 columns; over the bound it is refused, naming the figures."""
-    import sniffer.views.values as values
+    from sniffer.views import values
 
     capture = _many_registers(tmp_path / "many.log", 400)
     out = tmp_path / "wide.csv"
@@ -585,7 +585,7 @@ def test_wide_values_are_bounded_with_the_figures(cli: Cli, tmp_path: Path) -> N
 
 
 def test_wide_values_held_are_bounded(cli: Cli, tmp_path: Path) -> None:
-    import sniffer.views.values as values
+    from sniffer.views import values
 
     capture = _many_registers(tmp_path / "many.log", 40)
     original = values.MAX_WIDE_VALUES
@@ -595,3 +595,27 @@ def test_wide_values_held_are_bounded(cli: Cli, tmp_path: Path) -> None:
     finally:
         values.MAX_WIDE_VALUES = original
     assert result.code == 2 and "--wide holds every value until the end" in result.err and result.out == ""
+
+
+def test_a_cleared_tally_keeps_only_what_it_must() -> None:
+    """``clear`` resets the pairs counted since the last one and leaves the others as they are
+    (zero): it no longer sweeps every pair the bus ever had (minutes on 6 000 pairs)."""
+    import numpy as np
+
+    from decoders.stats_tally import FunctionTally
+
+    tally = FunctionTally(counters=2, bins=8)
+    everything = tally.rows(np.arange(1, 5001, dtype=np.int64))
+    tally.count(everything, [np.ones(5000, np.bool_), np.zeros(5000, np.bool_)])
+    tally.drain()
+    tally.clear()
+    some = tally.rows(np.array([7, 9, 7], np.int64))
+    tally.count(some, [np.ones(3, np.bool_), np.ones(3, np.bool_)])
+    tally.add(0, some, np.array([1, 2, 1]), np.array([10, 20, 30], np.int64))
+    drained = tally.drain()
+    assert [(t.function, t.counters) for t in drained] == [(7, [2, 2]), (9, [1, 1])]
+    tally.clear()
+    assert tally.drain() == []
+    again = tally.rows(np.array([7], np.int64))
+    tally.count(again, [np.ones(1, np.bool_), np.zeros(1, np.bool_)])
+    assert [(t.function, t.counters, t.histograms) for t in tally.drain()] == [(7, [1, 0], (None, None))]

@@ -300,9 +300,8 @@ def test_a_bar_over_many_captures_on_a_terminal(tmp_path: Path) -> None:
 
     folder = tmp_path / "site"
     folder.mkdir()
-    write_capture(folder / "a.mcap", 30_000)
-    for name in ("b.mcap", "c.mcap"):
-        shutil.copy(folder / "a.mcap", folder / name)
+    for extra, name in enumerate(("a.mcap", "b.mcap", "c.mcap")):  # three captures: a dataset holds each once
+        write_capture(folder / name, 30_000 + 100 * extra)
     for command in (["stats", "--each", str(folder), "-o", str(tmp_path / "s.txt")],
                     ["report", "--each", str(folder), "-o", str(tmp_path / "r.html")],
                     ["export", "--each", str(folder), "--parquet", str(tmp_path / "d")]):

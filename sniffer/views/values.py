@@ -23,8 +23,8 @@ from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.message import ParamValue
 from decoders.stats import Statistics
-from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.encoding.value_rows import ValueChoice, ValueRow, ValueRows
+from sniffer.errors import ErrorKind, RtuSniffError
 
 LONG_COLUMNS = ("time", "t_ns", "index", "slave", "kind", "address", "code", "name", "raw", "value", "unit",
                 "request_index", "valid")
