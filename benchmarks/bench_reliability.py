@@ -14,6 +14,13 @@ Families (each run is ``rtusniff`` in a fresh process, as a user runs it):
 * ``hostile sizes``: a 5 000-digit time, a noise line of megabytes, a flood of comment lines;
 * ``hostile profiles``: nesting, dotted keys, wrong types, huge counts (``profiles check``);
 * ``full disk``: every command writing to ``/dev/full`` (Linux);
+* the entrances of ``reliability_entrances.py``: ``line names`` (through the text format and
+  back), ``logic, pcap`` (hostile sigrok sessions and zip bombs, pcap records and resolutions,
+  sigrok-cli lines, Saleae values and times), ``MCAP metadata`` (bit flips in the sealed record,
+  notes that are no text), ``outputs, inputs`` (an output that is an input, a failed run's
+  output), ``report, dataset`` (a Markdown report renders nothing of the capture's; a capture
+  joins a dataset once), ``bounds`` (``values --wide``, ``compare`` of 6 000 pairs) and
+  ``following`` (a followed file changed under it);
 * ``live (pty)``: on socat pseudo-terminals, two captures on one port, ``kill -9`` of a recording
   capture, a consumer of ``--format jsonl`` that stops reading, and a disk that fills up during a
   capture (``reliability_live.py``).
@@ -21,7 +28,9 @@ Families (each run is ``rtusniff`` in a fresh process, as a user runs it):
 A run counts as a **traceback** when standard error holds one, a **hang** when it outlives
 ``TIMEOUT_S``, a **wrong exit** when its code is not the README's for what went wrong (anything but
 0 and 2–14; 1 is "other runtime error", never expected here), **not one line** when an error run
-says more or less than one ``error:`` line. Peak RSS is the largest any run of the family used.
+says more or less than one ``error:`` line, **altered** when what it gives is not what its input
+holds, **destroyed** when a file it read is changed or gone after it. Peak RSS is the largest
+any run of the family used.
 """
 
 from __future__ import annotations
@@ -41,14 +50,19 @@ ROOT = Path(__file__).resolve().parent.parent
 REAL = ROOT.parent / "shared" / "real" / "sigrok-cli-text"
 TIMEOUT_S = 60
 DOCUMENTED = {0, *range(2, 15)}
+#: The run, and its peak memory: VmHWM where Linux has it (ru_maxrss counts the memory of the
+#: process that forked this one too).
 CHILD = """
-import os, resource, sys
+import os, re, resource, sys
 from sniffer.cli import main
 try:
     code = main(sys.argv[1:])
 finally:
     with open(os.environ["RTUSNIFF_BENCH_RSS"], "w") as out:
-        out.write(str(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss))
+        try:
+            out.write(re.search(r"VmHWM:\\s*(\\d+)", open("/proc/self/status").read())[1])
+        except OSError:
+            out.write(str(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss))
 sys.exit(code)
 """
 
@@ -62,12 +76,13 @@ class Family:
     wrong_exits: int = 0
     not_one_line: int = 0
     altered: int = 0
+    destroyed: int = 0
     peak_rss_kb: int = 0
     problems: list[str] = field(default_factory=list)
 
     def row(self) -> str:
         return (f"{self.name:<17} {self.runs:>6} {self.tracebacks:>10} {self.hangs:>6} {self.wrong_exits:>11} "
-                f"{self.not_one_line:>13} {self.altered:>8} {self.peak_rss_kb / 1024:>10.0f}")
+                f"{self.not_one_line:>13} {self.altered:>8} {self.destroyed:>10} {self.peak_rss_kb / 1024:>10.0f}")
 
 
 @dataclass
@@ -77,18 +92,23 @@ class Run:
     err: str
 
 
-def rtusniff(family: Family, scratch: Path, *argv: str, stdin: bytes | None = None) -> Run | None:
-    """One run in a fresh process, counted against ``family``; ``None`` when it hung."""
+def rtusniff(family: Family, scratch: Path, *argv: str, stdin: bytes | Path | None = None) -> Run | None:
+    """One run in a fresh process, counted against ``family``; ``None`` when it hung.
+    ``stdin``: bytes through a pipe, or a file standard input is redirected from (``< FILE``)."""
     rss_file = scratch / "rss"
     env = {**os.environ, "RTUSNIFF_BENCH_RSS": str(rss_file)}
     family.runs += 1
+    redirected = stdin.open("rb") if isinstance(stdin, Path) else None
     try:
-        done = subprocess.run([sys.executable, "-c", CHILD, *argv], input=stdin, capture_output=True,
-                              timeout=TIMEOUT_S, env=env, cwd=scratch, check=False)
+        done = subprocess.run([sys.executable, "-c", CHILD, *argv], capture_output=True, timeout=TIMEOUT_S, env=env,
+                              cwd=scratch, check=False, **({"stdin": redirected} if redirected else {"input": stdin}))
     except subprocess.TimeoutExpired:
         family.hangs += 1
         family.problems.append(f"hang: {' '.join(argv)}")
         return None
+    finally:
+        if redirected is not None:
+            redirected.close()
     if rss_file.exists():
         family.peak_rss_kb = max(family.peak_rss_kb, int(rss_file.read_text() or 0))
     err = done.stderr.decode(errors="replace")
@@ -234,6 +254,9 @@ def families(scratch: Path, per_family: int, seed: int, *, quick: bool = False) 
     yield hostile_sizes(scratch, quick=quick)
     yield hostile_profiles(scratch, both=not quick)
     yield full_disk(scratch, quick=quick)
+    from benchmarks.reliability_entrances import families as entrances  # it imports this module
+
+    yield from entrances(scratch, per_family, rng, quick=quick)
     if not quick:  # the tests run these scenarios themselves (tests/test_capture.py, test_live_gaps.py)
         from benchmarks.reliability_live import live
 
@@ -253,7 +276,7 @@ def main(argv: list[str] | None = None) -> int:
         scratch = args.keep or Path(temporary)
         scratch.mkdir(parents=True, exist_ok=True)
         print(f"{'family':<17} {'inputs':>6} {'tracebacks':>10} {'hangs':>6} {'wrong exits':>11} "
-              f"{'not one line':>13} {'altered':>8} {'peak MB':>10}", flush=True)
+              f"{'not one line':>13} {'altered':>8} {'destroyed':>10} {'peak MB':>10}", flush=True)
         for family in families(scratch, args.per_family, args.seed, quick=args.quick):
             print(family.row(), flush=True)
             for problem in family.problems[:10]:

@@ -8,12 +8,16 @@ error line with a documented exit code, in little memory and time.
 from __future__ import annotations
 
 import os
+import zipfile
 from pathlib import Path
 
-from decoders.capture import Chunk, ChunkBatch
+from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
+from decoders.line import LineSettings
 from sniffer.io import mcap_blocks
+from sniffer.io.registry import open_writer
 
 T0 = 1_700_000_000_000_000_000
+LINE = LineSettings.parse("19200 8E1")
 FIELDS = {"format_version": "1", "timing": "exact", "line": "19200 8E1", "notes": "[]"}
 
 
@@ -79,7 +83,7 @@ def inflate_bomb(path: Path, compression: str, inflated_mib: int = 256, claimed:
         compressor = zstandard.ZstdCompressor().compressobj(size=inflated_mib * 2**20)
         data = b"".join(compressor.compress(piece) for _ in range(inflated_mib)) + compressor.flush()
     else:
-        import lz4.frame
+        import lz4.frame  # type: ignore[import-untyped]
 
         compressor = lz4.frame.LZ4FrameCompressor()
         data = compressor.begin() + b"".join(compressor.compress(piece) for _ in range(inflated_mib)) + \
@@ -155,3 +159,124 @@ HOSTILE_PROFILES: list[tuple[str, str]] = [
 
 def hostile_profile_texts() -> list[str]:
     return [text for text, _ in HOSTILE_PROFILES]
+
+
+FORGED = "1700000000.5 01 06 00 01 00 03 98 0B"
+HOSTILE_NAMES: list[tuple[str, ...]] = [
+    (f"RX\n{FORGED}", "TX"),
+    ("Channel 0", "Channel 1"),
+    ("", "-"),
+    ("#", "%41", "%"),
+    ("Empfänger", "Sender ⚡"),
+    ("# channel: TX", "\r\x00\x1b[2J"),
+]
+
+
+def two_line_mcap(path: Path, names: tuple[str, ...]) -> Path:
+    """A native MCAP whose lines carry ``names``: a request on the first, its answer on the second."""
+    writer = open_writer(str(path), CaptureInfo(LINE, TimingQuality.EXACT, (), names), "mcap")
+    chunks = [Chunk(1_700_000_000_000_000_000, bytes.fromhex("010300000001840A"), channel=1),
+              Chunk(1_700_000_000_010_000_000, bytes.fromhex("01030200056B87"), channel=len(names))]
+    writer.write_batch(ChunkBatch.from_chunks(chunks))
+    writer.close()
+    return path
+
+
+def sigrok_session(path: Path, metadata: str, samples: bytes = bytes(1000), repeats: int = 1,
+             comment_mib: int = 0) -> Path:
+    """A .sr zip with ``metadata`` (and ``comment_mib`` MiB of comment lines after it) and one
+    sample file of ``samples`` ``repeats`` times, written piece by piece (a zip bomb made
+    without holding it)."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as session:
+        session.writestr("version", "2")
+        with session.open("metadata", "w", force_zip64=True) as entry:
+            entry.write(metadata.encode())
+            for _ in range(comment_mib):
+                entry.write(b"#" * 2**20)
+        with session.open("logic-1-1", "w", force_zip64=True) as entry:
+            for _ in range(repeats):
+                entry.write(samples)
+    return path
+
+
+DEVICE = "[device 1]\ncapturefile=logic-1\ntotal probes=2\nsamplerate=1 MHz\nunitsize=1\nprobe1=RX\nprobe2=TX\n"
+
+
+def classic_pcap(records: list[tuple[int, bytes, int]]) -> bytes:
+    """A classic nanosecond pcap, link type 147: (seconds, bytes, declared captured length)."""
+    import struct
+
+    out = struct.pack("<IHHiIII", 0xA1B23C4D, 2, 4, 0, 0, 65535, 147)
+    for seconds, data, declared in records:
+        out += struct.pack("<IIII", seconds, 0, declared, len(data)) + data
+    return out
+
+
+def pcapng_of(tsresol: int, ticks: int) -> bytes:
+    import struct
+
+    def block(kind: int, body: bytes) -> bytes:
+        body += bytes(-len(body) % 4)
+        return struct.pack("<II", kind, len(body) + 12) + body + struct.pack("<I", len(body) + 12)
+
+    section = block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1))
+    interface = block(1, struct.pack("<HHI", 147, 0, 65535) + struct.pack("<HHB3x", 9, 1, tsresol) + bytes(4))
+    frame = bytes.fromhex("010300000001840A")
+    packet = block(6, struct.pack("<IIIII", 0, ticks >> 32, ticks & 0xFFFFFFFF, len(frame), len(frame)) + frame)
+    return section + interface + packet
+
+
+def many_registers(path: Path, reads: int) -> Path:
+    """A capture of ``reads`` answered reads of 125 registers, each at addresses of its own:
+    as many wide columns as values, each row holding 125 of them."""
+    from decoders.crc import crc_bytes
+
+    def frame(body: bytes) -> str:
+        return (body + crc_bytes(body)).hex(" ").upper()
+
+    lines = []
+    for read in range(reads):
+        t = 1_700_000_000 + read * 0.2
+        address = read * 125
+        lines.append(f"{t:.6f} {frame(bytes([1, 3]) + address.to_bytes(2, 'big') + (125).to_bytes(2, 'big'))}")
+        lines.append(f"{t + 0.1:.6f} {frame(bytes([1, 3, 250]) + bytes(250))}")
+    path.write_text("# rtu-capture v1\n# line: 115200 8N1\n# timing: exact\n" + "\n".join(lines) + "\n")
+    return path
+
+
+#: sigrok session metadata that once gave tracebacks, and the words of its one error (None: it reads).
+HOSTILE_SESSION_METADATA: list[tuple[str, str | None]] = [
+    (DEVICE.replace("unitsize=1", "unitsize=0"), "unitsize '0' is not 1 to 8"),
+    (DEVICE.replace("unitsize=1", "unitsize=x"), "unitsize 'x' is not 1 to 8"),
+    (DEVICE.replace("1 MHz", "0 Hz"), "samplerate '0 Hz' is not a rate"),
+    (DEVICE.replace("1 MHz", "1.2.3 MHz"), "samplerate '1.2.3 MHz' is not a rate"),
+    (DEVICE.replace("1 MHz", "99999999999999999999999 GHz"), "is not a rate"),
+    (DEVICE + "probe0=\n", "'probe0' is no probe of a session of 1-byte samples"),
+    (DEVICE + f"probe{'9' * 5000}=A\n", "is no probe of a session"),
+    (DEVICE + "probe٣=A\n", None),  # not an ASCII probe key: no probe, read as sigrok would ignore it
+]
+
+
+def hostile_pcaps() -> list[tuple[str, str, bytes, int, str]]:
+    """pcap and pcapng files that once broke the reader: (case, file name, bytes, exit code, words)."""
+    return [
+        ("4 GiB record", "c.pcap", classic_pcap([(1, b"\x01\x03", 2**32 - 1)]), 7,
+         "record 1: a record that holds one read of 4,294,967,295"),
+        ("60 MiB record", "c.pcap", classic_pcap([(1, bytes(60 * 2**20), 60 * 2**20)]), 7,
+         "over the 1 MiB rtusniff reads"),
+        ("4 GiB block", "c.pcapng", pcapng_of(6, 1)[:60] + b"\x06\x00\x00\x00\xfc\xff\xff\xff", 7,
+         "a block that holds one read of 4,294,967,280"),
+        ("tsresol 10^0", "c.pcapng", pcapng_of(0, 2**63), 7, "beyond the year 2262"),
+        ("tsresol 2^-127", "c.pcapng", pcapng_of(0x80 | 127, 2**64 - 1), 0, ""),
+        ("tsresol 10^-127", "c.pcapng", pcapng_of(127, 2**64 - 1), 0, ""),
+    ]
+
+
+#: sigrok-cli annotation lines that are none of sigrok's, and the words of their one error.
+HOSTILE_ANNOTATION_LINES: list[tuple[str, str]] = [
+    ("1" * 5000 + "-" + "2" * 5000 + ' uart-1: rx-data: "01"', "not a sigrok-cli annotation line"),
+    ('١٢-٣٤ uart-1: rx-data: "01"', "not a sigrok-cli annotation line"),
+    ('12-34 uart-1: rx-data: "0x1"', "'0x1' is not a byte"),
+    ('12-34 uart-1: rx-data: "1_2"', "'1_2' is not a byte"),
+    ('12-34 uart-1: q7-data: "01"', "class 'q7-data' is neither rx-data nor tx-data"),
+]

@@ -15,11 +15,14 @@ HARNESS = ROOT / "tests" / "fuzz" / "atheris_fuzz.py"
 
 
 #: Runs per target: the profile parser is slow per input (tomllib), its slice is shorter.
-RUNS = {"text": 3000, "mcap": 3000, "framer": 3000, "decoders": 3000, "profile": 800}
+RUNS = {"text": 3000, "mcap": 3000, "framer": 3000, "decoders": 3000, "profile": 800, "sigrok": 400, "pcap": 2000,
+        "sigrok-cli": 2000, "mcap-metadata": 1500}
 #: A module each target's code under test imports only when first used: it must carry coverage
 #: counters all the same (atheris instruments only what is imported inside its block).
 REACHED = {"text": "sniffer.io.formats.text", "mcap": "sniffer.io.mcap_native", "framer": "decoders.framing.fast",
-           "decoders": "decoders.modbus.columnar", "profile": "decoders.profiles.parse"}
+           "decoders": "decoders.modbus.columnar", "profile": "decoders.profiles.parse",
+           "sigrok": "sniffer.io.sigrok_session", "pcap": "sniffer.io.pcap_reader",
+           "sigrok-cli": "sniffer.io.sigrok_annotations", "mcap-metadata": "sniffer.io.mcap_checks"}
 
 
 @pytest.mark.parametrize("target", list(RUNS))

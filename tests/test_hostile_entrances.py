@@ -11,6 +11,18 @@ from pathlib import Path
 
 import pytest
 
+from benchmarks.hostile_inputs import (
+    DEVICE,
+    FORGED,
+    HOSTILE_ANNOTATION_LINES,
+    HOSTILE_NAMES,
+    HOSTILE_SESSION_METADATA,
+    hostile_pcaps,
+    many_registers,
+    pcapng_of,
+    sigrok_session,
+    two_line_mcap,
+)
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from sniffer.io.registry import open_reader, open_writer
@@ -20,25 +32,7 @@ from tests.real_recordings import REAL
 Cli = Callable[..., CliResult]
 LINE = LineSettings.parse("19200 8E1")
 #: A write of HR 1 = 3 to slave 1 that never happened, as a data line.
-FORGED = "1700000000.5 01 06 00 01 00 03 98 0B"
-HOSTILE_NAMES: list[tuple[str, ...]] = [
-    (f"RX\n{FORGED}", "TX"),
-    ("Channel 0", "Channel 1"),
-    ("", "-"),
-    ("#", "%41", "%"),
-    ("Empfänger", "Sender ⚡"),
-    ("# channel: TX", "\r\x00\x1b[2J"),
-]
 
-
-def two_line_mcap(path: Path, names: tuple[str, ...]) -> Path:
-    """A native MCAP whose lines carry ``names``: a request on the first, its answer on the second."""
-    writer = open_writer(str(path), CaptureInfo(LINE, TimingQuality.EXACT, (), names), "mcap")
-    chunks = [Chunk(1_700_000_000_000_000_000, bytes.fromhex("010300000001840A"), channel=1),
-              Chunk(1_700_000_000_010_000_000, bytes.fromhex("01030200056B87"), channel=len(names))]
-    writer.write_batch(ChunkBatch.from_chunks(chunks))
-    writer.close()
-    return path
 
 
 @pytest.mark.parametrize("names", HOSTILE_NAMES, ids=[repr(n)[:24] for n in HOSTILE_NAMES])
@@ -175,39 +169,12 @@ def test_the_markdown_report_renders_only_what_rtusniff_wrote(cli: Cli, tmp_path
     assert "<img" not in rendered and "<a " not in rendered and "&lt;img src=http://evil.example/p.png&gt;" in rendered
 
 
-def _session(path: Path, metadata: str, samples: bytes = bytes(1000), repeats: int = 1,
-             comment_mib: int = 0) -> Path:
-    """A .sr zip with ``metadata`` (and ``comment_mib`` MiB of comment lines after it) and one
-    sample file of ``samples`` ``repeats`` times, written piece by piece (a zip bomb made
-    without holding it)."""
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as session:
-        session.writestr("version", "2")
-        with session.open("metadata", "w", force_zip64=True) as entry:
-            entry.write(metadata.encode())
-            for _ in range(comment_mib):
-                entry.write(b"#" * 2**20)
-        with session.open("logic-1-1", "w", force_zip64=True) as entry:
-            for _ in range(repeats):
-                entry.write(samples)
-    return path
-
-
-DEVICE = "[device 1]\ncapturefile=logic-1\ntotal probes=2\nsamplerate=1 MHz\nunitsize=1\nprobe1=RX\nprobe2=TX\n"
-BAD_METADATA = [
-    (DEVICE.replace("unitsize=1", "unitsize=0"), "unitsize '0' is not 1 to 8"),
-    (DEVICE.replace("unitsize=1", "unitsize=x"), "unitsize 'x' is not 1 to 8"),
-    (DEVICE.replace("1 MHz", "0 Hz"), "samplerate '0 Hz' is not a rate"),
-    (DEVICE.replace("1 MHz", "1.2.3 MHz"), "samplerate '1.2.3 MHz' is not a rate"),
-    (DEVICE.replace("1 MHz", "99999999999999999999999 GHz"), "is not a rate"),
-    (DEVICE + "probe0=\n", "'probe0' is no probe of a session of 1-byte samples"),
-    (DEVICE + f"probe{'9' * 5000}=A\n", "is no probe of a session"),
-    (DEVICE + "probe٣=A\n", None),  # not an ASCII probe key: no probe, read as sigrok would ignore it
-]
+BAD_METADATA = HOSTILE_SESSION_METADATA
 
 
 @pytest.mark.parametrize(("metadata", "words"), BAD_METADATA, ids=range(len(BAD_METADATA)))
 def test_bad_session_metadata_is_one_line(cli: Cli, tmp_path: Path, metadata: str, words: str | None) -> None:
-    path = _session(tmp_path / "s.sr", metadata)
+    path = sigrok_session(tmp_path / "s.sr", metadata)
     result = cli("stats", str(path), "--line", "9600 8N1", "--channel", "RX")
     assert "Traceback" not in result.err
     if words is None:
@@ -223,9 +190,9 @@ def test_session_bombs_are_read_in_bounded_memory(tmp_path: Path) -> None:
     import subprocess
     import sys
 
-    metadata_bomb = _session(tmp_path / "m.sr", DEVICE, comment_mib=512)
+    metadata_bomb = sigrok_session(tmp_path / "m.sr", DEVICE, comment_mib=512)
     # An idle line: nothing to decode, a gigabyte to go through.
-    sample_bomb = _session(tmp_path / "b.sr", DEVICE, bytes([0xFF]) * 2**20, repeats=2**10)
+    sample_bomb = sigrok_session(tmp_path / "b.sr", DEVICE, bytes([0xFF]) * 2**20, repeats=2**10)
     assert metadata_bomb.stat().st_size < 2**20 * 2 and sample_bomb.stat().st_size < 2**20 * 2
     for path, code, words in ((metadata_bomb, 6, "metadata of 536,871,"), (sample_bomb, 14, "holds no bytes")):
         # VmHWM: the peak of this process's own memory (ru_maxrss counts the forking parent's too)
@@ -238,40 +205,7 @@ def test_session_bombs_are_read_in_bounded_memory(tmp_path: Path) -> None:
         assert int(done.stdout.split()[-1]) < 400 * 1024, done.stdout  # KiB: well under the gigabyte
 
 
-def _pcap(records: list[tuple[int, bytes, int]]) -> bytes:
-    """A classic nanosecond pcap, link type 147: (seconds, bytes, declared captured length)."""
-    import struct
-
-    out = struct.pack("<IHHiIII", 0xA1B23C4D, 2, 4, 0, 0, 65535, 147)
-    for seconds, data, declared in records:
-        out += struct.pack("<IIII", seconds, 0, declared, len(data)) + data
-    return out
-
-
-def _pcapng(tsresol: int, ticks: int) -> bytes:
-    import struct
-
-    def block(kind: int, body: bytes) -> bytes:
-        body += bytes(-len(body) % 4)
-        return struct.pack("<II", kind, len(body) + 12) + body + struct.pack("<I", len(body) + 12)
-
-    section = block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1))
-    interface = block(1, struct.pack("<HHI", 147, 0, 65535) + struct.pack("<HHB3x", 9, 1, tsresol) + bytes(4))
-    frame = bytes.fromhex("010300000001840A")
-    packet = block(6, struct.pack("<IIIII", 0, ticks >> 32, ticks & 0xFFFFFFFF, len(frame), len(frame)) + frame)
-    return section + interface + packet
-
-
-PCAPS = [
-    ("4 GiB record", "c.pcap", _pcap([(1, b"\x01\x03", 2**32 - 1)]), 7,
-     "record 1: a record that holds one read of 4,294,967,295"),
-    ("60 MiB record", "c.pcap", _pcap([(1, bytes(60 * 2**20), 60 * 2**20)]), 7, "over the 1 MiB rtusniff reads"),
-    ("4 GiB block", "c.pcapng", _pcapng(6, 1)[:60] + b"\x06\x00\x00\x00\xfc\xff\xff\xff", 7,
-     "a block that holds one read of 4,294,967,280"),
-    ("tsresol 10^0", "c.pcapng", _pcapng(0, 2**63), 7, "beyond the year 2262"),
-    ("tsresol 2^-127", "c.pcapng", _pcapng(0x80 | 127, 2**64 - 1), 0, ""),
-    ("tsresol 10^-127", "c.pcapng", _pcapng(127, 2**64 - 1), 0, ""),
-]
+PCAPS = hostile_pcaps()
 
 
 @pytest.mark.parametrize("case", PCAPS, ids=[case[0] for case in PCAPS])
@@ -288,7 +222,7 @@ def test_hostile_pcaps_are_one_line_in_bounded_memory(cli: Cli, tmp_path: Path,
 
 def test_a_pcapng_of_a_fine_resolution_gives_exact_times(cli: Cli, tmp_path: Path) -> None:
     path = tmp_path / "ps.pcapng"
-    path.write_bytes(_pcapng(10, 17_000_000_001_234_567_891))  # tenths of nanoseconds
+    path.write_bytes(pcapng_of(10, 17_000_000_001_234_567_891))  # tenths of nanoseconds
     frames = [r for r in cli("analyze", str(path), "--line", "19200 8E1", "--format", "jsonl").jsonl()
               if r["kind"] == "frame"]
     assert frames[0]["t_end_ns"] == 1_700_000_000_123_456_789
@@ -333,13 +267,7 @@ def test_saleae_digital_times_that_are_no_times_are_one_line(cli: Cli, tmp_path:
     assert result.code == 7 and "not a time in seconds" in result.err and "Traceback" not in result.err
 
 
-@pytest.mark.parametrize(("line", "words"), [
-    ("1" * 5000 + "-" + "2" * 5000 + ' uart-1: rx-data: "01"', "not a sigrok-cli annotation line"),
-    ('١٢-٣٤ uart-1: rx-data: "01"', "not a sigrok-cli annotation line"),
-    ('12-34 uart-1: rx-data: "0x1"', "'0x1' is not a byte"),
-    ('12-34 uart-1: rx-data: "1_2"', "'1_2' is not a byte"),
-    ('12-34 uart-1: q7-data: "01"', "class 'q7-data' is neither rx-data nor tx-data"),
-])
+@pytest.mark.parametrize(("line", "words"), HOSTILE_ANNOTATION_LINES)
 def test_sigrok_cli_text_that_is_none_of_sigrok_s_is_one_line(cli: Cli, tmp_path: Path, line: str, words: str) -> None:
     path = tmp_path / "a.txt"
     path.write_text('10-20 uart-1: rx-data: "02"\n' + line + "\n", encoding="utf-8")
@@ -461,7 +389,7 @@ def test_a_bit_flipped_in_the_capture_metadata_is_said_never_read_as_truth(cli: 
     data[original.index(b"19200 8E1")] ^= 0x02  # 19200 → 39200
     flipped.write_bytes(bytes(data))
     refused = cli("stats", str(flipped))
-    assert refused.code == 9 and "do not match their sha256 digest" in refused.err, refused.err
+    assert refused.code == 9 and "does not match its sha256 digest" in refused.err, refused.err
     given = cli("stats", str(flipped), "--line", "19200 8E1")
     assert given.code == 0 and "metadata is damaged" in given.err
 
@@ -473,7 +401,7 @@ def test_a_record_without_a_seal_reads_as_before_unless_a_key_is_unknown(cli: Cl
     assert cli("stats", str(old)).code == 0
     flipped_key = crafted_mcap(tmp_path / "key.mcap", {**FIELDS, "lime": "39200 8E1"}, [block_at(T0)])
     result = cli("stats", str(flipped_key))
-    assert result.code == 9 and "field 'lime' is none rtusniff writes" in result.err, result.err
+    assert result.code == 9 and "holds a field 'lime' rtusniff never writes" in result.err, result.err
 
 
 def test_a_dataset_holds_a_capture_once_whatever_its_bus_or_name(cli: Cli, tmp_path: Path) -> None:
@@ -548,30 +476,12 @@ def test_following_a_file_that_is_changed_under_it_stops_and_says_so(tmp_path: P
     assert f"{path}: {words}" in err and "following stopped at byte" in err, err
 
 
-def _many_registers(path: Path, reads: int) -> Path:
-    """A capture of ``reads`` answered reads of 125 registers, each at addresses of its own:
-    as many wide columns as values, each row holding 125 of them."""
-    from decoders.crc import crc_bytes
-
-    def frame(body: bytes) -> str:
-        return (body + crc_bytes(body)).hex(" ").upper()
-
-    lines = []
-    for read in range(reads):
-        t = 1_700_000_000 + read * 0.2
-        address = read * 125
-        lines.append(f"{t:.6f} {frame(bytes([1, 3]) + address.to_bytes(2, 'big') + (125).to_bytes(2, 'big'))}")
-        lines.append(f"{t + 0.1:.6f} {frame(bytes([1, 3, 250]) + bytes(250))}")
-    path.write_text("# rtu-capture v1\n# line: 115200 8N1\n# timing: exact\n" + "\n".join(lines) + "\n")
-    return path
-
-
 def test_wide_values_are_bounded_with_the_figures(cli: Cli, tmp_path: Path) -> None:
     """Columns that grow with the capture (a read of its own addresses each time): 400 reads
     would be 400 rows × 50 000 columns; over the bound it is refused, naming the figures."""
     from sniffer.views import values
 
-    capture = _many_registers(tmp_path / "many.log", 400)
+    capture = many_registers(tmp_path / "many.log", 400)
     out = tmp_path / "wide.csv"
     original = values.MAX_WIDE_CELLS
     values.MAX_WIDE_CELLS = 1_000_000
@@ -587,7 +497,7 @@ def test_wide_values_are_bounded_with_the_figures(cli: Cli, tmp_path: Path) -> N
 def test_wide_values_held_are_bounded(cli: Cli, tmp_path: Path) -> None:
     from sniffer.views import values
 
-    capture = _many_registers(tmp_path / "many.log", 40)
+    capture = many_registers(tmp_path / "many.log", 40)
     original = values.MAX_WIDE_VALUES
     values.MAX_WIDE_VALUES = 1_000
     try:
@@ -619,3 +529,22 @@ def test_a_cleared_tally_keeps_only_what_it_must() -> None:
     again = tally.rows(np.array([7], np.int64))
     tally.count(again, [np.ones(1, np.bool_), np.zeros(1, np.bool_)])
     assert [(t.function, t.counters, t.histograms) for t in tally.drain()] == [(7, [1, 0], (None, None))]
+
+
+def test_what_the_fuzz_targets_found_is_one_line(cli: Cli, tmp_path: Path) -> None:
+    """Found by the new atheris targets: a digest field outside ASCII (a TypeError in the seal's
+    comparison), and a pcapng if_tsresol option cut short by its block (an IndexError)."""
+    import struct
+
+    from benchmarks.hostile_inputs import FIELDS, T0, block_at, crafted_mcap
+
+    digest = crafted_mcap(tmp_path / "d.mcap", {**FIELDS, "sha256": "é"}, [block_at(T0)])
+    result = cli("stats", str(digest))
+    assert result.code == 9 and "does not match its sha256 digest" in result.err, result.err
+    section = pcapng_of(6, 1)[:28]
+    body = struct.pack("<HHI", 147, 0, 65535) + struct.pack("<HH", 9, 1)  # the option's value is missing
+    interface = struct.pack("<II", 1, len(body) + 12) + body + struct.pack("<I", len(body) + 12)
+    path = tmp_path / "cut.pcapng"
+    path.write_bytes(section + interface)
+    result = cli("stats", str(path), "--line", "19200 8E1")
+    assert result.code == 14 and "Traceback" not in result.err, result.err

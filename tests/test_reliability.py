@@ -13,4 +13,7 @@ def test_a_slice_of_every_hostile_family(capsys: pytest.CaptureFixture[str]) -> 
     printed = capsys.readouterr().out
     assert code == 0, printed
     rows = {line.split()[0]: line.split() for line in printed.splitlines()[1:] if not line.startswith(" ")}
-    assert {"truncation", "bit", "crafted", "hostile", "full"} <= set(rows)
+    families = {"truncation", "bit", "crafted", "hostile", "full", "line", "logic,", "MCAP", "outputs,", "report,"}
+    assert families <= set(rows)
+    destroyed = [int(row[-2]) for row in rows.values()]
+    assert not any(destroyed), printed

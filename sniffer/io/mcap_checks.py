@@ -77,7 +77,8 @@ def seal_fault(fields: dict[str, str]) -> str | None:
     """What is wrong with a record's seal; ``None`` when it holds (or an old record is plausible)."""
     if SEAL not in fields:
         unknown = sorted(set(fields) - UNSEALED_FIELDS)
-        return f"field {unknown[0]!r} is none rtusniff writes, and there is no digest" if unknown else None
-    if not hmac.compare_digest(fields[SEAL], _digest(fields)):
-        return "its fields do not match their sha256 digest"
+        return f"holds a field {unknown[0]!r} rtusniff never writes, and no digest" if unknown else None
+    # As bytes: compare_digest refuses str with characters outside ASCII (a damaged digest may hold them).
+    if not hmac.compare_digest(fields[SEAL].encode("utf-8", "surrogatepass"), _digest(fields).encode()):
+        return "does not match its sha256 digest"
     return None

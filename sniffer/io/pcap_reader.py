@@ -247,7 +247,7 @@ def _resolution(options: bytes, order: str) -> tuple[int, int]:
         code, length = struct.unpack(order + "HH", options[at : at + 4])
         if code == 0:
             break
-        if code == 9 and length >= 1:
+        if code == 9 and length >= 1 and at + 4 < len(options):  # the option may be cut short
             resolution = options[at + 4]
             return (2 if resolution & 0x80 else 10), resolution & 0x7F
         at += 4 + (length + 3) // 4 * 4

@@ -2,14 +2,18 @@
 
     python tests/fuzz/atheris_fuzz.py TARGET [libFuzzer options, e.g. -runs=1000000 -max_len=4096] [CORPUS_DIR]
 
-Targets: ``text`` and ``mcap`` (bytes as a capture file: it reads cleanly or ends in one
-error naming the file), ``framer`` (bytes as timed chunks on a line: every byte comes out in
+Targets: ``text``, ``mcap``, ``sigrok`` (a ``.sr`` zip), ``pcap`` (pcap or pcapng) and
+``sigrok-cli`` (UART annotations) (bytes as a capture file: it reads cleanly or ends in one
+error naming the file), ``mcap-metadata`` (bytes as the fields of an MCAP capture's metadata,
+sealed or not: one error, or a capture whose line names and notes come back the same through
+the text format), ``framer`` (bytes as timed chunks on a line: every byte comes out in
 exactly one frame, in order), ``decoders`` (bytes as frames: matcher, annotator and JSONL
 records never raise, and the cached decoding equals decoding each frame), ``profile`` (bytes as
 a profile file: a profile or one error naming the place). A crash is any
 other exception; libFuzzer then writes the input to ``crash-*`` and exits non-zero. Without a
-corpus folder, ``text``, ``mcap`` and ``profile`` start from the shipped samples and profiles and
-the hostile shapes of ``benchmarks/hostile_inputs.py``.
+corpus folder, the file targets and ``profile`` start from the shipped samples (and the real
+recordings of ``../shared/real``) and profiles and the hostile shapes of
+``benchmarks/hostile_inputs.py``.
 The hypothesis tests in tests/property cover the same ground with shaped inputs; atheris
 finds the inputs that reach new code.
 """
@@ -17,6 +21,7 @@ finds the inputs that reach new code.
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib
 import json
 import pkgutil
@@ -39,7 +44,13 @@ INSTRUMENTED = {
     "decoders": ("decoders.modbus", "decoders.profiles", "decoders.uss", "decoders.uss_pairing", "decoders.frame",
                  "decoders.message", "sniffer.encoding"),
     "profile": ("decoders.profiles",),
+    "sigrok": ("sniffer.io", "decoders.capture", "decoders.uart"),
+    "pcap": ("sniffer.io", "decoders.capture"),
+    "sigrok-cli": ("sniffer.io", "decoders.capture"),
+    "mcap-metadata": ("sniffer.io", "decoders.capture"),
 }
+#: Each file target's suffix (which chooses the reader).
+FILE_TARGETS = {"text": ".log", "mcap": ".mcap", "sigrok": ".sr", "pcap": ".pcap", "sigrok-cli": ".ann"}
 
 
 def import_every_module(*names: str) -> None:
@@ -58,7 +69,18 @@ _instrumented = INSTRUMENTED.get(sys.argv[1] if len(sys.argv) > 1 else "", ("dec
 # first decides whether it carries counters (theirs take none: they are not included).
 with atheris.instrument_imports(include=list(_instrumented)):
     import_every_module(*_instrumented)
-    from benchmarks.hostile_inputs import crafted_mcap_files, hostile_profile_texts
+    from benchmarks.hostile_inputs import (
+        DEVICE,
+        FIELDS,
+        T0,
+        block_at,
+        classic_pcap,
+        crafted_mcap,
+        crafted_mcap_files,
+        hostile_profile_texts,
+        pcapng_of,
+        sigrok_session,
+    )
     from decoders.capture import Chunk, ChunkBatch, TimingQuality
     from decoders.crc import crc_ok
     from decoders.frame import Frame, FrameFlag, frames_to_batch
@@ -69,11 +91,17 @@ with atheris.instrument_imports(include=list(_instrumented)):
     from decoders.profiles.apply import ProfileApplier
     from decoders.profiles.parse import ProfileError, parse_profile
     from sniffer.encoding.records import FrameRecordEncoder, frame_record
+    from sniffer.errors import RtuSniffError
+    from sniffer.io.base import ReaderOptions
+    from sniffer.io.mcap_checks import sealed
+    from sniffer.io.registry import open_reader, open_writer
+    from sniffer.io.text_writer import comment_lines
     from sniffer.profiles_io import profile_book
-    from tests.property.test_reader_fuzz import read_all
+    from tests.property.test_reader_fuzz import read_all, sample_of
 
 SCRATCH = Path(tempfile.mkdtemp(prefix="rtusniff-atheris-"))
 SAMPLES = Path(__file__).resolve().parents[2] / "captures"
+FIELD_LINE = LineSettings.parse("9600 8N1")
 LINES = [LineSettings.parse(text) for text in ("9600 8E1", "19200 8E1", "115200 8N1")]
 PROFILES = [[], ["atv71"], ["atv312"], ["nord-sk"], ["xbt"]]
 
@@ -129,6 +157,43 @@ def decode_frames(provider: atheris.FuzzedDataProvider) -> None:
                 raise AssertionError(f"JSONL record differs from json.dumps at frame {message.frame.index}")
 
 
+def metadata_round_trip(provider: atheris.FuzzedDataProvider) -> None:
+    """Fields of an MCAP capture's metadata (often plausible: a line, exact timing, a JSON list of
+    line names), sealed or not: the capture is one error, or reads with names and notes that
+    the text format gives back the same."""
+    fields = {key: provider.ConsumeUnicodeNoSurrogates(24) for key in ("format_version", "timing", "line", "notes",
+                                                                        "channels", "writer", "sha256")
+              if provider.ConsumeBool()}
+    if provider.ConsumeBool():
+        names = [provider.ConsumeUnicode(12) for _ in range(provider.ConsumeIntInRange(0, 4))]
+        fields |= {**FIELDS, "channels": json.dumps(names), "notes": json.dumps(names[:2])}
+    if provider.ConsumeBool():
+        fields = sealed({key: value for key, value in fields.items() if key != "sha256"})
+    path = crafted_mcap(SCRATCH / "metadata.mcap", fields, [block_at(T0, T0 + 1_000_000)])
+    if read_all(path.read_bytes(), ".mcap") < 0:
+        return
+    reader = open_reader(str(path), options=ReaderOptions(line=FIELD_LINE))  # as read_all: a damaged seal is said
+    text = SCRATCH / "metadata.log"
+    text.unlink(missing_ok=True)
+    try:
+        writer = open_writer(str(text), reader.info, "text")
+    except RtuSniffError:  # two lines of one name: the text format refuses them, in one line
+        reader.close()
+        return
+    for batch in reader.batches():
+        writer.write_batch(batch)
+    writer.close()
+    back = open_reader(str(text))
+    # Names come back as they were; notes too where the format did not have to escape them
+    # (a note's line breaks, control and non-ASCII characters are shown escaped, by design).
+    plain = all(comment_lines(note) == [f"# {note}"] and note == note.strip() for note in reader.info.notes)
+    if back.info.channels != reader.info.channels or (plain and back.info.notes[: len(reader.info.notes)]
+                                                      != reader.info.notes):
+        raise AssertionError(f"names or notes changed through the text format: {reader.info} → {back.info}")
+    reader.close()
+    back.close()
+
+
 def parse_any_profile(data: bytes) -> None:
     """Bytes as a profile file: a profile, or one ProfileError naming the place; nothing else."""
     with contextlib.suppress(ProfileError):
@@ -154,13 +219,37 @@ def _seed_corpus(suffix: str) -> Path:
         for crafted in crafted_mcap_files(made):
             if crafted.stat().st_size <= 65536:
                 (corpus / crafted.name).write_bytes(crafted.read_bytes())
+    for name, data in _hostile_seeds(suffix):
+        (corpus / name).write_bytes(data)
     return corpus
+
+
+def _hostile_seeds(suffix: str) -> list[tuple[str, bytes]]:
+    """A real recording of the format (where ``../shared/real`` is beside the checkout) and the
+    hostile shapes that once broke its reader."""
+    seeds: list[tuple[str, bytes]] = []
+    format_of = {".sr": "sigrok", ".pcap": "pcap", ".ann": "sigrok-cli"}
+    if suffix in format_of:
+        with contextlib.suppress(OSError):
+            seeds.append((f"sample{suffix}", sample_of(format_of[suffix])))
+    if suffix == ".sr":
+        for number, metadata in enumerate([DEVICE, DEVICE.replace("unitsize=1", "unitsize=3"),
+                                           DEVICE.replace("1 MHz", "0 Hz"), DEVICE + "probe0=\n"]):
+            seeds.append((f"hostile-{number}.sr", sigrok_session(SCRATCH / f"s{number}.sr", metadata).read_bytes()))
+    if suffix == ".pcap":
+        seeds += [("big-record.pcap", classic_pcap([(1, b"\x01\x03", 2**32 - 1)])),
+                  ("resolution.pcap", pcapng_of(0x80 | 127, 2**64 - 1)), ("seconds.pcap", pcapng_of(0, 2**63))]
+    if suffix == ".ann":
+        seeds += [("digits.ann", '10-20 uart-1: rx-data: "02"\n١٢-٣٤ uart-1: rx-data: "0x1"\n'.encode()),
+                  ("directions.ann", "".join(f'{10 * i}-{10 * i + 9} uart-1: d{i}-data: "02"\n'
+                                             for i in range(300)).encode())]
+    return seeds
 
 
 def main() -> None:
     targets = {
-        "text": lambda data: read_capture(data, ".log"),
-        "mcap": lambda data: read_capture(data, ".mcap"),
+        **{name: functools.partial(read_capture, suffix=suffix) for name, suffix in FILE_TARGETS.items()},
+        "mcap-metadata": lambda data: metadata_round_trip(atheris.FuzzedDataProvider(data)),
         "framer": lambda data: frame_everything(atheris.FuzzedDataProvider(data)),
         "decoders": lambda data: decode_frames(atheris.FuzzedDataProvider(data)),
         "profile": parse_any_profile,
@@ -168,8 +257,8 @@ def main() -> None:
     if len(sys.argv) < 2 or sys.argv[1] not in targets:
         sys.exit(f"usage: {sys.argv[0]} {{{','.join(targets)}}} [libFuzzer options]")
     name = sys.argv.pop(1)
-    if name in ("text", "mcap", "profile") and all(arg.startswith("-") for arg in sys.argv[1:]):
-        sys.argv.append(str(_seed_corpus({"text": ".log", "mcap": ".mcap", "profile": ".toml"}[name])))
+    if (name in FILE_TARGETS or name == "profile") and all(arg.startswith("-") for arg in sys.argv[1:]):
+        sys.argv.append(str(_seed_corpus(FILE_TARGETS.get(name, ".toml"))))
     atheris.Setup(sys.argv, targets[name])
     atheris.Fuzz()
 
