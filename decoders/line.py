@@ -20,7 +20,7 @@ FIXED_T3_5_NS = 1_750_000.0
 MIN_BAUD = 50
 MAX_BAUD = 4_000_000
 
-_LINE_RE = re.compile(r"^\s*(\d+)\s+([5-9])([NEOMS])([12])\s*$", re.IGNORECASE)
+_LINE_RE = re.compile(r"^\s*(\d+)\s+([5-9])([NEOMS])([12])\s*$", re.IGNORECASE | re.ASCII)
 
 
 class Parity(Enum):

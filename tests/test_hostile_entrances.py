@@ -548,3 +548,14 @@ def test_what_the_fuzz_targets_found_is_one_line(cli: Cli, tmp_path: Path) -> No
     path.write_bytes(section + interface)
     result = cli("stats", str(path), "--line", "19200 8E1")
     assert result.code == 14 and "Traceback" not in result.err, result.err
+
+
+def test_numbers_in_files_are_ascii_digits(cli: Cli, tmp_path: Path) -> None:
+    """Line settings in an MCAP's metadata of Arabic-Indic digits read as 19200 before (int()
+    takes any digits): now they are no line settings."""
+    from benchmarks.hostile_inputs import FIELDS, T0, block_at, crafted_mcap
+    from sniffer.io.formats.text import parse_time_ns
+
+    path = crafted_mcap(tmp_path / "digits.mcap", {**FIELDS, "line": "١٩٢٠٠ 8E1"}, [block_at(T0)])
+    assert cli("stats", str(path)).code == 9
+    assert parse_time_ns("١٧٠٠٠٠٠٠٠٠.5") is None and parse_time_ns("1700000000.5") == 1_700_000_000_500_000_000

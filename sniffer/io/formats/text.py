@@ -36,12 +36,12 @@ _MAGIC_ANY_VERSION = re.compile(r"#\s*rtu-capture\s+v(\S+)")
 #: Times are kept as 64-bit nanoseconds.
 MAX_TIME_NS = 2**63 - 1
 #: Seconds of up to 19 digits (more cannot be a time: 2^63 ns is 9 223 372 036 s).
-_TIME = re.compile(r"\d{1,19}(?:\.\d{1,9})?")
+_TIME = re.compile(r"[0-9]{1,19}(?:\.[0-9]{1,9})?")
 _HEADER_KEY = re.compile(r"#\s*(line|timing)\s*:\s*(.*)$", re.IGNORECASE)
 _UART_ERRORS = re.compile(r"#\s*uart-errors\s*:\s*(.*)$", re.IGNORECASE)
 _CHANNELS = re.compile(r"#\s*channels\s*:\s*(.*)$", re.IGNORECASE)
 _CHANNEL = re.compile(r"#\s*channel\s*:\s*(\S+)\s*$", re.IGNORECASE)
-_UART_MARK = re.compile(r"(\d+)\s+(framing\+parity|framing|parity)", re.IGNORECASE)
+_UART_MARK = re.compile(r"(\d+)\s+(framing\+parity|framing|parity)", re.IGNORECASE | re.ASCII)
 #: Bytes read from the end of a file to find its last time (progress).
 TAIL_BYTES = 65536
 #: Chunks per batch handed to the framer.
