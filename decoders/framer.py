@@ -173,6 +173,14 @@ class Framer:
         self._follows_frame = False
         return self._assemble(data, timed, pieces, marks)
 
+    def held_since_ns(self) -> int | None:
+        """When the earliest byte the framer still holds (not yet in a frame) may have begun on
+        the wire, at the earliest: its chunk's end less the chunk's bytes; ``None`` when it holds
+        none. Those bytes may be an answer: no request may be timed out at or after this."""
+        if not self._data:
+            return None
+        return int(self._clock.t_end_ns[0]) - int(self._clock.ends[0] * self.line.char_time_ns) - 1
+
     def flush(self) -> FrameBatch:
         """Everything still held, at the end of the capture."""
         data, clock, marks = self._take_held()

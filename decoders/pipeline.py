@@ -44,8 +44,14 @@ class Decoder:
         self.line_check = LineRateCheck(line, timing)
 
     def feed(self, batch: ChunkBatch) -> list[MessageBatch]:
+        """The messages ``batch`` completes. A batch that ends with a chunk without bytes says the
+        line was heard, quiet, until that chunk's time (a live capture's recording ends so): it
+        counts as a :meth:`tick` then, so that the recording decodes as the live view did."""
         self.line_check.feed(batch)
-        return [self._published(self._matched(self.framer.feed(batch)))]
+        decoded = [self._published(self._matched(self.framer.feed(batch)))]
+        if len(batch) and batch.ends[-1] == (batch.ends[-2] if len(batch) > 1 else 0):
+            decoded += self.tick(int(batch.t_end_ns[-1]))
+        return decoded
 
     def _matched(self, frames: FrameBatch) -> MessageBatch:
         if not self.measures_latency:
@@ -55,9 +61,13 @@ class Decoder:
         return self.matcher.feed(frames)
 
     def tick(self, now_ns: int) -> list[MessageBatch]:
-        """Live capture: what the passing of time alone completes (idle line, timeouts)."""
-        return [self._published(self._matched(self.framer.close_idle(now_ns))),
-                self._published(self.matcher.tick(now_ns))]
+        """Live capture: what the passing of time alone completes (idle line, timeouts). Time
+        counts for a timeout only up to the bytes the framer still holds: they may be the
+        answer, and offline they would have been framed before the next frame judged it."""
+        framed = self._published(self._matched(self.framer.close_idle(now_ns)))
+        held_since = self.framer.held_since_ns()
+        heard_ns = now_ns if held_since is None else min(now_ns, held_since)
+        return [framed, self._published(self.matcher.tick(heard_ns))]
 
     def flush(self) -> list[MessageBatch]:
         return [self._published(self._matched(self.framer.flush())), self._published(self.matcher.flush())]

@@ -141,6 +141,10 @@ def run_capture(options: CaptureOptions, out: TextIO, err: Console) -> int:
         reader.join(timeout=2)
         source.close()
         if recorder is not None:
+            if session.heard_until_ns is not None:
+                # Until when the line was heard: the recording says it as a chunk without bytes,
+                # so that decoding it gives the last requests the verdicts the live view gave.
+                recorder.add(Chunk(session.heard_until_ns, b""))
             recorder.stop()
         session.finish()
     warning = session.decoder.line_check.warning()
@@ -220,6 +224,8 @@ class _Session:
         self._next_render = self._last_drain = 0.0
         self.out = out
         self._counters: dict[str, int] | None = None
+        #: The latest moment every read before it was decoded (the last tick's).
+        self.heard_until_ns: int | None = None
 
     def run(self, source: SerialSource) -> None:
         self.delivery.start(self.options.port, CaptureInfo(self.options.line, TimingQuality.HOST), self.options.line)
@@ -276,6 +282,7 @@ class _Session:
         if chunks:
             self._deliver(self.decoder.feed(ChunkBatch.from_chunks(chunks)))
         self._deliver(self.decoder.tick(heard_until_ns))
+        self.heard_until_ns = heard_until_ns
         self.state.behind_reads = self.shared.behind_reads
         if self.options.streams:
             self.state.streams = "; ".join(cast(StreamSink, sink).live_status() for sink in self.options.streams)
