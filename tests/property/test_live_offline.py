@@ -89,8 +89,8 @@ def live(chunks: list[Chunk], line: LineSettings, drains: list[int], step_ns: in
 @given(which=st.integers(0, 99), loop=st.sampled_from(LOOPS), seed=st.integers(0, 9),
        drains=st.lists(st.integers(1, 8), min_size=1, max_size=16), step_ms=st.integers(5, 300),
        stop_after_ms=st.integers(0, 5000))
-def test_live_and_offline_give_the_same_records(which: int, loop: str, seed: int, drains: list[int], step_ms: int,
-                                                stop_after_ms: int) -> None:
+def test_live_and_offline_give_the_same_records(which: int, loop: str, seed: int, *, drains: list[int],
+                                                step_ms: int, stop_after_ms: int) -> None:
     _, line, recorded = sources()[which % len(sources())]
     chunks = READ_LOOPS[loop](list(recorded), line, seed)
     stop_ns = chunks[-1].t_end_ns + stop_after_ms * 1_000_000
