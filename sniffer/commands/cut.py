@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             second = open_capture(capture_paths(args), args.input_format, reader_options(args))
             try:
-                for batch in window_chunks(second.batches(), place, line, timing):
+                for batch in window_chunks(second.batches(), place, line):
                     writer.write_batch(batch)
                     chunks += len(batch)
             finally:

@@ -4,10 +4,12 @@ Two passes. The first frames the capture (no annotation) and finds the window's 
 indices, times and their bytes' place in the stream of the capture's bytes (every byte is in
 exactly one frame or noise record, so a frame's place is the sum of the lengths before it).
 The second reads the capture again and keeps exactly those bytes: whole chunks, and of a chunk
-that holds a window's edge only the window's part. On an ``exact`` capture that part ends a
-whole number of characters before the chunk, so its time is the chunk's less that many
-character times (bytes of a chunk are contiguous on the wire); on a ``host`` capture it keeps
-the chunk's time (the read that delivered it). UART errors and channels go with their bytes.
+that holds a window's edge only the window's part. That part ends a whole number of characters
+before the chunk, so its time is the chunk's less that many character times: the bytes of a
+chunk are contiguous on the wire (``exact``) or taken so (``host``: a read's bytes end when it
+returned), which is how the framer timed them in the whole capture, so the window's frames keep
+their times (a ``host`` cut kept the read's time and moved the last frame by up to 11.5 ms).
+UART errors and channels go with their bytes.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from decoders.capture import ChunkBatch, TimingQuality
+from decoders.capture import ChunkBatch
 from decoders.line import LineSettings
 from decoders.message import MessageBatch
 from sniffer.selection import Selection, Window
@@ -80,21 +82,20 @@ class WindowFinder(Sink):
             raise PastWindow
 
 
-def window_chunks(batches: Iterator[ChunkBatch], place: WindowPlace, line: LineSettings,
-                  timing: TimingQuality) -> Iterator[ChunkBatch]:
+def window_chunks(batches: Iterator[ChunkBatch], place: WindowPlace, line: LineSettings) -> Iterator[ChunkBatch]:
     """The chunks of ``batches`` that hold the bytes ``[place.byte_start, place.byte_end)`` of the
     capture, the chunks at its edges cut to them (see the module docstring)."""
     offset = 0
     for batch in batches:
         size = len(batch.data)
         if offset + size > place.byte_start and offset < place.byte_end:
-            yield _cut(batch, place.byte_start - offset, place.byte_end - offset, line, timing)
+            yield _cut(batch, place.byte_start - offset, place.byte_end - offset, line)
         offset += size
         if offset >= place.byte_end:
             return
 
 
-def _cut(batch: ChunkBatch, start: int, stop: int, line: LineSettings, timing: TimingQuality) -> ChunkBatch:
+def _cut(batch: ChunkBatch, start: int, stop: int, line: LineSettings) -> ChunkBatch:
     """The bytes ``[start, stop)`` of ``batch`` (offsets in its data, clipped to it) as chunks."""
     start, stop = max(start, 0), min(stop, len(batch.data))
     ends = batch.ends
@@ -103,10 +104,10 @@ def _cut(batch: ChunkBatch, start: int, stop: int, line: LineSettings, timing: T
     kept = batch.slice(first, last + 1)
     base = int(ends[first - 1]) if first else 0
     new_ends = np.minimum(kept.ends + base, stop) - start
-    # The last chunk loses the bytes after ``stop``: on exact timing it ended that many characters earlier.
+    # The last chunk loses the bytes after ``stop``: its kept bytes ended that many characters earlier.
     dropped = int(ends[last]) - stop
     times = kept.t_end_ns.copy()
-    if dropped and timing is TimingQuality.EXACT:
+    if dropped:
         times[-1] -= round(dropped * line.char_time_ns)
     kinds = None if kept.uart_errors is None else kept.uart_errors[start - base : stop - base]
     return ChunkBatch(kept.data[start - base : stop - base], new_ends, times,
