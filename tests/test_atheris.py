@@ -15,8 +15,8 @@ HARNESS = ROOT / "tests" / "fuzz" / "atheris_fuzz.py"
 
 
 #: Runs per target: the profile parser is slow per input (tomllib), its slice is shorter.
-RUNS = {"text": 3000, "mcap": 3000, "framer": 3000, "decoders": 3000, "profile": 800, "sigrok": 400, "pcap": 2000,
-        "sigrok-cli": 2000, "mcap-metadata": 1500}
+RUNS = {"text": 3000, "mcap": 3000, "framer": 3000, "decoders": 3000, "profile": 800, "sigrok": 400, "pcap": 800,
+        "sigrok-cli": 800, "mcap-metadata": 500}
 #: A module each target's code under test imports only when first used: it must carry coverage
 #: counters all the same (atheris instruments only what is imported inside its block).
 REACHED = {"text": "sniffer.io.formats.text", "mcap": "sniffer.io.mcap_native", "framer": "decoders.framing.fast",
