@@ -62,10 +62,10 @@ _BUS_NAME = re.compile(r"[^\x00-\x1f\x7f/\\=:*?\"<>|]{1,100}")
 def bus_name_fault(name: str) -> str | None:
     """Why ``name`` cannot name a bus partition; ``None`` when it can."""
     if not _BUS_NAME.fullmatch(name) or not name.isprintable():
-        return ("a name of 1 to 100 printable characters without '/', '\\', '=', ':', '*', '?', '\"', '<', '>', '|' "
-                "or a control character")
+        return ("a bus name is 1 to 100 printable characters without '/', '\\', '=', ':', '*', '?', '\"', '<', '>', "
+                "'|' or a control character")
     if name.strip(". ") == "" or name != name.strip():
-        return "a name that is more than dots and does not begin or end with a space"
+        return "a bus name is more than dots, and neither begins nor ends with a space"
     return None
 #: Rows gathered per file before they are written as a row group.
 ROW_GROUP_ROWS = 1 << 17
