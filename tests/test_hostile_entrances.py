@@ -559,3 +559,24 @@ def test_numbers_in_files_are_ascii_digits(cli: Cli, tmp_path: Path) -> None:
     path = crafted_mcap(tmp_path / "digits.mcap", {**FIELDS, "line": "١٩٢٠٠ 8E1"}, [block_at(T0)])
     assert cli("stats", str(path)).code == 9
     assert parse_time_ns("١٧٠٠٠٠٠٠٠٠.5") is None and parse_time_ns("1700000000.5") == 1_700_000_000_500_000_000
+
+
+@pytest.mark.skipif(not (REAL / "sigrok").exists(), reason="../shared/real is not beside the checkout")
+def test_saleae_column_names_round_trip_and_forge_nothing(cli: Cli, tmp_path: Path) -> None:
+    """Saleae's own default names ("Channel 1"), and a quoted column name holding a newline and a
+    data line, through convert to text and back."""
+    from tests.test_saleae_input import digital_export
+
+    session = REAL / "sigrok" / "uart" / "modbus_rtu" / "brainchild_io_16do" / "brainchild-io-16do.sr"
+    names = ["Channel 1", f"TX\n{FORGED}"]
+    csv_path = digital_export(session, tmp_path / "digital.csv", [1, 2], ['"Channel 1"', f'"TX\n{FORGED}"'])
+    text = tmp_path / "out.log"
+    options = ["--line", "19200", "8E1", "--channel", "1", "--channel", "2"]
+    result = cli("convert", str(csv_path), str(text), *options)
+    assert result.code == 0, result.err
+    assert FORGED not in [line for line in text.read_text().splitlines() if not line.startswith("#")]
+    assert open_reader(str(text)).info.channels == tuple(names)
+    direct = [r for r in cli("analyze", str(csv_path), *options, "--format", "jsonl").jsonl() if r["kind"] == "frame"]
+    back = [r for r in cli("analyze", str(text), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
+    assert [(r["hex"], r.get("channel")) for r in back] == [(r["hex"], r.get("channel")) for r in direct]
+    assert len(back) > 10
