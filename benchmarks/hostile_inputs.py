@@ -77,10 +77,12 @@ def inflate_bomb(path: Path, compression: str, inflated_mib: int = 256, claimed:
     """A small MCAP whose first chunk declares ``claimed`` bytes but holds a ``compression``
     frame of ``inflated_mib`` MiB (a zstd frame that says so in its header; lz4 says nothing)."""
     piece = bytes(2**20)
-    if compression == "zstd":
+    if compression.startswith("zstd"):  # "zstd-unsized": a frame that does not say its size
         import zstandard
 
-        compressor = zstandard.ZstdCompressor().compressobj(size=inflated_mib * 2**20)
+        sized = compression == "zstd"
+        compressor = zstandard.ZstdCompressor(write_content_size=sized).compressobj(
+            size=inflated_mib * 2**20 if sized else -1)
         data = b"".join(compressor.compress(piece) for _ in range(inflated_mib)) + compressor.flush()
     else:
         import lz4.frame  # type: ignore[import-untyped]
@@ -92,7 +94,8 @@ def inflate_bomb(path: Path, compression: str, inflated_mib: int = 256, claimed:
     original = path.read_bytes()
     at = first_chunk_offset(original)
     length = int.from_bytes(original[at + 1 : at + 9], "little")
-    path.write_bytes(original[:at] + _chunk_record(compression, data, claimed) + original[at + 9 + length :])
+    record = _chunk_record(compression.removesuffix("-unsized"), data, claimed)
+    path.write_bytes(original[:at] + record + original[at + 9 + length :])
     return path
 
 
@@ -112,7 +115,7 @@ def crafted_mcap_files(folder: Path) -> list[Path]:
     ]
     made = [crafted_mcap(folder / f"crafted-{name}.mcap", fields, blocks, late)
             for name, fields, blocks, late in shapes]
-    bombs = [inflate_bomb(folder / f"crafted-{kind}-bomb.mcap", kind) for kind in ("zstd", "lz4")]
+    bombs = [inflate_bomb(folder / f"crafted-{kind}-bomb.mcap", kind) for kind in ("zstd", "zstd-unsized", "lz4")]
     return [*made, *bombs, chunk_bomb(folder / "crafted-bomb.mcap")]
 
 

@@ -6,7 +6,9 @@ bytes, an lz4 frame declares nothing, and a bit flipped in the ``rtusniff.captur
 19200 Bd into 39200 without a trace. So:
 
 * :func:`inflated`: a chunk is decompressed to at most the size it declares (which the reader has
-  already held to its limit); one that holds more or less is damaged;
+  already held to its limit): a zstd frame that claims more is refused before it is inflated, one
+  that claims nothing is inflated up to the declared size, lz4 likewise; one that holds more or
+  less is damaged;
 * :func:`sealed` / :func:`seal_fault`: rtusniff's metadata records carry ``sha256``, the digest of
   their other fields (each ``KEY=VALUE`` line, sorted, UTF-8), checked on read. A record without
   one (rtusniff before the seal) is read if every field is one rtusniff wrote then; an unknown
@@ -37,15 +39,19 @@ def inflated(chunk: Chunk) -> Chunk:
         return chunk
     limit = chunk.uncompressed_size
     if chunk.compression == "zstd":
-        import zstandard  # noqa: PLC0415 - the reader imports it anyway; here for the stream API
+        import zstandard  # noqa: PLC0415 - the reader imports it anyway
 
-        # zstandard.decompress would allocate what the frame header claims, whatever the bound.
-        reader = zstandard.ZstdDecompressor().stream_reader(chunk.data)
-        parts, size = [], 0
-        while size <= limit and (part := reader.read(min(limit + 1 - size, 2**20))):
-            parts.append(part)
-            size += len(part)
-        data = b"".join(parts)
+        # decompress() allocates what the frame header claims, whatever the bound it is given:
+        # a claim beyond the chunk's is refused before; without a claim the bound holds.
+        claimed = zstandard.frame_content_size(chunk.data)
+        if claimed > limit:
+            raise InflateError(f"a chunk decompresses to more than the {limit:,} bytes it declares (its zstd frame "
+                               f"claims {claimed:,})")
+        try:
+            data = zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=limit + 1)
+        except zstandard.ZstdError as exc:  # damaged, or more than the bound without saying so
+            raise InflateError(f"a chunk does not decompress to the {limit:,} bytes it declares (zstd: {exc})") \
+                from None
     elif chunk.compression == "lz4":
         try:
             import lz4.frame  # type: ignore[import-untyped]  # noqa: PLC0415 - optional, as in the mcap library
