@@ -113,3 +113,18 @@ def test_an_exact_chunk_cut_ends_its_characters_earlier(cli: Cli, tmp_path: Path
     [line] = [line for line in out.read_text().splitlines() if not line.startswith("#")]
     assert line == f"1700000000.{20_000_000 - round(13 * 1e9 * 11 / 19200):09d} 02 03 0C 1E 00 04 27 6C"
     assert frames(cli, str(out)) == frames(cli, str(source), "--limit", "1")
+
+
+def test_a_cut_that_begins_mid_exchange_says_so(cli: Cli, tmp_path: Path) -> None:
+    """Frames #36..#46 of the sample begin with an answer whose request is #35 and hold a retry
+    whose first attempt is before #36: analyzed alone the cut cannot pair them, and says it, in
+    its note and a warning (issue 66: no warning before)."""
+    out = tmp_path / "cut.log"
+    result = cli("cut", str(ROOT / "captures" / "atv71-plc-poll.log"), "--around", "41", "--context", "5",
+                 "-o", str(out))
+    said = ("the cut begins mid-exchange: 1 answer whose request lies before it and 1 retry whose first attempt "
+            "lies before it")
+    assert result.code == 0 and f"warning: {out}: {said}" in result.err, result.err
+    assert said in out.read_text()
+    start = cli("cut", str(ROOT / "captures" / "atv71-plc-poll.log"), "--limit", "10", "-o", str(tmp_path / "s.log"))
+    assert start.code == 0 and "mid-exchange" not in start.err

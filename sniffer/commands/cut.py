@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from contextlib import ExitStack, suppress
 from dataclasses import replace
 
@@ -74,7 +75,8 @@ def run(args: argparse.Namespace) -> int:
         missed = finder.missed() or "no frame in the window"
         raise RtuSniffError(ErrorKind.NO_DATA, f"{missed}; nothing to cut", path=source_name(args))
     note = _provenance(args, place, Clock(args.time))
-    info = CaptureInfo(line, timing, (*info.notes, note), info.channels)
+    edges = place.edges()
+    info = CaptureInfo(line, timing, (*info.notes, note, *([edges] if edges else [])), info.channels)
     chunks = 0
     # A cut that stops where reading broke would pass for the window: it appears only whole.
     with published_whole(args.output) as target:
@@ -92,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
     what = (f"frames #{place.first_index}..#{place.last_index} ({place.frames:,}), "
             f"{place.byte_end - place.byte_start:,} bytes of line data in {chunks:,} chunks")
     tell_written(args, [(args.output, what)])
+    if edges:
+        print(f"warning: {args.output}: {edges}; a window that starts earlier keeps them whole", file=sys.stderr)
     return 0
 
 

@@ -20,10 +20,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from decoders.capture import ChunkBatch
+from decoders.frame import FrameFlag
 from decoders.line import LineSettings
-from decoders.message import MessageBatch
+from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
 from sniffer.selection import Selection, Window
 from sniffer.sinks import Sink
+
+REQUEST = ROLE_CODE[Role.REQUEST]
 
 
 class PastWindow(Exception):  # noqa: N818 - a signal, not an error
@@ -40,6 +43,19 @@ class WindowPlace:
     t_last_ns: int = 0
     byte_start: int = 0
     byte_end: int = 0
+    #: Answers in the window whose requests lie before it, and retries whose first attempt does:
+    #: analyzed alone, the cut cannot pair them or call them retries.
+    answers_cut_off: int = 0
+    retries_cut_off: int = 0
+
+    def edges(self) -> str | None:
+        """What the cut's edges split, said in its note and a warning; ``None`` when nothing."""
+        parts = [f"{count} {what} whose {other} lie{'s' if count == 1 else ''} before it" for count, what, other in
+                 ((self.answers_cut_off, "answer" if self.answers_cut_off == 1 else "answers", "request"),
+                  (self.retries_cut_off, "retry" if self.retries_cut_off == 1 else "retries", "first attempt"))
+                 if count]
+        return f"the cut begins mid-exchange: {' and '.join(parts)}, which the cut alone does not pair" if parts \
+            else None
 
     @property
     def frames(self) -> int:
@@ -57,6 +73,23 @@ class WindowFinder(Sink):
         self._limit = selection.limit
         self._offset = 0
         self.place = WindowPlace()
+        #: Slaves asked in the window so far: a retry to one of them has its first attempt inside.
+        self._asked: set[int] = set()
+
+    def _edges(self, batch: MessageBatch, begin: int, end: int) -> None:
+        """Count the window's answers and retries whose other half lies before the window."""
+        first = self.place.first_index
+        assert first is not None
+        requests = batch.request_index[begin:end]
+        self.place.answers_cut_off += int(((requests != NONE) & (requests < first)).sum())
+        roles, slaves, flags = batch.role[begin:end].tolist(), batch.slave[begin:end].tolist(), \
+            batch.flags[begin:end].tolist()
+        for role, slave, flag in zip(roles, slaves, flags, strict=True):
+            if role != REQUEST:
+                continue
+            if flag & FrameFlag.RETRY and slave not in self._asked:
+                self.place.retries_cut_off += 1
+            self._asked.add(slave)
 
     def missed(self) -> str | None:
         """Where the capture's frames lie, when the window held none (:meth:`Window.missed`)."""
@@ -76,6 +109,7 @@ class WindowFinder(Sink):
             place.last_index = frames.first_index + end - 1
             place.t_last_ns = int(frames.t_end_ns[end - 1])
             place.byte_end = self._offset + int(frames.offsets[end])
+            self._edges(batch, begin, end)
         self._offset += len(frames.data)
         full = self._limit is not None and place.frames >= self._limit
         if (self._window.past or full) and place.first_index is not None:
