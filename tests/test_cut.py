@@ -5,6 +5,7 @@ never starts or ends inside a frame, and says where it came from."""
 from __future__ import annotations
 
 import hashlib
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -23,6 +24,16 @@ def frames(cli: Cli, *argv: str) -> list[tuple[str, int, int, bool]]:
     return [(r["hex"], r["t_ns"], r["t_end_ns"], r["crc_ok"]) for r in result.jsonl() if r["kind"] == "frame"]
 
 
+def window_in(cli: Cli, cut: Path) -> list[tuple[str, int, int, bool]]:
+    """The frames of a cut that are its window (a cut may hold frames of context around it,
+    which its note names: "the window is frames #K..#J of this cut")."""
+    got = frames(cli, str(cut))
+    notes = cli("analyze", str(cut), "--format", "jsonl").jsonl()[0]["notes"]
+    found = [re.search(r"the window is frames #(\d+)\.\.#(\d+) of this cut", note) for note in notes]
+    spans = [(int(m.group(1)), int(m.group(2))) for m in found if m]
+    return got[spans[-1][0] : spans[-1][1] + 1] if spans else got
+
+
 CASES = [
     ("atv71-plc-poll.log", ["--around", "25", "--context", "3"], ".log"),
     ("atv71-plc-poll.mcap", ["--from", "1s", "--to", "2s"], ".mcap"),
@@ -39,7 +50,7 @@ def test_a_cut_reads_back_to_the_window(cli: Cli, tmp_path: Path, sample: str, w
     result = cli("cut", str(CAPTURES / sample), *window, "-o", str(out))
     assert result.code == 0, result.err
     expected = frames(cli, str(CAPTURES / sample), *window)
-    got = frames(cli, str(out))
+    got = window_in(cli, out)
     assert [f[0] for f in got] == [f[0] for f in expected] and len(got) >= 5
     timed = cli("analyze", str(out), "--format", "jsonl").jsonl()[0]["timing"] == "exact"
     if timed:  # exact timing: every time unchanged
@@ -64,14 +75,16 @@ def test_a_cut_inside_a_read_keeps_whole_frames(cli: Cli, tmp_path: Path) -> Non
     for around, context, expected in [("1", "0", [answer]), ("2", "1", [answer, request, answer])]:
         out = tmp_path / f"cut-{around}.log"
         assert cli("cut", str(source), "--around", around, "--context", context, "-o", str(out)).code == 0
-        got = frames(cli, str(out))
+        got = window_in(cli, out)
         assert [f[0] for f in got] == expected and all(f[3] for f in got)
     # The reads at the edges were cut between frames; a part that lost the bytes after it ends that
     # many characters before its read (three of 0.573 ms), as the framer timed its bytes in the whole.
     lines = [line for line in (tmp_path / "cut-1.log").read_text().splitlines() if not line.startswith("#")]
-    assert lines == ["1700000000.010000000 02 03", "1700000000.018281250 08 00 28 02 58 01 F4 00 00 52 B0"]
+    # The answer's request (#0) comes along as context, so that the answer pairs as in the whole.
+    assert lines == ["1700000000.010000000 02 03 0C 1E 00 04 27 6C 02 03",
+                     "1700000000.018281250 08 00 28 02 58 01 F4 00 00 52 B0"]
     whole = cli("analyze", str(source), "--format", "jsonl").jsonl()[2]
-    assert cli("analyze", str(tmp_path / "cut-1.log"), "--format", "jsonl").jsonl()[1]["t_end_ns"] == whole["t_end_ns"]
+    assert cli("analyze", str(tmp_path / "cut-1.log"), "--format", "jsonl").jsonl()[2]["t_end_ns"] == whole["t_end_ns"]
 
 
 @pytest.mark.skipif(not (REAL / "sigrok").exists(), reason="../shared/real is not beside the checkout")
@@ -115,16 +128,24 @@ def test_an_exact_chunk_cut_ends_its_characters_earlier(cli: Cli, tmp_path: Path
     assert frames(cli, str(out)) == frames(cli, str(source), "--limit", "1")
 
 
-def test_a_cut_that_begins_mid_exchange_says_so(cli: Cli, tmp_path: Path) -> None:
+def test_a_cut_that_begins_mid_exchange_takes_context_or_says_so(cli: Cli, tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     """Frames #36..#46 of the sample begin with an answer whose request is #35 and hold a retry
-    whose first attempt is before #36: analyzed alone the cut cannot pair them, and says it, in
-    its note and a warning (issue 66: no warning before)."""
+    whose first attempt is before #36: the cut takes the frames before them that make it decode
+    as the whole capture did, and its note says where the window is (issue 66). Where no such
+    context is searched (a window too long), it says what it splits, in its note and a warning."""
+    sample = str(ROOT / "captures" / "atv71-plc-poll.log")
     out = tmp_path / "cut.log"
-    result = cli("cut", str(ROOT / "captures" / "atv71-plc-poll.log"), "--around", "41", "--context", "5",
-                 "-o", str(out))
+    result = cli("cut", sample, "--around", "41", "--context", "5", "-o", str(out))
+    assert result.code == 0 and "with 4 frame(s) before and 0 after" in result.err, result.err
+    whole = [r for r in cli("analyze", sample, "--format", "jsonl").jsonl() if r["kind"] == "frame"][36:47]
+    cut = [r for r in cli("analyze", str(out), "--format", "jsonl").jsonl() if r["kind"] == "frame"][4:15]
+    assert [(r["hex"], r["role"], r["flags"], r["latency_s"]) for r in cut] == \
+        [(r["hex"], r["role"], r["flags"], r["latency_s"]) for r in whole]
+    assert [r["request_index"] for r in cut][:1] == [whole[0]["request_index"] - 32]
+    monkeypatch.setattr("sniffer.commands.cut.SEARCHED_FRAMES", 0)
     said = ("the cut begins mid-exchange: 1 answer whose request lies before it and 1 retry whose first attempt "
             "lies before it")
-    assert result.code == 0 and f"warning: {out}: {said}" in result.err, result.err
-    assert said in out.read_text()
-    start = cli("cut", str(ROOT / "captures" / "atv71-plc-poll.log"), "--limit", "10", "-o", str(tmp_path / "s.log"))
-    assert start.code == 0 and "mid-exchange" not in start.err
+    result = cli("cut", sample, "--around", "41", "--context", "5", "-o", str(tmp_path / "alone.log"))
+    assert result.code == 0 and f"warning: {tmp_path / 'alone.log'}: {said}" in result.err, result.err
+    assert said in (tmp_path / "alone.log").read_text()

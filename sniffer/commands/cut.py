@@ -7,7 +7,8 @@ import sys
 from contextlib import ExitStack, suppress
 from dataclasses import replace
 
-from decoders.capture import CaptureInfo
+from decoders.capture import CaptureInfo, ChunkBatch
+from decoders.pipeline import Decoder
 from sniffer.commands.common import (
     add_capture_argument,
     add_channel_option,
@@ -26,12 +27,20 @@ from sniffer.commands.common import (
     tell_written,
 )
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.exports.capture_cut import PastWindow, WindowFinder, WindowPlace, window_chunks
+from sniffer.exports.capture_cut import (
+    SEARCHED_FRAMES,
+    Context,
+    PastWindow,
+    WindowFinder,
+    WindowPlace,
+    reproducing_context,
+    window_chunks,
+)
 from sniffer.exports.outputs import sha256_of
 from sniffer.io.chain import open_capture
 from sniffer.io.output_files import published_whole
 from sniffer.io.registry import format_help, formats_for, open_writer
-from sniffer.pipeline import analyze
+from sniffer.pipeline import Analysis, analyze
 from sniffer.selection import EVERYTHING, add_selection_options
 from sniffer.views.clock import Clock
 
@@ -43,7 +52,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         description="Write the frames of a window (--from/--to, --around INDEX --context N, --limit N) as a "
         "capture of its own: the same line settings, timing and notes, and a note saying where it came from "
         "(the source's SHA-256, frames, times and byte offsets). The cut follows frame boundaries: never "
-        "inside a frame.",
+        "inside a frame; it takes the few frames of context around the window with which the window decodes "
+        "as in the whole capture, and its note says where the window is.",
     )
     add_capture_argument(parser)
     parser.add_argument("-o", "--output", required=True, help="the capture to write (its suffix names the format)")
@@ -74,9 +84,11 @@ def run(args: argparse.Namespace) -> int:
     if place.first_index is None:
         missed = finder.missed() or "no frame in the window"
         raise RtuSniffError(ErrorKind.NO_DATA, f"{missed}; nothing to cut", path=source_name(args))
-    note = _provenance(args, place, Clock(args.time))
-    edges = place.edges()
-    info = CaptureInfo(line, timing, (*info.notes, note, *([edges] if edges else [])), info.channels)
+    context = _context(args, place, analysis)
+    start, end = context.span(place)
+    notes = [_provenance(args, place, context, Clock(args.time))]
+    edges = place.edges() if not context.reproduces else None
+    info = CaptureInfo(line, timing, (*info.notes, *notes, *([edges] if edges else [])), info.channels)
     chunks = 0
     # A cut that stops where reading broke would pass for the window: it appears only whole.
     with published_whole(args.output) as target:
@@ -84,26 +96,49 @@ def run(args: argparse.Namespace) -> int:
         try:
             second = open_capture(capture_paths(args), args.input_format, reader_options(args))
             try:
-                for batch in window_chunks(second.batches(), place, line):
+                for batch in window_chunks(second.batches(), (start, end), line):
                     writer.write_batch(batch)
                     chunks += len(batch)
             finally:
                 close_reader(second)
         finally:
             writer.close()
-    what = (f"frames #{place.first_index}..#{place.last_index} ({place.frames:,}), "
-            f"{place.byte_end - place.byte_start:,} bytes of line data in {chunks:,} chunks")
+    extra = f", with {context.before} frame(s) before and {context.after} after" if context.before or context.after \
+        else ""
+    what = (f"frames #{place.first_index}..#{place.last_index} ({place.frames:,}){extra}, "
+            f"{end - start:,} bytes of line data in {chunks:,} chunks")
     tell_written(args, [(args.output, what)])
     if edges:
         print(f"warning: {args.output}: {edges}; a window that starts earlier keeps them whole", file=sys.stderr)
     return 0
 
 
-def _provenance(args: argparse.Namespace, place: WindowPlace, clock: Clock) -> str:
+def _context(args: argparse.Namespace, place: WindowPlace, analysis: Analysis) -> Context:
+    """The context with which the cut decodes as the window did in the whole capture
+    (:func:`~sniffer.exports.capture_cut.reproducing_context`), over the bytes it may take."""
+    if len(place.verdicts) > SEARCHED_FRAMES:
+        return Context(reproduces=False)
+    widest = Context(len(place.before), len(place.after)).span(place)
+    reader = open_capture(capture_paths(args), args.input_format, reader_options(args))
+    try:
+        held = ChunkBatch.concat(list(window_chunks(reader.batches(), widest, analysis.line)))
+    finally:
+        reader.close()
+    return reproducing_context(place, held, widest[0], analysis.line,
+                               lambda: Decoder(analysis.line, analysis.timing,
+                                               response_timeout_ns=analysis.response_timeout_ns))
+
+
+def _provenance(args: argparse.Namespace, place: WindowPlace, context: Context, clock: Clock) -> str:
     digests = " ".join(sha256_of(path) for path in capture_paths(args))
+    assert place.first_index is not None and place.last_index is not None
+    start, end = context.span(place)
+    held = (f"; with {context.before} frame(s) before it and {context.after} after, so that it decodes as in the "
+            f"whole capture, the window is frames #{context.before}..#{context.before + place.frames - 1} of this "
+            f"cut" if context.before or context.after else "")
     return (f"cut from {source_name(args)} (sha256 {digests}): frames #{place.first_index}..#{place.last_index}, "
             f"{_moment(clock, place.t_first_ns)} to {_moment(clock, place.t_last_ns)} ({clock.zone}), bytes "
-            f"{place.byte_start:,}..{place.byte_end:,} of its line data")
+            f"{start:,}..{end:,} of its line data{held}")
 
 
 def _moment(clock: Clock, t_ns: int) -> str:

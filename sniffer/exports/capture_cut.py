@@ -10,12 +10,21 @@ chunk are contiguous on the wire (``exact``) or taken so (``host``: a read's byt
 returned), which is how the framer timed them in the whole capture, so the window's frames keep
 their times (a ``host`` cut kept the read's time and moved the last frame by up to 11.5 ms).
 UART errors and channels go with their bytes.
+
+A window alone may decode otherwise than in the whole capture: an answer whose request lies
+before it, a retry whose first attempt does, a timeout a later frame decides, a damaged frame its
+neighbours place. The first pass therefore notes up to ``CONTEXT`` frames on each side and what
+the whole capture's decoding said of every window frame; :func:`reproducing_context` decodes the
+window with ever more context (fewest frames first, those before first) until its frames come
+out alike, and the cut holds that context.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from dataclasses import dataclass
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from itertools import pairwise
 
 import numpy as np
 
@@ -23,10 +32,17 @@ from decoders.capture import ChunkBatch
 from decoders.frame import FrameFlag
 from decoders.line import LineSettings
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
+from decoders.pipeline import Decoder
 from sniffer.selection import Selection, Window
 from sniffer.sinks import Sink
 
 REQUEST = ROLE_CODE[Role.REQUEST]
+#: Frames of context a cut may take on each side of its window to decode as in the whole capture.
+CONTEXT = 16
+#: A request index no decoding of a cut gives: the request lies before the cut.
+OUTSIDE = -2
+#: A frame's length, role, flags, request index and latency.
+Verdict = tuple[int, int, int, int, int]
 
 
 class PastWindow(Exception):  # noqa: N818 - a signal, not an error
@@ -47,6 +63,12 @@ class WindowPlace:
     #: analyzed alone, the cut cannot pair them or call them retries.
     answers_cut_off: int = 0
     retries_cut_off: int = 0
+    #: The byte spans of up to ``CONTEXT`` frames before and after the window, in wire order.
+    before: list[tuple[int, int]] = field(default_factory=list)
+    after: list[tuple[int, int]] = field(default_factory=list)
+    #: What the whole capture's decoding said of each window frame: length, role, flags,
+    #: request (absolute index or ``NONE``) and latency.
+    verdicts: list[Verdict] = field(default_factory=list)
 
     def edges(self) -> str | None:
         """What the cut's edges split, said in its note and a warning; ``None`` when nothing."""
@@ -75,6 +97,7 @@ class WindowFinder(Sink):
         self.place = WindowPlace()
         #: Slaves asked in the window so far: a retry to one of them has its first attempt inside.
         self._asked: set[int] = set()
+        self._recent: deque[tuple[int, int]] = deque(maxlen=CONTEXT)
 
     def _edges(self, batch: MessageBatch, begin: int, end: int) -> None:
         """Count the window's answers and retries whose other half lies before the window."""
@@ -97,39 +120,52 @@ class WindowFinder(Sink):
 
     def frames(self, batch: MessageBatch) -> None:
         frames = batch.frames
-        begin, end = self._window.span(batch)
-        if self._limit is not None:
-            end = min(end, begin + self._limit - self.place.frames)
         place = self.place
+        complete = place.first_index is not None and (self._window.past or self._full())
+        begin, end = (0, 0) if complete else self._window.span(batch)
+        if self._limit is not None:
+            end = min(end, begin + self._limit - place.frames)
+        spans = list(pairwise((self._offset + frames.offsets).tolist()))  # each frame's bytes in the capture
         if end > begin:
             if place.first_index is None:
                 place.first_index = frames.first_index + begin
                 place.t_first_ns = int(frames.t_start_ns[begin])
-                place.byte_start = self._offset + int(frames.offsets[begin])
+                place.byte_start = spans[begin][0]
+                place.before = [*self._recent, *spans[:begin]][-CONTEXT:]
             place.last_index = frames.first_index + end - 1
             place.t_last_ns = int(frames.t_end_ns[end - 1])
-            place.byte_end = self._offset + int(frames.offsets[end])
+            place.byte_end = spans[end - 1][1]
             self._edges(batch, begin, end)
+            place.verdicts += zip(np.diff(frames.offsets[begin : end + 1]).tolist(), batch.role[begin:end].tolist(),
+                                  batch.flags[begin:end].tolist(), batch.request_index[begin:end].tolist(),
+                                  batch.latency_ns[begin:end].tolist(), strict=True)
+        if place.first_index is None:
+            self._recent.extend(spans)
+        elif self._window.past or self._full() or complete:
+            place.after += spans[end:][: CONTEXT - len(place.after)]
         self._offset += len(frames.data)
-        full = self._limit is not None and place.frames >= self._limit
-        if (self._window.past or full) and place.first_index is not None:
+        if place.first_index is not None and (self._window.past or self._full()) and len(place.after) >= CONTEXT:
             raise PastWindow
 
+    def _full(self) -> bool:
+        return self._limit is not None and self.place.frames >= self._limit
 
-def window_chunks(batches: Iterator[ChunkBatch], place: WindowPlace, line: LineSettings) -> Iterator[ChunkBatch]:
-    """The chunks of ``batches`` that hold the bytes ``[place.byte_start, place.byte_end)`` of the
-    capture, the chunks at its edges cut to them (see the module docstring)."""
+
+def window_chunks(batches: Iterator[ChunkBatch], span: tuple[int, int], line: LineSettings) -> Iterator[ChunkBatch]:
+    """The chunks of ``batches`` that hold the bytes ``[start, end)`` of the capture, the chunks
+    at its edges cut to them (see the module docstring)."""
+    start, end = span
     offset = 0
     for batch in batches:
         size = len(batch.data)
-        if offset + size > place.byte_start and offset < place.byte_end:
-            yield _cut(batch, place.byte_start - offset, place.byte_end - offset, line)
+        if offset + size > start and offset < end:
+            yield cut_batch(batch, start - offset, end - offset, line)
         offset += size
-        if offset >= place.byte_end:
+        if offset >= end:
             return
 
 
-def _cut(batch: ChunkBatch, start: int, stop: int, line: LineSettings) -> ChunkBatch:
+def cut_batch(batch: ChunkBatch, start: int, stop: int, line: LineSettings) -> ChunkBatch:
     """The bytes ``[start, stop)`` of ``batch`` (offsets in its data, clipped to it) as chunks."""
     start, stop = max(start, 0), min(stop, len(batch.data))
     ends = batch.ends
@@ -146,3 +182,63 @@ def _cut(batch: ChunkBatch, start: int, stop: int, line: LineSettings) -> ChunkB
     kinds = None if kept.uart_errors is None else kept.uart_errors[start - base : stop - base]
     return ChunkBatch(kept.data[start - base : stop - base], new_ends, times,
                       kinds if kinds is not None and kinds.any() else None, kept.channels)
+
+
+#: Windows of up to this many frames are searched for the context that reproduces them.
+SEARCHED_FRAMES = 400
+
+
+@dataclass(frozen=True)
+class Context:
+    """Frames taken before and after the window so that the cut decodes as the whole capture
+    did: ``before`` and ``after`` frames; ``reproduces``: whether any such context was found."""
+
+    before: int = 0
+    after: int = 0
+    reproduces: bool = True
+
+    def span(self, place: WindowPlace) -> tuple[int, int]:
+        """The bytes of the capture the cut holds."""
+        start = place.before[len(place.before) - self.before][0] if self.before else place.byte_start
+        end = place.after[self.after - 1][1] if self.after else place.byte_end
+        return start, end
+
+
+def reproducing_context(place: WindowPlace, held: ChunkBatch, held_from: int, line: LineSettings,
+                        decoder: Callable[[], Decoder]) -> Context:
+    """The least context (fewest frames, those before first) with which the bytes ``held``
+    (from byte ``held_from`` of the capture) decode to the window's verdicts: every frame of the
+    window with its length, role, flags, request and latency. No context, not reproducing, when
+    none of up to ``CONTEXT`` frames a side does, or the window is longer than
+    :data:`SEARCHED_FRAMES`."""
+    if len(place.verdicts) > SEARCHED_FRAMES:
+        return Context(reproduces=False)
+    for extra in range(len(place.before) + len(place.after) + 1):
+        for before in range(min(extra, len(place.before)) + 1):
+            after = extra - before
+            if after > len(place.after):
+                continue
+            context = Context(before, after)
+            start, end = context.span(place)
+            got = _verdicts(cut_batch(held, start - held_from, end - held_from, line), decoder())
+            if got[before : before + len(place.verdicts)] == _relative(place, before):
+                return context
+    return Context(reproduces=False)
+
+
+def _relative(place: WindowPlace, before: int) -> list[Verdict]:
+    """The window's verdicts with requests counted from the cut's first frame."""
+    assert place.first_index is not None
+    shift = place.first_index - before
+    # A request before the cut has no index in it: a value no decoding gives (NONE is -1).
+    return [(size, role, flags, NONE if request == NONE else request - shift if request >= shift else OUTSIDE, latency)
+            for size, role, flags, request, latency in place.verdicts]
+
+
+def _verdicts(batch: ChunkBatch, decoder: Decoder) -> list[Verdict]:
+    """Every frame's verdict when ``batch`` is decoded alone, in frame order."""
+    rows: list[Verdict] = []
+    for decoded in (*decoder.feed(batch), *decoder.flush()):
+        rows += zip(np.diff(decoded.frames.offsets).tolist(), decoded.role.tolist(), decoded.flags.tolist(),
+                    decoded.request_index.tolist(), decoded.latency_ns.tolist(), strict=True)
+    return rows

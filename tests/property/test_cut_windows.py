@@ -1,16 +1,17 @@
 """Hypothesis: ``cut`` of any window of the samples and the real recordings, exact or as a host
-read loop delivered them, gives under ``analyze`` the window's frames with the bytes and the times
-they had in the whole capture (to the nanosecond of rounding a character time; issue 66: a host
-cut kept its last read's time and moved the last frame by up to 11.5 ms). A damaged frame is
-placed by the evidence around it: alone at a cut's edge it may read as noise, which is placed
-from its first byte, so only CRC-valid frames are held to their times; every byte is held to
-its place."""
+read loop delivered them, gives under ``analyze`` the window's frames with the bytes, the times
+(to the nanosecond of rounding a character time) and the verdicts (role, flags, the request an
+answer pairs with, latency) they had in the whole capture (issue 66: a host cut kept its last
+read's time and moved the last frame by up to 11.5 ms; half the cuts lost pairings, retries and
+timeouts at their edges). A cut takes the frames of context that make it so, and its note says
+where the window is in it."""
 
 from __future__ import annotations
 
 import io
 import json
 import os
+import re
 import tempfile
 from contextlib import redirect_stderr, redirect_stdout
 from functools import cache
@@ -68,10 +69,24 @@ def test_a_cut_gives_the_window_s_frames_and_times(which: int, around: int, cont
         assert main(["cut", str(path), "-o", str(cut), "--around", str(index), "--context", str(context),
                      "--force", "-q"]) == 0, err.getvalue()
     window = whole[max(0, index - context) : index + context + 1]
-    got = _frames(str(cut))
+    before = _window_start(cut)
+    got = _frames(str(cut))[before : before + len(window)]
+    shift = window[0]["index"] - before
     assert [f["hex"] for f in got] == [f["hex"] for f in window]
     for mine, theirs in zip(got, window, strict=True):
-        if not theirs["crc_ok"]:
-            continue
+        request = theirs["request_index"] - shift if theirs["request_index"] is not None else None
+        assert (mine["role"], mine["flags"], mine["request_index"], mine["latency_s"]) == \
+            (theirs["role"], theirs["flags"], request, theirs["latency_s"]), (path.name, theirs["index"])
         assert abs(mine["t_ns"] - theirs["t_ns"]) <= 1 and abs(mine["t_end_ns"] - theirs["t_end_ns"]) <= 1, \
             (path.name, theirs["index"])
+
+
+def _window_start(cut: Path) -> int:
+    """Where the window begins in a cut: its note says so when it took frames of context."""
+    from sniffer.io.registry import open_reader
+
+    reader = open_reader(str(cut))
+    notes = reader.info.notes
+    reader.close()
+    found = [re.search(r"the window is frames #(\d+)\.\.", note) for note in notes]
+    return next((int(m.group(1)) for m in found if m), 0)
