@@ -44,13 +44,21 @@ class Decoder:
         self.line_check = LineRateCheck(line, timing)
 
     def feed(self, batch: ChunkBatch) -> list[MessageBatch]:
-        """The messages ``batch`` completes. A batch that ends with a chunk without bytes says the
-        line was heard, quiet, until that chunk's time (a live capture's recording ends so): it
-        counts as a :meth:`tick` then, so that the recording decodes as the live view did."""
+        """The messages ``batch`` completes. A chunk without bytes says the line was heard, quiet,
+        until its time (a live capture's recording ends with one): it counts as a :meth:`tick`
+        then, wherever it stands, so that a recording decodes as the live view did."""
         self.line_check.feed(batch)
-        decoded = [self._published(self._matched(self.framer.feed(batch)))]
-        if len(batch) and batch.ends[-1] == (batch.ends[-2] if len(batch) > 1 else 0):
-            decoded += self.tick(int(batch.t_end_ns[-1]))
+        heard = np.flatnonzero(np.diff(batch.ends, prepend=0) == 0) if len(batch) else batch.ends[:0]
+        if not len(heard):
+            return [self._published(self._matched(self.framer.feed(batch)))]
+        decoded, start = [], 0
+        for at in heard.tolist():
+            if at > start:
+                decoded.append(self._published(self._matched(self.framer.feed(batch.slice(start, at)))))
+            decoded += self.tick(int(batch.t_end_ns[at]))
+            start = at + 1
+        if start < len(batch):
+            decoded.append(self._published(self._matched(self.framer.feed(batch.slice(start, len(batch))))))
         return decoded
 
     def _matched(self, frames: FrameBatch) -> MessageBatch:

@@ -100,20 +100,30 @@ def test_mcap_notes_that_are_no_text_are_one_line_in_every_output(cli: Cli, tmp_
         assert len(result.err.strip().splitlines()) == 1 and "notes" in result.err
 
 
-def test_a_chunk_without_bytes_converts_and_cuts_to_text_with_a_note(cli: Cli, tmp_path: Path) -> None:
+def test_a_chunk_without_bytes_round_trips_through_text(cli: Cli, tmp_path: Path) -> None:
+    """A chunk without bytes (the moment a live capture last heard the line) was a traceback in
+    convert and cut to text: it is a ``# heard-until:`` line there, read back as the same chunk."""
     source = tmp_path / "empty-chunk.mcap"
+    chunks = [Chunk(1_700_000_000_000_000_000, bytes.fromhex("010300000001840A")),
+              Chunk(1_700_000_000_001_000_000, b""),
+              Chunk(1_700_000_000_010_000_000, bytes.fromhex("01030200056B87")),
+              Chunk(1_700_000_002_000_000_000, b"")]
     writer = open_writer(str(source), CaptureInfo(LINE, TimingQuality.EXACT, ()), "mcap")
-    writer.write_batch(ChunkBatch.from_chunks([Chunk(1_700_000_000_000_000_000, bytes.fromhex("010300000001840A")),
-                                               Chunk(1_700_000_000_001_000_000, b""),
-                                               Chunk(1_700_000_000_010_000_000, bytes.fromhex("01030200056B87"))]))
+    writer.write_batch(ChunkBatch.from_chunks(chunks))
     writer.close()
-    text = tmp_path / "out.log"
+    text, back = tmp_path / "out.log", tmp_path / "back.mcap"
     assert cli("convert", str(source), str(text)).code == 0
-    assert "# 1 chunk(s) without bytes, the first at 1700000000.001000000" in text.read_text()
+    assert "# heard-until: 1700000000.001000000\n" in text.read_text()
+    assert cli("convert", str(text), str(back)).code == 0
+    reader = open_reader(str(back))
+    assert [(c.t_end_ns, c.data) for b in reader.batches() for c in b.chunks()] == [(c.t_end_ns, c.data) for c in chunks]
+    reader.close()
     cut = cli("cut", str(source), "-o", str(tmp_path / "cut.log"), "--limit", "2")
     assert cut.code == 0, cut.err
-    assert "without bytes" in (tmp_path / "cut.log").read_text()
-    assert json.dumps(open_reader(str(text)).info.notes)  # readable back
+    bad = tmp_path / "bad.log"
+    bad.write_text("# rtu-capture v1\n# line: 19200 8E1\n1.0 01\n# heard-until: soon\n")
+    result = cli("stats", str(bad))
+    assert result.code == 7 and "'# heard-until:' 'soon' is not a time" in result.err
 
 
 def test_every_shipped_capture_reads_the_same_through_text(cli: Cli, tmp_path: Path) -> None:

@@ -69,7 +69,9 @@ def channel_name(token: str) -> str:
 
 
 NOTE_MARK = "(note) "
-_DIRECTIVE = re.compile(r"\s*(rtu-capture|line|timing|channels?|uart-errors)\b", re.IGNORECASE)
+_DIRECTIVE = re.compile(r"\s*(rtu-capture|line|timing|channels?|uart-errors|heard-until)\b", re.IGNORECASE)
+#: ``# heard-until: TIME``: a chunk without bytes, the line heard (quiet) until then.
+HEARD_UNTIL_PREFIX = "# heard-until: "
 
 
 def comment_lines(note: str) -> list[str]:
@@ -111,19 +113,12 @@ class TextCaptureWriter:
         self.flush()  # on disk at once: a capture killed before its first line still says what it is
         self._channels = info.channels
         self._channel = 0
-        #: Chunks without bytes (an MCAP can hold them; a live capture's recording ends with one,
-        #: saying until when the line was heard) have no data line: a note at the end says how
-        #: many, and when the first and the last were, so that nothing read goes unsaid.
-        self._empty_chunks = 0
-        self._first_empty_ns = self._last_empty_ns = 0
 
     def write_batch(self, batch: ChunkBatch) -> None:
         lines = []
         for chunk in batch.chunks():
-            if not chunk.data:
-                self._first_empty_ns = self._first_empty_ns if self._empty_chunks else chunk.t_end_ns
-                self._last_empty_ns = chunk.t_end_ns
-                self._empty_chunks += 1
+            if not chunk.data:  # no data line: the line heard until then (a live capture's recording ends so)
+                lines.append(f"{HEARD_UNTIL_PREFIX}{format_time_ns(chunk.t_end_ns)}\n")
                 continue
             if chunk.channel != self._channel:
                 self._channel = chunk.channel
@@ -150,10 +145,6 @@ class TextCaptureWriter:
         return self._stream.tell() if self._stream is not sys.stdout else 0
 
     def close(self) -> None:
-        if self._empty_chunks:
-            self.add_notes([f"{self._empty_chunks} chunk(s) without bytes, the first at "
-                            f"{format_time_ns(self._first_empty_ns)}, have no data line in this format (the last, at "
-                            f"{format_time_ns(self._last_empty_ns)}: until when the line was heard)"])
         self.flush()
         if self._stream is not sys.stdout:
             self._stream.close()

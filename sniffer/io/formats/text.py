@@ -41,6 +41,7 @@ _HEADER_KEY = re.compile(r"#\s*(line|timing)\s*:\s*(.*)$", re.IGNORECASE)
 _UART_ERRORS = re.compile(r"#\s*uart-errors\s*:\s*(.*)$", re.IGNORECASE)
 _CHANNELS = re.compile(r"#\s*channels\s*:\s*(.*)$", re.IGNORECASE)
 _CHANNEL = re.compile(r"#\s*channel\s*:\s*(\S+)\s*$", re.IGNORECASE)
+_HEARD_UNTIL = re.compile(r"#\s*heard-until\s*:\s*(\S+)\s*$", re.IGNORECASE)
 _UART_MARK = re.compile(r"(\d+)\s+(framing\+parity|framing|parity)", re.IGNORECASE | re.ASCII)
 #: Bytes read from the end of a file to find its last time (progress).
 TAIL_BYTES = 65536
@@ -254,12 +255,15 @@ class TextCaptureReader:
         notes.append(note)
 
     def _comment(self, lines: _Lines, line_number: int, text: str) -> None:
-        """A note, or the UART errors of the data line just read."""
+        """A note, a line's channel, the moment the line was heard until, or the UART errors of
+        the data line just read."""
         errors = _UART_ERRORS.match(text)
         if errors is None:
-            channel = _CHANNEL.match(text)
+            channel, heard = _CHANNEL.match(text), _HEARD_UNTIL.match(text)
             if channel is not None:
                 self._channel = self._channel_code(self._channels, channel.group(1), line_number)
+            elif heard is not None:
+                lines.add(self._heard_until(lines, heard.group(1), line_number), b"", self._channel)
             else:
                 self._keep_note(self.late_notes, text[1:].strip())
             return
@@ -277,6 +281,16 @@ class TextCaptureReader:
                 raise self._error(ErrorKind.BAD_DATA, f"UART error at byte {position} of a line of {size} "
                                   f"byte{'s' if size != 1 else ''}", line_number)
             lines.mark(position, UART_ERROR_KINDS[mark.group(2).lower()])
+
+    def _heard_until(self, lines: _Lines, text: str, line_number: int) -> int:
+        """The time of a ``# heard-until:`` line: a time as data lines have, not before the last."""
+        t_ns = parse_time_ns(text)
+        if t_ns is None or t_ns > MAX_TIME_NS:
+            raise self._error(ErrorKind.BAD_DATA, f"'# heard-until:' {_shown(text)} is not a time", line_number)
+        if lines.times and t_ns < lines.times[-1]:
+            raise self._error(ErrorKind.DECREASING_TIME, f"'# heard-until:' {text} is before the line above",
+                              line_number)
+        return t_ns
 
     def _data_lines(self) -> Iterator[tuple[int, str]]:
         if self._first_data is not None:
