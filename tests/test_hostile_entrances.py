@@ -116,7 +116,8 @@ def test_a_chunk_without_bytes_round_trips_through_text(cli: Cli, tmp_path: Path
     assert "# heard-until: 1700000000.001000000\n" in text.read_text()
     assert cli("convert", str(text), str(back)).code == 0
     reader = open_reader(str(back))
-    assert [(c.t_end_ns, c.data) for b in reader.batches() for c in b.chunks()] == [(c.t_end_ns, c.data) for c in chunks]
+    read = [(c.t_end_ns, c.data) for b in reader.batches() for c in b.chunks()]
+    assert read == [(c.t_end_ns, c.data) for c in chunks]
     reader.close()
     cut = cli("cut", str(source), "-o", str(tmp_path / "cut.log"), "--limit", "2")
     assert cut.code == 0, cut.err
