@@ -253,7 +253,7 @@ def following(scratch: Path) -> Family:
 def families(scratch: Path, per_family: int, rng: random.Random, *, quick: bool) -> Iterator[Family]:
     yield line_names(scratch, quick=quick)
     yield logic_and_pcap_readers(scratch, quick=quick)
-    yield mcap_metadata(scratch, 3 if quick else per_family * 5, rng)
+    yield mcap_metadata(scratch, 1 if quick else per_family * 5, rng)
     yield outputs_over_inputs(scratch, quick=quick)
     yield reports_and_datasets(scratch)
     if not quick:
