@@ -33,6 +33,7 @@ from sniffer.exports.capture_cut import (
     PastWindow,
     WindowFinder,
     WindowPlace,
+    cut_batch,
     reproducing_context,
     window_chunks,
 )
@@ -84,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     if place.first_index is None:
         missed = finder.missed() or "no frame in the window"
         raise RtuSniffError(ErrorKind.NO_DATA, f"{missed}; nothing to cut", path=source_name(args))
-    context = _context(args, place, analysis)
+    context, held = _context(args, place, analysis)
     start, end = context.span(place)
     notes = [_provenance(args, place, context, Clock(args.time))]
     edges = place.edges() if not context.reproduces else None
@@ -94,13 +95,18 @@ def run(args: argparse.Namespace) -> int:
     with published_whole(args.output) as target:
         writer = open_writer(target, info, args.output_format)
         try:
-            second = open_capture(capture_paths(args), args.input_format, reader_options(args))
-            try:
-                for batch in window_chunks(second.batches(), (start, end), line):
-                    writer.write_batch(batch)
-                    chunks += len(batch)
-            finally:
-                close_reader(second)
+            if held is not None:  # the bytes the search held: no second reading
+                batch = cut_batch(held[0], start - held[1], end - held[1], line)
+                writer.write_batch(batch)
+                chunks = len(batch)
+            else:
+                second = open_capture(capture_paths(args), args.input_format, reader_options(args))
+                try:
+                    for batch in window_chunks(second.batches(), (start, end), line):
+                        writer.write_batch(batch)
+                        chunks += len(batch)
+                finally:
+                    close_reader(second)
         finally:
             writer.close()
     extra = f", with {context.before} frame(s) before and {context.after} after" if context.before or context.after \
@@ -113,20 +119,24 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _context(args: argparse.Namespace, place: WindowPlace, analysis: Analysis) -> Context:
+def _context(args: argparse.Namespace, place: WindowPlace,
+             analysis: Analysis) -> tuple[Context, tuple[ChunkBatch, int] | None]:
     """The context with which the cut decodes as the window did in the whole capture
-    (:func:`~sniffer.exports.capture_cut.reproducing_context`), over the bytes it may take."""
+    (:func:`~sniffer.exports.capture_cut.reproducing_context`), and the bytes searched (the
+    window with the most context it may take, and where they begin), which the cut is written
+    from; none for a window too long to search."""
     if len(place.verdicts) > SEARCHED_FRAMES:
-        return Context(reproduces=False)
+        return Context(reproduces=False), None
     widest = Context(len(place.before), len(place.after)).span(place)
     reader = open_capture(capture_paths(args), args.input_format, reader_options(args))
     try:
         held = ChunkBatch.concat(list(window_chunks(reader.batches(), widest, analysis.line)))
     finally:
-        reader.close()
-    return reproducing_context(place, held, widest[0], analysis.line,
-                               lambda: Decoder(analysis.line, analysis.timing,
-                                               response_timeout_ns=analysis.response_timeout_ns))
+        close_reader(reader)
+    context = reproducing_context(place, held, widest[0], analysis.line,
+                                  lambda: Decoder(analysis.line, analysis.timing,
+                                                  response_timeout_ns=analysis.response_timeout_ns))
+    return context, (held, widest[0])
 
 
 def _provenance(args: argparse.Namespace, place: WindowPlace, context: Context, clock: Clock) -> str:
