@@ -50,6 +50,8 @@ def uart_error_name(kind: int) -> str:
     return "+".join(name for flag, name in UART_ERROR_NAMES.items() if kind & flag)
 
 
+#: The latest time a chunk can have: times are 64-bit nanoseconds since the epoch (the year 2262).
+MAX_TIME_NS = 2**63 - 1
 #: Byte positions (within a chunk, a frame...) with a UART error, and its kind.
 UartErrorMarks = tuple[tuple[int, int], ...]
 UInt8Array = npt.NDArray[np.uint8]

@@ -48,18 +48,22 @@ class Decoder:
         until its time (a live capture's recording ends with one): it counts as a :meth:`tick`
         then, wherever it stands, so that a recording decodes as the live view did."""
         self.line_check.feed(batch)
-        heard = np.flatnonzero(np.diff(batch.ends, prepend=0) == 0) if len(batch) else batch.ends[:0]
-        if not len(heard):
-            return [self._published(self._matched(self.framer.feed(batch)))]
+        heard = np.flatnonzero(np.diff(batch.ends, prepend=0) == 0).tolist()
+        if not heard:
+            return [self._decoded(self.framer.feed(batch))]
         decoded, start = [], 0
-        for at in heard.tolist():
+        for at in heard:
             if at > start:
-                decoded.append(self._published(self._matched(self.framer.feed(batch.slice(start, at)))))
+                decoded.append(self._decoded(self.framer.feed(batch.slice(start, at))))
             decoded += self.tick(int(batch.t_end_ns[at]))
             start = at + 1
         if start < len(batch):
-            decoded.append(self._published(self._matched(self.framer.feed(batch.slice(start, len(batch))))))
+            decoded.append(self._decoded(self.framer.feed(batch.slice(start, len(batch)))))
         return decoded
+
+    def _decoded(self, frames: FrameBatch) -> MessageBatch:
+        """``frames`` paired, with the latencies this capture's timing can publish."""
+        return self._published(self._matched(frames))
 
     def _matched(self, frames: FrameBatch) -> MessageBatch:
         if not self.measures_latency:
@@ -72,13 +76,13 @@ class Decoder:
         """Live capture: what the passing of time alone completes (idle line, timeouts). Time
         counts for a timeout only up to the bytes the framer still holds: they may be the
         answer, and offline they would have been framed before the next frame judged it."""
-        framed = self._published(self._matched(self.framer.close_idle(now_ns)))
+        framed = self._decoded(self.framer.close_idle(now_ns))
         held_since = self.framer.held_since_ns()
         heard_ns = now_ns if held_since is None else min(now_ns, held_since)
         return [framed, self._published(self.matcher.tick(heard_ns))]
 
     def flush(self) -> list[MessageBatch]:
-        return [self._published(self._matched(self.framer.flush())), self._published(self.matcher.flush())]
+        return [self._decoded(self.framer.flush()), self._published(self.matcher.flush())]
 
     def _published(self, batch: MessageBatch) -> MessageBatch:
         if self.measures_latency:

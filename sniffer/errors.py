@@ -28,6 +28,12 @@ class ErrorKind(Enum):
         return self.value
 
 
+def shown(text: str, limit: int = 40) -> str:
+    """``text`` quoted for an error line, cut to ``limit`` characters (a hostile file's value
+    may be megabytes long)."""
+    return repr(text) if len(text) <= limit else f"{text[:limit]!r}… ({len(text):,} characters)"
+
+
 class RtuSniffError(Exception):
     """An error in a file or an option, reported as ``error: WHERE: WHAT``."""
 

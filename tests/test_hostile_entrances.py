@@ -125,6 +125,11 @@ def test_a_chunk_without_bytes_round_trips_through_text(cli: Cli, tmp_path: Path
     bad.write_text("# rtu-capture v1\n# line: 19200 8E1\n1.0 01\n# heard-until: soon\n")
     result = cli("stats", str(bad))
     assert result.code == 7 and "'# heard-until:' 'soon' is not a time" in result.err
+    # In order with the data lines, both ways: times never decrease.
+    for text in ("2.0 01\n# heard-until: 1.0\n", "# heard-until: 5.0\n3.0 01\n"):
+        bad.write_text("# rtu-capture v1\n# line: 19200 8E1\n1.0 01\n" + text)
+        result = cli("stats", str(bad))
+        assert result.code == 8 and "is before the previous line's" in result.err, result.err
 
 
 def test_every_shipped_capture_reads_the_same_through_text(cli: Cli, tmp_path: Path) -> None:

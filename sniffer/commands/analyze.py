@@ -83,11 +83,11 @@ FORMATS: dict[str, Callable[[TextIO, argparse.Namespace], Sink]] = {"table": tab
 
 
 def run(args: argparse.Namespace) -> int:
-    check_outputs([args.output], capture_paths(args), force=args.force, following=getattr(args, "follow", False))
+    check_outputs([args.output], capture_paths(args), force=args.force, following=args.follow)
     check_streams(args)
     jobs = decoding_jobs(args.jobs, follow=args.follow, paced=replay_speed(args) is not None)
     with ExitStack() as stack:
-        out = open_output(args.output, stack, as_it_goes=getattr(args, "follow", False))
+        out = open_output(args.output, stack, as_it_goes=args.follow)
         reader, analysis = open_analysis(args, stack)
         sink = FORMATS[args.format](out, args)
         streams = stream_sinks(args, replay=True)

@@ -72,7 +72,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run(args: argparse.Namespace) -> int:
-    check_outputs([args.output], capture_paths(args), force=args.force, following=getattr(args, "follow", False))
+    check_outputs([args.output], capture_paths(args), force=args.force)
     with ExitStack() as stack:
         reader, analysis = open_analysis(args, stack)
         if not analysis.selection.windowed and analysis.selection.limit is None:
@@ -87,9 +87,9 @@ def run(args: argparse.Namespace) -> int:
         raise RtuSniffError(ErrorKind.NO_DATA, f"{missed}; nothing to cut", path=source_name(args))
     context, held = _context(args, place, analysis)
     start, end = context.span(place)
-    notes = [_provenance(args, place, context, Clock(args.time))]
+    note = _provenance(args, place, context, Clock(args.time))
     edges = place.edges() if not context.reproduces else None
-    info = CaptureInfo(line, timing, (*info.notes, *notes, *([edges] if edges else [])), info.channels)
+    info = CaptureInfo(line, timing, (*info.notes, note, *([edges] if edges else [])), info.channels)
     chunks = 0
     # A cut that stops where reading broke would pass for the window: it appears only whole.
     with published_whole(args.output) as target:

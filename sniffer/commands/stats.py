@@ -57,11 +57,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run(args: argparse.Namespace) -> int:
-    check_outputs([args.output], capture_paths(args), force=args.force, following=getattr(args, "follow", False))
+    check_outputs([args.output], capture_paths(args), force=args.force, following=args.follow)
     if args.each:
         return _run_each(args)
     with ExitStack() as stack:
-        out = open_output(args.output, stack, as_it_goes=getattr(args, "follow", False))
+        out = open_output(args.output, stack, as_it_goes=args.follow)
         reader, analysis = open_analysis(args, stack)
         view = _view(out, args)
         progress = stack.enter_context(progress_for(args, reader, streaming=False))
@@ -94,7 +94,7 @@ def _run_each(args: argparse.Namespace) -> int:
         captures.append({"source": side.source, "line": side.line, "timing": side.timing})
     done = tally.done
     with ExitStack() as stack:
-        out = open_output(args.output, stack, as_it_goes=getattr(args, "follow", False))
+        out = open_output(args.output, stack, as_it_goes=args.follow)
         view = _view(out, args)
         if first is not None:
             line = LineSettings.parse(first.line)

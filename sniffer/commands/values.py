@@ -53,10 +53,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 
 
 def run(args: argparse.Namespace) -> int:
-    check_outputs([args.output], capture_paths(args), force=args.force, following=getattr(args, "follow", False))
+    check_outputs([args.output], capture_paths(args), force=args.force)
     choice = ValueChoice(frozenset(args.slave or ()), frozenset(args.param or ()), args.changes)
     with ExitStack() as stack:
-        out = open_output(args.output, stack, as_it_goes=getattr(args, "follow", False))
+        out = open_output(args.output, stack)
         reader, analysis = open_analysis(args, stack)
         view = ValuesView(out, choice, as_json=args.format == "jsonl", wide=args.wide, time_mode=args.time)
         progress = stack.enter_context(progress_for(args, reader, streaming=args.output in (None, "-")))

@@ -59,9 +59,8 @@ class WindowPlace:
     t_last_ns: int = 0
     byte_start: int = 0
     byte_end: int = 0
-    #: Answers in the window whose requests lie before it, and retries whose first attempt does:
-    #: analyzed alone, the cut cannot pair them or call them retries.
-    answers_cut_off: int = 0
+    #: Retries in the window whose first attempt lies before it: analyzed alone, the cut cannot
+    #: call them retries (its answers whose requests lie before it, the verdicts say).
     retries_cut_off: int = 0
     #: The byte spans of up to ``CONTEXT`` frames before and after the window, in wire order.
     before: list[tuple[int, int]] = field(default_factory=list)
@@ -72,8 +71,10 @@ class WindowPlace:
 
     def edges(self) -> str | None:
         """What the cut's edges split, said in its note and a warning; ``None`` when nothing."""
+        assert self.first_index is not None
+        answers = sum(request != NONE and request < self.first_index for *_, request, _ in self.verdicts)
         parts = [f"{count} {what} whose {other} lie{'s' if count == 1 else ''} before it" for count, what, other in
-                 ((self.answers_cut_off, "answer" if self.answers_cut_off == 1 else "answers", "request"),
+                 ((answers, "answer" if answers == 1 else "answers", "request"),
                   (self.retries_cut_off, "retry" if self.retries_cut_off == 1 else "retries", "first attempt"))
                  if count]
         return f"the cut begins mid-exchange: {' and '.join(parts)}, which the cut alone does not pair" if parts \
@@ -99,12 +100,8 @@ class WindowFinder(Sink):
         self._asked: set[int] = set()
         self._recent: deque[tuple[int, int]] = deque(maxlen=CONTEXT)
 
-    def _edges(self, batch: MessageBatch, begin: int, end: int) -> None:
-        """Count the window's answers and retries whose other half lies before the window."""
-        first = self.place.first_index
-        assert first is not None
-        requests = batch.request_index[begin:end]
-        self.place.answers_cut_off += int(((requests != NONE) & (requests < first)).sum())
+    def _count_retries(self, batch: MessageBatch, begin: int, end: int) -> None:
+        """Count the window's retries whose first attempt lies before the window."""
         roles, slaves, flags = batch.role[begin:end].tolist(), batch.slave[begin:end].tolist(), \
             batch.flags[begin:end].tolist()
         for role, slave, flag in zip(roles, slaves, flags, strict=True):
@@ -135,13 +132,13 @@ class WindowFinder(Sink):
             place.last_index = frames.first_index + end - 1
             place.t_last_ns = int(frames.t_end_ns[end - 1])
             place.byte_end = spans[end - 1][1]
-            self._edges(batch, begin, end)
+            self._count_retries(batch, begin, end)
             place.verdicts += zip(np.diff(frames.offsets[begin : end + 1]).tolist(), batch.role[begin:end].tolist(),
                                   batch.flags[begin:end].tolist(), batch.request_index[begin:end].tolist(),
                                   batch.latency_ns[begin:end].tolist(), strict=True)
         if place.first_index is None:
             self._recent.extend(spans)
-        elif self._window.past or self._full() or complete:
+        elif self._window.past or self._full():
             place.after += spans[end:][: CONTEXT - len(place.after)]
         self._offset += len(frames.data)
         if place.first_index is not None and (self._window.past or self._full()) and len(place.after) >= CONTEXT:
@@ -209,10 +206,8 @@ def reproducing_context(place: WindowPlace, held: ChunkBatch, held_from: int, li
     """The least context (fewest frames, those before first) with which the bytes ``held``
     (from byte ``held_from`` of the capture) decode to the window's verdicts: every frame of the
     window with its length, role, flags, request and latency. No context, not reproducing, when
-    none of up to ``CONTEXT`` frames a side does, or the window is longer than
-    :data:`SEARCHED_FRAMES`."""
-    if len(place.verdicts) > SEARCHED_FRAMES:
-        return Context(reproduces=False)
+    none of up to ``CONTEXT`` frames a side does (the caller searches windows of up to
+    :data:`SEARCHED_FRAMES`)."""
     for extra in range(len(place.before) + len(place.after) + 1):
         for before in range(min(extra, len(place.before)) + 1):
             after = extra - before

@@ -67,6 +67,8 @@ def bus_name_fault(name: str) -> str | None:
     if name.strip(". ") == "" or name != name.strip():
         return "a bus name is more than dots, and neither begins nor ends with a space"
     return None
+
+
 #: Rows gathered per file before they are written as a row group.
 ROW_GROUP_ROWS = 1 << 17
 TIME = pa.timestamp("ns", tz="UTC")

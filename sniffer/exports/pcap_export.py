@@ -18,6 +18,7 @@ from typing import BinaryIO
 
 import numpy as np
 
+from decoders.capture import MAX_TIME_NS
 from decoders.damage import uart_error_note
 from decoders.frame import FrameBatch, FrameFlag, flag_set
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, MessageBatch, Role
@@ -84,8 +85,7 @@ def pcap_records(batch: MessageBatch) -> bytes:
     headers = np.empty(count, _RECORD)
     _refuse_outside(frames, CLASSIC_LAST_NS, "a classic pcap's 32-bit seconds hold (1970 to 2106): write .pcapng, "
                     "whose times have 64 bits")
-    seconds, nanos = np.divmod(frames.t_start_ns, 1_000_000_000)
-    headers["seconds"], headers["nanos"] = seconds, nanos
+    headers["seconds"], headers["nanos"] = np.divmod(frames.t_start_ns, 1_000_000_000)
     headers["captured"] = headers["length"] = lengths
     out = np.empty(count * _RECORD.itemsize + len(frames.data), np.uint8)
     # Record i starts after i headers and the bytes of the frames before it.
@@ -127,7 +127,7 @@ def pcapng_blocks(batch: MessageBatch) -> bytes:
     """An enhanced packet block per frame: its bytes at its start time, its direction (a request
     goes out from the master, an answer comes in) and a comment saying what rtusniff made of it."""
     frames = batch.frames
-    _refuse_outside(frames, 2**63 - 1, "a pcapng's unsigned times hold (from 1970)")
+    _refuse_outside(frames, MAX_TIME_NS, "a pcapng's unsigned times hold (from 1970)")
     blocks = []
     data, offsets, frame_rows = frames.data, frames.offsets.tolist(), frames.rows()
     columns = zip(frames.t_start_ns.tolist(), batch.role.tolist(), batch.request_index.tolist(),

@@ -21,6 +21,7 @@ import hashlib
 import hmac
 from dataclasses import replace
 
+import zstandard
 from mcap.records import Chunk
 
 #: The field that holds a metadata record's digest.
@@ -39,8 +40,6 @@ def inflated(chunk: Chunk) -> Chunk:
         return chunk
     limit = chunk.uncompressed_size
     if chunk.compression == "zstd":
-        import zstandard  # noqa: PLC0415 - the reader imports it anyway
-
         # decompress() allocates what the frame header claims, whatever the bound it is given:
         # a claim beyond the chunk's is refused before; without a claim the bound holds.
         claimed = zstandard.frame_content_size(chunk.data)

@@ -18,7 +18,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.capture import MAX_TIME_NS, CaptureInfo, ChunkBatch, TimingQuality
 from sniffer.errors import CaptureFormatError, ErrorKind
 from sniffer.io.base import ReaderOptions, max_read_bytes, read_limit_message
 
@@ -34,8 +34,6 @@ _BYTE_ORDER_MAGIC = 0x1A2B3C4D
 _INTERFACE, _ENHANCED, _SIMPLE, _OBSOLETE_PACKET = 1, 6, 3, 2
 BATCH_CHUNKS = 4096
 NS_PER_S = 1_000_000_000
-#: Times are kept as 64-bit nanoseconds.
-MAX_TIME_NS = 2**63 - 1
 
 
 class PcapCaptureReader:

@@ -28,7 +28,7 @@ import numpy.typing as npt
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from decoders.uart import UartCharacters, UartDecoder, baud_candidates, character_chunks, merge_characters, pulse_baud
-from sniffer.errors import CaptureFormatError, ErrorKind
+from sniffer.errors import CaptureFormatError, ErrorKind, shown
 from sniffer.io.base import ChannelChoiceError, ReaderOptions, chosen_channels
 from sniffer.io.polarity import chosen_polarity, errors_in
 
@@ -130,13 +130,13 @@ class SigrokSessionReader:
         rate = _RATE.fullmatch(text.strip())
         hz = float(rate[1]) * _SCALE[rate[2].lower()] if rate is not None else 0.0
         if not 0 < hz <= MAX_RATE_HZ:
-            raise self._error(f"metadata: samplerate {_shown(text)} is not a rate (1 Hz to 100 GHz)",
+            raise self._error(f"metadata: samplerate {shown(text)} is not a rate (1 Hz to 100 GHz)",
                               ErrorKind.BAD_HEADER)
         return hz
 
     def _unit_size(self, text: str) -> int:
         if not re.fullmatch(r"[1-8]", text.strip()):
-            raise self._error(f"metadata: unitsize {_shown(text)} is not 1 to 8 (bytes per sample)",
+            raise self._error(f"metadata: unitsize {shown(text)} is not 1 to 8 (bytes per sample)",
                               ErrorKind.BAD_HEADER)
         return int(text)
 
@@ -148,7 +148,7 @@ class SigrokSessionReader:
             if number is None:
                 continue
             if not (len(number[1]) <= 3 and 1 <= int(number[1]) <= 8 * self._unit):
-                raise self._error(f"metadata: {_shown(key)} is no probe of a session of {self._unit}-byte samples "
+                raise self._error(f"metadata: {shown(key)} is no probe of a session of {self._unit}-byte samples "
                                   f"(probe1 to probe{8 * self._unit})", ErrorKind.BAD_HEADER)
             probes[int(number[1])] = value
         return probes
@@ -215,7 +215,7 @@ class SigrokSessionReader:
         return inverted
 
     def _first_levels(self, probe: int) -> npt.NDArray[np.bool_]:
-        """``probe``'s levels over the first :data:`DETECTION_SAMPLES` samples (whole sample files)."""
+        """``probe``'s levels over the first :data:`DETECTION_SAMPLES` samples (whole pieces)."""
         pieces, count = [], 0
         for words in self._pieces():
             pieces.append(self._level(words, probe))
@@ -303,10 +303,6 @@ class SigrokSessionReader:
 
     def close(self) -> None:
         self._zip.close()
-
-
-def _shown(text: str, limit: int = 24) -> str:
-    return repr(text) if len(text) <= limit else f"{text[:limit]!r}… ({len(text):,} characters)"
 
 
 def _merged(parts: list[UartCharacters], *, before: float) -> tuple[UartCharacters | None, list[UartCharacters]]:

@@ -67,7 +67,6 @@ def channel_name(token: str) -> str:
         raise ValueError(f"escaped bytes are not UTF-8 ({error.reason})") from None
 
 
-
 NOTE_MARK = "(note) "
 _DIRECTIVE = re.compile(r"\s*(rtu-capture|line|timing|channels?|uart-errors|heard-until)\b", re.IGNORECASE)
 #: ``# heard-until: TIME``: a chunk without bytes, the line heard (quiet) until then.

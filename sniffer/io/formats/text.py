@@ -24,17 +24,15 @@ from typing import BinaryIO, cast
 
 import numpy as np
 
-from decoders.capture import UART_ERROR_KINDS, CaptureInfo, ChunkBatch, TimingQuality
+from decoders.capture import MAX_TIME_NS, UART_ERROR_KINDS, CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
-from sniffer.errors import CaptureFormatError, ErrorKind
+from sniffer.errors import CaptureFormatError, ErrorKind, shown
 from sniffer.io.base import CaptureFormat, max_read_bytes, read_limit_message
 from sniffer.io.following import GrowingFile
 from sniffer.io.registry import STDIO
 from sniffer.io.text_writer import MAGIC, NO_CHANNEL, NS_PER_S, TextCaptureWriter, channel_name, format_time_ns
 
 _MAGIC_ANY_VERSION = re.compile(r"#\s*rtu-capture\s+v(\S+)")
-#: Times are kept as 64-bit nanoseconds.
-MAX_TIME_NS = 2**63 - 1
 #: Seconds of up to 19 digits (more cannot be a time: 2^63 ns is 9 223 372 036 s).
 _TIME = re.compile(r"[0-9]{1,19}(?:\.[0-9]{1,9})?")
 _HEADER_KEY = re.compile(r"#\s*(line|timing)\s*:\s*(.*)$", re.IGNORECASE)
@@ -77,6 +75,8 @@ class TextCaptureReader:
         #: The capture's line names, and the channel of the data lines that follow.
         self._channels: tuple[str, ...] = ()
         self._channel = 0
+        #: The time of the last data or ``# heard-until:`` line read: times never decrease.
+        self._last_ns = -1
         #: Comment lines found among the data lines, known once :meth:`batches` is done.
         self.late_notes: list[str] = []
         #: Notes kept so far (header and late) and the bytes they hold; comment lines past the
@@ -207,19 +207,13 @@ class TextCaptureReader:
 
     def batches(self) -> Iterator[ChunkBatch]:
         lines = _Lines()
-        previous_time = -1
         for line_number, text in self._data_lines():
             try:
                 if text.startswith("#"):
                     self._comment(lines, line_number, text)
                     continue
                 t_ns, data = self._parse_data_line(line_number, text)
-                if t_ns < previous_time:
-                    raise self._error(
-                        ErrorKind.DECREASING_TIME,
-                        f"time {format_time_ns(t_ns)} is before the previous line's {format_time_ns(previous_time)}",
-                        line_number,
-                    )
+                self._in_order(t_ns, "time", line_number)
             except CaptureFormatError as exc:
                 if not (self._unterminated and line_number == self._line_number):
                     raise
@@ -227,7 +221,6 @@ class TextCaptureReader:
                 self.warnings.append(f"{self.path}: cut short at line {line_number} (its last line is incomplete: "
                                      f"{exc.message}); everything before it was read")
                 break
-            previous_time = t_ns
             # A full batch goes once the next data line shows no error comment can follow it.
             if len(lines.times) >= BATCH_CHUNKS:
                 yield lines.batch()
@@ -263,7 +256,7 @@ class TextCaptureReader:
             if channel is not None:
                 self._channel = self._channel_code(self._channels, channel.group(1), line_number)
             elif heard is not None:
-                lines.add(self._heard_until(lines, heard.group(1), line_number), b"", self._channel)
+                lines.add(self._heard_until(heard.group(1), line_number), b"", self._channel)
             else:
                 self._keep_note(self.late_notes, text[1:].strip())
             return
@@ -282,15 +275,20 @@ class TextCaptureReader:
                                   f"byte{'s' if size != 1 else ''}", line_number)
             lines.mark(position, UART_ERROR_KINDS[mark.group(2).lower()])
 
-    def _heard_until(self, lines: _Lines, text: str, line_number: int) -> int:
-        """The time of a ``# heard-until:`` line: a time as data lines have, not before the last."""
+    def _heard_until(self, text: str, line_number: int) -> int:
+        """The time of a ``# heard-until:`` line: a time as data lines have, in order with them."""
         t_ns = parse_time_ns(text)
         if t_ns is None or t_ns > MAX_TIME_NS:
-            raise self._error(ErrorKind.BAD_DATA, f"'# heard-until:' {_shown(text)} is not a time", line_number)
-        if lines.times and t_ns < lines.times[-1]:
-            raise self._error(ErrorKind.DECREASING_TIME, f"'# heard-until:' {text} is before the line above",
-                              line_number)
+            raise self._error(ErrorKind.BAD_DATA, f"'# heard-until:' {shown(text)} is not a time", line_number)
+        self._in_order(t_ns, "'# heard-until:' time", line_number)
         return t_ns
+
+    def _in_order(self, t_ns: int, what: str, line_number: int) -> None:
+        """Times never decrease, data lines' and ``# heard-until:`` lines' alike."""
+        if t_ns < self._last_ns:
+            raise self._error(ErrorKind.DECREASING_TIME, f"{what} {format_time_ns(t_ns)} is before the previous "
+                              f"line's {format_time_ns(self._last_ns)}", line_number)
+        self._last_ns = t_ns
 
     def _data_lines(self) -> Iterator[tuple[int, str]]:
         if self._first_data is not None:
@@ -305,7 +303,7 @@ class TextCaptureReader:
         if t_ns is None:
             raise self._error(
                 ErrorKind.BAD_DATA,
-                f"bad time {_shown(time_text)}: expected seconds (up to 19 digits) with up to 9 decimals", line_number,
+                f"bad time {shown(time_text)}: expected seconds (up to 19 digits) with up to 9 decimals", line_number,
             )
         if t_ns > MAX_TIME_NS:
             limit = f"{MAX_TIME_NS // NS_PER_S} s (the year 2262)"
@@ -317,11 +315,6 @@ class TextCaptureReader:
         if not data:
             raise self._error(ErrorKind.BAD_DATA, "a data line needs at least one byte after the time", line_number)
         return t_ns, data
-
-
-def _shown(text: str, limit: int = 40) -> str:
-    """``text`` quoted for an error line, cut to ``limit`` characters."""
-    return repr(text) if len(text) <= limit else f"{text[:limit]!r}… ({len(text)} characters)"
 
 
 def _describe_bad_hex(hex_text: str) -> str:
