@@ -43,7 +43,7 @@ ROOT = Path(__file__).resolve().parent.parent
 #: (command, traffic) pairs timed unless --only names others.
 DEFAULT_CASES = ("stats:steady", "stats:polling", "jsonl:mixed", "jsonl:polling", "jsonl:coils", "mcap:mixed",
                  "mcap:polling", "mcap:coils")
-COMMANDS = ("stats", "jsonl", "table", "mcap", "parquet")
+COMMANDS = ("stats", "jsonl", "table", "values", "filtered", "mcap", "parquet")
 TRAFFICS = ("steady", "mixed", "polling", "coils", "wide")
 
 
@@ -55,6 +55,10 @@ def _argv(command: str, capture: Path, scratch: Path) -> list[str]:
         return ["analyze", str(capture), "--format", "jsonl"]
     if command == "table":
         return ["analyze", str(capture)]
+    if command == "values":
+        return ["values", str(capture), "--format", "csv"]
+    if command == "filtered":  # the piped table narrowed to answers
+        return ["analyze", str(capture), "--filter", "role=response"]
     output = scratch / f"out-{time.monotonic_ns()}"
     if command == "mcap":
         return ["export", str(capture), "--mcap", f"{output}.mcap", "-q"]

@@ -134,9 +134,6 @@ class Delivery:
         #: forked, so that it does not wait for the decoders it never runs to be imported.
         self._annotator: Annotator | None = None
         self._keep = keep
-        #: Whether plain frames stay in columns (every message sink takes them; nothing filtered).
-        self._in_columns = keep is None and not selection.windowed and selection.limit is None and all(
-            sink.takes_columnar for sink in self._message_sinks)
         self._window = Window(selection) if selection.windowed else None
         #: Frames the message sinks may still get (``--limit``), ``None``: no limit.
         self._left = selection.limit
@@ -205,7 +202,7 @@ class Delivery:
         kept = None
         if self._annotator is not None:
             annotator = self._annotator
-            annotated = annotator.annotate_columnar(batch) if self._in_columns else annotator.annotate_batch(batch)
+            annotated = annotator.annotate_columnar(batch)
             kept = annotated if self._keep is None else annotated.select(self._keep(annotated))
         if self._left is not None:
             batch, kept = self._limited(batch, kept)
@@ -234,7 +231,7 @@ class Delivery:
         if begin > 0:
             self._chunk_span.skipped_until(int(batch.frames.t_end_ns[begin - 1]))
         if self._annotator is not None and begin > 0:
-            self._annotator.annotate_batch(slice_messages(batch, max(begin - OPEN_REQUESTS_BEFORE, 0), begin))
+            self._annotator.annotate_columnar(slice_messages(batch, max(begin - OPEN_REQUESTS_BEFORE, 0), begin))
         return slice_messages(batch, begin, end)
 
     def _limited(self, batch: MessageBatch,
@@ -250,10 +247,7 @@ class Delivery:
         cut = shown[-1] + 1 if shown else 0
         self._left, self.done = 0, True
         batch = slice_messages(batch, 0, cut)
-        if kept is not None:
-            rows = None if kept.rows is None else np.array(shown, np.int64)
-            kept = AnnotatedBatch(batch, kept.decodings[:cut], rows)
-        return batch, kept
+        return batch, None if kept is None else kept.head(cut)
 
     def gap(self, skipped: SkippedReads) -> None:
         """Reads a live capture skipped (its decoder has restarted after them): counted, and told."""

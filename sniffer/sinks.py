@@ -8,8 +8,8 @@ of the list it was given,
 * ``chunks`` with the raw chunks as they are read (``wants_chunks``);
 * per decoded batch: ``frames`` with the framed and paired messages in columns,
   before annotation (``wants_frames``), then ``messages`` with the annotated
-  batch (``wants_messages``: only then does the pipeline annotate; its plain reads
-  in columns for sinks that all ``takes_columnar``), then
+  batch (``wants_messages``: only then does the pipeline annotate; every sink gets the same
+  :class:`~decoders.decoded_batch.AnnotatedBatch`), then
   ``prepared`` with what the sink's ``prepare`` made of that batch;
 * ``gap`` where a live capture skipped reads it could not decode in time;
 * ``interrupted`` where Ctrl-C stopped the command before the last batch (an output kept as far
@@ -51,9 +51,6 @@ class Sink:
     wants_frames = False
     wants_messages = False
     wants_statistics = False
-    #: Whether ``messages`` takes plain frames left in columns (``AnnotatedBatch.columnar``): when
-    #: every sink that wants messages does, and nothing is filtered, they are left so.
-    takes_columnar = False
     #: Whether the sink spends more per batch than per frame, and holds a batch only while it
     #: writes it: where every sink that wants messages does, the chunks of a capture read whole
     #: are joined into larger batches (``sniffer.pipeline.JOINED_BATCH_CHUNKS``).

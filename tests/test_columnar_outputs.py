@@ -116,11 +116,30 @@ def test_mcap(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[
 def test_table(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[Path], Path],
                setting: tuple[list[str], int]) -> None:
     """The table into a file (a line per frame); with ``--registers`` it reads every decoding,
-    and no frame stays in columns."""
+    those of frames in columns built from their columns."""
     source, (options, least) = capture(tmp_path), setting
     analyze = ["analyze", str(source), *options, "-o"]
     assert both_ways([*analyze, str(tmp_path / "columns.txt")], [*analyze, str(tmp_path / "plain.txt")]) >= least
     assert (tmp_path / "columns.txt").read_bytes() == (tmp_path / "plain.txt").read_bytes()
     registers = ["analyze", str(source), *options, "--registers", "s16", "-o"]
-    assert both_ways([*registers, str(tmp_path / "r-columns.txt")], [*registers, str(tmp_path / "r-plain.txt")]) == 0
+    assert both_ways([*registers, str(tmp_path / "r-columns.txt")],
+                     [*registers, str(tmp_path / "r-plain.txt")]) >= least
     assert (tmp_path / "r-columns.txt").read_bytes() == (tmp_path / "r-plain.txt").read_bytes()
+
+
+@CASES
+def test_values_and_filtered_outputs(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[Path], Path],
+                                     setting: tuple[list[str], int]) -> None:
+    """Outputs that read decodings as objects (``values``), and every output narrowed by a
+    filter or a limit, say the same whether frames are decoded in columns or one by one."""
+    source, (options, least) = capture(tmp_path), setting
+    runs = {
+        "values.csv": (["values", str(source), *options, "--format", "csv", "-o"], least),
+        "filtered.jsonl": (["analyze", str(source), *options, "--format", "jsonl", "--filter", "role=response",
+                            "-o"], least // 4),
+        "limited.txt": (["analyze", str(source), *options, "--limit", "700", "-o"], 0),
+    }
+    for name, (command, at_least) in runs.items():
+        assert both_ways([*command, str(tmp_path / f"columns-{name}")],
+                         [*command, str(tmp_path / f"plain-{name}")]) >= at_least, name
+        assert (tmp_path / f"columns-{name}").read_bytes() == (tmp_path / f"plain-{name}").read_bytes(), name

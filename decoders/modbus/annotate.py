@@ -111,7 +111,7 @@ class Annotator:
         rows = np.flatnonzero(rest)
         decodings = self._annotate(batch, rows.tolist(), batch.role[rows].tolist(),
                                    batch.frames.protocols()[rows].tolist(), batch.request_index[rows].tolist())
-        return AnnotatedBatch(batch, decodings, rows, columnar)
+        return AnnotatedBatch(batch, decodings, None, columnar)
 
     def _columnar(self, batch: MessageBatch) -> ColumnarFrames | None:
         """The frames of ``batch`` to keep in columns: Modbus frames whose profile adds nothing or

@@ -9,7 +9,7 @@ record's part from ``params`` to ``remarks``, its MCAP log text after the frame 
 once: every piece of every frame is laid out in one numpy object array (the params from the
 tables of :mod:`sniffer.encoding.param_text`) with its size beside it, and each frame's pieces
 are joined by one ``join``. Built per frame from a decoding
-(:meth:`~decoders.modbus.columnar.ColumnarFrames.decodings`), the same texts cost an object per
+(:func:`~decoders.decoded_batch.columnar_decodings`), the same texts cost an object per
 frame and a param run, then a lookup in a memo that new frames always miss.
 
 The texts are exactly those the plain path writes from the decodings: the tests hold them to
@@ -19,13 +19,14 @@ batch's pieces, cut into views, was slower on registers and on coils alike.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, TypeVar
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
 import orjson
 
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
 from decoders.message import ROLE_NAMES, MessageBatch
 from decoders.modbus.alike import alike
@@ -332,3 +333,22 @@ def columnar_parts(columnar: ColumnarFrames, messages: MessageBatch) -> Columnar
     if _last is None or _last[0] is not columnar:
         _last = (columnar, ColumnarParts(columnar, messages.frames.data, messages))
     return _last[1]
+
+
+Part = TypeVar("Part")
+
+
+def in_columns_too(batch: AnnotatedBatch, spell: Callable[[ColumnarParts], Sequence[Part]],
+                   parts: list[Part]) -> list[Part]:
+    """``parts`` (one per kept message decoded one by one, :meth:`AnnotatedBatch.decoded_positions`),
+    with ``spell``'s for the kept frames in columns in their places: one per kept message."""
+    columnar = batch.columnar
+    if columnar is None or not len(columnar):
+        return parts
+    placed: list[Part] = [cast(Part, b"")] * len(batch.messages)
+    for position, part in zip(batch.decoded_positions(), parts, strict=True):
+        placed[position] = part
+    for position, part in zip(columnar.positions.tolist(),
+                              spell(columnar_parts(columnar, batch.messages)), strict=True):
+        placed[position] = part
+    return placed if batch.rows is None else list(map(placed.__getitem__, batch.rows.tolist()))

@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import Any, TypeVar, cast
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -16,7 +15,7 @@ from decoders.memo import Memo
 from decoders.message import NONE, ROLE_NAMES, Decoding, DeviceIdentity, Message, MessageBatch
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
-from sniffer.encoding.columnar_parts import ColumnarParts, columnar_parts
+from sniffer.encoding.columnar_parts import ColumnarParts, in_columns_too
 from sniffer.encoding.frame_fields import (
     NS_PER_S,
     BlockFields,
@@ -149,13 +148,13 @@ class FrameRecordEncoder:
         if not self._exact:
             return self.block_rows(batch, reserved, end)
         messages, frames = batch.messages, batch.messages.frames
-        positions = batch.record_positions()
+        positions = batch.positions()
         kept = np.array(positions, np.int64)
         own = fields if fields is not None else frame_fields(messages)
         if len(positions) != len(messages):
             own = own.take(kept)
-        rest = batch.positions()  # those with a decoding (all but any left in columns)
-        decodings = batch.decodings_at(rest)
+        rest = batch.decoded_positions()  # those decoded one by one (the rest: spelt from columns)
+        decodings = batch.decoded_at(rest)
         if own.identities is not None:  # mostly distinct frames: their own columns say who they are
             tails = self._tails_alone_of(batch, rest, decodings)
             middle: list[Column] = [own.identities, b',"flags":', own.middles, tails]
@@ -179,10 +178,10 @@ class FrameRecordEncoder:
         in one piece. ``fields``: the batch's :func:`block_fields`, where they were made already
         (in the decoding process)."""
         messages, frames = batch.messages, batch.messages.frames
-        positions = batch.record_positions()
+        positions = batch.positions()
         kept = np.array(positions, np.int64)
-        rest = batch.positions()  # those with a decoding (all but any left in columns)
-        decodings = batch.decodings_at(rest)
+        rest = batch.decoded_positions()  # those decoded one by one (the rest: spelt from columns)
+        decodings = batch.decoded_at(rest)
         if fields is not None and len(positions) != len(messages):
             fields = fields.take(kept)
         heads: Column = block_heads(messages, kept) if fields is None else fields.heads
@@ -231,26 +230,6 @@ class FrameRecordEncoder:
         remarks = encode_json(list(decoding.remarks)) if decoding.remarks else b"[]"
         tail += (b',"protocol":', _PROTOCOL_JSON[protocol], b',"remarks":', remarks)
         return b"".join(tail)
-
-
-Part = TypeVar("Part")
-
-
-def in_columns_too(batch: AnnotatedBatch, spell: Callable[[ColumnarParts], Sequence[Part]],
-                   parts: list[Part]) -> list[Part]:
-    """``parts`` (one per decoding of the batch), with ``spell``'s for the frames it left in
-    columns (:mod:`sniffer.encoding.columnar_parts`) in their places: one per frame."""
-    columnar = batch.columnar
-    if columnar is None:
-        return parts
-    placed: list[Part] = [cast(Part, b"")] * len(batch.messages)
-    if batch.rows is not None:
-        for position, part in zip(batch.rows.tolist(), parts, strict=True):
-            placed[position] = part
-    for position, part in zip(columnar.positions.tolist(),
-                              spell(columnar_parts(columnar, batch.messages)), strict=True):
-        placed[position] = part
-    return placed
 
 
 def _joined_parts(messages: MessageBatch, parts: ColumnarParts) -> list[bytes]:

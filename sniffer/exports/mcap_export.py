@@ -41,9 +41,10 @@ from decoders.memo import Memo
 from decoders.message import NONE, ROLE_NAMES, Decoding, MessageBatch
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.param_runs import LazyParams
+from sniffer.encoding.columnar_parts import in_columns_too
 from sniffer.encoding.frame_fields import BlockFields, block_fields
 from sniffer.encoding.param_text import encode_json
-from sniffer.encoding.records import FrameRecordEncoder, in_columns_too
+from sniffer.encoding.records import FrameRecordEncoder
 from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports import foxglove_log
@@ -183,7 +184,7 @@ class DecodedChannels:
         (``batch.columnar``) are spelt from their columns (:mod:`sniffer.encoding.columnar_parts`).
         ``fields``: what of the frame records no decoding says, made where frames were paired
         (:func:`~sniffer.encoding.frame_fields.block_fields`)."""
-        positions = batch.record_positions()
+        positions = batch.positions()
         if not positions:
             return
         kept = np.array(positions, np.int64)
@@ -242,11 +243,11 @@ class DecodedChannels:
         self._write(join_rows(columns, len(picked), HEADER_SIZE), self._param_channels[slaves[rows]], t_ns[rows])
 
     def _decoding_parts(self, batch: AnnotatedBatch, roles: Integers) -> tuple[list[bytes], list[bytes]]:
-        """Per message written (``record_positions``): the log text after the frame index, and its numeric
+        """Per message written (``positions``): the log text after the frame index, and its numeric
         params as JSON members (``b""``: it carried no values). Looked up in C for repeats;
         spelt from the columns for frames left in columns."""
-        rest = batch.positions()  # those with a decoding (all but any left in columns)
-        decodings = batch.decodings_at(rest)
+        rest = batch.decoded_positions()  # those decoded one by one (the rest: spelt from columns)
+        decodings = batch.decoded_at(rest)
         found = self._parts.get_all(decodings, lambda row: _decoding_parts(decodings[row], int(roles[rest[row]])))
         heads = in_columns_too(batch, lambda parts: parts.log_heads(roles),
                                [parts[0] for parts in found])

@@ -46,7 +46,6 @@ class McapSink(FileSink["McapExporter"]):
 
     wants_chunks = True
     wants_messages = True
-    takes_columnar = True
 
     def __init__(self, path: str, args: argparse.Namespace, analysis: Analysis) -> None:
         super().__init__(path)
@@ -109,7 +108,6 @@ class ParquetSink(FileSink["ParquetDataset"]):
     """Decoded tables added to a Parquet dataset (:mod:`sniffer.exports.parquet_export`)."""
 
     wants_messages = True
-    takes_columnar = True
     joins_batches = True
 
     def __init__(self, folder: str, args: argparse.Namespace, analysis: Analysis) -> None:
@@ -143,9 +141,7 @@ class ParquetSink(FileSink["ParquetDataset"]):
         self.frames_written += len(batch.messages)
         if self.exporter is None:
             return
-        # Frames left in columns are no filter's leaving: every frame is written.
-        positions = np.arange(len(batch.messages)) if batch.columnar is not None else np.asarray(batch.positions(),
-                                                                                               np.int64)
+        positions = np.asarray(batch.positions(), np.int64)
         frames, texts = batch.messages.frames, summaries(batch)
         with self.writing():
             self.exporter.add("frames", frames.t_start_ns[positions],

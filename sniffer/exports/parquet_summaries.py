@@ -58,7 +58,7 @@ class Summaries:
 
 def summaries(batch: AnnotatedBatch) -> Summaries:
     """Every message's summary line of ``batch`` (see the module docstring)."""
-    decodings, columnar = batch.decodings, batch.columnar
+    decodings, columnar = batch.decoded, batch.columnar  # those in columns: spelt from the columns
     if columnar is None:
         texts = np.empty(len(decodings), object)
         texts[:] = [decoding.summary for decoding in decodings]

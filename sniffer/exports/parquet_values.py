@@ -134,12 +134,12 @@ class ValueCollector(ValueRows):
         no frame by frame state (:func:`sniffer.exports.value_bulk.bulk_rows`): a row from each
         decoding's block, looked up once per decoding. The other frames go by the rule, one by
         one, after them; :meth:`take` puts the rows in the order found."""
-        positions = batch.positions()
+        positions = batch.decoded_positions()  # those in columns: :func:`columnar_values`
         found = bulk_rows(batch, positions, pending=self._writes.keys())
         if found is None:
             self.rows_at(batch, positions)
             return
-        decodings, first = batch.decodings_at(positions), batch.messages.frames.first_index
+        decodings, first = batch.decoded_at(positions), batch.messages.frames.first_index
         for rows in (found.written, found.reported):
             self._add_bulk(batch, rows, [decodings[row] for row in rows.carrier.tolist()], first)
         self.rows_at(batch, [positions[row] for row in found.one_by_one.tolist()])

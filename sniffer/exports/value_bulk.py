@@ -64,7 +64,7 @@ class BulkFinding:
 
 
 def bulk_rows(batch: AnnotatedBatch, positions: list[int], pending: Collection[int]) -> BulkFinding | None:
-    """The rows of the frames at ``positions`` found in bulk (``pending``: frame indexes of the
+    """The rows of the frames at ``positions`` (decoded one by one) found in bulk (``pending``: frame indexes of the
     writes waiting for their answer); ``None`` where a write might be pushed out."""
     messages, first = batch.messages, batch.messages.frames.first_index
     kept = np.array(positions, np.int64)
@@ -77,7 +77,7 @@ def bulk_rows(batch: AnnotatedBatch, positions: list[int], pending: Collection[i
     first_answer = _first_answers(kept + first, request, answering)
     if len(pending) + _most_waiting(may_wait, first_answer) > KEPT_WRITES:
         return None
-    decodings = batch.decodings_at(positions)
+    decodings = batch.decoded_at(positions)
     named = np.fromiter([not isinstance(decoding, LazyParams) for decoding in decodings], np.bool_, len(kept))
     refused = writes & named & ~may_wait
     paired = writes & named & may_wait & (first_answer >= 0)

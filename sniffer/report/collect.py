@@ -109,7 +109,7 @@ class ReportCollector(Sink):
         self._over_time(messages, masks)
         self.anomalies.add(batch, masks, self._retries.notes(messages))
         self.values.add(batch)
-        for decoding in batch.decodings:
+        for decoding in batch.decoded:  # no frame in columns identifies a device
             if decoding.device is not None:
                 self.provenance.devices[decoding.device.slave] = decoding.device
 

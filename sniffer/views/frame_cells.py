@@ -98,7 +98,7 @@ def frame_cells(messages: MessageBatch, rows: npt.NDArray[np.int64], clock: Cloc
 
 
 def kept_rows(batch: AnnotatedBatch) -> npt.NDArray[np.int64]:
-    return np.arange(len(batch.decodings), dtype=np.int64) if batch.rows is None else batch.rows
+    return np.arange(len(batch.decoded), dtype=np.int64) if batch.rows is None else batch.rows
 
 
 def frame_notes(messages: MessageBatch, rows: npt.NDArray[np.int64], retries: dict[int, str]) -> dict[int, str]:

@@ -36,7 +36,6 @@ class JsonlView(Sink):
 
     wants_messages = True
     wants_statistics = True
-    takes_columnar = True
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._frames.channels = info.channels
@@ -51,9 +50,9 @@ class JsonlView(Sink):
         batch, self._kept = self._kept, None
         if batch is None:
             return
-        self.shown += len(batch.record_positions())
+        self.shown += len(batch)
         rows = self._frames.rows(batch, end=b"\n", fields=value)
-        if any(decoding.device is not None for decoding in batch.decodings):
+        if any(decoding.device is not None for decoding in batch.decoded):  # none in columns
             self._write_with_devices(rows, batch)
         else:
             self._write_rows(rows.data)
@@ -83,8 +82,8 @@ class JsonlView(Sink):
 
     def _write_with_devices(self, rows: Rows, batch: AnnotatedBatch) -> None:
         """The frame records, each followed by its ``device`` record (a slave identified itself)."""
-        first, decodings, written = batch.messages.frames.first_index, batch.decodings, 0
-        for row, position in enumerate(batch.record_positions()):
+        first, decodings, written = batch.messages.frames.first_index, batch.decoded, 0
+        for row, position in enumerate(batch.positions()):
             device = decodings[position].device
             if device is not None:
                 end = int(rows.offsets[row + 1])

@@ -82,7 +82,7 @@ class LiveView(Sink):
     def messages(self, batch: AnnotatedBatch) -> None:
         if not len(batch):
             return
-        rows = np.arange(len(batch.decodings), dtype=np.int64) if batch.rows is None else batch.rows
+        rows = np.arange(len(batch.decoded), dtype=np.int64) if batch.rows is None else batch.rows
         latencies = self._read_latencies(batch.messages)
         rows = rows[-KEPT_FRAMES:]
         self._recent.append((AnnotatedBatch(batch.messages, batch.decodings, rows),

@@ -25,7 +25,7 @@ from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
 from decoders.message import MessageBatch, slice_messages
 from decoders.stats import Statistics
-from sniffer.encoding.columnar_parts import columnar_parts
+from sniffer.encoding.columnar_parts import ColumnarParts, in_columns_too
 from sniffer.sinks import Sink
 from sniffer.views import fixed_width
 from sniffer.views.clock import Clock
@@ -179,10 +179,6 @@ class PlainTableView(_FrameTable):
                          clock, summary_of)
         self._header_laid = False
         self._kept: AnnotatedBatch | None = None
-        #: A frame left in columns (a plain read, write or answer) is written with its summary
-        #: from the columns (:meth:`ColumnarFrames.summaries`), which is all this table says of
-        #: it; a ``--registers`` reading needs the decoding.
-        self.takes_columnar = summary_of is decoding_summary
         #: Comment lines waiting for the next frame shown.
         self._marks: list[str] = []
         self.prepare = self._lay_out
@@ -219,13 +215,12 @@ class PlainTableView(_FrameTable):
         batch, self._kept = self._kept, None
         if batch is None:
             return
-        rows = batch.record_positions()
-        summaries = list(map(self._summary_of, batch.decodings_at(rows)))
-        columnar = batch.columnar
-        if columnar is not None:  # every frame is written: ``rows`` are all positions
-            for position, text in zip(columnar.positions.tolist(), columnar_parts(columnar, batch.messages).summaries(),
-                                      strict=True):
-                summaries[position] = text
+        rows = batch.positions()
+        if self._summary_of is decoding_summary:  # frames in columns: their summaries from the columns
+            decoded = list(map(self._summary_of, batch.decoded_at(batch.decoded_positions())))
+            summaries = in_columns_too(batch, ColumnarParts.summaries, decoded)
+        else:
+            summaries = list(map(self._summary_of, batch.decodings_at(rows)))
         marks, reached = value.marks, 0
         for begin, end in _runs_between_marks(rows, [position for position, _ in marks]):
             while reached < len(marks) and marks[reached][0] <= rows[begin]:

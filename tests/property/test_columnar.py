@@ -140,12 +140,17 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
     got = columns.annotate_columnar(batch)
     reads = got.columnar
     kept = set() if reads is None else set(reads.positions.tolist())
-    assert got.positions() == [position for position in range(len(batch)) if position not in kept]
-    for position in got.positions():
-        assert said(got.decodings[position]) == said(expected[position])
+    assert got.positions() == list(range(len(batch)))
+    assert got.decoded_positions() == [position for position in range(len(batch)) if position not in kept]
+    for position in got.decoded_positions():
+        assert said(got.decoded[position]) == said(expected[position])
+    # Frames in columns too: their decodings, built when read, are the plain path's.
+    assert [said(decoding) for decoding in got.decodings] == [said(decoding) for decoding in expected]
+    assert [isinstance(decoding, LazyParams) for decoding in got.decodings] == [
+        isinstance(decoding, LazyParams) for decoding in expected]
     if reads is not None:
         data = batch.frames.data
-        assert all(got.decodings[position] is IN_COLUMNS for position in kept)
+        assert all(got.decoded[position] is IN_COLUMNS for position in kept)
         said_by_pdus = [expected[position].summary for position in reads.positions.tolist()]
         assert reads.summaries(data) == said_by_pdus
         assert reads.summaries(data, fast=False) == said_by_pdus
