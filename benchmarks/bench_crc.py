@@ -19,7 +19,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from decoders.crc import CRC_TABLE, crc16_modbus, crc16_modbus_reference, crc_bytes, crc_ok_many, crc_ok_many_reference
+from decoders.crc import CRC_TABLE, crc16_modbus, crc_bytes, crc_ok_many
+from tests.oracles import crc16_modbus_reference, crc_ok_many_reference
 
 Table = np.array(CRC_TABLE, dtype=np.uint16)
 

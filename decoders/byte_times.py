@@ -10,8 +10,8 @@ between two chunks is exactly the difference of their recorded times.
 :class:`ByteClock` is what the framer uses: it keeps the chunks and computes the times of
 the bytes asked for (frames' first and last bytes) and the silences where chunks meet.
 :func:`byte_times` computes every byte's times at once (a table of rounded offsets, for the
-benchmarks' models of the wire). :func:`byte_times_reference` computes every byte's offsets
-from the rule above: the plain path the tests hold both to.
+benchmarks' models of the wire). The tests hold both to every byte's offsets computed from the rule above
+(``tests/oracles.py``).
 """
 
 from __future__ import annotations
@@ -40,20 +40,6 @@ def byte_times(batch: ChunkBatch, char_time_ns: float) -> tuple[Int64Array, Int6
     ends[:-1] = starts[1:]
     filled = lengths > 0
     ends[batch.ends[filled] - 1] = batch.t_end_ns[filled]
-    return starts, ends
-
-
-def byte_times_reference(batch: ChunkBatch, char_time_ns: float) -> tuple[Int64Array, Int64Array]:
-    """:func:`byte_times` computed byte by byte from the rule (the plain path)."""
-    total = len(batch.data)
-    if total == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    lengths = np.diff(batch.ends, prepend=0)
-    chunk_of_byte = np.repeat(np.arange(len(batch.ends)), lengths)
-    chars_after = batch.ends[chunk_of_byte] - 1 - np.arange(total, dtype=np.int64)
-    chunk_end = batch.t_end_ns[chunk_of_byte]
-    ends = chunk_end - np.rint(chars_after * char_time_ns).astype(np.int64)
-    starts = chunk_end - np.rint((chars_after + 1) * char_time_ns).astype(np.int64)
     return starts, ends
 
 

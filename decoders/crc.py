@@ -2,7 +2,7 @@
 
 The per-frame function is the Rust ``fastcrc`` package, many times the pure-Python table's
 speed (``benchmarks/bench_crc.py``).
-The table version stays as the reference the tests hold ``fastcrc`` to.
+A pure-Python table version is the oracle the tests hold ``fastcrc`` to (``tests/oracles.py``).
 """
 
 from __future__ import annotations
@@ -26,14 +26,6 @@ def _make_table() -> tuple[int, ...]:
 
 
 CRC_TABLE = _make_table()
-
-
-def crc16_modbus_reference(data: bytes) -> int:
-    """Table-driven pure-Python CRC-16/MODBUS; slow, obviously correct."""
-    crc = 0xFFFF
-    for byte in data:
-        crc = (crc >> 8) ^ CRC_TABLE[(crc ^ byte) & 0xFF]
-    return crc
 
 
 def crc16_modbus(data: bytes) -> int:
@@ -70,7 +62,7 @@ def crc_ok_many(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.NDArray[np.b
     lockstep by numpy, two bytes a step through a table of 65 536 registers; lengths
     that fewer than ``LOCKSTEP_MIN_FRAMES`` frames share, or longer than
     ``LOCKSTEP_MAX_LENGTH``, go one ``fastcrc`` call a frame as in
-    :func:`crc_ok_many_reference`. Twice as fast on the polling benchmark
+    :func:`tests.oracles.crc_ok_many_reference`. Twice as fast on the polling benchmark
     (``python -m benchmarks.bench_crc``). The frames are grouped by length in one stable sort
     of their lengths as bytes (a radix sort), longer ones in one group past the longest.
     """
@@ -95,15 +87,6 @@ def crc_ok_many(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.NDArray[np.b
         else:
             words = words or _Words(data)
             valid[rows] = words.remainders(starts[rows], size) == 0
-    return valid
-
-
-def crc_ok_many_reference(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
-    """:func:`crc_ok_many` by one ``fastcrc`` call a frame: the plain path."""
-    bounds = offsets.tolist()
-    frames = map(data.__getitem__, map(slice, bounds[:-1], bounds[1:]))
-    remainders = np.fromiter(map(crc16.modbus, frames), np.int64, len(bounds) - 1)
-    valid: npt.NDArray[np.bool_] = (remainders == 0) & (np.diff(offsets) >= MIN_CHECKED)
     return valid
 
 

@@ -4,15 +4,17 @@ Responses are read against their request (a register response carries values, it
 request the addresses), so the annotator keeps the decoded requests that still
 await an answer.
 
-A bus repeats itself: a master polls the same registers over and over and drives
-answer with the same values. What a frame says depends only on its bytes, role and
-protocol, what its request asked (:func:`answer_context`) and what the profiles know at
-that moment, so :meth:`Annotator.annotate_batch` decodes each such combination once and hands the same
-:class:`Decoding` to every repeat. The profiles' ``version`` is part of the key: a
-frame that taught them something (a scanner table, an identification) is decoded
-again, never answered from before. A frame new to the memo but for its values (the same read
-answered with new values) is decoded from its values and what an earlier frame of its shape
-said (:mod:`decoders.modbus.value_shapes`).
+Which frames are decoded how depends on the frames alone: :meth:`Annotator.annotate_columnar`
+keeps the reads, writes and answers of FC 1-6, 15, 16 and 23 that are well formed and paired
+in columns (:mod:`decoders.modbus.columnar`, found by
+:mod:`decoders.modbus.columnar_find`; named by :mod:`decoders.profiles.column_names`), and
+decodes the rest one by one through the PDU parser (:meth:`Annotator.annotate_batch`).
+
+A bus repeats itself: what a frame says depends only on its bytes, role and protocol, what its
+request asked (:func:`answer_context`) and what the profiles know at that moment, so the rest
+is decoded once per such combination, and every repeat gets the same :class:`Decoding`. The
+profiles' ``version`` is part of the key: a frame that taught them something (a scanner table,
+an identification) is decoded again, never answered from before.
 """
 
 from __future__ import annotations
@@ -40,8 +42,6 @@ from decoders.modbus.pdu import (
     WriteRegistersRequest,
 )
 from decoders.modbus.pdu_parse import parse_as
-from decoders.modbus.quick import QuickRead, register_reads
-from decoders.modbus.value_shapes import ValueShapes
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.profiles.book import ProfileBook
 from decoders.profiles.column_names import named
@@ -52,14 +52,6 @@ from decoders.uss import parse_uss
 #: one-off frames (changing values) pass through (an LRU that costs a dict lookup).
 KEPT_DECODINGS = 8192
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
-#: Frames of a batch :class:`_Fresh` reads the facts of one by one before it lists its columns.
-_FACTS_ONE_BY_ONE = 256
-#: Frames of a batch decoded one by one before its register reads may be decoded together;
-#: they are once the new frames are this share of the frames passed. A read costs 1.1 µs
-#: decoded with the others (all of them, repeats too), 2.6 µs alone (polling, 2026-11-25).
-ONE_BY_ONE = 32
-TOGETHER_FROM = 0.45
-_NOISE_CODE = ROLE_CODE[Role.NOISE]
 #: What of a request decoding its answer reads (see :func:`answer_context`).
 AnswerContext = tuple[object, ...] | None
 _NO_REQUEST: tuple[AnswerContext, Pdu | None] = (None, None)
@@ -77,8 +69,6 @@ class Annotator:
         self._requests: dict[int, tuple[AnswerContext, Pdu]] = {}
         self._profiles = profiles
         self._decodings: Memo[DecodingKey, tuple[Decoding, AnswerContext]] = Memo(KEPT_DECODINGS)
-        #: Frames decoded from their values alone where one of their shape was decoded before.
-        self._shapes = ValueShapes(profiles)
 
     @classmethod
     def naming_by(cls, book: ProfileBook | None) -> Annotator:
@@ -167,7 +157,6 @@ class Annotator:
         decodings, requests, memo = [IN_COLUMNS] * len(batch), self._requests, self._decodings
         # Only decoding a frame teaches the profiles (a new version) or fills the memo.
         recent, version = memo.recent(), self._version()
-        fresh = _Fresh(self, batch)
         for position, role, protocol, request_index in zip(positions, roles, protocols, request_indexes, strict=True):
             if request_index == NONE:
                 context, request = _NO_REQUEST
@@ -180,7 +169,7 @@ class Annotator:
             if known is None:
                 known = memo.older(key)
                 if known is None:
-                    known = fresh.decode(position, key, request)
+                    known = self._decode_new(batch, position, key, request)
                     memo.put(key, known)
                     version = self._version()
                 recent = memo.recent()
@@ -189,6 +178,15 @@ class Annotator:
             decodings[position] = known[0]
         self._forget(first + len(batch))
         return decodings
+
+    def _decode_new(self, batch: MessageBatch, position: int, key: DecodingKey,
+                    request: Pdu | None) -> tuple[Decoding, AnswerContext]:
+        """A frame new to the memo, by :meth:`_decoding`, with the context its answer reads."""
+        slave, function = int(batch.slave[position]), int(batch.function[position])
+        facts = FrameFacts(None if slave == NONE else slave, ROLE_ORDER[key[0]],
+                           None if function == NONE else function, bool(batch.frames.crc_ok[position]))
+        decoding = self._decoding(key[2], key[1], facts, request)
+        return decoding, answer_context(decoding.pdu)
 
     def _forget(self, next_index: int) -> None:
         """Requests no answer from ``next_index`` on reads against, let go (now and then)."""
@@ -249,63 +247,6 @@ class Annotator:
     def _profiled(self, decoding: Decoding, facts: FrameFacts, request: Pdu | None) -> Decoding:
         """``decoding`` as the profiles name it (as it is, without profiles)."""
         return decoding if self._profiles is None else self._profiles.apply_decoding(decoding, facts, request)
-
-
-class _Fresh:
-    """Decodes the frames of a batch its annotator has not seen before: one by one
-    (:meth:`Annotator._decoding`), or from their values where frames of their shape were
-    decoded before (:mod:`decoders.modbus.value_shapes`), while they are few (the first
-    :data:`ONE_BY_ONE`, or fewer than :data:`TOGETHER_FROM` of the frames passed); from then
-    on, the register reads and their answers of slaves no profile names at once
-    (:func:`register_reads`: cheaper than by their shape), the rest as before; then the
-    profiles, which may learn. A batch of repeats has few frames to decode, and decoding all
-    its reads for them would cost more than they do."""
-
-    def __init__(self, annotator: Annotator, batch: MessageBatch) -> None:
-        self._annotator, self._batch = annotator, batch
-        self._facts: tuple[list[int], list[bool], list[int]] | None = None
-        self._reads: dict[int, QuickRead] = {}
-        self._decoded = 0
-        self._together = False
-
-    def decode(self, position: int, key: DecodingKey, request: Pdu | None) -> tuple[Decoding, AnswerContext]:
-        annotator, batch = self._annotator, self._batch
-        slave, crc_ok, function = self._facts_of(position)
-        self._decoded += 1
-        if not self._together and self._decoded > ONE_BY_ONE and self._decoded >= TOGETHER_FROM * (position + 1):
-            # A named slave's reads go by their shape (value_shapes), for less.
-            eligible = annotator.plain_frames(batch)
-            eligible[:position] = False  # decoded already, or repeats
-            self._reads, self._together = register_reads(batch, eligible), True
-        read = self._reads.get(position)
-        profiles = annotator._profiles
-        if read is not None and (profiles is None or profiles.adds_nothing(slave)):
-            return LazyParams(read[0], read[1], request), read[2]  # what _profiled would leave as it is
-        shaped = annotator._shapes.decode(key, crc_ok, request)
-        if shaped is not None:
-            return shaped
-        role, protocol, data = key[0], key[1], key[2]
-        facts = FrameFacts(None if slave == NONE else slave, ROLE_ORDER[role], None if function == NONE else function,
-                           crc_ok)
-        if read is None:
-            decoding = annotator._decoding(data, protocol, facts, request)
-            decoded: tuple[Decoding, AnswerContext] = (decoding, answer_context(decoding.pdu))
-        else:
-            decoded = (annotator._profiled(LazyParams(read[0], read[1], request), facts, request), read[2])
-        annotator._shapes.learn(key, facts, request, decoded, annotator._version())
-        return decoded
-
-    def _facts_of(self, position: int) -> tuple[int, bool, int]:
-        """The slave, CRC and function of the frame at ``position``: read one by one while few
-        are decoded (a batch of repeats decodes a few dozen: making lists of its columns took
-        0.8 ms a batch, 24 ms of 1 M steady frames), from lists once many are."""
-        batch = self._batch
-        if self._facts is None:
-            if self._decoded < _FACTS_ONE_BY_ONE:
-                return int(batch.slave[position]), bool(batch.frames.crc_ok[position]), int(batch.function[position])
-            self._facts = batch.slave.tolist(), batch.frames.crc_ok.tolist(), batch.function.tolist()
-        slaves, crc, functions = self._facts
-        return slaves[position], crc[position], functions[position]
 
 
 def answer_context(request: Pdu | None) -> AnswerContext:

@@ -127,12 +127,12 @@ class ColumnarNames(NamedTuple):
         counts = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[shown], minlength=len(sizes))
         return named_texts, self.row[shown], counts
 
-    def suffixed(self, texts: list[str], sizes: npt.NDArray[np.int64], *, fast: bool = True) -> list[str]:
+    def suffixed(self, texts: list[str], sizes: npt.NDArray[np.int64]) -> list[str]:
         """``texts`` (the frames' PDU summaries; ``sizes``: how many params each names) followed
         by their named values' texts, as :func:`~decoders.profiles.naming.summary_with` writes them:
         frames that show as many texts at once, by one ``%`` of a template each
-        (:func:`~decoders.modbus.columnar_text.formatted`), or one by one (``fast=False``, or a text
-        holds a newline, which ``formatted`` cuts at)."""
+        (:func:`~decoders.modbus.columnar_text.formatted`), or one by one where a text holds a
+        newline, which ``formatted`` cuts at."""
         named_texts, entries, counts = self.shown(sizes)
         if not len(entries):
             return texts
@@ -140,7 +140,7 @@ class ColumnarNames(NamedTuple):
         words[:] = named_texts
         said = words[entries]
         starts = np.cumsum(counts) - counts
-        if not fast or "\n" in "".join(filter(None, named_texts)):
+        if "\n" in "".join(filter(None, named_texts)):
             each = said.tolist()
             for position in np.flatnonzero(counts).tolist():
                 start = int(starts[position])
@@ -201,15 +201,15 @@ class ColumnarFrames:
         return list(zip(self.kept_requests.tolist(), self.function[at].tolist(), self.address[at].tolist(),
                         self.count[at].tolist(), strict=True))
 
-    def summaries(self, data: bytes, *, fast: bool = True) -> list[str]:
+    def summaries(self, data: bytes) -> list[str]:
         """Each frame's summary line, as its PDU's ``summary()`` writes it
-        (:mod:`decoders.modbus.columnar_text`; ``fast``: in bulk), with what its profile names."""
-        return self.named_summaries(summaries(self, data, fast=fast), fast=fast)
+        (:mod:`decoders.modbus.columnar_text`), with what its profile names."""
+        return self.named_summaries(summaries(self, data))
 
-    def named_summaries(self, texts: list[str], *, fast: bool = True) -> list[str]:
+    def named_summaries(self, texts: list[str]) -> list[str]:
         """``texts`` (each frame's summary as its PDU writes it) followed by what its profile
         names (:meth:`ColumnarNames.suffixed`; a new list)."""
-        return list(texts) if self.names is None else self.names.suffixed(list(texts), self._sizes(), fast=fast)
+        return list(texts) if self.names is None else self.names.suffixed(list(texts), self._sizes())
 
     def shown_names(self) -> tuple[list[str | None], npt.NDArray[np.int64], npt.NDArray[np.int64]] | None:
         """What each frame's summary shows of its named values (:meth:`ColumnarNames.shown`);

@@ -7,7 +7,7 @@ line to the summary of the frame's PDU (the plain path: ``tests/property/test_co
 
 Read requests, register answers of up to eight registers (a polled bus's every frame), coil
 answers, write answers, FC 5, FC 6 and FC 15 writes, and FC 16 and FC 23 writes of up to eight
-registers are written faster (``fast``; the comprehensions remain the plain path, and the tests
+registers are written faster (the others by a comprehension over their columns; the tests
 hold both to the PDU's summary). Register answers of one size are rows of one template, each
 byte's two digits placed at the same columns of every row; every other kind is laid out field
 by field by :mod:`decoders.modbus.text_layout` (numbers' digits, hex words and coils' bits
@@ -82,11 +82,10 @@ class SummaryColumns(Protocol):
     def byte_count(self) -> npt.NDArray[np.int64]: ...
 
 
-def summaries(frames: SummaryColumns, data: bytes, *, fast: bool = True) -> list[str]:
-    """Each frame's summary line, as its PDU's ``summary()`` writes it (``data``: the batch's;
-    ``fast``: see the module docstring, ``False`` is the plain path)."""
+def summaries(frames: SummaryColumns, data: bytes) -> list[str]:
+    """Each frame's summary line, as its PDU's ``summary()`` writes it (``data``: the batch's)."""
     texts = np.empty(len(frames.kind), object)
-    for rows, spelt in _pieces(frames, data, fast=fast, pack=False):
+    for rows, spelt in _pieces(frames, data, pack=False):
         texts[rows] = spelt
     said: list[str] = texts.tolist()
     return said
@@ -96,20 +95,17 @@ def summary_pieces(frames: SummaryColumns, data: bytes) -> list[tuple[npt.NDArra
     """:func:`summaries` in pieces, for writers of columns: the lines of the frames at each
     piece's rows, packed (:class:`~decoders.modbus.text_layout.PackedLines`) where laid out by
     numpy, as strings where spelt one by one; every frame in one piece."""
-    return list(_pieces(frames, data, fast=True, pack=True))
+    return list(_pieces(frames, data, pack=True))
 
 
-def _pieces(frames: SummaryColumns, data: bytes, *, fast: bool, pack: bool) -> Iterator[tuple[npt.NDArray[np.int64],
-                                                                                                Lines]]:
+def _pieces(frames: SummaryColumns, data: bytes, *, pack: bool) -> Iterator[tuple[npt.NDArray[np.int64], Lines]]:
     """The frames' lines by kind and function (``pack``: packed where laid out by numpy)."""
     kind, function = frames.kind, frames.function
     group = kind * 256 + function
     for key in distinct(group).tolist():
         rows = np.flatnonzero(group == key)
         kind_of, function_of = key >> 8, key & 0xFF
-        if not fast:
-            yield rows, _group(frames, data, rows, kind_of, function_of)
-        elif kind_of == READ_ANSWER and function_of >= 3:
+        if kind_of == READ_ANSWER and function_of >= 3:
             yield from _answer_texts(rows, function_of, data, frames, pack=pack)
         elif kind_of in (WRITE, READ_WRITE) and function_of in (16, 23):
             yield from _register_write_texts(rows, kind_of, data, frames, pack=pack)

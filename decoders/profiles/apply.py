@@ -60,13 +60,12 @@ class _Indirections:
 class ProfileApplier:
     """Adds profile knowledge to messages in capture order (it learns scanner tables).
 
-    ``fast=False``: every value named anew, nothing kept between frames: the reference the
-    tests hold the kept namers and values to.
+    Namers and the values they named are kept between frames (the tests hold them to an
+    applier that names every value anew, ``tests/oracles.py``).
     """
 
-    def __init__(self, book: ProfileBook, *, fast: bool = True) -> None:
+    def __init__(self, book: ProfileBook) -> None:
         self.book = book
-        self.fast = fast
         self._indirections = _Indirections()
         #: Counts what the applier has learnt (scanner tables, identified slaves): a decoding
         #: made at one version holds while the version stays.
@@ -77,8 +76,6 @@ class ProfileApplier:
         self._namers: dict[tuple[str, bool], dict[int | tuple[int | None, int], AddressNamer]] = {}
         self._named_version = 0
         self._kept = 0
-        #: Counts the times the kept namers were let go (see :meth:`named_by`).
-        self.generation = 0
         #: :func:`knows_nothing` of each slave's profile, while the version stays.
         self._adds_nothing: dict[int, bool] = {}
         self._adds_nothing_version = 0
@@ -140,35 +137,15 @@ class ProfileApplier:
         params, shown = self._name_values(found, [raw for _, raw in values])
         return params, shown, any(namer.learns for namer in found)
 
-    def value_namers(self, facts: FrameFacts, addresses: list[int]) -> tuple[list[AddressNamer], int] | None:
-        """The namers :meth:`apply_decoding` names values at ``addresses`` of a frame with
-        ``facts`` by, and the generation they belong to (:meth:`named_by`); ``None`` where a
-        value would teach the profiles (a scanner address register) or nothing is kept
-        (``fast=False``)."""
-        if not self.fast:
-            return None
-        slave = facts.slave
-        found = self._address_namers(self.book.profile_for(slave), slave, facts.role is Role.RESPONSE, addresses)
-        return None if any(namer.learns for namer in found) else (found, self.generation)
-
-    def named_by(self, namers: list[AddressNamer], raws: Sequence[int | None],
-                 generation: int) -> tuple[list[ParamValue], list[str]] | None:
-        """Values named by ``namers`` of :meth:`value_namers`, as :meth:`_named` names them:
-        their params and the summary's texts; ``None`` once the namers were let go (their
-        ``generation`` is past, or the kept values reached their bound)."""
-        if generation != self.generation or self._kept >= KEPT_NAMED_PARAMS or self._named_version != self.version:
-            return None
-        return self._name_values(namers, raws)
-
     def named_values(self, profile: Profile, slave: int, reported: bool, address: int,
                      raws: list[int | None]) -> list[NamedValue]:
         """Each of ``raws`` at ``address`` as :meth:`apply_decoding` names it for ``slave`` of
         ``profile`` (``reported``: the device's values) now, kept as there: for frames named in
         columns (:mod:`decoders.profiles.column_names`)."""
         namer = self._namer_of(profile, slave, reported, address)
-        fast, known, named = self.fast, namer.known, []
+        known, named = namer.known, []
         for raw in raws:
-            value = known.get(raw) if fast else None
+            value = known.get(raw)
             if value is None:
                 value = namer.make(raw)
                 self._kept += 1
@@ -181,13 +158,12 @@ class ProfileApplier:
 
     def _name_values(self, namers: list[AddressNamer],
                      raws: Sequence[int | None]) -> tuple[list[ParamValue], list[str]]:
-        """Each raw value named by its namer (kept there, unless ``fast=False``): the params, and
-        the summary's texts of those it shows."""
+        """Each raw value named by its namer (kept there): the params, and the summary's texts
+        of those it shows."""
         params: list[ParamValue] = []
         shown: list[str] = []
-        fast = self.fast
         for namer, raw in zip(namers, raws, strict=True):
-            named = namer.known.get(raw) if fast else None
+            named = namer.known.get(raw)
             if named is None:
                 named = namer.make(raw)
                 self._kept += 1
@@ -202,12 +178,11 @@ class ProfileApplier:
         if self._named_version != self.version or self._kept >= KEPT_NAMED_PARAMS:
             self._namers.clear()
             self._named_version, self._kept = self.version, 0
-            self.generation += 1
         # Slaves share a profile's namers (a value's name says nothing of its slave), and at a
         # scanner table's value registers, whose meaning is each slave's own mapping's, those
         # mapped alike (kept by target and address there: _namer_at).
         key = (profile.id, reported)
-        namers = self._namers.get(key) if self.fast else {}
+        namers = self._namers.get(key)
         if namers is None:
             namers = self._namers[key] = {}
         return namers

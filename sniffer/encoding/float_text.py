@@ -11,7 +11,7 @@ writes -- fixed point with a fraction, at a magnitude from 1e-4 to 1e16, where `
 writes fixed point too; an integral value in that range gets its ``.0``; every other number
 (zero, an exponent either way, NaN) is spelt by ``repr``. Columns shorter than
 ``ARROW_FROM`` go to ``repr`` whole: Arrow's fixed cost per call, and its import on first
-use, would not pay. ``fast=False`` is ``repr`` always: the reference the tests hold this to.
+use, would not pay.
 """
 
 from __future__ import annotations
@@ -27,10 +27,10 @@ ARROW_FROM = 512
 FIXED_LOW, FIXED_HIGH = 1e-4, 1e16
 
 
-def float_texts(column: npt.NDArray[np.float64], *, fast: bool = True) -> Pieces:
+def float_texts(column: npt.NDArray[np.float64]) -> Pieces:
     """Each float as ``repr`` spells it (see the module docstring)."""
     count = len(column)
-    if not fast or count < ARROW_FROM:
+    if count < ARROW_FROM:
         return number_texts(column)
     text, sizes = _arrow_texts(column)
     pieces = Pieces(text.split(b","), sizes)

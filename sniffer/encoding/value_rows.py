@@ -36,6 +36,9 @@ _REQUEST, _BROADCAST = ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST]
 _RESPONSE, _EXCEPTION = ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.EXCEPTION]
 #: The functions whose requests carry written values.
 WRITES = frozenset({5, 6, 15, 16, 23})
+#: The kinds of value rows, by code (the Parquet ``values`` table's ``kind``).
+VALUE_KINDS = ("reported", "written")
+REPORTED, WRITTEN = 0, 1
 _TIMEOUT = int(FrameFlag.TIMEOUT)
 #: :attr:`ValueRows.emitting` after the last frame: past every frame index.
 AT_THE_END = 1 << 62

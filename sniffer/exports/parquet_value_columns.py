@@ -24,10 +24,10 @@ import pyarrow as pa
 
 from decoders.message import NONE, ParamValue
 from decoders.runs import spread
+from sniffer.encoding.value_rows import VALUE_KINDS, WRITTEN
 from sniffer.exports.arrow_compute import taken
 from sniffer.exports.parquet_export import dictionary, nullable, times
 from sniffer.exports.parquet_values import ROW_COLUMNS, RUN_COLUMNS, CollectedValues, NumericValues, param_columns
-from sniffer.exports.value_bulk import VALUE_KINDS, WRITTEN
 
 _VALUE_KINDS = pa.array(VALUE_KINDS)  # made once: 0.1 ms each time, a batch's dictionary
 #: The text columns, in the order of :attr:`LaidRows.texts`.

@@ -12,7 +12,6 @@ order.
 
 from __future__ import annotations
 
-import itertools
 import operator
 from dataclasses import dataclass, field
 from typing import Any
@@ -25,8 +24,7 @@ from decoders.memo import Memo
 from decoders.message import NONE, Decoding, ParamValue
 from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.columnar import ColumnarNames
-from sniffer.encoding.value_rows import ValueRow, ValueRows
-from sniffer.exports.value_bulk import REPORTED, VALUE_KINDS, WRITTEN, BulkRows, bulk_rows
+from sniffer.encoding.value_rows import REPORTED, VALUE_KINDS, WRITTEN, ValueRow, ValueRows
 
 #: The params of one decoding as the ``values`` table holds them, a tuple per param: address,
 #: code, name, raw, value (numbers), text (what a value says in words), unit, valid.
@@ -56,14 +54,6 @@ class CollectedValues:
 
     def __len__(self) -> int:
         return len(self.named) + len(self.runs)
-
-    def in_order(self) -> None:
-        """The named rows put in the order found (where each was found, then found when)."""
-        order = np.lexsort((np.array(self.named_order, np.int64), np.array(self.named_at, np.int64))).tolist()
-        self.named = [self.named[row] for row in order]
-        self.blocks = [self.blocks[row] for row in order]
-        self.named_order = [self.named_order[row] for row in order]
-        self.named_at = [self.named_at[row] for row in order]
 
 
 @dataclass(frozen=True)
@@ -126,54 +116,11 @@ class ValueCollector(ValueRows):
         #: them costs more than making them, yet a few tell when they start to repeat).
         self._hits = self._made = 0
         self._keeping = True
-        #: Whether rows found in bulk were added since :meth:`take`.
-        self._bulk = False
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        """:meth:`ValueRows.messages`, the rows of named params found in bulk where the rule needs
-        no frame by frame state (:func:`sniffer.exports.value_bulk.bulk_rows`): a row from each
-        decoding's block, looked up once per decoding. The other frames go by the rule, one by
-        one, after them; :meth:`take` puts the rows in the order found."""
-        positions = batch.decoded_positions()  # those in columns: :func:`columnar_values`
-        found = bulk_rows(batch, positions, pending=self._writes.keys())
-        if found is None:
-            self.rows_at(batch, positions)
-            return
-        decodings, first = batch.decoded_at(positions), batch.messages.frames.first_index
-        for rows in (found.written, found.reported):
-            self._add_bulk(batch, rows, [decodings[row] for row in rows.carrier.tolist()], first)
-        self.rows_at(batch, [positions[row] for row in found.one_by_one.tolist()])
-
-    def _add_bulk(self, batch: AnnotatedBatch, rows: BulkRows, decodings: list[Decoding], first: int) -> None:
-        """``rows`` (``decodings``: their carriers'), each row where its block has values."""
-        if not len(rows.carrier):
-            return
-        kind = VALUE_KINDS[rows.kind]
-        blocks: dict[tuple[int, bool], NamedBlock] = {}
-        chosen = []
-        for decoding, valid in zip(decodings, rows.valid.tolist(), strict=True):
-            block = blocks.get((id(decoding), valid))
-            if block is None:
-                block = blocks[(id(decoding), valid)] = self._block(decoding, kind, valid)
-            chosen.append(block)
-        carried = np.fromiter(map(len, chosen), np.int64, len(chosen))
-        kept = np.flatnonzero(carried > 0)
-        if not len(kept):
-            return
-        messages = batch.messages
-        carrier, count = rows.positions[kept], len(kept)
-        request = np.full(count, first, np.int64) + carrier if rows.kind == WRITTEN else \
-            messages.request_index[carrier]
-        found = self._found
-        found.named += zip(messages.frames.t_start_ns[carrier].tolist(), (carrier + first).tolist(),
-                           messages.slave[carrier].tolist(), itertools.repeat(rows.kind, count), request.tolist(),
-                           strict=False)
-        found.blocks += [chosen[row] for row in kept.tolist()]
-        found.named_order += range(self._rows_found + 1, self._rows_found + 1 + count)
-        found.named_at += (rows.at[kept] + first).tolist()
-        self._rows_found += count
-        self.shown += int(carried.sum())
-        self._bulk = True
+        """:meth:`ValueRows.messages` of the frames decoded one by one (those in columns:
+        :func:`columnar_values`)."""
+        self.rows_at(batch, batch.decoded_positions())
 
     def _block(self, decoding: Decoding, kind: str, crc_ok: bool) -> NamedBlock:
         """The params of ``decoding`` as the table holds them, from the memo where kept."""
@@ -215,9 +162,6 @@ class ValueCollector(ValueRows):
 
     def take(self) -> CollectedValues:
         found, self._found = self._found, CollectedValues()
-        if self._bulk:
-            found.in_order()
-            self._bulk = False
         if self._hits + self._made >= PROBE_EVERY:
             # Kept, a block must be asked for again to pay: when probes are, keep them all.
             self._keeping = self._hits * (1 if self._keeping else PROBE_EVERY) >= self._made

@@ -26,12 +26,8 @@ from decoders.crc import crc_bytes, crc_ok
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import Frame, FrameFlag, flag_set, frames_to_batch
 from decoders.message import Decoding, MessageBatch, ParamValue
-from decoders.modbus import annotate as annotate_module
-from decoders.modbus import value_shapes
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.matcher import Matcher
-from decoders.modbus.pdu import ReadWriteRequest, RegistersResponse, WriteRegistersRequest, WriteSingle
-from decoders.modbus.pdu_parse import parse_as
 from decoders.profiles import apply as apply_module
 from decoders.profiles.apply import ProfileApplier
 from sniffer.encoding import frame_fields as frame_fields_module
@@ -39,6 +35,7 @@ from sniffer.encoding import param_text
 from sniffer.encoding.param_text import encode_record
 from sniffer.encoding.records import FrameRecordEncoder, frame_record
 from sniffer.profiles_io import profile_book
+from tests.oracles import AnewApplier
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 SLAVES = st.sampled_from([1, 2, 7])
@@ -109,30 +106,19 @@ def said(decoding: Decoding) -> tuple[object, ...]:
 
 @settings(max_examples=max(300, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=60), st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=xbt", "7=atv71"]]),
-       st.tuples(st.sampled_from([0, 1, 5, annotate_module.ONE_BY_ONE]),
-                 st.sampled_from([0, annotate_module.TOGETHER_FROM]),
-                 st.sampled_from([0, 3, annotate_module._FACTS_ONE_BY_ONE])),
        st.frozensets(st.integers(0, 120), max_size=12))
 def test_cached_decodings_equal_decoding_each_frame(traffic: list[list[bytes]], profiles: list[str] | None,
-                                                    thresholds: tuple[int, float, int],
                                                     noise: frozenset[int]) -> None:
     """Also the lean path: frames of slaves no profile speaks for (none at all: ``None``; the
-    generic one: ``[]``), decoded without message objects, their params named when read; the
-    register reads of a batch decoded together past its first ``one_by_one`` new frames (once
-    they are ``together_from`` of the frames passed); noise; each frame's facts read one by one
-    or from lists past ``facts_one_by_one`` frames; and
-    the profiles' kept namers and values against naming every value anew (``fast=False``)."""
-    one_by_one, together_from, facts_one_by_one = thresholds
-    batches = matched([data for exchange in traffic for data in exchange], noise=noise)
-    with (patch.object(annotate_module, "ONE_BY_ONE", one_by_one),
-          patch.object(annotate_module, "TOGETHER_FROM", together_from),
-          patch.object(annotate_module, "_FACTS_ONE_BY_ONE", facts_one_by_one)):
-        _check_cached_decodings(batches, profiles)
+    generic one: ``[]``), decoded without message objects, their params named when read; noise;
+    and the profiles' kept namers and values against naming every value anew (:class:`tests.oracles.AnewApplier`)."""
+    _check_cached_decodings(matched([data for exchange in traffic for data in exchange], noise=noise), profiles)
 
 
 def _check_cached_decodings(batches: list[MessageBatch], profiles: list[str] | None) -> None:
     def annotator(fast: bool) -> Annotator:
-        return Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, []), fast=fast))
+        applier = ProfileApplier if fast else AnewApplier
+        return Annotator(None if profiles is None else applier(profile_book(profiles, [])))
 
     cached, plain = annotator(True), annotator(False)
     for batch in batches:
@@ -149,51 +135,6 @@ def test_repeats_share_one_decoding() -> None:
     assert messages[0].decoding is messages[2].decoding is messages[4].decoding
     assert messages[1].decoding is messages[3].decoding
     assert messages[1].params[0].code == "ETA" and "operation enabled" in str(messages[1].params[0].value)
-
-
-@pytest.mark.parametrize("profiles", [None, ["atv71"]])
-def test_frames_of_a_known_shape_are_decoded_from_their_values(profiles: list[str] | None) -> None:
-    """A drive answering one read with ever new values, a master writing ever new setpoints: the
-    first frame of each shape is parsed, the rest are decoded from their values alone (and say
-    what the plain path says)."""
-    traffic = []
-    for value in range(40):
-        traffic += [adu(b"\x02\x03", struct.pack(">HH", 3201, 2)),
-                    adu(b"\x02\x03\x04", struct.pack(">HH", value, 3 * value)),
-                    adu(b"\x02\x10", struct.pack(">HHBHH", 8501, 2, 4, value, value + 1)),
-                    adu(b"\x02\x10", struct.pack(">HH", 8501, 2))]
-    batches = matched(traffic, cuts=(37, 81))
-    book = None if profiles is None else profile_book(profiles, [])
-    plain = Annotator(None if book is None else ProfileApplier(book, fast=False))
-    expected = [said(plain.annotate(message).decoding) for batch in batches for message in batch]
-    cached = Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [])))
-    parsed = []
-    with patch.object(annotate_module, "parse_as", lambda *a, **k: parsed.append(1) or parse_as(*a, **k)), \
-         patch.object(annotate_module, "ONE_BY_ONE", len(traffic)):
-        got = [said(message.decoding) for batch in batches for message in cached.annotate_all(batch)]
-    assert got == expected
-    assert len(parsed) == 6  # a read and its write answer once; an answer and a write, twice (see value_shapes)
-
-
-def test_shapes_are_not_looked_up_where_they_do_not_repeat(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A master reading ever other registers: no shape comes twice, so lookups rest for a while;
-    then a drive polled for one register is decoded from its values again."""
-    monkeypatch.setattr(value_shapes, "WINDOW", 8)
-    monkeypatch.setattr(value_shapes, "REST", 30)
-    one_offs = [frame for address in range(100, 140) for frame in (
-        adu(b"\x02\x03", struct.pack(">HH", address, 1)), adu(b"\x02\x03\x02", struct.pack(">H", address)))]
-    polls = [frame for value in range(60) for frame in (
-        adu(b"\x02\x03", struct.pack(">HH", 3201, 1)), adu(b"\x02\x03\x02", struct.pack(">H", value)))]
-    plain = Annotator(ProfileApplier(profile_book(["atv71"], []), fast=False))
-    cached = Annotator(ProfileApplier(profile_book(["atv71"], [])))
-    (first,) = [batch for batch in matched(one_offs) if len(batch)]
-    assert [said(m.decoding) for m in cached.annotate_all(first)] == [said(plain.annotate(m).decoding) for m in first]
-    assert cached._shapes._resting > 0
-    parsed = []
-    with patch.object(annotate_module, "parse_as", lambda *a, **k: parsed.append(1) or parse_as(*a, **k)):
-        got = [said(m.decoding) for batch in matched(polls) for m in cached.annotate_all(batch)]
-    assert got == [said(plain.annotate(m).decoding) for batch in matched(polls) for m in batch]
-    assert 10 < len(parsed) < 40  # the answers while resting, not those after
 
 
 def test_what_the_profiles_learn_is_not_answered_from_the_cache() -> None:
@@ -215,14 +156,13 @@ def test_each_slave_reads_its_scanner_table_through_its_own_mapping() -> None:
     answers = [adu(bytes([slave]), b"\x03\x02\x05\xdc") for slave in (2, 3)]
     batches = matched([*point_at_rfrd, reads[0], answers[0], reads[1], answers[1], reads[0], answers[0]])
     for fast in (True, False):
-        annotator = Annotator(ProfileApplier(profile_book(["atv71"], []), fast=fast))
+        annotator = Annotator((ProfileApplier if fast else AnewApplier)(profile_book(["atv71"], [])))
         messages = [m for batch in batches for m in annotator.annotate_all(batch)]
         assert [messages[at].params[0].code for at in (3, 5, 7)] == ["NM1→RFRD", "NM1→ETA", "NM1→RFRD"]
 
 
 def test_named_values_kept_stay_bounded(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A drive reporting ever new values fills the applier's memory up to its bound, not beyond;
-    the shapes holding namers go with them (an answer to a read never made again too)."""
+    """A drive reporting ever new values fills the applier's memory up to its bound, not beyond."""
     monkeypatch.setattr(apply_module, "KEPT_NAMED_PARAMS", 50)
     polls = []
     for value in range(3):
@@ -235,8 +175,6 @@ def test_named_values_kept_stay_bounded(monkeypatch: pytest.MonkeyPatch) -> None
     assert messages[-1].params[0].code == "RFRD" and messages[-1].params[0].raw == 299
     kept = sum(1 + len(namer.known) for namers in applier._namers.values() for namer in namers.values())
     assert 0 < kept <= 50 + 2  # checked before each frame, which adds a namer and a value at most
-    assert applier.generation > 3  # the namers were let go again and again, and the shapes with them
-    assert {shape.generation for shape in annotator._shapes._shapes.values() if shape} == {applier.generation}
 
 
 NUMBERS = st.one_of(st.none(), st.integers(-(2**40), 2**40), st.floats(allow_nan=False, allow_infinity=False),
@@ -338,32 +276,3 @@ def test_kept_json_texts_hold_their_text_alone() -> None:
     assert texts[7] == b'{"address":8604,"code":"RFRD","name":"Speed","raw":7,"value":7,"unit":"rpm"}'
     assert held < 400 * len(params)  # the text, its tuple and dict slot: about 200 bytes
 
-
-WORDS = st.lists(st.integers(0, 0xFFFF), min_size=1, max_size=20)
-
-
-@settings(max_examples=max(300, EXAMPLES), deadline=None)
-@given(st.sampled_from(["response 3", "response 4", "write 16", "read-write 23", "write 6"]), WORDS, WORDS,
-       st.integers(0, 0xFFFF))
-def test_a_shape_writes_the_summary_its_pdu_writes(kind: str, learnt: list[int], values: list[int],
-                                                   address: int) -> None:
-    """A shape's summary, written from a frame's bytes, is its PDU's, for the values of any frame
-    of the shape (the shape is learnt from a frame of other values), more than eight too."""
-    values = (values * len(learnt))[: len(learnt)]
-    words = len(learnt)
-
-    def pdu_of(raws: list[int]) -> object:
-        match kind:
-            case "response 3" | "response 4":
-                return RegistersResponse(int(kind[-1]), 2 * words, tuple(raws))
-            case "write 16":
-                return WriteRegistersRequest(address, words, tuple(raws))
-            case "read-write 23":
-                return ReadWriteRequest(address, 3, address ^ 0x55, words, tuple(raws))
-        return WriteSingle(6, address, raws[0])
-
-    writer = value_shapes.summary_writer(pdu_of(learnt), 1 if kind == "write 6" else words)  # type: ignore[arg-type]
-    assert writer is not None
-    shown = values[:1] if kind == "write 6" else values
-    data = b"\xaa\xbb\xcc" + struct.pack(f">{len(shown)}H", *shown) + b"\x00\x00"
-    assert writer(data, 3, tuple(shown)) == pdu_of(shown).summary()  # type: ignore[attr-defined]

@@ -9,8 +9,9 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from decoders.byte_times import ByteClock, byte_times, byte_times_reference, rounded_char_times
+from decoders.byte_times import ByteClock, byte_times, rounded_char_times
 from decoders.capture import ChunkBatch
+from tests.oracles import byte_times_reference
 
 T0 = 1_600_000_000_000_000_000
 CHAR_TIMES = st.sampled_from([11e9 / 115200, 11e9 / 9600, 10e9 / 19200, 1e9 / 3, 1.0, 104166.66666666667])

@@ -19,7 +19,6 @@ from decoders.profiles.apply import ProfileApplier
 from decoders.stats import Statistics
 from sniffer.encoding import value_rows
 from sniffer.encoding.value_rows import KEPT_WRITES, ValueRow, ValueRows
-from sniffer.exports import value_bulk
 from sniffer.exports.parquet_value_columns import value_columns
 from sniffer.exports.parquet_values import ValueCollector
 from sniffer.profiles_io import profile_book
@@ -52,7 +51,7 @@ def test_value_blocks_hold_the_rows_param_by_param(traffic: list[list[bytes]], r
     annotator = Annotator(ProfileApplier(profile_book(["1=atv71", "2=atv71", "7=atv312"], [])))
     collector, recorder = ValueCollector(), Recorder()
     taken = []
-    with patch.object(value_rows, "KEPT_WRITES", kept_writes), patch.object(value_bulk, "KEPT_WRITES", kept_writes):
+    with patch.object(value_rows, "KEPT_WRITES", kept_writes):
         for batch in matched([data for exchange in traffic * repeats for data in exchange]):
             bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
             for start, stop in pairwise(bounds):
@@ -93,7 +92,7 @@ def test_a_write_pushed_out_before_its_answer_is_not_valid() -> None:
     finds nothing to accept. Paired by hand (a pipelining master; no RTU matcher pairs so)."""
     writes = [adu(b"\x01\x06", struct.pack(">HH", 8501, value)) for value in (1, 2, 3)]
     batch = paired_by_hand([*writes, *writes], {3: 0, 4: 1, 5: 2})
-    with patch.object(value_rows, "KEPT_WRITES", 2), patch.object(value_bulk, "KEPT_WRITES", 2):
+    with patch.object(value_rows, "KEPT_WRITES", 2):
         got, expected = rows_both_ways([batch])
     assert got == expected
     assert [(index, valid) for index, kind, _, _, valid in got if kind == "written"] == [(0, False), (1, True),

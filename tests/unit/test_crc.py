@@ -6,15 +6,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from decoders.crc import (
-    crc16_modbus,
-    crc16_modbus_reference,
-    crc_bytes,
-    crc_ok,
-    crc_ok_many,
-    crc_ok_many_reference,
-)
+from decoders.crc import crc16_modbus, crc_bytes, crc_ok, crc_ok_many
 from tests.conftest import load_manual_frames
+from tests.oracles import crc16_modbus_reference, crc_ok_many_reference
 
 MANUAL = load_manual_frames()
 

@@ -1,0 +1,56 @@
+"""Plain reference implementations the tests hold the product's faster ones to.
+
+Each is the rule written the obvious way; the product keeps one implementation of each thing
+(the fast one), and these live here only as oracles.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+from fastcrc import crc16
+
+from decoders.capture import ChunkBatch, Int64Array
+from decoders.crc import CRC_TABLE, MIN_CHECKED
+from decoders.profiles.apply import ProfileApplier
+from decoders.profiles.model import Profile
+from decoders.profiles.naming import AddressNamer
+
+
+def crc16_modbus_reference(data: bytes) -> int:
+    """Table-driven pure-Python CRC-16/MODBUS; slow, obviously correct."""
+    crc = 0xFFFF
+    for byte in data:
+        crc = (crc >> 8) ^ CRC_TABLE[(crc ^ byte) & 0xFF]
+    return crc
+
+
+def crc_ok_many_reference(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+    """:func:`decoders.crc.crc_ok_many` by one ``fastcrc`` call a frame: the plain path."""
+    bounds = offsets.tolist()
+    frames = map(data.__getitem__, map(slice, bounds[:-1], bounds[1:]))
+    remainders = np.fromiter(map(crc16.modbus, frames), np.int64, len(bounds) - 1)
+    valid: npt.NDArray[np.bool_] = (remainders == 0) & (np.diff(offsets) >= MIN_CHECKED)
+    return valid
+
+
+def byte_times_reference(batch: ChunkBatch, char_time_ns: float) -> tuple[Int64Array, Int64Array]:
+    """:func:`decoders.byte_times.byte_times` computed byte by byte from the rule (the plain path)."""
+    total = len(batch.data)
+    if total == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    lengths = np.diff(batch.ends, prepend=0)
+    chunk_of_byte = np.repeat(np.arange(len(batch.ends)), lengths)
+    chars_after = batch.ends[chunk_of_byte] - 1 - np.arange(total, dtype=np.int64)
+    chunk_end = batch.t_end_ns[chunk_of_byte]
+    ends = chunk_end - np.rint(chars_after * char_time_ns).astype(np.int64)
+    starts = chunk_end - np.rint((chars_after + 1) * char_time_ns).astype(np.int64)
+    return starts, ends
+
+
+class AnewApplier(ProfileApplier):
+    """:class:`ProfileApplier` naming every value anew: no namer, and so no named value, kept
+    between frames."""
+
+    def _kept_namers(self, profile: Profile, reported: bool) -> dict[int | tuple[int | None, int], AddressNamer]:
+        return {}
