@@ -22,7 +22,7 @@ from decoders.message import IN_COLUMNS, ROLE_ORDER, Decoding, Message, MessageB
 from decoders.modbus.alike import alike
 from decoders.modbus.columnar import ColumnarFrames
 from decoders.modbus.columnar_text import READ_ANSWER
-from decoders.modbus.param_runs import LazyParams
+from decoders.modbus.param_runs import named_registers
 from decoders.modbus.pdu import ReadRequest
 from decoders.modbus.pdu_parse import parse_as
 
@@ -123,7 +123,7 @@ def _mask(rows: npt.NDArray[np.int64], size: int) -> npt.NDArray[np.bool_]:
 def columnar_decodings(columnar: ColumnarFrames, messages: MessageBatch) -> list[Decoding]:
     """The decoding of each frame of ``columnar`` (in its order) as the plain path makes it: its
     PDU parsed, its summary from the columns, its params named from the columns' names or, where
-    no profile names it, from its PDU and its read's span (:class:`LazyParams`). Frames that read
+    no profile names it, from its PDU and its read's span (:func:`named_registers`). Frames that read
     alike share one decoding, as the annotator's repeats do."""
     frames = messages.frames
     data, offsets = frames.data, frames.offsets
@@ -153,7 +153,7 @@ def columnar_decodings(columnar: ColumnarFrames, messages: MessageBatch) -> list
             decodings.append(Decoding(summary, params, pdu))  # type: ignore[arg-type]
         else:
             request = ReadRequest(function, address, count) if kind == READ_ANSWER else None
-            decodings.append(LazyParams(summary, pdu, request))
+            decodings.append(Decoding(summary, named_registers(pdu, request), pdu))
     if groups is None:
         return decodings
     return list(map(decodings.__getitem__, groups.inverse.tolist()))

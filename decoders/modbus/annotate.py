@@ -32,7 +32,7 @@ from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, ROLE_ORDER, Decoding, 
 from decoders.modbus.codes import function_name
 from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
 from decoders.modbus.columnar_find import find_columnar
-from decoders.modbus.param_runs import LazyParams
+from decoders.modbus.param_runs import named_registers
 from decoders.modbus.pdu import (
     ExceptionPdu,
     Pdu,
@@ -241,7 +241,7 @@ class Annotator:
                 summary += f" ({function_name(pdu.function)})"
             if not facts.crc_ok:
                 summary = f"CRC error: {summary}"
-            decoding = LazyParams(summary, pdu, request)
+            decoding = Decoding(summary, named_registers(pdu, request), pdu)
         return self._profiled(decoding, facts, request)
 
     def _profiled(self, decoding: Decoding, facts: FrameFacts, request: Pdu | None) -> Decoding:

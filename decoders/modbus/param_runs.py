@@ -12,7 +12,6 @@ the same by construction.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from itertools import repeat
 from typing import Any, NamedTuple
 
 from decoders.message import Decoding, ParamValue
@@ -135,61 +134,7 @@ def _read_start(request: Pdu | None) -> int | None:
     return None
 
 
-#: Where a :class:`Decoding` keeps its params (the slot :class:`LazyParams` fills when read).
-_PARAMS_SLOT: Any = Decoding.__dict__["params"]
-
-
-class LazyParams(Decoding):
-    """A decoding no profile adds to, whose params are named when first read, from its PDU and
-    its request's: the same tuple :func:`named_registers` gives, built only for outputs that
-    read params (a table reads the summary alone, and building a param per register is most of
-    the cost of a frame never seen before). Outputs that write params as text or columns read
-    :attr:`runs` instead and build none."""
-
-    __slots__ = ("_request", "_runs")
-
-    def __init__(self, summary: str, pdu: Pdu, request: Pdu | None) -> None:
-        # Not Decoding.__init__: its dataclass code would assign ``params`` through this
-        # class's property; the other fields are plain slots.
-        self.summary = summary
-        self.pdu = pdu
-        self.remarks = ()
-        self.device = None
-        self.uss = None
-        self._request = request
-        self._runs: tuple[ParamRun, ...] | None = None
-
-    @property
-    def runs(self) -> tuple[ParamRun, ...]:
-        """The params as runs of consecutive addresses (:func:`param_runs`)."""
-        if self._runs is None:
-            assert self.pdu is not None
-            self._runs = param_runs(self.pdu, self._request)
-            self._request = None
-        return self._runs
-
-    @property
-    def params(self) -> tuple[ParamValue, ...]:  # type: ignore[override]
-        try:
-            named: tuple[ParamValue, ...] = _PARAMS_SLOT.__get__(self, Decoding)
-        except AttributeError:
-            named = expand_runs(self.runs)
-            _PARAMS_SLOT.__set__(self, named)
-        return named
-
-
 def addressed_values(decoding: Decoding) -> list[tuple[int, int | None]]:
     """The address and raw value (``None``: named without one) of every register or coil a
-    decoding names, from its runs where it has them (no param objects built)."""
-    if not isinstance(decoding, LazyParams):
-        return [(param.address, param.raw) for param in decoding.params]
-    runs = decoding.runs
-    if len(runs) == 1:  # most frames: one run
-        run = runs[0]
-        # Not strict: repeat() has no end (and values are as many as the run's size).
-        return list(zip(run.addresses(), repeat(None) if run.values is None else run.values, strict=False))
-    pairs: list[tuple[int, int | None]] = []
-    for run in runs:
-        addresses = run.addresses()
-        pairs += zip(addresses, repeat(None)) if run.values is None else zip(addresses, run.values, strict=True)
-    return pairs
+    decoding names."""
+    return [(param.address, param.raw) for param in decoding.params]

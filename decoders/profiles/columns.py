@@ -40,7 +40,7 @@ import numpy.typing as npt
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
 from decoders.modbus.columnar import ColumnarFrames, one_of
 from decoders.modbus.columnar_text import READ, READ_WRITE, WRITE, words_at
-from decoders.modbus.param_runs import LazyParams, addressed_values
+from decoders.modbus.param_runs import named_registers
 from decoders.modbus.pdu import Pdu
 from decoders.modbus.pdu_parse import parse_as, parse_pdu
 from decoders.modbus.pdu_serial import DeviceIdResponse
@@ -215,7 +215,7 @@ def _teaches(applier: ProfileApplier, batch: MessageBatch, framed: FrameProfiles
 
     asked = pdu_at(request) if isinstance(request, int) else request
     return applier.would_learn(framed.of(position), int(batch.slave[position]),
-                               addressed_values(LazyParams("", pdu_at(position), asked)))
+                               [(param.address, param.raw) for param in named_registers(pdu_at(position), asked)])
 
 
 def _asked_spans(batch: MessageBatch, frame_kind: npt.NDArray[np.int64]) -> list[tuple[npt.NDArray[np.int64], ...]]:

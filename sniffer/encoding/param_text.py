@@ -1,66 +1,31 @@
-"""The ``params`` array of a frame record, written straight from runs of registers or coils.
+"""The texts of a frame record's ``params``: JSON per param, and tables for unnamed ones.
 
 For registers no profile names every param record is the same text but for the address and the
 value. Each address's start (``,{"address":…,"raw":``) and each value's end (``…,"unit":null}``)
-is formatted once, in two tables of 65 536 (built at first use: 10 ms and 5 MB each), and a run
-is two slices interleaved. Raw values are 16-bit words or coil bits, so a value is its own
-index. ``python -m benchmarks.bench_param_text`` times this against a ``%``-template per run
-length and against ends kept in a dict as values come. With values, the tables are the fastest
-from 8 params on and within a quarter of the fastest below, with values that repeat (a plant)
-and values that never do (the polling benchmark). A run without values (a read request) up to
-``SHORT_UNVALUED`` params fills its template instead, which is faster there.
-
-The text is UTF-8 pieces for the caller to join with the rest of its record: a coil frame's
-params are kilobytes, and each copy of them costs more than the pieces.
-Exactly the JSON of :func:`sniffer.encoding.records.param_record` (the tests compare both).
+is formatted once, in two tables of 65 536 (built at first use: 10 ms and 5 MB each), from which
+the frames in columns are spelt (:mod:`sniffer.encoding.columnar_parts`). Raw values are 16-bit
+words or coil bits, so a value is its own index. A named param's JSON is made once per param
+(:data:`PARAM_JSON`). Exactly the JSON of :func:`sniffer.encoding.records.param_record` (the
+tests compare both).
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from operator import itemgetter
 from typing import Any, Generic, TypeVar
 
 import orjson
 
 from decoders.message import ParamValue
-from decoders.modbus.param_runs import ParamRun
 
 #: The end of a param record without a value (a read request names registers without).
 NO_VALUE_END = b'null,"value":null,"unit":null}'
 WORDS = 1 << 16
 
-#: Runs without values up to this long are written from a template (see the module docstring).
-SHORT_UNVALUED = 24
-_UNVALUED = b',{"address":%d,"code":null,"name":null,"raw":null,"value":null,"unit":null}'
-#: By run length: the template of that many params without values (each after a comma).
-_UNVALUED_TEMPLATES = [_UNVALUED * count for count in range(SHORT_UNVALUED + 1)]
-
 _starts: list[bytes] = []
 _value_ends: list[bytes] = []
-
-
-def runs_json(runs: tuple[ParamRun, ...]) -> bytes:
-    """The ``params`` array of the registers or coils of ``runs``, no profile naming them."""
-    return b"".join(params_pieces(runs))
-
-
-def params_pieces(runs: tuple[ParamRun, ...], before: bytes = b"") -> list[bytes]:
-    """:func:`runs_json` as pieces to join, the first of them ``before`` and the array's ``[``."""
-    param_tables()
-    pieces = [before + b"["]
-    for address, count, values in runs:
-        if values is None and 0 < count <= SHORT_UNVALUED and address + count <= WORDS:
-            pieces.append(_UNVALUED_TEMPLATES[count] % tuple(range(address, address + count)))
-        elif count == 1 and values is not None and address < WORDS:  # one register or coil: nothing to interleave
-            pieces += (_starts[address], _value_ends[values[0]])
-        elif count > 0:
-            pieces += _run_pieces(address, count, values)
-    if len(pieces) > 1:
-        pieces[1] = pieces[1][1:]  # the first param's start, without its comma
-    pieces.append(b"]")
-    return pieces
 
 
 def param_tables() -> tuple[list[bytes], list[bytes]]:
@@ -70,18 +35,6 @@ def param_tables() -> tuple[list[bytes], list[bytes]]:
         _starts.extend(map(param_start, range(WORDS)))
         _value_ends.extend(b'%d,"value":%d,"unit":null}' % (value, value) for value in range(WORDS))
     return _starts, _value_ends
-
-
-def _run_pieces(address: int, count: int, values: Sequence[int] | None) -> list[bytes]:
-    """The run's pieces: each param's start then its end (each start begins with a comma)."""
-    if address + count > WORDS:  # not on a wire (16-bit addresses): spelt one by one
-        heads = [param_start(a) for a in range(address, address + count)]
-    else:
-        heads = _starts[address : address + count]
-    pieces: list[bytes] = [b""] * (2 * count)
-    pieces[::2] = heads
-    pieces[1::2] = [NO_VALUE_END] * count if values is None else map(_value_ends.__getitem__, values)
-    return pieces
 
 
 def param_start(address: int) -> bytes:

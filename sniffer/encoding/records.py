@@ -14,7 +14,6 @@ from decoders.line import LineSettings
 from decoders.memo import Memo
 from decoders.message import NONE, ROLE_NAMES, Decoding, DeviceIdentity, Message, MessageBatch
 from decoders.modbus.annotate import KEPT_DECODINGS
-from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.columnar_parts import ColumnarParts, in_columns_too
 from sniffer.encoding.frame_fields import (
     NS_PER_S,
@@ -24,7 +23,7 @@ from sniffer.encoding.frame_fields import (
     frame_fields,
     identities_at,
 )
-from sniffer.encoding.param_text import PARAM_JSON, encode_json, param_record, params_pieces
+from sniffer.encoding.param_text import PARAM_JSON, encode_json, param_record
 from sniffer.encoding.rows import (
     Column,
     Rows,
@@ -220,13 +219,9 @@ class FrameRecordEncoder:
 
     def _decoding_part(self, decoding: Decoding, protocol: int) -> bytes:
         """A record's part from ``params`` to the end of ``remarks``."""
-        if isinstance(decoding, LazyParams):  # no profile: written from its runs, no param objects
-            tail = params_pieces(decoding.runs, b'"params":')
-            tail += (b',"summary":', encode_json(decoding.summary))
-        else:
-            texts, entry = PARAM_JSON.kept, PARAM_JSON.entry
-            params = b",".join([(texts.get(id(p)) or entry(p))[1] for p in decoding.params])
-            tail = [b'"params":[', params, b'],"summary":', encode_json(decoding.summary)]
+        texts, entry = PARAM_JSON.kept, PARAM_JSON.entry
+        params = b",".join([(texts.get(id(p)) or entry(p))[1] for p in decoding.params])
+        tail = [b'"params":[', params, b'],"summary":', encode_json(decoding.summary)]
         remarks = encode_json(list(decoding.remarks)) if decoding.remarks else b"[]"
         tail += (b',"protocol":', _PROTOCOL_JSON[protocol], b',"remarks":', remarks)
         return b"".join(tail)

@@ -11,9 +11,6 @@ table (:mod:`sniffer.exports.parquet_export`): a row per frame that carried valu
   answer, and carry the request's time and index.
 
 :class:`ValueRows` finds the rows; a subclass says what becomes of each (:meth:`ValueRows.output`).
-A subclass that writes columns (``takes_runs``) gets the rows of slaves no profile speaks for
-as runs of consecutive addresses (:mod:`decoders.modbus.param_runs`) rather than a param object
-per value, when it takes every value.
 """
 
 from __future__ import annotations
@@ -26,7 +23,6 @@ import numpy as np
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import FrameFlag
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, ParamValue, Role
-from decoders.modbus.param_runs import LazyParams, ParamRun
 from decoders.stats import Statistics
 from sniffer.sinks import Sink
 
@@ -52,11 +48,6 @@ class ValueChoice:
     params: frozenset[str] = frozenset()
     changes: bool = False
 
-    @property
-    def everything(self) -> bool:
-        """Whether every value of every slave is wanted, changed or not."""
-        return not (self.slaves or self.params or self.changes)
-
     def wants(self, slave: int, param: ParamValue) -> bool:
         if self.slaves and slave not in self.slaves:
             return False
@@ -72,10 +63,7 @@ class ValueRow:
     params: tuple[ParamValue, ...]
     request_index: int | None
     valid: list[bool] = field(default_factory=list)
-    #: For a subclass that ``takes_runs``: the values as runs (``params`` is then empty), all
-    #: with the validity ``valid[0]`` (no profile marks a value as not a reading).
-    runs: tuple[ParamRun, ...] | None = None
-    #: The decoding whose params these are (not for runs): what a subclass may cache by.
+    #: The decoding whose params these are: what a subclass may cache by.
     decoding: Decoding | None = None
 
 
@@ -83,8 +71,6 @@ class ValueRows(Sink):
     """Finds the value rows of annotated batches, in capture order (written rows once answered)."""
 
     wants_messages = True
-    #: Whether :meth:`output` takes rows as runs (:attr:`ValueRow.runs`).
-    takes_runs = False
 
     def __init__(self, choice: ValueChoice | None = None) -> None:
         self._choice = choice or ValueChoice()
@@ -116,7 +102,6 @@ class ValueRows(Sink):
         role, slave, function, crc, flags, request, t_start = (column[at].tolist() for column in (
             messages.role, messages.slave, messages.function, frames.crc_ok, messages.flags, messages.request_index,
             frames.t_start_ns))
-        as_runs = self.takes_runs and self._choice.everything
         decoded = batch.decoded
         for place, position in enumerate(positions):
             self.emitting = first + position
@@ -126,13 +111,10 @@ class ValueRows(Sink):
             kind = role[place]
             if kind in (_RESPONSE, _EXCEPTION) and request[place] != NONE:
                 self._answered(request[place], valid=kind == _RESPONSE and bool(crc[place]))
-            runs = decoding.runs if as_runs and isinstance(decoding, LazyParams) else None
-            if slave[place] == NONE or not (decoding.params if runs is None else runs):
+            if slave[place] == NONE or not decoding.params:
                 continue
-            row = ValueRow(t_start[place], first + position, slave[place], "",
-                           () if runs is not None else decoding.params,
-                           None if request[place] == NONE else request[place], runs=runs,
-                           decoding=decoding if runs is None else None)
+            row = ValueRow(t_start[place], first + position, slave[place], "", decoding.params,
+                           None if request[place] == NONE else request[place], decoding=decoding)
             if kind == _RESPONSE:
                 row.kind = "reported"
                 self._emit(row, crc_ok=bool(crc[place]))
@@ -157,9 +139,6 @@ class ValueRows(Sink):
         """Each batch's start times, before its rows (``--time relative`` counts from the first)."""
 
     def _emit(self, row: ValueRow, *, crc_ok: bool) -> None:
-        if row.runs is not None:
-            self._emit_runs(row, crc_ok=crc_ok)
-            return
         params = [p for p in row.params if p.raw is not None and self._choice.wants(row.slave, p)]
         if self._choice.changes:
             params = [p for p in params if self._changed(row, p)]
@@ -168,16 +147,6 @@ class ValueRows(Sink):
         row.params = tuple(params)
         row.valid = [crc_ok and (p.available or row.kind == "written") for p in params]
         self.shown += len(params)
-        self.output(row)
-
-    def _emit_runs(self, row: ValueRow, *, crc_ok: bool) -> None:
-        """A row of runs: the runs that carry values, each value valid as its frame is."""
-        assert row.runs is not None
-        valued = tuple(run for run in row.runs if run.values is not None and run.size > 0)
-        if not valued:
-            return
-        row.runs, row.valid = valued, [crc_ok]
-        self.shown += sum(run.size for run in valued)
         self.output(row)
 
     def _changed(self, row: ValueRow, param: ParamValue) -> bool:

@@ -40,7 +40,6 @@ from decoders.line import LineSettings
 from decoders.memo import Memo
 from decoders.message import NONE, ROLE_NAMES, Decoding, MessageBatch
 from decoders.modbus.annotate import KEPT_DECODINGS
-from decoders.modbus.param_runs import LazyParams
 from sniffer.encoding.columnar_parts import in_columns_too
 from sniffer.encoding.frame_fields import BlockFields, block_fields
 from sniffer.encoding.param_text import encode_json
@@ -123,9 +122,6 @@ PARAMS_SCHEMA: dict[str, Any] = {
 
 def numeric_params(decoding: Decoding) -> dict[str, float | int]:
     """The values a frame carried, by code (or address), numbers only: state words give their raw value."""
-    if isinstance(decoding, LazyParams):  # no profile: every value is a reading, named by address
-        return {str(address): value for run in decoding.runs if run.values is not None
-                for address, value in zip(run.addresses(), run.values, strict=True)}
     values: dict[str, float | int] = {}
     for param in plotted(decoding.params):
         assert param.raw is not None  # plotted() takes only params with a raw value

@@ -13,7 +13,6 @@ mixed frames.
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -22,12 +21,12 @@ import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
 
-from decoders.message import NONE, ParamValue
+from decoders.message import ParamValue
 from decoders.runs import spread
 from sniffer.encoding.value_rows import VALUE_KINDS, WRITTEN
 from sniffer.exports.arrow_compute import taken
 from sniffer.exports.parquet_export import dictionary, nullable, times
-from sniffer.exports.parquet_values import ROW_COLUMNS, RUN_COLUMNS, CollectedValues, NumericValues, param_columns
+from sniffer.exports.parquet_values import CollectedValues, NumericValues, param_columns
 
 _VALUE_KINDS = pa.array(VALUE_KINDS)  # made once: 0.1 ms each time, a batch's dictionary
 #: The text columns, in the order of :attr:`LaidRows.texts`.
@@ -70,16 +69,12 @@ def value_columns(found: CollectedValues, numeric: NumericValues | None = None) 
     """The ``values`` table: (t, index, slave, kind, address, code, name, raw, value, text, unit,
     request index, valid), a row per value, in the order found (``numeric``: more rows, of the
     frames left in columns); and each row's time."""
-    parts = [] if numeric is None or not len(numeric) else [numeric]
-    if found.runs:
-        parts.insert(0, _run_values(found))
-    if not parts:
+    if numeric is None or not len(numeric):
         rows = _named_rows(found)
     else:
-        laid_out = parts[0] if len(parts) == 1 else _in_order(parts)
-        rows = _numeric_rows(laid_out)
+        rows = _numeric_rows(numeric)
         if found.named:
-            rows = _joined(_named_rows(found), rows, laid_out, found)
+            rows = _joined(_named_rows(found), rows, numeric, found)
     return rows.t_ns, _arrow(rows)
 
 
@@ -173,37 +168,3 @@ def _numeric_rows(rows: NumericValues) -> LaidRows:
     valid = rows.valid & (~rows_named | usable[entry] | (rows.kind == WRITTEN))
     return LaidRows(rows.t_ns, rows.index, rows.slave, rows.kind, rows.address, rows.raw, value,
                     rows_named & unnumbered[entry], rows.request_index, valid, entry, (code, name, text, unit))
-
-
-def _in_order(parts: list[NumericValues]) -> NumericValues:
-    """The rows of ``parts`` as one, in the order found: their runs put in order (a stable sort,
-    as of the rows: a run's rows share their keys), then the rows run by run."""
-    joined = {name: np.concatenate([getattr(part, name) for part in parts]) for name in ROW_COLUMNS + RUN_COLUMNS}
-    sizes = joined["run_sizes"]
-    runs = np.lexsort((joined["run_order"], joined["run_found"]))
-    rows = spread((np.cumsum(sizes) - sizes)[runs], sizes[runs])
-    names = next((part.names for part in parts if part.names is not None), None)
-    return NumericValues(**{name: joined[name][rows] for name in ROW_COLUMNS},
-                         **{name: joined[name][runs] for name in RUN_COLUMNS}, names=names)
-
-
-def _run_values(found: CollectedValues) -> NumericValues:
-    """The rows of runs, laid out by numpy."""
-    rows = found.runs
-    runs = [run for row in rows for run in row.runs or ()]
-    run_counts = np.array([run.size for run in runs], np.int64)
-    counts = np.array([sum(run.size for run in row.runs or ()) for row in rows], np.int64)
-    total = int(run_counts.sum())
-    address = spread(np.array([run.address for run in runs], np.int64), run_counts)
-    request = [NONE if row.request_index is None else row.request_index for row in rows]
-
-    def each(values: Sequence[int]) -> npt.NDArray[np.int64]:
-        return np.repeat(np.array(values, np.int64), counts)
-
-    return NumericValues(
-        each([row.t_ns for row in rows]), each([row.index for row in rows]), each([row.slave for row in rows]),
-        np.repeat(np.array([VALUE_KINDS.index(row.kind) for row in rows], np.int32), counts), address,
-        np.fromiter(itertools.chain.from_iterable(run.values or () for run in runs), np.int64, total),
-        each(request), np.repeat(np.array([row.valid[0] for row in rows], np.bool_), counts),
-        np.full(total, -1, np.int64), counts, np.array(found.run_at, np.int64), np.array(found.run_order, np.int64))
-

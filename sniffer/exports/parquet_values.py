@@ -41,28 +41,25 @@ _KIND_CODES = {kind: code for code, kind in enumerate(VALUE_KINDS)}
 class CollectedValues:
     """The value rows of some batches, in the order found: of profiled slaves' params, the row's
     own columns (``named``) and its decoding's params (``blocks``, one object per decoding and
-    kind: repeats share it); the rows of runs as they are (``runs``); ``*_order``: each row's
-    place, ``*_at``: the frame index where each was found."""
+    kind: repeats share it); ``named_order``: each row's place, ``named_at``: the frame index
+    where each was found."""
 
     named: list[NamedRow] = field(default_factory=list)
     blocks: list[NamedBlock] = field(default_factory=list)
     named_order: list[int] = field(default_factory=list)
     named_at: list[int] = field(default_factory=list)
-    runs: list[ValueRow] = field(default_factory=list)
-    run_order: list[int] = field(default_factory=list)
-    run_at: list[int] = field(default_factory=list)
 
     def __len__(self) -> int:
-        return len(self.named) + len(self.runs)
+        return len(self.named)
 
 
 @dataclass(frozen=True)
 class NumericValues:
-    """Rows of values in columns: of runs no profile names, and of frames left in columns, whose
-    profiles may name them (``name``: each row's entry in ``names``, -1 where none does). Rows
-    come in runs (``run_sizes``: the rows of each, one after the other), each found at once: the
-    frame index where (``run_found``) and its place among what was found there (``run_order``);
-    kept per run, the rows' own are made only where rows are put in order among others
+    """Rows of values in columns, of frames left in columns, whose profiles may name them
+    (``name``: each row's entry in ``names``, -1 where none does). Rows come in runs
+    (``run_sizes``: the rows of each, one after the other), each found at once: the frame index
+    where (``run_found``) and its place among what was found there (``run_order``); kept per
+    run, the rows' own are made only where rows are put in order among others
     (:meth:`found_and_order`): for 1 M coil frames, two columns of 12.7 M rows fewer."""
 
     t_ns: npt.NDArray[np.int64]
@@ -92,19 +89,11 @@ class NumericValues:
         return np.repeat(self.run_found, self.run_sizes), np.repeat(self.run_order, self.run_sizes)
 
 
-#: The columns of :class:`NumericValues` with a value per run, and those with a value per row,
-#: laid end to end by ``_in_order``.
-RUN_COLUMNS = ["run_sizes", "run_found", "run_order"]
-ROW_COLUMNS = [name for name in NumericValues.__dataclass_fields__ if name not in (*RUN_COLUMNS, "names")]
-
-
 class ValueCollector(ValueRows):
-    """The value rows of each batch, taken by :meth:`take` (the ``values`` table); rows of slaves
-    no profile speaks for stay runs until :func:`value_columns` lays them out with numpy, rows of
-    profiled params refer to their decoding's :data:`NamedBlock`, made once per decoding (a
-    plant's drives report the same values again and again)."""
-
-    takes_runs = True
+    """The value rows of each batch's frames decoded one by one, taken by :meth:`take` (the
+    ``values`` table, with the rows of frames in columns: :func:`columnar_values`); each row
+    refers to its decoding's :data:`NamedBlock`, made once per decoding (a bus repeats its
+    exceptions and identifications)."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -139,9 +128,7 @@ class ValueCollector(ValueRows):
         """:meth:`ValueRows._emit` of every value (this collector chooses none), a decoding's
         params taken apart once (``tests/test_parquet.py`` holds the table to ``values``)."""
         decoding = row.decoding
-        if decoding is None:
-            super()._emit(row, crc_ok=crc_ok)
-            return
+        assert decoding is not None  # every row of ValueRows.rows_at has its decoding
         block = self._block(decoding, row.kind, crc_ok)
         if not block:
             return
@@ -152,13 +139,6 @@ class ValueCollector(ValueRows):
         found.blocks.append(block)
         found.named_order.append(self._rows_found)
         found.named_at.append(self.emitting)
-
-    def output(self, row: ValueRow) -> None:
-        """A row of runs (the rows of params go by :meth:`_emit`)."""
-        found, self._rows_found = self._found, self._rows_found + 1
-        found.runs.append(row)
-        found.run_order.append(self._rows_found)
-        found.run_at.append(self.emitting)
 
     def take(self) -> CollectedValues:
         found, self._found = self._found, CollectedValues()

@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, MessageBatch, Role, slice_messages
 from decoders.modbus.annotate import Annotator
-from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
+from decoders.modbus.columnar import KEPT_REQUESTS, NO_VALUE, ColumnarFrames
 from decoders.modbus.columnar_text import READ_WRITE, WRITE, Lines, summaries, summary_pieces
-from decoders.modbus.param_runs import LazyParams, addressed_values
+from decoders.modbus.param_runs import addressed_values
 from decoders.profiles.apply import ProfileApplier
 from sniffer.profiles_io import profile_book
 from tests.property.test_annotation_cache import PRODUCT, adu, matched, said
@@ -115,8 +115,10 @@ def check_names(reads: ColumnarFrames, data: bytes, expected: list[Decoding]) ->
     for frame, position in enumerate(reads.positions.tolist()):
         rows = range(ends[frame] - int(params.sizes[frame]), ends[frame])
         decoding = expected[position]
-        if isinstance(decoding, LazyParams):
-            assert names is None or all(names.row[row] < 0 for row in rows)
+        if names is None or all(names.row[row] < 0 for row in rows):  # each param its address and raw word
+            assert [(param.address, param.raw, param.value, param.code) for param in decoding.params] == [
+                (int(params.address[row]), *[None if params.value[row] == NO_VALUE else int(params.value[row])] * 2,
+                 None) for row in rows]
         else:
             assert names is not None
             entries = names.table
@@ -146,8 +148,6 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
         assert said(got.decoded[position]) == said(expected[position])
     # Frames in columns too: their decodings, built when read, are the plain path's.
     assert [said(decoding) for decoding in got.decodings] == [said(decoding) for decoding in expected]
-    assert [isinstance(decoding, LazyParams) for decoding in got.decodings] == [
-        isinstance(decoding, LazyParams) for decoding in expected]
     if reads is not None:
         data = batch.frames.data
         assert all(got.decoded[position] is IN_COLUMNS for position in kept)

@@ -1,17 +1,15 @@
-"""Params as runs (the columnar form) against params one object each (the plain path): the
-same registers, the same JSON text, the same numeric values, for any frame."""
+"""Params as runs against params spelt out case by case: the same registers for any frame."""
 
 from __future__ import annotations
 
-import json
 import struct
 
 from hypothesis import given
 from hypothesis import strategies as st
 
 from decoders.crc import crc_bytes
-from decoders.message import Decoding, ParamValue
-from decoders.modbus.param_runs import LazyParams, ParamRun, expand_runs, param_runs
+from decoders.message import ParamValue
+from decoders.modbus.param_runs import expand_runs, param_runs
 from decoders.modbus.pdu import (
     COIL_ON,
     BitsResponse,
@@ -27,8 +25,6 @@ from decoders.modbus.pdu import (
     quantity_allowed,
 )
 from decoders.modbus.pdu_parse import parse_pdu
-from sniffer.encoding.param_text import param_record, runs_json
-from sniffer.exports.mcap_export import numeric_params
 
 
 def reference_params(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:
@@ -95,28 +91,3 @@ def test_runs_name_what_the_plain_rule_names(exchange: tuple[bytes, bytes]) -> N
     answer = parse_pdu(exchange[1], is_request=False)
     for pdu, asked in ((request, None), (answer, request)):
         assert expand_runs(param_runs(pdu, asked)) == reference_params(pdu, asked)
-
-
-@given(exchanges())
-def test_outputs_write_runs_as_they_write_params(exchange: tuple[bytes, bytes]) -> None:
-    """The JSONL text and the MCAP numeric values of a decoding without a profile, from its
-    runs, are what the plain path makes of its params."""
-    request = parse_pdu(exchange[0], is_request=True)
-    answer = parse_pdu(exchange[1], is_request=False)
-    for pdu, asked in ((request, None), (answer, request)):
-        lazy = LazyParams("s", pdu, asked)
-        plain = Decoding("s", params=reference_params(pdu, asked), pdu=pdu)
-        expected = json.dumps([param_record(p) for p in plain.params], separators=(",", ":"))
-        assert runs_json(lazy.runs).decode() == expected
-        assert numeric_params(lazy) == numeric_params(plain)
-        assert list(numeric_params(lazy)) == list(numeric_params(plain))
-
-
-@given(st.lists(st.tuples(st.integers(0, 0x1_0100), st.integers(0, 130), st.booleans(), st.integers(0, 0xFFFF)),
-                max_size=4))
-def test_runs_text_anywhere_in_the_address_space(drawn: list[tuple[int, int, bool, int]]) -> None:
-    runs = tuple(ParamRun(address, count, [(value + i) & 0xFFFF for i in range(count)] if valued else None)
-                 for address, count, valued, value in drawn)
-    expected = [param_record(p) for p in expand_runs(runs)]
-    assert json.loads(runs_json(runs)) == expected
-    assert runs_json(runs).decode() == json.dumps(expected, separators=(",", ":"))
