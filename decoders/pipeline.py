@@ -93,13 +93,14 @@ class Decoder:
 def decode(
     batches: Iterable[ChunkBatch], line: LineSettings, timing: TimingQuality, profiles: ProfileBook | None = None
 ) -> Iterator[Message]:
-    """All decoded messages of a capture, streaming; ``profiles`` name the registers."""
+    """All decoded messages of a capture, streaming, as every output gets them
+    (:meth:`~decoders.modbus.annotate.Annotator.annotate_columnar`); ``profiles`` name the registers."""
     from decoders.modbus.annotate import Annotator  # noqa: PLC0415 - framing and pairing need not import it
 
     decoder = Decoder(line, timing)
     annotator = Annotator.naming_by(profiles)
     for batch in batches:
         for messages in decoder.feed(batch):
-            yield from annotator.annotate_all(messages)
+            yield from annotator.annotate_columnar(messages)
     for messages in decoder.flush():
-        yield from annotator.annotate_all(messages)
+        yield from annotator.annotate_columnar(messages)

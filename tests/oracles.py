@@ -6,15 +6,22 @@ Each is the rule written the obvious way; the product keeps one implementation o
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import numpy.typing as npt
 from fastcrc import crc16
 
 from decoders.capture import ChunkBatch, Int64Array
 from decoders.crc import CRC_TABLE, MIN_CHECKED
+from decoders.frame import PROTOCOL_NAMES
+from decoders.message import Message
 from decoders.profiles.apply import ProfileApplier
 from decoders.profiles.model import Profile
 from decoders.profiles.naming import AddressNamer
+from sniffer.encoding.frame_fields import NS_PER_S
+from sniffer.encoding.param_text import param_record
+from sniffer.encoding.records import channel_name, uart_error_records
 
 
 def crc16_modbus_reference(data: bytes) -> int:
@@ -54,3 +61,33 @@ class AnewApplier(ProfileApplier):
 
     def _kept_namers(self, profile: Profile, reported: bool) -> dict[int | tuple[int | None, int], AddressNamer]:
         return {}
+
+
+def frame_record(message: Message, channels: tuple[str, ...] = ()) -> dict[str, Any]:
+    """One frame record as the JSONL view writes it, spelt field by field from a message (the
+    oracle of :class:`sniffer.encoding.records.FrameRecordEncoder`); ``channels``: the
+    capture's line names (:attr:`CaptureInfo.channels`), for ``channel``."""
+    frame = message.frame
+    return {
+        "kind": "frame",
+        "index": frame.index,
+        "t": frame.t_start_ns / NS_PER_S,
+        "t_end": frame.t_end_ns / NS_PER_S,
+        "t_ns": frame.t_start_ns,
+        "t_end_ns": frame.t_end_ns,
+        "hex": frame.data.hex(),
+        "crc_ok": frame.crc_ok,
+        "slave": message.slave,
+        "function": message.function,
+        "role": message.role.value,
+        "exception_code": message.exception_code,
+        "flags": message.flags.names,
+        "request_index": message.request_index,
+        "latency_s": None if message.latency_ns is None else message.latency_ns / NS_PER_S,
+        "params": [param_record(p) for p in message.params],
+        "summary": message.summary,
+        "protocol": PROTOCOL_NAMES[frame.protocol],
+        "remarks": list(message.remarks),
+        **({"channel": channel_name(channels, frame.channel)} if frame.channel else {}),
+        **({"uart_errors": uart_error_records(frame.uart_errors)} if frame.uart_errors else {}),
+    }

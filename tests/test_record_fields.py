@@ -12,10 +12,11 @@ from decoders.decoded_batch import AnnotatedBatch
 from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from sniffer.encoding.fields import FRAME_FIELD_NAMES, FRAME_FIELDS, OPTIONAL_FRAME_FIELD_NAMES
-from sniffer.encoding.records import FrameRecordEncoder, frame_record
+from sniffer.encoding.records import FrameRecordEncoder
 from sniffer.exports.mcap_export import FRAME_SCHEMA
 from sniffer.io.registry import open_reader
 from tests.conftest import SAMPLE_LOG
+from tests.oracles import frame_record
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "jsonl-output.md"
 

@@ -12,7 +12,7 @@ from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import PROTOCOL_NAMES, FrameBatch, FrameFlag
 from decoders.line import LineSettings
 from decoders.memo import Memo
-from decoders.message import NONE, ROLE_NAMES, Decoding, DeviceIdentity, Message, MessageBatch
+from decoders.message import NONE, ROLE_NAMES, Decoding, DeviceIdentity, MessageBatch
 from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.encoding.columnar_parts import ColumnarParts, in_columns_too
 from sniffer.encoding.frame_fields import (
@@ -23,7 +23,7 @@ from sniffer.encoding.frame_fields import (
     frame_fields,
     identities_at,
 )
-from sniffer.encoding.param_text import PARAM_JSON, encode_json, param_record
+from sniffer.encoding.param_text import PARAM_JSON, encode_json
 from sniffer.encoding.rows import (
     Column,
     Rows,
@@ -44,35 +44,6 @@ def capture_record(source: str, info: CaptureInfo, line: LineSettings) -> dict[s
         "t3_5_s": line.t3_5_ns / NS_PER_S,
         "notes": list(info.notes),
         **({"channels": list(info.channels)} if info.channels else {}),
-    }
-
-
-def frame_record(message: Message, channels: tuple[str, ...] = ()) -> dict[str, Any]:
-    """One frame record; ``t_ns``/``t_end_ns`` add the exact integer times; ``channels``: the
-    capture's line names (:attr:`CaptureInfo.channels`), for ``channel``."""
-    frame = message.frame
-    return {
-        "kind": "frame",
-        "index": frame.index,
-        "t": frame.t_start_ns / NS_PER_S,
-        "t_end": frame.t_end_ns / NS_PER_S,
-        "t_ns": frame.t_start_ns,
-        "t_end_ns": frame.t_end_ns,
-        "hex": frame.data.hex(),
-        "crc_ok": frame.crc_ok,
-        "slave": message.slave,
-        "function": message.function,
-        "role": message.role.value,
-        "exception_code": message.exception_code,
-        "flags": message.flags.names,
-        "request_index": message.request_index,
-        "latency_s": None if message.latency_ns is None else message.latency_ns / NS_PER_S,
-        "params": [param_record(p) for p in message.params],
-        "summary": message.summary,
-        "protocol": PROTOCOL_NAMES[frame.protocol],
-        "remarks": list(message.remarks),
-        **({"channel": channel_name(channels, frame.channel)} if frame.channel else {}),
-        **({"uart_errors": uart_error_records(frame.uart_errors)} if frame.uart_errors else {}),
     }
 
 
@@ -113,7 +84,7 @@ def uart_error_column(frames: FrameBatch, kept: npt.NDArray[np.int64]) -> list[C
 
 _PROTOCOL_JSON = {code: f'"{name}"'.encode() for code, name in PROTOCOL_NAMES.items()}
 class FrameRecordEncoder:
-    """Frame records as JSON, exactly ``encode_record(frame_record(m))``, a batch at a time.
+    """Frame records as JSON, exactly ``encode_record(frame_record(m))`` (``tests/oracles.py``), a batch at a time.
 
     Every frame passes through here. What a decoding determines (params, summary, protocol,
     remarks) is encoded once per :class:`Decoding` (the annotator shares one between

@@ -90,13 +90,14 @@ with atheris.instrument_imports(include=list(_instrumented)):
     from decoders.modbus.matcher import Matcher
     from decoders.profiles.apply import ProfileApplier
     from decoders.profiles.parse import ProfileError, parse_profile
-    from sniffer.encoding.records import FrameRecordEncoder, frame_record
+    from sniffer.encoding.records import FrameRecordEncoder
     from sniffer.errors import RtuSniffError
     from sniffer.io.base import ReaderOptions
     from sniffer.io.mcap_checks import sealed
     from sniffer.io.registry import open_reader, open_writer
     from sniffer.io.text_writer import comment_lines
     from sniffer.profiles_io import profile_book
+    from tests.oracles import frame_record
     from tests.property.test_reader_fuzz import read_all, sample_of
 
 SCRATCH = Path(tempfile.mkdtemp(prefix="rtusniff-atheris-"))

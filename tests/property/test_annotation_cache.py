@@ -33,9 +33,9 @@ from decoders.profiles.apply import ProfileApplier
 from sniffer.encoding import frame_fields as frame_fields_module
 from sniffer.encoding import param_text
 from sniffer.encoding.param_text import encode_record
-from sniffer.encoding.records import FrameRecordEncoder, frame_record
+from sniffer.encoding.records import FrameRecordEncoder
 from sniffer.profiles_io import profile_book
-from tests.oracles import AnewApplier
+from tests.oracles import AnewApplier, frame_record
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 SLAVES = st.sampled_from([1, 2, 7])
