@@ -67,6 +67,12 @@ class AnnotatedBatch:
             self._built.append(decodings)
         return self._built[0]
 
+    def decoding_at(self, position: int) -> Decoding:
+        """The decoding at ``position``; of a frame in columns, the batch's decodings are built
+        (for readers that want a few frames' objects among those decoded one by one)."""
+        decoding = self.decoded[position]
+        return self.decodings[position] if decoding is IN_COLUMNS else decoding
+
     def positions(self) -> list[int]:
         """The kept positions, in order."""
         return list(range(len(self.decoded))) if self.rows is None else self.rows.tolist()
@@ -159,4 +165,4 @@ def columnar_decodings(columnar: ColumnarFrames, messages: MessageBatch) -> list
     return list(map(decodings.__getitem__, groups.inverse.tolist()))
 
 
-__all__ = ["IN_COLUMNS", "AnnotatedBatch", "columnar_decodings"]
+__all__ = ["AnnotatedBatch", "columnar_decodings"]

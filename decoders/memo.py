@@ -10,6 +10,11 @@ from __future__ import annotations
 from collections.abc import Callable, Hashable
 from typing import Generic, TypeVar, cast
 
+#: Decodings the annotator keeps for repeats, per generation: what a bus repeats stays while
+#: one-off frames pass through. Sinks that derive something per decoding keep as many, so that
+#: a repeat finds its parts.
+KEPT_DECODINGS = 8192
+
 Key = TypeVar("Key", bound=Hashable)
 Value = TypeVar("Value")
 

@@ -27,7 +27,7 @@ import numpy.typing as npt
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
 from decoders.frame import USS
-from decoders.memo import Memo
+from decoders.memo import KEPT_DECODINGS, Memo
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, ROLE_ORDER, Decoding, Message, MessageBatch, Role
 from decoders.modbus.codes import function_name
 from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
@@ -48,9 +48,6 @@ from decoders.profiles.column_names import named
 from decoders.profiles.columns import frame_profiles, learning_slaves, plain_codes, unnameable
 from decoders.uss import parse_uss
 
-#: Decodings kept for repeats, per generation of the memo: what a bus repeats stays while
-#: one-off frames (changing values) pass through (an LRU that costs a dict lookup).
-KEPT_DECODINGS = 8192
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
 #: What of a request decoding its answer reads (see :func:`answer_context`).
 AnswerContext = tuple[object, ...] | None

@@ -11,9 +11,8 @@ from decoders.capture import CaptureInfo, uart_error_name
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import PROTOCOL_NAMES, FrameBatch, FrameFlag
 from decoders.line import LineSettings
-from decoders.memo import Memo
+from decoders.memo import KEPT_DECODINGS, Memo
 from decoders.message import NONE, ROLE_NAMES, Decoding, DeviceIdentity, MessageBatch
-from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.encoding.columnar_parts import ColumnarParts, in_columns_too
 from sniffer.encoding.frame_fields import (
     NS_PER_S,

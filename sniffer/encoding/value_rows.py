@@ -22,7 +22,7 @@ import numpy as np
 
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import FrameFlag
-from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, ParamValue, Role
+from decoders.message import NONE, ROLE_CODE, Decoding, ParamValue, Role
 from decoders.stats import Statistics
 from sniffer.sinks import Sink
 
@@ -102,12 +102,9 @@ class ValueRows(Sink):
         role, slave, function, crc, flags, request, t_start = (column[at].tolist() for column in (
             messages.role, messages.slave, messages.function, frames.crc_ok, messages.flags, messages.request_index,
             frames.t_start_ns))
-        decoded = batch.decoded
         for place, position in enumerate(positions):
             self.emitting = first + position
-            decoding: Decoding = decoded[position]
-            if decoding is IN_COLUMNS:  # built only where a frame in columns is read here
-                decoding = batch.decodings[position]
+            decoding = batch.decoding_at(position)
             kind = role[place]
             if kind in (_RESPONSE, _EXCEPTION) and request[place] != NONE:
                 self._answered(request[place], valid=kind == _RESPONSE and bool(crc[place]))

@@ -37,9 +37,8 @@ from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
 from decoders.line import LineSettings
-from decoders.memo import Memo
+from decoders.memo import KEPT_DECODINGS, Memo
 from decoders.message import NONE, ROLE_NAMES, Decoding, MessageBatch
-from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.encoding.columnar_parts import in_columns_too
 from sniffer.encoding.frame_fields import BlockFields, block_fields
 from sniffer.encoding.param_text import encode_json

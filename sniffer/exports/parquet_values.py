@@ -20,9 +20,8 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.decoded_batch import AnnotatedBatch
-from decoders.memo import Memo
+from decoders.memo import KEPT_DECODINGS, Memo
 from decoders.message import NONE, Decoding, ParamValue
-from decoders.modbus.annotate import KEPT_DECODINGS
 from decoders.modbus.columnar import ColumnarNames
 from sniffer.encoding.value_rows import REPORTED, VALUE_KINDS, WRITTEN, ValueRow, ValueRows
 

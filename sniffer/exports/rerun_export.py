@@ -24,9 +24,8 @@ import numpy.typing as npt
 
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
-from decoders.memo import Memo
+from decoders.memo import KEPT_DECODINGS, Memo
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, Decoding, ParamValue, Role
-from decoders.modbus.annotate import KEPT_DECODINGS
 from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
 from sniffer.exports.published import PublishedValues, plotted
 from sniffer.exports.rerun_rows import EntityRows
