@@ -20,11 +20,11 @@ import numpy.typing as npt
 
 from decoders.message import IN_COLUMNS, ROLE_ORDER, Decoding, Message, MessageBatch, slice_messages
 from decoders.modbus.alike import alike
+from decoders.modbus.codecs import parse_as
 from decoders.modbus.columnar import ColumnarFrames
 from decoders.modbus.columnar_text import READ_ANSWER
 from decoders.modbus.param_runs import named_registers
 from decoders.modbus.pdu import ReadRequest
-from decoders.modbus.pdu_parse import parse_as
 
 
 @dataclass(frozen=True, slots=True)

@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from decoders.modbus.pdu_parse import parse_pdu
+from decoders.modbus.codecs import parse_pdu
 from tests.conftest import ROOT, load_manual_frames
 
 GOLDEN = ROOT / "tests" / "golden" / "manual-frames.decoded.json"

@@ -12,8 +12,9 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from decoders.modbus.codecs import LAYOUTS
 from decoders.modbus.codes import BROADCAST_ADDRESS, EXCEPTION_BIT
-from decoders.modbus.layouts import LAYOUTS, exception_length
+from decoders.modbus.layouts import exception_length
 
 MIN_ADU = 4
 MAX_ADDRESS = 247

@@ -78,8 +78,9 @@ from fastcrc import crc16
 from decoders.crc import crc_ok_lengths, prefix_registers
 from decoders.frame import MODBUS, USS, FrameFlag
 from decoders.framing.content import MAX_ADDRESS, MIN_ADU, OpenRequest, awaits, rule_lengths
-from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT, FUNCTION_NAMES, MAX_QUANTITY, USER_DEFINED_FUNCTIONS
-from decoders.modbus.layouts import LAYOUTS, MAX_ADU
+from decoders.modbus.codecs import CODECS, LAYOUTS
+from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT, MAX_QUANTITY, USER_DEFINED_FUNCTIONS
+from decoders.modbus.layouts import MAX_ADU
 from decoders.uss import STX, uss_length
 
 CRC_MATCH = 16.0
@@ -123,7 +124,7 @@ def function_prior(function: int) -> float | None:
     code = function & ~EXCEPTION_BIT
     if code == 0:
         return None
-    if code in FUNCTION_NAMES:
+    if code in CODECS:
         return 0.0
     if code in USER_DEFINED_FUNCTIONS:
         return FUNCTION_USER_DEFINED
@@ -142,7 +143,7 @@ def quantity_prior(request: bytes) -> float:
 def plausible_damaged_header(address: int, function: int) -> bool:
     """A header a damaged frame may have: a slave address (or broadcast) and a function that exists."""
     code = function & ~EXCEPTION_BIT
-    return address <= MAX_ADDRESS and (code in FUNCTION_NAMES or code in USER_DEFINED_FUNCTIONS)
+    return address <= MAX_ADDRESS and (code in CODECS or code in USER_DEFINED_FUNCTIONS)
 
 
 def zero_padded(data: bytes, start: int, end: int) -> bool:
@@ -245,7 +246,7 @@ def valid_frames_at(data: bytes, start: int, stop: int, *, search_unknown: bool,
         direction = NO_DIRECTION if len(lengths) == 1 else (REQUEST_READING, RESPONSE_READING)[position]
         quantity = quantity_prior(head) if direction == REQUEST_READING else 0.0
         found.append((start + length, CRC_MATCH + prior + quantity, FrameFlag.NONE, MODBUS, direction))
-    known = (function & ~EXCEPTION_BIT) in FUNCTION_NAMES or (function & ~EXCEPTION_BIT) in USER_DEFINED_FUNCTIONS
+    known = (function & ~EXCEPTION_BIT) in CODECS or (function & ~EXCEPTION_BIT) in USER_DEFINED_FUNCTIONS
     if (known or search_unknown) and searchable(head, lengths):
         score = CRC_MATCH + prior + LENGTH_SEARCHED
         for length in search.lengths(start, stop):

@@ -3,7 +3,7 @@
 On a healthy exact capture nearly every timing segment is exactly one frame: its
 CRC holds and its length is what its function code's length rule says. Those are
 recognised here for all segments of a batch at once with numpy lookup tables
-derived from :data:`decoders.modbus.layouts.LAYOUTS`; only the others go through
+derived from :data:`decoders.modbus.codecs.LAYOUTS`; only the others go through
 the sequential content parser.
 
 A segment whose last byte is 0x00 is always left to the parser's rules: zero bytes

@@ -2,7 +2,7 @@
 
 A length rule gives a frame's length from its function code and, for some, a byte count (one
 byte at a fixed place): :class:`RuleTable` holds a direction's rules as two arrays derived from
-:data:`decoders.modbus.layouts.LAYOUTS`, so that numpy reads the lengths of many frames at once
+:data:`decoders.modbus.codecs.LAYOUTS`, so that numpy reads the lengths of many frames at once
 (:mod:`decoders.framing.fast`, :mod:`decoders.framing.delivery`, :mod:`decoders.modbus.shapes`).
 :func:`checked_readings` finds the readings a check proves (CRC-valid by a rule, a USS
 telegram's BCC) at given positions: :mod:`decoders.framing.crossing` weighs them against
@@ -19,8 +19,9 @@ import numpy.typing as npt
 from decoders.capture import Int64Array
 from decoders.crc import crc_ok_spans
 from decoders.framing.content import MIN_ADU, rule_lengths
+from decoders.modbus.codecs import LAYOUTS
 from decoders.modbus.codes import EXCEPTION_BIT
-from decoders.modbus.layouts import EXCEPTION_LENGTH, LAYOUTS, MAX_ADU, LengthRule
+from decoders.modbus.layouts import EXCEPTION_LENGTH, MAX_ADU, LengthRule
 from decoders.uss import PPO_LGE, STX, uss_length
 
 #: Bytes read past a segment's start to find byte counts (FC 23's sits at 10).

@@ -29,6 +29,7 @@ from decoders.distinct import distinct
 from decoders.frame import USS
 from decoders.memo import KEPT_DECODINGS, Memo
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, ROLE_ORDER, Decoding, Message, MessageBatch, Role
+from decoders.modbus.codecs import parse_as
 from decoders.modbus.codes import function_name
 from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
 from decoders.modbus.columnar_find import find_columnar
@@ -41,7 +42,6 @@ from decoders.modbus.pdu import (
     WriteCoilsRequest,
     WriteRegistersRequest,
 )
-from decoders.modbus.pdu_parse import parse_as
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.profiles.book import ProfileBook
 from decoders.profiles.column_names import named

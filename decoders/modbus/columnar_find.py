@@ -2,7 +2,7 @@
 
 The rules; every frame also is ``eligible`` (the annotator's to say: Modbus, of a slave whose
 profile adds nothing or names plainly, :mod:`decoders.profiles.columns`), has a good CRC and the
-shape its function has in :func:`~decoders.modbus.pdu_parse.parse_pdu`, with counts Modbus
+shape its function has in :func:`~decoders.modbus.codecs.parse_pdu`, with counts Modbus
 allows:
 
 * a read request (FC 1 to 4, role request, 8 bytes);

@@ -1,4 +1,5 @@
-"""Length rules: how long a request or a response of each function code is.
+"""Length rules: how long a request or a response is (each function code's:
+:mod:`decoders.modbus.codecs`).
 
 A passive tap sees both directions on one wire, and a function code's request and
 response have different layouts. Each rule gives the whole ADU length (address,
@@ -71,14 +72,14 @@ def device_id_response(adu: bytes) -> int | None:
     return position + 2
 
 
-def _mei_request(adu: bytes) -> int | None:
+def mei_request_length(adu: bytes) -> int | None:
     """FC 43 request: MEI 14 (read device identification) is 7 bytes; others unknown."""
     if len(adu) < 3:
         return None
     return 7 if adu[2] == MEI_READ_DEVICE_ID else None
 
 
-def _mei_response(adu: bytes) -> int | None:
+def mei_response_length(adu: bytes) -> int | None:
     if len(adu) < 3:
         return None
     return device_id_response(adu) if adu[2] == MEI_READ_DEVICE_ID else None
@@ -92,52 +93,8 @@ class Layout:
     response: LengthRule
 
 
-_READ_BITS_OR_REGISTERS = Layout(fixed(8), counted(2, 5))
-_WRITE_SINGLE = Layout(fixed(8), fixed(8))
-_WRITE_MULTIPLE = Layout(counted(6, 9), fixed(8))
-_COUNTED_BOTH = Layout(counted(2, 5), counted(2, 5))
-
-LAYOUTS: dict[int, Layout] = {
-    1: _READ_BITS_OR_REGISTERS,
-    2: _READ_BITS_OR_REGISTERS,
-    3: _READ_BITS_OR_REGISTERS,
-    4: _READ_BITS_OR_REGISTERS,
-    5: _WRITE_SINGLE,
-    6: _WRITE_SINGLE,
-    7: Layout(fixed(4), fixed(5)),
-    8: Layout(fixed(8), fixed(8)),
-    11: Layout(fixed(4), fixed(8)),
-    12: Layout(fixed(4), counted(2, 5)),
-    15: _WRITE_MULTIPLE,
-    16: _WRITE_MULTIPLE,
-    17: Layout(fixed(4), counted(2, 5)),
-    20: _COUNTED_BOTH,
-    21: _COUNTED_BOTH,
-    22: Layout(fixed(10), fixed(10)),
-    23: Layout(counted(10, 13), counted(2, 5)),
-    24: Layout(fixed(6), counted(2, 6, size=2)),
-    43: Layout(LengthRule(special=_mei_request), LengthRule(special=_mei_response)),
-}
-
-
 def exception_length(adu: bytes) -> int | None:
     """Length of an exception response (function code with bit 7 set)."""
     if len(adu) >= 3 and adu[1] == 43 | EXCEPTION_BIT and adu[2] == MEI_READ_DEVICE_ID:
         return MEI_EXCEPTION_LENGTH
     return EXCEPTION_LENGTH
-
-
-def fits_request(adu: bytes) -> bool:
-    """Whether ``adu`` has exactly the length of a request of its function code."""
-    layout = LAYOUTS.get(adu[1]) if len(adu) >= 2 else None
-    return layout is not None and layout.request(adu) == len(adu)
-
-
-def fits_response(adu: bytes) -> bool:
-    """Whether ``adu`` has exactly the length of a (normal or exception) response."""
-    if len(adu) < 2:
-        return False
-    if adu[1] & EXCEPTION_BIT:
-        return exception_length(adu) == len(adu)
-    layout = LAYOUTS.get(adu[1])
-    return layout is not None and layout.response(adu) == len(adu)

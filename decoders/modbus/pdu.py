@@ -2,7 +2,7 @@
 and what fits no layout; :data:`Pdu` is the union of these and of the serial-line PDUs
 (:mod:`decoders.modbus.pdu_serial`).
 
-:func:`decoders.modbus.pdu_parse.parse_pdu` turns a frame's bytes into one of them. Bytes that
+:func:`decoders.modbus.codecs.parse_pdu` turns a frame's bytes into one of them. Bytes that
 do not fit their layout become :class:`Malformed`, codes without a layout :class:`RawPdu`. Each
 PDU says what it is in one line (``summary``); the line is derived from the typed fields.
 """

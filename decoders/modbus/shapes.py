@@ -19,8 +19,9 @@ import numpy.typing as npt
 
 from decoders.frame import FrameBatch
 from decoders.framing.rule_tables import OWN_RULE, REQUEST_RULES, RESPONSE_RULES, padded_bytes
+from decoders.modbus.codecs import fits_request, fits_response
 from decoders.modbus.codes import DIAGNOSTICS, EXCEPTION_BIT
-from decoders.modbus.layouts import EXCEPTION_LENGTH, MEI_EXCEPTION_LENGTH, fits_request, fits_response
+from decoders.modbus.layouts import EXCEPTION_LENGTH, MEI_EXCEPTION_LENGTH
 
 FITS_REQUEST = 1
 FITS_RESPONSE = 2

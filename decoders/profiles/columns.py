@@ -38,11 +38,11 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
+from decoders.modbus.codecs import parse_as, parse_pdu
 from decoders.modbus.columnar import ColumnarFrames, one_of
 from decoders.modbus.columnar_text import READ, READ_WRITE, WRITE, words_at
 from decoders.modbus.param_runs import named_registers
 from decoders.modbus.pdu import Pdu
-from decoders.modbus.pdu_parse import parse_as, parse_pdu
 from decoders.modbus.pdu_serial import DeviceIdResponse
 from decoders.profiles.apply import (
     FrameFacts,

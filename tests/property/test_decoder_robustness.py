@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 from decoders.crc import crc_bytes, crc_ok
 from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.modbus.annotate import Annotator
+from decoders.modbus.codecs import parse_pdu
 from decoders.modbus.matcher import Matcher
-from decoders.modbus.pdu_parse import parse_pdu
 
 #: RTUSNIFF_EXAMPLES raises the number of examples for a long run.
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))

@@ -26,7 +26,7 @@ from decoders.framing.fast import (
     single_frame_segments,
 )
 from decoders.line import LineSettings
-from decoders.modbus.layouts import LAYOUTS
+from decoders.modbus.codecs import LAYOUTS
 from decoders.synthesis import Transmission, exact_chunks
 from tests.corpus import adu, exchange
 from tests.property.test_framer_properties import LINES, T0

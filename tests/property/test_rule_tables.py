@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from decoders.framing.rule_tables import REQUEST_RULES, RESPONSE_RULES, padded_bytes
-from decoders.modbus.layouts import LAYOUTS
+from decoders.modbus.codecs import LAYOUTS
 from decoders.modbus.shapes import Column, _request_keys, _response_keys
 
 #: Function codes with a layout, their exception codes, and a few without either.

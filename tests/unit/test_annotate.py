@@ -9,9 +9,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from decoders.crc import crc_bytes
+from decoders.modbus.codecs import parse_pdu
 from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.param_runs import named_registers
-from decoders.modbus.pdu_parse import parse_pdu
 
 
 def request(slave: int, function: int, *words: int) -> bytes:

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from decoders.crc import crc_bytes
 from decoders.message import ParamValue
+from decoders.modbus.codecs import parse_pdu
 from decoders.modbus.param_runs import expand_runs, param_runs
 from decoders.modbus.pdu import (
     COIL_ON,
@@ -24,7 +25,6 @@ from decoders.modbus.pdu import (
     WriteSingle,
     quantity_allowed,
 )
-from decoders.modbus.pdu_parse import parse_pdu
 
 
 def reference_params(pdu: Pdu, request: Pdu | None) -> tuple[ParamValue, ...]:
