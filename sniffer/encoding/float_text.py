@@ -1,10 +1,9 @@
 """Floats spelt as ``repr`` (and so ``json.dumps``) spells them, a column at a time.
 
 ``repr`` of a list of floats finds each number's shortest digits that read back to the same
-float, one number at a time: about 1 us a number here, and the JSON records spell three per
-frame (``t``, ``t_end``, ``latency_s``). Arrow's cast of a float64 array to strings finds the
-same shortest digits in C, about four times faster (``python -m benchmarks.bench_param_text``
-prints both), but spells some numbers differently: an integral value without ``.0`` (``2``
+float, one number at a time, and the JSON records spell three per frame (``t``, ``t_end``,
+``latency_s``). Arrow's cast of a float64 array to strings finds the same shortest digits in C,
+a column at once, but spells some numbers differently: an integral value without ``.0`` (``2``
 for ``2.0``), and an exponent, or none, at other magnitudes than ``repr``
 (``1.2345e+10``; ``0.000012345``). So Arrow's text is kept where it is what ``repr``
 writes -- fixed point with a fraction, at a magnitude from 1e-4 to 1e16, where ``repr``
