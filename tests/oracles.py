@@ -15,8 +15,10 @@ from fastcrc import crc16
 from decoders.capture import ChunkBatch, Int64Array
 from decoders.crc import CRC_TABLE, MIN_CHECKED
 from decoders.frame import PROTOCOL_NAMES
-from decoders.message import Message
-from decoders.profiles.apply import ProfileApplier
+from decoders.message import Message, Role
+from decoders.modbus.annotate import Annotator, answer_context
+from decoders.modbus.columnar import KEPT_REQUESTS
+from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.profiles.model import Profile
 from decoders.profiles.naming import AddressNamer
 from sniffer.encoding.frame_fields import NS_PER_S
@@ -91,3 +93,23 @@ def frame_record(message: Message, channels: tuple[str, ...] = ()) -> dict[str, 
         **({"channel": channel_name(channels, frame.channel)} if frame.channel else {}),
         **({"uart_errors": uart_error_records(frame.uart_errors)} if frame.uart_errors else {}),
     }
+
+
+class PlainAnnotator(Annotator):
+    """:class:`Annotator` decoding one message at a time, with no memo and nothing in columns:
+    the plain path the annotator's batches are held to."""
+
+    def annotate(self, message: Message) -> Message:
+        """``message`` decoded against the request it answers, if that is still kept."""
+        request = None
+        if message.request_index is not None:
+            kept = self._requests.pop(message.request_index, None)
+            if kept is not None and message.frame.index - message.request_index <= KEPT_REQUESTS:
+                request = kept[1]
+        frame = message.frame
+        facts = FrameFacts(message.slave, message.role, message.function, frame.crc_ok)
+        annotated = message.with_decoding(self._decoding(frame.data, frame.protocol, facts, request))
+        if annotated.role is Role.REQUEST and annotated.pdu is not None:
+            self._requests[frame.index] = (answer_context(annotated.pdu), annotated.pdu)
+            self._forget(frame.index + 1)
+        return annotated

@@ -17,7 +17,7 @@ from decoders.profiles.apply import ProfileApplier
 from decoders.read_loops import READ_LOOPS
 from sniffer.profiles_io import profile_book
 from tests import real_recordings
-from tests.oracles import AnewApplier
+from tests.oracles import AnewApplier, PlainAnnotator
 from tests.property.test_annotation_cache import said
 from tests.real_recordings import RECORDINGS, Recording, load
 
@@ -119,7 +119,7 @@ def test_decodings_shortcuts_say_what_the_plain_path_says(recording: Recording, 
     batches = [*decoder.feed(ChunkBatch.from_chunks(recording.chunks)), *decoder.flush()]
     book = None if profiles is None else profile_book(profiles, [])
     cached = Annotator(None if book is None else ProfileApplier(book))
-    plain = Annotator(None if profiles is None else AnewApplier(profile_book(profiles, [])))
+    plain = PlainAnnotator(None if profiles is None else AnewApplier(profile_book(profiles, [])))
     got = [said(m.decoding) for batch in batches for m in cached.annotate_all(batch)]
     assert got == [said(plain.annotate(m).decoding) for batch in batches for m in batch]
     assert len(got) > 10

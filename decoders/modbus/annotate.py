@@ -198,30 +198,6 @@ class Annotator:
         """:meth:`annotate_batch` as message objects."""
         return list(self.annotate_batch(batch))
 
-    def annotate(self, message: Message) -> Message:
-        """One message, decoded without the cache: the plain path the cache is tested against."""
-        annotated = self._decode(message, self._open_request(message)[1])
-        if annotated.role is Role.REQUEST:
-            self._keep_request(annotated.frame.index, answer_context(annotated.pdu), annotated.pdu)
-        return annotated
-
-    def _open_request(self, message: Message) -> tuple[AnswerContext, Pdu | None]:
-        """The context and PDU of the request ``message`` answers, if it is still kept."""
-        if message.request_index is None:
-            return _NO_REQUEST
-        kept = self._requests.pop(message.request_index, _NO_REQUEST)
-        return _NO_REQUEST if message.frame.index - message.request_index > KEPT_REQUESTS else kept
-
-    def _keep_request(self, index: int, context: AnswerContext, pdu: Pdu | None) -> None:
-        if pdu is not None:
-            self._requests[index] = (context, pdu)
-            self._forget(index + 1)
-
-    def _decode(self, message: Message, request: Pdu | None) -> Message:
-        frame = message.frame
-        facts = FrameFacts(message.slave, message.role, message.function, frame.crc_ok)
-        return message.with_decoding(self._decoding(frame.data, frame.protocol, facts, request))
-
     def _decoding(self, data: bytes, protocol: int, facts: FrameFacts, request: Pdu | None) -> Decoding:
         """What a frame says (``facts``: what the profiles read of it besides its bytes)."""
         role = facts.role

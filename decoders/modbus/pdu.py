@@ -16,7 +16,6 @@ from decoders.modbus.codes import (
     MAX_QUANTITY,
     MAX_READ_WRITE_QUANTITY,
     TABLE_NAMES,
-    USER_DEFINED_FUNCTIONS,
     exception_name,
     function_name,
 )
@@ -228,10 +227,6 @@ class RawPdu:
 
     function: int
     data: bytes
-
-    @property
-    def user_defined(self) -> bool:
-        return self.function in USER_DEFINED_FUNCTIONS
 
     def summary(self) -> str:
         return f"{function_name(self.function)}, data {self.data.hex(' ').upper() or 'none'}"

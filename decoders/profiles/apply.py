@@ -12,7 +12,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from decoders.message import Decoding, DeviceIdentity, Message, ParamValue, Role
+from decoders.message import Decoding, DeviceIdentity, ParamValue, Role
 from decoders.modbus.codes import BIT_FUNCTIONS
 from decoders.modbus.param_runs import addressed_values
 from decoders.modbus.pdu import (
@@ -91,12 +91,6 @@ class ProfileApplier:
             known = self._adds_nothing[slave] = knows_nothing(self.book.profile_for(None if slave == NO_SLAVE
                                                                                       else slave))
         return known
-
-    def apply(self, message: Message, request: Pdu | None) -> Message:
-        """``message`` with named params, remarks and, for identifications, the device."""
-        facts = FrameFacts(message.slave, message.role, message.function, message.frame.crc_ok)
-        decoding = self.apply_decoding(message.decoding, facts, request)
-        return message if decoding is message.decoding else message.with_decoding(decoding)
 
     def apply_decoding(self, decoding: Decoding, facts: FrameFacts, request: Pdu | None) -> Decoding:
         """:meth:`apply` to a frame's decoding alone (``facts``: what it reads of the frame):

