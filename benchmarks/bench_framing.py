@@ -1,13 +1,13 @@
 """Framing throughput on a synthetic exact capture; prints a table.
 
-    python benchmarks/bench_framing.py [--frames N]
+    python -m benchmarks.bench_framing [--frames N]
 
 Stages measured side by side on the same capture in one process:
 the vectorised timing pass alone, the whole framer (timing, content pass, CRC,
 frame assembly) on the exact capture, on polling that repeats requests ending in 0x00 (which
 the content parser reads), and on the same traffic through a USB
 adapter model and two pyserial read loops (host timing: every frame found by content;
-decoders/read_loops.py), the framer plus role
+benchmarks/read_loops.py), the framer plus role
 classification (what `analyze` does before output), and reading the native MCAP
 capture back.
 """
@@ -23,14 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
-from decoders.byte_times import byte_times
+from benchmarks.read_loops import READ_LOOPS
+from benchmarks.wire_synthesis import Transmission, byte_times, exact_chunks, usb_adapter_chunks
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.pipeline import Decoder
-from decoders.read_loops import READ_LOOPS
-from decoders.synthesis import Transmission, exact_chunks, usb_adapter_chunks
 from sniffer.io.registry import open_reader, open_writer
 
 LINE = LineSettings.parse("115200 8N1")

@@ -19,8 +19,8 @@ from pathlib import Path
 
 from benchmarks import generate_capture
 from benchmarks.bench_framing import LINE, coil_transmissions, polling_transmissions, wide_transmissions
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
-from decoders.synthesis import Transmission, exact_chunks
 from sniffer.io.registry import open_reader, open_writer
 
 CHILD = """

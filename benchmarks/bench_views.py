@@ -25,6 +25,7 @@ from rich.console import Console
 from rich.table import Table
 
 from benchmarks.bench_memory import add_capture_options, benchmark_capture
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.decoded_batch import AnnotatedBatch
@@ -32,7 +33,6 @@ from decoders.line import LineSettings
 from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from decoders.stats import Statistics
-from decoders.synthesis import Transmission, exact_chunks
 from sniffer.encoding.records import FrameRecordEncoder
 from sniffer.io.registry import open_reader, open_writer
 from sniffer.views.clock import Clock

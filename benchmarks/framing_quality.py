@@ -4,7 +4,7 @@
 
 Captures come from tests/corpus.py (frames built by pymodbus, faults injected with
 known ground truth) at 9600 8N1, 19200 8E1 and 115200 8N1: exact, and through
-every read-loop model of decoders/read_loops.py (host timing). Beside rtusniff's
+every read-loop model of benchmarks/read_loops.py (host timing). Beside rtusniff's
 framer runs a timing-only splitter (a new frame after every silence >= t3.5 of the
 times recorded), the naive baseline. Then the real recordings of ../shared/real/
 against sigrok's own decodes, as recorded and through every read loop.
@@ -25,13 +25,13 @@ from itertools import accumulate, pairwise
 
 import numpy as np
 
-from decoders.byte_times import byte_times
+from benchmarks.read_loops import READ_LOOPS
+from benchmarks.wire_synthesis import byte_times
 from decoders.capture import ChunkBatch, TimingQuality
 from decoders.crc import crc_ok
 from decoders.framer import Framer
 from decoders.message import Role
 from decoders.pipeline import Decoder
-from decoders.read_loops import READ_LOOPS
 from tests import real_recordings
 from tests.corpus import LINES, SCENARIOS, Corpus, Expected, Score, build, deliver, host_expected, score
 

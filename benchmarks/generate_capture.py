@@ -23,11 +23,11 @@ import struct
 from collections.abc import Iterator
 from pathlib import Path
 
+from benchmarks.read_loops import READ_LOOPS
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.line import LineSettings
-from decoders.read_loops import READ_LOOPS
-from decoders.synthesis import Transmission, exact_chunks
 from sniffer.io.registry import open_writer
 
 T0_NS = 1_700_000_000_000_000_000
@@ -122,7 +122,7 @@ def write(
     path: Path, frames: int, seed: int, line: LineSettings, timing: str, *, values: str = "random"
 ) -> None:
     """``timing``: ``exact``, ``host`` (a USB adapter, 16 ms latency timer) or the name of a
-    read loop of decoders/read_loops.py."""
+    read loop of benchmarks/read_loops.py."""
     read_loop = None if timing == "exact" else READ_LOOPS["usb-16ms" if timing == "host" else timing]
     rng = random.Random(seed)
     drives = Drives(rng, values)
@@ -152,7 +152,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--line", default="115200 8N1")
     parser.add_argument("--timing", choices=["exact", "host", *sorted(READ_LOOPS)], default="exact",
-                        help="host: a USB adapter with a 16 ms latency timer; or a read loop (decoders/read_loops.py)")
+                        help="host: a USB adapter with a 16 ms latency timer; or a read loop (benchmarks.read_loops)")
     parser.add_argument("--values", choices=["random", "steady"], default="random",
                         help="speeds and states drawn anew each time, or held by each drive for a while")
     args = parser.parse_args()

@@ -29,8 +29,11 @@ from pathlib import Path
 from decoders.capture import CaptureInfo, Chunk, ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.line import LineSettings
-from decoders.synthesis import Transmission, exact_chunks, usb_adapter_chunks
 from sniffer.io.registry import open_writer
+
+# The wire models live with the benchmarks, in the checkout this script is part of.
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from benchmarks.wire_synthesis import Transmission, exact_chunks, usb_adapter_chunks
 
 HERE = Path(__file__).resolve().parent
 T0_NS = 1_700_000_000_000_000_000

@@ -8,10 +8,10 @@ Both are rounded to whole nanoseconds from the chunk's time, so that a silence
 between two chunks is exactly the difference of their recorded times.
 
 :class:`ByteClock` is what the framer uses: it keeps the chunks and computes the times of
-the bytes asked for (frames' first and last bytes) and the silences where chunks meet.
-:func:`byte_times` computes every byte's times at once (a table of rounded offsets, for the
-benchmarks' models of the wire). The tests hold both to every byte's offsets computed from the rule above
-(``tests/oracles.py``).
+the bytes asked for (frames' first and last bytes) and the silences where chunks meet. The
+tests hold it to every byte's offsets computed from the rule above (``tests/oracles.py``); the
+benchmarks' models of the wire take every byte's times at once
+(:func:`benchmarks.wire_synthesis.byte_times`).
 """
 
 from __future__ import annotations
@@ -22,26 +22,6 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.capture import ChunkBatch, Int64Array
-
-
-def byte_times(batch: ChunkBatch, char_time_ns: float) -> tuple[Int64Array, Int64Array]:
-    """(start of start bit, end of stop bit) of every byte of ``batch``, in integer ns."""
-    total = len(batch.data)
-    if total == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    lengths = np.diff(batch.ends, prepend=0)
-    chars_to_chunk_end = np.repeat(batch.ends, lengths)
-    chars_to_chunk_end -= np.arange(total, dtype=np.int64)
-    starts = np.repeat(batch.t_end_ns, lengths)
-    # k character times, rounded: the same product the reference rounds
-    starts -= rounded_char_times(chars_to_chunk_end, char_time_ns)
-    # Inside a chunk a byte ends where the next one starts; a chunk's last byte ends at its time.
-    ends = np.empty_like(starts)
-    ends[:-1] = starts[1:]
-    filled = lengths > 0
-    ends[batch.ends[filled] - 1] = batch.t_end_ns[filled]
-    return starts, ends
-
 
 #: Character counts up to this are rounded by a table (see :func:`rounded_char_times`).
 ROUNDED_TABLE_MOST = 1 << 16

@@ -23,10 +23,10 @@ from pymodbus.pdu import mei_message as mei
 from pymodbus.pdu import register_message as regs
 from pymodbus.pdu.exceptionresponse import ExceptionResponse
 
+from benchmarks.read_loops import READ_LOOPS
+from benchmarks.wire_synthesis import Transmission, exact_chunks, usb_adapter_chunks
 from decoders.capture import Chunk, TimingQuality
 from decoders.line import LineSettings
-from decoders.read_loops import READ_LOOPS
-from decoders.synthesis import Transmission, exact_chunks, usb_adapter_chunks
 
 T0_NS = 1_650_000_000_000_000_000
 MS = 1_000_000
@@ -198,7 +198,7 @@ class Scenario:
 SCENARIOS = [
     Scenario("clean", gap_1_5_rate=0.05),
     # The nine classes real wires and read loops showed (issue 16); 2, 7 and 8 are read
-    # loops (decoders/read_loops.py: read-timeout, random-sizes, slow-delivery) over these.
+    # loops (benchmarks/read_loops.py: read-timeout, random-sizes, slow-delivery) over these.
     Scenario("glitch-polling", idle_chars=(1.6, 3.0), glitch_rate=1.0, glitch_after_requests=True,
              glitch_by_side=True),
     Scenario("junk-both-sides", junk_around_rate=0.5),
@@ -336,7 +336,7 @@ def host_expected(expected: list[Expected]) -> list[Expected]:
 
 
 def deliver(corpus: Corpus, read_loop: str, seed: int = 0) -> Corpus:
-    """The corpus as the named read loop (decoders/read_loops.py) records it."""
+    """The corpus as the named read loop (benchmarks/read_loops.py) records it."""
     chunks = READ_LOOPS[read_loop](corpus.chunks, corpus.line, seed)
     return Corpus(f"{corpus.name}/{read_loop}", corpus.line, TimingQuality.HOST, chunks, corpus.expected,
                   corpus.transmissions)

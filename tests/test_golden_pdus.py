@@ -55,10 +55,10 @@ EXCHANGES = {
 
 
 def profiled() -> dict[str, Any]:
+    from benchmarks.wire_synthesis import Transmission, exact_chunks
     from decoders.capture import ChunkBatch, TimingQuality
     from decoders.line import LineSettings
     from decoders.pipeline import decode
-    from decoders.synthesis import Transmission, exact_chunks
     from sniffer.profiles_io import profile_book
 
     frames = {f["id"]: bytes.fromhex(f["hex"]) for f in load_manual_frames()}

@@ -10,13 +10,13 @@ from pathlib import Path
 import pytest
 
 from benchmarks.hostile_inputs import HEAD, HOSTILE_PROFILES
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.line import LineSettings
 from decoders.message import Message
 from decoders.pipeline import decode
 from decoders.profiles.parse import ProfileError, parse_profile
-from decoders.synthesis import Transmission, exact_chunks
 from sniffer.profiles_io import profile_book, shipped_profiles
 from tests.conftest import ROOT, CliResult
 

@@ -8,13 +8,13 @@ import itertools
 
 import pytest
 
+from benchmarks.read_loops import READ_LOOPS
 from decoders.capture import Chunk, ChunkBatch, TimingQuality
 from decoders.framer import Framer
 from decoders.line import LineSettings
 from decoders.modbus.annotate import Annotator
 from decoders.pipeline import Decoder
 from decoders.profiles.apply import ProfileApplier
-from decoders.read_loops import READ_LOOPS
 from sniffer.profiles_io import profile_book
 from tests import real_recordings
 from tests.oracles import AnewApplier, PlainAnnotator
@@ -74,7 +74,7 @@ def test_recording_through_a_read_loop(recording: Recording, read_loop: str, see
 def test_recording_with_a_glitch_after_every_frame_and_no_silence(recording: Recording) -> None:
     """The recording's frames back to back, each followed by a stray 0x00 or 0xFE: no t3.5
     anywhere, and the frames are still all found, on exact and on host timing."""
-    from decoders.synthesis import Transmission, exact_chunks
+    from benchmarks.wire_synthesis import Transmission, exact_chunks
 
     data = recording.data
     frames = truth(recording)

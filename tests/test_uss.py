@@ -9,13 +9,13 @@ from operator import xor
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import ChunkBatch, TimingQuality
 from decoders.framing.best_parse import parse_segment
 from decoders.framing.programme import Context
 from decoders.line import LineSettings
 from decoders.message import Message, Role
 from decoders.pipeline import decode
-from decoders.synthesis import Transmission, exact_chunks
 from decoders.uss import parse_uss, uss_length
 from sniffer.profiles_io import profile_book
 

@@ -9,7 +9,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from decoders.byte_times import ByteClock, byte_times, rounded_char_times
+from benchmarks.wire_synthesis import byte_times
+from decoders.byte_times import ByteClock, rounded_char_times
 from decoders.capture import ChunkBatch
 from tests.oracles import byte_times_reference
 

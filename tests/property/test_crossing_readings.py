@@ -21,6 +21,7 @@ from fastcrc import crc16
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import Chunk, ChunkBatch, TimingQuality, UartError
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
@@ -31,7 +32,6 @@ from decoders.framing.fast import clean_frame_ends
 from decoders.framing.rule_tables import checked_readings
 from decoders.line import LineSettings
 from decoders.modbus.layouts import MAX_ADU
-from decoders.synthesis import Transmission, exact_chunks
 from decoders.uss import PPO_LGE, STX, uss_length
 from tests.corpus import SCENARIOS, build, deliver
 from tests.property.test_framer_properties import LINES, T0

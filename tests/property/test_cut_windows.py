@@ -21,8 +21,8 @@ from typing import Any
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from benchmarks.read_loops import READ_LOOPS
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
-from decoders.read_loops import READ_LOOPS
 from sniffer.cli import main
 from sniffer.io.registry import open_writer
 from tests import real_recordings

@@ -14,6 +14,7 @@ from pymodbus.pdu import file_message as fm
 from pymodbus.pdu import mei_message as mei
 
 from benchmarks.bench_framing import register_read_at_0x02xx
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import Chunk, ChunkBatch
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
@@ -27,7 +28,6 @@ from decoders.framing.fast import (
 )
 from decoders.line import LineSettings
 from decoders.modbus.codecs import LAYOUTS
-from decoders.synthesis import Transmission, exact_chunks
 from tests.corpus import adu, exchange
 from tests.property.test_framer_properties import LINES, T0
 

@@ -8,11 +8,11 @@ from itertools import pairwise
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import Chunk, ChunkBatch
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
 from decoders.line import LineSettings
-from decoders.synthesis import Transmission, exact_chunks
 
 T0 = 1_600_000_000_000_000_000
 LINES = st.sampled_from([LineSettings.parse(t) for t in ("9600 8E1", "19200 8E1", "115200 8N1")])
@@ -97,7 +97,7 @@ def deliveries(wire: list[Chunk], line: LineSettings, data: st.DataObject) -> li
     """The wire's bytes cut into reads at random (none holding more than ``READ_SPAN_NS`` of
     the wire), each stamped at or after its last byte's end by up to half a second, in order:
     a read loop whose times are consistent with the wire, delivering within a second."""
-    from decoders.read_loops import wire_byte_ends
+    from benchmarks.read_loops import wire_byte_ends
 
     payload, ends = wire_byte_ends(wire, line)
     cuts = set(data.draw(st.lists(st.integers(1, max(1, len(payload) - 1)), max_size=len(payload) // 4)))

@@ -9,12 +9,12 @@ import random
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from benchmarks.read_loops import READ_LOOPS
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import Chunk, ChunkBatch, TimingQuality
 from decoders.frame import Frame
 from decoders.framer import Framer
 from decoders.line import LineSettings
-from decoders.read_loops import READ_LOOPS
-from decoders.synthesis import Transmission, exact_chunks
 from tests.corpus import exchange
 
 T0 = 1_600_000_000_000_000_000

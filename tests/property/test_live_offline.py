@@ -21,11 +21,11 @@ from functools import cache
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from benchmarks.read_loops import READ_LOOPS
 from decoders.capture import Chunk, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from decoders.message import MessageBatch
 from decoders.pipeline import Decoder
-from decoders.read_loops import READ_LOOPS
 from sniffer.io.registry import open_reader
 from tests import real_recordings
 from tests.conftest import ROOT

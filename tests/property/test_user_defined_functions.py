@@ -1,6 +1,6 @@
 """Hypothesis: frames of user-defined function codes (65–72, 100–110: no length rule, as battery
 management systems and vendors' devices use them), mixed with FC 3 polls, are found whole,
-exact or through every read loop a PC records with (decoders/read_loops.py): a CRC-valid frame
+exact or through every read loop a PC records with (benchmarks/read_loops.py): a CRC-valid frame
 of a legal address beats noise whether or not its function has a length rule (issue 66)."""
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ import os
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from benchmarks.read_loops import READ_LOOPS
 from decoders.capture import Chunk, ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.framer import Framer
 from decoders.line import LineSettings
-from decoders.read_loops import READ_LOOPS
 
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "25"))
 T0 = 1_700_000_000_000_000_000

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import ChunkBatch, TimingQuality
 from decoders.crc import crc_bytes
 from decoders.frame import FrameFlag
@@ -12,7 +13,6 @@ from decoders.framing.best_parse import WINDOW, parse_segment
 from decoders.framing.content import rule_lengths
 from decoders.framing.programme import MAX_EDGE, Context, Piece
 from decoders.line import LineSettings
-from decoders.synthesis import Transmission, exact_chunks
 
 REQUEST = bytes.fromhex("02030C1E0004276C")
 RESPONSE = bytes.fromhex("0203080028025801F4000052B0")

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import Chunk, ChunkBatch
 from decoders.crc import crc_bytes
 from decoders.frame import Frame, FrameFlag
 from decoders.framer import Framer
 from decoders.line import LineSettings
-from decoders.synthesis import Transmission, exact_chunks
 
 LINES = [LineSettings.parse(t) for t in ("9600 8E1", "19200 8E1", "115200 8N1")]
 T0 = 1_700_000_000_000_000_000

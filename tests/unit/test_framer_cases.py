@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
+from benchmarks.read_loops import READ_LOOPS
 from decoders.capture import ChunkBatch, TimingQuality
 from decoders.framer import Framer
-from decoders.read_loops import READ_LOOPS
 from tests.corpus import LINES, SCENARIOS, Corpus, Expected, Score, build, deliver, host_expected, score
 
 
@@ -64,8 +64,8 @@ def test_host_reference_agrees_with_the_fast_path(scenario: object) -> None:
 
 
 def test_glitch_after_a_frame_is_noise_and_the_frame_is_intact() -> None:
+    from benchmarks.wire_synthesis import Transmission, exact_chunks
     from decoders.line import LineSettings
-    from decoders.synthesis import Transmission, exact_chunks
 
     line = LineSettings.parse("19200 8E1")
     request = bytes.fromhex("02030C1E0004276C")
@@ -79,8 +79,8 @@ def test_an_answer_and_two_zero_glitch_bytes_are_no_request(fast: bool) -> None:
     """An FC 2 answer of 6 bytes with two 0x00 bytes right behind it passes the CRC as 8 bytes,
     an FC 2 request's length: asking for 0x57CC inputs, more than a request may ask for (2000).
     The answer to the open request and its glitch, as the property test found (seed 39)."""
+    from benchmarks.wire_synthesis import Transmission, exact_chunks
     from decoders.line import LineSettings
-    from decoders.synthesis import Transmission, exact_chunks
 
     line = LineSettings.parse("9600 8E1")
     request, answer = bytes.fromhex("E2025DC10001EDC9"), bytes.fromhex("E202010157CC")

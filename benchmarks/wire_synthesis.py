@@ -12,7 +12,10 @@ from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from itertools import pairwise
 
-from decoders.capture import Chunk
+import numpy as np
+
+from decoders.byte_times import rounded_char_times
+from decoders.capture import Chunk, ChunkBatch, Int64Array
 from decoders.line import LineSettings
 
 
@@ -90,3 +93,22 @@ def usb_adapter_chunks(
     if pending_from < len(data):
         deliver(len(data), next_tick(byte_ends[pending_from]))
     return delivered
+
+
+def byte_times(batch: ChunkBatch, char_time_ns: float) -> tuple[Int64Array, Int64Array]:
+    """(start of start bit, end of stop bit) of every byte of ``batch``, in integer ns."""
+    total = len(batch.data)
+    if total == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    lengths = np.diff(batch.ends, prepend=0)
+    chars_to_chunk_end = np.repeat(batch.ends, lengths)
+    chars_to_chunk_end -= np.arange(total, dtype=np.int64)
+    starts = np.repeat(batch.t_end_ns, lengths)
+    # k character times, rounded: the same product the reference rounds
+    starts -= rounded_char_times(chars_to_chunk_end, char_time_ns)
+    # Inside a chunk a byte ends where the next one starts; a chunk's last byte ends at its time.
+    ends = np.empty_like(starts)
+    ends[:-1] = starts[1:]
+    filled = lengths > 0
+    ends[batch.ends[filled] - 1] = batch.t_end_ns[filled]
+    return starts, ends

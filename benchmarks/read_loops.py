@@ -6,7 +6,7 @@ byte's true end on the wire) and give the host-timed capture a read loop would
 record, for tests and benchmarks (``benchmarks.generate_capture --timing``):
 
 * ``usb-1ms``, ``usb-16ms``: a USB adapter's latency timer
-  (:func:`decoders.synthesis.usb_adapter_chunks`);
+  (:func:`benchmarks.wire_synthesis.usb_adapter_chunks`);
 * ``read-timeout``: pyserial ``read(32)`` with a 500 ms timeout: a read returns
   when 32 bytes are in, often mid-frame, and the rest of that frame comes with
   the next read, up to the timeout later;
@@ -22,9 +22,9 @@ import random
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
+from benchmarks.wire_synthesis import usb_adapter_chunks
 from decoders.capture import Chunk
 from decoders.line import LineSettings
-from decoders.synthesis import usb_adapter_chunks
 
 MS = 1_000_000
 
