@@ -42,6 +42,8 @@ class AnnotatedBatch:
     decoded: list[Decoding]
     rows: npt.NDArray[np.int64] | None = None
     columnar: ColumnarFrames | None = None
+    #: :attr:`decodings` once built: a one-entry cache in a frozen batch, so that the sinks that
+    #: read objects (values, the report, Rerun) build them once between them.
     _built: list[list[Decoding]] = field(default_factory=list, compare=False, repr=False)
 
     def __len__(self) -> int:
