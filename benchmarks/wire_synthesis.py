@@ -14,7 +14,6 @@ from itertools import pairwise
 
 import numpy as np
 
-from decoders.byte_times import rounded_char_times
 from decoders.capture import Chunk, ChunkBatch, Int64Array
 from decoders.line import LineSettings
 
@@ -96,19 +95,16 @@ def usb_adapter_chunks(
 
 
 def byte_times(batch: ChunkBatch, char_time_ns: float) -> tuple[Int64Array, Int64Array]:
-    """(start of start bit, end of stop bit) of every byte of ``batch``, in integer ns."""
+    """(start of start bit, end of stop bit) of every byte of ``batch``, in integer ns, from the
+    rule of :mod:`decoders.byte_times` computed byte by byte: the wire models' times, and what
+    the tests hold the framer's :class:`~decoders.byte_times.ByteClock` to."""
     total = len(batch.data)
     if total == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     lengths = np.diff(batch.ends, prepend=0)
-    chars_to_chunk_end = np.repeat(batch.ends, lengths)
-    chars_to_chunk_end -= np.arange(total, dtype=np.int64)
-    starts = np.repeat(batch.t_end_ns, lengths)
-    # k character times, rounded: the same product the reference rounds
-    starts -= rounded_char_times(chars_to_chunk_end, char_time_ns)
-    # Inside a chunk a byte ends where the next one starts; a chunk's last byte ends at its time.
-    ends = np.empty_like(starts)
-    ends[:-1] = starts[1:]
-    filled = lengths > 0
-    ends[batch.ends[filled] - 1] = batch.t_end_ns[filled]
+    chunk_of_byte = np.repeat(np.arange(len(batch.ends)), lengths)
+    chars_after = batch.ends[chunk_of_byte] - 1 - np.arange(total, dtype=np.int64)
+    chunk_end = batch.t_end_ns[chunk_of_byte]
+    ends = chunk_end - np.rint(chars_after * char_time_ns).astype(np.int64)
+    starts = chunk_end - np.rint((chars_after + 1) * char_time_ns).astype(np.int64)
     return starts, ends

@@ -9,9 +9,8 @@ between two chunks is exactly the difference of their recorded times.
 
 :class:`ByteClock` is what the framer uses: it keeps the chunks and computes the times of
 the bytes asked for (frames' first and last bytes) and the silences where chunks meet. The
-tests hold it to every byte's offsets computed from the rule above (``tests/oracles.py``); the
-benchmarks' models of the wire take every byte's times at once
-(:func:`benchmarks.wire_synthesis.byte_times`).
+tests hold it to every byte's times computed from the rule above, byte by byte, as the
+benchmarks' models of the wire take them (:func:`benchmarks.wire_synthesis.byte_times`).
 """
 
 from __future__ import annotations

@@ -12,7 +12,6 @@ import numpy as np
 import numpy.typing as npt
 from fastcrc import crc16
 
-from decoders.capture import ChunkBatch, Int64Array
 from decoders.crc import CRC_TABLE, MIN_CHECKED
 from decoders.frame import PROTOCOL_NAMES
 from decoders.message import Message, Role
@@ -41,20 +40,6 @@ def crc_ok_many_reference(data: bytes, offsets: npt.NDArray[np.int64]) -> npt.ND
     remainders = np.fromiter(map(crc16.modbus, frames), np.int64, len(bounds) - 1)
     valid: npt.NDArray[np.bool_] = (remainders == 0) & (np.diff(offsets) >= MIN_CHECKED)
     return valid
-
-
-def byte_times_reference(batch: ChunkBatch, char_time_ns: float) -> tuple[Int64Array, Int64Array]:
-    """:func:`decoders.byte_times.byte_times` computed byte by byte from the rule (the plain path)."""
-    total = len(batch.data)
-    if total == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    lengths = np.diff(batch.ends, prepend=0)
-    chunk_of_byte = np.repeat(np.arange(len(batch.ends)), lengths)
-    chars_after = batch.ends[chunk_of_byte] - 1 - np.arange(total, dtype=np.int64)
-    chunk_end = batch.t_end_ns[chunk_of_byte]
-    ends = chunk_end - np.rint(chars_after * char_time_ns).astype(np.int64)
-    starts = chunk_end - np.rint((chars_after + 1) * char_time_ns).astype(np.int64)
-    return starts, ends
 
 
 class AnewApplier(ProfileApplier):
