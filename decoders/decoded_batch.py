@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from decoders.message import IN_COLUMNS, ROLE_ORDER, Decoding, Message, MessageBatch, slice_messages
+from decoders.message import IN_COLUMNS, ROLE_ORDER, Decoding, Message, MessageBatch, ParamValue, slice_messages
 from decoders.modbus.alike import alike
 from decoders.modbus.codecs import parse_as
 from decoders.modbus.columnar import ColumnarFrames
@@ -92,7 +92,7 @@ class AnnotatedBatch:
     def decodings_at(self, positions: list[int]) -> list[Decoding]:
         """The decodings at ``positions`` (ordered and distinct, as :meth:`positions` gives them:
         all of them when as many)."""
-        decodings = self.decodings if self.columnar is not None else self.decoded
+        decodings = self.decodings
         if len(positions) == len(decodings):
             return decodings
         return list(map(decodings.__getitem__, positions))
@@ -142,7 +142,7 @@ def columnar_decodings(columnar: ColumnarFrames, messages: MessageBatch) -> list
     starts, stops = offsets[positions].tolist(), offsets[positions + 1].tolist()
     roles = messages.role[positions].tolist()
     names = spelt.names
-    named_params: list[tuple[object, ...] | None] = [None] * len(spelt)
+    named_params: list[tuple[ParamValue, ...] | None] = [None] * len(spelt)
     if names is not None:
         sizes = (np.maximum(spelt.count, 0) + spelt.read_count).tolist()
         entries, table, begin = names.row.tolist(), names.table, 0
@@ -158,7 +158,7 @@ def columnar_decodings(columnar: ColumnarFrames, messages: MessageBatch) -> list
         pdu = parse_as(data[start:stop], ROLE_ORDER[role])
         params = named_params[place]
         if params is not None:
-            decodings.append(Decoding(summary, params, pdu))  # type: ignore[arg-type]
+            decodings.append(Decoding(summary, params, pdu))
         else:
             request = ReadRequest(function, address, count) if kind == READ_ANSWER else None
             decodings.append(Decoding(summary, named_registers(pdu, request), pdu))

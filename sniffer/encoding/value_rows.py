@@ -62,9 +62,9 @@ class ValueRow:
     kind: str
     params: tuple[ParamValue, ...]
     request_index: int | None
-    valid: list[bool] = field(default_factory=list)
     #: The decoding whose params these are: what a subclass may cache by.
-    decoding: Decoding | None = None
+    decoding: Decoding
+    valid: list[bool] = field(default_factory=list)
 
 
 class ValueRows(Sink):

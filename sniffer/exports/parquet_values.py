@@ -126,9 +126,7 @@ class ValueCollector(ValueRows):
     def _emit(self, row: ValueRow, *, crc_ok: bool) -> None:
         """:meth:`ValueRows._emit` of every value (this collector chooses none), a decoding's
         params taken apart once (``tests/test_parquet.py`` holds the table to ``values``)."""
-        decoding = row.decoding
-        assert decoding is not None  # every row of ValueRows.rows_at has its decoding
-        block = self._block(decoding, row.kind, crc_ok)
+        block = self._block(row.decoding, row.kind, crc_ok)
         if not block:
             return
         self.shown += len(block)
