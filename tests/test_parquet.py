@@ -43,13 +43,17 @@ P95_HISTOGRAM_QUERY = readme_query("latencies")
 
 
 def table(dataset: Path, name: str) -> list[dict[str, Any]]:
-    """A table's rows, times as nanoseconds (Python's datetime stops at microseconds)."""
+    """A table's rows, each time as its exact nanoseconds (``t_ns``), checked against the
+    microsecond timestamp beside it."""
     import pyarrow as pa
 
     read = ds.dataset(dataset / name, partitioning="hive").to_table()
     for position, column in enumerate(read.schema):
         if pa.types.is_timestamp(column.type):
-            read = read.set_column(position, column.name, read.column(position).cast(pa.int64()))
+            assert column.type == pa.timestamp("us", tz="UTC")
+            exact = read.column(f"{column.name}_ns")
+            assert read.column(position).cast(pa.int64()).to_pylist() == [t // 1000 for t in exact.to_pylist()]
+            read = read.set_column(position, column.name, exact)
     rows: list[dict[str, Any]] = read.to_pylist()
     return rows
 
@@ -284,6 +288,25 @@ def test_a_dataset_is_added_to_and_never_rewritten(tmp_path: Path, cli: Callable
     assert other.code == 0 and "added 5 files" in other.err
     assert len(list(folder.rglob("*.parquet"))) == 10
     assert all(path.stat().st_mtime_ns == mtime for path, mtime in before.items())
+
+
+def test_a_dataset_of_nanosecond_times_is_not_added_to(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    """Files of an earlier rtusniff (nanosecond timestamps) and of this one would read as one
+    table with mixed units, or not at all: adding to such a dataset is refused, and nothing changes."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    folder = tmp_path / "plant"
+    assert cli("export", str(CAPTURES / "xbt-hmi.log"), "--parquet", str(folder), "-q").code == 0
+    (old,) = folder.glob("transactions/*/*/*.parquet")
+    written = pq.read_table(old)
+    position = written.schema.get_field_index("t")
+    pq.write_table(written.set_column(position, "t", written.column("t_ns").cast(pa.timestamp("ns", tz="UTC"))), old)
+    before = sorted(folder.rglob("*"))
+    refused = cli("export", str(CAPTURES / "atv71-plc-poll.log"), "--parquet", str(folder))
+    assert refused.code == 11 and refused.err.count("\n") == 1, refused.err
+    assert str(old) in refused.err and "timestamp[ns, tz=UTC]" in refused.err and "new folder" in refused.err
+    assert sorted(folder.rglob("*")) == before
 
 
 def test_a_capture_across_midnight_lands_in_two_dates(tmp_path: Path, cli: Callable[..., Any]) -> None:

@@ -19,8 +19,10 @@ captures it holds::
   ``stats`` (:mod:`sniffer.exports.parquet_latencies`): a plant's percentiles without reading
   every answer.
 
-Times are nanosecond UTC timestamps; columns are zstd-compressed; each file's key-value metadata
-holds the capture's provenance (source files and SHA-256, line, timing, tool version, command).
+Times are microsecond UTC timestamps (``t``), each beside its exact nanoseconds since 1970 as an
+integer (``t_ns``), so that every engine reads them as written; columns are zstd-compressed; each
+file's key-value metadata holds the capture's provenance (source files and SHA-256, line, timing,
+tool version, command).
 A capture's files are named by its id (the first 16 hex digits of its SHA-256) and created
 exclusively: exporting more captures adds files and never rewrites one, and a capture already
 in the dataset is refused. Files are written beside their name and put in place once whole.
@@ -42,6 +44,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
+import pyarrow.parquet as pq
 
 from decoders.anomalies import KINDS, anomaly_masks
 from decoders.decoded_batch import AnnotatedBatch
@@ -54,7 +57,7 @@ from sniffer.exports.parquet_summaries import Summaries
 from sniffer.exports.parquet_writing import RowGroupWriter
 from sniffer.exports.transactions import OUTCOMES
 
-TABLES = ("frames", "transactions", "values", "anomalies", "latencies")
+TABLES = ("frames", "transactions", "values", "anomalies", "latencies")  # each but the last has times
 #: What a bus name may hold: it names a folder (``bus=NAME``) that every engine reads back as is.
 _BUS_NAME = re.compile(r"[^\x00-\x1f\x7f/\\=:*?\"<>|]{1,100}")
 
@@ -71,7 +74,10 @@ def bus_name_fault(name: str) -> str | None:
 
 #: Rows gathered per file before they are written as a row group.
 ROW_GROUP_ROWS = 1 << 17
-TIME = pa.timestamp("ns", tz="UTC")
+#: Time columns: microsecond UTC timestamps, the type every engine reads without settings (Spark
+#: refuses Parquet's nanosecond timestamps, ``PARQUET_TYPE_ILLEGAL``); each beside an integer
+#: column of the exact nanoseconds since 1970 (``t_ns`` beside ``t``).
+TIME = pa.timestamp("us", tz="UTC")
 _ROLES = pa.array([role.value for role in ROLE_ORDER])
 _OUTCOMES = pa.array(OUTCOMES)
 _KINDS = pa.array(list(KINDS))
@@ -106,8 +112,8 @@ UNSUMMARISED_COLUMNS = frozenset({"summary", "bytes", "flags", "code", "name", "
 #: 12 % on polling, 2 % on mixed and steady traffic; written in 0.66 times as long on coils and
 #: 0.74 on polling, in as long on mixed and steady traffic. Those of frames and transactions,
 #: a time a row, take differences: half as large and faster.
-DELTA_COLUMNS = {table: ["t", "t_end", "index", "request_index", "answer_index", "address"] for table in TABLES} | {
-    "values": ["index", "request_index", "address"]}
+DELTA_COLUMNS = {table: ["t", "t_ns", "t_end", "t_end_ns", "index", "request_index", "answer_index", "address"]
+                 for table in TABLES} | {"values": ["index", "request_index", "address"]}
 #: Columns that every row has by construction, declared so (Parquet's ``REQUIRED``): the writer
 #: then keeps no definition level per value. Measured on the row groups of 1 M frames (thread
 #: time, best of 3, twice): the ``values`` table of coils (12.7 M rows) written in 1.33 instead of
@@ -115,10 +121,11 @@ DELTA_COLUMNS = {table: ["t", "t_end", "index", "request_index", "answer_index",
 #: before, every column optional, are read together with these (pyarrow datasets, DuckDB). A null
 #: in one would be a bug: Arrow refuses to write it, and the export fails rather than store it.
 REQUIRED_COLUMNS = {
-    "frames": frozenset({"capture", "index", "t", "t_end", "role", "crc_ok", "flags", "length", "bytes", "protocol"}),
-    "transactions": frozenset({"t", "request_index", "outcome"}),
-    "values": frozenset({"t", "index", "slave", "kind", "address", "raw", "valid"}),
-    "anomalies": frozenset({"t", "index", "kind"}),
+    "frames": frozenset({"capture", "index", "t", "t_ns", "t_end", "t_end_ns", "role", "crc_ok", "flags", "length",
+                         "bytes", "protocol"}),
+    "transactions": frozenset({"t", "t_ns", "request_index", "outcome"}),
+    "values": frozenset({"t", "t_ns", "index", "slave", "kind", "address", "raw", "valid"}),
+    "anomalies": frozenset({"t", "t_ns", "index", "kind"}),
     "latencies": frozenset({"from_ms", "to_ms", "answers"}),
 }
 
@@ -134,8 +141,9 @@ def nullable(values: npt.NDArray[np.integer], kind: pa.DataType) -> pa.Array:
     return pa.array(values, kind, mask=values == NONE)
 
 
-def times(t_ns: npt.NDArray[np.int64]) -> pa.Array:
-    return pa.array(t_ns, TIME)
+def times(name: str, t_ns: npt.NDArray[np.int64]) -> dict[str, pa.Array]:
+    """The time column ``name`` (microseconds, rounded down) and ``name_ns`` (exact) of ``t_ns``."""
+    return {name: pa.array(t_ns // 1000, TIME), f"{name}_ns": pa.array(t_ns, pa.int64())}
 
 
 @dataclass
@@ -158,6 +166,7 @@ class ParquetDataset:
         if fault is not None:
             raise RtuSniffError(ErrorKind.USAGE, f"bus {bus!r} (the capture file's name): {fault}; give --bus NAME")
         self._refuse_a_capture_held()
+        self._refuse_other_times()
         self._metadata = {key.encode(): value.encode() for key, value in metadata.items()}
         self._parts: dict[tuple[str, int], _Part] = {}
         #: Rows written per table.
@@ -203,6 +212,17 @@ class ParquetDataset:
             raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"this capture is in the dataset already, as bus {bus!r} (a "
                                 "file of the same capture id: its bytes' SHA-256); a dataset holds a capture once",
                                 path=str(held))
+
+    def _refuse_other_times(self) -> None:
+        """Files of earlier versions hold nanosecond times: an engine reading both kinds as one table
+        fails or mixes units, so they are not mixed."""
+        for table in TABLES[:4]:  # those with times
+            for held in sorted(self.folder.glob(f"{table}/bus=*/date=*/*.parquet"))[:1]:
+                kind = pq.read_schema(held).field("t").type
+                if kind != TIME:
+                    raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"this dataset's times are {kind} (written by an "
+                                        f"earlier rtusniff), this version writes {TIME} with t_ns beside; export into "
+                                        "a new folder (or export every capture again)", path=str(held))
 
     def _new_part(self, table: str, day: int) -> _Part:
         date = np.datetime64(day, "D").astype(str)
@@ -287,8 +307,8 @@ def frame_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], captu
     columns = {
         "capture": dictionary(np.zeros(len(positions), np.int32), _one_text(capture)),
         "index": pa.array(positions + frames.first_index, pa.int64()),
-        "t": times(at(frames.t_start_ns)),
-        "t_end": times(at(frames.t_end_ns)),
+        **times("t", at(frames.t_start_ns)),
+        **times("t_end", at(frames.t_end_ns)),
         "slave": nullable(at(messages.slave), pa.int16()),
         "function": nullable(at(messages.function), pa.int16()),
         "role": dictionary(at(messages.role), _ROLES),
@@ -324,7 +344,7 @@ def transaction_columns(values: dict[str, npt.NDArray[np.int64]]) -> dict[str, p
     """The ``transactions`` table's columns from :meth:`TransactionEncoder.columns`."""
     latency = values["latency_ns"]
     return {
-        "t": times(values["t_ns"]),
+        **times("t", values["t_ns"]),
         "request_index": pa.array(values["request_index"], pa.int64()),
         "answer_index": nullable(values["answer_index"], pa.int64()),
         "slave": nullable(values["slave"], pa.int16()),
@@ -353,7 +373,7 @@ def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], sum
     row, kind = row[order], kind[order]
     t_ns = frames.t_start_ns[row]
     return t_ns, {
-        "t": times(t_ns),
+        **times("t", t_ns),
         "index": pa.array(row + frames.first_index, pa.int64()),
         "slave": nullable(messages.slave[row], pa.int16()),
         "function": nullable(messages.function[row], pa.int16()),

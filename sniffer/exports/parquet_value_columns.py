@@ -100,7 +100,7 @@ def _arrow(rows: LaidRows) -> dict[str, pa.Array]:
         texts = {column: no_text if all(each is None for each in table) else taken(pa.array(table, pa.string()), entry)
                  for column, table in zip(TEXT_COLUMNS, rows.texts, strict=True)}
     return {
-        "t": times(rows.t_ns),
+        **times("t", rows.t_ns),
         "index": pa.array(rows.index, pa.int64()),
         "slave": pa.array(rows.slave, pa.int16()),
         "kind": dictionary(rows.kind, _VALUE_KINDS),
