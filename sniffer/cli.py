@@ -26,7 +26,7 @@ from sniffer.tool_version import tool_version
 #: ``stats`` of a sample imported 320 to 380 ms of modules instead of 370 to 390 ms (``python -X
 #: importtime``, three runs each; numpy, rich and the decoders are most of the rest).
 COMMAND_NAMES = ("analyze", "stats", "report", "values", "compare", "cut", "export", "capture", "ports",
-                 "convert", "profiles")
+                 "convert", "profiles", "wireshark")
 #: Errors that only writing raises: a full disk, a quota, a file too large.
 WRITE_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 #: Objects allocated between young-generation collections. Decoding builds millions of

@@ -28,6 +28,7 @@ from decoders.pipeline import Decoder
 from decoders.profiles.book import ProfileBook
 from decoders.stats import SkippedReads
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.outputs import PcapSink
 from sniffer.exports.streams import StreamSink
 from sniffer.pipeline import Delivery
 from sniffer.recorder import Recorder, Rotation
@@ -74,12 +75,15 @@ class CaptureOptions:
     line: LineSettings
     output: str | None
     rotation: Rotation | None
-    mode: str  # "view", "jsonl" or "quiet"
+    mode: str  # "view", "jsonl", "none" (decoded for the outputs alone) or "quiet" (recorded only)
     duration_s: float | None
     response_timeout_ns: int | None
     profiles: ProfileBook | None
     #: Live viewers fed beside the view (``--foxglove``, ``--rerun``): decoded as soon as read.
     streams: tuple[Sink, ...] = ()
+    #: ``--pcap``: the frames as Wireshark reads them, written as they are framed (a file, a FIFO
+    #: such as Wireshark's extcap pipe, or standard output).
+    pcap: PcapSink | None = None
 
 
 @dataclass
@@ -217,10 +221,12 @@ class _Session:
         if options.mode == "jsonl":
             out = whole_writes(out)
         sinks: list[Sink] = [JsonlView(out)] if options.mode == "jsonl" else [self.view] if self.view else []
+        if options.pcap is not None:
+            sinks.append(options.pcap)
         self.delivery = Delivery([*sinks, *options.streams], options.profiles)
-        #: How long decoding waits for more reads: a viewer wants each frame at once, a terminal
-        #: view four times a second.
-        self._wait_s = STREAM_WAIT_S if options.streams else REFRESH_S
+        #: How long decoding waits for more reads: a viewer (or Wireshark) wants each frame at once,
+        #: a terminal view four times a second.
+        self._wait_s = STREAM_WAIT_S if options.streams or options.pcap else REFRESH_S
         self._next_render = self._last_drain = 0.0
         self.out = out
         self._counters: dict[str, int] | None = None
@@ -250,6 +256,8 @@ class _Session:
                     raise self.recorder.error
                 if deadline is not None and time.monotonic() >= deadline:
                     break
+                if self.options.pcap is not None and self.options.pcap.reader_gone:
+                    break  # the pipe's reader (Wireshark) has stopped: the capture ends as at Ctrl-C
                 if time.monotonic() >= self._next_render:
                     render()
                     self._next_render = time.monotonic() + REFRESH_S
@@ -349,6 +357,8 @@ class _Session:
         finally:
             for stream in self.options.streams:
                 stream.close()
+            if self.options.pcap is not None:
+                self.options.pcap.close()
 
 
 def _report(code: int, options: CaptureOptions, recorder: Recorder | None, shared: _Shared, err: Console) -> int:

@@ -270,7 +270,7 @@ def test_pcap_decoded_by_tshark(cli: Cli, tmp_path: Path) -> None:
     from sniffer.exports.pcap_export import WIRESHARK_USER_DLT
 
     pcap = tmp_path / "poll.pcap"
-    assert cli("export", str(SAMPLE_LOG), "--pcap", str(pcap)).code == 0
+    assert cli("export", str(SAMPLE_LOG), "--pcap", str(pcap), "--pcap-link", "user").code == 0
     fields = ["frame.time_epoch", "mbrtu.unit_id", "modbus.func_code", "modbus.exception_code",
               "mbrtu.crc16.status"]
     shown = subprocess.run(
@@ -312,7 +312,7 @@ def read_pcap(path: Path) -> tuple[int, list[tuple[int, str]]]:
 def test_pcap_holds_every_frame_with_its_time(cli: Cli, tmp_path: Path, sample: str) -> None:
     source = SAMPLE_LOG.parent / sample
     pcap = tmp_path / "out.pcap"
-    assert cli("export", str(source), "--pcap", str(pcap)).code == 0
+    assert cli("export", str(source), "--pcap", str(pcap), "--pcap-link", "user").code == 0
     frames = [r for r in cli("analyze", str(source), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
     linktype, packets = read_pcap(pcap)
     assert linktype == 147

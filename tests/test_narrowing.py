@@ -92,7 +92,7 @@ def test_windowed_export_holds_the_window_only(cli: Cli, tmp_path: Path) -> None
     assert [(f["t_ns"], f["hex"]) for f in again] == [(f["t_ns"], f["hex"]) for f in original]
     pcap = tmp_path / "three.pcap"
     assert cli("export", str(SAMPLE_LOG), "--pcap", str(pcap), "--limit", "3").code == 0
-    assert pcap.stat().st_size == 24 + sum(16 + n for n in (7, 55, 8))
+    assert pcap.stat().st_size == 24 + sum(16 + 28 + n for n in (7, 55, 8))  # each in IPv4 (20) and UDP (8)
 
 
 @pytest.mark.parametrize(("options", "error"), [

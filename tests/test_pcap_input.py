@@ -86,10 +86,11 @@ def test_bad_pcaps_are_one_line(cli: Cli, tmp_path: Path, change: str, code: int
 def test_wireshark_tells_queries_from_responses_with_the_udp_link(cli: Cli, tmp_path: Path) -> None:
     """With link type 147 Wireshark cannot tell an FC 43 or FC 23 query from its response (same
     shape both ways); in UDP packets from and to port 502 it can, for every function, with one
-    preference. pcapng carries each packet's direction and rtusniff's comment."""
+    preference (the profile ``rtusniff wireshark setup`` writes holds it). pcapng carries each
+    packet's direction and rtusniff's comment."""
     user, udp = tmp_path / "user.pcapng", tmp_path / "udp.pcapng"
-    assert cli("export", str(SAMPLE_LOG), "--pcap", str(user), "-q").code == 0
-    assert cli("export", str(SAMPLE_LOG), "--pcap", str(udp), "--pcap-link", "udp", "-q").code == 0
+    assert cli("export", str(SAMPLE_LOG), "--pcap", str(user), "--pcap-link", "user", "-q").code == 0
+    assert cli("export", str(SAMPLE_LOG), "--pcap", str(udp), "-q").code == 0  # udp: the default
 
     def tshark(path: Path, *options: str) -> str:
         return subprocess.run(["tshark", "-n", "-r", str(path), *options], check=True, capture_output=True,

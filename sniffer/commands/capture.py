@@ -8,8 +8,15 @@ import sys
 from typing import TYPE_CHECKING
 
 from decoders.line import LineSettings
-from sniffer.commands.common import add_profile_options, add_response_timeout_option, response_timeout_ns
+from sniffer.commands.common import (
+    add_pcap_link_option,
+    add_profile_options,
+    add_response_timeout_option,
+    check_outputs,
+    response_timeout_ns,
+)
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports.outputs import PcapSink
 from sniffer.exports.streams import add_stream_options, check_streams, stream_sinks
 from sniffer.io.registry import find_format
 from sniffer.io.rotation import rotated_files
@@ -37,8 +44,13 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("-o", "--output", help="record to FILE.mcap (native) or FILE.log (text), flushed every second")
     parser.add_argument("--rotate", help="start a new file after a size (100MB) or a duration (1h): FILE-0001.mcap, …")
     parser.add_argument("--quiet", action="store_true", help="only record: no decoding, no view")
-    parser.add_argument("--format", choices=["view", "jsonl"], default="view",
-                        help="view: live terminal view (default); jsonl: stream JSON Lines records to stdout")
+    parser.add_argument("--format", choices=["view", "jsonl", "none"], default=None,
+                        help="view: live terminal view (default); jsonl: stream JSON Lines records to stdout; none: "
+                        "no view, decoding for the other outputs alone (the default with --pcap -)")
+    parser.add_argument("--pcap", metavar="OUT.pcapng", help="also write the frames as Wireshark reads them, as they "
+                        "are framed: a file (.pcapng: with each packet's direction and a comment of what rtusniff "
+                        "found), a FIFO, or - for standard output (| wireshark -C rtusniff -k -i -)")
+    add_pcap_link_option(parser)
     parser.add_argument("--duration", type=float, metavar="SECONDS", help="stop after SECONDS")
     add_response_timeout_option(parser)
     add_profile_options(parser)
@@ -56,41 +68,62 @@ def run(args: argparse.Namespace) -> int:
     if args.output is None and args.quiet:
         raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: give a file with -o")
     if args.output is not None:
-        find_format(args.output, option="", purpose="write")
-        if os.path.lexists(args.output) and not args.rotate:
-            raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; capture never overwrites a recording",
-                                path=args.output)
-        if args.rotate:
-            taken = rotated_files(args.output)
-            if taken:
-                raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"exists ({len(taken)} file(s) of an earlier rotation); "
-                                    "capture never overwrites a recording: choose another name", path=taken[0])
-    if args.quiet and (args.foxglove is not None or args.rerun is not None):
-        raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: --foxglove and --rerun need the decoding")
+        check_recording(args.output, rotating=bool(args.rotate))
+    if args.quiet and (args.foxglove is not None or args.rerun is not None or args.pcap is not None):
+        raise RtuSniffError(ErrorKind.USAGE, "--quiet records only: --foxglove, --rerun and --pcap need the decoding")
+    mode = _mode(args)
     check_streams(args)
+    if args.pcap not in (None, "-"):
+        check_outputs([args.pcap, args.output], [args.port], force=False)
     book = profile_book(args.profile, args.profile_file)
-    line = _line(args, err)
+    line = line_settings(args.line, args.port, args.char_timing, args.probe_seconds, err)
     options = CaptureOptions(
         port=args.port,
         line=line,
         output=args.output,
         rotation=Rotation.parse(args.rotate) if args.rotate else None,
-        mode="quiet" if args.quiet else args.format,
+        mode=mode,
         duration_s=args.duration,
         response_timeout_ns=response_timeout_ns(args),
         profiles=book,
         streams=tuple(stream_sinks(args, replay=False)),
+        pcap=None if args.pcap is None else PcapSink(args.pcap, udp=args.pcap_link == "udp"),
     )
     return run_capture(options, sys.stdout, err)
 
 
-def _line(args: argparse.Namespace, err: Console) -> LineSettings:
-    text: str = args.line
+def _mode(args: argparse.Namespace) -> str:
+    if args.quiet:
+        return "quiet"
+    if args.pcap == "-":
+        if args.format not in (None, "none"):
+            raise RtuSniffError(ErrorKind.USAGE, f"--pcap - writes the pcap to standard output: --format {args.format} "
+                                "cannot share it")
+        if sys.stdout.isatty():
+            raise RtuSniffError(ErrorKind.USAGE, "--pcap -: binary pcap to a terminal; pipe it "
+                                "(| wireshark -C rtusniff -k -i -) or name a file")
+        return "none"
+    return str(args.format or "view")
+
+
+def check_recording(path: str, *, rotating: bool) -> None:
+    """A recording is a new file (or rotation) of a format rtusniff writes."""
+    find_format(path, option="", purpose="write")
+    if os.path.lexists(path) and not rotating:
+        raise RtuSniffError(ErrorKind.OUTPUT_FAILED, "exists; capture never overwrites a recording", path=path)
+    taken = rotated_files(path) if rotating else []
+    if taken:
+        raise RtuSniffError(ErrorKind.OUTPUT_FAILED, f"exists ({len(taken)} file(s) of an earlier rotation); "
+                            "capture never overwrites a recording: choose another name", path=taken[0])
+
+
+def line_settings(text: str, port: str, char_timing: bool, probe_seconds: float, err: Console) -> LineSettings:
+    """``--line``: 'BAUD FORMAT', or ``auto``: found by listening to ``port`` (the report to ``err``)."""
     if text.strip().lower() == "auto":
-        line, report = probe_line(args.port, args.probe_seconds)
+        line, report = probe_line(port, probe_seconds)
         err.print(report)
-        return LineSettings(line.baud, line.data_bits, line.parity, line.stop_bits, args.char_timing)
+        return LineSettings(line.baud, line.data_bits, line.parity, line.stop_bits, char_timing)
     try:
-        return LineSettings.parse(text, char_timing=args.char_timing)
+        return LineSettings.parse(text, char_timing=char_timing)
     except ValueError as exc:
         raise RtuSniffError(ErrorKind.USAGE, f"--line: {exc}, or 'auto'") from None

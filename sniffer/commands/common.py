@@ -73,6 +73,14 @@ def effective_timing(info: CaptureInfo, args: argparse.Namespace) -> TimingQuali
     return TimingQuality(args.timing) if args.timing else info.timing
 
 
+def add_pcap_link_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--pcap-link", choices=["udp", "user"], default="udp",
+                        help="udp (default): each frame in a UDP packet, master to slave port 502, by which Wireshark "
+                        "tells every query from its response ('rtusniff wireshark setup' once, then 'wireshark -C "
+                        "rtusniff FILE'); user: link type 147, the frames alone (Wireshark's DLT_USER 0 mapped to "
+                        "mbrtu, which the same profile does)")
+
+
 #: ``--response-timeout 0``: a limit no capture reaches (146 years; added to epoch nanoseconds in int64).
 NO_TIME_LIMIT_NS = 2**62
 

@@ -14,6 +14,7 @@ from sniffer.commands.common import (
     add_decoding_options,
     add_follow_option,
     add_jobs_option,
+    add_pcap_link_option,
     add_quiet_option,
     capture_paths,
     check_outputs,
@@ -45,10 +46,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("--rrd", metavar="OUT.rrd", help="write a Rerun recording")
     parser.add_argument("--pcap", metavar="OUT.pcap", help="write a pcap for Wireshark: one packet per frame "
                         "(OUT.pcapng: pcapng, with each packet's direction and a comment of what rtusniff found)")
-    parser.add_argument("--pcap-link", choices=["user", "udp"], default="user",
-                        help="user: link type 147 (Wireshark maps it to Modbus RTU with one DLT_USER line); udp: each "
-                        "frame in a UDP packet, master to slave port 502, so that Wireshark tells queries from "
-                        "responses for every function (one preference: mbrtu.udp.port:502)")
+    add_pcap_link_option(parser)
     parser.add_argument("--parquet", metavar="DIR", help="add the decoded tables (frames, transactions, values, "
                         "anomalies, latencies) to a Parquet dataset in DIR, partitioned by bus and date, for "
                         "DuckDB, Polars, Spark, Trino; more captures add files, never rewrite one")

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import shlex
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -23,6 +24,7 @@ from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
 from decoders.message import MessageBatch
 from decoders.stats import Statistics
+from sniffer.errors import RtuSniffError
 from sniffer.exports.latency_bins import latency_bins
 from sniffer.exports.pcap_export import PcapExporter
 from sniffer.exports.transactions import TransactionEncoder
@@ -198,16 +200,38 @@ class PcapSink(FileSink[PcapExporter]):
 
     wants_frames = True
 
-    def __init__(self, path: str, *, udp: bool = False) -> None:
+    def __init__(self, path: str, *, udp: bool = True, pcapng: bool | None = None) -> None:
         super().__init__(path)
+        #: The pipe written to has no reader any more (Wireshark stopped capturing): nothing more
+        #: is written, and a live capture ends.
+        self.reader_gone = False
         with self.writing():
-            self.exporter = PcapExporter(path, udp=udp)
+            self.exporter = PcapExporter(path, udp=udp, pcapng=pcapng)
 
     def frames(self, batch: MessageBatch) -> None:
         self.frames_written += len(batch)
         if self.exporter is not None:
-            with self.writing():
-                self.exporter.batch(batch)
+            try:
+                with self.writing():
+                    self.exporter.batch(batch)
+            except RtuSniffError:
+                if not self._pipe_closed():
+                    raise
+
+    def close(self) -> None:
+        try:
+            super().close()
+        except RtuSniffError:
+            if not self._pipe_closed():
+                raise
+
+    def _pipe_closed(self) -> bool:
+        """Whether the last write failed because the reader closed the pipe (then it is forgotten)."""
+        failure = sys.exc_info()[1]
+        if not isinstance(failure, RtuSniffError) or not isinstance(failure.__context__, BrokenPipeError):
+            return False
+        self.reader_gone, self.exporter = True, None
+        return True
 
 
 def _with_latency_bins(transactions: dict[str, npt.NDArray[np.int64]]) -> dict[str, npt.NDArray[np.int64]]:

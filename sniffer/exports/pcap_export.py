@@ -1,12 +1,12 @@
 """pcap for Wireshark: one packet per frame, already split, with nanosecond times.
 
-Link type 147 (DLT_USER0). Wireshark decodes it as Modbus RTU once User DLT 147 is mapped
-to the ``mbrtu`` dissector (Preferences → Protocols → DLT_USER → Encapsulations Table), or
-on the command line::
+Each frame in an IPv4/UDP packet (link type 101, :func:`udp_packets`), by default: Wireshark's
+Modbus RTU dissector then tells every query from its response by the ports, once UDP port 502 is
+Modbus RTU (the profile ``rtusniff wireshark setup`` writes: ``wireshark -C rtusniff FILE``).
+``udp=False``: the frames alone, link type 147 (DLT_USER0), which Wireshark reads once User DLT
+147 is mapped to ``mbrtu`` (the same profile maps it), but cannot classify FC 6, 8, 23 and 43.
 
-    tshark -o 'uat:user_dlts:"User 0 (DLT=147)","mbrtu","0","","0",""' -r capture.pcap
-
-Noise records are packets too (Wireshark shows them as malformed): nothing is dropped.
+Noise records are packets too (Wireshark shows them as data): nothing is dropped.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import numpy as np
 
 from decoders.capture import MAX_TIME_NS
 from decoders.damage import uart_error_note
-from decoders.frame import FrameBatch, FrameFlag, flag_set
+from decoders.frame import MODBUS, FrameBatch, FrameFlag, flag_set
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, MessageBatch, Role
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import open_new
@@ -38,11 +38,12 @@ class PcapExporter:
     """Writes frames as they are framed: it needs no decoding, so it takes whole batches.
     A path ending in ``.pcapng`` gets pcapng, with each packet's direction and a comment."""
 
-    def __init__(self, path: str, *, udp: bool = False) -> None:
+    def __init__(self, path: str, *, udp: bool = True, pcapng: bool | None = None) -> None:
         """``path`` ``-``: standard output (``| wireshark -k -i -``), classic pcap. ``udp``: each
-        frame in an IPv4/UDP packet (:func:`udp_packets`) instead of link type 147."""
+        frame in an IPv4/UDP packet (:func:`udp_packets`) instead of link type 147. ``pcapng``:
+        whether to write pcapng (``None``: if the name ends in ``.pcapng``)."""
         self._to_stdout = path == "-"
-        self._pcapng = path.lower().endswith(".pcapng")
+        self._pcapng = path.lower().endswith(".pcapng") if pcapng is None else pcapng
         self._udp = udp
         link = LINKTYPE_RAW_IP if udp else LINKTYPE_USER0
         self._file: BinaryIO = sys.stdout.buffer if self._to_stdout else open_new(path)
@@ -55,6 +56,7 @@ class PcapExporter:
         if self._udp:
             batch = udp_packets(batch)
         self._file.write(pcapng_blocks(batch) if self._pcapng else pcap_records(batch))
+        self._file.flush()  # a reader of a pipe (Wireshark live) sees each batch as it is framed
 
     def close(self) -> None:
         if self._to_stdout:
@@ -151,26 +153,30 @@ def pcapng_blocks(batch: MessageBatch) -> bytes:
 
 #: Raw IPv4 packets: the ``udp`` link.
 LINKTYPE_RAW_IP = 101
-MODBUS_PORT, MASTER_PORT, NOISE_PORT = 502, 40000, 40001
+MODBUS_PORT, MASTER_PORT, NOISE_PORT, OTHER_PROTOCOL_PORT = 502, 40000, 40001, 40002
 #: The master, and slave N as 198.19.0.N (RFC 2544's benchmarking range: never a real host).
 MASTER_ADDRESS = bytes([198, 18, 0, 1])
 
 
 def udp_packets(batch: MessageBatch) -> MessageBatch:
     """The batch with each frame wrapped in an IPv4/UDP packet: a request (or broadcast) from
-    the master's port 40000 to its slave's port 502, an answer back, noise from port 40001 (not
-    Modbus: Wireshark shows its bytes as data). Wireshark's Modbus RTU over UDP then knows a
-    query from a response by the ports, for every function code."""
+    the master's port 40000 to its slave's port 502, an answer back, noise from port 40001 and
+    other protocols' frames (USS) from port 40002 (not Modbus: Wireshark shows their bytes as
+    data). Wireshark's Modbus RTU over UDP then knows a query from a response by the ports, for
+    every function code."""
     frames = batch.frames
     packets = []
     offsets, data = frames.offsets.tolist(), frames.data
-    for position, (role, slave) in enumerate(zip(batch.role.tolist(), batch.slave.tolist(), strict=True)):
+    columns = zip(batch.role.tolist(), batch.slave.tolist(), frames.protocols().tolist(), strict=True)
+    for position, (role, slave, protocol) in enumerate(columns):
         payload = data[offsets[position] : offsets[position + 1]]
         slave_address = bytes([198, 19, 0, max(slave, 0)])
-        if role in (ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.EXCEPTION]):
+        if role == ROLE_CODE[Role.NOISE] or protocol != MODBUS:
+            # Not Modbus (noise, a USS telegram): not to port 502, where Wireshark would read it as Modbus.
+            port = NOISE_PORT if role == ROLE_CODE[Role.NOISE] else OTHER_PROTOCOL_PORT
+            packets.append(_udp(MASTER_ADDRESS, MASTER_ADDRESS, port, port, payload))
+        elif role in (ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.EXCEPTION]):
             packets.append(_udp(slave_address, MASTER_ADDRESS, MODBUS_PORT, MASTER_PORT, payload))
-        elif role == ROLE_CODE[Role.NOISE]:
-            packets.append(_udp(MASTER_ADDRESS, MASTER_ADDRESS, NOISE_PORT, NOISE_PORT, payload))
         else:
             packets.append(_udp(MASTER_ADDRESS, slave_address, MASTER_PORT, MODBUS_PORT, payload))
     lengths = np.fromiter(map(len, packets), np.int64, len(packets))
