@@ -7,10 +7,11 @@ there) and asks, as its extcap documentation defines:
   "Modbus RTU (rtusniff): PORT");
 * ``--extcap-interface IF --extcap-dlts``: the link type the capture writes;
 * ``--extcap-interface IF --extcap-config``: the options dialog (line settings, ``auto``
-  included, character timing, response timeout, a recording of its own);
+  included, character timing, response timeout, a recording of its own, device profiles);
 * ``--capture --extcap-interface IF --fifo PATH [options]``: capture, passively as ``rtusniff
   capture`` does, and write pcapng into the FIFO as frames are framed: each frame in a UDP packet
-  (read by the ``rtusniff`` profile), with its direction and rtusniff's comment.
+  (read by the ``rtusniff`` profile), with its direction and rtusniff's comment, which ends with
+  the frame's summary (the parameters a device profile names).
 
 Wireshark stops a capture with SIGTERM, or by closing the FIFO: either ends it as Ctrl-C ends
 ``rtusniff capture``, the recording closed whole. Nothing is printed but errors: Wireshark shows
@@ -53,6 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--char-timing", action="store_true", help="as for analyze")
     parser.add_argument("--response-timeout", type=float, metavar="MS", help="as for capture")
     parser.add_argument("--record", metavar="FILE", help="also record every byte to FILE.mcap or FILE.log")
+    parser.add_argument("--profile", default="", metavar="[SLAVE=]NAME,…",
+                        help="device profiles, as capture's --profile, separated by commas")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -95,7 +98,17 @@ def config() -> list[str]:
         "{tooltip=A request not answered within it is a timeout (empty: derived from the traffic)}",
         "arg {number=3}{call=--record}{display=Also record to}{type=fileselect}{mustexist=false}"
         "{tooltip=Every byte with its time, as rtusniff capture -o writes it (.mcap or .log): a new file}",
+        "arg {number=4}{call=--profile}{display=Device profiles}{type=string}"
+        f"{{tooltip=The drives' profiles, whose parameter names and values each packet's comment shows: "
+        f"NAME for every slave or SLAVE=NAME, separated by commas ({', '.join(_profile_names())}); empty: "
+        "slaves that identify themselves (FC 43) get theirs}",
     ]
+
+
+def _profile_names() -> list[str]:
+    from sniffer.profiles_io import shipped_profiles  # noqa: PLC0415 - the profiles, only for the dialog
+
+    return sorted(shipped_profiles())
 
 
 def _port(interface: str | None) -> str:
@@ -112,6 +125,7 @@ def capture(port: str, args: argparse.Namespace) -> int:
     from sniffer.commands.common import response_timeout_ns  # noqa: PLC0415
     from sniffer.exports.outputs import PcapSink  # noqa: PLC0415
     from sniffer.live_capture import CaptureOptions, run_capture  # noqa: PLC0415
+    from sniffer.profiles_io import profile_book  # noqa: PLC0415
 
     if args.fifo is None:
         raise RtuSniffError(ErrorKind.USAGE, "wireshark extcap: --capture needs --fifo PATH")
@@ -119,6 +133,7 @@ def capture(port: str, args: argparse.Namespace) -> int:
         raise RtuSniffError(ErrorKind.USAGE, "capture filters are not supported: filter the display instead "
                             "(mbrtu.unit_id == 2)")
     record = args.record or None
+    choices = [choice.strip() for choice in args.profile.replace(" ", ",").split(",") if choice.strip()]
     if record is not None:
         check_recording(record, rotating=False)
     with open(os.devnull, "w", encoding="utf-8") as quiet:
@@ -126,7 +141,7 @@ def capture(port: str, args: argparse.Namespace) -> int:
         line: LineSettings = line_settings(args.line, port, args.char_timing, 1.5, err)
         options = CaptureOptions(
             port=port, line=line, output=record, rotation=None, mode="none", duration_s=None,
-            response_timeout_ns=response_timeout_ns(args), profiles=None,
+            response_timeout_ns=response_timeout_ns(args), profiles=profile_book(choices, []),
             pcap=PcapSink(args.fifo, udp=True, pcapng=True))
         code = run_capture(options, quiet, err)
     return 0 if code == TERMINATED else code  # Wireshark's stop is SIGTERM: the capture ended as asked

@@ -140,7 +140,7 @@ def test_extcap_answers_wireshark_s_questions(tmp_path: Path) -> None:
     config = rtusniff(tmp_path, "wireshark", "extcap", "--extcap-interface=rtusniff:/dev/ttyAMA0",
                       "--extcap-config").stdout.splitlines()
     calls = [line.split("{call=")[1].split("}")[0] for line in config]
-    assert calls == ["--line", "--char-timing", "--response-timeout", "--record"]
+    assert calls == ["--line", "--char-timing", "--response-timeout", "--record", "--profile"]
     assert all(line.startswith("arg {number=") and line.count("{") == line.count("}") for line in config)
 
 
@@ -151,6 +151,8 @@ def test_extcap_answers_wireshark_s_questions(tmp_path: Path) -> None:
      "capture filters are not supported"),
     (["--extcap-interface", "rtusniff:/dev/x", "--capture", "--fifo", "f", "--line", "19200 8Q1"], "--line"),
     ([], "give --extcap-interfaces"),
+    (["--extcap-interface", "rtusniff:/dev/x", "--capture", "--fifo", "f", "--profile", "2=nosuch"],
+     "unknown profile 'nosuch'"),
 ])
 def test_extcap_refuses_what_it_cannot_do_in_one_line(tmp_path: Path, args: list[str], said: str) -> None:
     result = rtusniff(tmp_path, "wireshark", "extcap", *args)
@@ -160,10 +162,12 @@ def test_extcap_refuses_what_it_cannot_do_in_one_line(tmp_path: Path, args: list
 
 @needs_tshark
 @pytest.mark.skipif(sys.platform == "win32" or shutil.which("socat") is None, reason="needs socat pseudo-terminals")
-def test_wireshark_captures_live_through_the_extcap(tmp_path: Path) -> None:
-    """tshark on the extcap interface of a tap on a line where a pymodbus master polls a pymodbus
-    slave: every frame, as a query or a response, with no byte lost (the recording asked for in
-    the options holds every byte the line carried), and the capture stopped by tshark cleanly."""
+@pytest.mark.parametrize("route", ["extcap", "pipe"])
+def test_wireshark_captures_live(tmp_path: Path, route: str) -> None:
+    """tshark on a tap of a line where a pymodbus master polls a pymodbus slave, through the extcap
+    interface (its options set as tshark sets them) or through ``capture --pcap -`` piped into
+    it: every frame, as a query or a response, with no byte lost (the recording holds every byte
+    the line carried), and the capture stopped by tshark cleanly."""
     import re
     import tempfile
 
@@ -171,27 +175,40 @@ def test_wireshark_captures_live_through_the_extcap(tmp_path: Path) -> None:
     from tests.test_pty_pymodbus import run_master
 
     short = Path(tempfile.mkdtemp(prefix="rtx", dir="/tmp"))  # a port name Wireshark's settings keep as it is
+    env = {**os.environ, "HOME": str(tmp_path), "XDG_CONFIG_HOME": str(tmp_path / ".config")}
+    recording, pcap = tmp_path / "line.log", tmp_path / "live.pcapng"
+    assert TSHARK is not None
     try:
         with pty_pair(short, "m") as master, pty_pair(short, "s") as slave, pty_pair(short, "t") as tap:
             assert rtusniff(tmp_path, "wireshark", "setup", "--port", str(tap.b)).returncode == 0
             interface = f"rtusniff:{tap.b}"
             key = re.sub(r"[^a-z0-9]", "_", interface.lower())
-            recording, pcap = tmp_path / "line.log", tmp_path / "live.pcapng"
-            env = {**os.environ, "HOME": str(tmp_path), "XDG_CONFIG_HOME": str(tmp_path / ".config")}
-            assert TSHARK is not None
-            wireshark = subprocess.Popen(
-                [TSHARK, "-C", "rtusniff", "-i", interface, "-o", f"extcap.{key}.line:19200 8N1",
-                 "-o", f"extcap.{key}.record:{recording}", "-a", "duration:12", "-w", str(pcap)],
-                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            capture = None
+            if route == "extcap":
+                wireshark = subprocess.Popen(
+                    [TSHARK, "-C", "rtusniff", "-i", interface, "-o", f"extcap.{key}.line:19200 8N1",
+                     "-o", f"extcap.{key}.record:{recording}", "-o", f"extcap.{key}.profile:1=generic",
+                     "-a", "duration:12", "-w", str(pcap)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                    text=True)
+            else:
+                capture = subprocess.Popen(
+                    [sys.executable, "-m", "sniffer", "capture", str(tap.b), "--line", "19200 8N1", "-o",
+                     str(recording), "--pcap", "-", "--duration", "8"], env=env, stdout=subprocess.PIPE,
+                    stderr=subprocess.PIPE)
+                wireshark = subprocess.Popen([TSHARK, "-C", "rtusniff", "-i", "-", "-w", str(pcap)], env=env,
+                                             stdin=capture.stdout, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                             text=True)
             deadline = time.monotonic() + 10
             while not recording.exists() and time.monotonic() < deadline:
-                time.sleep(0.05)  # the extcap has opened the port
+                time.sleep(0.05)  # the port is open
             assert recording.exists(), wireshark.communicate(timeout=30)
             with pymodbus_slave(slave.b), Relay(master.b, slave.a, copy_to=tap.a) as relay:
                 operations = run_master(master.a)
                 time.sleep(0.3)
             _, err = wireshark.communicate(timeout=60)
             assert wireshark.returncode == 0, err
+            if capture is not None:
+                assert capture.wait(timeout=30) == 0
     finally:
         shutil.rmtree(short, ignore_errors=True)
     on_the_line = b"".join(data for _, data in relay.tap)
@@ -210,5 +227,43 @@ def test_wireshark_captures_live_through_the_extcap(tmp_path: Path) -> None:
     rows = classified(tmp_path, pcap)
     assert len(rows) == len(frames) >= 2 * len(operations) - 2
     assert not [row for row in rows if "Unable to classify" in row[2] or row[0] == ""]
-    comments = tshark(tmp_path, "-r", str(pcap), "-T", "fields", "-e", "frame.comment").stdout.splitlines()
-    assert comments[0] == "rtusniff #0: request" and comments[1].startswith("rtusniff #1: response to #0")
+    if route == "extcap":  # pcapng, with rtusniff's comments (a classic pcap through the pipe has none)
+        comments = tshark(tmp_path, "-r", str(pcap), "-T", "fields", "-e", "frame.comment").stdout.splitlines()
+        assert comments[0] == "rtusniff #0: request — read coils 10..21 (12)"
+        assert comments[1].startswith("rtusniff #1: response to #0 — coils = ")
+
+
+@needs_tshark
+def test_each_packet_s_comment_says_what_rtusniff_found(home: Path, tmp_path: Path, cli: Callable[..., Any]) -> None:
+    """The comment Wireshark shows under each packet: the frame's number, role, pairing and
+    latency, flags, then its summary as ``analyze`` writes it, the values a profile names
+    included (what Wireshark does not know of a drive)."""
+    capture = CAPTURES / "atv71-plc-poll.log"
+    pcap = tmp_path / "poll.pcapng"
+    assert cli("export", str(capture), "--pcap", str(pcap), "--profile", "atv71", "-q").code == 0
+    frames = [r for r in cli("analyze", str(capture), "--format", "jsonl", "--profile", "atv71").jsonl()
+              if r["kind"] == "frame"]
+    comments = tshark(home, "-r", str(pcap), "-T", "fields", "-e", "frame.comment").stdout.splitlines()
+    assert len(comments) == len(frames)
+    for comment, frame in zip(comments, frames, strict=True):
+        said, summary = comment.split(" — ", 1)
+        assert said.startswith(f"rtusniff #{frame['index']}: {frame['role']}") and summary == frame["summary"]
+        assert all(flag in said for flag in frame["flags"])
+    assert any("tFr = 60.0 Hz" in comment for comment in comments)
+
+
+@pytest.mark.parametrize(("args", "code", "said"), [
+    (["--pcap", "-", "--format", "jsonl"], 2, "--format jsonl cannot share it"),
+    (["--pcap", "out.pcapng", "--quiet", "-o", "rec.log"], 2, "--quiet records only"),
+    (["--pcap", "rec.log", "-o", "rec.log"], 2, "named as two outputs"),
+    (["--pcap", "old.pcapng"], 11, "exists"),
+])
+def test_capture_pcap_options_refused_before_the_port_opens(tmp_path: Path, args: list[str], code: int,
+                                                            said: str) -> None:
+    (tmp_path / "old.pcapng").write_bytes(b"keep")
+    result = subprocess.run([sys.executable, "-m", "sniffer", "capture", str(tmp_path / "no-such-port"), "--line",
+                             "19200 8E1", *args], capture_output=True, text=True, cwd=tmp_path, timeout=60,
+                            check=False, stdin=subprocess.DEVNULL)
+    assert result.returncode == code and said in result.stderr and result.stderr.count("\n") == 1, result.stderr
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["old.pcapng"]
+    assert (tmp_path / "old.pcapng").read_bytes() == b"keep"

@@ -196,9 +196,8 @@ class ParquetSink(FileSink["ParquetDataset"]):
 
 
 class PcapSink(FileSink[PcapExporter]):
-    """pcap for Wireshark: it needs no decoding, so it takes the framed batches."""
-
-    wants_frames = True
+    """pcap for Wireshark: a classic pcap needs no decoding, so it takes the framed batches;
+    pcapng's comments say each frame's summary, so it takes the annotated ones."""
 
     def __init__(self, path: str, *, udp: bool = True, pcapng: bool | None = None) -> None:
         super().__init__(path)
@@ -207,13 +206,24 @@ class PcapSink(FileSink[PcapExporter]):
         self.reader_gone = False
         with self.writing():
             self.exporter = PcapExporter(path, udp=udp, pcapng=pcapng)
+        self.wants_messages = self.exporter.comments
+        self.wants_frames = not self.wants_messages
 
     def frames(self, batch: MessageBatch) -> None:
+        self._write(batch, None)
+
+    def messages(self, batch: AnnotatedBatch) -> None:
+        from sniffer.exports.parquet_summaries import summaries  # noqa: PLC0415 - pyarrow, only for pcapng
+
+        assert batch.rows is None, "a pcap holds every frame delivered: nothing filters them"
+        self._write(batch.messages, summaries(batch).of().to_pylist())
+
+    def _write(self, batch: MessageBatch, lines: list[str] | None) -> None:
         self.frames_written += len(batch)
         if self.exporter is not None:
             try:
                 with self.writing():
-                    self.exporter.batch(batch)
+                    self.exporter.batch(batch, lines)
             except RtuSniffError:
                 if not self._pipe_closed():
                     raise

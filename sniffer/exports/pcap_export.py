@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import struct
 import sys
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import BinaryIO
 
@@ -52,10 +53,16 @@ class PcapExporter:
         else:
             self._file.write(_HEADER.pack(_NANOSECOND_MAGIC, 2, 4, 0, 0, SNAPLEN, link))
 
-    def batch(self, batch: MessageBatch) -> None:
+    @property
+    def comments(self) -> bool:
+        """Whether its packets carry comments (pcapng), which say each frame's summary."""
+        return self._pcapng
+
+    def batch(self, batch: MessageBatch, summaries: Sequence[str] | None = None) -> None:
+        """Every frame of ``batch`` (``summaries``: their summary lines, for the comments)."""
         if self._udp:
             batch = udp_packets(batch)
-        self._file.write(pcapng_blocks(batch) if self._pcapng else pcap_records(batch))
+        self._file.write(pcapng_blocks(batch, summaries) if self._pcapng else pcap_records(batch))
         self._file.flush()  # a reader of a pipe (Wireshark live) sees each batch as it is framed
 
     def close(self) -> None:
@@ -125,9 +132,11 @@ def pcapng_header(link_type: int = LINKTYPE_USER0) -> bytes:
     return _block(_SHB, section) + _block(_IDB, interface)
 
 
-def pcapng_blocks(batch: MessageBatch) -> bytes:
+def pcapng_blocks(batch: MessageBatch, summaries: Sequence[str] | None = None) -> bytes:
     """An enhanced packet block per frame: its bytes at its start time, its direction (a request
-    goes out from the master, an answer comes in) and a comment saying what rtusniff made of it."""
+    goes out from the master, an answer comes in) and a comment saying what rtusniff made of it
+    (after `` — ``, each frame's summary line where ``summaries`` gives them: the values a profile
+    names, which Wireshark does not know)."""
     frames = batch.frames
     _refuse_outside(frames, MAX_TIME_NS, "a pcapng's unsigned times hold (from 1970)")
     blocks = []
@@ -143,6 +152,8 @@ def pcapng_blocks(batch: MessageBatch) -> bytes:
             comment += ", " + ", ".join(flag_set(flags).names)
         if flags & FrameFlag.UART_ERROR:
             comment += f"; {uart_error_note(frame_rows[position].uart_errors)}"
+        if summaries is not None:
+            comment += f" — {summaries[position]}"
         body = struct.pack("<IIIII", 0, t_ns >> 32, t_ns & 0xFFFFFFFF, len(payload), len(payload))
         body += payload + bytes(-len(payload) % 4)
         body += _option(_EPB_FLAGS, struct.pack("<I", _DIRECTIONS.get(role, 0))) + \
