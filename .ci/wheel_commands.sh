@@ -50,6 +50,8 @@ check "profiles list" "$bin/rtusniff" profiles list
 check "profiles show" "$bin/rtusniff" profiles show atv71
 check "ports" "$bin/rtusniff" ports
 check "capture --help" "$bin/rtusniff" capture --help
+check "wireshark setup" "$bin/rtusniff" wireshark setup --config-dir ws-config --extcap-dir ws-extcap
+check "wireshark extcap" ws-extcap/rtusniff-extcap --extcap-interfaces --extcap-version=4.0
 # The outputs read back: the report carries its script, the exports open in their readers.
 check "outputs read back" "$bin/python" - <<'PY'
 import json

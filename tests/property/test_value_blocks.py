@@ -66,7 +66,8 @@ def test_value_blocks_hold_the_rows_param_by_param(traffic: list[list[bytes]], r
              "request_index", "valid"]
     got = []
     for columns in taken:
-        columns["t"] = columns["t"].cast(pa.int64())  # nanoseconds, as the rows have them
+        assert columns["t"].cast(pa.int64()).to_pylist() == [t // 1000 for t in columns["t_ns"].to_pylist()]
+        columns["t"] = columns["t_ns"]  # nanoseconds, as the rows have them
         got += list(zip(*(columns[name].to_pylist() for name in names), strict=True))
     assert got == recorder.rows
     assert collector.shown == recorder.shown
