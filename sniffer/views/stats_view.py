@@ -12,7 +12,9 @@ import textwrap
 from typing import TYPE_CHECKING, TextIO
 
 from decoders.capture import CaptureInfo, TimingQuality
+from decoders.findings import Evidence, Finding, diagnose
 from decoders.line import LineSettings
+from decoders.message import MessageBatch
 from decoders.modbus.codes import function_name
 from decoders.stats import FunctionStats, Histogram, Statistics
 from sniffer.sinks import Sink
@@ -61,9 +63,11 @@ def _latency_cells(histogram: Histogram, measured: bool = True) -> list[str]:
 
 
 class StatsView(Sink):
-    """Keeps nothing per message; prints the statistics at the end."""
+    """Keeps nothing per message but the findings' evidence; prints the statistics and the
+    findings at the end."""
 
     wants_statistics = True
+    wants_frames = True
 
     def __init__(self, out: TextIO, *, width: int | None, color_system: ColorSystem | None = None,
                  as_json: bool = False) -> None:
@@ -75,10 +79,16 @@ class StatsView(Sink):
         self._latency_measured = True
         #: ``--each``: each capture's source, line and timing (provenance per capture).
         self._captures: list[dict[str, str]] = []
+        self._evidence: Evidence | None = None
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
         self._latency_measured = info.timing is TimingQuality.EXACT
+        self._evidence = Evidence(int(line.t3_5_ns), info.timing is TimingQuality.EXACT)
+
+    def frames(self, batch: MessageBatch) -> None:
+        if self._evidence is not None:
+            self._evidence.add(batch)
 
     def each_capture(self, captures: list[dict[str, str]]) -> None:
         """``--each``: the captures counted (``source``, ``line``, ``timing`` each), in order. The
@@ -91,10 +101,14 @@ class StatsView(Sink):
         self._latency_measured = any(capture["timing"] == TimingQuality.EXACT.value for capture in captures)
 
     def finish(self, statistics: Statistics) -> None:
+        # Over several captures (--each) the frames were counted elsewhere: no evidence to weigh.
+        findings = [] if self._captures or self._evidence is None else diagnose(statistics, self._evidence)
         if self._as_json:
             measured = {"latency_measured": self._latency_measured}
             each = {"captures": self._captures} if self._captures else {}
-            self._out.write(json.dumps({**self._header, **measured, **each, **statistics.to_dict()}, indent=2) + "\n")
+            drawn = {} if self._captures else {"findings": [finding.to_dict() for finding in findings]}
+            self._out.write(json.dumps({**self._header, **measured, **each, **statistics.to_dict(), **drawn},
+                                       indent=2) + "\n")
             return
         header = self._header
         self._note(f"{header['source']}  line {header['line']}  timing {header['timing']}")
@@ -108,6 +122,10 @@ class StatsView(Sink):
         self._out.write(self._function_lines(statistics))
         if not self._latency_measured:
             self._note(HOST_LATENCY_NOTE)
+        if findings:
+            self._out.write("\n")
+            self._note(f"findings ({len(findings)}; 'rtusniff report' shows their frames)")
+            self._out.write(finding_lines(findings, self._width))
         self._out.flush()
 
     def _note(self, text: str) -> None:
@@ -167,6 +185,24 @@ class StatsView(Sink):
             "p95": latency[2], "p99": latency[3], "max": latency[4], "poll": _ms(f.poll_period.percentile(50)),
             "name": function_name(function),
         }
+
+
+def finding_lines(findings: list[Finding], width: int | None) -> str:
+    """Each finding as its severity and sentence, then the frames that show it and what to check:
+    wrapped at words to ``width``, or a line each into a pipe (``None``)."""
+    lines = []
+    for finding in findings:
+        frames = f" (frames {', '.join(f'#{index}' for index in finding.frames)})" if finding.frames else ""
+        parts = [f"{finding.severity:7}  {finding.sentence}{frames}"]
+        if finding.causes:
+            parts.append(f"         check: {'; '.join(finding.causes)}")
+        for part in parts:
+            if width is None:
+                lines.append(part)
+            else:
+                lines += textwrap.wrap(part, width, subsequent_indent=" " * 9, break_long_words=False,
+                                       break_on_hyphens=False)
+    return "".join(f"{line}\n" for line in lines)
 
 
 _STYLES = {"exceptions": "red", "crc": "red", "timeouts": "red", "retries": "yellow", "unexpected": "yellow",

@@ -1,0 +1,227 @@
+"""Findings (:mod:`decoders.findings`): each rule on a generated capture that shows its symptom and
+on one that does not; none on the clean samples and the real recordings."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from benchmarks.wire_synthesis import Transmission, exact_chunks
+from decoders.crc import crc_bytes
+from decoders.line import LineSettings
+from tests.real_recordings import RECORDINGS, TEXT, available
+
+LINE = LineSettings.parse("19200 8E1")
+MS = 1_000_000
+T0 = 1_700_000_000_000_000_000
+CAPTURES = Path(__file__).resolve().parents[1] / "captures"
+
+
+def rtu(hex_text: str) -> bytes:
+    body = bytes.fromhex(hex_text)
+    return body + crc_bytes(body)
+
+
+def read(slave: int, address: int = 0, count: int = 2) -> bytes:
+    return rtu(f"{slave:02x}03{address:04x}{count:04x}")
+
+
+def answer(slave: int, count: int = 2) -> bytes:
+    return rtu(f"{slave:02x}03{2 * count:02x}" + "0102" * count)
+
+
+def refusal(slave: int, function: int, code: int) -> bytes:
+    return rtu(f"{slave:02x}{function | 0x80:02x}{code:02x}")
+
+
+def write(path: Path, transmissions: Iterator[Transmission] | list[Transmission]) -> Path:
+    lines = ["# rtu-capture v1", "# line: 19200 8E1", "# timing: exact"]
+    lines += [f"{chunk.t_end_ns // 10**9}.{chunk.t_end_ns % 10**9:09d} {chunk.data.hex(' ')}"
+              for chunk in exact_chunks(transmissions, LINE, T0)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def poll(slaves: list[int], rounds: int, *, period_ms: float = 100, answers: Callable[[int, int], bool] | None = None,
+         latency_ms: float = 5, count: int = 2) -> Iterator[Transmission]:
+    """A master reading ``count`` registers of each slave in turn, ``period_ms`` after the last
+    answer; ``answers(round, slave)`` says who answers."""
+    for turn in range(rounds):
+        for slave in slaves:
+            yield Transmission(read(slave, 0, count), int(period_ms * MS))
+            if answers is None or answers(turn, slave):
+                yield Transmission(answer(slave, count), int(latency_ms * MS))
+
+
+def findings(cli: Callable[..., Any], capture: Path) -> list[dict[str, Any]]:
+    result = cli("stats", str(capture), "--format", "json")
+    assert result.code == 0, result.err
+    found: list[dict[str, Any]] = json.loads(result.out)["findings"]
+    return found
+
+
+def rules(found: list[dict[str, Any]]) -> list[str]:
+    return [finding["rule"] for finding in found]
+
+
+def test_a_clean_bus_has_no_finding(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    assert findings(cli, write(tmp_path / "clean.log", poll([1, 2, 3], 30))) == []
+
+
+@pytest.mark.parametrize("capture", [*sorted(CAPTURES.glob("xbt-hmi.*")), *sorted(CAPTURES.glob("nord-uss.*")),
+                                     *([TEXT / name for name in RECORDINGS] if available() else [])],
+                         ids=lambda path: path.name)
+def test_clean_samples_and_real_recordings_have_no_finding(cli: Callable[..., Any], capture: Path) -> None:
+    assert findings(cli, capture) == []
+
+
+def test_a_slave_that_never_answers(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    found = findings(cli, write(tmp_path / "silent.log", poll([1, 9], 12, answers=lambda _, slave: slave != 9)))
+    assert rules(found) == ["silent_slave"]
+    (silent,) = found
+    assert silent["severity"] == "error" and silent["slave"] == 9 and silent["evidence"]["answers"] == 0
+    assert silent["sentence"].startswith("Slave 9 never answered") and len(silent["frames"]) == 5
+    assert "the slave address set on the device" in silent["causes"]
+
+
+def test_a_slave_that_answers_rarely(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    rare = poll([1, 5], 12, answers=lambda turn, slave: slave != 5 or turn % 4 == 0)
+    (finding,) = findings(cli, write(tmp_path / "rare.log", rare))
+    assert finding["rule"] == "rare_answers" and finding["slave"] == 5 and "only 3 of 12" in finding["sentence"]
+    often = poll([1, 5], 12, answers=lambda turn, slave: slave != 5 or turn % 4 != 0)  # 9 of 12: no finding
+    assert findings(cli, write(tmp_path / "often.log", often)) == []
+
+
+def test_requests_a_device_refuses(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    def traffic() -> Iterator[Transmission]:
+        for _ in range(5):
+            yield from poll([1], 1)
+            yield Transmission(read(1, 8400, 4), 100 * MS)
+            yield Transmission(refusal(1, 3, 2), 5 * MS)
+
+    (finding,) = findings(cli, write(tmp_path / "refused.log", traffic()))
+    assert finding["rule"] == "refused_requests" and finding["evidence"]["count"] == 5
+    assert "at addresses 8400..8403: exception 02 (Illegal Data Address), 5×" in finding["sentence"]
+    assert "while it answers 5 other requests" in finding["sentence"]
+
+
+def test_answers_after_the_master_moved_on(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    """Slave 4 answers 80 ms after the request; the master waits 50 ms, then asks slave 1."""
+    def traffic(late: bool) -> Iterator[Transmission]:
+        for _ in range(6):
+            yield Transmission(read(4), 100 * MS)
+            if not late:
+                yield Transmission(answer(4), 5 * MS)
+            yield Transmission(read(1), 50 * MS)
+            yield Transmission(answer(1), 5 * MS)
+            if late:
+                yield Transmission(answer(4), 20 * MS)
+
+    found = findings(cli, write(tmp_path / "late.log", traffic(True)))
+    late = next(finding for finding in found if finding["rule"] == "late_answers")
+    assert late["slave"] == 4 and late["evidence"]["late_answers"] >= 2
+    assert late["evidence"]["slave_latency_ms"] > late["evidence"]["master_wait_ms"] > 45
+    assert "the master's response timeout is shorter than the slave's answer time: raise it" in late["causes"]
+    assert findings(cli, write(tmp_path / "in-time.log", traffic(False))) == []
+
+
+def test_crc_errors_on_one_slave_s_answers_in_a_burst(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    def traffic() -> Iterator[Transmission]:
+        for turn in range(30):
+            for slave in (1, 2, 7):
+                yield Transmission(read(slave), 30 * MS)
+                good = answer(slave)
+                damaged = slave == 7 and 10 <= turn < 15
+                yield Transmission(good[:5] + bytes([good[5] ^ 0x10]) + good[6:] if damaged else good, 5 * MS)
+
+    (finding,) = findings(cli, write(tmp_path / "crc.log", traffic()))
+    assert finding["rule"] == "crc_errors" and finding["severity"] == "warning" and finding["slave"] == 7
+    sentence = finding["sentence"]
+    assert "5 of them from or to slave 7" in sentence and "5 on the slaves' answers" in sentence
+    assert "5 in bursts" in sentence  # and the bits the line flipped, against the next good answer:
+    assert sentence.endswith("is the good retry of damaged #89: byte 5 11, good 01 (one bit, 0x10).")
+
+
+def test_stray_bytes_before_a_slave_s_answers(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    def traffic(glitch: bool) -> Iterator[Transmission]:
+        for _ in range(10):
+            yield Transmission(read(1), 100 * MS)
+            yield Transmission(answer(1), 5 * MS)
+            yield Transmission(read(3), 100 * MS)
+            if glitch:  # nearer the answer than the request (within two t3.5 of it)
+                yield Transmission(b"\x00", 5 * MS)
+            yield Transmission(answer(3), int(2.5 * MS) if glitch else 5 * MS)
+
+    found = findings(cli, write(tmp_path / "glitch.log", traffic(True)))
+    glitch = next(finding for finding in found if finding["rule"] == "glitch_bytes")
+    assert glitch["sentence"] == "A stray 0x00 comes before the frames of slave 3 (10×)." and glitch["slave"] == 3
+    assert findings(cli, write(tmp_path / "quiet.log", traffic(False))) == []
+
+
+@pytest.mark.parametrize("rule", ["gap_1_5", "short_idle"])
+def test_silences_one_transmitter_gets_wrong(tmp_path: Path, cli: Callable[..., Any], rule: str) -> None:
+    def traffic() -> Iterator[Transmission]:
+        for turn in range(10):
+            yield Transmission(read(1), 100 * MS)
+            yield Transmission(answer(1), 5 * MS)
+            yield Transmission(read(2), 100 * MS)
+            odd = turn % 3 == 0
+            gaps = {4: int(1.2 * MS)} if odd and rule == "gap_1_5" else {}
+            idle = int(1.2 * MS) if odd and rule == "short_idle" else 5 * MS
+            yield Transmission(answer(2), idle, gaps)
+
+    found = findings(cli, write(tmp_path / f"{rule}.log", traffic()))
+    (finding,) = [finding for finding in found if finding["rule"] == rule]
+    assert finding["slave"] == 2 and finding["sentence"].startswith("Slave 2 sends")
+    assert finding["evidence"]["count"] == 4 and finding["evidence"]["frames_sent"] == 10
+
+
+def test_polling_that_stalls_or_stops(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    def stalled() -> Iterator[Transmission]:
+        yield from poll([1], 20)
+        yield Transmission(read(1), 3000 * MS)
+        yield Transmission(answer(1), 5 * MS)
+        yield from poll([1], 20)
+
+    (finding,) = findings(cli, write(tmp_path / "stall.log", stalled()))
+    assert finding["rule"] == "polling_stalls" and "usually every 115 ms, once not for 3.0 s" in finding["sentence"]
+
+    def stopped() -> Iterator[Transmission]:
+        yield from poll([1, 2], 20)
+        yield from poll([1], 40)
+
+    (finding,) = findings(cli, write(tmp_path / "stop.log", stopped()))
+    assert finding["rule"] == "polling_stops" and finding["slave"] == 2
+
+
+def test_a_busy_bus(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    busy = poll([1, 2], 100, period_ms=2.1, latency_ms=2.1, count=10)
+    (finding,) = findings(cli, write(tmp_path / "busy.log", busy))
+    assert finding["rule"] == "busy_bus" and finding["evidence"]["bus_load"] >= 0.7
+    assert findings(cli, write(tmp_path / "calm.log", poll([1, 2], 100, period_ms=20))) == []
+
+
+def test_broadcast_writes_nobody_confirms(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    def traffic() -> Iterator[Transmission]:
+        yield from poll([1], 5)
+        for value in range(3):
+            yield Transmission(rtu(f"0006001000{value:02x}"), 100 * MS)
+
+    (finding,) = findings(cli, write(tmp_path / "broadcast.log", traffic()))
+    assert finding["rule"] == "unconfirmed_broadcasts" and finding["severity"] == "info"
+    assert finding["sentence"].startswith("3 broadcast writes")
+
+
+def test_findings_follow_the_statistics_in_the_text(cli: Callable[..., Any]) -> None:
+    """After the tables: a block, most severe first, frames by index and what to check."""
+    out = cli("stats", str(CAPTURES / "atv71-plc-poll.log"), "--width", "80").out
+    block = out[out.index("findings ("):]
+    assert block.splitlines()[1].startswith("error    Slave 3 never answered: 5 requests, no answer.")
+    assert all(len(line) <= 80 for line in block.splitlines())
+    piped = cli("stats", str(CAPTURES / "atv71-plc-poll.log")).out
+    assert "\nwarning  1 frame with a CRC error (2.0% of the frames); frame #27 is the good retry of damaged " \
+           "#25: byte 6 50, good 58 (one bit, 0x08). (frames #25)\n" in piped
