@@ -45,6 +45,7 @@ from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from decoders.damage import RetryDiff
 from decoders.frame import FrameFlag
@@ -99,6 +100,17 @@ class Finding:
         return {"rule": self.rule, "severity": self.severity, "slave": self.slave, "sentence": self.sentence,
                 "evidence": self.evidence, "frames": list(self.frames), "causes": list(self.causes),
                 "kinds": list(self.kinds)}
+
+
+def _asking(role: npt.NDArray[np.uint8]) -> npt.NDArray[np.bool_]:
+    """Requests and broadcasts (two comparisons: ``np.isin`` sorts, five times as long)."""
+    asking: npt.NDArray[np.bool_] = (role == _REQUEST) | (role == _BROADCAST)
+    return asking
+
+
+def _answering(role: npt.NDArray[np.uint8]) -> npt.NDArray[np.bool_]:
+    answering: npt.NDArray[np.bool_] = (role == _RESPONSE) | (role == _EXCEPTION)
+    return answering
 
 
 def _transmitter(role: int, slave: int) -> str | None:
@@ -187,15 +199,16 @@ class Evidence:
     def _count_sent(self, batch: MessageBatch) -> None:
         """Frames sent by the master and by each slave (its answers), counted in columns."""
         role = batch.role
-        self.sent["master"] += int(np.count_nonzero(np.isin(role, (_REQUEST, _BROADCAST))))
-        answered = batch.slave[np.isin(role, (_RESPONSE, _EXCEPTION)) & (batch.slave != NONE)]
+        self.sent["master"] += int(np.count_nonzero(_asking(role)))
+        answered = batch.slave[_answering(role) & (batch.slave != NONE)]
         counts = np.bincount(answered.astype(np.int64), minlength=0) if len(answered) else np.zeros(0, np.int64)
         for sender_slave in np.flatnonzero(counts).tolist():
             self.sent[f"slave {sender_slave}"] += int(counts[sender_slave])
 
     def _exceptions(self, batch: MessageBatch) -> None:
         first, frames = batch.frames.first_index, batch.frames
-        refused = np.flatnonzero((batch.role == _EXCEPTION) & np.isin(batch.exception_code, (1, 2)))
+        code = batch.exception_code
+        refused = np.flatnonzero((batch.role == _EXCEPTION) & ((code == 1) | (code == 2)))
         for position in refused.tolist():
             function, request = int(batch.function[position]) & 0x7F, int(batch.request_index[position])
             addresses = None
@@ -224,8 +237,8 @@ class Evidence:
         followed with another before the answer came, or answering nobody after a request of the
         same slave that timed out."""
         frames, role, first = batch.frames, batch.role, batch.frames.first_index
-        requests = np.flatnonzero(np.isin(role, (_REQUEST, _BROADCAST)))
-        answers = np.flatnonzero(np.isin(role, (_RESPONSE, _EXCEPTION)))
+        requests = np.flatnonzero(_asking(role))
+        answers = np.flatnonzero(_answering(role))
         asked = batch.request_index[answers] - first
         paired = (batch.request_index[answers] != NONE) & (asked >= 0)
         answers, asked = answers[paired], asked[paired]
@@ -243,7 +256,7 @@ class Evidence:
     def _unpaired_late(self, batch: MessageBatch, requests: np.ndarray) -> None:
         frames, flags, first = batch.frames, batch.flags, batch.frames.first_index
         timed_out = np.flatnonzero((flags & FrameFlag.TIMEOUT) != 0)
-        answering = np.isin(batch.role, (_RESPONSE, _EXCEPTION))
+        answering = _answering(batch.role)
         unexpected = np.flatnonzero(((flags & FrameFlag.UNEXPECTED) != 0) & answering)
         for position, kind in sorted([(p, 0) for p in timed_out.tolist()] + [(p, 1) for p in unexpected.tolist()]):
             slave = int(batch.slave[position])
@@ -266,7 +279,8 @@ class Evidence:
 
     def _polls(self, batch: MessageBatch) -> None:
         """Per slave and function, the longest wait between two requests (and after which), and
-        the last request's time: requests ordered by key and time, waits within each key."""
+        the last request's time: requests ordered by key and time, each key's longest wait inside
+        the batch by one ``reduceat``."""
         frames = batch.frames
         requests = np.flatnonzero(batch.role == _REQUEST)
         if not len(requests):
@@ -276,40 +290,58 @@ class Evidence:
         keys, times, positions = keys[order], frames.t_start_ns[requests][order], requests[order]
         starts = np.flatnonzero(np.concatenate([[True], keys[1:] != keys[:-1]]))
         ends = np.concatenate([starts[1:], [len(keys)]])
-        for key, start, end in zip(keys[starts].tolist(), starts.tolist(), ends.tolist(), strict=True):
+        waits = np.concatenate([[-1], np.diff(times)])
+        waits[starts] = -1  # a key's first request: its wait is from the last batch's, below
+        longest = np.maximum.reduceat(waits, starts)
+        for key, start, end, inside in zip(keys[starts].tolist(), starts.tolist(), ends.tolist(), longest.tolist(),
+                                           strict=True):
             poll = self.polls.get((key >> 8, key & 0xFF))
             if poll is None:
                 poll = self.polls[(key >> 8, key & 0xFF)] = _Poll(int(times[start]), 0)
-            waits = np.diff(times[start:end], prepend=poll.last_ns)
-            longest = int(np.argmax(waits))
-            if int(waits[longest]) > poll.longest_ns:
-                poll.longest_ns = int(waits[longest])
-                poll.longest_at = frames.first_index + int(positions[start + longest - 1]) if longest else -1
+            first_wait = int(times[start]) - poll.last_ns
+            if first_wait > max(poll.longest_ns, inside):
+                poll.longest_ns, poll.longest_at = first_wait, -1
+            elif inside > poll.longest_ns:
+                at = start + int(np.argmax(waits[start:end]))
+                poll.longest_ns, poll.longest_at = inside, frames.first_index + int(positions[at - 1])
             poll.last_ns, poll.count = int(times[end - 1]), poll.count + end - start
 
     def _glitches(self, batch: MessageBatch) -> None:
-        frames = batch.frames
-        lengths = np.diff(frames.offsets)
-        short_noise = np.flatnonzero((batch.role == _NOISE) & (lengths <= 2))
-        for position in short_noise.tolist():
-            data = frames.data[int(frames.offsets[position]) : int(frames.offsets[position + 1])]
-            if set(data) - {0x00, 0xFF}:
+        """Noise of one or two bytes, all 0x00 or 0xFF, within two t3.5 of a transmitter's frame
+        (the nearer of the frames before and after it): found in columns, gathered by who sent
+        the frame, on which side and the bytes."""
+        frames, role, slave = batch.frames, batch.role, batch.slave
+        starts, lengths = frames.offsets[:-1], np.diff(frames.offsets)
+        raw = np.frombuffer(frames.data, np.uint8)
+        candidates = np.flatnonzero((role == _NOISE) & (lengths <= 2) & (lengths > 0))
+        head, tail = raw[starts[candidates]], raw[starts[candidates] + lengths[candidates] - 1]
+        candidates = candidates[((head == 0) | (head == 0xFF)) & ((tail == 0) | (tail == 0xFF))]
+        if not len(candidates):
+            return
+        # Who sent each frame: -1 the master, N slave N, -2 nobody (noise, an unknown frame).
+        sender = np.where(_asking(role), -1, np.where(_answering(role) & (slave != NONE), slave, -2))
+        count = len(batch)
+        later, earlier = np.minimum(candidates + 1, count - 1), np.maximum(candidates - 1, 0)
+        gap_before = np.where(candidates + 1 < count, frames.t_start_ns[later] - frames.t_end_ns[candidates], -1)
+        gap_after = np.where(candidates > 0, frames.t_start_ns[candidates] - frames.t_end_ns[earlier], -1)
+        if self._previous is not None and candidates[0] == 0 and self._previous[1] is not None:
+            gap_after[0] = int(frames.t_start_ns[0]) - self._previous[0]
+        limit = self._adjacent_ns
+        before_ok = (gap_before >= 0) & (gap_before <= limit) & (sender[later] != -2)
+        after_ok = (gap_after >= 0) & (gap_after <= limit) & ((sender[earlier] != -2) | (candidates == 0))
+        take_before = before_ok & (~after_ok | (gap_before <= gap_after))
+        chosen = take_before | after_ok
+        who = np.where(take_before, sender[later], sender[earlier])
+        for position, side_before, whom in zip(candidates[chosen].tolist(), take_before[chosen].tolist(),
+                                               who[chosen].tolist(), strict=True):
+            if position == 0 and not side_before:
+                name = self._previous[1] if self._previous is not None else None
+            else:
+                name = "master" if whom == -1 else f"slave {whom}"
+            if name is None:
                 continue
-            start, end = int(frames.t_start_ns[position]), int(frames.t_end_ns[position])
-            def sender(at: int) -> str | None:
-                return _transmitter(int(batch.role[at]), int(batch.slave[at]))
-
-            after = before = None
-            if position + 1 < len(batch) and int(frames.t_start_ns[position + 1]) - end <= self._adjacent_ns:
-                before = (int(frames.t_start_ns[position + 1]) - end, sender(position + 1))
-            previous = (int(frames.t_end_ns[position - 1]), sender(position - 1)) if position else self._previous
-            if previous is not None and start - previous[0] <= self._adjacent_ns:
-                after = (start - previous[0], previous[1])
-            near = min((c for c in (before, after) if c is not None and c[1] is not None), default=None,
-                       key=lambda c: c[0])
-            if near is not None and near[1] is not None:
-                side = "before" if near is before else "after"
-                self.glitches[(near[1], side, data.hex())].add(frames.first_index + position)
+            data = frames.data[int(starts[position]) : int(starts[position]) + int(lengths[position])]
+            self.glitches[(name, "before" if side_before else "after", data.hex())].add(frames.first_index + position)
 
 
 def diagnose(statistics: Statistics, evidence: Evidence) -> list[Finding]:
@@ -321,44 +353,87 @@ def diagnose(statistics: Statistics, evidence: Evidence) -> list[Finding]:
     return sorted(found, key=lambda f: order[f.severity])
 
 
+def _who(senders: list[str]) -> str:
+    """``slave 3``, ``slaves 3 and 9``, ``slaves 1–16``, ``the master and slave 2``: a list said
+    as short as it reads (runs of three or more numbers as a range)."""
+    numbers = sorted(int(sender.split()[1]) for sender in senders if sender != "master")
+    runs: list[list[int]] = []
+    for number in numbers:
+        if runs and number == runs[-1][-1] + 1:
+            runs[-1].append(number)
+        else:
+            runs.append([number])
+    parts = [f"{run[0]}–{run[-1]}" if len(run) >= 3 else ", ".join(map(str, run)) for run in runs]
+    said = ("slave " if len(numbers) == 1 else "slaves ") + _joined(parts) if numbers else ""
+    return _joined([*(["the master"] if "master" in senders else []), *([said] if said else [])])
+
+
+def _joined(parts: list[str]) -> str:
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1] if parts else ""
+
+
+def _first(frames: list[int]) -> tuple[int, ...]:
+    return tuple(sorted(frames)[:FIRST])
+
+
 def _silent(statistics: Statistics, evidence: Evidence) -> list[Finding]:
-    found = []
+    silent: list[tuple[int, int]] = []
+    rare: list[tuple[int, int, int]] = []
     for health in slave_health(statistics):
         if health.slave == 0 or health.requests < SILENT_REQUESTS:
             continue
         answered = health.responses + sum(health.exceptions.values())
-        frames = tuple(evidence.timeouts[health.slave].frames) if health.slave in evidence.timeouts else ()
-        evidence_: dict[str, int | float | str] = {"requests": health.requests, "answers": answered,
-                                                  "timeouts": health.timeouts}
-        causes = ("the slave address set on the device", "its line settings (baud, parity, stop bits)",
-                  "the wiring to it (A/B swapped, a loose terminal)", "its power")
         if answered == 0:
-            found.append(Finding("silent_slave", "error", f"Slave {health.slave} never answered: {health.requests} "
-                                 "requests, no answer.", health.slave, evidence_, frames, causes, ("timeout",)))
+            silent.append((health.slave, health.requests))
         elif health.requests >= RARE_REQUESTS and answered < RARE_SHARE * health.requests:
-            found.append(Finding("rare_answers", "warning", f"Slave {health.slave} answered only {answered} of "
-                                 f"{health.requests} requests ({answered / health.requests:.0%}).", health.slave,
-                                 evidence_, frames, causes, ("timeout",)))
+            rare.append((health.slave, answered, health.requests))
+    causes = ("the slave address set on the device", "its line settings (baud, parity, stop bits)",
+              "the wiring to it (A/B swapped, a loose terminal)", "its power")
+
+    def frames(slaves: list[int]) -> tuple[int, ...]:
+        return _first([i for slave in slaves if slave in evidence.timeouts for i in evidence.timeouts[slave].frames])
+
+    found = []
+    if silent:
+        slaves = [slave for slave, _ in silent]
+        asked = sum(requests for _, requests in silent)
+        who = _who([f"slave {slave}" for slave in slaves])
+        found.append(Finding("silent_slave", "error", f"{who[0].upper()}{who[1:]} never answered: {asked} "
+                             "requests, no answer.", slaves[0] if len(slaves) == 1 else None,
+                             {"slaves": " ".join(map(str, slaves)), "requests": asked, "answers": 0},
+                             frames(slaves), causes, ("timeout",)))
+    for slave, answered, requests in rare:
+        found.append(Finding("rare_answers", "warning", f"Slave {slave} answered only {answered} of {requests} "
+                             f"requests ({answered / requests:.0%}).", slave,
+                             {"requests": requests, "answers": answered}, frames([slave]), causes, ("timeout",)))
     return found
 
 
 def _refused(statistics: Statistics, evidence: Evidence) -> list[Finding]:
+    """By function, exception and addresses, the slaves that refuse them."""
+    groups: defaultdict[tuple[int, int, tuple[int, int] | None], list[tuple[int, _Seen]]] = defaultdict(list)
+    for (slave, function, code, addresses), seen in evidence.refused.items():
+        groups[(function, code, addresses)].append((slave, seen))
     answered = Counter[int]()
     for (slave, _), stats in statistics.per_function.items():
         answered[slave] += stats.responses
     found = []
-    for (slave, function, code, addresses), seen in sorted(evidence.refused.items(), key=lambda item: str(item[0])):
-        count = seen.count
+    for (function, code, addresses), slaves in sorted(groups.items(), key=lambda item: str(item[0])):
+        count = sum(seen.count for _, seen in slaves)
+        names = [slave for slave, _ in sorted(slaves)]
+        who = _who([f"slave {slave}" for slave in names])
         where = "" if addresses is None else (f" at address {addresses[0]}" if addresses[0] == addresses[1] else
                                               f" at addresses {addresses[0]}..{addresses[1]}")
-        also = f", while it answers {answered[slave]} other requests" if answered[slave] else ""
+        others = sum(answered[slave] for slave in names)
+        also = f", while {'it answers' if len(names) == 1 else 'they answer'} {others} other requests" if others else ""
         found.append(Finding(
             "refused_requests", "warning",
-            f"Slave {slave} refuses FC {function} ({function_name(function)}){where}: exception {code:02d} "
-            f"({exception_name(code)}), {count}×{also}.", slave,
-            {"function": function, "exception": code, "count": count,
+            f"{who[0].upper()}{who[1:]} refuse{'s' if len(names) == 1 else ''} FC {function} "
+            f"({function_name(function)}){where}: exception {code:02d} ({exception_name(code)}), {count}×{also}.",
+            names[0] if len(names) == 1 else None,
+            {"function": function, "exception": code, "count": count, "slaves": " ".join(map(str, names)),
              **({"first_address": addresses[0], "last_address": addresses[1]} if addresses is not None else {})},
-            tuple(seen.frames),
+            _first([i for _, seen in slaves for i in seen.frames]),
             ("the master asks for what this device lacks: its model, options or firmware",
              "an address off by one (a manual's 1-based or 40001 numbering)", "a profile for another device"),
             ("exception",)))
@@ -419,44 +494,55 @@ def _crc(statistics: Statistics, evidence: Evidence) -> list[Finding]:
 
 
 def _glitches(evidence: Evidence) -> list[Finding]:
+    """By side and bytes, the transmitters with at least ``GLITCHES`` of them."""
+    groups: defaultdict[tuple[str, str], list[tuple[str, _Seen]]] = defaultdict(list)
+    for (sender, side, data), seen in evidence.glitches.items():
+        if seen.count >= GLITCHES:
+            groups[(side, data)].append((sender, seen))
     found = []
-    for (sender, side, data), seen in sorted(evidence.glitches.items()):
-        count = seen.count
-        if count < GLITCHES:
-            continue
+    for (side, data), senders in sorted(groups.items()):
+        count = sum(seen.count for _, seen in senders)
+        names = [sender for sender, _ in senders]
         byte = " ".join(f"0x{data[i:i + 2].upper()}" for i in range(0, len(data), 2))
         found.append(Finding(
             "glitch_bytes", "warning",
-            f"A stray {byte} {'comes before' if side == 'before' else 'follows'} the frames of "
-            f"{'the master' if sender == 'master' else sender} ({count}×).",
-            int(sender.split()[1]) if sender.startswith("slave") else None,
-            {"transmitter": sender, "side": side, "count": count}, tuple(seen.frames),
+            f"A stray {byte} {'comes before' if side == 'before' else 'follows'} the frames of {_who(names)} "
+            f"({count}×).", _single_slave(names),
+            {"transmitters": ", ".join(sorted(names)), "side": side, "count": count},
+            _first([i for _, seen in senders for i in seen.frames]),
             ("the transmitter's driver enable switching too early or too late",
              "missing bias resistors: the idle line floats", "missing or extra termination"), ("noise",)))
     return found
 
 
-def _named(sender: str) -> str:
-    """``The master`` or ``Slave 7``, to begin a sentence."""
-    return "The master" if sender == "master" else sender.capitalize()
+def _single_slave(senders: list[str]) -> int | None:
+    return int(senders[0].split()[1]) if len(senders) == 1 and senders[0] != "master" else None
 
 
 def _timing(evidence: Evidence) -> list[Finding]:
-    found = []
-    texts = {"gap_1_5": ("gaps of more than 1.5 characters inside {n} of its {sent} frames",
+    """By flag, the transmitters whose frames show it."""
+    texts = {"gap_1_5": ("gaps of more than 1.5 characters inside {n} of {their} {sent} frames",
                          ("a transmitter that pauses inside a frame: a slow or busy device, a USB-RS485 "
                           "converter on the transmitting side", "a gateway that forwards in pieces")),
-             "short_idle": ("less than 3.5 characters of silence before {n} of its {sent} frames",
+             "short_idle": ("less than 3.5 characters of silence before {n} of {their} {sent} frames",
                             ("a device that answers or sends too soon after the last frame",
                              "a master polling faster than the line's t3.5"))}
-    for (rule, sender), seen in sorted(evidence.timing.items()):
-        count = seen.count
+    groups: defaultdict[str, list[tuple[str, _Seen]]] = defaultdict(list)
+    for (rule, sender), seen in evidence.timing.items():
+        groups[rule].append((sender, seen))
+    found = []
+    for rule, senders in sorted(groups.items()):
         text, causes = texts[rule]
+        names = [sender for sender, _ in senders]
+        count = sum(seen.count for _, seen in senders)
+        sent = sum(evidence.sent[sender] for sender in names)
+        who = _who(names)
+        verb = "sends" if len(names) == 1 else "send"
+        their = "its" if len(names) == 1 else "their"
         found.append(Finding(
-            rule, "warning", f"{_named(sender)} sends " + text.format(n=count, sent=evidence.sent[sender]) + ".",
-            int(sender.split()[1]) if sender.startswith("slave") else None,
-            {"transmitter": sender, "count": count, "frames_sent": evidence.sent[sender]},
-            tuple(seen.frames), causes, (rule,)))
+            rule, "warning", f"{who[0].upper()}{who[1:]} {verb} " + text.format(n=count, their=their, sent=sent) + ".",
+            _single_slave(names), {"transmitters": ", ".join(sorted(names)), "count": count, "frames_sent": sent},
+            _first([i for _, seen in senders for i in seen.frames]), causes, (rule,)))
     return found
 
 
