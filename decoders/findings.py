@@ -30,7 +30,8 @@ The rules and their weights, in one place:
   frames, by transmitter (the master, or slave N).
 * **polling stalls** (warning): a request of one slave and function, polled at least
   ``STALL_POLLS`` times, not repeated for ``STALL_TIMES`` × its usual period and at least
-  ``STALL_NS``, or stopped that long before the capture's end.
+  ``STALL_NS`` (the poll period of ``stats``: between repeats of the same request), or stopped
+  that long before the capture's end.
 * **busy bus** (warning): a bus load of at least ``BUSY_LOAD``.
 * **unconfirmed broadcasts** (info): broadcast writes, which no slave answers.
 
@@ -134,14 +135,6 @@ class _Seen:
             self.frames.append(index)
 
 
-@dataclass
-class _Poll:
-    last_ns: int
-    count: int = 1
-    longest_ns: int = 0
-    longest_at: int = 0  # the frame index after which the longest wait began
-
-
 class Evidence:
     """What the rules weigh, gathered batch by batch (see the module docstring)."""
 
@@ -161,7 +154,9 @@ class Evidence:
         self.sent: Counter[str] = Counter()
         self.crc_times: list[int] = []
         self.late: defaultdict[int, list[tuple[int, int]]] = defaultdict(list)
-        self.polls: dict[tuple[int, int], _Poll] = {}
+        #: By slave and function (``slave << 8 | function``): requests seen, and the last one's time.
+        self.polled = np.zeros(1 << 16, np.int64)
+        self.last_polled_ns = np.zeros(1 << 16, np.int64)
         self.last_ns: int | None = None
         #: Per slave, its last timed-out request: (end, index, when the master sent its next request).
         self._timed_out: dict[int, tuple[int, int, int]] = {}
@@ -278,33 +273,12 @@ class Evidence:
             self.late_frames[slave].add(index)
 
     def _polls(self, batch: MessageBatch) -> None:
-        """Per slave and function, the longest wait between two requests (and after which), and
-        the last request's time: requests ordered by key and time, each key's longest wait inside
-        the batch by one ``reduceat``."""
-        frames = batch.frames
-        requests = np.flatnonzero(batch.role == _REQUEST)
-        if not len(requests):
-            return
+        """Requests per slave and function, and the last one's time (a request's time laid on
+        its key's place in order: the batch's last one stays)."""
+        requests = np.flatnonzero((batch.role == _REQUEST) & (batch.slave >= 0) & (batch.function >= 0))
         keys = (batch.slave[requests].astype(np.int64) << 8) | batch.function[requests].astype(np.int64)
-        order = np.lexsort((frames.t_start_ns[requests], keys))
-        keys, times, positions = keys[order], frames.t_start_ns[requests][order], requests[order]
-        starts = np.flatnonzero(np.concatenate([[True], keys[1:] != keys[:-1]]))
-        ends = np.concatenate([starts[1:], [len(keys)]])
-        waits = np.concatenate([[-1], np.diff(times)])
-        waits[starts] = -1  # a key's first request: its wait is from the last batch's, below
-        longest = np.maximum.reduceat(waits, starts)
-        for key, start, end, inside in zip(keys[starts].tolist(), starts.tolist(), ends.tolist(), longest.tolist(),
-                                           strict=True):
-            poll = self.polls.get((key >> 8, key & 0xFF))
-            if poll is None:
-                poll = self.polls[(key >> 8, key & 0xFF)] = _Poll(int(times[start]), 0)
-            first_wait = int(times[start]) - poll.last_ns
-            if first_wait > max(poll.longest_ns, inside):
-                poll.longest_ns, poll.longest_at = first_wait, -1
-            elif inside > poll.longest_ns:
-                at = start + int(np.argmax(waits[start:end]))
-                poll.longest_ns, poll.longest_at = inside, frames.first_index + int(positions[at - 1])
-            poll.last_ns, poll.count = int(times[end - 1]), poll.count + end - start
+        self.polled += np.bincount(keys, minlength=1 << 16)
+        self.last_polled_ns[keys] = batch.frames.t_start_ns[requests]
 
     def _glitches(self, batch: MessageBatch) -> None:
         """Noise of one or two bytes, all 0x00 or 0xFF, within two t3.5 of a transmitter's frame
@@ -462,7 +436,7 @@ def _crc(statistics: Statistics, evidence: Evidence) -> list[Finding]:
     total = statistics.crc_errors
     if not total:
         return []
-    share = total / max(statistics.frames - statistics.roles.get("noise", 0), 1)
+    share = total / max(statistics.frames, 1)  # of every frame, as the report's bus card counts
     severity = "warning" if share >= CRC_WARNING_SHARE or total >= CRC_WARNING_COUNT else "info"
     by_slave = {slave: seen.count for slave, seen in evidence.crc_by_slave.items()}
     by_direction = {direction: seen.count for direction, seen in evidence.crc_by_direction.items()}
@@ -483,7 +457,7 @@ def _crc(statistics: Statistics, evidence: Evidence) -> list[Finding]:
         said += f"; frame #{evidence.retry_note[0]} is the {evidence.retry_note[1]}"
     frames = tuple(sorted(i for seen in evidence.crc_by_slave.values() for i in seen.frames)[:FIRST])
     return [Finding(
-        "crc_errors", severity, f"{total} frame{'s' if total != 1 else ''} with a CRC error ({share:.1%} of the "
+        "crc_errors", severity, f"{total} frame{'s' if total != 1 else ''} with a CRC error ({share:.2%} of the "
         f"frames){said}.", slave if parts and parts[0].endswith(f"slave {slave}") else None,
         {"crc_errors": total, "share": round(share, 5), "in_bursts": in_bursts},
         frames,
@@ -547,32 +521,48 @@ def _timing(evidence: Evidence) -> list[Finding]:
 
 
 def _stalls(statistics: Statistics, evidence: Evidence) -> list[Finding]:
-    found = []
-    per_function = statistics.per_function
-    for (slave, function), poll in sorted(evidence.polls.items()):
-        stats = per_function.get((slave, function))
-        usual = stats.poll_period.percentile(50) if stats is not None else None
-        if poll.count < STALL_POLLS or usual is None or usual <= 0:
+    """From each slave and function's poll period (the time between repeats of the same request,
+    as ``stats`` measures it): its longest against its usual, and the wait since the last one.
+    One finding each for the stalls and the stops, the worst named first."""
+    stalls: list[tuple[float, str, dict[str, int | float | str]]] = []
+    stops: list[tuple[float, str, dict[str, int | float | str]]] = []
+    for (slave, function), stats in sorted(statistics.per_function.items()):
+        usual, longest = stats.poll_period.percentile(50), stats.poll_period.maximum
+        key = slave << 8 | function
+        if stats.poll_period.count < STALL_POLLS or usual is None or usual <= 0 or longest is None:
             continue
         limit = max(STALL_TIMES * usual, STALL_NS)
-        stopped = (evidence.last_ns or poll.last_ns) - poll.last_ns
-        if poll.longest_ns >= limit:
-            found.append(Finding(
-                "polling_stalls", "warning",
-                f"Polling of slave {slave} FC {function} stalled: usually every {usual / 1e6:.0f} ms, once not for "
-                f"{poll.longest_ns / 1e9:.1f} s.", slave,
-                {"usual_ms": round(usual / 1e6, 3), "longest_s": round(poll.longest_ns / 1e9, 3)},
-                (poll.longest_at,) if poll.longest_at >= 0 else (),
-                ("the master busy elsewhere (a PLC scan, an HMI page change)", "a communication fault the master "
-                 "handles by pausing", "a gateway's queue"), ()))
+        stopped = (evidence.last_ns or 0) - int(evidence.last_polled_ns[key]) if evidence.polled[key] else 0
+        where = f"slave {slave} FC {function}"
+        if longest >= limit:
+            stalls.append((longest / usual, f"{where}: usually every {_duration(usual)}, once not for "
+                           f"{_duration(longest)}", {"slave": slave, "function": function, "usual_ms":
+                                                     round(usual / 1e6, 3), "longest_s": round(longest / 1e9, 3)}))
         elif stopped >= limit:
-            found.append(Finding(
-                "polling_stops", "warning",
-                f"Polling of slave {slave} FC {function} stopped {stopped / 1e9:.1f} s before the capture's end "
-                f"(it came every {usual / 1e6:.0f} ms).", slave,
-                {"usual_ms": round(usual / 1e6, 3), "stopped_s": round(stopped / 1e9, 3)}, (),
-                ("the master stopped asking (a fault it handles, a changed page)", "the master lost the line"), ()))
+            stops.append((stopped / usual, f"{where}: every {_duration(usual)}, none for the last "
+                          f"{_duration(stopped)}", {"slave": slave, "function": function, "usual_ms":
+                                                    round(usual / 1e6, 3), "stopped_s": round(stopped / 1e9, 3)}))
+    found = []
+    for rule, said, items, causes in (
+            ("polling_stalls", "Polling stalled", stalls,
+             ("the master busy elsewhere (a PLC scan, an HMI page change)",
+              "a communication fault the master handles by pausing", "a gateway's queue")),
+            ("polling_stops", "Polling stopped before the capture's end", stops,
+             ("the master stopped asking (a fault it handles, a changed page)", "the master lost the line"))):
+        if not items:
+            continue
+        items.sort(key=lambda item: -item[0])
+        shown = "; ".join(text for _, text, _ in items[:3]) + (f"; and {len(items) - 3} more" if len(items) > 3 else "")
+        pairs = f"{len(items)} slave/function pairs" if len(items) > 1 else "1 slave/function pair"
+        about = items[0][2]["slave"] if len(items) == 1 else None
+        worst = {f"worst_{name}": value for name, value in items[0][2].items()}
+        found.append(Finding(rule, "warning", f"{said} on {pairs}: {shown}.", about if isinstance(about, int) else None,
+                             {"pairs": len(items), **worst}, (), causes, ()))
     return found
+
+
+def _duration(ns: float) -> str:
+    return f"{ns / 1e6:.0f} ms" if ns < 10e9 else f"{ns / 1e9:.1f} s"
 
 
 def _busy(statistics: Statistics) -> list[Finding]:

@@ -185,3 +185,28 @@ def test_a_report_of_many_captures(browser: Any, cli: Cli, tmp_path: Path) -> No
         "svg.plot", "svgs => svgs.map(s => s.querySelectorAll('path').length)")
     assert charts and all(count > 0 for count in charts)
     assert opened.shot("plant.png", tmp_path).stat().st_size > 20_000
+
+
+def test_the_findings_come_first(browser: Any, cli: Cli, tmp_path: Path) -> None:
+    """The first screen says what is wrong: the findings are the first section, the sentences
+    ``stats`` gives, each linking to anomalies the page holds; hex wraps between bytes only. The
+    README's picture of it is this test's screenshot (``RTUSNIFF_SCREENSHOTS=DIR``)."""
+    capture = Path(os.path.relpath(ROOT / "captures" / "atv71-plc-poll.log"))  # as a user names it
+    opened = Opened(browser, _report(cli, capture, tmp_path / "report.html"), width=1100)
+    headings = opened.page.eval_on_selector_all("h2", "nodes => nodes.map(n => [n.id, n.getBoundingClientRect().top])")
+    assert headings[0][0] == "findings" and headings[0][1] < 150
+    assert [name for name, _ in headings].index("health") < [name for name, _ in headings].index("anomalies")
+    sentences = opened.page.eval_on_selector_all("li.finding", "nodes => nodes.map(n => n.dataset.rule)")
+    stats = json.loads(cli("stats", str(capture), "--format", "json").out)
+    assert sentences == [finding["rule"] for finding in stats["findings"]]
+    text = opened.page.inner_text("ul.findings")
+    assert all(finding["sentence"] in text for finding in stats["findings"])
+    targets = opened.page.eval_on_selector_all("li.finding a", "links => links.map(a => a.getAttribute('href'))")
+    assert targets and all(opened.page.query_selector(target) is not None for target in targets)
+    assert opened.page.eval_on_selector("td.hex", "cell => getComputedStyle(cell).wordBreak") == "normal"
+    path = tmp_path / "report-findings.png"
+    opened.page.screenshot(path=str(path), full_page=False)
+    keep = os.environ.get("RTUSNIFF_SCREENSHOTS")
+    if keep:
+        shutil.copy(path, Path(keep) / path.name)
+    assert opened.console == [] and path.stat().st_size > 20_000

@@ -140,6 +140,7 @@ def test_live_screens_fill_the_terminal(width: int, height: int) -> None:
     assert height - 4 <= len(lines) <= height - 1
     assert "lat ms" in screen and "~" in screen  # latency per frame, marked as read-time
     assert "51 " in lines[-1] or "51 " in screen.splitlines()[-1]  # the newest frame is last
+    assert "error: Slave 3 never answered: 5 requests, no answer." in " ".join(screen.split())  # findings, live
     check_golden(f"live-{width}x{height}.txt", screen)
 
 

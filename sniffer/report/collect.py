@@ -17,11 +17,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from decoders.anomalies import anomaly_masks
-from decoders.capture import CaptureInfo
+from decoders.capture import CaptureInfo, TimingQuality
 from decoders.compare import Change
 from decoders.damage import RetryDiff
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
+from decoders.findings import Evidence, Finding, diagnose
 from decoders.line import LineSettings
 from decoders.message import ROLE_CODE, DeviceIdentity, MessageBatch, Role
 from decoders.stats import Statistics
@@ -94,18 +95,25 @@ class ReportCollector(Sink):
         self.statistics = Statistics()
         self.slaves: set[int] = set()
         self._retries = RetryDiff()
+        self._evidence: Evidence | None = None
+        #: What is wrong on the bus (:mod:`decoders.findings`), each with the capture it is in
+        #: (``report --each``; empty for one capture), drawn at :meth:`finish`.
+        self.findings: list[tuple[str, Finding]] = []
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self.provenance.line = line.format()
         self.provenance.timing = info.timing.value
         self.provenance.channels = info.channels
         self.provenance.notes = info.notes
+        self._evidence = Evidence(int(line.t3_5_ns), info.timing is TimingQuality.EXACT)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         messages = batch.messages
         if not len(messages):
             return
         masks = anomaly_masks(messages)
+        if self._evidence is not None:
+            self._evidence.add(messages)
         self._over_time(messages, masks)
         self.anomalies.add(batch, masks, self._retries.notes(messages))
         self.values.add(batch)
@@ -131,6 +139,8 @@ class ReportCollector(Sink):
 
     def finish(self, statistics: Statistics) -> None:
         self.statistics = statistics
+        if self._evidence is not None:
+            self.findings = [("", finding) for finding in diagnose(statistics, self._evidence)]
 
     def portable(self) -> ReportCollector:
         """What a process of the pool sends back (``report --each``): no caches, no state of
@@ -139,6 +149,7 @@ class ReportCollector(Sink):
         self.anomalies.portable()
         self.values.portable()
         self._retries = RetryDiff()
+        self._evidence = None  # its findings are drawn
         return self
 
     def merge(self, other: ReportCollector) -> None:
@@ -149,6 +160,9 @@ class ReportCollector(Sink):
         self.anomalies.merge(other.anomalies, capture)
         self.values.merge(other.values, capture)
         self.slaves |= other.slaves
+        if not self.provenance.merged and len(self.provenance.files) == 1:  # the first part: its file named too
+            self.findings = [(self.provenance.files[0].path, finding) for _, finding in self.findings]
+        self.findings += [(capture, finding) for _, finding in other.findings]
         mine, theirs = self.provenance, other.provenance
         mine.merged = True
         mine.files += theirs.files

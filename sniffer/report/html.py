@@ -51,13 +51,32 @@ def write_html(out: TextIO, collector: ReportCollector, comparison: Comparison |
         f"<h1>{escape(title)}</h1>\n",
         "<p class=\"lead\">Made by rtusniff from the capture named below; every figure can be checked with the "
         "command it gives. Times are UTC.</p>\n",
-        _provenance(collector), _summary(collector), _health(collector),
-        _comparison(comparison) if comparison else "", _charts(collector),
-        _state_changes(collector), _anomalies(collector),
+        _findings(collector), _summary(collector), _health(collector),
+        _comparison(comparison) if comparison else "", _anomalies(collector), _charts(collector),
+        _state_changes(collector), _provenance(collector),
         f"<script type=\"application/json\" id=\"report-data\">{data}</script>\n",
         f"<script>\n{_asset('report.js')}</script>\n</body>\n</html>\n",
     ]
     out.write("".join(parts))
+
+
+def _findings(collector: ReportCollector) -> str:
+    """What is wrong, first: each finding's sentence, the frames that show it, what to check, and
+    a link to the anomalies that hold its frames."""
+    items = []
+    for capture, finding in collector.findings:
+        where = f"<span class=\"capture\">{escape(capture)}</span> " if capture else ""
+        frames = f" <span class=\"frames\">frames {', '.join(f'#{i}' for i in finding.frames)}</span>" \
+            if finding.frames else ""
+        links = "".join(f" → <a href=\"#anomaly-{kind}\">{escape(KINDS[kind][0])}</a>" for kind in finding.kinds
+                        if collector.anomalies.counts[kind])
+        check = f"<div class=\"check\">Check: {escape('; '.join(finding.causes))}.</div>" if finding.causes else ""
+        items.append(f"<li class=\"finding {finding.severity}\" data-rule=\"{finding.rule}\"><span class=\"severity\">"
+                     f"{finding.severity}</span> {where}{escape(finding.sentence)}{frames}{links}{check}</li>\n")
+    if not items:
+        return ("<h2 id=\"findings\">Findings</h2>\n<p class=\"good\">Nothing wrong found: every rule of "
+                "<code>rtusniff stats</code>'s findings passed.</p>\n")
+    return f"<h2 id=\"findings\">Findings</h2>\n<ul class=\"findings\">\n{''.join(items)}</ul>\n"
 
 
 def _provenance(collector: ReportCollector) -> str:

@@ -32,14 +32,40 @@ EXAMPLES = 3
 
 
 def write_markdown(out: TextIO, collector: ReportCollector, comparison: Comparison | None = None) -> None:
-    lines = [f"# {_text(report_title(collector))}", "", "| | |", "|---|---|"]
-    lines += [f"| {label} | {_cell(value, code=label in ('SHA-256', 'command'))} |"
-              for label, value in provenance_facts(collector)]
-    lines += ["", "## Bus", ""]
+    lines = [f"# {_text(report_title(collector))}", "", *_findings(collector), "## Bus", ""]
     lines += [f"- {label}: **{_text(value)}**" if grade == "bad" else f"- {label}: {_text(value)}"
               for label, value, grade in bus_summary(collector)]
     lines += ["", *_health(collector), *(_comparison(comparison) if comparison else []), *_anomalies(collector)]
+    lines += ["", "## Provenance", "", "| | |", "|---|---|"]
+    lines += [f"| {label} | {_cell(value, code=label in ('SHA-256', 'command'))} |"
+              for label, value in provenance_facts(collector)]
     out.write("\n".join(lines) + "\n")
+
+
+def _findings(collector: ReportCollector) -> list[str]:
+    """What is wrong, first: a line each, linking to the anomalies that hold its frames."""
+    if not collector.findings:
+        return ["## Findings", "", "Nothing wrong found.", ""]
+    lines = ["## Findings", ""]
+    for capture, finding in collector.findings:
+        frames = f" (frames {', '.join(f'#{i}' for i in finding.frames)})" if finding.frames else ""
+        counts = collector.anomalies.counts
+        links = "".join(f" → [{KINDS[kind][0]}](#{_anchor(_kind_heading(kind, counts[kind]))})"
+                        for kind in finding.kinds if counts[kind])
+        where = f"{_text(capture)}: " if capture else ""
+        lines.append(f"- **{finding.severity}** {where}{_text(finding.sentence)}{frames}{links}")
+        if finding.causes:
+            lines.append(f"  check: {_text('; '.join(finding.causes))}")
+    return [*lines, ""]
+
+
+def _kind_heading(kind: str, count: int) -> str:
+    return f"{KINDS[kind][0]}: {count:,}"
+
+
+def _anchor(heading: str) -> str:
+    """The anchor GitHub and GitLab give a heading (``### CRC error: 1,234``: ``crc-error-1234``)."""
+    return re.sub(r"[^a-z0-9 -]", "", heading.lower()).replace(" ", "-")
 
 
 def _health(collector: ReportCollector) -> list[str]:
@@ -84,7 +110,7 @@ def _anomalies(collector: ReportCollector) -> list[str]:
               + (" (FILE: the file an example names)." if collector.provenance.merged else "."), ""]
     for kind in found:
         examples = [anomaly for anomaly in log.kept[kind] if anomaly.with_context][:EXAMPLES]
-        lines += [f"### {KINDS[kind][0]}: {log.counts[kind]:,}", ""]
+        lines += [f"### {_kind_heading(kind, log.counts[kind])}", ""]
         for anomaly in examples:
             lines += _example(anomaly)
     return lines

@@ -13,6 +13,7 @@ from rich.console import Console, ConsoleOptions, RenderResult
 from rich.text import Text
 
 from decoders.decoded_batch import AnnotatedBatch
+from decoders.findings import Evidence, diagnose
 from decoders.message import ROLE_CODE, MessageBatch, Role
 from decoders.stats import Histogram, Statistics
 from sniffer.sinks import Sink
@@ -43,6 +44,8 @@ SLAVE_COLUMNS = [
 _REQUEST = ROLE_CODE[Role.REQUEST]
 #: Slaves listed before "… and N more".
 SHOWN_SLAVES = 8
+#: Findings shown in the status, most severe first.
+SHOWN_FINDINGS = 3
 
 
 @dataclass
@@ -78,10 +81,13 @@ class LiveView(Sink):
         #: Per slave, the latencies between host read times of its answers (the ``~`` figures):
         #: what the slaves' table shows where the timing measures none on the wire.
         self.read_latency: dict[int, Histogram] = {}
+        #: The findings' evidence (host times: the rules of silences and stray bytes do not apply).
+        self.evidence = Evidence(0, exact=False)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         if not len(batch):
             return
+        self.evidence.add(batch.messages)
         rows = np.arange(len(batch.decoded), dtype=np.int64) if batch.rows is None else batch.rows
         latencies = self._read_latencies(batch.messages)
         rows = rows[-KEPT_FRAMES:]
@@ -133,6 +139,11 @@ class LiveView(Sink):
         if state.behind_reads:
             text.append(f"\nthe view is behind: it skipped {state.behind_reads} reads (the recording has every byte)",
                         "yellow")
+        found = diagnose(statistics, self.evidence)
+        for finding in found[:SHOWN_FINDINGS]:
+            text.append(f"\n{finding.severity}: {finding.sentence}", "red" if finding.severity == "error" else "yellow")
+        if len(found) > SHOWN_FINDINGS:
+            text.append(f"\n… and {len(found) - SHOWN_FINDINGS} more findings ('rtusniff stats' of the recording)")
         return text
 
     def frame_lines(self, recent: list[tuple[AnnotatedBatch, list[str]]], width: int, height: int,
