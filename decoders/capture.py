@@ -81,6 +81,9 @@ class CaptureInfo:
     #: probes; ``("inbound", "outbound")``: pcapng directions); a chunk's ``channel`` k >= 1 is
     #: ``channels[k - 1]``, 0 that the capture does not say. Empty: one line, nothing said.
     channels: tuple[str, ...] = ()
+    #: The index its first frame had where it was cut from (``cut``): its frames are numbered from
+    #: it, so that a ticket's "#25" is #25 in the attachment too.
+    first_index: int = 0
 
 
 @dataclass(frozen=True, slots=True)

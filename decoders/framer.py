@@ -89,7 +89,9 @@ class Framer:
         host_gap_ns: int | None = None,
         *,
         fast: bool = True,
+        first_index: int = 0,
     ) -> None:
+        """``first_index``: the index of the first frame (a cut's frames keep their numbers)."""
         self.line = line
         self.timing = timing
         self.fast = fast
@@ -107,7 +109,7 @@ class Framer:
         #: parse of the rest must know, as the parse of the whole segment would).
         self._follows_frame = False
         self._open_request: OpenRequest = None
-        self._next_index = 0
+        self._next_index = first_index
         self._last_end_ns: int | None = None
         self._parses: Memo[tuple[bytes, Context, OpenRequest], SegmentParse] = Memo(PARSE_MEMO_SIZE)
 

@@ -31,10 +31,11 @@ class Decoder:
     """
 
     def __init__(self, line: LineSettings, timing: TimingQuality, *, response_timeout_ns: int | None = None,
-                 host_gap_ns: int | None = None) -> None:
+                 host_gap_ns: int | None = None, first_index: int = 0) -> None:
         """``host_gap_ns``: on host timing, the quiet between reads that certainly ends a frame
-        (a live capture that knows its port: :class:`~decoders.framer.Framer`)."""
-        self.framer = Framer(line, timing, host_gap_ns)
+        (a live capture that knows its port: :class:`~decoders.framer.Framer`); ``first_index``:
+        the first frame's index (a cut's: :attr:`~decoders.capture.CaptureInfo.first_index`)."""
+        self.framer = Framer(line, timing, host_gap_ns, first_index=first_index)
         self.matcher = Matcher(response_timeout_ns)
         #: Host times are when the PC read the bytes: a request and its answer often come in one
         #: read (0 ms) or an answer a read later (the read timeout). They pair frames and time

@@ -14,6 +14,7 @@ import re
 import sys
 from collections.abc import Sequence
 from types import ModuleType
+from typing import NoReturn
 
 from sniffer.allocator import keep_freed_memory
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -48,6 +49,15 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """A wrong argument is one line naming the command and where its options are listed (not
+    the whole usage, and a command's own name for a command's option); exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(ErrorKind.USAGE.exit_code, f"error: {self.prog}: {message} ('{self.prog} --help' lists the "
+                  "options)\n")
+
+
 def command_module(name: str) -> ModuleType:
     """The module of the command ``name`` (one of :data:`COMMAND_NAMES`)."""
     return importlib.import_module(f"sniffer.commands.{name}")
@@ -55,7 +65,7 @@ def command_module(name: str) -> ModuleType:
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The command line's parser: of every command, or of ``command`` alone (the one run)."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="rtusniff",
         description="Modbus RTU protocol analyzer and passive RS485 bus sniffer.",
         epilog="'rtusniff COMMAND --help' tells a command's options; exit codes are listed in the README.",
@@ -104,8 +114,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if given[:1] == ["--version"]:  # as the parser would say it, without every command's modules
         print(tool_version())
         return 0
-    parser = build_parser(_command_in(given))
-    args = parser.parse_args(joined_line_settings(given))
+    command = _command_in(given)
+    parser = build_parser(command)
+    args, extra = parser.parse_known_args(joined_line_settings(given))
+    if extra:
+        # Left over after the command's own parser: its error, with its name (not the top level's).
+        _deepest(parser, given).error(f"unrecognized arguments: {' '.join(extra)}")
     if not hasattr(args, "run"):
         parser.print_help()
         return 0
@@ -138,6 +152,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return ErrorKind.OUTPUT_FAILED.exit_code
     finally:
         restore_signals(previous)
+
+
+def _deepest(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.ArgumentParser:
+    """The parser of the (sub)command ``argv`` names, as deep as its words go (``wireshark setup``)."""
+    for word in (word for word in argv if not word.startswith("-")):
+        commands = [action for action in parser._actions if isinstance(action, argparse._SubParsersAction)]
+        if not commands or word not in commands[0].choices:
+            break
+        parser = commands[0].choices[word]
+    return parser
 
 
 def _command_in(argv: list[str]) -> str | None:

@@ -89,7 +89,8 @@ def analyze(
     wants, in the order of the list), streaming; statistics cover all frames (when a sink wants
     them). ``jobs=2``: reading, framing, pairing and the sinks' ``prepare`` run in a child
     process (:mod:`sniffer.decoding_process`), forked before any sink starts; the output is the same."""
-    decoder = Decoder(analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns)
+    decoder = Decoder(analysis.line, analysis.timing, response_timeout_ns=analysis.response_timeout_ns,
+                      first_index=reader.info.first_index)
     info = replace(reader.info, timing=analysis.timing)
     delivery = Delivery(sinks, analysis.profiles, analysis.keep, analysis.selection)
     # With a window or a limit the parent prepares the part it delivers (see Delivery.batch).

@@ -163,7 +163,7 @@ def _utc(t_ns: int) -> str:
 
 
 def add_selection_options(parser: argparse.ArgumentParser) -> None:
-    group = parser.add_argument_group("which part of the capture (see docs/selection.md)")
+    group = parser.add_argument_group("which part of the capture")
     group.add_argument("--from", dest="start", metavar="TIME",
                        help="start at TIME: an offset (90s, 250ms, 2min), a time of day (14:05:30.25) or a date "
                        "and time (2026-11-24 14:05:30); UTC unless --time local")

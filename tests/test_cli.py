@@ -30,7 +30,7 @@ def test_analyze_table_shows_every_frame(cli: Cli) -> None:
     assert "0203080028025001f4000052b0" in result.out  # the damaged response
     assert "gap_1_5" in result.out
     assert result.out.rstrip().endswith(
-        "# 52 frames, 28 request, 21 response, 2 exception, 1 noise, 1 CRC errors, 1 gap_1_5, 5 retry, "
+        "# 52 frames, 28 request, 21 response, 2 exception, 1 noise, 1 CRC error, 1 gap_1_5, 5 retry, "
         "1 short_idle, 4 timeout"
     )
 
@@ -297,3 +297,31 @@ def test_the_objects_left_are_frozen_before_the_interpreter_exits(monkeypatch: p
         assert gc.get_freeze_count() > frozen
     finally:
         gc.unfreeze()
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (["analyze", "CAPTURE", "--bogus"], "error: rtusniff analyze: unrecognized arguments: --bogus "
+                                        "('rtusniff analyze --help' lists the options)"),
+    (["stats", "CAPTURE", "--format", "xml"], "error: rtusniff stats: argument --format: invalid choice: 'xml'"),
+    (["wireshark", "setup", "--nope"], "error: rtusniff wireshark setup: unrecognized arguments: --nope"),
+    (["analyze"], "error: rtusniff analyze: the following arguments are required: CAPTURE"),
+    (["bogus"], "error: rtusniff: argument COMMAND: invalid choice: 'bogus'"),
+])
+def test_a_wrong_argument_is_one_line_naming_its_command(args: list[str], said: str) -> None:
+    """Not the usage of every option, not the top level's for a command's option: one line, the
+    command's name and where its options are listed; exit code 2."""
+    words = [str(SAMPLE_LOG) if word == "CAPTURE" else word for word in args]
+    result = subprocess.run([sys.executable, "-m", "sniffer", *words], capture_output=True, text=True, timeout=60,
+                            check=False)
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr.count("\n") == 1 and result.stderr.startswith(said), result.stderr
+
+
+def test_values_narrows_with_a_filter(cli: Cli) -> None:
+    """``values --filter`` keeps the values of the frames the filter keeps, as ``analyze`` does."""
+    filtered = cli("values", str(SAMPLE_LOG), "--filter", "slave=12", "--format", "jsonl").jsonl()
+    by_slave = cli("values", str(SAMPLE_LOG), "--slave", "12", "--format", "jsonl").jsonl()
+    assert filtered == by_slave and filtered
+    frames = {r["index"] for r in cli("analyze", str(SAMPLE_LOG), "--filter", "slave=12", "--format",
+                                      "jsonl").jsonl() if r["kind"] == "frame"}
+    assert {row["index"] for row in filtered} <= frames

@@ -25,13 +25,34 @@ def frames(cli: Cli, *argv: str) -> list[tuple[str, int, int, bool]]:
 
 
 def window_in(cli: Cli, cut: Path) -> list[tuple[str, int, int, bool]]:
-    """The frames of a cut that are its window (a cut may hold frames of context around it,
-    which its note names: "the window is frames #K..#J of this cut")."""
-    got = frames(cli, str(cut))
-    notes = cli("analyze", str(cut), "--format", "jsonl").jsonl()[0]["notes"]
-    found = [re.search(r"the window is frames #(\d+)\.\.#(\d+) of this cut", note) for note in notes]
-    spans = [(int(m.group(1)), int(m.group(2))) for m in found if m]
-    return got[spans[-1][0] : spans[-1][1] + 1] if spans else got
+    """The frames of a cut that are its window: a cut may hold frames of context around it, and
+    its frames keep their numbers, so the window is the frames its note names ("frames #K..#J")."""
+    records = cli("analyze", str(cut), "--format", "jsonl").jsonl()
+    found = [re.search(r"frames #(\d+)\.\.#(\d+) \(numbered as there\)", note) for note in records[0]["notes"]]
+    first, last = [(int(m.group(1)), int(m.group(2))) for m in found if m][-1]
+    return [(r["hex"], r["t_ns"], r["t_end_ns"], r["crc_ok"]) for r in records
+            if r["kind"] == "frame" and first <= r["index"] <= last]
+
+
+def test_a_cut_keeps_the_numbers_of_its_frames(cli: Cli, tmp_path: Path) -> None:
+    """A ticket's "#25" is #25 in the attachment: the cut's frames are numbered as in the capture
+    they were cut from, in text and in MCAP, and its window options use those numbers."""
+    sample = str(CAPTURES / "atv71-plc-poll.log")
+    whole = {r["index"]: r["hex"] for r in cli("analyze", sample, "--format", "jsonl").jsonl() if r["kind"] == "frame"}
+    for suffix in (".log", ".mcap"):
+        out = tmp_path / f"cut{suffix}"
+        assert cli("cut", sample, "--around", "25", "--context", "3", "-o", str(out)).code == 0
+        records = [r for r in cli("analyze", str(out), "--format", "jsonl").jsonl() if r["kind"] == "frame"]
+        assert records[0]["index"] > 0 and all(whole[r["index"]] == r["hex"] for r in records)
+        answered = [r for r in records if r["request_index"] is not None]
+        assert answered and all(whole[r["request_index"]] for r in answered)
+        around = [r for r in cli("analyze", str(out), "--around", "25", "--context", "0", "--format",
+                                 "jsonl").jsonl() if r["kind"] == "frame"]
+        assert [r["index"] for r in around] == [25]
+        again = tmp_path / f"again{suffix}"  # converted, it keeps them
+        assert cli("convert", str(out), str(again)).code == 0
+        assert [r["index"] for r in cli("analyze", str(again), "--format", "jsonl").jsonl()
+                if r["kind"] == "frame"] == [r["index"] for r in records]
 
 
 CASES = [
@@ -142,10 +163,20 @@ def test_a_cut_that_begins_mid_exchange_takes_context_or_says_so(cli: Cli, tmp_p
     cut = [r for r in cli("analyze", str(out), "--format", "jsonl").jsonl() if r["kind"] == "frame"][4:15]
     assert [(r["hex"], r["role"], r["flags"], r["latency_s"]) for r in cut] == \
         [(r["hex"], r["role"], r["flags"], r["latency_s"]) for r in whole]
-    assert [r["request_index"] for r in cut][:1] == [whole[0]["request_index"] - 32]
+    assert [r["request_index"] for r in cut][:1] == [whole[0]["request_index"]]  # numbered as in the whole
     monkeypatch.setattr("sniffer.commands.cut.SEARCHED_FRAMES", 0)
     said = ("the cut begins mid-exchange: 1 answer whose request lies before it and 1 retry whose first attempt "
             "lies before it")
     result = cli("cut", sample, "--around", "41", "--context", "5", "-o", str(tmp_path / "alone.log"))
     assert result.code == 0 and f"warning: {tmp_path / 'alone.log'}: {said}" in result.err, result.err
     assert said in (tmp_path / "alone.log").read_text()
+
+
+@pytest.mark.parametrize("value", ["x", "-3", "1e5", "12345678901234567890", "5\n# first-frame: 6"])
+def test_a_bad_first_frame_header_is_one_line(cli: Cli, tmp_path: Path, value: str) -> None:
+    capture = tmp_path / "bad.log"
+    capture.write_text(f"# rtu-capture v1\n# line: 19200 8E1\n# first-frame: {value}\n"
+                       "1700000000.100000000 02 03 0C 1E 00 04 27 6C\n")
+    result = cli("analyze", str(capture))
+    assert result.code == 6 and result.err.count("\n") == 1 and str(capture) in result.err, result.err
+    assert "first-frame" in result.err

@@ -37,6 +37,7 @@ from sniffer.views.jsonl import JsonlView
 from sniffer.views.layout import terminal_layout
 from sniffer.views.registers import add_register_options, summary_reader
 from sniffer.views.table import PlainTableView, TableView
+from sniffer.wording import counted
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -99,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         statistics = analyze(reader, source_name(args), analysis, [progress.sink, sink, *flushing, *streams],
                              jobs=jobs)
     if args.output not in (None, "-"):
-        tell_written(args, [(args.output, f"{args.format}, {shown_frames(sink, statistics.frames):,} frames")])
+        tell_written(args, [(args.output, f"{args.format}, {counted(shown_frames(sink, statistics.frames), 'frame')}")])
     return 0
 
 

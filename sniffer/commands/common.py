@@ -121,7 +121,8 @@ def add_profile_options(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="PATH",
-        help="load a profile of your own (TOML, see docs/profiles.md); then name it with --profile",
+        help="load a profile of your own (TOML, as the shipped ones; 'rtusniff profiles check FILE' says what is "
+        "wrong with one); then name it with --profile",
     )
 
 
@@ -132,8 +133,8 @@ def add_filter_option(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="only matching frames: slave=N, function=N, role=NAME, flag=NAME, crc=ok|bad, exception=CODE, "
-        "address=N or A-B, param=CODE, latency>MS; repeat a key for alternatives, combine keys to narrow "
-        "(statistics still count every frame of the window)",
+        "address=N or A-B, param=CODE, latency>MS (quoted in a shell: --filter 'latency>5'); repeat a key for "
+        "alternatives, combine keys to narrow (statistics still count every frame of the window)",
     )
 
 

@@ -89,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
     start, end = context.span(place)
     note = _provenance(args, place, context, Clock(args.time))
     edges = place.edges() if not context.reproduces else None
-    info = CaptureInfo(line, timing, (*info.notes, note, *([edges] if edges else [])), info.channels)
+    info = CaptureInfo(line, timing, (*info.notes, note, *([edges] if edges else [])), info.channels,
+                       first_index=place.first_index - context.before)
     chunks = 0
     # A cut that stops where reading broke would pass for the window: it appears only whole.
     with published_whole(args.output) as target:
@@ -144,9 +145,9 @@ def _provenance(args: argparse.Namespace, place: WindowPlace, context: Context, 
     assert place.first_index is not None and place.last_index is not None
     start, end = context.span(place)
     held = (f"; with {context.before} frame(s) before it and {context.after} after, so that it decodes as in the "
-            f"whole capture, the window is frames #{context.before}..#{context.before + place.frames - 1} of this "
-            f"cut" if context.before or context.after else "")
-    return (f"cut from {source_name(args)} (sha256 {digests}): frames #{place.first_index}..#{place.last_index}, "
+            "whole capture" if context.before or context.after else "")
+    return (f"cut from {source_name(args)} (sha256 {digests}): frames #{place.first_index}..#{place.last_index} "
+            "(numbered as there), "
             f"{_moment(clock, place.t_first_ns)} to {_moment(clock, place.t_last_ns)} ({clock.zone}), bytes "
             f"{start:,}..{end:,} of its line data{held}")
 

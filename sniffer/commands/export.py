@@ -32,6 +32,7 @@ from sniffer.many_captures import Tally, add_each_options, capture_files, each_r
 from sniffer.pipeline import Analysis, analyze
 from sniffer.progress import progress_for, shown
 from sniffer.sinks import FileSink
+from sniffer.wording import counted
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -161,20 +162,20 @@ def _tell_written(args: argparse.Namespace, sinks: list[tuple[str, FileSink[Any]
     for kind, sink in sinks:
         path = names.get(kind)
         if path == "-":
-            print(f"wrote {sink.frames_written:,} frames as {kind} to standard output", file=sys.stderr)
+            print(f"wrote {counted(sink.frames_written, 'frame')} as {kind} to standard output", file=sys.stderr)
         elif isinstance(sink, ParquetSink):
             size = sum(os.path.getsize(file) for file in sink.files)
-            print(f"added {len(sink.files)} files to {path}: {kind}, {sink.frames_written:,} frames, "
+            print(f"added {len(sink.files)} files to {path}: {kind}, {counted(sink.frames_written, 'frame')}, "
                   f"{human_size(size)}", file=sys.stderr)
         elif path:
-            print(f"wrote {path}: {kind}, {sink.frames_written:,} frames, "
+            print(f"wrote {path}: {kind}, {counted(sink.frames_written, 'frame')}, "
                   f"{human_size(os.path.getsize(path))}", file=sys.stderr)
     for kind, sink in sinks:
         if kind == "Foxglove stream":
-            print(f"served {sink.frames_written:,} frames to Foxglove", file=sys.stderr)
+            print(f"served {counted(sink.frames_written, 'frame')} to Foxglove", file=sys.stderr)
     if args.rerun:
         frames = next(sink.frames_written for kind, sink in sinks if kind == "Rerun recording")
-        print(f"sent {frames:,} frames to the Rerun viewer", file=sys.stderr)
+        print(f"sent {counted(frames, 'frame')} to the Rerun viewer", file=sys.stderr)
 
 
 def check_dataset(args: argparse.Namespace) -> None:

@@ -34,6 +34,7 @@ from sniffer.report.html import write_html
 from sniffer.report.markdown import write_markdown
 from sniffer.tool_version import version_number
 from sniffer.views.compare_view import Side
+from sniffer.wording import counted
 
 WRITERS = {"html": write_html, "md": write_markdown}
 
@@ -94,7 +95,8 @@ def run(args: argparse.Namespace) -> int:
         WRITERS[kind](open_output(target, stack, as_it_goes=True), collector, comparison)
     if args.output not in (None, "-"):
         captures = f", {len(collector.provenance.files)} captures" if args.each else ""
-        tell_written(args, [(args.output, f"{kind} report of {collector.statistics.frames:,} frames{captures}")])
+        frames = counted(collector.statistics.frames, "frame")
+        tell_written(args, [(args.output, f"{kind} report of {frames}{captures}")])
     return tally.exit_code()
 
 

@@ -33,6 +33,7 @@ from sniffer.progress import progress_for, shown
 from sniffer.views.compare_view import Side
 from sniffer.views.layout import terminal_layout
 from sniffer.views.stats_view import StatsView
+from sniffer.wording import counted
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -67,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         progress = stack.enter_context(progress_for(args, reader, streaming=False))
         statistics = analyze(reader, source_name(args), analysis, [progress.sink, view])
     if args.output not in (None, "-"):
-        tell_written(args, [(args.output, f"{args.format} statistics of {statistics.frames:,} frames")])
+        tell_written(args, [(args.output, f"{args.format} statistics of {counted(statistics.frames, 'frame')}")])
     return 0
 
 

@@ -8,6 +8,7 @@ from contextlib import ExitStack
 from sniffer.commands.common import (
     add_capture_argument,
     add_decoding_options,
+    add_filter_option,
     add_force_option,
     add_jobs_option,
     add_output_option,
@@ -46,6 +47,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("--format", choices=["csv", "jsonl"], default="csv", help="output format (default: csv)")
     add_output_option(parser)
     add_force_option(parser)
+    add_filter_option(parser)
     add_decoding_options(parser)
     add_jobs_option(parser)
     add_quiet_option(parser)

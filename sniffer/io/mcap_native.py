@@ -88,6 +88,8 @@ def info_metadata(info: CaptureInfo) -> dict[str, str]:
         fields["line"] = info.line.format()
     if info.channels:
         fields["channels"] = json.dumps(list(info.channels))
+    if info.first_index:
+        fields["first_frame"] = str(info.first_index)
     return sealed(fields)
 
 
@@ -300,9 +302,12 @@ class McapCaptureReader:
             timing = TimingQuality(fields.get("timing", ""))
             notes = self._texts(fields.get("notes", "[]"), f"'{METADATA_NAME}' notes")
             channels = self._texts(fields.get("channels", "[]"), f"'{METADATA_NAME}' channels")
+            first = fields.get("first_frame", "0")
+            if not (first.isascii() and first.isdigit()) or len(first) > 18:
+                raise ValueError(f"first_frame {first[:40]!r} is not a frame number")
         except (ValueError, TypeError) as exc:
             raise self._error(f"bad '{METADATA_NAME}' metadata: {exc}") from None
-        return CaptureInfo(line=line, timing=timing, notes=notes, channels=channels)
+        return CaptureInfo(line=line, timing=timing, notes=notes, channels=channels, first_index=int(first))
 
     def batches(self) -> Iterator[ChunkBatch]:
         """The capture's chunks in batches of whole blocks: small blocks (a recording flushes one

@@ -105,6 +105,8 @@ class TextCaptureWriter:
         if info.line is not None:
             header.append(f"# line: {info.line.format()}")
         header.append(f"# timing: {info.timing.value}")
+        if info.first_index:
+            header.append(f"# first-frame: {info.first_index}")
         if info.channels:
             header.append(f"# channels: {' '.join(map(channel_token, info.channels))}")
         header.extend(line for note in info.notes for line in comment_lines(note))

@@ -27,6 +27,7 @@ from sniffer.views.frame_cells import (
     summary_cells,
 )
 from sniffer.views.layout import ALWAYS, Cells, Column, Layout, terminal_colors
+from sniffer.wording import counted
 
 #: Frames kept for the view: more than any terminal is tall.
 KEPT_FRAMES = 300
@@ -128,7 +129,7 @@ class LiveView(Sink):
         where = f"{state.recorded_bytes:,} bytes recorded to {state.recording}" if state.recording else "not recording"
         text = Text.assemble(
             (f"{state.port}", "bold"), f"  {state.line}  {state.timing_note}\n",
-            f"{elapsed:,.0f} s, {statistics.frames:,} frames{load}, {where}",
+            f"{elapsed:,.0f} s, {counted(statistics.frames, 'frame')}{load}, {where}",
         )
         if state.uart_errors:
             text.append(f"\nUART errors: {state.uart_errors}", "red")

@@ -40,6 +40,7 @@ from sniffer.views.frame_cells import (
     summary_cells,
 )
 from sniffer.views.layout import Layout, note_lines
+from sniffer.wording import counted
 
 if TYPE_CHECKING:
     from rich.color import ColorSystem
@@ -102,11 +103,11 @@ class _FrameTable(Sink):
 
     def finish(self, statistics: Statistics) -> None:
         roles, flags = statistics.roles, statistics.flags
-        shown = f"{self.shown} of {statistics.frames} frames shown" if self.shown != statistics.frames \
-            else f"{statistics.frames} frames"
+        shown = f"{self.shown} of {counted(statistics.frames, 'frame')} shown" if self.shown != statistics.frames \
+            else counted(statistics.frames, "frame").replace(",", "")
         parts = [shown] + [f"{roles[r]} {r}" for r in ROLE_ORDER_NAMES if roles[r]]
         if statistics.crc_errors:
-            parts.append(f"{statistics.crc_errors} CRC errors")
+            parts.append(counted(statistics.crc_errors, "CRC error").replace(",", ""))
         parts += [f"{n} {flag}" for flag, n in sorted(flags.items())]
         self._out.write(self._note_lines(", ".join(parts)))
         hidden = self._layout.hidden() if self.shown else []

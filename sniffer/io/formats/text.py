@@ -20,6 +20,7 @@ import os
 import re
 import sys
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import BinaryIO, cast
 
 import numpy as np
@@ -35,7 +36,7 @@ from sniffer.io.text_writer import MAGIC, NO_CHANNEL, NS_PER_S, TextCaptureWrite
 _MAGIC_ANY_VERSION = re.compile(r"#\s*rtu-capture\s+v(\S+)")
 #: Seconds of up to 19 digits (more cannot be a time: 2^63 ns is 9 223 372 036 s).
 _TIME = re.compile(r"[0-9]{1,19}(?:\.[0-9]{1,9})?")
-_HEADER_KEY = re.compile(r"#\s*(line|timing)\s*:\s*(.*)$", re.IGNORECASE)
+_HEADER_KEY = re.compile(r"#\s*(line|timing|first-frame)\s*:\s*(.*)$", re.IGNORECASE)
 _UART_ERRORS = re.compile(r"#\s*uart-errors\s*:\s*(.*)$", re.IGNORECASE)
 _CHANNELS = re.compile(r"#\s*channels\s*:\s*(.*)$", re.IGNORECASE)
 _CHANNEL = re.compile(r"#\s*channel\s*:\s*(\S+)\s*$", re.IGNORECASE)
@@ -56,6 +57,15 @@ def parse_time_ns(text: str) -> int | None:
         return None
     seconds, _, fraction = text.partition(".")
     return int(seconds) * NS_PER_S + int(fraction.ljust(9, "0") or 0)
+
+
+@dataclass
+class _HeaderKeys:
+    """What the header's ``# key: value`` lines said, each at most once."""
+
+    line: LineSettings | None = None
+    timing: TimingQuality | None = None
+    first_index: int | None = None
 
 
 class TextCaptureReader:
@@ -135,8 +145,7 @@ class TextCaptureReader:
             if version:
                 raise self._error(ErrorKind.UNKNOWN_FORMAT, f"unknown format version v{version.group(1)}")
             raise self._error(ErrorKind.BAD_HEADER, f"missing header: the first line must be {MAGIC!r}")
-        line: LineSettings | None = None
-        timing: TimingQuality | None = None
+        keys = _HeaderKeys()
         channels: tuple[str, ...] = ()
         notes: list[str] = []
         self._lines_iter = lines
@@ -155,12 +164,28 @@ class TextCaptureReader:
                 self._channel = self._channel_code(channels, channel.group(1))
             elif key is None:
                 self._keep_note(notes, text[1:].strip())
-            elif key.group(1).lower() == "line":
-                line = self._header_line(line, key.group(2))
             else:
-                timing = self._header_timing(timing, key.group(2))
+                self._header_key(keys, key.group(1).lower(), key.group(2))
         self._channels = channels
-        return CaptureInfo(line=line, timing=timing or TimingQuality.HOST, notes=tuple(notes), channels=channels)
+        return CaptureInfo(line=keys.line, timing=keys.timing or TimingQuality.HOST, notes=tuple(notes),
+                           channels=channels, first_index=keys.first_index or 0)
+
+    def _header_key(self, keys: _HeaderKeys, name: str, value: str) -> None:
+        if name == "line":
+            keys.line = self._header_line(keys.line, value)
+        elif name == "first-frame":
+            keys.first_index = self._header_first_frame(keys.first_index, value)
+        else:
+            keys.timing = self._header_timing(keys.timing, value)
+
+    def _header_first_frame(self, previous: int | None, value: str) -> int:
+        if previous is not None:
+            raise self._error(ErrorKind.BAD_HEADER, "second '# first-frame:' header")
+        text = value.strip()
+        if not (text.isascii() and text.isdigit()) or len(text) > 18:
+            raise self._error(ErrorKind.BAD_HEADER, f"'# first-frame:' {shown(text)} is not a frame number (0 to "
+                              "999999999999999999)")
+        return int(text)
 
     def _header_channels(self, previous: tuple[str, ...], value: str) -> tuple[str, ...]:
         try:
