@@ -23,7 +23,7 @@ import sys
 import time
 from collections.abc import Iterator
 from types import TracebackType
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from decoders.capture import ChunkBatch
 from decoders.message import MessageBatch
@@ -108,13 +108,17 @@ class ProgressBar:
                 TimeRemainingColumn,
             )
 
-            columns = [TextColumn("{task.description}"), BarColumn(),
+            console = Console(file=sys.stderr)
+            # Below 120 columns the size read and the rate give way: the rest stays whole.
+            wide = console.width >= WIDE_PROGRESS
+            columns = [_name_column(TextColumn), BarColumn(bar_width=16 if wide else 10),
                        TextColumn("{task.percentage:>3.0f} %") if end_ns else MofNCompleteColumn(),
-                       TextColumn("{task.fields[size]}"), TextColumn("{task.fields[frames]}"),
-                       TextColumn("{task.fields[rate]}"), TimeElapsedColumn()]
+                       *([TextColumn("{task.fields[size]}")] if wide else []),
+                       TextColumn("{task.fields[frames]}", table_column=_whole()),
+                       *([TextColumn("{task.fields[rate]}")] if wide else []), TimeElapsedColumn(table_column=_whole())]
             if end_ns:
-                columns.append(TimeRemainingColumn())
-            self._progress = Progress(*columns, console=Console(file=sys.stderr), transient=True)
+                columns.append(TimeRemainingColumn(table_column=_whole()))
+            self._progress = Progress(*columns, console=console, transient=True)
             name = os.path.basename(paths[0]) + (f" + {len(paths) - 1}" if len(paths) > 1 else "")
             task = self._progress.add_task(name, total=STEPS if end_ns else None,
                                            frames="", size="", rate="")
@@ -156,8 +160,9 @@ def over_captures(outcomes: Iterator[Item], paths: list[str], show: bool) -> Ite
 
     sizes = [os.path.getsize(path) if os.path.isfile(path) else 0 for path in paths]
     total = sum(sizes)
-    progress = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f} %"),
-                        TextColumn("{task.fields[size]}"), TimeElapsedColumn(), TimeRemainingColumn(),
+    progress = Progress(_name_column(TextColumn), BarColumn(bar_width=16), TextColumn("{task.percentage:>3.0f} %"),
+                        TextColumn("{task.fields[size]}"), TimeElapsedColumn(table_column=_whole()),
+                        TimeRemainingColumn(table_column=_whole()),
                         console=Console(file=sys.stderr), transient=True)
     task = progress.add_task(f"0 of {len(paths):,} captures", total=total or len(paths), size="")
     read = 0
@@ -167,3 +172,23 @@ def over_captures(outcomes: Iterator[Item], paths: list[str], show: bool) -> Ite
             progress.update(task, completed=read if total else done, description=f"{done:,} of {len(paths):,} "
                             "captures", size=f"{read / 1e6:,.1f} of {total / 1e6:,.1f} MB")
             yield outcome
+
+
+#: The terminal width from which a progress line shows the size read and the rate too.
+WIDE_PROGRESS = 120
+
+
+def _whole() -> Any:
+    """A column that is never squeezed: a time cut to ``0:0…`` says nothing (rich shrinks the
+    columns of a progress line that does not fit; the name gives way instead)."""
+    from rich.table import Column  # noqa: PLC0415 - rich: only for a terminal
+
+    return Column(no_wrap=True, min_width=7)
+
+
+def _name_column(text_column: Any) -> Any:
+    """The capture's name: what gives way on a narrow terminal (cut with an ellipsis)."""
+    from rich.table import Column  # noqa: PLC0415
+
+    return text_column("{task.description}", table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis",
+                                                                 min_width=6))

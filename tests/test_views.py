@@ -64,8 +64,11 @@ def test_analyze_screens(cli: Cli, width: int, height: int, in_checkout: None) -
     lines = result.out.splitlines()
     assert max(map(len, lines[2:])) <= width  # the heading lines wrap as the terminal wraps them
     header = next(line for line in lines if "time (UTC)" in line)
-    for title in ("#", "time (UTC)", "Δt ms", "slave", "fc", "role", "CRC", "flags", "summary"):
+    # The request and latency keep their place; at 80 columns the summary goes below its row.
+    for title in ("#", "time (UTC)", "Δt ms", "slave", "fc", "role", "req", "lat ms", "CRC", "flags"):
         assert title in header, (width, title)
+    assert ("summary" in header) == (width > 80)
+    assert "short_idle" in result.out and "VendorName='Telemecanique'," in result.out  # never split inside
     assert ("hex" in header) == (width >= 200)
     # Numbers are never cut, words never broken where a space was near: every frame's time,
     # Δt and CRC appear whole on its first line.
@@ -139,7 +142,8 @@ def test_live_screens_fill_the_terminal(width: int, height: int) -> None:
     # Fills the screen: a frame row more would not fit (rich keeps one line for the cursor).
     assert height - 4 <= len(lines) <= height - 1
     assert "lat ms" in screen and "~" in screen  # latency per frame, marked as read-time
-    assert "51 " in lines[-1] or "51 " in screen.splitlines()[-1]  # the newest frame is last
+    rows = [line for line in lines if re.match(r"^\s*\d+ \s*\d\d:\d\d:\d\d", line)]
+    assert rows[-1].lstrip().startswith("51 ")  # the newest frame is last
     assert "error: Slave 3 never answered: 5 requests, no answer." in " ".join(screen.split())  # findings, live
     check_golden(f"live-{width}x{height}.txt", screen)
 
@@ -210,7 +214,7 @@ def test_real_terminal_in_tmux(tmp_path: Path, width: int, height: int) -> None:
     assert ("hex" in header) == (width >= 200)
 
 
-def run_on_pty(argv: list[str]) -> str:
+def run_on_pty(argv: list[str], columns: int = 150) -> str:
     """Run rtusniff with standard error on a pseudo-terminal (standard output to nowhere); what
     the terminal got, without escape codes."""
     import pty
@@ -218,7 +222,7 @@ def run_on_pty(argv: list[str]) -> str:
 
     master, slave = pty.openpty()
     process = subprocess.Popen([sys.executable, "-m", "sniffer", *argv], stderr=slave, stdout=subprocess.DEVNULL,
-                               env={**os.environ, "COLUMNS": "150", "PYTHONPATH": str(ROOT)})
+                               env={**os.environ, "COLUMNS": str(columns), "PYTHONPATH": str(ROOT)})
     os.close(slave)
     received = b""
     while True:
@@ -292,6 +296,25 @@ def test_the_bar_is_gone_before_the_statistics_are_written(tmp_path: Path) -> No
     lines = [line for line in screen.splitlines() if line.strip()]
     assert lines[0] == f"# {capture}  line 115200 8N1  timing exact", screen
     assert "━" not in screen and "frames/s" not in screen
+
+
+@pytest.mark.parametrize("columns", [80, 200])
+def test_a_bar_keeps_its_times_whole_at_any_width(tmp_path: Path, columns: int) -> None:
+    """At 80 columns the size read and the rate give way; the elapsed and remaining times, the
+    share and the frames stay whole (not ``0… 0:0…``)."""
+    from benchmarks.bench_memory import write_capture
+
+    capture = tmp_path / "long.mcap"
+    write_capture(capture, 200_000)
+    shown = run_on_pty(["export", str(capture), "--mcap", str(tmp_path / "out.mcap"), "--jobs", "1"], columns)
+    bars = [line for line in shown.splitlines() if "━" in line]
+    assert bars, shown
+    for bar in bars:
+        # The first redraw has no frames yet; every one has both times whole.
+        assert re.search(r"\d+ %( .*)? \d:\d\d:\d\d( -:--:--| \d:\d\d:\d\d)$", bar.strip()), bar
+        assert len(bar.rstrip()) <= columns
+    assert any(re.search(r"\d+ % (≈ [^ ]+ of [^ ]+ MB )?[\d,]+ frames ", bar) for bar in bars), bars
+    assert ("frames/s" in shown) == (columns >= 120)
 
 
 def test_a_bar_over_many_captures_on_a_terminal(tmp_path: Path) -> None:

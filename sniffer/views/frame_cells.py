@@ -55,7 +55,8 @@ def frame_columns(clock: Clock, *, plain: bool, hex_shown: bool | None, live: bo
         Column("latency", "lat ms", right=True, keep=ALWAYS if live else 30),
         Column("length", "len", right=True, keep=10),
         Column("crc", "CRC"),
-        Column("flags", "flags", flexible=True, min_width=7, max_width=18),
+        # As wide as the longest flag (short_idle, unexpected, uart_error): a flag is never split.
+        Column("flags", "flags", flexible=True, min_width=10, max_width=18),
     ]
     summary = Column("summary", "summary", flexible=True, min_width=20)
     hex_column = Column("hex", "hex", flexible=True, keep=ALWAYS if hex_shown else 5, min_width=23, max_width=47)

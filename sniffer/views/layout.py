@@ -220,6 +220,11 @@ class Layout:
         return styled
 
 
+#: Columns kept at least this much (a frame's request and latency) keep their place in the row: the
+#: summary goes below it first.
+BELOW_BEFORE = 20
+
+
 def _fit(columns: list[tuple[Column, int]], width: int,
          gap: int) -> tuple[list[tuple[Column, int]], list[tuple[Column, int]]]:
     """Drop the least needed columns until the rest fit ``width``; share what is left among the
@@ -240,7 +245,11 @@ def _fit(columns: list[tuple[Column, int]], width: int,
         droppable = [pair for pair in kept if pair[0].keep < ALWAYS]
         if not droppable:
             break
-        kept.remove(min(droppable, key=lambda pair: pair[0].keep))
+        least = min(droppable, key=lambda pair: pair[0].keep)
+        uncapped = [c for c in flexible if not c.max_width]
+        if least[0].keep >= BELOW_BEFORE and uncapped and room() >= sum(c.min_width for c in flexible if c.max_width):
+            break  # the summary goes below the row rather than this column away
+        kept.remove(least)
     below: list[tuple[Column, int]] = []
     if room() < sum(c.min_width for c, _ in kept if c.flexible):
         below = [(c, max(width - BELOW_INDENT, 1)) for c, _ in kept if c.flexible and not c.max_width]
