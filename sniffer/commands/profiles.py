@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 from decoders.profiles.model import Profile
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.profiles_io import load_profile_file, shipped_profiles
+from sniffer.views.layout import Cells, Column, Layout
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -29,8 +30,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console  # noqa: PLC0415 - rich: tens of ms to import, only for a terminal
 
-    # No rich markup: profile texts and paths hold brackets ("[address_formula]", "([Profil])").
+    # No rich markup: profile texts and paths hold brackets ("[address_formula]", "([Profil])"). Into a
+    # pipe every line whole (soft wrap): a script reads a row a line.
     console = Console(highlight=False, markup=False)
+    console.soft_wrap = not console.is_terminal
     if args.action == "list":
         console.print(_list_table(shipped_profiles()))
         return 0
@@ -81,7 +84,8 @@ def _show(console: Console, profile: Profile) -> None:
     for special in profile.specials:
         console.print(f"  16#{special.raw:04X} in a read: {special.meaning}")
     if profile.parameters:
-        console.print(_parameter_table(profile))
+        console.print("parameters")
+        console.out(_parameter_lines(profile, console.width if console.is_terminal else None), end="")
     for table in profile.indirections:
         console.print(f"  {table.prefix}1-{table.count}: registers {table.value_registers}.. carry the parameters "
                       f"whose addresses registers {table.address_registers}.. hold; defaults {list(table.defaults)}")
@@ -95,16 +99,35 @@ def _show(console: Console, profile: Profile) -> None:
             console.print(f"    states: {states}")
 
 
-def _parameter_table(profile: Profile) -> Table:
-    from rich.table import Table  # noqa: PLC0415 - rich: only when the command runs
+#: The parameter table's columns: the address, its code and unit never cut; the name, the source
+#: and the note wrap at words as the width allows (one line a row into a pipe).
+PARAMETER_COLUMNS = [
+    Column("address", "address", right=True), Column("hex", "hex"), Column("code", "code"),
+    # The name's longest word is a bit field's ("[drivecom_status]"): as wide, so that none is split.
+    Column("name", "name", flexible=True, min_width=18, max_width=30), Column("unit", "unit"),
+    Column("scale", "scale", keep=40), Column("access", "access", keep=30),
+    Column("source", "source", flexible=True, min_width=12, keep=20),
+    Column("note", "note", flexible=True, min_width=16, keep=10),
+]
 
-    table = Table(title="parameters", title_justify="left")
-    for header in ("address", "hex", "code", "name", "unit", "scale", "access", "source", "note"):
-        table.add_column(header, overflow="fold")
+
+def _parameter_lines(profile: Profile, width: int | None) -> str:
+    """The parameters laid out as the other tables are (:mod:`sniffer.views.layout`): at the
+    terminal's width, words never split, columns that do not fit said; a row a line in a pipe."""
+    rows: dict[str, list[str]] = {column.key: [] for column in PARAMETER_COLUMNS}
     for address, parameter in sorted(profile.parameters.items()):
         scale = "" if parameter.scale == 1.0 else f"{parameter.scale:g}"
         kind = f" [{parameter.bitfield}]" if parameter.bitfield else ""
-        table.add_row(str(address), f"16#{address:04X}", parameter.code, parameter.name + kind, parameter.unit or "",
-                      scale + (" signed" if parameter.signed else ""), parameter.access, parameter.source,
-                      parameter.note or "")
-    return table
+        for key, text in (("address", str(address)), ("hex", f"16#{address:04X}"), ("code", parameter.code),
+                          ("name", parameter.name + kind), ("unit", parameter.unit or ""),
+                          ("scale", scale + (" signed" if parameter.signed else "")), ("access", parameter.access),
+                          # "manual:1097,1421" wraps between its pages, not inside a number
+                          ("source", parameter.source.replace(",", ", ")), ("note", parameter.note or "")):
+            rows[key].append(text)
+    layout = Layout(PARAMETER_COLUMNS, width, None)
+    cells = {key: Cells(texts) for key, texts in rows.items()}
+    layout.measure(cells)
+    lines = layout.header() + layout.lines(cells, len(profile.parameters))
+    if layout.hidden():
+        lines += f"(no room at {width} columns for: {', '.join(layout.hidden())}; a pipe has all)\n"
+    return lines
