@@ -13,8 +13,8 @@ The rules and their weights, in one place:
   answered. **Rare answers** (warning): at least ``RARE_REQUESTS`` requests and fewer than
   ``RARE_SHARE`` of them answered.
 * **refused requests** (warning): exceptions 01 (illegal function) or 02 (illegal data address)
-  by function and first address, while the slave answers other requests: the master asks for
-  what the device lacks.
+  by function and addresses, while the slave answers other requests: the master asks for what
+  the device lacks; and writes refused with any exception (a command or a value it would not take).
 * **late answers** (warning): at least ``LATE_ANSWERS`` answers that come after the master has
   moved on: paired with a request the master followed with another before the answer came, or
   answering nobody after a request of the same slave that timed out. The master gave up before
@@ -34,6 +34,8 @@ The rules and their weights, in one place:
   that long before the capture's end.
 * **busy bus** (warning): a bus load of at least ``BUSY_LOAD``.
 * **unconfirmed broadcasts** (info): broadcast writes, which no slave answers.
+* **a drive in fault** (error): a state word a profile names (ETA) in a state whose name says
+  fault (not a fault reset), where the frames are decoded (the report, the live view).
 
 Exact timing only for the rules of silences and glitch bytes (host read times do not show
 them). A clean capture gives no finding: the tests hold every rule to a capture that shows its
@@ -49,6 +51,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.damage import RetryDiff
+from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import FrameFlag
 from decoders.health import slave_health
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
@@ -152,6 +155,10 @@ class Evidence:
         #: By flag (``gap_1_5``, ``short_idle``) and transmitter.
         self.timing: defaultdict[tuple[str, str], _Seen] = defaultdict(_Seen)
         self.sent: Counter[str] = Counter()
+        #: State words a profile names in a fault state, by slave, code and state: the first value.
+        self.faults: defaultdict[tuple[int, str, str], _Seen] = defaultdict(_Seen)
+        self.fault_raw: dict[tuple[int, str, str], int] = {}
+
         self.crc_times: list[int] = []
         self.late: defaultdict[int, list[tuple[int, int]]] = defaultdict(list)
         #: By slave and function (``slave << 8 | function``): requests seen, and the last one's time.
@@ -200,10 +207,32 @@ class Evidence:
         for sender_slave in np.flatnonzero(counts).tolist():
             self.sent[f"slave {sender_slave}"] += int(counts[sender_slave])
 
+    def add_decoded(self, batch: AnnotatedBatch) -> None:
+        """What the decoded values show (where a view decodes them: the report, the live view):
+        a drive's state word, as its profile names it, in a fault state."""
+        messages = batch.messages
+        answers = np.flatnonzero((messages.role == _RESPONSE) & messages.frames.crc_ok)
+        if not len(answers):
+            return
+        decodings, first = batch.decodings, messages.frames.first_index
+        for position in answers.tolist():
+            for param in decodings[position].params:
+                if param.code is None or not isinstance(param.value, str) or param.raw is None:
+                    continue
+                state = param.value.split(", ")[0]
+                if "fault" in state and "reset" not in state:
+                    key = (int(messages.slave[position]), param.code, state)
+                    self.faults[key].add(first + position)
+                    self.fault_raw.setdefault(key, param.raw)
+
     def _exceptions(self, batch: MessageBatch) -> None:
         first, frames = batch.frames.first_index, batch.frames
         code = batch.exception_code
-        refused = np.flatnonzero((batch.role == _EXCEPTION) & ((code == 1) | (code == 2)))
+        # Reads refused as 01/02 (what the device lacks); writes refused with any code (a command
+        # or a value the device would not take).
+        functions = batch.function & 0x7F
+        written = np.isin(functions, sorted(_WRITES))
+        refused = np.flatnonzero((batch.role == _EXCEPTION) & ((code == 1) | (code == 2) | written))
         for position in refused.tolist():
             function, request = int(batch.function[position]) & 0x7F, int(batch.request_index[position])
             addresses = None
@@ -320,7 +349,7 @@ class Evidence:
 
 def diagnose(statistics: Statistics, evidence: Evidence) -> list[Finding]:
     """The findings, errors first, each rule's in order of its evidence."""
-    found = [*_silent(statistics, evidence), *_refused(statistics, evidence), *_late(evidence),
+    found = [*_silent(statistics, evidence), *_faults(evidence), *_refused(statistics, evidence), *_late(evidence),
              *_crc(statistics, evidence), *_glitches(evidence), *_timing(evidence), *_stalls(statistics, evidence),
              *_busy(statistics), *_broadcasts(statistics)]
     order = {"error": 0, "warning": 1, "info": 2}
@@ -409,8 +438,25 @@ def _refused(statistics: Statistics, evidence: Evidence) -> list[Finding]:
              **({"first_address": addresses[0], "last_address": addresses[1]} if addresses is not None else {})},
             _first([i for _, seen in slaves for i in seen.frames]),
             ("the master asks for what this device lacks: its model, options or firmware",
-             "an address off by one (a manual's 1-based or 40001 numbering)", "a profile for another device"),
+             "an address off by one (a manual's 1-based or 40001 numbering)", "a profile for another device",
+             *(("a value out of range, or a command the device's state does not allow (exception 03, 04)",)
+               if function in _WRITES else ())),
             ("exception",)))
+    return found
+
+
+def _faults(evidence: Evidence) -> list[Finding]:
+    """A drive's state word in a fault state, as its profile names the states."""
+    found = []
+    for (slave, code, state), seen in sorted(evidence.faults.items()):
+        raw = evidence.fault_raw[(slave, code, state)]
+        found.append(Finding(
+            "drive_fault", "error",
+            f"Slave {slave} reports {code} = 16#{raw:04X}: {state} "
+            f"({'once' if seen.count == 1 else f'{seen.count}×'}).",
+            slave, {"code": code, "state": state, "raw": raw, "count": seen.count}, tuple(seen.frames),
+            ("the drive's own fault code (its last-fault parameter, its display)", "what the drive was commanded just "
+             "before (the control word written)", "the drive's supply and the motor"), ()))
     return found
 
 

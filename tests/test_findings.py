@@ -227,3 +227,37 @@ def test_findings_follow_the_statistics_in_the_text(cli: Callable[..., Any]) -> 
     piped = cli("stats", str(CAPTURES / "atv71-plc-poll.log")).out
     assert "\nwarning  1 frame with a CRC error (1.92% of the frames); frame #27 is the good retry of damaged " \
            "#25: byte 6 50, good 58 (one bit, 0x08). (frames #25)\n" in piped
+
+
+def test_a_command_the_device_refuses(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    """A write refused with any exception (03: a value out of range; 04: the device's state) is a
+    refused request; a read refused with 03 or 04 is not said as one."""
+    def traffic() -> Iterator[Transmission]:
+        for _ in range(3):
+            yield from poll([2], 1)
+            yield Transmission(rtu("02062135000f"), 100 * MS)  # CMD = 16#000F
+            yield Transmission(refusal(2, 6, 4), 5 * MS)
+            yield Transmission(read(2, 100), 100 * MS)
+            yield Transmission(refusal(2, 3, 4), 5 * MS)
+
+    (finding,) = findings(cli, write(tmp_path / "command.log", traffic()))
+    assert finding["rule"] == "refused_requests" and finding["evidence"]["exception"] == 4
+    assert finding["sentence"].startswith("Slave 2 refuses FC 6 (Write Single Register) at address 8501: exception 04")
+    assert any("exception 03, 04" in cause for cause in finding["causes"])
+
+
+def test_a_drive_in_fault(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    """ETA in the state the profile names "fault": an error in the report (HTML and Markdown) and
+    the live view, which decode the frames; not ETA in operation."""
+    def traffic(raw: int) -> Iterator[Transmission]:
+        for _ in range(3):
+            yield Transmission(read(2, 3201, 1), 100 * MS)
+            yield Transmission(rtu(f"020302{raw:04x}"), 5 * MS)
+
+    faulty = write(tmp_path / "fault.log", traffic(0x0008))
+    report = cli("report", str(faulty), "--profile", "atv71", "--format", "md")
+    assert report.code == 0, report.err
+    assert "- **error** Slave 2 reports ETA = 16\\#0008: fault (3×). (frames #1, #3, #5)" in report.out
+    running = write(tmp_path / "running.log", traffic(0x0637))
+    assert "## Findings\n\nNothing wrong found." in cli("report", str(running), "--profile", "atv71", "--format",
+                                                          "md").out

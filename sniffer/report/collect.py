@@ -114,6 +114,7 @@ class ReportCollector(Sink):
         masks = anomaly_masks(messages)
         if self._evidence is not None:
             self._evidence.add(messages)
+            self._evidence.add_decoded(batch)
         self._over_time(messages, masks)
         self.anomalies.add(batch, masks, self._retries.notes(messages))
         self.values.add(batch)

@@ -89,6 +89,7 @@ class LiveView(Sink):
         if not len(batch):
             return
         self.evidence.add(batch.messages)
+        self.evidence.add_decoded(batch)
         rows = np.arange(len(batch.decoded), dtype=np.int64) if batch.rows is None else batch.rows
         latencies = self._read_latencies(batch.messages)
         rows = rows[-KEPT_FRAMES:]
