@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -204,6 +205,9 @@ def test_the_findings_come_first(browser: Any, cli: Cli, tmp_path: Path) -> None
     targets = opened.page.eval_on_selector_all("li.finding a", "links => links.map(a => a.getAttribute('href'))")
     assert targets and all(opened.page.query_selector(target) is not None for target in targets)
     assert opened.page.eval_on_selector("td.hex", "cell => getComputedStyle(cell).wordBreak") == "normal"
+    captions = opened.page.eval_on_selector_all("figcaption", "nodes => nodes.map(n => n.textContent)")
+    assert "Slave 2: values (Hz)" in captions  # the unit said once (not "values in Hz (Hz)")
+    assert not [c for c in captions if re.search(r"in (\S+) \(\1\)", c)], captions
     path = tmp_path / "report-findings.png"
     opened.page.screenshot(path=str(path), full_page=False)
     keep = os.environ.get("RTUSNIFF_SCREENSHOTS")

@@ -72,7 +72,7 @@ def _value_charts(collector: ReportCollector) -> list[dict[str, Any]]:
         groups.setdefault((series.slave, series.unit), []).append(entry)
     charts = []
     for index, ((slave, unit), entries) in enumerate(sorted(groups.items())):
-        chart = _chart(f"values-{slave}-{index}", f"Slave {slave}: values" + (f" in {unit}" if unit else ""), unit,
+        chart = _chart(f"values-{slave}-{index}", f"Slave {slave}: values", unit,  # the page adds " (unit)"
                        "line", entries)
         # A value holds until the next reading changes it: the line runs on across buckets without one.
         charts.append({**chart, "group": f"Slave {slave}", "hold": True})
