@@ -428,7 +428,8 @@ def _refused(statistics: Statistics, evidence: Evidence) -> list[Finding]:
         where = "" if addresses is None else (f" at address {addresses[0]}" if addresses[0] == addresses[1] else
                                               f" at addresses {addresses[0]}..{addresses[1]}")
         others = sum(answered[slave] for slave in names)
-        also = f", while {'it answers' if len(names) == 1 else 'they answer'} {others} other requests" if others else ""
+        also = (f", while {'it answers' if len(names) == 1 else 'they answer'} {others} other "
+                f"request{'s' if others != 1 else ''}") if others else ""
         found.append(Finding(
             "refused_requests", "warning",
             f"{who[0].upper()}{who[1:]} refuse{'s' if len(names) == 1 else ''} FC {function} "

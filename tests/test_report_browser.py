@@ -109,8 +109,13 @@ def test_a_long_capture_draws_and_zooms(browser: Any, cli: Cli, steady_capture: 
     drawn = page.eval_on_selector_all("figure.chart", "figures => figures.map(f => f.id)")
     ids = [f"chart-{chart['id']}" for chart in data["charts"]]
     # The latency distribution follows the latency over time; the drive values come last, per slave.
-    assert drawn == [*ids[:4], "chart-latency-distribution", *ids[4:]]
+    bus = [f"chart-{chart['id']}" for chart in data["charts"] if "group" not in chart]
+    assert bus == ["chart-load", "chart-anomalies", "chart-retries", "chart-latency"]
+    assert drawn == [*bus, "chart-latency-distribution", *ids[len(bus):]]
     assert len(ids) > 4 + 16
+    # 16 slaves: the 5 slowest drawn each, the others as one line, in the latency and its distribution.
+    assert [s["name"] for s in data["charts"][3]["series"]][-1] == "11 other slaves"
+    assert len(data["distribution"]) == 6 and data["distribution"][-1]["name"] == "11 other slaves, per slave"
     # Values of the first slaves are open, the others fold until asked for.
     assert page.eval_on_selector_all("details.values", "d => d.map(x => x.open)")[:4] == [True, True, True, False]
 
@@ -130,14 +135,14 @@ def test_a_long_capture_draws_and_zooms(browser: Any, cli: Cli, steady_capture: 
     zoomed = ticks()
     assert zoomed != whole
     # Every time chart follows: the latency chart shows the same span.
-    assert page.eval_on_selector_all("#chart-latency-mean text.tick", "t => t.map(x => x.textContent)")[-3:] \
+    assert page.eval_on_selector_all("#chart-latency text.tick", "t => t.map(x => x.textContent)")[-3:] \
         == zoomed[-3:]
     opened.shot("steady-zoomed.png", tmp_path)
     page.locator("#chart-load svg").dblclick()
     assert page.text_content("#zoom-state") == "whole capture" and ticks() == whole
     # A legend entry hides its series, and shows it again.
-    key = page.locator("#chart-latency-mean .legend .key").first
-    paths = "#chart-latency-mean path.line"
+    key = page.locator("#chart-latency .legend .key").first
+    paths = "#chart-latency path.line"
     before = page.locator(paths).count()
     key.click()
     assert page.locator(paths).count() == before - 1 and "off" in (key.get_attribute("class") or "")

@@ -8,6 +8,7 @@ none). Numbers carry 5 significant digits, which keeps an hour's report small.
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -20,6 +21,10 @@ from sniffer.report.collect import ReportCollector
 
 #: Bars of a latency distribution at most.
 DISTRIBUTION_BARS = 60
+#: Slaves drawn each as their own line in the latency charts, the slowest (latency p95) first; the
+#: others are one line, their longest per bucket or their distribution together: a chart of 30
+#: slaves reads as one of 8.
+SLAVES_DRAWN = 5
 
 
 def chart_data(collector: ReportCollector) -> dict[str, Any]:
@@ -28,10 +33,14 @@ def chart_data(collector: ReportCollector) -> dict[str, Any]:
     if timeline.used:
         charts.append(_chart("load", "Bus load", "%", "line",
                              [_series("bus load", timeline.values("wire_ns") / timeline.width_ns * 100)]))
+        # Retries apart: a timeout and its retry stacked in one bar would read as two troubles.
         anomalies = [_series(KINDS[kind][0], timeline.values(f"anomaly:{kind}"))
-                     for kind in KINDS if collector.anomalies.counts[kind]]
+                     for kind in KINDS if collector.anomalies.counts[kind] and kind != "retry"]
         if anomalies:
-            charts.append(_chart("anomalies", "Anomalies per bucket", "frames", "bars", anomalies))
+            charts.append(_chart("anomalies", "Anomalies per bucket (retries below)", "frames", "bars", anomalies))
+        if collector.anomalies.counts["retry"]:
+            charts.append(_chart("retries", "Retries per bucket", "frames", "bars",
+                                 [_series("retry", timeline.values("anomaly:retry"))]))
         charts += _latency_charts(collector)
         charts += _value_charts(collector)
     return {
@@ -43,19 +52,34 @@ def chart_data(collector: ReportCollector) -> dict[str, Any]:
     }
 
 
+def _slowest(collector: ReportCollector) -> tuple[list[int], list[int]]:
+    """The slaves drawn on their own (the slowest by latency p95, at most :data:`SLAVES_DRAWN`, in
+    address order) and the others."""
+    answered = {row.slave: row.latency.percentile(95) or 0.0 for row in slave_health(collector.statistics)
+                if row.latency.count}
+    slaves = sorted(collector.slaves | answered.keys())
+    drawn = sorted(sorted(slaves, key=lambda slave: -answered.get(slave, 0.0))[:SLAVES_DRAWN])
+    return drawn, [slave for slave in slaves if slave not in drawn]
+
+
 def _latency_charts(collector: ReportCollector) -> list[dict[str, Any]]:
-    timeline, slaves = collector.timeline, sorted(collector.slaves)
-    if not slaves:
+    """One chart: the longest latency per bucket of the slowest slaves, each a line, and of all the
+    others as one line."""
+    timeline = collector.timeline
+    drawn, others = _slowest(collector)
+    drawn = [slave for slave in drawn if slave in collector.slaves]
+    others = [slave for slave in others if slave in collector.slaves]
+    if not drawn:
         return []
-    means, maxima = [], []
-    for slave in slaves:
-        count = timeline.values(f"latency:{slave}:count")
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = np.where(count > 0, timeline.values(f"latency:{slave}:sum") / count, np.nan)
-        means.append(_series(f"slave {slave}", mean))
-        maxima.append(_series(f"slave {slave}", timeline.values(f"latency:{slave}:max")))
-    return [_chart("latency-mean", "Latency, mean per bucket", "ms", "line", means),
-            _chart("latency-max", "Latency, longest per bucket", "ms", "line", maxima)]
+    series = [_series(f"slave {slave}", timeline.values(f"latency:{slave}:max")) for slave in drawn]
+    if others:
+        stacked = np.vstack([timeline.values(f"latency:{slave}:max") for slave in others])
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a bucket none of them answered in: NaN
+            longest = np.nanmax(stacked, axis=0)
+        series.append(_series(f"{len(others)} other slaves" if len(others) > 1 else f"slave {others[0]}", longest))
+    title = "Latency, longest per bucket" + (f" (the {len(drawn)} slowest slaves, the others as one)" if others else "")
+    return [_chart("latency", title, "ms", "line", series)]
 
 
 def _value_charts(collector: ReportCollector) -> list[dict[str, Any]]:
@@ -85,9 +109,24 @@ def _distribution(collector: ReportCollector) -> list[dict[str, Any]]:
     merged = {row.slave: row.latency for row in slave_health(collector.statistics) if row.latency.count}
     if not merged:
         return []
-    used = [np.flatnonzero(histogram.counts) for histogram in merged.values()]
+    _, others = _slowest(collector)
+    rest, summed = Histogram(), 0
+    for slave in others:
+        if slave in merged:
+            theirs = merged.pop(slave)
+            assert theirs.minimum is not None and theirs.maximum is not None
+            rest.merge(theirs.counts, theirs.count, theirs.minimum, theirs.maximum)
+            summed += 1
+    every = [*merged.values(), *([rest] if rest.count else [])]
+    used = [np.flatnonzero(histogram.counts) for histogram in every]
     low, high = min(int(u[0]) for u in used), max(int(u[-1]) for u in used) + 1
-    return [{"name": f"slave {slave}", **_bars(histogram, low, high)} for slave, histogram in sorted(merged.items())]
+    rows = [{"name": f"slave {slave}", **_bars(histogram, low, high)} for slave, histogram in sorted(merged.items())]
+    if rest.count:
+        bars = _bars(rest, low, high)
+        if summed > 1:  # per slave, so that the line compares with the slaves drawn on their own
+            bars["count"] = [round(count / summed, 1) for count in bars["count"] if count is not None]
+        rows.append({"name": f"{summed} other slaves, per slave" if summed > 1 else f"slave {others[0]}", **bars})
+    return rows
 
 
 def _bars(histogram: Histogram, low: int, high: int) -> dict[str, list[float | None]]:
