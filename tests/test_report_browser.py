@@ -219,3 +219,18 @@ def test_the_findings_come_first(browser: Any, cli: Cli, tmp_path: Path) -> None
     if keep:
         shutil.copy(path, Path(keep) / path.name)
     assert opened.console == [] and path.stat().st_size > 20_000
+
+
+def test_the_slaves_table_reads_at_700_pixels(browser: Any, cli: Cli, tmp_path: Path) -> None:
+    """In a 700 px window the slaves table keeps what says whether a slave is well, without a
+    scroll bar; the other columns come back on a wide screen."""
+    report = _report(cli, ROOT / "captures" / "atv71-plc-poll.log", tmp_path / "report.html")
+    narrow = Opened(browser, report, width=700)
+    fits = narrow.page.eval_on_selector("table.health", "t => [t.scrollWidth, t.parentElement.clientWidth]")
+    assert fits[0] <= fits[1], fits
+    shown = narrow.page.eval_on_selector_all("table.health th", "ths => ths.filter(th => th.offsetParent)"
+                                                                 ".map(th => th.textContent)")
+    assert shown == ["slave", "requests", "answers", "exceptions", "CRC errors", "timeouts", "error rate", "p95 ms"]
+    wide = Opened(browser, report, width=1280)
+    assert len(wide.page.eval_on_selector_all("table.health th", "ths => ths.filter(th => th.offsetParent)")) == 14
+    assert narrow.console == [] and wide.console == []

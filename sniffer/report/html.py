@@ -230,8 +230,10 @@ def _frame_table(rows: list[FrameRow], focus: int | None, *, files: bool = False
 def _table(css: str, columns: Sequence[tuple[str, str, bool]], rows: list[tuple[str, list[tuple[str, str]]]]) -> str:
     """A table that scrolls on its own on a narrow screen: ``columns`` (key, heading,
     right-aligned), ``rows`` of (the row's attributes, each cell's text and classes)."""
-    head = "".join(f"<th{_classes('num' if right else '')}>{escape(heading)}</th>" for _, heading, right in columns)
-    body = "".join(f"<tr{attributes}>" + "".join(f"<td{_classes(classes)}>{escape(text)}</td>"
-                                                  for text, classes in cells) + "</tr>\n"
-                   for attributes, cells in rows)
+    keys = [f"c-{key}" for key, _, _ in columns]  # a class per column: a narrow screen hides some (report.css)
+    head = "".join(f"<th{_classes(' '.join(c for c in ('num' if right else '', keys[k]) if c))}>{escape(heading)}</th>"
+                   for k, (_, heading, right) in enumerate(columns))
+    body = "".join(f"<tr{attributes}>" + "".join(f"<td{_classes(' '.join(c for c in (classes, keys[k]) if c))}>"
+                                                  f"{escape(text)}</td>" for k, (text, classes) in enumerate(cells))
+                   + "</tr>\n" for attributes, cells in rows)
     return f"<div class=\"scroll\"><table class=\"{css}\">\n<tr>{head}</tr>\n{body}</table></div>\n"
