@@ -86,6 +86,16 @@ class CaptureInfo:
     first_index: int = 0
 
 
+#: The beginning of a capture's note that says its line settings were found, not given (``capture
+#: --line auto``, a logic analyzer's samples): the report says them as guessed.
+GUESSED_LINE = "line settings guessed: "
+
+
+def guessed_line(notes: tuple[str, ...]) -> str | None:
+    """How the line settings were guessed, where a note says so."""
+    return next((note.removeprefix(GUESSED_LINE) for note in notes if note.startswith(GUESSED_LINE)), None)
+
+
 @dataclass(frozen=True, slots=True)
 class ChunkBatch:
     """Consecutive chunks in columns.

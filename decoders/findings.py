@@ -32,7 +32,7 @@ The rules and their weights, in one place:
   ``STALL_POLLS`` times, not repeated for ``STALL_TIMES`` × its usual period and at least
   ``STALL_NS`` (the poll period of ``stats``: between repeats of the same request), or stopped
   that long before the capture's end.
-* **busy bus** (warning): a bus load of at least ``BUSY_LOAD``.
+* **busy bus** (warning): a bus load of at least ``BUSY_LOAD``, on a bus with requests.
 * **unconfirmed broadcasts** (info): broadcast writes, which no slave answers.
 * **a drive in fault** (error): a state word a profile names (ETA) in a state whose name says
   fault (not a fault reset), where the frames are decoded (the report, the live view).
@@ -614,7 +614,8 @@ def _duration(ns: float) -> str:
 
 def _busy(statistics: Statistics) -> list[Finding]:
     load = statistics.bus_load
-    if load is None or load < BUSY_LOAD:
+    # A line of bytes that form no Modbus frame (another protocol, wrong settings) is not a busy bus.
+    if load is None or load < BUSY_LOAD or not statistics.roles.get("request"):
         return []
     return [Finding("busy_bus", "warning", f"The bus is busy {load:.0%} of the time: answers wait and polls "
                     "stretch.", None, {"bus_load": round(load, 4)}, (),

@@ -24,7 +24,6 @@ import argparse
 import os
 from collections.abc import Iterable
 
-from decoders.line import LineSettings
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.pcap_export import LINKTYPE_RAW_IP
 from sniffer.stopping import TERMINATED
@@ -138,10 +137,10 @@ def capture(port: str, args: argparse.Namespace) -> int:
         check_recording(record, rotating=False)
     with open(os.devnull, "w", encoding="utf-8") as quiet:
         err = Console(file=quiet)  # Wireshark shows standard error as a failure: errors alone go there
-        line: LineSettings = line_settings(args.line, port, args.char_timing, 1.5, err)
+        line, guessed = line_settings(args.line, port, args.char_timing, 1.5, err)
         options = CaptureOptions(
             port=port, line=line, output=record, rotation=None, mode="none", duration_s=None,
             response_timeout_ns=response_timeout_ns(args), profiles=profile_book(choices, []),
-            pcap=PcapSink(args.fifo, udp=True, pcapng=True))
+            pcap=PcapSink(args.fifo, udp=True, pcapng=True), line_guessed=guessed)
         code = run_capture(options, quiet, err)
     return 0 if code == TERMINATED else code  # Wireshark's stop is SIGTERM: the capture ended as asked

@@ -84,6 +84,8 @@ class CaptureOptions:
     #: ``--pcap``: the frames as Wireshark reads them, written as they are framed (a file, a FIFO
     #: such as Wireshark's extcap pipe, or standard output).
     pcap: PcapSink | None = None
+    #: The recording's note saying the line settings were found by listening (``--line auto``).
+    line_guessed: str | None = None
 
 
 @dataclass
@@ -165,6 +167,7 @@ def _recorder(options: CaptureOptions, status: PortStatus) -> Recorder | None:
         f"low latency mode: {'on' if status.low_latency else 'not available'}; "
         f"latency timer: {status.latency_timer_ms if status.latency_timer_ms is not None else 'unknown'} ms",
         status.modem_note(),
+        *([options.line_guessed] if options.line_guessed else []),
     ]
     return Recorder(options.output, CaptureInfo(options.line, TimingQuality.HOST, tuple(notes)), options.rotation)
 

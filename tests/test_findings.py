@@ -72,11 +72,29 @@ def test_a_clean_bus_has_no_finding(tmp_path: Path, cli: Callable[..., Any]) -> 
     assert findings(cli, write(tmp_path / "clean.log", poll([1, 2, 3], 30))) == []
 
 
+SESSIONS = TEXT.parent / "sigrok" / "uart"
+#: Logic analyzers' sessions of real lines that read without options: Modbus buses, and UART text
+#: that is not Modbus (no bus in trouble: "hello world" filling the line is no busy bus).
+CLEAN_SESSIONS = sorted([*SESSIONS.glob("modbus_rtu/flowmeter/*.sr"), *SESSIONS.glob("hello_world/*/*.sr")]) \
+    if SESSIONS.is_dir() else []
+
+
 @pytest.mark.parametrize("capture", [*sorted(CAPTURES.glob("xbt-hmi.*")), *sorted(CAPTURES.glob("nord-uss.*")),
-                                     *([TEXT / name for name in RECORDINGS] if available() else [])],
-                         ids=lambda path: path.name)
+                                     *([TEXT / name for name in RECORDINGS] if available() else []),
+                                     *CLEAN_SESSIONS], ids=lambda path: path.name)
 def test_clean_samples_and_real_recordings_have_no_finding(cli: Callable[..., Any], capture: Path) -> None:
     assert findings(cli, capture) == []
+
+
+@pytest.mark.skipif(not SESSIONS.is_dir(), reason="the real recordings are not here")
+def test_the_report_says_guessed_line_settings_as_guessed(cli: Callable[..., Any]) -> None:
+    """A logic analyzer's session read without --line: the settings the samples read best as,
+    said as guessed in the report's provenance; with --line, as given."""
+    session = next(SESSIONS.rglob("flowmeter_graph_tool.sr"))
+    guessed = cli("report", str(session), "--format", "md").out
+    assert "| line | 9600 8N1 (guessed, not given: the samples read best as 9600 8N1 (" in guessed
+    given = cli("report", str(session), "--format", "md", "--line", "9600 8N1").out
+    assert "| line | 9600 8N1 |" in given and "guessed" not in given
 
 
 def test_a_slave_that_never_answers(tmp_path: Path, cli: Callable[..., Any]) -> None:

@@ -226,7 +226,11 @@ def test_line_settings_told_by_the_samples(cli: Cli) -> None:
         told = cli("analyze", path, *options, "--format", "jsonl")
         given = cli("analyze", path, *options, "--line", line, "--format", "jsonl")
         assert told.code == 0 and f"read best as {line}" in told.err and "give --line to be sure" in told.err
-        assert told.out == given.out
+        # The same records, but that the capture's notes say the settings were guessed.
+        told_records, given_records = told.jsonl(), given.jsonl()
+        assert told_records[1:] == given_records[1:]
+        extra = [note for note in told_records[0]["notes"] if note not in given_records[0]["notes"]]
+        assert len(extra) == 1 and extra[0].startswith(f"line settings guessed: the samples read best as {line}")
 
 
 def test_sessions_are_sniffed_without_their_suffix(cli: Cli, tmp_path: Path) -> None:

@@ -7,6 +7,7 @@ import os
 import sys
 from typing import TYPE_CHECKING
 
+from decoders.capture import GUESSED_LINE
 from decoders.line import LineSettings
 from sniffer.commands.common import (
     add_pcap_link_option,
@@ -76,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     if args.pcap not in (None, "-"):
         check_outputs([args.pcap, args.output], [args.port], force=False)
     book = profile_book(args.profile, args.profile_file)
-    line = line_settings(args.line, args.port, args.char_timing, args.probe_seconds, err)
+    line, guessed = line_settings(args.line, args.port, args.char_timing, args.probe_seconds, err)
     options = CaptureOptions(
         port=args.port,
         line=line,
@@ -88,6 +89,7 @@ def run(args: argparse.Namespace) -> int:
         profiles=book,
         streams=tuple(stream_sinks(args, replay=False)),
         pcap=None if args.pcap is None else PcapSink(args.pcap, udp=args.pcap_link == "udp"),
+        line_guessed=guessed,
     )
     return run_capture(options, sys.stdout, err)
 
@@ -117,13 +119,16 @@ def check_recording(path: str, *, rotating: bool) -> None:
                             "capture never overwrites a recording: choose another name", path=taken[0])
 
 
-def line_settings(text: str, port: str, char_timing: bool, probe_seconds: float, err: Console) -> LineSettings:
-    """``--line``: 'BAUD FORMAT', or ``auto``: found by listening to ``port`` (the report to ``err``)."""
+def line_settings(text: str, port: str, char_timing: bool, probe_seconds: float,
+                  err: Console) -> tuple[LineSettings, str | None]:
+    """``--line``: 'BAUD FORMAT', or ``auto``: found by listening to ``port`` (the report to ``err``,
+    and as the recording's note that says them guessed, the second value)."""
     if text.strip().lower() == "auto":
         line, report = probe_line(port, probe_seconds)
         err.print(report)
-        return LineSettings(line.baud, line.data_bits, line.parity, line.stop_bits, char_timing)
+        return (LineSettings(line.baud, line.data_bits, line.parity, line.stop_bits, char_timing),
+                f"{GUESSED_LINE}--line auto: {report}")
     try:
-        return LineSettings.parse(text, char_timing=char_timing)
+        return LineSettings.parse(text, char_timing=char_timing), None
     except ValueError as exc:
         raise RtuSniffError(ErrorKind.USAGE, f"--line: {exc}, or 'auto'") from None

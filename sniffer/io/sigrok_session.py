@@ -25,7 +25,7 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 
-from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
+from decoders.capture import GUESSED_LINE, CaptureInfo, ChunkBatch, TimingQuality
 from decoders.line import LineSettings
 from decoders.uart import UartCharacters, UartDecoder, baud_candidates, character_chunks, merge_characters, pulse_baud
 from sniffer.errors import CaptureFormatError, ErrorKind, shown
@@ -56,6 +56,8 @@ class SigrokSessionReader:
         self.path = path
         self.late_notes: list[str] = []
         self.warnings: list[str] = []
+        #: The note saying how the line settings were read from the samples (no --line).
+        self._guessed: str | None = None
         try:
             self._zip = zipfile.ZipFile(path)
         except Exception as exc:
@@ -76,7 +78,7 @@ class SigrokSessionReader:
         channels = tuple(self._probes[probe] for probe in self._probes_used) if len(self._probes_used) > 1 else ()
         self.info = CaptureInfo(self._line, TimingQuality.EXACT, (
             f"sigrok session {path}: probe {probes} at {self._rate:,.0f} Hz, decoded as UART "
-            f"{self._line.format()} by rtusniff",), channels)
+            f"{self._line.format()} by rtusniff", *([self._guessed] if self._guessed else [])), channels)
 
     def _start_ns(self, stamp: tuple[int, int, int, int, int, int]) -> int:
         """When the session began: its metadata's date in the zip. Some zip writers leave the
@@ -256,9 +258,10 @@ class SigrokSessionReader:
         alike = sorted({other.format() for other_share, _, other, _, other_count in scores
                         if other != line and other_count and other_share <= share + 0.01})
         tie = f"; {', '.join(alike)} read as well" if alike else ""
-        self.warnings.append(f"{self.path}: no --line; the samples read best as {line.format()} ({errors} of "
-                             f"{count} characters with an error in the first {len(level):,} samples{tie}); give "
-                             "--line to be sure")
+        how = (f"the samples read best as {line.format()} ({errors} of {count} characters with an error in the "
+               f"first {len(level):,} samples{tie})")
+        self.warnings.append(f"{self.path}: no --line; {how}; give --line to be sure")
+        self._guessed = f"{GUESSED_LINE}{how}"
         return line
 
     def batches(self) -> Iterator[ChunkBatch]:

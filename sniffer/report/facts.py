@@ -9,6 +9,7 @@ from __future__ import annotations
 import shlex
 from dataclasses import dataclass
 
+from decoders.capture import guessed_line
 from decoders.health import SlaveHealth, slave_health
 from decoders.message import DeviceIdentity
 from decoders.stats import Histogram, Statistics
@@ -67,7 +68,9 @@ def provenance_facts(collector: ReportCollector) -> list[tuple[str, str]]:
                   ("duration", duration_text(s.duration_ns))]
     if p.window:
         facts.append(("part read", p.window))
-    facts += [("line", p.line), ("timing", timing_text(p.timing))]
+    guessed = guessed_line(p.notes)
+    facts += [("line", f"{p.line} (guessed, not given: {guessed})" if guessed else p.line),
+              ("timing", timing_text(p.timing))]
     if p.channels:
         facts.append(("channels", ", ".join(p.channels)))
     facts.append(("profiles", profiles_text(collector)))
