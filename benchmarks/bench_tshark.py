@@ -62,7 +62,9 @@ def main() -> None:
             ("rtusniff stats --format json", [*rtusniff, "stats", str(capture), "--format", "json"]),
             ("rtusniff analyze --format jsonl", [*rtusniff, "analyze", str(capture), "--format", "jsonl"]),
             ("rtusniff analyze (table, a line a frame)", [*rtusniff, "analyze", str(capture)]),
-            ("rtusniff export --pcap", [*rtusniff, "export", str(capture), "--pcap", str(pcap), "--force"]),
+            # Link type 147, the frames alone: what tshark's DLT_USER mapping below decodes as Modbus RTU.
+            ("rtusniff export --pcap", [*rtusniff, "export", str(capture), "--pcap", str(pcap), "--pcap-link", "user",
+                                        "--force"]),
             ("rtusniff export --mcap", [*rtusniff, "export", str(capture), "--mcap", str(Path(tmp) / "x.mcap"),
                                         "--force", "-q"]),
             ("rtusniff export --parquet", [*rtusniff, "export", str(capture), "--parquet",
