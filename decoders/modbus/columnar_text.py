@@ -31,7 +31,7 @@ import numpy.typing as npt
 from decoders.distinct import distinct
 from decoders.modbus.codes import TABLE_NAMES
 from decoders.modbus.pdu import COIL_STATES
-from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_payload
+from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_payload, registers
 from decoders.modbus.text_layout import (
     UPPER_HEX,
     Field,
@@ -160,7 +160,7 @@ def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: 
     for size in distinct(sizes).tolist():
         rows = np.flatnonzero(sizes == size)
         words = size // 2
-        template = f"{head}{' '.join(['0000'] * words)} ({words} registers)" + ("" if pack else "\n")
+        template = f"{head}{' '.join(['0000'] * words)} ({registers(words)})" + ("" if pack else "\n")
         text = np.tile(np.frombuffer(template.encode("ascii"), np.uint8), (len(rows), 1))
         values = raw[starts[rows][:, None] + np.arange(size)]
         digits = len(head) + 2 * np.arange(size) + np.arange(size) // 2  # 4 digits and a space a word
@@ -237,7 +237,7 @@ def _group(frames: SummaryColumns, data: bytes, rows: npt.NDArray[np.int64], kin
         return [f"read {table} {a} ({c})" if c == 1 else f"read {table} {a}..{a + c - 1} ({c})"
                 for a, c in zip(address, count, strict=True)]
     if kind == READ_ANSWER and function >= 3:
-        return [f"{table} = {hex_payload(data[s : s + n])} ({n // 2} registers)"
+        return [f"{table} = {hex_payload(data[s : s + n])} ({registers(n // 2)})"
                 for s, n in zip(start, size, strict=True)]
     if kind == READ_ANSWER:
         bits = _bit_texts(data, frames.data[rows], 8 * frames.byte_count[rows])

@@ -34,7 +34,7 @@ from decoders.modbus.pdu_serial import (  # for the union Pdu; import them from 
     NoData,
     ServerId,
 )
-from decoders.modbus.pdu_text import hex_words
+from decoders.modbus.pdu_text import hex_words, registers
 
 COIL_ON = 0xFF00
 COIL_OFF = 0x0000
@@ -109,7 +109,7 @@ class RegistersResponse:
 
     def summary(self) -> str:
         table = "IR" if self.function == 4 else "HR"
-        return f"{table} = {hex_words(self.values)} ({len(self.values)} registers)"
+        return f"{table} = {hex_words(self.values)} ({registers(len(self.values))})"
 
 
 @dataclass(slots=True, unsafe_hash=True)

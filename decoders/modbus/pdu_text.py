@@ -20,3 +20,8 @@ def hex_payload(payload: bytes, limit: int = HEX_WORDS_SHOWN) -> str:
     words = len(payload) // 2
     shown = payload[: 2 * limit].hex(" ", 2).upper()
     return shown + (f" … (+{words - limit})" if words > limit else "")
+
+
+def registers(count: int) -> str:
+    """``1 register``, ``8 registers``: how a summary counts an answer's words."""
+    return f"{count} register" if count == 1 else f"{count} registers"

@@ -3,7 +3,7 @@
 Every message's summary line by position: a decoded message's own, a frame left in columns
 (``AnnotatedBatch.columnar``) the one its columns spell (:mod:`sniffer.encoding.columnar_parts`,
 once per group of frames alike). Frames whose profile names their values end their lines with
-the names' texts (``HR = 05DC (1 registers): NM1→ETA = 16#05DC warning, …``); for JSONL and
+the names' texts (``HR = 05DC (1 register): NM1→ETA = 16#05DC warning, …``); for JSONL and
 MCAP :meth:`~decoders.modbus.columnar.ColumnarNames.suffixed` writes each line as a Python
 string, and the Parquet column then read them all again. Here Arrow joins them from their
 parts instead (:func:`_named_lines`): the frames' lines as their PDUs write them, and a column

@@ -249,8 +249,8 @@ def test_scanner_value_registers_are_named_in_columns_by_each_slave_s_own_mappin
     (batch,) = [batch for batch in matched(_read(1, 12741, (1500,)) + _read(2, 12741, (0x0637,))) if len(batch)]
     assert check_batch(columns, plain, batch) == 4
     assert _names(columns, batch) == [
-        "read HR 12741 (1): NM1→RFRD", "HR = 05DC (1 registers): NM1→RFRD = 1500 rpm", "read HR 12741 (1): NM1→ETA",
-        "HR = 0637 (1 registers): NM1→ETA = 16#0637 operation enabled, reference reached, forward"]
+        "read HR 12741 (1): NM1→RFRD", "HR = 05DC (1 register): NM1→RFRD = 1500 rpm", "read HR 12741 (1): NM1→ETA",
+        "HR = 0637 (1 register): NM1→ETA = 16#0637 operation enabled, reference reached, forward"]
 
 
 def test_a_scanner_value_register_pointed_elsewhere_is_named_anew() -> None:
@@ -266,9 +266,9 @@ def test_a_scanner_value_register_pointed_elsewhere_is_named_anew() -> None:
             check_batch(columns, plain, batch)
             reads = shown.annotate_columnar(batch).columnar
             said += [] if reads is None else reads.summaries(batch.frames.data)
-    assert said == ["read HR 12741 (1): NM1→RFRD", "HR = 05DC (1 registers): NM1→RFRD = 1500 rpm",
+    assert said == ["read HR 12741 (1): NM1→RFRD", "HR = 05DC (1 register): NM1→RFRD = 1500 rpm",
                     "read HR 12741 (1): NM1→ETA",
-                    "HR = 0637 (1 registers): NM1→ETA = 16#0637 operation enabled, reference reached, forward"]
+                    "HR = 0637 (1 register): NM1→ETA = 16#0637 operation enabled, reference reached, forward"]
 
 
 def test_the_scanner_s_fc_23_exchange_is_kept_in_columns_named_by_the_mapping() -> None:
@@ -335,7 +335,7 @@ def test_a_scanner_mapping_read_back_or_written_again_keeps_value_registers_in_c
         (batch,) = [batch for batch in matched(traffic) if len(batch)]
         assert check_batch(columns, plain, batch) == 4
         assert _names(annotator(["atv71"]), batch)[1::2] == [
-            "HR = 0637 (1 registers): NM1→ETA = 16#0637 operation enabled, reference reached, forward"] * 2
+            "HR = 0637 (1 register): NM1→ETA = 16#0637 operation enabled, reference reached, forward"] * 2
     for refresh in refreshed(8604):
         # In the batch that changes NMA1 the reads of NM1 say different things: the plain path;
         # in the next, the same traffic teaches nothing new: in columns, named after the new mapping.
@@ -487,5 +487,5 @@ def test_a_profile_names_no_coil() -> None:
             "read coils 3201..3202 (2)", "coils = 11000000 (1 bytes)", "write coil 8501 = ON",
             "write coil 8501 = ON", "read coils 12701 (1)", "coils = 10000000 (1 bytes)"]
     atv71 = annotator(["atv71"]).annotate_batch(batch).decodings
-    assert atv71[7].summary == "HR = 05DC (1 registers): NM1→ETA = 16#05DC warning, reference reached, forward"
+    assert atv71[7].summary == "HR = 05DC (1 register): NM1→ETA = 16#05DC warning, reference reached, forward"
 

@@ -10,7 +10,7 @@ import pytest
 
 from sniffer.exports.parquet_summaries import Summaries
 
-LINES = ["read HR 3201 (1)", "HR = 0007 (1 registers): ETA = 16#0007", "exception 02"]
+LINES = ["read HR 3201 (1)", "HR = 0007 (1 register): ETA = 16#0007", "exception 02"]
 
 
 @pytest.mark.parametrize("summaries", [Summaries(np.array(LINES, object)), Summaries(column=pa.array(LINES))],
