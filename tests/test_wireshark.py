@@ -267,3 +267,36 @@ def test_capture_pcap_options_refused_before_the_port_opens(tmp_path: Path, args
     assert result.returncode == code and said in result.stderr and result.stderr.count("\n") == 1, result.stderr
     assert sorted(path.name for path in tmp_path.iterdir()) == ["old.pcapng"]
     assert (tmp_path / "old.pcapng").read_bytes() == b"keep"
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="a FIFO is POSIX")
+def test_a_pipe_whose_reader_left_ends_the_pcap_without_an_error(tmp_path: Path) -> None:
+    """Wireshark stops a capture by closing the FIFO: the next write finds no reader, and the
+    pcap sink says so (a live capture then ends as at Ctrl-C) instead of failing."""
+    import threading
+
+    from decoders.capture import Chunk, ChunkBatch, TimingQuality
+    from decoders.line import LineSettings
+    from decoders.pipeline import Decoder
+    from sniffer.exports.outputs import PcapSink
+    from tests.test_findings import T0, answer, read
+
+    fifo = tmp_path / "wireshark.fifo"
+    os.mkfifo(fifo)
+    opened = threading.Event()
+
+    def wireshark() -> None:  # opens the FIFO and goes away
+        with open(fifo, "rb"):
+            opened.set()
+
+    reader = threading.Thread(target=wireshark)
+    reader.start()
+    sink = PcapSink(str(fifo), pcapng=False)  # opening waits for the reader
+    reader.join(timeout=10)
+    assert opened.is_set() and not reader.is_alive()
+    decoder = Decoder(LineSettings.parse("19200 8E1"), TimingQuality.EXACT)
+    chunks = ChunkBatch.from_chunks([Chunk(T0, read(1)), Chunk(T0 + 10_000_000, answer(1))])
+    for batch in [*decoder.feed(chunks), *decoder.flush()]:
+        sink.frames(batch)  # no reader: no error, the sink knows
+    assert sink.reader_gone and sink.exporter is None
+    sink.close()
