@@ -466,13 +466,15 @@ def _late(evidence: Evidence) -> list[Finding]:
     for slave, pairs in sorted(evidence.late.items()):
         if len(pairs) < LATE_ANSWERS:
             continue
+        # The medians of the first answers kept; the count of every one.
         latency = float(np.median([p[0] for p in pairs])) / 1e6
         wait = float(np.median([p[1] for p in pairs])) / 1e6
+        count = evidence.late_frames[slave].count
         found.append(Finding(
             "late_answers", "warning",
             f"Slave {slave} answers after the master has moved on: its answers come {latency:.1f} ms after the "
-            f"request, the master waits {wait:.1f} ms ({len(pairs)} answers too late).", slave,
-            {"late_answers": len(pairs), "slave_latency_ms": round(latency, 3), "master_wait_ms": round(wait, 3)},
+            f"request, the master waits {wait:.1f} ms ({count} answers too late).", slave,
+            {"late_answers": count, "slave_latency_ms": round(latency, 3), "master_wait_ms": round(wait, 3)},
             tuple(evidence.late_frames[slave].frames),
             ("the master's response timeout is shorter than the slave's answer time: raise it",
              "the slave is busy (a long scan, a parameter being saved)"), ("unexpected", "timeout")))

@@ -111,7 +111,7 @@ class ProgressBar:
             console = Console(file=sys.stderr)
             # Below 120 columns the size read and the rate give way: the rest stays whole.
             wide = console.width >= WIDE_PROGRESS
-            columns = [_name_column(TextColumn), BarColumn(bar_width=16 if wide else 10),
+            columns = [_name_column(), BarColumn(bar_width=16 if wide else 10),
                        TextColumn("{task.percentage:>3.0f} %") if end_ns else MofNCompleteColumn(),
                        *([TextColumn("{task.fields[size]}")] if wide else []),
                        TextColumn("{task.fields[frames]}", table_column=_whole()),
@@ -160,7 +160,7 @@ def over_captures(outcomes: Iterator[Item], paths: list[str], show: bool) -> Ite
 
     sizes = [os.path.getsize(path) if os.path.isfile(path) else 0 for path in paths]
     total = sum(sizes)
-    progress = Progress(_name_column(TextColumn), BarColumn(bar_width=16), TextColumn("{task.percentage:>3.0f} %"),
+    progress = Progress(_name_column(), BarColumn(bar_width=16), TextColumn("{task.percentage:>3.0f} %"),
                         TextColumn("{task.fields[size]}"), TimeElapsedColumn(table_column=_whole()),
                         TimeRemainingColumn(table_column=_whole()),
                         console=Console(file=sys.stderr), transient=True)
@@ -186,9 +186,10 @@ def _whole() -> Any:
     return Column(no_wrap=True, min_width=7)
 
 
-def _name_column(text_column: Any) -> Any:
+def _name_column() -> Any:
     """The capture's name: what gives way on a narrow terminal (cut with an ellipsis)."""
+    from rich.progress import TextColumn  # noqa: PLC0415 - rich: only for a terminal
     from rich.table import Column  # noqa: PLC0415
 
-    return text_column("{task.description}", table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis",
-                                                                 min_width=6))
+    return TextColumn("{task.description}", table_column=Column(ratio=1, no_wrap=True, overflow="ellipsis",
+                                                                min_width=6))

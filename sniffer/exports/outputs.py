@@ -12,7 +12,8 @@ from __future__ import annotations
 import argparse
 import hashlib
 import shlex
-import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,7 +25,6 @@ from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
 from decoders.message import MessageBatch
 from decoders.stats import Statistics
-from sniffer.errors import RtuSniffError
 from sniffer.exports.latency_bins import latency_bins
 from sniffer.exports.pcap_export import PcapExporter
 from sniffer.exports.transactions import TransactionEncoder
@@ -221,27 +221,23 @@ class PcapSink(FileSink[PcapExporter]):
     def _write(self, batch: MessageBatch, lines: list[str] | None) -> None:
         self.frames_written += len(batch)
         if self.exporter is not None:
-            try:
-                with self.writing():
-                    self.exporter.batch(batch, lines)
-            except RtuSniffError:
-                if not self._pipe_closed():
-                    raise
+            with self.writing(), self._reader_may_leave():
+                self.exporter.batch(batch, lines)
 
     def close(self) -> None:
-        try:
-            super().close()
-        except RtuSniffError:
-            if not self._pipe_closed():
-                raise
+        exporter, self.exporter = self.exporter, None
+        if exporter is not None:
+            with self.writing(), self._reader_may_leave():
+                exporter.close()
 
-    def _pipe_closed(self) -> bool:
-        """Whether the last write failed because the reader closed the pipe (then it is forgotten)."""
-        failure = sys.exc_info()[1]
-        if not isinstance(failure, RtuSniffError) or not isinstance(failure.__context__, BrokenPipeError):
-            return False
-        self.reader_gone, self.exporter = True, None
-        return True
+    @contextmanager
+    def _reader_may_leave(self) -> Iterator[None]:
+        """A pipe whose reader closed it (Wireshark stopped capturing) is no failure: caught before
+        :meth:`writing` makes it one, it ends the writing."""
+        try:
+            yield
+        except BrokenPipeError:
+            self.reader_gone, self.exporter = True, None
 
 
 def _with_latency_bins(transactions: dict[str, npt.NDArray[np.int64]]) -> dict[str, npt.NDArray[np.int64]]:
