@@ -161,9 +161,8 @@ class Evidence:
 
         self.crc_times: list[int] = []
         self.late: defaultdict[int, list[tuple[int, int]]] = defaultdict(list)
-        #: By slave and function (``slave << 8 | function``): requests seen, and the last one's time.
-        self.polled = np.zeros(1 << 16, np.int64)
-        self.last_polled_ns = np.zeros(1 << 16, np.int64)
+        #: By slave and function (``slave << 8 | function``): the last request's time (``NONE``: none).
+        self.last_polled_ns = np.full(1 << 16, NONE, np.int64)
         self.last_ns: int | None = None
         #: Per slave, its last timed-out request: (end, index, when the master sent its next request).
         self._timed_out: dict[int, tuple[int, int, int]] = {}
@@ -302,11 +301,10 @@ class Evidence:
             self.late_frames[slave].add(index)
 
     def _polls(self, batch: MessageBatch) -> None:
-        """Requests per slave and function, and the last one's time (a request's time laid on
+        """Per slave and function, the last request's time (a request's time laid on
         its key's place in order: the batch's last one stays)."""
         requests = np.flatnonzero((batch.role == _REQUEST) & (batch.slave >= 0) & (batch.function >= 0))
         keys = (batch.slave[requests].astype(np.int64) << 8) | batch.function[requests].astype(np.int64)
-        self.polled += np.bincount(keys, minlength=1 << 16)
         self.last_polled_ns[keys] = batch.frames.t_start_ns[requests]
 
     def _glitches(self, batch: MessageBatch) -> None:
@@ -581,7 +579,8 @@ def _stalls(statistics: Statistics, evidence: Evidence) -> list[Finding]:
         if stats.poll_period.count < STALL_POLLS or usual is None or usual <= 0 or longest is None:
             continue
         limit = max(STALL_TIMES * usual, STALL_NS)
-        stopped = (evidence.last_ns or 0) - int(evidence.last_polled_ns[key]) if evidence.polled[key] else 0
+        last = int(evidence.last_polled_ns[key])
+        stopped = (evidence.last_ns or 0) - last if last != NONE else 0
         where = f"slave {slave} FC {function}"
         if longest >= limit:
             stalls.append((longest / usual, f"{where}: usually every {_duration(usual)}, once not for "
