@@ -123,6 +123,7 @@ def capture(port: str, args: argparse.Namespace) -> int:
     from sniffer.commands.capture import check_recording, line_settings  # noqa: PLC0415 - the capture's rules
     from sniffer.commands.common import response_timeout_ns  # noqa: PLC0415
     from sniffer.exports.outputs import PcapSink  # noqa: PLC0415
+    from sniffer.line_probe import PROBE_SECONDS  # noqa: PLC0415
     from sniffer.live_capture import CaptureOptions, run_capture  # noqa: PLC0415
     from sniffer.profiles_io import profile_book  # noqa: PLC0415
 
@@ -137,7 +138,7 @@ def capture(port: str, args: argparse.Namespace) -> int:
         check_recording(record, rotating=False)
     with open(os.devnull, "w", encoding="utf-8") as quiet:
         err = Console(file=quiet)  # Wireshark shows standard error as a failure: errors alone go there
-        line, guessed = line_settings(args.line, port, args.char_timing, 1.5, err)
+        line, guessed = line_settings(args.line, port, args.char_timing, PROBE_SECONDS, err)
         options = CaptureOptions(
             port=port, line=line, output=record, rotation=None, mode="none", duration_s=None,
             response_timeout_ns=response_timeout_ns(args), profiles=profile_book(choices, []),

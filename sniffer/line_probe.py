@@ -22,6 +22,8 @@ CANDIDATES = [
 ]  # fmt: skip
 
 
+#: How long ``--line auto`` listens to each setting unless told (``capture --probe-seconds``, the extcap).
+PROBE_SECONDS = 1.5
 #: How far (a share of the bytes heard) another setting must read worse for the choice to be sure.
 SURE_MARGIN = 0.1
 

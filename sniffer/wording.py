@@ -3,6 +3,6 @@
 from __future__ import annotations
 
 
-def counted(count: int, noun: str, plural: str | None = None) -> str:
-    """``count`` and ``noun``, in the plural unless one (``plural``: where not ``noun`` + s)."""
-    return f"{count:,} {noun if count == 1 else plural or noun + 's'}"
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, with an s unless one."""
+    return f"{count:,} {noun if count == 1 else noun + 's'}"

@@ -21,7 +21,7 @@ from sniffer.exports.outputs import PcapSink
 from sniffer.exports.streams import add_stream_options, check_streams, stream_sinks
 from sniffer.io.registry import find_format
 from sniffer.io.rotation import rotated_files
-from sniffer.line_probe import probe_line
+from sniffer.line_probe import PROBE_SECONDS, probe_line
 from sniffer.profiles_io import profile_book
 from sniffer.recorder import Rotation
 
@@ -39,8 +39,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("port", help="serial port, e.g. /dev/ttyUSB0 (see 'rtusniff ports')")
     parser.add_argument("--line", required=True, metavar="'BAUD FORMAT'|auto",
                         help="'BAUD FORMAT' (e.g. --line 19200 8E1), or 'auto' to find them by listening")
-    parser.add_argument("--probe-seconds", type=float, default=1.5,
-                        help="with --line auto: how long to listen per setting (default 1.5)")
+    parser.add_argument("--probe-seconds", type=float, default=PROBE_SECONDS,
+                        help=f"with --line auto: how long to listen per setting (default {PROBE_SECONDS:g})")
     parser.add_argument("--char-timing", action="store_true", help="as for analyze")
     parser.add_argument("-o", "--output", help="record to FILE.mcap (native) or FILE.log (text), flushed every second")
     parser.add_argument("--rotate", help="start a new file after a size (100MB) or a duration (1h): FILE-0001.mcap, …")
