@@ -19,6 +19,11 @@ The rules and their weights, in one place:
   moved on: paired with a request the master followed with another before the answer came, or
   answering nobody after a request of the same slave that timed out. The master gave up before
   the slave answered; the slave's latency and the master's wait are both given.
+* **two masters** (warning): at least ``TWO_MASTERS_OVERLAPS`` such answers whose requests were
+  followed by another request after waits that differ: the shortest below ``TWO_MASTERS_SPREAD``
+  × their median. One master with a short timeout moves on after the same wait each time; a
+  second master asks whenever its own cycle says, in the first one's turn. Said instead of the
+  late answers it explains.
 * **CRC errors** (warning from ``CRC_WARNING_SHARE`` of the frames or ``CRC_WARNING_COUNT``
   errors, info below): said concentrated on one slave or on one direction where at least
   ``CONCENTRATED`` of them are, in bursts where at least ``CONCENTRATED`` fall within
@@ -36,6 +41,10 @@ The rules and their weights, in one place:
 * **unconfirmed broadcasts** (info): broadcast writes, which no slave answers.
 * **a drive in fault** (error): a state word a profile names (ETA) in a state whose name says
   fault (not a fault reset), where the frames are decoded (the report, the live view).
+* **written, read back otherwise** (warning): a parameter a profile names, written (FC 6, 16)
+  and confirmed by the slave, whose last read before the next write of it gives another value
+  (the drive clamped or ignored it, or something else writes it). Where the frames are decoded;
+  the write and its answer in one batch.
 
 Exact timing only for the rules of silences and glitch bytes (host read times do not show
 them). A clean capture gives no finding: the tests hold every rule to a capture that shows its
@@ -54,7 +63,7 @@ from decoders.damage import RetryDiff
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import FrameFlag
 from decoders.health import slave_health
-from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
+from decoders.message import NONE, ROLE_CODE, MessageBatch, ParamValue, Role
 from decoders.modbus.codes import exception_name, function_name
 from decoders.stats import Statistics
 
@@ -72,6 +81,8 @@ STALL_POLLS = 10
 STALL_TIMES = 10
 STALL_NS = 1_000_000_000
 BUSY_LOAD = 0.7
+TWO_MASTERS_OVERLAPS = 5
+TWO_MASTERS_SPREAD = 0.5
 #: First frames kept as evidence per finding.
 FIRST = 5
 #: CRC errors whose times are kept to find bursts.
@@ -82,6 +93,8 @@ _RESPONSE, _EXCEPTION, _NOISE = ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.EXCEPTI
 #: Function codes whose request's bytes 2–3 are the first address.
 _ADDRESSED = frozenset({1, 2, 3, 4, 5, 6, 15, 16, 23})
 _WRITES = frozenset({5, 6, 15, 16, 23})
+#: Writes whose request holds the values written, and reads whose answer holds the values read.
+_WRITTEN, _READ = frozenset({6, 16}), frozenset({3, 4, 23})
 #: Those whose request's bytes 4–5 are a count of addresses (FC 23: the count read).
 _COUNTED = frozenset({1, 2, 3, 4, 15, 16, 23})
 
@@ -138,6 +151,21 @@ class _Seen:
             self.frames.append(index)
 
 
+@dataclass(frozen=True)
+class _Word:
+    """A parameter's word as one frame holds it: raw, the frame's index, and the value as the
+    profile says it."""
+
+    raw: int
+    index: int
+    said: str
+
+    @classmethod
+    def of(cls, param: ParamValue, index: int) -> _Word:
+        said = "" if param.value is None else f"{param.value}{f' {param.unit}' if param.unit else ''}"
+        return cls(param.raw or 0, index, said)
+
+
 class Evidence:
     """What the rules weigh, gathered batch by batch (see the module docstring)."""
 
@@ -158,6 +186,11 @@ class Evidence:
         #: State words a profile names in a fault state, by slave, code and state: the first value.
         self.faults: defaultdict[tuple[int, str, str], _Seen] = defaultdict(_Seen)
         self.fault_raw: dict[tuple[int, str, str], int] = {}
+        #: By slave and parameter code: the last confirmed write, and the last read since.
+        self._written: dict[tuple[int, str], tuple[_Word, _Word | None]] = {}
+        #: Parameters read back otherwise than written: the first such write and read, and how
+        #: many writes were.
+        self.read_back: dict[tuple[int, str], tuple[tuple[_Word, _Word], int]] = {}
 
         self.crc_times: list[int] = []
         self.late: defaultdict[int, list[tuple[int, int]]] = defaultdict(list)
@@ -208,13 +241,20 @@ class Evidence:
 
     def add_decoded(self, batch: AnnotatedBatch) -> None:
         """What the decoded values show (where a view decodes them: the report, the live view):
-        a drive's state word, as its profile names it, in a fault state."""
+        a drive's state word, as its profile names it, in a fault state; a parameter written and
+        read back otherwise."""
         messages = batch.messages
         answers = np.flatnonzero((messages.role == _RESPONSE) & messages.frames.crc_ok)
         if not len(answers):
             return
         decodings, first = batch.decodings, messages.frames.first_index
         for position in answers.tolist():
+            function, slave = int(messages.function[position]), int(messages.slave[position])
+            request = int(messages.request_index[position]) - first
+            if function in _WRITTEN and request >= 0:
+                self._wrote(slave, decodings[request].params, first + request)
+            elif function in _READ:
+                self._read(slave, decodings[position].params, first + position)
             for param in decodings[position].params:
                 if param.code is None or not isinstance(param.value, str) or param.raw is None:
                     continue
@@ -223,6 +263,36 @@ class Evidence:
                     key = (int(messages.slave[position]), param.code, state)
                     self.faults[key].add(first + position)
                     self.fault_raw.setdefault(key, param.raw)
+
+    def _wrote(self, slave: int, params: tuple[ParamValue, ...], index: int) -> None:
+        for param in params:
+            if param.code is not None and param.raw is not None:
+                self._settle((slave, param.code))
+                self._written[(slave, param.code)] = (_Word.of(param, index), None)
+
+    def _read(self, slave: int, params: tuple[ParamValue, ...], index: int) -> None:
+        for param in params:
+            key = (slave, param.code or "")
+            if param.raw is not None and key in self._written:
+                self._written[key] = (self._written[key][0], _Word.of(param, index))
+
+    def _settle(self, key: tuple[int, str]) -> None:
+        """The last read since the last write of ``key``: another value is a parameter read back
+        otherwise (a read on its way to the value written counts only if it stays the last)."""
+        written, read = self._written.get(key, (None, None))
+        if written is not None and read is not None and read.raw != written.raw:
+            first, count = self.read_back.get(key, ((written, read), 0))
+            self.read_back[key] = (first, count + 1)
+
+    def read_back_otherwise(self) -> dict[tuple[int, str], tuple[tuple[_Word, _Word], int]]:
+        """:attr:`read_back`, with each write not yet followed by another weighed by its last read
+        so far."""
+        found = dict(self.read_back)
+        for key, (written, read) in self._written.items():
+            if read is not None and read.raw != written.raw:
+                first, count = found.get(key, ((written, read), 0))
+                found[key] = (first, count + 1)
+        return found
 
     def _exceptions(self, batch: MessageBatch) -> None:
         first, frames = batch.frames.first_index, batch.frames
@@ -347,7 +417,9 @@ class Evidence:
 
 def diagnose(statistics: Statistics, evidence: Evidence) -> list[Finding]:
     """The findings, errors first, each rule's in order of its evidence."""
-    found = [*_silent(statistics, evidence), *_faults(evidence), *_refused(statistics, evidence), *_late(evidence),
+    overlapping = _two_masters(evidence)
+    found = [*_silent(statistics, evidence), *_faults(evidence), *_refused(statistics, evidence),
+             *(overlapping or _late(evidence)), *_read_back(evidence),
              *_crc(statistics, evidence), *_glitches(evidence), *_timing(evidence), *_stalls(statistics, evidence),
              *_busy(statistics), *_broadcasts(statistics)]
     order = {"error": 0, "warning": 1, "info": 2}
@@ -477,6 +549,46 @@ def _late(evidence: Evidence) -> list[Finding]:
             ("the master's response timeout is shorter than the slave's answer time: raise it",
              "the slave is busy (a long scan, a parameter being saved)"), ("unexpected", "timeout")))
     return found
+
+
+def _two_masters(evidence: Evidence) -> list[Finding]:
+    """Answers after another request, whose requests were followed after waits that differ."""
+    waits = sorted(wait for pairs in evidence.late.values() for _, wait in pairs)
+    if len(waits) < TWO_MASTERS_OVERLAPS or waits[0] >= TWO_MASTERS_SPREAD * float(np.median(waits)):
+        return []
+    count = sum(seen.count for seen in evidence.late_frames.values())
+    slaves = sorted(evidence.late)
+    shortest, median, longest = waits[0] / 1e6, float(np.median(waits)) / 1e6, waits[-1] / 1e6
+    return [Finding(
+        "two_masters", "warning",
+        f"Two masters seem to share the bus: {count} answers of {_who([f'slave {s}' for s in slaves])} came after "
+        f"another request, sent {shortest:.1f} to {longest:.1f} ms after theirs (one master with a short timeout "
+        "would wait the same each time).", slaves[0] if len(slaves) == 1 else None,
+        {"overlaps": count, "slaves": " ".join(map(str, slaves)), "shortest_wait_ms": round(shortest, 3),
+         "median_wait_ms": round(median, 3), "longest_wait_ms": round(longest, 3)},
+        _first([i for seen in evidence.late_frames.values() for i in seen.frames]),
+        ("a second master on the line (an HMI, a PLC, a commissioning PC, a gateway): one master per line",
+         "a gateway that forwards requests of several clients without waiting for the answers"),
+        ("unexpected", "timeout"))]
+
+
+def _read_back(evidence: Evidence) -> list[Finding]:
+    found = []
+    for (slave, code), ((written, read), count) in sorted(evidence.read_back_otherwise().items()):
+        found.append(Finding(
+            "read_back_otherwise", "warning",
+            f"Slave {slave}'s {code} was written {_said(written)} and reads back {_said(read)}"
+            f"{f' ({count} writes so)' if count > 1 else ''}.",
+            slave, {"code": code, "written": written.raw, "read": read.raw, "count": count},
+            (written.index, read.index),
+            ("the value is out of the parameter's range or step, and the drive clamped it",
+             "the drive's state or access level ignores the write (a running motor, a locked menu)",
+             "another master or the drive's keypad writes it too"), ()))
+    return found
+
+
+def _said(word: _Word) -> str:
+    return f"16#{word.raw:04X}" + (f" ({word.said})" if word.said else "")
 
 
 def _crc(statistics: Statistics, evidence: Evidence) -> list[Finding]:

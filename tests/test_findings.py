@@ -12,6 +12,7 @@ import pytest
 
 from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.crc import crc_bytes
+from decoders.findings import TWO_MASTERS_OVERLAPS
 from decoders.line import LineSettings
 from tests.real_recordings import RECORDINGS, TEXT, available
 
@@ -279,3 +280,53 @@ def test_a_drive_in_fault(tmp_path: Path, cli: Callable[..., Any]) -> None:
     running = write(tmp_path / "running.log", traffic(0x0637))
     assert "## Findings\n\nNothing wrong found." in cli("report", str(running), "--profile", "atv71", "--format",
                                                           "md").out
+
+
+def test_two_masters_on_one_bus(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    """A second master asks slave 2 whenever its cycle says, in the first master's turn with slave
+    1: requests after waits from 2.2 to 12.2 ms, answers after both. One master whose timeout (50 ms)
+    is shorter than the slave's answer time is said as late answers, not as two masters."""
+    def traffic() -> Iterator[Transmission]:
+        for turn in range(12):
+            yield Transmission(read(1), 100 * MS)
+            yield Transmission(read(2), int((2.2 + turn * 5 % 11) * MS))  # the second master's request
+            yield Transmission(answer(1), 3 * MS)
+            yield Transmission(answer(2), 4 * MS)
+
+    found = findings(cli, write(tmp_path / "two.log", traffic()))
+    assert rules(found) == ["two_masters"]
+    (two,) = found
+    assert two["evidence"]["overlaps"] >= TWO_MASTERS_OVERLAPS and two["evidence"]["shortest_wait_ms"] < 3
+    assert two["sentence"].startswith("Two masters seem to share the bus: ")
+    assert any("a second master on the line" in cause for cause in two["causes"])
+
+    def one_master_short_timeout() -> Iterator[Transmission]:
+        for _ in range(12):
+            yield Transmission(read(4), 100 * MS)
+            yield Transmission(read(1), 50 * MS)
+            yield Transmission(answer(1), 5 * MS)
+            yield Transmission(answer(4), 20 * MS)
+
+    assert rules(findings(cli, write(tmp_path / "one.log", one_master_short_timeout()))) == ["late_answers"]
+
+
+def test_a_parameter_written_and_read_back_otherwise(tmp_path: Path, cli: Callable[..., Any]) -> None:
+    """HSP (3104, 0.1 Hz) written 16#0258 (60 Hz), confirmed, then read back 16#01F4: the drive
+    clamped it. A read on the way that differs counts only while it stays the last."""
+    def traffic(read_back: list[int]) -> Iterator[Transmission]:
+        yield from poll([2], 2)
+        yield Transmission(rtu("02060c200258"), 100 * MS)  # HSP = 16#0258
+        yield Transmission(rtu("02060c200258"), 5 * MS)
+        for raw in read_back:
+            yield Transmission(read(2, 3104, 1), 100 * MS)
+            yield Transmission(rtu(f"020302{raw:04x}"), 5 * MS)
+
+    def report(name: str, read_back: list[int]) -> str:
+        result = cli("report", str(write(tmp_path / name, traffic(read_back))), "--profile", "atv71", "--format", "md")
+        assert result.code == 0, result.err
+        return str(result.out)
+
+    clamped = report("clamped.log", [0x0258, 0x01F4])
+    assert ("- **warning** Slave 2's HSP was written 16\\#0258 (60.0 Hz) and reads back 16\\#01F4 (50.0 Hz). "
+            "(frames #4, #9)") in clamped
+    assert "read back" not in report("taken.log", [0x01F4, 0x0258])  # on its way, then as written

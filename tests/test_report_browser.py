@@ -116,6 +116,21 @@ def test_a_long_capture_draws_and_zooms(browser: Any, cli: Cli, steady_capture: 
     # 16 slaves: the 5 slowest drawn each, the others as one line, in the latency and its distribution.
     assert [s["name"] for s in data["charts"][3]["series"]][-1] == "11 other slaves"
     assert len(data["distribution"]) == 6 and data["distribution"][-1]["name"] == "11 other slaves, per slave"
+    # The distribution's bins said in words: under the pointer, and as a table of every bar that has answers.
+    figure = page.locator("#chart-latency-distribution svg")
+    figure.scroll_into_view_if_needed()
+    box = figure.bounding_box()
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    said = page.text_content("#chart-latency-distribution .readout") or ""
+    assert re.fullmatch(r"[\d.]+–[\d.]+ ms, answers: slave \d+ [\d.k]+(; [^;]+ [\d.k]+)+", said), said
+    page.click("#chart-latency-distribution details.bins summary")
+    heads = page.eval_on_selector_all("table.bins th", "cells => cells.map(c => c.textContent)")
+    assert heads == ["latency", *[series["name"] for series in data["distribution"]]]
+    rows = page.eval_on_selector_all("table.bins tr",
+                                     "rows => rows.slice(1).map(r => [...r.cells].map(c => c.textContent))")
+    assert all(re.fullmatch(r"[\d.]+–[\d.]+ ms", row[0]) for row in rows)
+    first = data["distribution"][0]
+    assert sum(float(row[1] or 0) for row in rows) == sum(first["count"])
     # Values of the first slaves are open, the others fold until asked for.
     assert page.eval_on_selector_all("details.values", "d => d.map(x => x.open)")[:4] == [True, True, True, False]
 

@@ -308,6 +308,48 @@
     };
     legend(legendChart, figure, draw);
     figure.appendChild(svg);
+    // Each bar said in words: its bounds and answers, under the pointer and in a table.
+    const readoutBox = document.createElement("div");
+    readoutBox.className = "readout";
+    figure.appendChild(readoutBox);
+    const bins = series[0].from.map((from, i) => ({from: from, to: series[0].to[i], counts: series.map(s => s.count[i])}));
+    const binText = bin => numberText(bin.from) + "–" + numberText(bin.to) + " ms";
+    svg.addEventListener("mousemove", event => {
+      const width = figure.clientWidth || 800, px = event.clientX - svg.getBoundingClientRect().left;
+      const shown = series.filter((s, k) => !legendChart.hidden[k]);
+      const lg = ms => Math.log10(Math.max(ms, 1e-3));
+      const lo = lg(Math.min(...shown.map(s => s.from[0]), 1e9));
+      const hi = Math.max(lg(Math.max(...shown.map(s => s.to[s.to.length - 1]), 1e-3)), lo + 0.1);
+      const ms = Math.pow(10, lo + (px - LEFT) / (width - LEFT - RIGHT) * (hi - lo));
+      const bin = bins.find(b => b.from <= ms && ms < b.to);
+      readoutBox.textContent = bin ? binText(bin) + ", answers: " + series.map((s, k) => legendChart.hidden[k] ? null
+        : s.name + " " + numberText(bin.counts[k])).filter(Boolean).join("; ") : "";
+    });
+    svg.addEventListener("mouseleave", () => { readoutBox.textContent = ""; });
+    const details = document.createElement("details");
+    details.className = "bins";
+    const summary = document.createElement("summary");
+    summary.textContent = "The bars as numbers (answers per latency bin)";
+    details.appendChild(summary);
+    const table = document.createElement("table");
+    table.className = "bins";
+    const head = table.insertRow();
+    ["latency", ...series.map(s => s.name)].forEach(name => {
+      const cell = document.createElement("th");
+      cell.textContent = name;
+      head.appendChild(cell);
+    });
+    bins.filter(bin => bin.counts.some(c => c > 0)).forEach(bin => {
+      const row = table.insertRow();
+      row.insertCell().textContent = binText(bin);
+      bin.counts.forEach(count => {
+        const cell = row.insertCell();
+        cell.className = "num";
+        cell.textContent = count ? numberText(count) : "";
+      });
+    });
+    details.appendChild(table);
+    figure.appendChild(details);
     distributionChart.redraw = draw;
     draw();
   }
