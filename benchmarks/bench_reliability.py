@@ -2,6 +2,7 @@
 documented exit code, in bounded memory and time, without altering what it reads? Prints a table.
 
     python -m benchmarks.bench_reliability [--per-family N] [--seed 1] [--keep DIR] [--quick]
+                                           [--family NAME ...]
 
 Families (each run is ``rtusniff`` in a fresh process, as a user runs it):
 
@@ -42,7 +43,7 @@ import random
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -245,22 +246,26 @@ def full_disk(scratch: Path, *, quick: bool = False) -> Family:
     return family
 
 
-def families(scratch: Path, per_family: int, seed: int, *, quick: bool = False) -> Iterator[Family]:
-    """Every family; ``quick``: a slice for CI (the shipped samples only, one command per profile)."""
-    rng = random.Random(seed)
-    yield truncation(scratch, per_family, rng, quick=quick)
-    yield bit_flips(scratch, per_family, rng, quick=quick)
-    yield crafted_mcaps(scratch, quick=quick)
-    yield hostile_sizes(scratch, quick=quick)
-    yield hostile_profiles(scratch, both=not quick)
-    yield full_disk(scratch, quick=quick)
+def families(scratch: Path, per_family: int, seed: int, *,
+             quick: bool = False) -> list[tuple[str, Callable[[], Family]]]:
+    """Every family by name, each run when called; ``quick``: a slice for CI (the shipped samples
+    only, one command per profile)."""
     from benchmarks.reliability_entrances import families as entrances  # it imports this module
 
-    yield from entrances(scratch, per_family, rng, quick=quick)
+    rng = random.Random(seed)
+    runs: list[tuple[str, Callable[[], Family]]] = [
+        ("truncation", lambda: truncation(scratch, per_family, rng, quick=quick)),
+        ("bit flips", lambda: bit_flips(scratch, per_family, rng, quick=quick)),
+        ("crafted MCAP", lambda: crafted_mcaps(scratch, quick=quick)),
+        ("hostile sizes", lambda: hostile_sizes(scratch, quick=quick)),
+        ("hostile profiles", lambda: hostile_profiles(scratch, both=not quick)),
+        ("full disk", lambda: full_disk(scratch, quick=quick)),
+        *entrances(scratch, per_family, rng, quick=quick)]
     if not quick:  # the tests run these scenarios themselves (tests/test_capture.py, test_live_gaps.py)
         from benchmarks.reliability_live import live
 
-        yield live(scratch)
+        runs.append(("live (pty)", lambda: live(scratch)))
+    return runs
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -270,6 +275,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--keep", type=Path, help="keep the inputs made in this folder")
     parser.add_argument("--quick", action="store_true", help="a slice: the shipped samples only (what CI runs)")
+    parser.add_argument("--family", action="append", help="only this family (by its name; repeatable)")
     args = parser.parse_args(argv)
     failed = False
     with tempfile.TemporaryDirectory() as temporary:
@@ -277,7 +283,10 @@ def main(argv: list[str] | None = None) -> int:
         scratch.mkdir(parents=True, exist_ok=True)
         print(f"{'family':<17} {'inputs':>6} {'tracebacks':>10} {'hangs':>6} {'wrong exits':>11} "
               f"{'not one line':>13} {'altered':>8} {'destroyed':>10} {'peak MB':>10}", flush=True)
-        for family in families(scratch, args.per_family, args.seed, quick=args.quick):
+        for name, run in families(scratch, args.per_family, args.seed, quick=args.quick):
+            if args.family and name not in args.family:
+                continue
+            family = run()
             print(family.row(), flush=True)
             for problem in family.problems[:10]:
                 print(f"    {problem}", flush=True)

@@ -16,7 +16,7 @@ import shutil
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 from benchmarks.bench_reliability import ROOT, TIMEOUT_S, Family, rtusniff
@@ -252,12 +252,15 @@ def following(scratch: Path) -> Family:
     return family
 
 
-def families(scratch: Path, per_family: int, rng: random.Random, *, quick: bool) -> Iterator[Family]:
-    yield line_names(scratch, quick=quick)
-    yield logic_and_pcap_readers(scratch, quick=quick)
-    yield mcap_metadata(scratch, 1 if quick else per_family * 5, rng)
-    yield outputs_over_inputs(scratch, quick=quick)
-    yield reports_and_datasets(scratch)
+def families(scratch: Path, per_family: int, rng: random.Random, *,
+             quick: bool) -> list[tuple[str, Callable[[], Family]]]:
+    """These families by name, each run when called."""
+    runs: list[tuple[str, Callable[[], Family]]] = [
+        ("line names", lambda: line_names(scratch, quick=quick)),
+        ("logic, pcap", lambda: logic_and_pcap_readers(scratch, quick=quick)),
+        ("MCAP metadata", lambda: mcap_metadata(scratch, 1 if quick else per_family * 5, rng)),
+        ("outputs, inputs", lambda: outputs_over_inputs(scratch, quick=quick)),
+        ("report, dataset", lambda: reports_and_datasets(scratch))]
     if not quick:
-        yield bounds(scratch)
-        yield following(scratch)
+        runs += [("bounds", lambda: bounds(scratch)), ("following", lambda: following(scratch))]
+    return runs

@@ -205,7 +205,7 @@ def annotated_batches(draw: st.DrawFn) -> AnnotatedBatch:
     return annotated.select(np.array(draw(st.lists(st.booleans(), min_size=len(batch), max_size=len(batch)))))
 
 
-@settings(max_examples=max(500, EXAMPLES), deadline=None)
+@settings(max_examples=max(250, EXAMPLES), deadline=None)
 @given(annotated_batches(), st.booleans())
 def test_frame_records_are_what_json_dumps_writes(batch: AnnotatedBatch, distinct: bool) -> None:
     """Both ways of writing who a frame is: from the batch's columns (``distinct``: a batch of
@@ -217,7 +217,7 @@ def test_frame_records_are_what_json_dumps_writes(batch: AnnotatedBatch, distinc
         assert encoder.encode_batch(batch) == expected  # again, from the encoder's cache
 
 
-@settings(max_examples=max(300, EXAMPLES), deadline=None)
+@settings(max_examples=max(150, EXAMPLES), deadline=None)
 @given(annotated_batches(), st.integers(0, 40))
 def test_fast_frame_records_say_what_the_exact_ones_say(batch: AnnotatedBatch, reserved: int) -> None:
     """The MCAP spelling: times as the exact decimals of their nanoseconds, a frame's own

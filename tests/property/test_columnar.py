@@ -5,6 +5,7 @@ batches cut anywhere."""
 
 from __future__ import annotations
 
+import os
 import struct
 from itertools import pairwise
 
@@ -22,6 +23,9 @@ from decoders.modbus.param_runs import addressed_values
 from decoders.profiles.apply import ProfileApplier
 from sniffer.profiles_io import profile_book
 from tests.property.test_annotation_cache import PRODUCT, adu, matched, said
+
+#: RTUSNIFF_EXAMPLES raises the number of examples for a long run.
+EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 
 SLAVES = st.sampled_from([1, 2, 7])
 #: The ATV71's factory scanner mapping (NMA1-8, then NCA1-8) and more words: read back from
@@ -173,7 +177,7 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
     return len(kept)
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=max(200, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
        st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=atv71", "7=atv312"], ["2=xbt"]]))
 def test_reads_in_columns_say_what_the_plain_path_says(traffic: list[list[bytes]], cuts: list[int],

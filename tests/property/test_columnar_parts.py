@@ -5,6 +5,7 @@ frame's identity (``hex`` to ``exception_code``) spelt for some frames is what i
 
 from __future__ import annotations
 
+import os
 from itertools import pairwise
 from unittest.mock import patch
 
@@ -23,6 +24,9 @@ from sniffer.encoding.records import FrameRecordEncoder
 from sniffer.exports.mcap_export import _decoding_parts
 from tests.property.test_annotation_cache import adu, matched
 from tests.property.test_columnar import annotator, exchanges
+
+#: RTUSNIFF_EXAMPLES raises the number of examples for a long run.
+EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 
 
 def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
@@ -50,7 +54,7 @@ def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
     return len(positions)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=max(150, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
        st.sampled_from([columnar_parts.SLICE_PARAMS, 1, 7, 64]),
        st.sampled_from([None, [], ["atv71"], ["2=atv312", "7=xbt"]]))
