@@ -30,7 +30,7 @@ _ROUNDED: dict[float, Int64Array] = {}
 
 def rounded_char_times(counts: Int64Array, char_time_ns: float) -> Int64Array:
     """``np.rint(counts * char_time_ns)`` as integers, by a gather from a table of the same
-    products (a seventh of the time of multiplying, rounding and casting 25 000 counts); counts
+    products (faster than multiplying, rounding and casting every count); counts
     the table does not hold (negative, or a read longer than ``ROUNDED_TABLE_MOST``) the plain way."""
     if not len(counts):
         return np.zeros(0, np.int64)
@@ -152,8 +152,8 @@ class ByteClock:
         """The chunk of each piece's first byte where every piece but the first begins a chunk
         (mostly a frame is a chunk): from the first piece's chunk, one more a piece and one
         more for each chunk beginning inside a piece before it (``extra``, of the chunks
-        beginning ``inside`` the pieces). A tenth of the time of searching 25 000 frames'
-        chunks. ``None`` where a piece begins inside a chunk."""
+        beginning ``inside`` the pieces), faster than searching every frame's chunk. ``None``
+        where a piece begins inside a chunk."""
         if len(inside) - len(extra) != len(first) - 1:
             return None
         chunks: Int64Array = np.cumsum(np.bincount(np.searchsorted(first, extra), minlength=len(first))[: len(first)])

@@ -67,8 +67,8 @@ LIVE_IDLE_NS = 100_000_000
 #: Closed segments up to this long have their parse remembered (:meth:`Framer._parse`), up to
 #: ``2 × PARSE_MEMO_SIZE`` of them: a bus repeats its requests, and a request the fast path
 #: cannot take whole (one ending in 0x00 that reads as an answer and a glitch too) went through
-#: the programme every time, 100 µs each (4 of 16 such requests: framing 20 times slower). A
-#: parse kept costs about 1 kB (its pieces' arrays): 2 × 512 of them, 1 MB at most.
+#: the programme every time, which slowed framing many times over where a few such requests are
+#: polled. A parse kept costs about 1 kB (its pieces' arrays): 2 × 512 of them, 1 MB at most.
 PARSE_MEMO_LONGEST = 2 * MAX_ADU
 PARSE_MEMO_SIZE = 512
 

@@ -23,20 +23,18 @@ from sniffer.stopping import INTERRUPTED, TERMINATED, TerminatedError, restore_s
 from sniffer.tool_version import tool_version
 
 #: The commands, in the order ``--help`` lists them: each a module of :mod:`sniffer.commands` with
-#: ``add_parser``. A command run is parsed by its own parser alone, and only its module imported:
-#: ``stats`` of a sample imported 320 to 380 ms of modules instead of 370 to 390 ms (``python -X
-#: importtime``, three runs each; numpy, rich and the decoders are most of the rest).
+#: ``add_parser``. A command run is parsed by its own parser alone, and only its module imported
+#: (the others' imports would add to every command's start; ``python -X importtime`` shows it).
 COMMAND_NAMES = ("analyze", "stats", "report", "values", "compare", "cut", "export", "capture", "ports",
                  "convert", "profiles", "wireshark")
 #: Errors that only writing raises: a full disk, a quota, a file too large.
 WRITE_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 #: Objects allocated between young-generation collections. Decoding builds millions of
 #: short-lived objects next to long-lived caches of decodings; at Python's default (700)
-#: the collector walks the caches again and again: 9.9 s instead of 6.0 s for `analyze`
-#: of 200 000 frames that are all distinct (benchmarks/bench_stages.py). At 100 000, frames
-#: named by a profile, whose caches churn (objects made in one batch, freed in a later one),
-#: still set off 84 young and 8 middle collections per 1 M mixed frames, 0.4 to 0.6 s; at
-#: 500 000 none, with the same peak RSS (gc callbacks, analyze and export --mcap/--parquet).
+#: the collector walks the caches again and again (``benchmarks/bench_stages.py`` shows it on
+#: frames that are all distinct). Lower, frames named by a profile, whose caches churn (objects
+#: made in one batch, freed in a later one), still set off young and middle collections; at this
+#: threshold none, with the same peak RSS (gc callbacks, analyze and export --mcap/--parquet).
 GC_YOUNG_THRESHOLD = 500_000
 
 

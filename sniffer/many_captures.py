@@ -106,8 +106,8 @@ def each_capture(paths: list[str], one: Callable[[argparse.Namespace], Result], 
             yield _one(one, args, path)
         return
     # fork where there is one (start-up costs nothing); a fresh interpreter elsewhere.
-    import multiprocessing  # noqa: PLC0415 - 10 ms (sockets, selectors), for many captures alone
-    from concurrent.futures import ProcessPoolExecutor  # noqa: PLC0415 - 3 ms, the same
+    import multiprocessing  # noqa: PLC0415 - slow to import (sockets, selectors), for many captures alone
+    from concurrent.futures import ProcessPoolExecutor  # noqa: PLC0415 - the same
 
     context = multiprocessing.get_context("fork" if hasattr(os, "fork") else "spawn")
     with ProcessPoolExecutor(jobs, mp_context=context) as pool:

@@ -5,8 +5,7 @@ every array in it), and ``recv`` reads that into a buffer (a copy), and the arra
 (another copy). Here the object is pickled with protocol 5, its arrays left out of the pickle
 (``buffer_callback``), and each array's memory is written to the pipe as it lies; the reader
 reads each one straight into a ``bytearray`` of its own (``os.readv``), and the arrays are
-made on those, writable, without a copy. Measured on the decoding steps of 1 M mixed frames
-(104 MB pickled, 95 MB of it arrays): pickling took 0.073 s the old way, 0.012 s this way.
+made on those, writable, without a copy: most of what the decoding steps send is arrays.
 
 On the wire, a message is: the number of parts ``n`` (8 bytes, little-endian), the ``n`` parts'
 sizes (8 bytes each), then the parts: the pickle, then the arrays' memory in the order pickle

@@ -2,8 +2,8 @@
 
 The version is written once, here (``pyproject.toml`` reads it as the package's version, so
 the wheel's metadata says the same): asked of the installed metadata instead
-(``importlib.metadata.version``), it cost 34 ms of every export's start, importing the
-module and searching the path's distributions.
+(``importlib.metadata.version``), it would cost every export's start the import of that
+module and a search of the path's distributions.
 """
 
 from __future__ import annotations

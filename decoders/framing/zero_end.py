@@ -4,8 +4,8 @@ direction and a 0x00 glitch: the two readings weighed without the programme.
 Zero bytes after a frame keep its CRC valid (:mod:`decoders.framing.evidence`), so an FC 3
 request ending in 0x00 whose first seven bytes fit an answer reads as that answer and a glitch,
 and a 9-byte FC 3 answer ending in 0x00 as a request and a glitch. On a polling bus about one
-frame in 3 000 is such a segment, and the programme took about 130 µs for each: a sixth of all
-the framing of a polling capture. Weighed here, one takes about 20 µs.
+frame in 3 000 is such a segment, and the programme over it cost a large share of all the
+framing of a polling capture; weighed here, a fraction of that.
 
 When nothing else in the segment can be read -- no CRC-valid span and no USS telegram starts
 after its first byte, no pause and no framing error lies inside, and its first byte starts

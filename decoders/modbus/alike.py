@@ -10,17 +10,15 @@ across batches for frames decoded one by one.
 How, and why so:
 
 * Frames are grouped by a number mixed of their digest (:func:`digests`: CRC, length, slave and
-  function) and of their role, kind, first address, count and profile. Each is then compared
+  function) and of their role, kind, first address and count. Each is then compared
   with its group's first, byte for byte (8 bytes at a time, :func:`_same_bytes`) and in all of
   those; those that differ (frames whose digests agree, as frames of a bus polled for a day do
   now and then) are grouped again among themselves, until every frame is alike its group's first.
 * The grouping sorts the numbers (numpy's quicksort, the first of each group the least place
-  among its equals: a third of the time of the stable sort ``np.unique`` makes for its firsts).
+  among its equals: faster than the stable sort ``np.unique`` makes for its firsts).
 * Where a sample of the frames shows them mostly distinct (random values polled), no grouping:
   there telling them apart costs more than it saves.
 
-Measured on 1 M frames of steady traffic, ``alike`` took 0.31 s of ``export --parquet``'s main
-thread (the frames compared byte by byte, grouped by ``np.unique``); see ``docs/performance.md``.
 """
 
 from __future__ import annotations
@@ -42,17 +40,15 @@ if TYPE_CHECKING:
 DISTINCT_SHARE = 0.9
 #: Frames :func:`alike` samples to tell whether to look further.
 SAMPLED = 512
-#: Where :func:`alike` mixes a frame's profile into what it compares (above role and kind).
-PROFILE_SHIFT = 55
 _ALL_BYTES = np.uint64(0xFFFF_FFFF_FFFF_FFFF)
 
 
 def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
-          roles: npt.NDArray[np.integer[Any]], profile: npt.NDArray[np.int64] | None = None) -> Alike | None:
+          roles: npt.NDArray[np.integer[Any]]) -> Alike | None:
     """The frames of ``columnar`` whose texts are the same: alike in their bytes, role, kind,
-    first address and count (an answer's are its request's), and profile where a slave's frames
-    have two in the batch (``profile``, by default ``ColumnarNames.profile``); whatever else a
-    text says (a profile's names) the batch holds for all its frames alike. ``offsets``,
+    first address and count (an answer's are its request's); whatever else a text says (a
+    profile's names) the batch holds for all its frames alike (the annotator cuts a batch where
+    the profiles change, :mod:`decoders.profiles.columns`). ``offsets``,
     ``roles``: the batch's frames'. ``None`` where at least :data:`DISTINCT_SHARE` of a sample of
     the frames (every n-th, :data:`SAMPLED` of them) differ in their digest."""
     positions = columnar.positions
@@ -65,10 +61,6 @@ def alike(columnar: ColumnarFrames, data: bytes, offsets: npt.NDArray[np.int64],
         return None
     role = roles[positions].astype(np.int64)
     code = (role << 3 | columnar.kind) << 48 | (columnar.count + 1) << 24 | columnar.address
-    if profile is None and columnar.names is not None:
-        profile = columnar.names.profile
-    if profile is not None:
-        code |= profile << PROFILE_SHIFT
     with np.errstate(over="ignore"):  # mixed, wrapping: frames alike have it alike
         # The digest spread (Fibonacci hashing) before its role, kind, address and count are mixed in.
         mixed = digests(data, starts, ends) * FIBONACCI_SIGNED ^ code
@@ -130,7 +122,7 @@ def digests(data: bytes, starts: npt.NDArray[np.int64], ends: npt.NDArray[np.int
     """A number per frame (``data[start:end]``) that frames alike share and frames that differ
     seldom do: its CRC (last two bytes), length, slave and function (first two bytes). A frame
     of fewer than two bytes reads its neighbours' or the data's last (no copy of the data is
-    made to pad it: a third of the time); frames alike then differ in it at worst, and are only
+    made to pad it); frames alike then differ in it at worst, and are only
     spelt apart. Only those bytes are widened to 64 bits."""
     raw = np.frombuffer(data, np.uint8)
     if not len(raw):  # frames of no bytes read a zero

@@ -28,10 +28,20 @@ from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
 from decoders.frame import USS
 from decoders.memo import KEPT_DECODINGS, Memo
-from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, ROLE_ORDER, Decoding, Message, MessageBatch, Role
+from decoders.message import (
+    IN_COLUMNS,
+    NONE,
+    ROLE_CODE,
+    ROLE_ORDER,
+    Decoding,
+    Message,
+    MessageBatch,
+    Role,
+    slice_messages,
+)
 from decoders.modbus.codecs import parse_as
 from decoders.modbus.codes import function_name
-from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames
+from decoders.modbus.columnar import KEPT_REQUESTS, ColumnarFrames, joined
 from decoders.modbus.columnar_find import find_columnar
 from decoders.modbus.param_runs import named_registers
 from decoders.modbus.pdu import (
@@ -45,7 +55,7 @@ from decoders.modbus.pdu import (
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.profiles.book import ProfileBook
 from decoders.profiles.column_names import named
-from decoders.profiles.columns import frame_profiles, learning_slaves, plain_codes, unnameable
+from decoders.profiles.columns import first_change, frame_profiles, plain_codes, unnameable
 from decoders.uss import parse_uss
 
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
@@ -80,10 +90,33 @@ class Annotator:
         return AnnotatedBatch(batch, decodings)
 
     def annotate_columnar(self, batch: MessageBatch) -> AnnotatedBatch:
-        """:meth:`annotate_batch`, but the commonest frames stay in columns
+        """Every message of the batch decoded: the commonest frames in columns
         (:mod:`decoders.modbus.columnar`, named by :mod:`decoders.profiles.column_names` where a
-        profile names their slave): the result's ``columnar``, and its ``rows``
-        the rest, decoded as there. The annotator's state after it is the same."""
+        profile names their slave), the rest one by one as :meth:`annotate_batch` does them. The
+        batch is decoded in parts, cut after each frame that changes what the profiles name
+        (:func:`~decoders.profiles.columns.first_change`: an identification, a scanner mapping
+        learnt), so that each part is named in one step by the profiles as they stand at its
+        start, then joined. The annotator's state after it is that of :meth:`annotate_batch`."""
+        parts: list[tuple[int, AnnotatedBatch]] = []
+        start = 0
+        while True:
+            rest = batch if start == 0 else slice_messages(batch, start, len(batch))
+            change = None if self._profiles is None or not len(rest) else \
+                first_change(self._profiles, rest, self._earlier_request)
+            stop = len(batch) if change is None else start + change + 1
+            part = rest if stop == len(batch) else slice_messages(batch, start, stop)
+            parts.append((start, self._annotate_part(part)))
+            if stop == len(batch):
+                break
+            start = stop
+        if len(parts) == 1:
+            return parts[0][1]
+        offsets = batch.frames.offsets
+        columnar = joined([(start, int(offsets[start] - offsets[0]), part.columnar) for start, part in parts])
+        return AnnotatedBatch(batch, [decoding for _, part in parts for decoding in part.decoded], None, columnar)
+
+    def _annotate_part(self, batch: MessageBatch) -> AnnotatedBatch:
+        """A part of :meth:`annotate_parts`: its frames in columns, and the rest one by one."""
         columnar = self._columnar(batch)
         if columnar is None:
             return self.annotate_batch(batch)
@@ -102,10 +135,8 @@ class Annotator:
 
     def _columnar(self, batch: MessageBatch) -> ColumnarFrames | None:
         """The frames of ``batch`` to keep in columns: Modbus frames whose profile adds nothing or
-        names plainly (:mod:`decoders.profiles.columns`; a slave's frames after an identification
-        in the batch that gives it another profile are named by that one, but from a second that
-        gives it yet another on, which the plain path decodes), and frames a profile would do more
-        to than name their params."""
+        names plainly (:mod:`decoders.profiles.columns`), and frames a profile would do more to
+        than name their params."""
         if not len(batch):
             return None
         profiles = self._profiles
@@ -114,13 +145,10 @@ class Annotator:
         framed = frame_profiles(profiles, batch)
         nameable = framed.adds_nothing | np.array([plain_codes(profile) for profile in framed.profiles], np.bool_)
         eligible = (batch.frames.protocols() != USS) & nameable[framed.place]
-        for slave, stop in framed.stops.items():
-            eligible[stop:] &= batch.slave[stop:] != slave
         columnar = find_columnar(batch, eligible, self._earlier_read)
         if framed.adds_nothing.all():  # no profile names a frame of the batch
             return columnar
-        learning = learning_slaves(profiles, batch, self._earlier_request, framed)
-        while len(unnamed := unnameable(profiles, batch, columnar, learning, framed)):
+        while len(unnamed := unnameable(profiles, batch, columnar, framed)):
             eligible[unnamed] = False
             columnar = find_columnar(batch, eligible, self._earlier_read)
         return named(profiles, batch, columnar, framed)

@@ -68,8 +68,7 @@ class ColumnarValues(NamedTuple):
     ``request``, the request's frame index (-1 for written values). Per value: its ``address``
     and ``raw`` value (a register's word; a coil as 0 or 1), 32 bits as the Parquet columns have
     them, and ``name``. A column of the runs is made one of the values by :meth:`each`: the
-    writers repeat the few columns they need, which a row per value for every column made
-    first took a third of the time of (1 M coil frames, 12.7 M values)."""
+    writers repeat the few columns they need, rather than a row per value for every column."""
 
     frame: npt.NDArray[np.int64]
     counts: npt.NDArray[np.int64]
@@ -108,10 +107,6 @@ class ColumnarNames(NamedTuple):
 
     row: npt.NDArray[np.int64]
     table: list[NamedValue]
-    #: Each frame's profile (a number per profile), where a slave's frames are named by two in
-    #: the batch (it identified itself as another device): frames alike in their bytes but not
-    #: in it say different things. ``None``: every slave's frames by one.
-    profile: npt.NDArray[np.int64] | None = None
 
     def shown(self, sizes: npt.NDArray[np.int64]) -> tuple[
             list[str | None], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
@@ -217,18 +212,25 @@ class ColumnarFrames:
         return None if self.names is None else self.names.shown(self._sizes())
 
     def take(self, rows: npt.NDArray[np.int64]) -> ColumnarFrames:
-        """The frames at ``rows`` (indexes of these columns) as columns of their own, to spell their
-        texts: their names taken along (the table shared); ``kept_requests`` and
-        ``earlier_requests`` stay the batch's."""
-        names = self.names
+        """The frames at ``rows`` (indexes of these columns, ascending) as columns of their own, to
+        spell their texts: their names and groups taken along (the table shared); ``kept_requests``
+        and ``earlier_requests`` stay the batch's."""
+        names, groups = self.names, self.groups
         if names is not None:
             sizes = self._sizes()
             taken = spread(self._param_starts()[rows], sizes[rows])
-            names = names._replace(row=names.row[taken], profile=None if names.profile is None else names.profile[rows])
+            names = names._replace(row=names.row[taken])
+        if groups is not None:
+            # Each group's first among the rows taken (its first may not be one), in their order.
+            _, firsts, inverse = np.unique(groups.inverse[rows], return_index=True, return_inverse=True)
+            order = np.argsort(firsts)
+            place = np.empty(len(order), np.int64)
+            place[order] = np.arange(len(order))
+            groups = Alike(firsts[order], place[inverse.reshape(-1)])
         return ColumnarFrames(self.positions[rows], self.function[rows], self.kind[rows], self.address[rows],
                               self.count[rows], self.read_address[rows], self.read_count[rows], self.data[rows],
                               self.byte_count[rows], self.request[rows], self.answer[rows], self.kept_requests,
-                              self.earlier_requests, names)
+                              self.earlier_requests, names, groups)
 
     def values(self, data: bytes) -> ColumnarValues:
         """The values of read answers, writes and the echoes of single writes (a write request's
@@ -236,9 +238,8 @@ class ColumnarFrames:
         valued = self._valued()
         written = one_of(self.kind[valued], (WRITE, READ_WRITE))
         found = np.where(written, self.answer[valued], self.positions[valued])
-        # The frames in the rows' order, so that each column is laid out once, in order (sorting
-        # the rows instead took a fifth of the time of a coil capture's values). Stable: a frame's
-        # values stay in order.
+        # The frames in the rows' order, so that each column is laid out once, in order, rather
+        # than sorting the rows. Stable: a frame's values stay in order.
         order = np.lexsort((~written, found))
         valued, written, found = valued[order], written[order], found[order]
         counts, value = self._carried(data, valued)
@@ -301,7 +302,7 @@ class ColumnarFrames:
         """How many values each of the frames ``valued`` (:meth:`_valued`, in any order) carries,
         and the values, frame after frame (a register's word; a coil as 0 or 1). Coils and
         registers are each taken from their own frames' bytes only: a coil capture has a dozen
-        values a frame, and reading every value both ways took three times as long."""
+        values a frame, and reading every value both ways would triple the work."""
         counts = self.count[valued]
         function, starts = self.function[valued], self.data[valued]
         bit_frames = (function <= 2) | (function == 15)
@@ -319,13 +320,58 @@ class ColumnarFrames:
         return counts, values
 
 
+def joined(parts: list[tuple[int, int, ColumnarFrames | None]]) -> ColumnarFrames | None:
+    """The columns of a batch decoded in parts (each part's first position, where its data starts
+    in the batch's, and its columns), as one. Where a profile names frames of a part, every
+    part's frames keep groups (each frame its own where its part had none): frames alike in
+    their bytes but in parts named otherwise are never spelt as one."""
+    found = [(start, at, columns) for start, at, columns in parts if columns is not None and len(columns)]
+    if not found:
+        return next((columns for _, _, columns in parts if columns is not None), None)
+    if len(found) == 1 and found[0][0] == 0:
+        return found[0][2]
+
+    def stacked(name: str) -> npt.NDArray[np.int64]:
+        return np.concatenate([getattr(columns, name) for _, _, columns in found])
+
+    def shifted(name: str, in_data: bool = False) -> npt.NDArray[np.int64]:
+        """A column of positions (or places in the data), -1 for none, each part's from its start."""
+        pieces = [(getattr(columns, name), at if in_data else start) for start, at, columns in found]
+        return np.concatenate([np.where(values >= 0, values + shift, -1) for values, shift in pieces])
+
+    earlier = [index for _, _, columns in found for index in columns.earlier_requests]
+    named = [columns for _, _, columns in found if columns.names is not None]
+    names, groups = None, None
+    if named:
+        rows: list[npt.NDArray[np.int64]] = []
+        table: list[NamedValue] = []
+        for _, _, columns in found:
+            size = int(columns._sizes().sum())
+            if columns.names is None:
+                rows.append(np.full(size, -1, np.int64))
+            else:
+                rows.append(np.where(columns.names.row >= 0, columns.names.row + len(table), -1))
+                table += columns.names.table
+        names = ColumnarNames(np.concatenate(rows), table)
+        firsts, inverse, rows_before, firsts_before = [], [], 0, 0
+        for _, _, columns in found:
+            own = columns.groups or Alike(np.arange(len(columns)), np.arange(len(columns)))
+            firsts.append(own.firsts + rows_before)
+            inverse.append(own.inverse + firsts_before)
+            rows_before, firsts_before = rows_before + len(columns), firsts_before + len(own.firsts)
+        groups = Alike(np.concatenate(firsts), np.concatenate(inverse))
+    return ColumnarFrames(shifted("positions"), stacked("function"), stacked("kind"), stacked("address"),
+                          stacked("count"), stacked("read_address"), stacked("read_count"), shifted("data", True),
+                          stacked("byte_count"), stacked("request"), shifted("answer"), shifted("kept_requests"),
+                          earlier, names, groups)
+
+
 def _bits(raw: npt.NDArray[np.uint8], starts: npt.NDArray[np.int64],
           counts: npt.NDArray[np.int64]) -> npt.NDArray[np.uint8]:
     """The first ``counts[i]`` bits from byte ``starts[i]`` of ``raw``, least significant first,
     frame after frame: their bytes unpacked at once, then the bits past each count (0 to 7, in
-    its last byte) left out by a mask. The mask is set where those few bits lie; taking each
-    frame's bits by their places instead gathered by an index per bit: 8.0 against 1.4 ms for
-    16 000 frames of 1 to 49 coils."""
+    its last byte) left out by a mask. The mask is set where those few bits lie, rather than
+    each frame's bits taken by their places (a gather by an index per bit)."""
     sizes = (counts + 7) >> 3
     bits = np.unpackbits(raw[spread(starts, sizes)], bitorder="little")
     past = 8 * sizes - counts
@@ -339,8 +385,7 @@ def _bits(raw: npt.NDArray[np.uint8], starts: npt.NDArray[np.int64],
 
 def one_of(values: npt.NDArray[np.integer], members: Collection[int]) -> npt.NDArray[np.bool_]:
     """Whether each of ``values`` is one of ``members``: for a few, their equalities or'ed
-    (``np.isin`` took 0.2 to 0.34 ms for 30 000 values and two to five members, this 0.01 to
-    0.05 ms), for more ``np.isin``."""
+    (``np.isin`` sorts, which costs more for a few), for more ``np.isin``."""
     if len(members) > _FEW_MEMBERS:
         found: npt.NDArray[np.bool_] = np.isin(values, list(members))
         return found

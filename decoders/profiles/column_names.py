@@ -12,9 +12,9 @@ which keeps what its namers made as for any frame, and each param takes its entr
 (:class:`~decoders.modbus.columnar.ColumnarNames`). A batch of drives polled for values that
 change names a few thousand distinct values for tens of thousands of frames.
 
-Frames that read alike (:func:`~decoders.modbus.alike.alike`: the same bytes, role, kind,
-span and profile, so the same names) are named once, by the first of each group, and each
-frame's params take their entries from it; the groups stay with the columns
+Frames that read alike (:func:`~decoders.modbus.alike.alike`: the same bytes, role, kind and
+span, so the same names: a part of a batch names each slave by one profile) are named once, by
+the first of each group, and each frame's params take their entries from it; the groups stay with the columns
 (``ColumnarFrames.groups``), and writers spell each group's texts once by them: where nearly
 every frame repeats one polled before, few frames are named.
 """
@@ -47,21 +47,20 @@ def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames
     """``columnar`` with the names its frames' profiles give their params (none of them
     :func:`unnameable`); as it is where no frame's profile names anything.
 
-    Frames that read alike (:func:`~decoders.modbus.alike.alike`: same bytes, kind, span and
-    profile, hence the same names) are named once, by their group's first, and the groups kept
+    Frames that read alike (:func:`~decoders.modbus.alike.alike`: same bytes, kind and span,
+    hence the same names) are named once, by their group's first, and the groups kept
     in the result for writers to spell each group once: a bus polled for values that seldom
     change names a few frames of the batch instead of sorting all its params' values."""
     slaves = ColumnProfiles(framed, columnar.positions)
     if not _named_frames(columnar, slaves).any():
         return columnar
-    profile = slaves.profile if framed.switched else None
-    groups = alike(columnar, batch.frames.data, batch.frames.offsets, batch.role, profile)
+    groups = alike(columnar, batch.frames.data, batch.frames.offsets, batch.role)
     spelt = columnar if groups is None else columnar.take(groups.firsts)
     spelt_profiles = ColumnProfiles(framed, spelt.positions)
     row, table = _named_params(applier, batch, spelt, spelt_profiles)
     if groups is not None:  # each frame's params named as its group's first's
         row = row[columnar.grouped_params(groups)]
-    return dataclasses.replace(columnar, names=ColumnarNames(row, table, profile), groups=groups)
+    return dataclasses.replace(columnar, names=ColumnarNames(row, table), groups=groups)
 
 
 def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames,

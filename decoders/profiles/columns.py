@@ -5,24 +5,19 @@ Where a profile names a slave's registers, the frames the annotator keeps in col
 param (:mod:`decoders.profiles.column_names`). This module says which frames may be named so,
 and by which profile.
 
-A named slave's frame stays in columns only where naming it is that lookup alone, all that
+The annotator cuts a batch after each frame that changes what the profiles name
+(:func:`first_change`: an identification that gives its slave another profile, a frame that
+teaches its slave's scanner tables a mapping they do not hold), so that every frame of a part is
+named by the profiles as they stand at its start: in one step, nothing predicted. Within a part,
+a named slave's frame stays in columns only where naming it is that lookup alone, all that
 :meth:`~decoders.profiles.apply.ProfileApplier.apply_decoding` would do to it:
 
-* none of its registers is a scanner table's address register (:func:`unnameable`: one teaches
-  the table); a value register, whose name is its own slave's mapping at that frame, only where
-  no frame of the batch may change its slave's tables (:func:`learning_slaves`: then the mapping
-  the applier holds now holds for the whole batch; a master reading back the mapping it set
-  changes nothing);
+* none of its registers is a scanner table's address register (:func:`unnameable`: one may teach
+  the table, and the plain path learns from it);
 * a request the profile remarks nothing of (:func:`unnameable`: a function it supports, counts
   within its limits; answers in columns are never exceptions, which may get remarks);
 * its profile names no two registers alike and names none by a number (:func:`plain_codes`):
-  the MCAP params message holds a frame's values by code, or by address where none names it;
-* named by the profile the plain path names it by at that frame (:func:`frame_profiles`): its
-  slave's now, and after an FC 43 answer in the batch whose product code names another profile
-  (a drive seen for the first time, identified), that one; frames alike in their bytes but
-  named by two profiles are spelt apart (``ColumnarNames.profile``). Not from a second such
-  answer of the slave in the batch on, one that names yet another profile. A drive identified
-  again as what it is, as masters poll identities now and then, changes nothing.
+  the MCAP params message holds a frame's values by code, or by address where none names it.
 
 The annotator leaves the frames :func:`unnameable` finds out and finds the columns again. The
 tests hold every output of frames so named to the plain path (``tests/property/test_columnar.py``,
@@ -75,20 +70,13 @@ def plain_codes(profile: Profile) -> bool:
 
 @dataclass(frozen=True)
 class FrameProfiles:
-    """The profile each frame of a batch is named by, as the plain path names it in order: its
-    slave's now, and from an identification in the batch (an FC 43 answer) that gives the slave
-    another profile on (:meth:`~decoders.profiles.book.ProfileBook.profile_after`), that one.
-    ``profiles``: each distinct one, ``adds_nothing``: whether it leaves a frame as it is
-    (:func:`~decoders.profiles.apply.knows_nothing`), ``place``: each frame's; ``stops``: by
-    slave, the position of a second identification in the batch that gives it yet another
-    profile (its frames from there on are decoded one by one)."""
+    """The profile each frame of a batch is named by, its slave's now: ``profiles``, each
+    distinct one; ``adds_nothing``, whether it leaves a frame as it is
+    (:func:`~decoders.profiles.apply.knows_nothing`); ``place``, each frame's."""
 
     profiles: list[Profile]
     adds_nothing: npt.NDArray[np.bool_]
     place: npt.NDArray[np.int64]
-    stops: dict[int, int]
-    #: Whether a slave's frames have two profiles in the batch.
-    switched: bool = False
 
     def of(self, position: int) -> Profile:
         return self.profiles[int(self.place[position])]
@@ -97,40 +85,30 @@ class FrameProfiles:
 def frame_profiles(applier: ProfileApplier, batch: MessageBatch) -> FrameProfiles:
     """The :class:`FrameProfiles` of ``batch``, with the profiles ``applier`` holds now."""
     book = applier.book
-    profiles: list[Profile] = []
-    places: dict[int, int] = {}
-
-    def place_of(profile: Profile) -> int:
-        place = places.setdefault(id(profile), len(profiles))
-        if place == len(profiles):
-            profiles.append(profile)
-        return place
-
-    # Each slave's place by a table indexed by slave + 1 (-1, no slave, to 255): a sort of the
-    # batch's slaves took ten times as long.
+    # Each slave's place by a table indexed by slave + 1 (-1, no slave, to 255), not by a sort
+    # of the batch's slaves.
     codes = batch.slave.astype(np.int64) - NONE
     table = np.zeros(int(codes.max(initial=0)) + 1, np.int64)
+    profiles: list[Profile] = []
     for code in np.flatnonzero(np.bincount(codes)).tolist():
-        table[code] = place_of(book.profile_for(None if code + NONE == NONE else code + NONE))
-    place = table[codes]
-    stops: dict[int, int] = {}
-    switched_any = False
-    for slave, identified in _identifications(batch).items():
-        before, switched = book.profile_for(slave), None
-        for position, product in identified:
-            if switched is None:
-                after = book.profile_after(slave, product)
-                if after is not before:
-                    switched = (position, after)
-            elif (named_now := book.named_by(product)) is not None and named_now is not switched[1]:
-                stops[slave] = position
-                break
-        if switched is not None:
-            later = np.flatnonzero(batch.slave[switched[0] + 1 : stops.get(slave, len(batch))] == slave)
-            place[later + switched[0] + 1] = place_of(switched[1])
-            switched_any = True
-    return FrameProfiles(profiles, np.array([knows_nothing(profile) for profile in profiles], np.bool_), place, stops,
-                         switched_any)
+        profile = book.profile_for(None if code + NONE == NONE else code + NONE)
+        if not any(profile is known for known in profiles):
+            profiles.append(profile)
+        table[code] = next(place for place, known in enumerate(profiles) if known is profile)
+    return FrameProfiles(profiles, np.array([knows_nothing(profile) for profile in profiles], np.bool_), table[codes])
+
+
+def first_change(applier: ProfileApplier, batch: MessageBatch, earlier: EarlierRequest) -> int | None:
+    """The position of the first frame of ``batch`` after which its profiles name otherwise: an
+    identification (a valid FC 43 answer) that gives its slave another profile
+    (:meth:`~decoders.profiles.book.ProfileBook.profile_after`), or a frame that teaches its
+    slave's scanner tables (:func:`_teaching`); ``None`` where none does."""
+    book = applier.book
+    identified = [position for slave, found in _identifications(batch).items() for position, product in found
+                  if book.profile_after(slave, product) is not book.profile_for(slave)]
+    first = min(identified, default=None)
+    taught = _teaching(applier, batch, earlier, frame_profiles(applier, batch), len(batch) if first is None else first)
+    return taught if taught is not None else first
 
 
 def _identifications(batch: MessageBatch) -> dict[int, list[tuple[int, str]]]:
@@ -159,34 +137,31 @@ class ColumnProfiles:
         self.named: npt.NDArray[np.bool_] = ~framed.adds_nothing[self.profile]
 
 
-def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: EarlierRequest,
-                    framed: FrameProfiles) -> set[int]:
-    """The slaves of ``batch`` whose scanner tables a frame of it may change: a request (or a
-    frame of no known role, which the plain path may read as one) naming an address register of
-    its profile's tables (``framed``), an answer to one, or an answer to a request from before the
-    batch (``earlier``) naming one, that carries another address than the table holds now
-    (:meth:`~decoders.profiles.apply.ProfileApplier.would_learn`). A master that reads back or
-    writes again the mapping it set (a PLC, every cycle) teaches nothing new."""
+def _teaching(applier: ProfileApplier, batch: MessageBatch, earlier: EarlierRequest, framed: FrameProfiles,
+              before: int) -> int | None:
+    """The first position before ``before`` of a frame that would change its slave's scanner
+    tables (:meth:`~decoders.profiles.apply.ProfileApplier.would_learn`): a request (or a frame of
+    no known role, which the plain path may read as one) naming an address register of its
+    profile's tables, an answer to one, or an answer to a request from before the batch
+    (``earlier``) naming one, that carries another address than the table holds now. A master
+    that reads back or writes again the mapping it set (a PLC, every cycle) teaches nothing new."""
     if not any(profile.indirections for profile in framed.profiles):
-        return set()
+        return None
     # Each profile's tables by their place in ``kinds`` (0: none); each frame's.
     kinds: list[tuple[Indirection, ...]] = [()]
     for profile in framed.profiles:
         if profile.indirections not in kinds:
             kinds.append(profile.indirections)
     frame_kind = np.array([kinds.index(profile.indirections) for profile in framed.profiles], np.int64)[framed.place]
-    asking: list[npt.NDArray[np.int64]] = []
+    asks = np.zeros(len(batch), np.bool_)  # the frames of either span (a mask: no sort)
     for rows, low, count in _asked_spans(batch, frame_kind):
         kind = frame_kind[rows]
         hit = np.zeros(len(rows), np.bool_)
         for place, indirections in enumerate(kinds):
             for table in indirections:
                 hit |= (kind == place) & overlap(low, low + count, table.address_registers, table.count)
-        asking.append(rows[hit])
+        asks[rows[hit]] = True
     first = batch.frames.first_index
-    asks = np.zeros(len(batch), np.bool_)  # the frames of either span, in order (a mask: no sort)
-    for rows in asking:
-        asks[rows] = True
     requests = np.flatnonzero(asks)
     # What each teaching frame is read against: an answer, its request (a position in the batch,
     # or a PDU from before it); every other frame, nothing.
@@ -198,8 +173,8 @@ def learning_slaves(applier: ProfileApplier, batch: MessageBatch, earlier: Earli
         if any(0 <= address - table.address_registers < table.count
                for table in framed.of(position).indirections for address in request_addresses(request)):
             teaching.append((position, request))
-    return {int(batch.slave[position]) for position, request in teaching
-            if _teaches(applier, batch, framed, position, request)}
+    return next((position for position, request in sorted(teaching, key=lambda item: item[0])
+                 if position < before and _teaches(applier, batch, framed, position, request)), None)
 
 
 def _teaches(applier: ProfileApplier, batch: MessageBatch, framed: FrameProfiles, position: int,
@@ -233,13 +208,10 @@ def _asked_spans(batch: MessageBatch, frame_kind: npt.NDArray[np.int64]) -> list
             (both, words_at(raw, starts[both] + 6), words_at(raw, starts[both] + 8))]
 
 
-def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames, learning: set[int],
+def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames,
                framed: FrameProfiles) -> npt.NDArray[np.int64]:
     """The positions of the frames of ``columnar`` (found in ``batch``) whose naming is more
-    than a lookup: a scanner table's address register, a value register of a slave whose tables
-    the batch may teach (``learning``, :func:`learning_slaves`), or a request the profile
-    remarks on."""
-    frame_slaves = batch.slave[columnar.positions].astype(np.int64)
+    than a lookup: a scanner table's address register, or a request the profile remarks on."""
     slaves = ColumnProfiles(framed, columnar.positions)
     bad = np.zeros(len(columnar), np.bool_)
     if not slaves.named.any():
@@ -247,13 +219,11 @@ def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarF
     # The registers each frame names: its span, and an FC 23 request's read span (none elsewhere).
     spans = [(columnar.address, columnar.address + np.maximum(columnar.count, 0)),
              (columnar.read_address, columnar.read_address + columnar.read_count)]
-    taught = one_of(frame_slaves, learning)
     for place, profile in enumerate(slaves.profiles):
         of = slaves.named & (slaves.profile == place)
         for table in profile.indirections:
             for low, high in spans:
                 bad |= of & overlap(low, high, table.address_registers, table.count)
-                bad |= of & taught & overlap(low, high, table.value_registers, table.count)
     requests = np.flatnonzero(slaves.named & one_of(columnar.kind, (READ, WRITE, READ_WRITE)) & ~bad)
     if len(requests):
         # A request's remarks depend on its profile, function and counts alone: one of each asked.

@@ -97,7 +97,7 @@ class ValueRows(Sink):
         first = frames.first_index
         self._first_frame(frames.t_start_ns)
         # The columns of these positions alone: a batch hands most of its frames to the rows in
-        # bulk and a few here (listing its whole columns took 1.8 ms a batch).
+        # bulk and a few here (listing its whole columns would cost every batch).
         at = np.array(positions, np.int64)
         role, slave, function, crc, flags, request, t_start = (column[at].tolist() for column in (
             messages.role, messages.slave, messages.function, frames.crc_ok, messages.flags, messages.request_index,

@@ -8,7 +8,7 @@ that holds a window's edge only the window's part. That part ends a whole number
 before the chunk, so its time is the chunk's less that many character times: the bytes of a
 chunk are contiguous on the wire (``exact``) or taken so (``host``: a read's bytes end when it
 returned), which is how the framer timed them in the whole capture, so the window's frames keep
-their times (a ``host`` cut kept the read's time and moved the last frame by up to 11.5 ms).
+their times (a ``host`` cut that kept the read's time would move its last frame).
 UART errors and channels go with their bytes.
 
 A window alone may decode otherwise than in the whole capture: an answer whose request lies

@@ -1,8 +1,8 @@
 """The export outputs as sinks (:mod:`sniffer.sinks`): MCAP, Rerun, pcap.
 
 This module stays light: each sink imports its exporter's library when the export
-starts (MCAP and zstandard cost every command's start-up 13 ms, Rerun a third of a
-second), and exporters that start threads (Rerun's SDK, the MCAP writer's
+starts (MCAP and zstandard would slow every command's start-up, Rerun much more), and
+exporters that start threads (Rerun's SDK, the MCAP writer's
 compressor) are made in ``start``, after the decoding process is forked: a fork
 copies no thread, only the locks they hold.
 """

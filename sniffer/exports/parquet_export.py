@@ -83,42 +83,34 @@ _OUTCOMES = pa.array(OUTCOMES)
 _KINDS = pa.array(list(KINDS))
 _PROTOCOLS = pa.array(["modbus", "uss"])
 #: Columns of few distinct values, dictionary-encoded in the files (the others, times, indexes,
-#: bytes and summaries, would only grow a dictionary to throw away: 40 % of the time it takes to
-#: write a frame table, and 25 % more bytes, measured on 1 M frames).
+#: bytes and summaries, would only grow a dictionary to throw away: slower to write, and larger).
 DICTIONARY_COLUMNS = ["capture", "slave", "function", "role", "exception_code", "flags", "protocol", "outcome",
                       "kind", "code", "name", "unit", "text", "raw", "value"]
 #: The largest dictionary page a column chunk grows before the writer stores the rest of it
 #: plain. The values' ``raw`` and ``value`` are few on coils and drives' states and many on
-#: registers polled at random; measured on 1 M frames, the ``values`` table with them
-#: dictionary-encoded up to 32 KiB: coils 31 % smaller and 8 % faster to write, mixed and steady
-#: traffic 10 % smaller, random polling 2 % larger in as much time (unbounded, polling took 19 %
-#: longer). The other dictionaries stay far below it.
+#: registers polled at random: dictionary-encoded up to this size, the ``values`` table of coils
+#: and of drives is smaller and faster to write, that of random polling hardly larger (unbounded,
+#: much slower). The other dictionaries stay far below it.
 DICTIONARY_PAGE_BYTES = 32 << 10
 #: Columns written without min/max statistics: texts, bytes and values, whose every row group
 #: (a time slice of the whole bus) spans nearly all of them, so that no engine skips one by
-#: them; their statistics took 5 to 15 % of the time to write the frames and values tables.
+#: them, and their statistics would slow the writing of the frames and values tables.
 #: Times, indexes, slaves, functions, addresses, exception codes, latencies, roles, kinds,
 #: outcomes and the ``crc_ok`` and ``valid`` flags keep theirs.
 UNSUMMARISED_COLUMNS = frozenset({"summary", "bytes", "flags", "code", "name", "text", "unit", "raw", "value"})
 #: Columns that grow a little from row to row (times, frame indexes), stored as the differences
-#: (Parquet's ``DELTA_BINARY_PACKED``, which every engine named above reads): measured on 1 M
-#: frames of steady traffic, the frames table 27 % smaller, transactions 30 %, values 11 %, and
-#: writing them 10 % faster. The values' ``address`` too: a frame's values lie at consecutive
-#: addresses, so on 1 M frames the ``values`` table was 31 % smaller on coils (a row per coil),
-#: 6 % on polling, 3 to 4 % larger on mixed and steady traffic (a few registers a frame, of
-#: scattered addresses), in as much time.
+#: (Parquet's ``DELTA_BINARY_PACKED``, which every engine named above reads): smaller tables,
+#: written faster. The values' ``address`` too: a frame's values lie at consecutive addresses
+#: (a row per coil), much smaller on coils, a little larger where frames carry a few registers
+#: of scattered addresses.
 #: But the ``values``' time: a frame's values share its time, and stored plain, zstd takes the
-#: repeats. Measured on 1 M frames, that column plain against differences: 20 % smaller on coils,
-#: 12 % on polling, 2 % on mixed and steady traffic; written in 0.66 times as long on coils and
-#: 0.74 on polling, in as long on mixed and steady traffic. Those of frames and transactions,
-#: a time a row, take differences: half as large and faster.
+#: repeats (smaller, and faster to write on coils and polling). Those of frames and
+#: transactions, a time a row, take differences: half as large and faster.
 DELTA_COLUMNS = {table: ["t", "t_ns", "t_end", "t_end_ns", "index", "request_index", "answer_index", "address"]
                  for table in TABLES} | {"values": ["index", "request_index", "address"]}
 #: Columns that every row has by construction, declared so (Parquet's ``REQUIRED``): the writer
-#: then keeps no definition level per value. Measured on the row groups of 1 M frames (thread
-#: time, best of 3, twice): the ``values`` table of coils (12.7 M rows) written in 1.33 instead of
-#: 1.52 s, polling's in 0.34 instead of 0.37 s, frames 0.36 instead of 0.38 s. Files written
-#: before, every column optional, are read together with these (pyarrow datasets, DuckDB). A null
+#: then keeps no definition level per value, and writes faster. Files written before, every
+#: column optional, are read together with these (pyarrow datasets, DuckDB). A null
 #: in one would be a bug: Arrow refuses to write it, and the export fails rather than store it.
 REQUIRED_COLUMNS = {
     "frames": frozenset({"capture", "index", "t", "t_ns", "t_end", "t_end_ns", "role", "crc_ok", "flags", "length",
@@ -132,7 +124,7 @@ REQUIRED_COLUMNS = {
 
 def dictionary(codes: npt.NDArray[np.integer], names: pa.Array) -> pa.DictionaryArray:
     """``codes`` (each an index of ``names``, as every caller makes them) as a dictionary column;
-    not checked again (a pass over the codes per column, 0.1 ms for 8 000)."""
+    not checked again (a pass over the codes per column)."""
     return pa.DictionaryArray.from_arrays(pa.array(codes.astype(np.int32)), names, safe=False)
 
 
@@ -186,7 +178,7 @@ class ParquetDataset:
         if not len(t_ns):
             return
         # The first and last day from the least and greatest time: a day for every row is made
-        # only for a batch across midnight (dividing 12.7 M times took 40 ms of 1 M coil frames).
+        # only for a batch across midnight (a coil batch holds millions of value times).
         first, last = int(t_ns.min()) // DAY_NS, int(t_ns.max()) // DAY_NS
         days = t_ns // DAY_NS if first != last else None
         for day in range(first, last + 1):
@@ -285,7 +277,7 @@ def _schema(table: str, columns: dict[str, pa.Array]) -> pa.Schema:
 
 @functools.lru_cache(maxsize=64)
 def _one_text(text: str) -> pa.Array:
-    """``text`` as a column of one (made once: 0.1 ms each time, a batch's dictionary)."""
+    """``text`` as a column of one (made once, not for each batch's dictionary)."""
     return pa.array([text], pa.string())
 
 
@@ -385,7 +377,7 @@ def anomaly_columns(batch: AnnotatedBatch, positions: npt.NDArray[np.int64], sum
 
 def _distinct_masks(flags: npt.NDArray[np.integer]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
     """The distinct sets of flags, in order, and each frame's place among them: counted by
-    ``bincount`` and looked up (``np.unique`` sorts the batch: 0.5 ms a batch of 32 000)."""
+    ``bincount`` and looked up (``np.unique`` would sort the batch)."""
     present = np.flatnonzero(np.bincount(flags)) if len(flags) else np.zeros(0, np.int64)
     place = np.zeros(int(present[-1]) + 1 if len(present) else 0, np.int64)
     place[present] = np.arange(len(present))

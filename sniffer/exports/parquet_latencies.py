@@ -1,10 +1,9 @@
 """The Parquet ``latencies`` table: the latencies of answered requests as histograms, a row per
 bin that holds any, by bus and date (the partitions), slave and function.
 
-An exact percentile over a plant's ``transactions`` reads every answer: 50 M of them for 1 000
-captures of 100 000 frames, 2.3 to 3.9 s in DuckDB on two cores (``benchmarks.bench_plant``). The
-same question over these histograms reads a few thousand rows per capture and day: 0.44 s for 40
-lines recorded a file an hour, 1.0 to 1.3 s for 1 000 buses of one capture each. Their bins are
+An exact percentile over a plant's ``transactions`` reads every answer. The same question over
+these histograms reads a few thousand rows per capture and day (the figures, from
+``benchmarks.bench_plant``: ``docs/performance.md``). Their bins are
 those of ``rtusniff stats`` (:mod:`decoders.stats`: logarithmic, 1 % wide, 1 µs to 1000 s), so a
 percentile read from them is within 1 % of the exact one, as ``stats`` says it; histograms of many
 captures, buses or days merge by adding their counts. A row: ``slave``, ``function``, the bin

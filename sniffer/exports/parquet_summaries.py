@@ -52,7 +52,7 @@ class Summaries:
             return self._column if rows is None else taken(self._column, rows)
         assert self._texts is not None
         texts = self._texts if rows is None else self._texts[rows]
-        # From a list: pyarrow reads one faster than an object array (0.49 against 0.68 ms for 8 000).
+        # From a list: pyarrow reads one faster than an object array.
         return pa.array(texts.tolist(), pa.string())
 
 

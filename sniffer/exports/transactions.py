@@ -152,7 +152,7 @@ def _outcomes(messages: MessageBatch, positions: npt.NDArray[np.int64],
 def _facts(slave: Integers, function: Integers, outcome: Integers, code: Integers) -> tuple[Integers, list[bytes]]:
     """``"slave":…,"function":…,"outcome":…,"exception_code":…`` per transaction, as the
     combination each row has and the combinations' texts: a bus has few, each spelt once per
-    batch from its first row (one packed key per row: a third of the time of ``np.unique`` over rows)."""
+    batch from its first row (one packed key per row: ``np.unique`` over rows sorts them)."""
     keys = (((slave.astype(np.int64) + 1) * 257 + function + 1) * 257 + code + 1) * len(OUTCOMES) + outcome
     _, firsts, rows = np.unique(keys, return_index=True, return_inverse=True)
     spelt = (column[firsts].tolist() for column in (slave, function, outcome, code))

@@ -214,9 +214,10 @@ def test_polling_is_kept_in_columns_and_answers_read_requests_of_the_batch_befor
 
 
 def test_a_named_slave_s_scanner_registers_and_remarked_requests_are_not_kept_in_columns() -> None:
-    """Reading a scanner table's address registers teaches the table, its value registers are
-    named after the slave's mapping, and a read past the profile's limit gets a remark: those
-    frames go the plain path; the slave's other frames stay in columns."""
+    """Reading a scanner table's address registers may teach the table (here: zeros where the
+    factory mapping stood), and a read past the profile's limit gets a remark: those frames go
+    the plain path. The batch is cut after the answer that teaches, so that the value registers
+    read after it (12740-12741, 12741-12742) stay in columns, named after the mapping learnt."""
     slave = b"\x02"
     traffic = []
     for address, count in ((12701, 2), (12741, 2), (12740, 2), (3201, 64), (3201, 2)):
@@ -224,9 +225,10 @@ def test_a_named_slave_s_scanner_registers_and_remarked_requests_are_not_kept_in
                     adu(slave, b"\x03", bytes([2 * count]), bytes(2 * count))]
     columns, plain = annotator(["2=atv71"]), annotator(["2=atv71"])
     (batch,) = [batch for batch in matched(traffic) if len(batch)]
-    assert check_batch(columns, plain, batch) == 2
+    assert check_batch(columns, plain, batch) == 6
     reads = annotator(["2=atv71"]).annotate_columnar(batch).columnar
-    assert reads is not None and reads.positions.tolist() == [8, 9]
+    assert reads is not None and reads.positions.tolist() == [2, 3, 4, 5, 8, 9]
+    assert reads.names is not None and reads.groups is not None
 
 
 def _read(slave: int, address: int, values: tuple[int, ...]) -> list[bytes]:
@@ -303,22 +305,26 @@ def test_the_scanner_s_fc_23_exchange_is_kept_in_columns_named_by_the_mapping() 
         (3, True, 12761), (3, True, 12762), (3, False, 12741), (3, False, 12742)]
 
 
-def test_a_batch_that_teaches_a_slave_s_scanner_keeps_its_value_registers_out_of_columns() -> None:
+def test_a_batch_that_teaches_a_slave_s_scanner_is_cut_after_the_frame_that_teaches() -> None:
     """Slave 1 reads NM1, points NMA1 at RFRD and reads NM1 again, in one batch: the two reads
-    say different things, so neither is named from the mapping the batch began with; slave 2's
-    read of NM1 stays in columns. An answer to a read of NMA1 from the batch before (which
-    teaches too) keeps the slave's value registers out as well."""
+    say different things. The batch is cut after the frame that teaches, so each read stays in
+    columns, named after the mapping as it stands then, as is slave 2's read of NM1. So too
+    after an answer to a read of NMA1 from the batch before (which teaches)."""
     write = adu(b"\x01\x06", struct.pack(">HH", 12701, 8604))
     read_write = adu(b"\x01\x17", struct.pack(">HHHHBH", 3201, 1, 12701, 1, 2, 8604))  # FC 23 writes NMA1
     for teach in ([write, write], [read_write, adu(b"\x01\x17\x02\x06\x37")]):
         columns, plain = annotator(["atv71"]), annotator(["atv71"])
         traffic = _read(1, 12741, (1500,)) + teach + _read(1, 12741, (1500,)) + _read(2, 12741, (1500,))
         (batch,) = [batch for batch in matched(traffic) if len(batch)]
-        assert check_batch(columns, plain, batch) == 2
+        assert check_batch(columns, plain, batch) == 6
+        reads = annotator(["atv71"]).annotate_columnar(batch).columnar
+        assert reads is not None and reads.names is not None
+        named = [reads.names.table[row][0].code for row in reads.names.row.tolist() if row >= 0]
+        assert named == ["NM1→ETA"] * 2 + ["NM1→RFRD"] * 2 + ["NM1→ETA"] * 2
     columns, plain = annotator(["atv71"]), annotator(["atv71"])
     (batch,) = [batch for batch in matched(_read(1, 12701, (8604,)) + _read(1, 12741, (1500,))) if len(batch)]
     pieces = (slice_messages(batch, 0, 1), slice_messages(batch, 1, len(batch)))
-    assert [check_batch(columns, plain, piece) for piece in pieces] == [0, 0]
+    assert [check_batch(columns, plain, piece) for piece in pieces] == [0, 2]
 
 
 def test_a_scanner_mapping_read_back_or_written_again_keeps_value_registers_in_columns() -> None:
@@ -341,12 +347,13 @@ def test_a_scanner_mapping_read_back_or_written_again_keeps_value_registers_in_c
         assert _names(annotator(["atv71"]), batch)[1::2] == [
             "HR = 0637 (1 register): NM1→ETA = 16#0637 operation enabled, reference reached, forward"] * 2
     for refresh in refreshed(8604):
-        # In the batch that changes NMA1 the reads of NM1 say different things: the plain path;
-        # in the next, the same traffic teaches nothing new: in columns, named after the new mapping.
+        # In the batch that changes NMA1 the reads of NM1 say different things: the batch is cut
+        # after the change, each read named after the mapping of its part; in the next, the same
+        # traffic teaches nothing new, and is one part, named after the new mapping.
         columns, plain = annotator(["atv71"]), annotator(["atv71"])
         traffic = _read(1, 12741, (1500,)) + refresh + _read(1, 12741, (1500,))
         changing, again = [batch for batch in matched(traffic * 2, (len(traffic),)) if len(batch)]
-        assert check_batch(columns, plain, changing) == 0
+        assert check_batch(columns, plain, changing) == 4
         assert check_batch(columns, plain, again) == 4
 
 
@@ -355,8 +362,8 @@ def test_a_slave_s_frames_after_its_identification_are_named_by_its_new_profile(
     frames after it stay in columns, named after that profile, as the plain path names them
     once it has read the answer; the same bytes before it, unnamed. Saying again what it is
     changes nothing; saying it is another drive (an ATV312) names the frames after by that one.
-    A second identification in the batch that gives it yet another profile: its frames from
-    there on are decoded one by one."""
+    A second identification in the batch that gives it yet another profile cuts the batch again:
+    every poll stays in columns, named by the profile of its part."""
     poll = []
     for slave in (1, 2):
         poll += [adu(bytes([slave]), b"\x03", struct.pack(">HH", 3201, 2)),
@@ -372,12 +379,12 @@ def test_a_slave_s_frames_after_its_identification_are_named_by_its_new_profile(
     assert check_batch(columns, plain, batch) == 16
     (batch,) = [batch for batch in matched(poll * 2 + other + poll * 2) if len(batch)]
     assert check_batch(columns, plain, batch) == 16
-    # A slave still generic says it is an ATV71, then an ATV312: decoded one by one from the second.
+    # A slave still generic says it is an ATV71, then an ATV312: three parts, each in columns.
     columns, plain = annotator([]), annotator([])
     (batch,) = [batch for batch in matched(poll + identify + poll + other + poll) if len(batch)]
-    assert check_batch(columns, plain, batch) == 10
+    assert check_batch(columns, plain, batch) == 12
     reads = annotator([]).annotate_columnar(batch).columnar
-    assert reads is not None and reads.positions.tolist() == [0, 1, 2, 3, 6, 7, 8, 9, 14, 15]
+    assert reads is not None and reads.positions.tolist() == [0, 1, 2, 3, 6, 7, 8, 9, 12, 13, 14, 15]
 
 
 def paired_by_hand(adus: list[bytes], answered: dict[int, int]) -> MessageBatch:
