@@ -87,6 +87,16 @@ def test_clean_samples_and_real_recordings_have_no_finding(cli: Callable[..., An
     assert findings(cli, capture) == []
 
 
+@pytest.mark.parametrize(("capture", "profile"), [("xbt-hmi.log", "xbt"), ("nord-uss.log", "nord-sk")])
+def test_clean_samples_decoded_by_their_profile_have_no_finding(cli: Callable[..., Any], capture: str,
+                                                                profile: str) -> None:
+    """The rules that read decoded values (a drive in fault, a parameter read back otherwise) run
+    where frames are decoded: the report. The clean samples, named by their profile, give none."""
+    result = cli("report", str(CAPTURES / capture), "--profile", profile, "--format", "md")
+    assert result.code == 0, result.err
+    assert "## Findings\n\nNothing wrong found." in result.out
+
+
 @pytest.mark.skipif(not SESSIONS.is_dir(), reason="the real recordings are not here")
 def test_the_report_says_guessed_line_settings_as_guessed(cli: Callable[..., Any]) -> None:
     """A logic analyzer's session read without --line: the settings the samples read best as,
