@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -17,6 +17,7 @@ from decoders.message import NONE, Message, MessageBatch
 from decoders.modbus.matcher import Matcher
 
 if TYPE_CHECKING:
+    from decoders.decoded_batch import AnnotatedBatch
     from decoders.profiles.book import ProfileBook
 
 #: The most the delivery delay may raise the response timeout to.
@@ -91,17 +92,31 @@ class Decoder:
         return replace(batch, latency_ns=np.full(len(batch), NONE, np.int64))
 
 
+class Annotation(Protocol):
+    """The annotation stage as outputs drive it: paired messages in, the decoded form out
+    (:class:`~decoders.decoded_batch.AnnotatedBatch`), batch after batch, in capture order."""
+
+    def annotate_columnar(self, batch: MessageBatch) -> AnnotatedBatch: ...
+
+
+def annotator(profiles: ProfileBook | None) -> Annotation:
+    """The annotation stage (paired messages → :class:`~decoders.decoded_batch.AnnotatedBatch`),
+    naming values by ``profiles`` (``None``: naming none). Imported when first asked for: framing
+    and pairing alone (``stats``, a decoding process before its fork) need not load it."""
+    from decoders.modbus.annotate import Annotator  # noqa: PLC0415 - see above
+
+    return Annotator.naming_by(profiles)
+
+
 def decode(
     batches: Iterable[ChunkBatch], line: LineSettings, timing: TimingQuality, profiles: ProfileBook | None = None
 ) -> Iterator[Message]:
     """All decoded messages of a capture, streaming, as every output gets them
     (:meth:`~decoders.modbus.annotate.Annotator.annotate_columnar`); ``profiles`` name the registers."""
-    from decoders.modbus.annotate import Annotator  # noqa: PLC0415 - framing and pairing need not import it
-
     decoder = Decoder(line, timing)
-    annotator = Annotator.naming_by(profiles)
+    annotation = annotator(profiles)
     for batch in batches:
         for messages in decoder.feed(batch):
-            yield from annotator.annotate_columnar(messages)
+            yield from annotation.annotate_columnar(messages)
     for messages in decoder.flush():
-        yield from annotator.annotate_columnar(messages)
+        yield from annotation.annotate_columnar(messages)

@@ -16,7 +16,7 @@ from decoders.decoded_batch import AnnotatedBatch
 from decoders.frame import FrameBatch
 from decoders.line import LineSettings
 from decoders.message import MessageBatch, slice_messages
-from decoders.pipeline import Decoder
+from decoders.pipeline import Decoder, annotator
 from decoders.stats import SkippedReads, Statistics
 from sniffer.decoding_process import ChildDecoding, DecodingStep, decode_here
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -26,7 +26,7 @@ from sniffer.selection import EVERYTHING, Selection, Window
 from sniffer.sinks import Sink
 
 if TYPE_CHECKING:
-    from decoders.modbus.annotate import Annotator
+    from decoders.pipeline import Annotation
     from decoders.profiles.book import ProfileBook
 
 #: Frames before a window whose requests are decoded for the answers inside it.
@@ -133,7 +133,7 @@ class Delivery:
         self._profiles = profiles
         #: Made at the start (:meth:`start`): with two processes, after the decoding process is
         #: forked, so that it does not wait for the decoders it never runs to be imported.
-        self._annotator: Annotator | None = None
+        self._annotator: Annotation | None = None
         self._keep = keep
         self._window = Window(selection) if selection.windowed else None
         #: Frames the message sinks may still get (``--limit``), ``None``: no limit.
@@ -153,9 +153,7 @@ class Delivery:
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         if self._message_sinks:
-            from decoders.modbus.annotate import Annotator  # noqa: PLC0415 - imported after the fork (see above)
-
-            self._annotator = Annotator.naming_by(self._profiles)
+            self._annotator = annotator(self._profiles)
         for sink in self.sinks:
             sink.start(source, info, line)
 

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from decoders.damage import byte_diff, crc_note
 from decoders.modbus.pdu import ReadRequest, RegistersResponse, WriteSingle
-from decoders.modbus.register_format import RegisterFormat
+from decoders.register_format import RegisterFormat
 from tests.conftest import SAMPLE_LOG, SAMPLE_MCAP, CliResult
 
 Cli = Callable[..., CliResult]

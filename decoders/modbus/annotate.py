@@ -116,7 +116,7 @@ class Annotator:
         return AnnotatedBatch(batch, [decoding for _, part in parts for decoding in part.decoded], None, columnar)
 
     def _annotate_part(self, batch: MessageBatch) -> AnnotatedBatch:
-        """A part of :meth:`annotate_parts`: its frames in columns, and the rest one by one."""
+        """A part of :meth:`annotate_columnar`: its frames in columns, and the rest one by one."""
         columnar = self._columnar(batch)
         if columnar is None:
             return self.annotate_batch(batch)
@@ -135,8 +135,8 @@ class Annotator:
 
     def _columnar(self, batch: MessageBatch) -> ColumnarFrames | None:
         """The frames of ``batch`` to keep in columns: Modbus frames whose profile adds nothing or
-        names plainly (:mod:`decoders.profiles.columns`), and frames a profile would do more to
-        than name their params."""
+        names plainly (:mod:`decoders.profiles.columns`), but not those it would do more to than
+        name their params."""
         if not len(batch):
             return None
         profiles = self._profiles

@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from decoders.message import Role
-from decoders.modbus.codes import EXCEPTION_BIT
+from decoders.modbus.codes import EXCEPTION_BIT, function_name
 from decoders.modbus.layouts import (
     Layout,
     LengthRule,
@@ -55,6 +55,10 @@ from decoders.modbus.pdu_parse import (
     write_registers,
     write_single,
 )
+
+#: The registry, and the names outputs read through it (a function's name is kept in ``codes``,
+#: below the PDUs whose summaries say it).
+__all__ = ["CODECS", "LAYOUTS", "Codec", "fits_request", "fits_response", "function_name", "parse_as", "parse_pdu"]
 
 
 @dataclass(frozen=True, slots=True)

@@ -26,13 +26,10 @@ import numpy as np
 import numpy.typing as npt
 import orjson
 
-from decoders.decoded_batch import AnnotatedBatch
+from decoders.decoded_batch import AnnotatedBatch, ColumnarFrames, ColumnarParams, Lines, alike, summary_pieces
+from decoders.decoded_batch import summaries as base_summaries
 from decoders.distinct import distinct
 from decoders.message import ROLE_NAMES, MessageBatch
-from decoders.modbus.alike import alike
-from decoders.modbus.columnar import ColumnarFrames, ColumnarParams
-from decoders.modbus.columnar_text import Lines, summary_pieces
-from decoders.modbus.columnar_text import summaries as base_summaries
 from decoders.runs import spread
 from sniffer.encoding.param_text import NO_VALUE_END, PARAM_JSON, PARAM_MEMBERS, WORDS, param_start, param_tables
 from sniffer.encoding.rows import Pieces

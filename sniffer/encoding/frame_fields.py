@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from decoders.decoded_batch import mostly_distinct
 from decoders.frame import FrameFlag, flag_set
 from decoders.message import NONE, ROLE_NAMES, MessageBatch
-from decoders.modbus.alike import mostly_distinct
 from decoders.runs import spread
 from sniffer.encoding.blocks import Block, times_matrix
 from sniffer.encoding.float_text import float_texts

@@ -28,10 +28,8 @@ import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
 
-from decoders.decoded_batch import AnnotatedBatch
+from decoders.decoded_batch import SHOWN_PARAMS, AnnotatedBatch, Lines
 from decoders.distinct import distinct
-from decoders.modbus.columnar_text import Lines
-from decoders.profiles.naming import SHOWN_PARAMS
 from sniffer.encoding.columnar_parts import columnar_parts
 from sniffer.exports.arrow_compute import arrow_call, taken
 

@@ -19,10 +19,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from decoders.decoded_batch import AnnotatedBatch
+from decoders.decoded_batch import AnnotatedBatch, ColumnarNames
 from decoders.memo import KEPT_DECODINGS, Memo
 from decoders.message import NONE, Decoding, ParamValue
-from decoders.modbus.columnar import ColumnarNames
 from sniffer.encoding.value_rows import REPORTED, VALUE_KINDS, WRITTEN, ValueRow, ValueRows
 
 #: The params of one decoding as the ``values`` table holds them, a tuple per param: address,

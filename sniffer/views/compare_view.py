@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TextIO
 
 from decoders.compare import Change, Measures
-from decoders.modbus.codes import function_name
+from decoders.modbus.codecs import function_name
 from decoders.stats import Statistics
 from sniffer.views.layout import Cells, Column, Layout, note_lines
 

@@ -1,13 +1,13 @@
 """``--registers``, ``--word-order``, ``--addressing``: register values and addresses in the
 tables as a device's manual writes them, for slaves without a profile
-(:mod:`decoders.modbus.register_format`). Frames a profile decodes keep its names and units."""
+(:mod:`decoders.register_format`). Frames a profile decodes keep its names and units."""
 
 from __future__ import annotations
 
 import argparse
 
 from decoders.message import Decoding
-from decoders.modbus.register_format import ADDRESSINGS, KINDS, WORD_ORDERS, RegisterFormat
+from decoders.register_format import ADDRESSINGS, KINDS, WORD_ORDERS, RegisterFormat
 from sniffer.views.frame_cells import SummaryOf, decoding_summary
 
 CRC_ERROR = "CRC error: "

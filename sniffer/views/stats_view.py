@@ -15,7 +15,7 @@ from decoders.capture import CaptureInfo, TimingQuality
 from decoders.findings import Evidence, Finding, diagnose
 from decoders.line import LineSettings
 from decoders.message import MessageBatch
-from decoders.modbus.codes import function_name
+from decoders.modbus.codecs import function_name
 from decoders.stats import FunctionStats, Histogram, Statistics
 from sniffer.sinks import Sink
 from sniffer.views.layout import Cells, Column, Layout, note_lines
