@@ -166,6 +166,14 @@ class _Word:
         return cls(param.raw or 0, index, said)
 
 
+def _tally(found: dict[tuple[int, str], tuple[tuple[_Word, _Word], int]], key: tuple[int, str], written: _Word,
+           read: _Word | None) -> None:
+    """A write read back otherwise counted in ``found`` (the first such kept)."""
+    if read is not None and read.raw != written.raw:
+        first, count = found.get(key, ((written, read), 0))
+        found[key] = (first, count + 1)
+
+
 class Evidence:
     """What the rules weigh, gathered batch by batch (see the module docstring)."""
 
@@ -272,26 +280,21 @@ class Evidence:
 
     def _read(self, slave: int, params: tuple[ParamValue, ...], index: int) -> None:
         for param in params:
-            key = (slave, param.code or "")
-            if param.raw is not None and key in self._written:
-                self._written[key] = (self._written[key][0], _Word.of(param, index))
+            if param.code is not None and param.raw is not None and (slave, param.code) in self._written:
+                self._written[(slave, param.code)] = (self._written[(slave, param.code)][0], _Word.of(param, index))
 
     def _settle(self, key: tuple[int, str]) -> None:
         """The last read since the last write of ``key``: another value is a parameter read back
         otherwise (a read on its way to the value written counts only if it stays the last)."""
-        written, read = self._written.get(key, (None, None))
-        if written is not None and read is not None and read.raw != written.raw:
-            first, count = self.read_back.get(key, ((written, read), 0))
-            self.read_back[key] = (first, count + 1)
+        if key in self._written:
+            _tally(self.read_back, key, *self._written[key])
 
     def read_back_otherwise(self) -> dict[tuple[int, str], tuple[tuple[_Word, _Word], int]]:
         """:attr:`read_back`, with each write not yet followed by another weighed by its last read
         so far."""
         found = dict(self.read_back)
         for key, (written, read) in self._written.items():
-            if read is not None and read.raw != written.raw:
-                first, count = found.get(key, ((written, read), 0))
-                found[key] = (first, count + 1)
+            _tally(found, key, written, read)
         return found
 
     def _exceptions(self, batch: MessageBatch) -> None:
