@@ -10,8 +10,8 @@ every output gets the same batch. Writers of columns spell the frames in columns
 for a frame in columns is built when first asked for (:func:`columnar_decodings`).
 
 This module is the outputs' one way into the decoded form: what a writer of columns reads of
-them (:class:`ColumnarFrames`, its params and names, the summary lines in pieces, which frames
-read alike) is named here, and ``sniffer/`` imports nothing else of :mod:`decoders.modbus` but
+them (:class:`ColumnarFrames`, its params and names, its summary lines, which frames read
+alike) is named here, and ``sniffer/`` imports nothing else of :mod:`decoders.modbus` but
 the codec registry (:mod:`decoders.modbus.codecs`; an import-linter contract holds it).
 """
 
@@ -27,14 +27,13 @@ from decoders.message import IN_COLUMNS, ROLE_ORDER, Decoding, Message, MessageB
 from decoders.modbus.alike import alike, mostly_distinct
 from decoders.modbus.codecs import parse_as
 from decoders.modbus.columnar import ColumnarFrames, ColumnarNames, ColumnarParams
-from decoders.modbus.columnar_text import READ_ANSWER, Lines, summaries, summary_pieces
+from decoders.modbus.columnar_text import READ_ANSWER, summaries
 from decoders.modbus.param_runs import named_registers
 from decoders.modbus.pdu import ReadRequest
-from decoders.profiles.naming import SHOWN_PARAMS
 
 #: What writers of columns read (see the module's docstring).
-__all__ = ["SHOWN_PARAMS", "AnnotatedBatch", "ColumnarFrames", "ColumnarNames", "ColumnarParams", "Lines", "alike",
-           "columnar_decodings", "mostly_distinct", "summaries", "summary_pieces"]
+__all__ = ["AnnotatedBatch", "ColumnarFrames", "ColumnarNames", "ColumnarParams", "alike", "columnar_decodings",
+           "mostly_distinct", "summaries"]
 
 
 @dataclass(frozen=True, slots=True)

@@ -14,10 +14,7 @@ by field by :mod:`decoders.modbus.text_layout` (numbers' digits, hex words and c
 computed for all rows at once, not formatted from a Python object each), and one ``split``
 makes the lines.
 
-:func:`summaries` gives the lines as Python strings (JSONL, MCAP, the table);
-:func:`summary_pieces` the same lines a kind of frame at a time, those laid out by numpy packed
-as a string column's buffers (:class:`~decoders.modbus.text_layout.PackedLines`), for the
-Parquet column, which then needs no Python string per line. The tests hold both to each other.
+:func:`summaries` gives the lines as Python strings, which every output spells.
 """
 
 from __future__ import annotations
@@ -35,14 +32,11 @@ from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_payload, registers
 from decoders.modbus.text_layout import (
     UPPER_HEX,
     Field,
-    PackedLines,
     bits,
     chosen,
     decimal,
-    fixed_width,
     hex_words,
     lines,
-    packed,
     present,
     upper_hex,
 )
@@ -53,10 +47,6 @@ from decoders.modbus.text_layout import (
 READ, READ_ANSWER, WRITE, WRITE_ANSWER, READ_WRITE = 0, 1, 2, 3, 4
 _SHOWN_BITS = 32  # a summary writes 32 bits, then "…"
 _SHOWN_BYTES = _SHOWN_BITS // 8
-
-
-#: A group's lines: Python strings, or packed for a column (:func:`summary_pieces`).
-Lines = list[str] | PackedLines
 
 
 class SummaryColumns(Protocol):
@@ -85,38 +75,31 @@ class SummaryColumns(Protocol):
 def summaries(frames: SummaryColumns, data: bytes) -> list[str]:
     """Each frame's summary line, as its PDU's ``summary()`` writes it (``data``: the batch's)."""
     texts = np.empty(len(frames.kind), object)
-    for rows, spelt in _pieces(frames, data, pack=False):
+    for rows, spelt in _pieces(frames, data):
         texts[rows] = spelt
     said: list[str] = texts.tolist()
     return said
 
 
-def summary_pieces(frames: SummaryColumns, data: bytes) -> list[tuple[npt.NDArray[np.int64], Lines]]:
-    """:func:`summaries` in pieces, for writers of columns: the lines of the frames at each
-    piece's rows, packed (:class:`~decoders.modbus.text_layout.PackedLines`) where laid out by
-    numpy, as strings where spelt one by one; every frame in one piece."""
-    return list(_pieces(frames, data, pack=True))
-
-
-def _pieces(frames: SummaryColumns, data: bytes, *, pack: bool) -> Iterator[tuple[npt.NDArray[np.int64], Lines]]:
-    """The frames' lines by kind and function (``pack``: packed where laid out by numpy)."""
+def _pieces(frames: SummaryColumns, data: bytes) -> Iterator[tuple[npt.NDArray[np.int64], list[str]]]:
+    """The frames' lines by kind and function."""
     kind, function = frames.kind, frames.function
     group = kind * 256 + function
     for key in distinct(group).tolist():
         rows = np.flatnonzero(group == key)
         kind_of, function_of = key >> 8, key & 0xFF
         if kind_of == READ_ANSWER and function_of >= 3:
-            yield from _answer_texts(rows, function_of, data, frames, pack=pack)
+            yield from _answer_texts(rows, function_of, data, frames)
         elif kind_of in (WRITE, READ_WRITE) and function_of in (16, 23):
-            yield from _register_write_texts(rows, kind_of, data, frames, pack=pack)
+            yield from _register_write_texts(rows, kind_of, data, frames)
         elif function_of in (5, 6) or kind_of in (READ, WRITE_ANSWER) or function_of in (1, 2, 15):
-            yield rows, (packed if pack else lines)(_fields(frames, data, rows, kind_of, function_of), len(rows))
+            yield rows, lines(_fields(frames, data, rows, kind_of, function_of), len(rows))
         else:
             yield rows, _group(frames, data, rows, kind_of, function_of)
 
 
-def _answer_texts(rows: npt.NDArray[np.int64], function: int, data: bytes, frames: SummaryColumns, *,
-                  pack: bool) -> Iterator[tuple[npt.NDArray[np.int64], Lines]]:
+def _answer_texts(rows: npt.NDArray[np.int64], function: int, data: bytes,
+                  frames: SummaryColumns) -> Iterator[tuple[npt.NDArray[np.int64], list[str]]]:
     """``HR = 0627 04EC (2 registers)`` of the frames at ``rows``; answers of more than
     :data:`HEX_WORDS_SHOWN` registers by the plain path (their byte counts are even: an odd
     one is never kept in columns, :mod:`decoders.modbus.columnar_find`)."""
@@ -125,7 +108,7 @@ def _answer_texts(rows: npt.NDArray[np.int64], function: int, data: bytes, frame
     if plain.any():
         yield rows[plain], _group(frames, data, rows[plain], READ_ANSWER, function)
     quick = rows[~plain]
-    for at, spelt in _answer_lines(f"{TABLE_NAMES[function]} = ", data, frames.data[quick], size[~plain], pack=pack):
+    for at, spelt in _answer_lines(f"{TABLE_NAMES[function]} = ", data, frames.data[quick], size[~plain]):
         yield quick[at], spelt
 
 
@@ -149,26 +132,23 @@ def words_at(raw: npt.NDArray[np.uint8], at: npt.NDArray[np.int64]) -> npt.NDArr
     return words
 
 
-def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64], sizes: npt.NDArray[np.int64], *,
-                  pack: bool) -> Iterator[tuple[npt.NDArray[np.int64], Lines]]:
+def _answer_lines(head: str, data: bytes, starts: npt.NDArray[np.int64],
+                  sizes: npt.NDArray[np.int64]) -> Iterator[tuple[npt.NDArray[np.int64], list[str]]]:
     """``HR = 0627 04EC (2 registers)`` (``head``: ``HR = ``) of each answer's values
     ``data[starts[i] : starts[i] + sizes[i]]`` (even sizes), the answers of each size (each
     piece's rows) laid out by numpy as rows of one template, each byte's two digits at the same
-    columns of every row, and cut apart by one ``split`` (``pack``: packed as they are): no
-    ``%`` pass, no byte placed one by one."""
+    columns of every row, and cut apart by one ``split``: no ``%`` pass, no byte placed one by
+    one."""
     raw = np.frombuffer(data, np.uint8)
     for size in distinct(sizes).tolist():
         rows = np.flatnonzero(sizes == size)
         words = size // 2
-        template = f"{head}{' '.join(['0000'] * words)} ({registers(words)})" + ("" if pack else "\n")
+        template = f"{head}{' '.join(['0000'] * words)} ({registers(words)})\n"
         text = np.tile(np.frombuffer(template.encode("ascii"), np.uint8), (len(rows), 1))
         values = raw[starts[rows][:, None] + np.arange(size)]
         digits = len(head) + 2 * np.arange(size) + np.arange(size) // 2  # 4 digits and a space a word
         text[:, digits] = UPPER_HEX[values >> 4]
         text[:, digits + 1] = UPPER_HEX[values & 0x0F]
-        if pack:
-            yield rows, fixed_width(text)
-            continue
         spelt = text.tobytes().decode("ascii").split("\n")
         spelt.pop()  # after the last line
         yield rows, spelt
@@ -208,8 +188,8 @@ def _span(address: npt.NDArray[np.int64], count: npt.NDArray[np.int64]) -> list[
     return [decimal(address), present(more, ".."), present(more, decimal(address + count - 1))]
 
 
-def _register_write_texts(rows: npt.NDArray[np.int64], kind: int, data: bytes, frames: SummaryColumns, *,
-                          pack: bool) -> Iterator[tuple[npt.NDArray[np.int64], Lines]]:
+def _register_write_texts(rows: npt.NDArray[np.int64], kind: int, data: bytes,
+                          frames: SummaryColumns) -> Iterator[tuple[npt.NDArray[np.int64], list[str]]]:
     """``write HR 8501..8502 = 000F 03FE`` (FC 16) or ``read HR 12741..12742 (2), write HR
     12761..12762 = 000F 046C`` (FC 23) of the frames at ``rows``; writes of more than
     :data:`HEX_WORDS_SHOWN` registers by the plain path."""
@@ -225,7 +205,7 @@ def _register_write_texts(rows: npt.NDArray[np.int64], kind: int, data: bytes, f
     if kind == READ_WRITE:
         read_count = frames.read_count[at]
         fields = ["read HR ", *_span(frames.read_address[at], read_count), " (", decimal(read_count), "), ", *fields]
-    yield at, (packed if pack else lines)(fields, len(at))
+    yield at, lines(fields, len(at))
 
 
 def _group(frames: SummaryColumns, data: bytes, rows: npt.NDArray[np.int64], kind: int, function: int) -> list[str]:

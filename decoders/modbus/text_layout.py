@@ -5,13 +5,11 @@ it stands for nothing. So a field holds texts of different lengths (numbers of f
 than the widest, texts from a table), and a field that some lines lack (the ``..3202`` of a
 span of one register) is NUL in their rows. :func:`lines` lays the fields side by side with a
 newline after each row, drops the NULs by one ``bytes.replace`` and cuts the lines apart by one
-``split``; :func:`packed` lays them out as a string column instead (:class:`PackedLines`).
+``split``.
 
 Why: the ``%`` of a template repeated for every line (:func:`~decoders.modbus.columnar_text.formatted`)
 makes a Python object of every number and every field before it formats them; here a number's
-digits are a few numpy operations over the whole column. Measured on 500 000 lines of
-``read coils %d..%d (%d)``: 0.24 s by ``%``, 0.13 s laid out here (of which the digits
-0.025 s; the rest is joining, dropping the NULs and the ``split``, which every way pays).
+digits are a few numpy operations over the whole column, which takes about half as long.
 
 Every field here is ASCII but the ellipsis of :func:`bits`; none holds a newline or a NUL.
 """
@@ -19,8 +17,6 @@ Every field here is ASCII but the ellipsis of :func:`bits`; none holds a newline
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
-from itertools import pairwise
 
 import numpy as np
 import numpy.typing as npt
@@ -121,24 +117,6 @@ def hex_words(data: bytes, starts: npt.NDArray[np.int64], counts: npt.NDArray[np
     return shown
 
 
-@dataclass(frozen=True)
-class PackedLines:
-    """Lines as Arrow lays out a string column: their UTF-8 bytes end to end, and where each
-    starts (``offsets``, one more than the lines: line ``i`` is ``data[offsets[i]:offsets[i + 1]]``).
-    For writers of columns, which take them without a Python string per line."""
-
-    data: bytes
-    offsets: npt.NDArray[np.int32]
-
-    def __len__(self) -> int:
-        return len(self.offsets) - 1
-
-    def strings(self) -> list[str]:
-        """The lines as Python strings (the reference the tests hold both layouts to)."""
-        ends = self.offsets.tolist()
-        return [self.data[start:end].decode() for start, end in pairwise(ends)]
-
-
 def lines(fields: Sequence[Field | str], count: int) -> list[str]:
     """The ``count`` lines of ``fields`` side by side (a text: the same in every line)."""
     if not count:
@@ -147,22 +125,6 @@ def lines(fields: Sequence[Field | str], count: int) -> list[str]:
     spelt = laid.tobytes().replace(b"\0", b"").decode("utf-8").split("\n")
     spelt.pop()  # after the last line
     return spelt
-
-
-def packed(fields: Sequence[Field | str], count: int) -> PackedLines:
-    """:func:`lines`, packed: the NULs dropped by one boolean mask, each line's length counted
-    from it: made an Arrow column faster than :func:`lines` and a column read from its strings."""
-    laid = _laid(fields, count, ending=b"")
-    shown = laid != 0
-    offsets = np.zeros(count + 1, np.int32)
-    np.cumsum(np.count_nonzero(shown, axis=1), out=offsets[1:])
-    return PackedLines(laid[shown].tobytes(), offsets)
-
-
-def fixed_width(text: npt.NDArray[np.uint8]) -> PackedLines:
-    """The rows of ``text`` (UTF-8 bytes, no NUL to drop) as lines."""
-    count, width = text.shape
-    return PackedLines(text.tobytes(), (np.arange(count + 1) * width).astype(np.int32))
 
 
 def _laid(fields: Sequence[Field | str], count: int, ending: bytes) -> Field:

@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 import orjson
 
-from decoders.decoded_batch import AnnotatedBatch, ColumnarFrames, ColumnarParams, Lines, alike, summary_pieces
+from decoders.decoded_batch import AnnotatedBatch, ColumnarFrames, ColumnarParams, alike
 from decoders.decoded_batch import summaries as base_summaries
 from decoders.distinct import distinct
 from decoders.message import ROLE_NAMES, MessageBatch
@@ -81,11 +81,6 @@ class ColumnarParts:
         if self._base_summaries is None:
             self._base_summaries = base_summaries(self._spelt, self._data)
         return self._base_summaries
-
-    def base_summary_pieces(self) -> list[tuple[npt.NDArray[np.int64], Lines]]:
-        """:meth:`base_summaries` in pieces by row of :attr:`spelt`, packed where numpy lays them
-        out (:func:`~decoders.modbus.columnar_text.summary_pieces`): for writers of columns."""
-        return summary_pieces(self._spelt, self._data)
 
     def _spelt_summaries(self) -> list[str]:
         """The summaries of the frames spelt (one per group of frames alike)."""

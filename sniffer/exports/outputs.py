@@ -216,7 +216,7 @@ class PcapSink(FileSink[PcapExporter]):
         from sniffer.exports.parquet_summaries import summaries  # noqa: PLC0415 - pyarrow, only for pcapng
 
         assert batch.rows is None, "a pcap holds every frame delivered: nothing filters them"
-        self._write(batch.messages, summaries(batch).of().to_pylist())
+        self._write(batch.messages, summaries(batch).texts())
 
     def _write(self, batch: MessageBatch, lines: list[str] | None) -> None:
         self.frames_written += len(batch)

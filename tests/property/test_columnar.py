@@ -10,7 +10,6 @@ import struct
 from itertools import pairwise
 
 import numpy as np
-import numpy.typing as npt
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -18,7 +17,7 @@ from decoders.frame import Frame, FrameFlag, frames_to_batch
 from decoders.message import IN_COLUMNS, NONE, ROLE_CODE, Decoding, MessageBatch, Role, slice_messages
 from decoders.modbus.annotate import Annotator
 from decoders.modbus.columnar import KEPT_REQUESTS, NO_VALUE, ColumnarFrames
-from decoders.modbus.columnar_text import READ_WRITE, WRITE, Lines, summaries, summary_pieces
+from decoders.modbus.columnar_text import READ_WRITE, WRITE
 from decoders.modbus.param_runs import addressed_values
 from decoders.profiles.apply import ProfileApplier
 from sniffer.profiles_io import profile_book
@@ -129,17 +128,6 @@ def check_names(reads: ColumnarFrames, data: bytes, expected: list[Decoding]) ->
             assert [entries[names.row[row]][0] for row in rows] == list(decoding.params)
 
 
-def pieces_said(pieces: list[tuple[npt.NDArray[np.int64], Lines]], count: int) -> list[str]:
-    """The lines of :func:`summary_pieces`, each put at its frame (every frame once)."""
-    said: list[str | None] = [None] * count
-    for rows, lines in pieces:
-        for row, line in zip(rows.tolist(), lines if isinstance(lines, list) else lines.strings(), strict=True):
-            assert said[row] is None
-            said[row] = line
-    assert None not in said
-    return [line for line in said if line is not None]
-
-
 def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
     """One batch through both annotators; how many frames were kept in columns."""
     expected = plain.annotate_batch(batch).decodings
@@ -157,7 +145,6 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
         assert all(got.decoded[position] is IN_COLUMNS for position in kept)
         said_by_pdus = [expected[position].summary for position in reads.positions.tolist()]
         assert reads.summaries(data) == said_by_pdus
-        assert pieces_said(summary_pieces(reads, data), len(reads)) == summaries(reads, data)
         values = reads.values(data)
         each = values.each
         assert values.address.dtype == values.raw.dtype == np.int32
