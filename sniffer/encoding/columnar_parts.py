@@ -330,6 +330,12 @@ def columnar_parts(columnar: ColumnarFrames, messages: MessageBatch) -> Columnar
 Part = TypeVar("Part")
 
 
+def summary_lines(batch: AnnotatedBatch) -> list[str]:
+    """Every kept message's summary line, as its decoding or its columns spell it."""
+    return in_columns_too(batch, ColumnarParts.summaries,
+                          [decoding.summary for decoding in batch.decoded_at(batch.decoded_positions())])
+
+
 def in_columns_too(batch: AnnotatedBatch, spell: Callable[[ColumnarParts], Sequence[Part]],
                    parts: list[Part]) -> list[Part]:
     """``parts`` (one per kept message decoded one by one, :meth:`AnnotatedBatch.decoded_positions`),

@@ -213,10 +213,10 @@ class PcapSink(FileSink[PcapExporter]):
         self._write(batch, None)
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        from sniffer.exports.parquet_summaries import summaries  # noqa: PLC0415 - pyarrow, only for pcapng
+        from sniffer.encoding.columnar_parts import summary_lines  # noqa: PLC0415 - only for pcapng
 
         assert batch.rows is None, "a pcap holds every frame delivered: nothing filters them"
-        self._write(batch.messages, summaries(batch).texts())
+        self._write(batch.messages, summary_lines(batch))
 
     def _write(self, batch: MessageBatch, lines: list[str] | None) -> None:
         self.frames_written += len(batch)

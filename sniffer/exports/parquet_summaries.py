@@ -1,8 +1,8 @@
 """The summary column of the Parquet ``frames`` and ``anomalies`` tables.
 
 Every message's summary line by position: a decoded message's own, a frame left in columns
-(``AnnotatedBatch.columnar``) the one its columns spell (:mod:`sniffer.encoding.columnar_parts`,
-once per group of frames alike), as JSONL and MCAP spell it.
+(``AnnotatedBatch.columnar``) the one its columns spell, once per group of frames alike
+(:func:`sniffer.encoding.columnar_parts.summary_lines`, which pcapng comments read too).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy.typing as npt
 import pyarrow as pa
 
 from decoders.decoded_batch import AnnotatedBatch
-from sniffer.encoding.columnar_parts import columnar_parts
+from sniffer.encoding.columnar_parts import summary_lines
 
 
 class Summaries:
@@ -28,22 +28,10 @@ class Summaries:
         # From a list: pyarrow reads one faster than an object array.
         return pa.array(texts.tolist(), pa.string())
 
-    def texts(self) -> list[str]:
-        """Every message's line, in order."""
-        lines: list[str] = self._texts.tolist()
-        return lines
-
 
 def summaries(batch: AnnotatedBatch) -> Summaries:
-    """Every message's summary line of ``batch`` (see the module docstring)."""
-    decodings, columnar = batch.decoded, batch.columnar  # those in columns: spelt from the columns
-    texts = np.empty(len(decodings), object)
-    if columnar is None:
-        texts[:] = [decoding.summary for decoding in decodings]
-        return Summaries(texts)
-    decoded = np.ones(len(decodings), np.bool_)
-    decoded[columnar.positions] = False
-    rows = np.flatnonzero(decoded)
-    texts[rows] = [decodings[row].summary for row in rows.tolist()]
-    texts[columnar.positions] = columnar_parts(columnar, batch.messages).summaries()
+    """Every message's summary line of ``batch`` (every frame delivered: an export filters none)."""
+    assert batch.rows is None, "a dataset holds every frame delivered: nothing filters them"
+    texts = np.empty(len(batch.messages), object)
+    texts[:] = summary_lines(batch)
     return Summaries(texts)
