@@ -61,8 +61,8 @@ def both_ways(monkeypatch: pytest.MonkeyPatch, cli: Callable[..., Any]) -> Calla
         in_columns = []
         find = annotate.Annotator._columnar
 
-        def counted(self: annotate.Annotator, batch: Any, **options: Any) -> ColumnarFrames | None:
-            found = find(self, batch, **options)
+        def counted(self: annotate.Annotator, batch: Any, *args: Any) -> ColumnarFrames | None:
+            found = find(self, batch, *args)
             in_columns.append(0 if found is None else len(found))
             return found
 

@@ -55,7 +55,7 @@ from decoders.modbus.pdu import (
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.profiles.book import ProfileBook
 from decoders.profiles.column_names import named
-from decoders.profiles.columns import first_change, frame_profiles, plain_codes, unnameable
+from decoders.profiles.columns import FrameProfiles, first_change, frame_profiles, plain_codes, unnameable
 from decoders.uss import parse_uss
 
 _REQUEST_CODE = ROLE_CODE[Role.REQUEST]
@@ -98,14 +98,15 @@ class Annotator:
         learnt), so that each part is named in one step by the profiles as they stand at its
         start, then joined. The annotator's state after it is that of :meth:`annotate_batch`."""
         parts: list[tuple[int, AnnotatedBatch]] = []
-        start = 0
+        start, profiles = 0, self._profiles
         while True:
             rest = batch if start == 0 else slice_messages(batch, start, len(batch))
-            change = None if self._profiles is None or not len(rest) else \
-                first_change(self._profiles, rest, self._earlier_request)
+            framed = None if profiles is None or not len(rest) else frame_profiles(profiles, rest)
+            change = None if profiles is None or framed is None else \
+                first_change(profiles, rest, self._earlier_request, framed)
             stop = len(batch) if change is None else start + change + 1
             part = rest if stop == len(batch) else slice_messages(batch, start, stop)
-            parts.append((start, self._annotate_part(part)))
+            parts.append((start, self._annotate_part(part, None if framed is None else framed.head(len(part)))))
             if stop == len(batch):
                 break
             start = stop
@@ -115,9 +116,10 @@ class Annotator:
         columnar = joined([(start, int(offsets[start] - offsets[0]), part.columnar) for start, part in parts])
         return AnnotatedBatch(batch, [decoding for _, part in parts for decoding in part.decoded], None, columnar)
 
-    def _annotate_part(self, batch: MessageBatch) -> AnnotatedBatch:
-        """A part of :meth:`annotate_columnar`: its frames in columns, and the rest one by one."""
-        columnar = self._columnar(batch)
+    def _annotate_part(self, batch: MessageBatch, framed: FrameProfiles | None) -> AnnotatedBatch:
+        """A part of :meth:`annotate_columnar` (``framed``: its frames' profiles, ``None`` without
+        profiles): its frames in columns, and the rest one by one."""
+        columnar = self._columnar(batch, framed)
         if columnar is None:
             return self.annotate_batch(batch)
         first, requests = batch.frames.first_index, self._requests
@@ -133,16 +135,15 @@ class Annotator:
                                    batch.frames.protocols()[rows].tolist(), batch.request_index[rows].tolist())
         return AnnotatedBatch(batch, decodings, None, columnar)
 
-    def _columnar(self, batch: MessageBatch) -> ColumnarFrames | None:
+    def _columnar(self, batch: MessageBatch, framed: FrameProfiles | None) -> ColumnarFrames | None:
         """The frames of ``batch`` to keep in columns: Modbus frames whose profile adds nothing or
         names plainly (:mod:`decoders.profiles.columns`), but not those it would do more to than
         name their params."""
         if not len(batch):
             return None
         profiles = self._profiles
-        if profiles is None:
+        if profiles is None or framed is None:
             return find_columnar(batch, self.plain_frames(batch), self._earlier_read)
-        framed = frame_profiles(profiles, batch)
         nameable = framed.adds_nothing | np.array([plain_codes(profile) for profile in framed.profiles], np.bool_)
         eligible = (batch.frames.protocols() != USS) & nameable[framed.place]
         columnar = find_columnar(batch, eligible, self._earlier_read)

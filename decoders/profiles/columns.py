@@ -81,6 +81,10 @@ class FrameProfiles:
     def of(self, position: int) -> Profile:
         return self.profiles[int(self.place[position])]
 
+    def head(self, stop: int) -> FrameProfiles:
+        """The profiles of the frames before position ``stop`` (a part cut from the batch)."""
+        return FrameProfiles(self.profiles, self.adds_nothing, self.place[:stop])
+
 
 def frame_profiles(applier: ProfileApplier, batch: MessageBatch) -> FrameProfiles:
     """The :class:`FrameProfiles` of ``batch``, with the profiles ``applier`` holds now."""
@@ -90,16 +94,20 @@ def frame_profiles(applier: ProfileApplier, batch: MessageBatch) -> FrameProfile
     codes = batch.slave.astype(np.int64) - NONE
     table = np.zeros(int(codes.max(initial=0)) + 1, np.int64)
     profiles: list[Profile] = []
+    places: dict[int, int] = {}  # by each distinct profile's identity, its place in ``profiles``
     for code in np.flatnonzero(np.bincount(codes)).tolist():
         profile = book.profile_for(None if code + NONE == NONE else code + NONE)
-        if not any(profile is known for known in profiles):
+        if id(profile) not in places:
+            places[id(profile)] = len(profiles)
             profiles.append(profile)
-        table[code] = next(place for place, known in enumerate(profiles) if known is profile)
+        table[code] = places[id(profile)]
     return FrameProfiles(profiles, np.array([knows_nothing(profile) for profile in profiles], np.bool_), table[codes])
 
 
-def first_change(applier: ProfileApplier, batch: MessageBatch, earlier: EarlierRequest) -> int | None:
-    """The position of the first frame of ``batch`` after which its profiles name otherwise: an
+def first_change(applier: ProfileApplier, batch: MessageBatch, earlier: EarlierRequest,
+                 framed: FrameProfiles) -> int | None:
+    """The position of the first frame of ``batch`` (``framed``: its profiles now) after which its
+    profiles name otherwise: an
     identification (a valid FC 43 answer) that gives its slave another profile
     (:meth:`~decoders.profiles.book.ProfileBook.profile_after`), or a frame that teaches its
     slave's scanner tables (:func:`_teaching`); ``None`` where none does."""
@@ -107,7 +115,7 @@ def first_change(applier: ProfileApplier, batch: MessageBatch, earlier: EarlierR
     identified = [position for slave, found in _identifications(batch).items() for position, product in found
                   if book.profile_after(slave, product) is not book.profile_for(slave)]
     first = min(identified, default=None)
-    taught = _teaching(applier, batch, earlier, frame_profiles(applier, batch), len(batch) if first is None else first)
+    taught = _teaching(applier, batch, earlier, framed, len(batch) if first is None else first)
     return taught if taught is not None else first
 
 
