@@ -557,11 +557,14 @@ def _late(evidence: Evidence) -> list[Finding]:
 def _two_masters(evidence: Evidence) -> list[Finding]:
     """Answers after another request, whose requests were followed after waits that differ."""
     waits = sorted(wait for pairs in evidence.late.values() for _, wait in pairs)
-    if len(waits) < TWO_MASTERS_OVERLAPS or waits[0] >= TWO_MASTERS_SPREAD * float(np.median(waits)):
+    if len(waits) < TWO_MASTERS_OVERLAPS:
+        return []
+    middle = float(np.median(waits))
+    if waits[0] >= TWO_MASTERS_SPREAD * middle:
         return []
     count = sum(seen.count for seen in evidence.late_frames.values())
     slaves = sorted(evidence.late)
-    shortest, median, longest = waits[0] / 1e6, float(np.median(waits)) / 1e6, waits[-1] / 1e6
+    shortest, median, longest = waits[0] / 1e6, middle / 1e6, waits[-1] / 1e6
     return [Finding(
         "two_masters", "warning",
         f"Two masters seem to share the bus: {count} answers of {_who([f'slave {s}' for s in slaves])} came after "

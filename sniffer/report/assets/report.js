@@ -279,15 +279,19 @@
     const svg = el("svg", {class: "plot", height: HEIGHT, role: "img", "aria-label": caption.textContent});
     parent.appendChild(figure);
     const legendChart = {series: series, hidden: series.map(() => false)};
+    const lg = ms => Math.log10(Math.max(ms, 1e-3));
+    // The logarithmic axis of the series shown: its ends (log10 of ms) and the chart's width.
+    const axis = () => {
+      const shown = series.filter((s, k) => !legendChart.hidden[k]);
+      const lo = lg(Math.min(...shown.map(s => s.from[0]), 1e9));
+      const hi = Math.max(lg(Math.max(...shown.map(s => s.to[s.to.length - 1]), 1e-3)), lo + 0.1);
+      return {shown: shown, lo: lo, hi: hi, width: figure.clientWidth || 800};
+    };
     const draw = () => {
-      const width = figure.clientWidth || 800;
+      const {shown, lo, hi, width} = axis();
       svg.setAttribute("viewBox", "0 0 " + width + " " + HEIGHT);
       svg.setAttribute("width", width);
       while (svg.firstChild) svg.removeChild(svg.firstChild);
-      const shown = series.filter((s, k) => !legendChart.hidden[k]);
-      const lg = ms => Math.log10(Math.max(ms, 1e-3));
-      const lo = lg(Math.min(...shown.map(s => s.from[0]), 1e9));
-      const hi = Math.max(lg(Math.max(...shown.map(s => s.to[s.to.length - 1]), 1e-3)), lo + 0.1);
       const top = Math.max(...shown.map(s => Math.max(...s.count)), 1);
       const x = ms => LEFT + (lg(ms) - lo) / (hi - lo) * (width - LEFT - RIGHT);
       const y = v => HEIGHT - BOTTOM - v / top * (HEIGHT - BOTTOM - TOP);
@@ -315,11 +319,7 @@
     const bins = series[0].from.map((from, i) => ({from: from, to: series[0].to[i], counts: series.map(s => s.count[i])}));
     const binText = bin => numberText(bin.from) + "–" + numberText(bin.to) + " ms";
     svg.addEventListener("mousemove", event => {
-      const width = figure.clientWidth || 800, px = event.clientX - svg.getBoundingClientRect().left;
-      const shown = series.filter((s, k) => !legendChart.hidden[k]);
-      const lg = ms => Math.log10(Math.max(ms, 1e-3));
-      const lo = lg(Math.min(...shown.map(s => s.from[0]), 1e9));
-      const hi = Math.max(lg(Math.max(...shown.map(s => s.to[s.to.length - 1]), 1e-3)), lo + 0.1);
+      const {lo, hi, width} = axis(), px = event.clientX - svg.getBoundingClientRect().left;
       const ms = Math.pow(10, lo + (px - LEFT) / (width - LEFT - RIGHT) * (hi - lo));
       const bin = bins.find(b => b.from <= ms && ms < b.to);
       readoutBox.textContent = bin ? binText(bin) + ", answers: " + series.map((s, k) => legendChart.hidden[k] ? null
