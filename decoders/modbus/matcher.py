@@ -20,7 +20,10 @@ requests still open, pairs every response and exception with its request, and fl
 * A request is ``retry`` when it repeats, byte for byte, the previous request to
   that slave that got no valid answer.
 * Address 0 is a broadcast: nobody answers it, and a frame that looks like an
-  answer to it is ``unexpected``.
+  answer to it is ``unexpected``. An FC 5/6 broadcast and its echo are the same bytes:
+  the repeat is the echo only within the least response timeout (the fixed one, else
+  100 ms) of the broadcast's end; later it is the master broadcasting again, as masters
+  repeat a write to all drives after their turnaround delay.
 * An answer before the capture's first request is not ``unexpected``: the recording
   began between a request and its answer (every rotated file of a long recording
   read alone, ``--each``, begins so about half the time).
@@ -130,7 +133,8 @@ class Matcher:
     _held: _Held = field(default_factory=_Held)
     _open: _OpenRequests = field(default_factory=_OpenRequests)
     _failed: dict[int, bytes] = field(default_factory=dict)
-    _last_broadcast: tuple[int, int] | None = None
+    #: The last broadcast's function, request key and end.
+    _last_broadcast: tuple[int, int, int] | None = None
     _latencies: deque[int] = field(default_factory=lambda: deque(maxlen=LATENCY_WINDOW))
     _learned: int = 0
     _adaptive_timeout_ns: int = MAX_TIMEOUT_NS
@@ -251,7 +255,7 @@ class Matcher:
                 deadline, timeout = self._deadline(), self.timeout_ns
                 continue
             if slave == BROADCAST_ADDRESS:
-                self._broadcast(position, raw, shape, request_keys[j], response_keys[j])
+                self._broadcast(position, raw, shape, (request_keys[j], response_keys[j]), (t_start, t_ends[j]))
                 continue
             pending = open_position[slave]
             if (
@@ -334,12 +338,14 @@ class Matcher:
         elif self._asked:
             columns["flags"][position] = UNEXPECTED
 
-    def _broadcast(self, position: int, raw: int, shape: int, request_key: int, response_key: int) -> None:
+    def _broadcast(self, position: int, raw: int, shape: int, keys: tuple[int, int], times: tuple[int, int]) -> None:
+        """A frame to address 0 (``keys``: its request and response keys; ``times``: its start and end)."""
         columns = self._held.columns
         last = self._last_broadcast
-        replies = bool(shape & FITS_RESPONSE) and last is not None and last == (raw, response_key)
+        replies = bool(shape & FITS_RESPONSE) and last is not None and last[:2] == (raw, keys[1]) \
+            and times[0] - last[2] <= self._least_timeout_ns
         if shape & FITS_REQUEST and not replies:
-            self._last_broadcast = (raw, request_key)
+            self._last_broadcast = (raw, keys[0], times[1])
             columns["role"][position] = BROADCAST
             self._asked = True
         elif shape & FITS_RESPONSE:

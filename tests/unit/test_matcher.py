@@ -116,6 +116,15 @@ def test_broadcast_gets_no_answer_and_a_reply_is_unexpected() -> None:
                              ("request", None, []), ("response", 2, [])]
 
 
+def test_a_broadcast_repeated_after_the_timeout_is_a_broadcast_again() -> None:
+    broadcast = adu("00 06 2329 000D")
+    result = run((0, broadcast), (5, broadcast), (150, broadcast), (300, broadcast), (302, broadcast))
+    assert roles(result) == [("broadcast", None, []), ("response", None, ["unexpected"]),
+                             ("broadcast", None, []), ("broadcast", None, []), ("response", None, ["unexpected"])]
+    fixed = run((0, broadcast), (150, broadcast), timeout_ms=200)
+    assert roles(fixed) == [("broadcast", None, []), ("response", None, ["unexpected"])]
+
+
 def test_crc_error_answer_makes_the_repeat_a_retry() -> None:
     damaged = bytearray(ANSWER_2)
     damaged[5] ^= 1
