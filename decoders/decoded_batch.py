@@ -5,20 +5,23 @@ The one form the annotator hands to every output (``Sink.messages``); built low 
 
 Which frames of a batch are decoded in columns (:mod:`decoders.modbus.columnar`) and which one
 by one depends on the frames alone (their function, shape and profile), never on the outputs:
-every output gets the same batch. Writers of columns spell the frames in columns from
-``columnar``; every other reader takes each frame's :class:`~decoders.message.Decoding`, which
-for a frame in columns is built when first asked for (:func:`columnar_decodings`).
+every output gets the same batch, and reads it one way: :meth:`AnnotatedBatch.columns` gives what
+the kept messages say as :class:`DecodedColumns` (a summary per frame, a long table of params,
+each frame's protocol and remarks), whichever way they were decoded, frames alike given once;
+:meth:`AnnotatedBatch.summaries` their summary lines. Readers that want objects for a few frames
+take each frame's :class:`~decoders.message.Decoding`, which for a frame in columns is built
+when first asked for (:func:`columnar_decodings`).
 
-This module is the outputs' one way into the decoded form: what a writer of columns reads of
-them (:class:`ColumnarFrames`, its params and names, its summary lines, which frames read
-alike) is named here, and ``sniffer/`` imports nothing else of :mod:`decoders.modbus` but
-the codec registry (:mod:`decoders.modbus.codecs`; an import-linter contract holds it).
+This module is the outputs' one way into the decoded form: ``sniffer/`` imports nothing else of
+:mod:`decoders.modbus` but the codec registry (:mod:`decoders.modbus.codecs`; an import-linter
+contract holds it).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -31,9 +34,10 @@ from decoders.modbus.columnar_text import READ_ANSWER, summaries
 from decoders.modbus.param_runs import named_registers
 from decoders.modbus.pdu import ReadRequest
 
-#: What writers of columns read (see the module's docstring).
-__all__ = ["AnnotatedBatch", "ColumnarFrames", "ColumnarNames", "ColumnarParams", "alike", "columnar_decodings",
-           "mostly_distinct", "summaries"]
+#: What the outputs read (see the module's docstring).
+__all__ = ["AnnotatedBatch", "ColumnarNames", "ColumnarParams", "DecodedColumns", "columnar_decodings",
+           "mostly_distinct"]
+Text = TypeVar("Text", str, bytes)
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,6 +58,8 @@ class AnnotatedBatch:
     #: :attr:`decodings` once built: a one-entry cache in a frozen batch, so that the sinks that
     #: read objects (values, the report, Rerun) build them once between them.
     _built: list[list[Decoding]] = field(default_factory=list, compare=False, repr=False)
+    #: :meth:`columns` once made: every writer of the batch reads the same.
+    _columns: list[list[DecodedColumns]] = field(default_factory=list, compare=False, repr=False)
 
     def __len__(self) -> int:
         return len(self.decoded) if self.rows is None else len(self.rows)
@@ -77,6 +83,32 @@ class AnnotatedBatch:
                 decodings[position] = decoding
             self._built.append(decodings)
         return self._built[0]
+
+    def columns(self) -> list[DecodedColumns]:
+        """What the kept messages say, in columns: those decoded one by one, then (where any)
+        those in columns; each part's :attr:`~DecodedColumns.positions` say whose rows it has."""
+        if not self._columns:
+            parts: list[DecodedColumns] = [OneByOne(self)]
+            if self.columnar is not None and len(self.columnar):
+                parts.append(InColumns(self.columnar, self.messages))
+            self._columns.append(parts)
+        return self._columns[0]
+
+    def summaries(self) -> list[str]:
+        """Every kept message's summary line, in order."""
+        return self.each_message(DecodedColumns.summaries)
+
+    def each_message(self, read: Callable[[DecodedColumns], Sequence[Text]]) -> list[Text]:
+        """What ``read`` gives for each part of :meth:`columns`, one per kept message, in order."""
+        parts = self.columns()
+        if len(parts) == 1:  # its positions are the kept ones, in order
+            found = read(parts[0])
+            return found if isinstance(found, list) else list(found)
+        placed: list[Any] = [None] * len(self.messages)
+        for part in parts:
+            for position, each in zip(part.positions.tolist(), read(part), strict=True):
+                placed[position] = each
+        return placed if self.rows is None else list(map(placed.__getitem__, self.rows.tolist()))
 
     def decoding_at(self, position: int) -> Decoding:
         """The decoding at ``position``; of a frame in columns, the batch's decodings are built
@@ -131,6 +163,118 @@ class AnnotatedBatch:
         return AnnotatedBatch(slice_messages(self.messages, 0, stop), self.decoded[:stop], rows, columnar)
 
 
+class DecodedColumns:
+    """What some kept messages of a batch say, in columns: the one decoded form every writer
+    reads (:meth:`AnnotatedBatch.columns`). Frames alike are given once: the rows here are those
+    of the frames at :attr:`spelt_positions`, and :meth:`each` gives every frame its row's.
+    Each column is made when first read."""
+
+    def __init__(self, positions: npt.NDArray[np.int64], spelt_positions: npt.NDArray[np.int64],
+                 inverse: npt.NDArray[np.int64] | None) -> None:
+        #: The frames' positions in the batch, in order.
+        self.positions = positions
+        #: The positions of the frames given: one per group of frames alike.
+        self.spelt_positions = spelt_positions
+        #: For each frame, its row among those given (``None``: each its own).
+        self.inverse = inverse
+        self._summaries: list[str] | None = None
+        self._params: ColumnarParams | None = None
+
+    def summaries(self) -> list[str]:
+        """Each frame's summary line."""
+        return self.each(self.spelt_summaries())
+
+    def spelt_summaries(self) -> list[str]:
+        """The summary line of each frame given."""
+        if self._summaries is None:
+            self._summaries = self._made_summaries()
+        return self._summaries
+
+    def params(self) -> ColumnarParams:
+        """The params of the frames given, frame after frame; a ``name`` is an entry of :meth:`named`."""
+        if self._params is None:
+            self._params = self._made_params()
+        return self._params
+
+    def named(self) -> list[ParamValue] | None:
+        """The params the ``name`` column of :meth:`params` refers to (``None``: none)."""
+        raise NotImplementedError
+
+    def protocols_and_remarks(self) -> list[tuple[int, tuple[str, ...]]] | None:
+        """Each frame given's protocol and remarks (``None``: Modbus without remarks, every one)."""
+        return None
+
+    def each(self, given: list[Text]) -> list[Text]:
+        """A value per frame from one per frame given: frames alike share theirs."""
+        if self.inverse is None:
+            return given
+        # Taken in C, not by a ``map`` of ``__getitem__``.
+        each: list[Text] = np.array(given, object)[self.inverse].tolist()
+        return each
+
+    def _made_summaries(self) -> list[str]:
+        raise NotImplementedError
+
+    def _made_params(self) -> ColumnarParams:
+        raise NotImplementedError
+
+
+class InColumns(DecodedColumns):
+    """The frames the annotator kept in columns (``columnar``; ``messages``: their batch), those
+    that read alike (:func:`~decoders.modbus.alike.alike`: a drive's unchanged status, a request
+    polled again) given once."""
+
+    def __init__(self, columnar: ColumnarFrames, messages: MessageBatch | None = None, data: bytes = b"") -> None:
+        self._data = data if messages is None else messages.frames.data
+        found = None if messages is None else (
+            columnar.groups or alike(columnar, self._data, messages.frames.offsets, messages.role))
+        self.given = columnar if found is None else columnar.take(found.firsts)
+        super().__init__(columnar.positions, self.given.positions, None if found is None else found.inverse)
+
+    def _made_summaries(self) -> list[str]:
+        return self.given.named_summaries(summaries(self.given, self._data))
+
+    def _made_params(self) -> ColumnarParams:
+        return self.given.params(self._data)
+
+    def named(self) -> list[ParamValue] | None:
+        names = self.given.names
+        return None if names is None else [param for param, _ in names.table]
+
+
+class OneByOne(DecodedColumns):
+    """The kept messages of ``batch`` decoded one by one, given once per :class:`Decoding` (the
+    annotator shares one between frames of the same bytes, role and protocol); every param is
+    named (an entry of :meth:`named`: the param itself)."""
+
+    def __init__(self, batch: AnnotatedBatch) -> None:
+        positions = batch.decoded_positions()
+        decodings = batch.decoded_at(positions)
+        ids = np.fromiter(map(id, decodings), np.uint64, len(decodings))
+        _, firsts, inverse = np.unique(ids, return_index=True, return_inverse=True)
+        kept = np.array(positions, np.int64)
+        super().__init__(kept, kept[firsts], inverse.reshape(-1).astype(np.int64))
+        self._decodings: list[Decoding] = [decodings[first] for first in firsts.tolist()]
+        self._protocols: list[int] = batch.messages.frames.protocols()[self.spelt_positions].tolist()
+
+    def _made_summaries(self) -> list[str]:
+        return [decoding.summary for decoding in self._decodings]
+
+    def _made_params(self) -> ColumnarParams:
+        named = self.named()
+        sizes = np.fromiter((len(decoding.params) for decoding in self._decodings), np.int64, len(self._decodings))
+        address = np.fromiter((param.address for param in named), np.int64, len(named))
+        # Every param is named (given by itself): its raw word is not read from the column.
+        return ColumnarParams(sizes, address, np.zeros(len(named), np.int64), np.arange(len(named), dtype=np.int64))
+
+    def named(self) -> list[ParamValue]:
+        return [param for decoding in self._decodings for param in decoding.params]
+
+    def protocols_and_remarks(self) -> list[tuple[int, tuple[str, ...]]]:
+        return [(protocol, decoding.remarks) for decoding, protocol in zip(self._decodings, self._protocols,
+                                                                            strict=True)]
+
+
 def _mask(rows: npt.NDArray[np.int64], size: int) -> npt.NDArray[np.bool_]:
     mask = np.zeros(size, np.bool_)
     mask[rows] = True
@@ -175,5 +319,3 @@ def columnar_decodings(columnar: ColumnarFrames, messages: MessageBatch) -> list
         return decodings
     return list(map(decodings.__getitem__, groups.inverse.tolist()))
 
-
-__all__ = ["AnnotatedBatch", "columnar_decodings"]

@@ -14,14 +14,14 @@ from fastcrc import crc16
 
 from decoders.crc import CRC_TABLE, MIN_CHECKED
 from decoders.frame import PROTOCOL_NAMES
-from decoders.message import Message, Role
+from decoders.message import ROLE_NAMES, Decoding, Message, Role
 from decoders.modbus.annotate import Annotator, answer_context
 from decoders.modbus.columnar import KEPT_REQUESTS
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.profiles.model import Profile
 from decoders.profiles.naming import AddressNamer
 from sniffer.encoding.frame_fields import NS_PER_S
-from sniffer.encoding.param_text import param_record
+from sniffer.encoding.param_text import PARAM_JSON, encode_json, param_record
 from sniffer.encoding.records import channel_name, uart_error_records
 
 
@@ -48,6 +48,26 @@ class AnewApplier(ProfileApplier):
 
     def _kept_namers(self, profile: Profile, reported: bool) -> dict[int | tuple[int | None, int], AddressNamer]:
         return {}
+
+
+def record_tail(decoding: Decoding, protocol: int) -> bytes:
+    """A frame record's part from ``params`` to the end of ``remarks``, spelt from its decoding
+    (the oracle of :meth:`sniffer.encoding.decoded_texts.FrameTexts.record_tails`)."""
+    params = b",".join(PARAM_JSON.entry(param)[1] for param in decoding.params)
+    remarks = encode_json(list(decoding.remarks)) if decoding.remarks else b"[]"
+    return b"".join((b'"params":[', params, b'],"summary":', encode_json(decoding.summary), b',"protocol":"',
+                     PROTOCOL_NAMES[protocol].encode(), b'","remarks":', remarks))
+
+
+def log_parts(decoding: Decoding, role: int) -> tuple[bytes, bytes]:
+    """A frame's MCAP log text after its index, and its ``/slave/N/params`` members (``b""``: no
+    values), spelt from its decoding (the oracle of ``FrameTexts.log_heads`` and ``numeric_members``)."""
+    values: dict[str, float | int] = {}
+    for param in decoding.params:
+        if param.raw is not None and param.available:
+            key = param.code if param.code is not None else str(param.address)
+            values[key] = param.value if isinstance(param.value, int | float) else param.raw
+    return f" {ROLE_NAMES[role]}: {decoding.summary}".encode(), encode_json(values)[1:] if values else b""
 
 
 def frame_record(message: Message, channels: tuple[str, ...] = ()) -> dict[str, Any]:

@@ -3,7 +3,7 @@
 For registers no profile names every param record is the same text but for the address and the
 value. Each address's start (``,{"address":…,"raw":``) and each value's end (``…,"unit":null}``)
 is formatted once, in two tables of 65 536 (built at first use, 5 MB each), from which
-the frames in columns are spelt (:mod:`sniffer.encoding.columnar_parts`). Raw values are 16-bit
+the frames in columns are spelt (:mod:`sniffer.encoding.decoded_texts`). Raw values are 16-bit
 words or coil bits, so a value is its own index. A named param's JSON is made once per param
 (:data:`PARAM_JSON`). Exactly the JSON of :func:`sniffer.encoding.records.param_record` (the
 tests compare both).

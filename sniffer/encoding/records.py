@@ -9,11 +9,10 @@ import numpy.typing as npt
 
 from decoders.capture import CaptureInfo, uart_error_name
 from decoders.decoded_batch import AnnotatedBatch
-from decoders.frame import PROTOCOL_NAMES, FrameBatch, FrameFlag
+from decoders.frame import FrameBatch, FrameFlag
 from decoders.line import LineSettings
-from decoders.memo import KEPT_DECODINGS, Memo
-from decoders.message import NONE, ROLE_NAMES, Decoding, DeviceIdentity, MessageBatch
-from sniffer.encoding.columnar_parts import ColumnarParts, in_columns_too
+from decoders.message import DeviceIdentity, MessageBatch
+from sniffer.encoding.decoded_texts import FrameTexts, each_message
 from sniffer.encoding.frame_fields import (
     NS_PER_S,
     BlockFields,
@@ -22,7 +21,7 @@ from sniffer.encoding.frame_fields import (
     frame_fields,
     identities_at,
 )
-from sniffer.encoding.param_text import PARAM_JSON, encode_json
+from sniffer.encoding.param_text import encode_json
 from sniffer.encoding.rows import (
     Column,
     Rows,
@@ -81,17 +80,16 @@ def uart_error_column(frames: FrameBatch, kept: npt.NDArray[np.int64]) -> list[C
     ]]
 
 
-_PROTOCOL_JSON = {code: f'"{name}"'.encode() for code, name in PROTOCOL_NAMES.items()}
 class FrameRecordEncoder:
     """Frame records as JSON, exactly ``encode_record(frame_record(m))`` (``tests/oracles.py``), a batch at a time.
 
     Every frame passes through here. What a decoding determines (params, summary, protocol,
-    remarks) is encoded once per :class:`Decoding` (the annotator shares one between
-    repeats), a profiled param's JSON once per param (:data:`~sniffer.encoding.param_text.PARAM_JSON`); the frame's own
-    fields (times, bytes, slave, role, flags, pairing) are columns of the batch
-    (:func:`frame_fields`), each formatted at once (numbers by one ``repr``, which is how
-    ``json.dumps`` writes them; hex by numpy), and the columns are joined into records by
-    :func:`~sniffer.encoding.rows.join_rows`.
+    remarks) is spelt once per decoding or group of frames alike
+    (:mod:`sniffer.encoding.decoded_texts`), a profiled param's JSON once per param
+    (:data:`~sniffer.encoding.param_text.PARAM_JSON`); the frame's own fields (times, bytes,
+    slave, role, flags, pairing) are columns of the batch (:func:`frame_fields`), each
+    formatted at once (numbers by one ``repr``, which is how ``json.dumps`` writes them; hex by
+    numpy), and the columns are joined into records by :func:`~sniffer.encoding.rows.join_rows`.
     """
 
     def __init__(self, *, exact: bool = True) -> None:
@@ -102,12 +100,6 @@ class FrameRecordEncoder:
         self._exact = exact
         #: The capture's line names (:attr:`CaptureInfo.channels`), for the ``channel`` field.
         self.channels: tuple[str, ...] = ()
-        # As many as the annotator keeps decodings: a repeat finds its parts.
-        self._parts: Memo[Decoding, tuple[bytes, bytes]] = Memo(KEPT_DECODINGS)
-        #: A decoding's part alone, for batches whose frames' identities are columns.
-        self._tails_alone: Memo[Decoding, bytes] = Memo(KEPT_DECODINGS)
-        #: Not exact: a decoding's part of the record in one piece, from ``hex`` to the end.
-        self._tails: Memo[Decoding, bytes] = Memo(KEPT_DECODINGS)
 
     def rows(self, batch: AnnotatedBatch, *, reserved: int = 0, end: bytes = b"",
              fields: FrameFields | None = None) -> Rows:
@@ -116,27 +108,18 @@ class FrameRecordEncoder:
         batch's :func:`frame_fields`, where they were made already (in the decoding process)."""
         if not self._exact:
             return self.block_rows(batch, reserved, end)
-        messages, frames = batch.messages, batch.messages.frames
+        messages = batch.messages
         positions = batch.positions()
         kept = np.array(positions, np.int64)
         own = fields if fields is not None else frame_fields(messages)
         if len(positions) != len(messages):
             own = own.take(kept)
-        rest = batch.decoded_positions()  # those decoded one by one (the rest: spelt from columns)
-        decodings = batch.decoded_at(rest)
-        if own.identities is not None:  # mostly distinct frames: their own columns say who they are
-            tails = self._tails_alone_of(batch, rest, decodings)
-            middle: list[Column] = [own.identities, b',"flags":', own.middles, tails]
-        else:
-            facts = _FrameFacts(messages)
-            found = self._parts.get_all(decodings, lambda row: self._frame_parts(facts, rest[row], decodings[row]))
-            identities = in_columns_too(batch, lambda parts: parts.each(identities_at(messages, parts.spelt.positions)),
-                                        [parts[0] for parts in found])
-            tails = in_columns_too(batch, lambda parts: parts.record_tails(), [parts[1] for parts in found])
-            middle = [identities, b',"flags":', own.middles, tails]
+        # Mostly distinct frames: their own columns say who they are.
+        identities = own.identities if own.identities is not None else each_message(
+            batch, lambda parts: parts.each(identities_at(messages, parts.spelt_positions)))
         columns: list[Column] = [
-            own.heads, *middle, *channel_column(frames, kept, self.channels), *uart_error_column(frames, kept),
-            b"}" + end,
+            own.heads, identities, b',"flags":', own.middles, each_message(batch, FrameTexts.record_tails),
+            *self._optional(batch, kept), b"}" + end,
         ]  # fmt: skip
         return join_rows(columns, len(positions), reserved)
 
@@ -146,97 +129,35 @@ class FrameRecordEncoder:
         first, laid out as one :class:`~sniffer.encoding.blocks.Block`, then the decoding's part
         in one piece. ``fields``: the batch's :func:`block_fields`, where they were made already
         (in the decoding process)."""
-        messages, frames = batch.messages, batch.messages.frames
+        messages = batch.messages
         positions = batch.positions()
         kept = np.array(positions, np.int64)
-        rest = batch.decoded_positions()  # those decoded one by one (the rest: spelt from columns)
-        decodings = batch.decoded_at(rest)
         if fields is not None and len(positions) != len(messages):
             fields = fields.take(kept)
         heads: Column = block_heads(messages, kept) if fields is None else fields.heads
         if fields is not None and fields.identities is not None:  # mostly distinct frames
-            middle: list[Column] = [fields.identities, b",", self._tails_alone_of(batch, rest, decodings)]
+            middle: list[Column] = [fields.identities, b",", each_message(batch, FrameTexts.record_tails)]
         else:
-            facts = _FrameFacts(batch.messages)
-            middle = [in_columns_too(batch, lambda parts: _joined_parts(messages, parts), self._tails.get_all(
-                decodings, lambda row: b",".join(self._frame_parts(facts, rest[row], decodings[row]))))]
-        optional = [*channel_column(frames, kept, self.channels), *uart_error_column(frames, kept)]
-        return join_rows([heads, *middle, *optional, b"}" + end], len(positions), reserved)
+            middle = [each_message(batch, lambda parts: _joined_parts(messages, parts))]
+        return join_rows([heads, *middle, *self._optional(batch, kept), b"}" + end], len(positions), reserved)
 
-    def _tails_alone_of(self, batch: AnnotatedBatch, rest: list[int], decodings: list[Decoding]) -> list[bytes]:
-        """Each written message's :meth:`_decoding_part` (``rest``: the positions of
-        ``decodings``; frames left in columns: spelt from them)."""
-        protocols = _Protocols(batch.messages.frames)
-        return in_columns_too(batch, lambda parts: parts.record_tails(), self._tails_alone.get_all(
-            decodings, lambda row: self._decoding_part(decodings[row], protocols(rest[row]))))
+    def _optional(self, batch: AnnotatedBatch, kept: npt.NDArray[np.int64]) -> list[Column]:
+        """The ``channel`` and ``uart_errors`` members, where the capture has them."""
+        frames = batch.messages.frames
+        return [*channel_column(frames, kept, self.channels), *uart_error_column(frames, kept)]
 
     def encode_batch(self, batch: AnnotatedBatch) -> list[str]:
         """The records as text, one per kept message."""
         rows = self.rows(batch)
         return [rows.row(index).decode() for index in range(len(rows))]
 
-    def _frame_parts(self, facts: _FrameFacts, position: int, decoding: Decoding) -> tuple[bytes, bytes]:
-        """A record's parts that a frame's bytes, role and decoding determine (the annotator
-        shares a decoding only between frames with the same bytes, role and protocol): from
-        ``hex`` to ``exception_code``, and :meth:`_decoding_part`."""
-        data, crc_ok, slave, function, role, code, protocol = facts(position)
-        return (
-            f'"hex":"{data.hex()}","crc_ok":{"true" if crc_ok else "false"},'
-            f'"slave":{"null" if slave == NONE else slave},"function":{"null" if function == NONE else function},'
-            f'"role":"{ROLE_NAMES[role]}","exception_code":{"null" if code == NONE else code}'.encode(),
-            self._decoding_part(decoding, protocol),
-        )
 
-    def _decoding_part(self, decoding: Decoding, protocol: int) -> bytes:
-        """A record's part from ``params`` to the end of ``remarks``."""
-        texts, entry = PARAM_JSON.kept, PARAM_JSON.entry
-        params = b",".join([(texts.get(id(p)) or entry(p))[1] for p in decoding.params])
-        tail = [b'"params":[', params, b'],"summary":', encode_json(decoding.summary)]
-        remarks = encode_json(list(decoding.remarks)) if decoding.remarks else b"[]"
-        tail += (b',"protocol":', _PROTOCOL_JSON[protocol], b',"remarks":', remarks)
-        return b"".join(tail)
-
-
-def _joined_parts(messages: MessageBatch, parts: ColumnarParts) -> list[bytes]:
-    """The records of frames in columns from ``hex`` to the end of ``remarks``: spelt once per
+def _joined_parts(messages: MessageBatch, parts: FrameTexts) -> list[bytes]:
+    """The records of ``parts``' frames from ``hex`` to the end of ``remarks``: spelt once per
     group of frames alike (the same bytes and role, so the same identity too)."""
-    identities = identities_at(messages, parts.spelt.positions)
+    identities = identities_at(messages, parts.spelt_positions)
     return parts.each([b",".join((identity, tail))
                        for identity, tail in zip(identities, parts.spelt_record_tails(), strict=True)])
-
-
-class _Protocols:
-    """The protocol of a frame by position, the column read into a list when first asked."""
-
-    def __init__(self, frames: FrameBatch) -> None:
-        self._frames = frames
-        self._list: list[int] | None = None
-
-    def __call__(self, position: int) -> int:
-        if self._list is None:
-            self._list = self._frames.protocols().tolist()
-        return self._list[position]
-
-
-class _FrameFacts:
-    """What a frame record takes from a batch's columns besides its times, by position: the
-    columns are read into lists at the first frame whose decoding is new (none, for a batch
-    of repeats)."""
-
-    def __init__(self, batch: MessageBatch) -> None:
-        self._batch = batch
-        self._lists: tuple[list[Any], ...] | None = None
-
-    def __call__(self, position: int) -> tuple[bytes, bool, int, int, int, int, int]:
-        if self._lists is None:
-            batch, frames = self._batch, self._batch.frames
-            self._lists = tuple(column.tolist() for column in (
-                frames.offsets, frames.crc_ok, batch.slave, batch.function, batch.role, batch.exception_code,
-                frames.protocols()))
-        offsets, crc_ok, slave, function, role, code, protocol = self._lists
-        data = self._batch.frames.data[offsets[position] : offsets[position + 1]]
-        return data, crc_ok[position], slave[position], function[position], role[position], code[position], \
-            protocol[position]
 
 
 def device_record(index: int, device: DeviceIdentity) -> dict[str, Any]:

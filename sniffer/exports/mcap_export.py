@@ -37,18 +37,16 @@ from decoders.capture import CaptureInfo, ChunkBatch
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
 from decoders.line import LineSettings
-from decoders.memo import KEPT_DECODINGS, Memo
-from decoders.message import NONE, ROLE_NAMES, Decoding, MessageBatch
-from sniffer.encoding.columnar_parts import in_columns_too
+from decoders.message import NONE, MessageBatch
+from sniffer.encoding.decoded_texts import FrameTexts, each_message
 from sniffer.encoding.frame_fields import BlockFields, block_fields
-from sniffer.encoding.param_text import encode_json
 from sniffer.encoding.records import FrameRecordEncoder
 from sniffer.encoding.rows import Column, Integers, Rows, Table, join_rows, number_texts
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports import foxglove_log
 from sniffer.exports.levels import FLAG_SUFFIXES, log_levels
 from sniffer.exports.mcap_writer import HEADER_SIZE, ColumnarMcapWriter, MessageBlock
-from sniffer.exports.published import PublishedValues, plotted
+from sniffer.exports.published import PublishedValues
 from sniffer.exports.transactions import OUTCOMES, TransactionEncoder
 from sniffer.io.mcap_blocks import (
     LAYOUT_DOC,
@@ -119,16 +117,6 @@ PARAMS_SCHEMA: dict[str, Any] = {
 }
 
 
-def numeric_params(decoding: Decoding) -> dict[str, float | int]:
-    """The values a frame carried, by code (or address), numbers only: state words give their raw value."""
-    values: dict[str, float | int] = {}
-    for param in plotted(decoding.params):
-        assert param.raw is not None  # plotted() takes only params with a raw value
-        key = param.code if param.code is not None else str(param.address)
-        values[key] = param.value if isinstance(param.value, int | float) else param.raw
-    return values
-
-
 class MessageWriter(Protocol):
     """Where the decoded channels go: an MCAP file (:class:`ColumnarMcapWriter`) or a live
     Foxglove server (:class:`sniffer.exports.foxglove_server.FoxgloveServerWriter`)."""
@@ -167,16 +155,13 @@ class DecodedChannels:
         self._frame_records = FrameRecordEncoder(exact=False)
         self._frame_records.channels = info.channels
         self._log_encoder = foxglove_log.LogEncoder(_LOG_NAMES)
-        #: Per decoding: the log text after the frame index, and the numeric params as JSON members.
-        self._parts: Memo[Decoding, tuple[bytes, bytes]] = Memo(KEPT_DECODINGS)
 
     def _json_channel(self, topic: str, schema: dict[str, Any]) -> int:
         schema_id = self._writer.add_schema(schema["title"], "jsonschema", json.dumps(schema).encode())
         return self._writer.add_channel(topic, "json", schema_id, {})
 
     def messages(self, batch: AnnotatedBatch, fields: BlockFields | None = None) -> None:
-        """A batch's frames, log lines and params; frames left in columns
-        (``batch.columnar``) are spelt from their columns (:mod:`sniffer.encoding.columnar_parts`).
+        """A batch's frames, log lines and params (their decoded texts: :mod:`sniffer.encoding.decoded_texts`).
         ``fields``: what of the frame records no decoding says, made where frames were paired
         (:func:`~sniffer.encoding.frame_fields.block_fields`)."""
         positions = batch.positions()
@@ -237,16 +222,12 @@ class DecodedChannels:
         columns: list[Column] = [b'{"index":', [indexes[row] for row in picked], b",", [values[row] for row in picked]]
         self._write(join_rows(columns, len(picked), HEADER_SIZE), self._param_channels[slaves[rows]], t_ns[rows])
 
-    def _decoding_parts(self, batch: AnnotatedBatch, roles: Integers) -> tuple[list[bytes], list[bytes]]:
-        """Per message written (``positions``): the log text after the frame index, and its numeric
-        params as JSON members (``b""``: it carried no values). Looked up in C for repeats;
-        spelt from the columns for frames left in columns."""
-        rest = batch.decoded_positions()  # those decoded one by one (the rest: spelt from columns)
-        decodings = batch.decoded_at(rest)
-        found = self._parts.get_all(decodings, lambda row: _decoding_parts(decodings[row], int(roles[rest[row]])))
-        heads = in_columns_too(batch, lambda parts: parts.log_heads(roles),
-                               [parts[0] for parts in found])
-        return heads, in_columns_too(batch, lambda parts: parts.numeric_members(), [parts[1] for parts in found])
+    @staticmethod
+    def _decoding_parts(batch: AnnotatedBatch, roles: Integers) -> tuple[list[bytes], list[bytes]]:
+        """Per message written: the log text after the frame index, and its numeric params as
+        JSON members (``b""``: it carried no values)."""
+        return (each_message(batch, lambda parts: parts.log_heads(roles)),
+                each_message(batch, FrameTexts.numeric_members))
 
     def log_line(self, t_ns: int, level: int, text: str) -> None:
         """One line of rtusniff's own on ``/modbus/log`` (a gap in a live capture's decoding)."""
@@ -341,11 +322,6 @@ def preparer() -> Callable[[MessageBatch], Prepared]:
         return Prepared(*encoder.rows(batch, np.arange(len(batch))), block_fields(batch))
 
     return prepare
-
-
-def _decoding_parts(decoding: Decoding, role: int) -> tuple[bytes, bytes]:
-    values = numeric_params(decoding)
-    return f" {ROLE_NAMES[role]}: {decoding.summary}".encode(), encode_json(values)[1:] if values else b""
 
 
 #: The log's ``name`` by slave, then rtusniff's own lines; NONE (-1, noise) is the last.

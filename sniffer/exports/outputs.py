@@ -213,10 +213,8 @@ class PcapSink(FileSink[PcapExporter]):
         self._write(batch, None)
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        from sniffer.encoding.columnar_parts import summary_lines  # noqa: PLC0415 - only for pcapng
-
         assert batch.rows is None, "a pcap holds every frame delivered: nothing filters them"
-        self._write(batch.messages, summary_lines(batch))
+        self._write(batch.messages, batch.summaries())
 
     def _write(self, batch: MessageBatch, lines: list[str] | None) -> None:
         self.frames_written += len(batch)

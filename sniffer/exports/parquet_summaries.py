@@ -1,8 +1,7 @@
 """The summary column of the Parquet ``frames`` and ``anomalies`` tables.
 
-Every message's summary line by position: a decoded message's own, a frame left in columns
-(``AnnotatedBatch.columnar``) the one its columns spell, once per group of frames alike
-(:func:`sniffer.encoding.columnar_parts.summary_lines`, which pcapng comments read too).
+Every message's summary line by position (:meth:`decoders.decoded_batch.AnnotatedBatch.summaries`,
+which pcapng comments and the table read too).
 """
 
 from __future__ import annotations
@@ -12,7 +11,6 @@ import numpy.typing as npt
 import pyarrow as pa
 
 from decoders.decoded_batch import AnnotatedBatch
-from sniffer.encoding.columnar_parts import summary_lines
 
 
 class Summaries:
@@ -33,5 +31,5 @@ def summaries(batch: AnnotatedBatch) -> Summaries:
     """Every message's summary line of ``batch`` (every frame delivered: an export filters none)."""
     assert batch.rows is None, "a dataset holds every frame delivered: nothing filters them"
     texts = np.empty(len(batch.messages), object)
-    texts[:] = summary_lines(batch)
+    texts[:] = batch.summaries()
     return Summaries(texts)

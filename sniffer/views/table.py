@@ -25,7 +25,6 @@ from decoders.decoded_batch import AnnotatedBatch
 from decoders.line import LineSettings
 from decoders.message import MessageBatch, slice_messages
 from decoders.stats import Statistics
-from sniffer.encoding.columnar_parts import ColumnarParts, in_columns_too
 from sniffer.sinks import Sink
 from sniffer.views import fixed_width
 from sniffer.views.clock import Clock
@@ -217,9 +216,8 @@ class PlainTableView(_FrameTable):
         if batch is None:
             return
         rows = batch.positions()
-        if self._summary_of is decoding_summary:  # frames in columns: their summaries from the columns
-            decoded = list(map(self._summary_of, batch.decoded_at(batch.decoded_positions())))
-            summaries = in_columns_too(batch, ColumnarParts.summaries, decoded)
+        if self._summary_of is decoding_summary:
+            summaries = batch.summaries()
         else:
             summaries = list(map(self._summary_of, batch.decodings_at(rows)))
         marks, reached = value.marks, 0

@@ -1,7 +1,8 @@
-"""Hypothesis: what :mod:`sniffer.encoding.columnar_parts` spells from the columns of frames left
-in columns is, byte for byte, what the plain path writes from each frame's decoding: the JSONL
-record's part from ``params`` on, the MCAP log text and the ``/slave/N/params`` members; and a
-frame's identity (``hex`` to ``exception_code``) spelt for some frames is what it is for all."""
+"""Hypothesis: what :mod:`sniffer.encoding.decoded_texts` spells from the decoded form, of frames
+left in columns and of frames decoded one by one, is, byte for byte, what the oracles write from
+each frame's decoding: the JSONL record's part from ``params`` on, the MCAP log text and the
+``/slave/N/params`` members; and a frame's identity (``hex`` to ``exception_code``) spelt for some
+frames is what it is for all."""
 
 from __future__ import annotations
 
@@ -13,15 +14,14 @@ import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from decoders.frame import MODBUS
-from decoders.message import MessageBatch, slice_messages
+from decoders.decoded_batch import InColumns, OneByOne
+from decoders.message import Decoding, MessageBatch, slice_messages
 from decoders.modbus import alike as alike_module
 from decoders.modbus.annotate import Annotator
-from sniffer.encoding import columnar_parts
-from sniffer.encoding.columnar_parts import ColumnarParts
+from sniffer.encoding import decoded_texts
+from sniffer.encoding.decoded_texts import FrameTexts
 from sniffer.encoding.frame_fields import _identities, identities_at
-from sniffer.encoding.records import FrameRecordEncoder
-from sniffer.exports.mcap_export import _decoding_parts
+from tests.oracles import log_parts, record_tail
 from tests.property.test_annotation_cache import adu, matched
 from tests.property.test_columnar import annotator, exchanges
 
@@ -31,32 +31,41 @@ EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 
 def check_parts(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
     """One batch through both annotators; how many frames were spelt from columns. The parts
-    spelt frame by frame, and with alike frames spelt once (however few are alike)."""
-    expected = plain.annotate_batch(batch).decodings
+    spelt frame by frame, and with alike frames spelt once (however few are alike); the parts of
+    every frame decoded one by one (:class:`DecodedParts`), spelt once per decoding."""
+    annotated = plain.annotate_batch(batch)
+    expected = annotated.decodings
+    check_texts(FrameTexts(OneByOne(annotated)), expected, batch)
     columnar = columns.annotate_columnar(batch).columnar
     if columnar is None:
         return 0
-    positions = columnar.positions.tolist()
-    encoder = FrameRecordEncoder()
-    logged = [_decoding_parts(expected[p], int(batch.role[p])) for p in positions]
     with patch.object(alike_module, "DISTINCT_SHARE", 2.0):
-        each_once = ColumnarParts(columnar, batch.frames.data, batch)
-    for parts in (ColumnarParts(columnar, batch.frames.data), each_once):
-        tails = parts.record_tails()
-        assert list(tails) == [encoder._decoding_part(expected[p], MODBUS) for p in positions]
-        assert tails.sizes.tolist() == list(map(len, tails))
-        assert parts.log_heads(batch.role) == [head for head, _ in logged]
-        members = parts.numeric_members()
-        assert list(members) == [values for _, values in logged]
-        assert members.sizes.tolist() == [len(values) for _, values in logged]
-        assert parts.summaries() == [expected[p].summary for p in positions]
+        each_once = InColumns(columnar, batch)
+    for decoded in (InColumns(columnar, data=batch.frames.data), each_once):
+        check_texts(FrameTexts(decoded), expected, batch)
+    positions = columnar.positions.tolist()
     assert list(identities_at(batch, columnar.positions)) == [_identities(batch)[p] for p in positions]
     return len(positions)
 
 
+def check_texts(parts: FrameTexts, expected: list[Decoding], batch: MessageBatch) -> None:
+    """Every text of ``parts`` is what the oracles spell from the frames' decodings."""
+    positions = parts.positions.tolist()
+    protocols = batch.frames.protocols()
+    logged = [log_parts(expected[p], int(batch.role[p])) for p in positions]
+    tails = parts.record_tails()
+    assert list(tails) == [record_tail(expected[p], int(protocols[p])) for p in positions]
+    assert tails.sizes.tolist() == list(map(len, tails))
+    assert parts.log_heads(batch.role) == [head for head, _ in logged]
+    members = parts.numeric_members()
+    assert list(members) == [values for _, values in logged]
+    assert members.sizes.tolist() == [len(values) for _, values in logged]
+    assert parts.decoded.summaries() == [expected[p].summary for p in positions]
+
+
 @settings(max_examples=max(150, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
-       st.sampled_from([columnar_parts.SLICE_PARAMS, 1, 7, 64]),
+       st.sampled_from([decoded_texts.SLICE_PARAMS, 1, 7, 64]),
        st.sampled_from([None, [], ["atv71"], ["2=atv312", "7=xbt"]]))
 @example([[adu(b"\x07", b"\x03", (65535).to_bytes(2, "big") + (3).to_bytes(2, "big")),
            adu(b"\x07", b"\x03\x06", bytes(range(6)))]], [], 2, None)
@@ -65,7 +74,7 @@ def test_parts_spelt_from_columns_are_what_decodings_write(traffic: list[list[by
     """Batches cut anywhere, so that an answer's request may be in the batch before; the params
     spelt in slices of any size; slaves a profile names (:mod:`decoders.profiles.columns`) or not."""
     columns, plain = annotator(profiles), annotator(profiles)
-    with patch.object(columnar_parts, "SLICE_PARAMS", slice_params):
+    with patch.object(decoded_texts, "SLICE_PARAMS", slice_params):
         for batch in matched([data for exchange in traffic for data in exchange]):
             bounds = [0, *sorted(cut for cut in set(cuts) if 0 < cut < len(batch)), len(batch)]
             for start, stop in pairwise(bounds):
@@ -88,7 +97,7 @@ def test_polling_and_coils_are_spelt_from_columns() -> None:
     batch = next(iter(matched(reads)))
     columnar = Annotator().annotate_columnar(batch).columnar
     assert columnar is not None
-    members = ColumnarParts(columnar, batch.frames.data).numeric_members()
+    members = FrameTexts(InColumns(columnar, data=batch.frames.data)).numeric_members()
     assert bytes(members[1]) == b'"100":1,"101":65535,"102":4660}' and bytes(members[0]) == b""
     assert np.array_equal(members.sizes, [len(member) for member in members])
 

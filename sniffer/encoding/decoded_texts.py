@@ -1,141 +1,111 @@
-"""What a decoding gives a frame's records, spelt for all the frames of a batch kept in columns.
+"""The texts of what a batch's frames say, spelt from the one decoded form, all frames at once.
 
-A frame the annotator left in columns (``AnnotatedBatch.columnar``: a read, write or answer,
-most frames of a bus polled for values that change) has no decoding object. Its params are
-spelt from tables by address and raw word, or, where a profile names them
-(``ColumnarFrames.names``), from each named value's own JSON and member, made once per value. Its JSONL
-record's part from ``params`` to ``remarks``, its MCAP log text after the frame index and its
-``/slave/N/params`` members are spelt here from the columns, all the batch's such frames at
-once: every piece of every frame is laid out in one numpy object array (the params from the
-tables of :mod:`sniffer.encoding.param_text`) with its size beside it, and each frame's pieces
-are joined by one ``join``. Built per frame from a decoding
-(:func:`~decoders.decoded_batch.columnar_decodings`), the same texts cost an object per
-frame and a param run, then a lookup in a memo that new frames always miss.
+Every writer spells a message's decoded part here from :class:`~decoders.decoded_batch.DecodedColumns`
+(a summary per frame, a long table of params, each frame's protocol and remarks; frames alike given
+once), whichever way the annotator decoded it: its JSONL record's part from ``params`` to
+``remarks``, its MCAP log text after the frame index and its ``/slave/N/params`` members. Every
+piece of every frame is laid out in one numpy object array (the params no profile names from the
+tables of :mod:`sniffer.encoding.param_text`, a named param from its own JSON and member, made
+once per param) with its size beside it, and each frame's pieces are joined by one ``join``.
 
-The texts are exactly those the plain path writes from the decodings: the tests hold them to
-it (``tests/property/test_columnar_parts.py``). A ``join`` per frame: one ``join`` of a whole
-batch's pieces, cut into views, was slower on registers and on coils alike.
+The texts are exactly those of ``tests/oracles.py``: the tests hold them to it
+(``tests/property/test_decoded_texts.py``). A ``join`` per frame: one ``join`` of a whole batch's
+pieces, cut into views, was slower on registers and on coils alike.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import Any, TypeVar, cast
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
 import orjson
 
-from decoders.decoded_batch import AnnotatedBatch, ColumnarFrames, ColumnarParams, alike
-from decoders.decoded_batch import summaries as base_summaries
+from decoders.decoded_batch import AnnotatedBatch, ColumnarParams, DecodedColumns
 from decoders.distinct import distinct
-from decoders.message import ROLE_NAMES, MessageBatch
+from decoders.frame import PROTOCOL_NAMES
+from decoders.message import ROLE_NAMES
 from decoders.runs import spread
-from sniffer.encoding.param_text import NO_VALUE_END, PARAM_JSON, PARAM_MEMBERS, WORDS, param_start, param_tables
+from sniffer.encoding.param_text import (
+    NO_VALUE_END,
+    PARAM_JSON,
+    PARAM_MEMBERS,
+    WORDS,
+    encode_json,
+    param_start,
+    param_tables,
+)
 from sniffer.encoding.rows import Pieces
 
-Text = TypeVar("Text", str, bytes)
 #: Params spelt at once (see :func:`_in_slices`).
 SLICE_PARAMS = 1 << 16
 #: The tables as numpy object arrays (indexed by a column in C), built at first use.
 _tables: dict[str, npt.NDArray[Any]] = {}
+#: The end of a record of a Modbus frame without remarks (every frame in columns).
+_PLAIN_END = b',"protocol":"modbus","remarks":[]'
+_PROTOCOL_JSON = {code: f'"{name}"'.encode() for code, name in PROTOCOL_NAMES.items()}
+Text = TypeVar("Text", str, bytes)
 
 
-class ColumnarParts:
-    """The texts of the frames of ``columnar`` (``data``: their batch's bytes), each list in
-    the order of ``columnar.positions``; each made when first asked for. With ``messages``
-    (their batch), frames that read alike (:func:`~decoders.modbus.alike.alike`: a drive's
-    unchanged status, a request polled again) are spelt once, and their texts shared."""
+class FrameTexts:
+    """The texts of the frames of ``decoded``, spelt once per frame given (one per group of frames
+    alike); every list in the order of :attr:`positions`."""
 
-    def __init__(self, columnar: ColumnarFrames, data: bytes, messages: MessageBatch | None = None) -> None:
-        self.columnar, self._data = columnar, data
-        found = None if messages is None else (
-            columnar.groups or alike(columnar, data, messages.frames.offsets, messages.role))
-        #: The frames spelt, and for each frame its row among them (``None``: each its own).
-        self._spelt = columnar if found is None else columnar.take(found.firsts)
-        self._inverse: npt.NDArray[np.int64] | None = None if found is None else found.inverse
-        self._base_summaries: list[str] | None = None
-        self._summaries: list[str] | None = None
-        self._params: ColumnarParams | None = None
-
-    @property
-    def positions(self) -> npt.NDArray[np.int64]:
-        return self.columnar.positions
-
-    @property
-    def spelt(self) -> ColumnarFrames:
-        """The frames spelt: one per group of frames alike (all of them, where none are grouped)."""
-        return self._spelt
-
-    @property
-    def inverse(self) -> npt.NDArray[np.int64] | None:
-        """For each frame, its row among :attr:`spelt` (``None``: each its own)."""
-        return self._inverse
-
-    def summaries(self) -> list[str]:
-        return self.each(self._spelt_summaries())
-
-    def base_summaries(self) -> list[str]:
-        """The summaries of the frames spelt as their PDUs write them, without what profiles name
-        (:func:`~decoders.modbus.columnar_text.summaries`)."""
-        if self._base_summaries is None:
-            self._base_summaries = base_summaries(self._spelt, self._data)
-        return self._base_summaries
-
-    def _spelt_summaries(self) -> list[str]:
-        """The summaries of the frames spelt (one per group of frames alike)."""
-        if self._summaries is None:
-            self._summaries = self._spelt.named_summaries(self.base_summaries())
-        return self._summaries
+    def __init__(self, decoded: DecodedColumns) -> None:
+        self.decoded = decoded
+        self.positions = decoded.positions
+        self.spelt_positions = decoded.spelt_positions
+        self.each = decoded.each
 
     def record_tails(self) -> Pieces:
-        """Each frame's JSONL record part from ``params`` to the end of ``remarks``
-        (``FrameRecordEncoder._decoding_part``)."""
+        """Each frame's JSONL record part from ``params`` to the end of ``remarks``."""
         return self._each_piece(self.spelt_record_tails())
 
     def spelt_record_tails(self) -> Pieces:
-        """:meth:`record_tails` of the frames spelt (one per group of frames alike)."""
-        summaries = list(map(orjson.dumps, self._spelt_summaries()))
-        named = self._named_texts(members=False)
-        return _in_slices(self._param_columns(), lambda params, frames: _record_tails(params, summaries[frames], named))
+        """:meth:`record_tails` of the frames given (one per group of frames alike)."""
+        summaries = list(map(orjson.dumps, self.decoded.spelt_summaries()))
+        named, ends = self._named_texts(members=False), self._ends()
+        return _in_slices(self.decoded.params(), lambda params, frames: _record_tails(
+            params, summaries[frames], named, None if ends is None else ends[frames]))
 
     def log_heads(self, roles: npt.NDArray[np.integer[Any]]) -> list[bytes]:
         """Each frame's log text after its index: `` response: HR = …`` (``roles``: the batch's)."""
         return self.each([f" {ROLE_NAMES[role]}: {summary}".encode()
-                           for role, summary in zip(roles[self._spelt.positions].tolist(), self._spelt_summaries(),
-                                                    strict=True)])
+                          for role, summary in zip(roles[self.spelt_positions].tolist(),
+                                                   self.decoded.spelt_summaries(), strict=True)])
 
     def numeric_members(self) -> Pieces:
-        """Each frame's values as the members of a JSON object by address, its closing brace
-        included (``encode_json(numeric_params(decoding))[1:]``), or ``b""``: it carried none."""
+        """Each frame's values as the members of a JSON object by code (or address), its closing
+        brace included, or ``b""``: it carried none (a state word: its raw value; a marker: none)."""
         named = self._named_texts(members=True)
-        return self._each_piece(_in_slices(self._param_columns(), lambda params, _: _numeric_members(params, named)))
-
-    def each(self, spelt: list[Text]) -> list[Text]:
-        """A text per frame from one per frame spelt (:attr:`spelt`): frames alike share theirs."""
-        if self._inverse is None:
-            return spelt
-        # Taken in C, not by a ``map`` of ``__getitem__``.
-        each: list[Text] = np.array(spelt, object)[self._inverse].tolist()
-        return each
+        return self._each_piece(_in_slices(self.decoded.params(), lambda params, _: _numeric_members(params, named)))
 
     def _each_piece(self, spelt: Pieces) -> Pieces:
-        return spelt if self._inverse is None else spelt.take(self._inverse)
+        inverse = self.decoded.inverse
+        return spelt if inverse is None else spelt.take(inverse)
 
     def _named_texts(self, *, members: bool) -> npt.NDArray[Any] | None:
-        """The JSON (or with ``members``, the params member) of each named value of the frames
-        (their :attr:`~decoders.modbus.columnar.ColumnarNames.table`), ``None`` where none is named."""
-        names = self._spelt.names
-        if names is None:
+        """The JSON (or with ``members``, the params member) of each named param, ``None`` where none is."""
+        params = self.decoded.named()
+        if params is None:
             return None
         if members:
-            return _objects(PARAM_MEMBERS.made([param for param, _ in names.table]))
-        return _objects([b"," + text for text in PARAM_JSON.made([param for param, _ in names.table])])
+            return _objects(PARAM_MEMBERS.made(params))
+        return _objects([b"," + text for text in PARAM_JSON.made(params)])
 
-    def _param_columns(self) -> ColumnarParams:
-        if self._params is None:
-            self._params = self._spelt.params(self._data)
-        return self._params
+    def _ends(self) -> list[bytes] | None:
+        """Each frame given's record end from ``,"protocol"`` on (``None``: :data:`_PLAIN_END` for all)."""
+        given = self.decoded.protocols_and_remarks()
+        if given is None:
+            return None
+        return [b"".join((b',"protocol":', _PROTOCOL_JSON[protocol], b',"remarks":',
+                          encode_json(list(remarks)) if remarks else b"[]")) for protocol, remarks in given]
+
+
+def each_message(batch: AnnotatedBatch, spell: Callable[[FrameTexts], list[Text]]) -> list[Text]:
+    """``spell``'s texts of every kept message of ``batch``, in order."""
+    return batch.each_message(lambda decoded: spell(FrameTexts(decoded)))
 
 
 def _in_slices(params: ColumnarParams, spell: Callable[[ColumnarParams, slice], Pieces]) -> Pieces:
@@ -161,9 +131,11 @@ def _in_slices(params: ColumnarParams, spell: Callable[[ColumnarParams, slice], 
     return Pieces(texts, np.concatenate(sizes))
 
 
-def _record_tails(params: ColumnarParams, summaries: list[bytes], named: npt.NDArray[Any] | None) -> Pieces:
-    """:meth:`ColumnarParts.record_tails` of the frames of ``params`` (their summaries in JSON;
-    ``named``: the JSON of each named value, after a comma)."""
+def _record_tails(params: ColumnarParams, summaries: list[bytes], named: npt.NDArray[Any] | None,
+                  frame_ends: list[bytes] | None) -> Pieces:
+    """:meth:`FrameTexts.record_tails` of the frames of ``params`` (their summaries in JSON;
+    ``named``: the JSON of each named value, after a comma; ``frame_ends``: each frame's from
+    ``,"protocol"`` on, ``None``: :data:`_PLAIN_END`)."""
     sizes, address, value, name = params
     # A frame's pieces: '"params":[', a start and an end per param, '],"summary":', its summary, the end.
     layout = _Layout(2 * sizes + 4)
@@ -185,13 +157,16 @@ def _record_tails(params: ColumnarParams, summaries: list[bytes], named: npt.NDA
     after = base + 2 * sizes
     layout.put(after + 1, b'],"summary":')
     layout.put(after + 2, _objects(summaries), np.fromiter(map(len, summaries), np.int64, len(summaries)))
-    layout.put(after + 3, b',"protocol":"modbus","remarks":[]')
+    if frame_ends is None:
+        layout.put(after + 3, _PLAIN_END)
+    else:
+        layout.put(after + 3, _objects(frame_ends), np.fromiter(map(len, frame_ends), np.int64, len(frame_ends)))
     layout.without_comma(base[sizes > 0] + 1)
     return layout.texts()
 
 
 def _numeric_members(params: ColumnarParams, named: npt.NDArray[Any] | None) -> Pieces:
-    """:meth:`ColumnarParts.numeric_members` of the frames of ``params`` (``named``: each named
+    """:meth:`FrameTexts.numeric_members` of the frames of ``params`` (``named``: each named
     value's member after a comma, or ``b""``: no reading, which a named frame may carry alone)."""
     sizes, address, value, name = params
     frame = np.repeat(np.arange(len(sizes)), sizes)
@@ -312,41 +287,3 @@ def _objects(items: list[bytes]) -> npt.NDArray[Any]:
     array = np.empty(len(items), object)
     array[:] = items
     return array
-
-
-_last: tuple[ColumnarFrames, ColumnarParts] | None = None
-
-
-def columnar_parts(columnar: ColumnarFrames, messages: MessageBatch) -> ColumnarParts:
-    """The :class:`ColumnarParts` of ``columnar`` (``messages``: its batch), alike frames spelt
-    once: the same one for the sinks that write the same batch (the frame records and the MCAP
-    log share the summaries)."""
-    global _last  # noqa: PLW0603 - one batch's parts, held until the next batch
-    if _last is None or _last[0] is not columnar:
-        _last = (columnar, ColumnarParts(columnar, messages.frames.data, messages))
-    return _last[1]
-
-
-Part = TypeVar("Part")
-
-
-def summary_lines(batch: AnnotatedBatch) -> list[str]:
-    """Every kept message's summary line, as its decoding or its columns spell it."""
-    return in_columns_too(batch, ColumnarParts.summaries,
-                          [decoding.summary for decoding in batch.decoded_at(batch.decoded_positions())])
-
-
-def in_columns_too(batch: AnnotatedBatch, spell: Callable[[ColumnarParts], Sequence[Part]],
-                   parts: list[Part]) -> list[Part]:
-    """``parts`` (one per kept message decoded one by one, :meth:`AnnotatedBatch.decoded_positions`),
-    with ``spell``'s for the kept frames in columns in their places: one per kept message."""
-    columnar = batch.columnar
-    if columnar is None or not len(columnar):
-        return parts
-    placed: list[Part] = [cast(Part, b"")] * len(batch.messages)
-    for position, part in zip(batch.decoded_positions(), parts, strict=True):
-        placed[position] = part
-    for position, part in zip(columnar.positions.tolist(),
-                              spell(columnar_parts(columnar, batch.messages)), strict=True):
-        placed[position] = part
-    return placed if batch.rows is None else list(map(placed.__getitem__, batch.rows.tolist()))
