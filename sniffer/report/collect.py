@@ -22,10 +22,11 @@ from decoders.compare import Change
 from decoders.damage import RetryDiff
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.distinct import distinct
-from decoders.findings import Evidence, Finding, diagnose
+from decoders.findings import Finding, diagnose
 from decoders.line import LineSettings
 from decoders.message import ROLE_CODE, DeviceIdentity, MessageBatch, Role
 from decoders.stats import Statistics
+from decoders.symptoms import Symptoms
 from decoders.timeline import Timeline
 from sniffer.exports.outputs import sha256_of
 from sniffer.report.anomalies import AnomalyLog
@@ -95,7 +96,7 @@ class ReportCollector(Sink):
         self.statistics = Statistics()
         self.slaves: set[int] = set()
         self._retries = RetryDiff()
-        self._evidence: Evidence | None = None
+        self._evidence: Symptoms | None = None
         #: What is wrong on the bus (:mod:`decoders.findings`), each with the capture it is in
         #: (``report --each``; empty for one capture), drawn at :meth:`finish`.
         self.findings: list[tuple[str, Finding]] = []
@@ -105,7 +106,7 @@ class ReportCollector(Sink):
         self.provenance.timing = info.timing.value
         self.provenance.channels = info.channels
         self.provenance.notes = info.notes
-        self._evidence = Evidence(int(line.t3_5_ns), info.timing is TimingQuality.EXACT)
+        self._evidence = Symptoms(int(line.t3_5_ns), info.timing is TimingQuality.EXACT)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         messages = batch.messages

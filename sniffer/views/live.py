@@ -13,9 +13,10 @@ from rich.console import Console, ConsoleOptions, RenderResult
 from rich.text import Text
 
 from decoders.decoded_batch import AnnotatedBatch
-from decoders.findings import Evidence, diagnose
+from decoders.findings import diagnose
 from decoders.message import ROLE_CODE, MessageBatch, Role
 from decoders.stats import Histogram, Statistics
+from decoders.symptoms import Symptoms
 from sniffer.sinks import Sink
 from sniffer.views.clock import Clock
 from sniffer.views.frame_cells import (
@@ -83,7 +84,7 @@ class LiveView(Sink):
         #: what the slaves' table shows where the timing measures none on the wire.
         self.read_latency: dict[int, Histogram] = {}
         #: The findings' evidence (host times: the rules of silences and stray bytes do not apply).
-        self.evidence = Evidence(0, exact=False)
+        self.evidence = Symptoms(0, exact=False)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         if not len(batch):

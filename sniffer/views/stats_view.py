@@ -12,11 +12,12 @@ import textwrap
 from typing import TYPE_CHECKING, TextIO
 
 from decoders.capture import CaptureInfo, TimingQuality
-from decoders.findings import Evidence, Finding, diagnose
+from decoders.findings import Finding, diagnose
 from decoders.line import LineSettings
 from decoders.message import MessageBatch
 from decoders.modbus.codecs import function_name
 from decoders.stats import FunctionStats, Histogram, Statistics
+from decoders.symptoms import Symptoms
 from sniffer.sinks import Sink
 from sniffer.views.layout import Cells, Column, Layout, note_lines
 
@@ -79,12 +80,12 @@ class StatsView(Sink):
         self._latency_measured = True
         #: ``--each``: each capture's source, line and timing (provenance per capture).
         self._captures: list[dict[str, str]] = []
-        self._evidence: Evidence | None = None
+        self._evidence: Symptoms | None = None
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
         self._latency_measured = info.timing is TimingQuality.EXACT
-        self._evidence = Evidence(int(line.t3_5_ns), info.timing is TimingQuality.EXACT)
+        self._evidence = Symptoms(int(line.t3_5_ns), info.timing is TimingQuality.EXACT)
 
     def frames(self, batch: MessageBatch) -> None:
         if self._evidence is not None:
