@@ -243,14 +243,3 @@ def uart_error_marks(kinds: UInt8Array | None) -> UartErrorMarks:
     """(position, kind) of every byte with a UART error in a per-byte kinds column."""
     return () if kinds is None else _marks(kinds)
 
-
-def batch_chunks(chunks: Iterable[Chunk], max_chunks: int = 4096) -> Iterator[ChunkBatch]:
-    """Group a stream of chunks into batches of at most ``max_chunks``."""
-    pending: list[Chunk] = []
-    for chunk in chunks:
-        pending.append(chunk)
-        if len(pending) >= max_chunks:
-            yield ChunkBatch.from_chunks(pending)
-            pending = []
-    if pending:
-        yield ChunkBatch.from_chunks(pending)

@@ -206,11 +206,6 @@ class ColumnarFrames:
         names (:meth:`ColumnarNames.suffixed`; a new list)."""
         return list(texts) if self.names is None else self.names.suffixed(list(texts), self._sizes())
 
-    def shown_names(self) -> tuple[list[str | None], npt.NDArray[np.int64], npt.NDArray[np.int64]] | None:
-        """What each frame's summary shows of its named values (:meth:`ColumnarNames.shown`);
-        ``None``: no profile names a frame."""
-        return None if self.names is None else self.names.shown(self._sizes())
-
     def take(self, rows: npt.NDArray[np.int64]) -> ColumnarFrames:
         """The frames at ``rows`` (indexes of these columns, ascending) as columns of their own, to
         spell their texts: their names and groups taken along (the table shared); ``kept_requests``
