@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -102,13 +102,16 @@ class AnnotatedBatch:
         """What ``read`` gives for each part of :meth:`columns`, one per kept message, in order."""
         parts = self.columns()
         if len(parts) == 1:  # its positions are the kept ones, in order
-            found = read(parts[0])
-            return found if isinstance(found, list) else list(found)
-        placed: list[Any] = [None] * len(self.messages)
+            alone = read(parts[0])
+            return alone if isinstance(alone, list) else list(alone)
+        # Placed by numpy: an object array takes a list's items as they are.
+        placed = np.empty(len(self.messages), object)
         for part in parts:
-            for position, each in zip(part.positions.tolist(), read(part), strict=True):
-                placed[position] = each
-        return placed if self.rows is None else list(map(placed.__getitem__, self.rows.tolist()))
+            found = np.empty(len(part.positions), object)
+            found[:] = read(part)
+            placed[part.positions] = found
+        each: list[Text] = (placed if self.rows is None else placed[self.rows]).tolist()
+        return each
 
     def decoding_at(self, position: int) -> Decoding:
         """The decoding at ``position``; of a frame in columns, the batch's decodings are built
@@ -254,8 +257,13 @@ class OneByOne(DecodedColumns):
         _, firsts, inverse = np.unique(ids, return_index=True, return_inverse=True)
         kept = np.array(positions, np.int64)
         super().__init__(kept, kept[firsts], inverse.reshape(-1).astype(np.int64))
+        self._all = decodings
         self._decodings: list[Decoding] = [decodings[first] for first in firsts.tolist()]
         self._protocols: list[int] = batch.messages.frames.protocols()[self.spelt_positions].tolist()
+
+    def summaries(self) -> list[str]:
+        """Each frame's summary line, read from its decoding (no group to look up)."""
+        return [decoding.summary for decoding in self._all]
 
     def _made_summaries(self) -> list[str]:
         return [decoding.summary for decoding in self._decodings]
