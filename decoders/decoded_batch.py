@@ -38,6 +38,7 @@ from decoders.modbus.pdu import ReadRequest
 __all__ = ["AnnotatedBatch", "ColumnarNames", "ColumnarParams", "DecodedColumns", "columnar_decodings",
            "mostly_distinct"]
 Text = TypeVar("Text", str, bytes)
+Item = TypeVar("Item")
 
 
 @dataclass(frozen=True, slots=True)
@@ -182,6 +183,7 @@ class DecodedColumns:
         self.inverse = inverse
         self._summaries: list[str] | None = None
         self._params: ColumnarParams | None = None
+        self._named: list[list[ParamValue] | None] = []
 
     def summaries(self) -> list[str]:
         """Each frame's summary line."""
@@ -201,24 +203,31 @@ class DecodedColumns:
 
     def named(self) -> list[ParamValue] | None:
         """The params the ``name`` column of :meth:`params` refers to (``None``: none)."""
-        raise NotImplementedError
+        if not self._named:
+            self._named.append(self._made_named())
+        return self._named[0]
 
     def protocols_and_remarks(self) -> list[tuple[int, tuple[str, ...]]] | None:
         """Each frame given's protocol and remarks (``None``: Modbus without remarks, every one)."""
         return None
 
-    def each(self, given: list[Text]) -> list[Text]:
+    def each(self, given: list[Item]) -> list[Item]:
         """A value per frame from one per frame given: frames alike share theirs."""
         if self.inverse is None:
             return given
         # Taken in C, not by a ``map`` of ``__getitem__``.
-        each: list[Text] = np.array(given, object)[self.inverse].tolist()
+        items = np.empty(len(given), object)
+        items[:] = given
+        each: list[Item] = items[self.inverse].tolist()
         return each
 
     def _made_summaries(self) -> list[str]:
         raise NotImplementedError
 
     def _made_params(self) -> ColumnarParams:
+        raise NotImplementedError
+
+    def _made_named(self) -> list[ParamValue] | None:
         raise NotImplementedError
 
 
@@ -240,7 +249,7 @@ class InColumns(DecodedColumns):
     def _made_params(self) -> ColumnarParams:
         return self.given.params(self._data)
 
-    def named(self) -> list[ParamValue] | None:
+    def _made_named(self) -> list[ParamValue] | None:
         names = self.given.names
         return None if names is None else [param for param, _ in names.table]
 
@@ -269,13 +278,13 @@ class OneByOne(DecodedColumns):
         return [decoding.summary for decoding in self._decodings]
 
     def _made_params(self) -> ColumnarParams:
-        named = self.named()
+        named = self.named() or []
         sizes = np.fromiter((len(decoding.params) for decoding in self._decodings), np.int64, len(self._decodings))
         address = np.fromiter((param.address for param in named), np.int64, len(named))
         # Every param is named (given by itself): its raw word is not read from the column.
         return ColumnarParams(sizes, address, np.zeros(len(named), np.int64), np.arange(len(named), dtype=np.int64))
 
-    def named(self) -> list[ParamValue]:
+    def _made_named(self) -> list[ParamValue]:
         return [param for decoding in self._decodings for param in decoding.params]
 
     def protocols_and_remarks(self) -> list[tuple[int, tuple[str, ...]]]:

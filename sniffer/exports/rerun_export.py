@@ -22,12 +22,12 @@ from operator import attrgetter, itemgetter
 import numpy as np
 import numpy.typing as npt
 
-from decoders.decoded_batch import AnnotatedBatch
+from decoders.decoded_batch import AnnotatedBatch, DecodedColumns
 from decoders.distinct import distinct
-from decoders.memo import KEPT_DECODINGS, Memo
-from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, Decoding, ParamValue, Role
+from decoders.memo import Memo
+from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, ParamValue, Role
 from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
-from sniffer.exports.published import PublishedValues, plotted
+from sniffer.exports.published import PublishedValues
 from sniffer.exports.rerun_rows import EntityRows
 from sniffer.exports.rerun_sdk import rr, rrb
 
@@ -36,6 +36,8 @@ APPLICATION = "rtusniff"
 #: each entity sent is a fixed cost in the SDK, so sending more often costs a core on a busy line).
 LIVE_SEND_S = 0.5
 MAX_UNNAMED_SERIES = 64
+#: Series (plot and state entities) kept by slave, address, code and unit.
+KEPT_SERIES = 8192
 SECOND_NS = 1_000_000_000
 #: Rerun's level names by foxglove.Log level.
 _LEVEL_NAMES = np.array([{INFO: "INFO", WARNING: "WARN", ERROR: "ERROR"}.get(level, "") for level in range(ERROR + 1)],
@@ -89,12 +91,10 @@ class RerunExporter:
         self.entities = EntityRows(self._rec, live=live)
         self._states: dict[int, str] = {}
         self._slaves: set[int] = set()
-        self._published: PublishedValues[Decoding] = PublishedValues()
-        # As many as the annotator keeps decodings: a repeat finds its parts.
-        self._parts: Memo[Decoding, _Parts] = Memo(KEPT_DECODINGS)
+        self._published: PublishedValues[_Parts] = PublishedValues()
         #: (plot entity, state entity), or () for a register not plotted.
         self._param_entities: Memo[tuple[int, int, str | None, str | None], tuple[int, int] | tuple[()]] = Memo(
-            KEPT_DECODINGS)
+            KEPT_SERIES)
         #: Per slave address: the entity ids of its log and its crc, timeout and exception errors.
         self._slave_ids = np.full((256, 1 + len(_ERRORS)), -1, np.int64)
         self._unnamed: dict[int, set[int]] = {}
@@ -116,9 +116,9 @@ class RerunExporter:
         slave = messages.slave[positions]
         noise = slave == NONE
         if noise.any():
-            chosen = positions[noise]
+            chosen, summaries = positions[noise], batch.summaries()
             self.entities.append(self.entities.entity("bus/noise"), t_start[noise], chosen + frames.first_index,
-                         texts=_strings([batch.decodings[p].summary for p in chosen.tolist()]), level="WARN")
+                         texts=_strings([summaries[row] for row in np.flatnonzero(noise).tolist()]), level="WARN")
             keep = ~noise
             positions, t_start, slave = positions[keep], t_start[keep], slave[keep]
         if len(positions):
@@ -170,13 +170,11 @@ class RerunExporter:
                          slave: npt.NDArray[np.int16]) -> list[tuple[int, _Parts]]:
         """``(row, parts)`` whose values go on plots and state series: valid answers, and the
         writes they accept (:mod:`sniffer.exports.published`), in row order."""
-        decodings, at = batch.decodings, positions.tolist()
-        published, accepted = self._published.select(batch, positions, lambda row: decodings[at[row]])
+        # What a write request puts on plots is what its own parts hold: the values it wrote.
+        published, accepted = self._published.select(batch, positions, parts.__getitem__)
         shown = [(row, parts[row]) for row in np.flatnonzero(published).tolist()]
         if accepted:
-            functions = batch.messages.function[positions]
-            shown += [(row, self._decoding_parts(request, int(slave[row]), _REQUEST, int(functions[row])))
-                      for row, request in accepted]
+            shown += accepted
             shown.sort(key=itemgetter(0))
         return shown
 
@@ -200,22 +198,37 @@ class RerunExporter:
                     self.entities.append(entity, t_start[[row]], index[[row]], texts=_strings([text]), level="INFO")
 
     def _parts_of(self, batch: AnnotatedBatch, positions: npt.NDArray[np.int64]) -> list[_Parts]:
-        decodings, messages = batch.decodings_at(positions.tolist()), batch.messages
-        columns = (messages.slave, messages.role, messages.function)
+        """The parts of the frames at ``positions`` (kept, none of them noise), made once per frame
+        the decoded form gives (:meth:`AnnotatedBatch.columns`), in the order frames first appear
+        (so that series are made in the order of the capture)."""
+        messages, parts = batch.messages, batch.columns()
+        made: list[list[_Parts | None]] = [[None] * len(part.spelt_positions) for part in parts]
+        readers = [_ParamReader(part) for part in parts]
+        given = sorted((first, place, row) for place, part in enumerate(parts)
+                       for row, first in enumerate(part.spelt_positions.tolist()))
+        for first, place, row in given:
+            slave, role, function = (int(column[first]) for column in (messages.slave, messages.role,
+                                                                        messages.function))
+            if slave != NONE:
+                made[place][row] = self._frame_parts(readers[place].params(row), parts[place].spelt_summaries()[row],
+                                                     slave, role, function)
+        placed = np.empty(len(messages), object)
+        for part, rows in zip(parts, made, strict=True):
+            each = np.empty(len(part.positions), object)
+            each[:] = part.each(rows)
+            placed[part.positions] = each
+        found: list[_Parts] = placed[positions].tolist()
+        return found
 
-        def build(row: int) -> _Parts:
-            slave, role, function = (int(column[positions[row]]) for column in columns)
-            return self._decoding_parts(decodings[row], slave, role, function)
-
-        return self._parts.get_all(decodings, build)
-
-    def _decoding_parts(self, decoding: Decoding, slave: int, role: int, function: int) -> _Parts:
-        """What a decoding puts on the timeline, built once per decoding."""
+    def _frame_parts(self, params: list[ParamValue], summary: str, slave: int, role: int, function: int) -> _Parts:
+        """What a frame of ``slave`` that names ``params`` puts on the timeline."""
         self._known_slave(slave)
         scalar_ids: list[int] = []
         scalar_values: list[float] = []
         states: list[tuple[int, str]] = []
-        for param in plotted(decoding.params):
+        for param in params:
+            if param.raw is None or not param.available:
+                continue  # no reading: a read request's register, a marker
             series = self._param_series(slave, param)
             if not series:
                 continue
@@ -227,7 +240,7 @@ class RerunExporter:
         latency = -1
         if function != NONE:
             latency = self.entities.entity(f"slaves/{slave}/latency_ms/fc{function}", f"latency FC {function} (ms)")
-        return _Parts(f"{ROLE_NAMES[role]}: {decoding.summary}", np.array(scalar_ids, np.int64),
+        return _Parts(f"{ROLE_NAMES[role]}: {summary}", np.array(scalar_ids, np.int64),
                       np.array(scalar_values, np.float64), states, latency)
 
     def _known_slave(self, slave: int) -> None:
@@ -326,3 +339,31 @@ def _strings(texts: list[str]) -> npt.NDArray[np.object_]:
 def _path(code: str) -> str:
     """An entity path part from a parameter code (``NM1→ETA`` → ``NM1_ETA``)."""
     return "".join(c if c.isalnum() or c in "_-" else "_" for c in code)
+
+
+class _ParamReader:
+    """The params of each frame a part of the decoded form gives, each as a :class:`ParamValue`
+    (a register no profile names: its raw word as its value)."""
+
+    def __init__(self, part: DecodedColumns) -> None:
+        self._part = part
+        self._lists: tuple[list[int], list[int], list[int], list[int] | None] | None = None
+
+    def params(self, row: int) -> list[ParamValue]:
+        if self._lists is None:
+            columns = self._part.params()
+            self._lists = ((np.cumsum(columns.sizes) - columns.sizes).tolist(), columns.address.tolist(),
+                           columns.value.tolist(), None if columns.name is None else columns.name.tolist())
+        starts, address, value, name = self._lists
+        named = self._part.named()
+        stop = starts[row + 1] if row + 1 < len(starts) else len(address)
+        params: list[ParamValue] = []
+        for place in range(starts[row], stop):
+            entry = -1 if name is None else name[place]
+            if entry >= 0 and named is not None:
+                params.append(named[entry])
+            else:
+                word = value[place]
+                params.append(ParamValue(address[place], raw=None if word < 0 else word,
+                                         value=None if word < 0 else word))
+        return params
