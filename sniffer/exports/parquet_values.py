@@ -1,13 +1,13 @@
 """The Parquet ``values`` table: a row per value a slave reported or was written, in the order
 found (the rule of :mod:`sniffer.encoding.value_rows`).
 
-Three sources make its rows: values a profile names (a tuple each, names and units as text),
-runs of values no profile names (laid out by numpy), and the frames the annotator left in
-columns (``AnnotatedBatch.columnar``: laid out by numpy from the frames' bytes, no object per
-frame; where a profile names them, each distinct named value of a batch is read once and the
-rows take their code, name, value, text, unit and validity from it). Each row carries the frame index
-where it was found (a written value is found at its answer), which puts the three back in one
-order.
+Two sources make its rows: the frames decoded one by one (:class:`ValueCollector`: each
+decoding's params taken apart once, a tuple each, names and units as text), and the frames the
+annotator left in columns (:func:`columnar_values`: laid out by numpy from the frames' bytes, no
+object per frame; where a profile names them, each distinct named value of a batch is read once
+and the rows take their code, name, value, text, unit and validity from it). Each row carries
+the frame index where it was found (a written value is found at its answer), which puts the two
+back in one order (:mod:`sniffer.exports.parquet_value_columns`).
 """
 
 from __future__ import annotations
