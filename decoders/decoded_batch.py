@@ -36,7 +36,7 @@ from decoders.modbus.pdu import ReadRequest
 
 #: What the outputs read (see the module's docstring).
 __all__ = ["AnnotatedBatch", "ColumnarNames", "ColumnarParams", "DecodedColumns", "columnar_decodings",
-           "mostly_distinct"]
+           "mostly_distinct", "remarked"]
 Text = TypeVar("Text", str, bytes)
 Item = TypeVar("Item")
 
@@ -97,7 +97,11 @@ class AnnotatedBatch:
 
     def summaries(self) -> list[str]:
         """Every kept message's summary line, in order."""
-        return self.each_message(DecodedColumns.summaries)
+        return self.each_message(lambda part: part.summaries())
+
+    def remarked_summaries(self) -> list[str]:
+        """Every kept message's summary line with the profile's remarks after it (:func:`remarked`)."""
+        return self.each_message(lambda part: part.remarked_summaries())
 
     def each_message(self, read: Callable[[DecodedColumns], Sequence[Text]]) -> list[Text]:
         """What ``read`` gives for each part of :meth:`columns`, one per kept message, in order."""
@@ -189,6 +193,10 @@ class DecodedColumns:
         """Each frame's summary line."""
         return self.each(self.spelt_summaries())
 
+    def remarked_summaries(self) -> list[str]:
+        """Each frame's summary line with its remarks (:func:`remarked`); a frame in columns has none."""
+        return self.summaries()
+
     def spelt_summaries(self) -> list[str]:
         """The summary line of each frame given."""
         if self._summaries is None:
@@ -274,6 +282,9 @@ class OneByOne(DecodedColumns):
         """Each frame's summary line, read from its decoding (no group to look up)."""
         return [decoding.summary for decoding in self._all]
 
+    def remarked_summaries(self) -> list[str]:
+        return [remarked(decoding.summary, decoding.remarks) for decoding in self._all]
+
     def _made_summaries(self) -> list[str]:
         return [decoding.summary for decoding in self._decodings]
 
@@ -290,6 +301,11 @@ class OneByOne(DecodedColumns):
     def protocols_and_remarks(self) -> list[tuple[int, tuple[str, ...]]]:
         return [(protocol, decoding.remarks) for decoding, protocol in zip(self._decodings, self._protocols,
                                                                             strict=True)]
+
+
+def remarked(summary: str, remarks: tuple[str, ...]) -> str:
+    """A summary line with a profile's remarks after it, each after a ``⚠``, as the tables show it."""
+    return " ⚠ ".join([summary, *remarks]) if remarks else summary
 
 
 def _mask(rows: npt.NDArray[np.int64], size: int) -> npt.NDArray[np.bool_]:

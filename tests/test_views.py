@@ -104,6 +104,10 @@ def test_pipe_is_one_line_per_frame_with_fixed_fields(cli: Cli) -> None:
     assert requests[:3] == ["2", "20", "20"]
     hexed = [line for line in cli("analyze", str(SAMPLE_LOG), "--hex").out.splitlines() if not line.startswith("#")]
     assert all(re.fullmatch(r"[0-9a-f]+", row.split(None, PLAIN_FIELDS + 1)[11]) for row in hexed)
+    # A profile's remarks follow the summary, as on a terminal: the identification, a damaged frame.
+    summaries = [row.split(None, PLAIN_FIELDS)[PLAIN_FIELDS] for row in rows]
+    assert summaries[1].endswith("⚠ slave 2 is ATV71HU15M3: decoded with profile atv71")
+    assert "⚠" in summaries[25]
 
 
 @pytest.mark.parametrize(("width", "height"), SCREENS)

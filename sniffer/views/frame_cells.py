@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.damage import crc_note, uart_error_note
-from decoders.decoded_batch import AnnotatedBatch
+from decoders.decoded_batch import AnnotatedBatch, remarked
 from decoders.frame import _NAMES_BY_VALUE, NO_IDLE, FrameFlag
 from decoders.message import NONE, ROLE_ORDER, Decoding, MessageBatch, Role
 from sniffer.views.clock import Clock
@@ -130,7 +130,12 @@ def frame_notes(messages: MessageBatch, rows: npt.NDArray[np.int64], retries: di
 def summary_cells(batch: AnnotatedBatch, rows: npt.NDArray[np.int64], summary_of: SummaryOf,
                   notes: dict[int, str]) -> Cells:
     """The summary of the messages at ``rows`` with ``notes`` (:func:`frame_notes`) after them."""
-    texts = list(map(summary_of, batch.decodings_at(rows.tolist())))
+    if summary_of is decoding_summary:  # the decoded form's lines, not an object per frame
+        kept = np.asarray(batch.positions(), np.int64)
+        lines = batch.remarked_summaries()
+        texts = [lines[row] for row in np.searchsorted(kept, rows).tolist()]
+    else:
+        texts = list(map(summary_of, batch.decodings_at(rows.tolist())))
     if notes:
         for row, position in enumerate(rows.tolist()):
             if position in notes:
@@ -167,6 +172,4 @@ def _hex(data: bytes, offsets: npt.NDArray[np.int64], rows: npt.NDArray[np.int64
 
 def decoding_summary(decoding: Decoding) -> str:
     """The decoding's summary with the device profile's remarks."""
-    if not decoding.remarks:
-        return decoding.summary
-    return " ⚠ ".join([decoding.summary, *decoding.remarks])
+    return remarked(decoding.summary, decoding.remarks)

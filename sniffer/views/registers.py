@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 
+from decoders.decoded_batch import remarked
 from decoders.message import Decoding
 from decoders.register_format import ADDRESSINGS, KINDS, WORD_ORDERS, RegisterFormat
 from sniffer.views.frame_cells import SummaryOf, decoding_summary
@@ -54,4 +55,4 @@ def _summary(registers: RegisterFormat, decoding: Decoding) -> str:
         return decoding_summary(decoding)
     if decoding.summary.startswith(CRC_ERROR):
         text = CRC_ERROR + text
-    return " ⚠ ".join([text, *decoding.remarks])
+    return remarked(text, decoding.remarks)

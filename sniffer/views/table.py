@@ -216,8 +216,8 @@ class PlainTableView(_FrameTable):
         if batch is None:
             return
         rows = batch.positions()
-        if self._summary_of is decoding_summary:
-            summaries = batch.summaries()
+        if self._summary_of is decoding_summary:  # the decoded form's, not an object per frame
+            summaries = batch.remarked_summaries()
         else:
             summaries = list(map(self._summary_of, batch.decodings_at(rows)))
         marks, reached = value.marks, 0
