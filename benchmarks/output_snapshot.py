@@ -63,6 +63,7 @@ def runs(capture: Path, out: Path) -> Iterator[tuple[str, list[str]]]:
     """(output file name, rtusniff arguments) of every output of one input."""
     c = str(capture)
     yield "table.txt", ["analyze", c, "--width", "200"]
+    yield "table-piped.txt", ["analyze", c]
     yield "table-registers.txt", ["analyze", c, "--width", "200", "--registers", "f32", "--word-order", "little"]
     yield "table-filter.txt", ["analyze", c, "--width", "200", "--filter", "role=response"]
     yield "frames.jsonl", ["analyze", c, "--format", "jsonl"]
@@ -76,6 +77,7 @@ def runs(capture: Path, out: Path) -> Iterator[tuple[str, list[str]]]:
     yield "export.mcap", ["export", c, "--mcap", str(out / "export.mcap"), "-q"]
     yield "export.pcap", ["export", c, "--pcap", str(out / "export.pcap"), "-q"]
     yield "export.pcapng", ["export", c, "--pcap", str(out / "export.pcapng"), "-q"]
+    yield "export.rrd", ["export", c, "--rrd", str(out / "export.rrd"), "-q"]
     yield "parquet", ["export", c, "--parquet", str(out / "parquet"), "--bus", "bus", "-q"]
 
 
@@ -98,6 +100,8 @@ def snapshot(tree: Path, out: Path, scratch: Path, frames: int, quick: bool) -> 
                 _parquet_as_text(written)
             elif output.endswith(".mcap") and done.returncode == 0:
                 written = _mcap_as_text(written)
+            elif output.endswith(".rrd") and done.returncode == 0:
+                written = _rrd_as_text(written)
             for text in [written] if written.is_file() else sorted(written.rglob("*.txt")):
                 text.write_bytes(_stable(text.read_bytes(), folder, scratch))
         print(f"output_snapshot: {tree.name or tree}: {name}", file=sys.stderr)
@@ -152,6 +156,31 @@ def _mcap_as_text(path: Path) -> Path:
             lines.append(b"attachment %s %d %s" % (attachment.name.encode(), attachment.log_time, attachment.data))
     text = path.with_suffix(".mcap.txt")
     text.write_bytes(b"\n".join(lines))
+    path.unlink()
+    return text
+
+
+def _rrd_as_text(path: Path) -> Path:
+    """A Rerun recording replaced by its chunks as text: each chunk with a timeline in the order
+    written, with its rows; the static ones (series styles) sorted, as the SDK sends them in an
+    order of its own from run to run; the recording's start (the wall clock) left out."""
+    import pyarrow as pa  # only for exports
+
+    from sniffer.exports.rerun_sdk import rr
+
+    timed: list[str] = []
+    static: list[str] = []
+    for chunk in rr.chunk.RrdReader(str(path)).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        columns = [column.cast(pa.int64()) if pa.types.is_timestamp(column.type) else column
+                   for column in batch.columns]
+        rows = pa.RecordBatch.from_arrays(columns, names=batch.schema.names).to_pylist()
+        lines = [f"{chunk.entity_path} {sorted(chunk.timeline_names)}"]
+        lines += [repr({key: value for key, value in sorted(row.items())
+                        if "RowId" not in key and key != "RecordingInfo:start_time"}) for row in rows]
+        (timed if chunk.timeline_names else static).append("\n".join(lines))
+    text = path.with_suffix(".rrd.txt")
+    text.write_text("\n".join([*timed, *sorted(static)]) + "\n")
     path.unlink()
     return text
 
