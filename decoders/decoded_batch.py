@@ -19,6 +19,7 @@ contract holds it).
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import TypeVar
@@ -45,10 +46,12 @@ Item = TypeVar("Item")
 class AnnotatedBatch:
     """Decoded messages in columns: a :class:`MessageBatch` and each message's decoding.
 
-    ``rows``: the positions kept (by a filter, a limit), ``None`` for all. ``columnar``: the
-    kept frames decoded in columns (:meth:`Annotator.annotate_columnar`), whose entries of
-    ``decoded`` are :data:`IN_COLUMNS`; :attr:`decodings` has them all, those built when first
-    read. Iterating yields the kept messages as objects.
+    ``rows``: the positions kept (by a filter, a limit), ``None`` for all. What the kept
+    messages say is read through :meth:`columns` (the one decoded form), :meth:`summaries` and
+    :meth:`remarked_summaries`. ``columnar``: the kept frames decoded in columns
+    (:meth:`Annotator.annotate_columnar`), whose entries of ``decoded`` are :data:`IN_COLUMNS`;
+    :attr:`decodings` has them all as objects, those built when first read. Iterating yields the
+    kept messages as objects.
     """
 
     messages: MessageBatch
@@ -57,7 +60,7 @@ class AnnotatedBatch:
     rows: npt.NDArray[np.int64] | None = None
     columnar: ColumnarFrames | None = None
     #: :attr:`decodings` once built: a one-entry cache in a frozen batch, so that the sinks that
-    #: read objects (values, the report, Rerun) build them once between them.
+    #: read objects (values, the report, filters) build them once between them.
     _built: list[list[Decoding]] = field(default_factory=list, compare=False, repr=False)
     #: :meth:`columns` once made: every writer of the batch reads the same.
     _columns: list[list[DecodedColumns]] = field(default_factory=list, compare=False, repr=False)
@@ -171,7 +174,7 @@ class AnnotatedBatch:
         return AnnotatedBatch(slice_messages(self.messages, 0, stop), self.decoded[:stop], rows, columnar)
 
 
-class DecodedColumns:
+class DecodedColumns(ABC):
     """What some kept messages of a batch say, in columns: the one decoded form every writer
     reads (:meth:`AnnotatedBatch.columns`). Frames alike are given once: the rows here are those
     of the frames at :attr:`spelt_positions`, and :meth:`each` gives every frame its row's.
@@ -229,14 +232,14 @@ class DecodedColumns:
         each: list[Item] = items[self.inverse].tolist()
         return each
 
-    def _made_summaries(self) -> list[str]:
-        raise NotImplementedError
+    @abstractmethod
+    def _made_summaries(self) -> list[str]: ...
 
-    def _made_params(self) -> ColumnarParams:
-        raise NotImplementedError
+    @abstractmethod
+    def _made_params(self) -> ColumnarParams: ...
 
-    def _made_named(self) -> list[ParamValue] | None:
-        raise NotImplementedError
+    @abstractmethod
+    def _made_named(self) -> list[ParamValue] | None: ...
 
 
 class InColumns(DecodedColumns):
