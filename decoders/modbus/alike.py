@@ -3,9 +3,9 @@
 Half the frames of a batch of mixed traffic, and nearly all of steady traffic, repeat one
 another: a request polled again, a drive's unchanged status. :func:`alike` groups the frames of
 :class:`~decoders.modbus.columnar.ColumnarFrames` whose texts are the same; profiles name the
-first of each group (:func:`~decoders.profiles.column_names.named`) and writers spell it
-(:mod:`sniffer.encoding.columnar_parts`), the others sharing what was made. The memo does that
-across batches for frames decoded one by one.
+first of each group (:func:`~decoders.profiles.column_names.named`) and the decoded form gives it
+once (:class:`~decoders.decoded_batch.InColumns`), the others sharing what was made. For frames
+decoded one by one the annotator's memo does that, within a batch and across batches.
 
 How, and why so:
 

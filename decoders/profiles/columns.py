@@ -21,7 +21,7 @@ a named slave's frame stays in columns only where naming it is that lookup alone
 
 The annotator leaves the frames :func:`unnameable` finds out and finds the columns again. The
 tests hold every output of frames so named to the plain path (``tests/property/test_columnar.py``,
-``tests/property/test_columnar_parts.py``, ``tests/test_columnar_outputs.py``).
+``tests/property/test_decoded_texts.py``, ``tests/test_columnar_outputs.py``).
 """
 
 from __future__ import annotations

@@ -248,7 +248,7 @@ class _Layout:
 
 
 def _key(address: int) -> bytes:
-    """A member's key by address, after a comma (``numeric_params`` names values so)."""
+    """A member's key by address, after a comma (a value no profile names is named so)."""
     return b',"%d":' % address
 
 

@@ -122,8 +122,7 @@ def block_heads(batch: MessageBatch, kept: npt.NDArray[np.int64]) -> Pieces:
 
 
 def _identities(batch: MessageBatch) -> Pieces:
-    """Each frame's record from ``hex`` to ``exception_code``, as :meth:`FrameRecordEncoder._frame_parts`
-    writes it."""
+    """Each frame's record from ``hex`` to ``exception_code``."""
     frames = batch.frames
     return _identity_pieces(batch, hex_texts(frames.data, frames.offsets, quoted=True), slice(None))
 

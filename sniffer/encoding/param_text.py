@@ -83,7 +83,7 @@ def param_json(param: ParamValue) -> bytes:
 
 def member_json(param: ParamValue) -> bytes:
     """``param`` as a member of a ``/slave/N/params`` message after a comma (the MCAP export's
-    ``numeric_params``: by code, or by address where none names it; a state word's raw value);
+    members: by code, or by address where none names it; a state word's raw value);
     ``b""`` where it carries no reading (no raw value, or a marker)."""
     if param.raw is None or not param.available:
         return b""

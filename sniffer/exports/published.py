@@ -18,7 +18,7 @@ frame records and the log, marked as what they are.
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Generic, TypeVar
 
 import numpy as np
@@ -36,7 +36,7 @@ _RESPONSE, _REQUEST = ROLE_CODE[Role.RESPONSE], ROLE_CODE[Role.REQUEST]
 Written = TypeVar("Written")
 
 
-def plotted(params: tuple[ParamValue, ...]) -> list[ParamValue]:
+def plotted(params: Sequence[ParamValue]) -> list[ParamValue]:
     """The params that carry a reading: a raw value that is not a marker."""
     return [param for param in params if param.raw is not None and param.available]
 

@@ -27,7 +27,7 @@ from decoders.distinct import distinct
 from decoders.memo import Memo
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, ParamValue, Role
 from sniffer.exports.levels import ERROR, FLAG_SUFFIXES, INFO, TIMEOUT, WARNING, errors, log_levels
-from sniffer.exports.published import PublishedValues
+from sniffer.exports.published import PublishedValues, plotted
 from sniffer.exports.rerun_rows import EntityRows
 from sniffer.exports.rerun_sdk import rr, rrb
 
@@ -47,7 +47,6 @@ _ERRORS = ("crc", "timeout", "exception")
 _TEXT, _LATENCY_ENTITY = attrgetter("text"), attrgetter("latency_entity")
 _SCALAR_IDS, _SCALAR_VALUES = attrgetter("scalar_ids"), attrgetter("scalar_values")
 _EXCEPTION = ROLE_CODE[Role.EXCEPTION]
-_REQUEST = ROLE_CODE[Role.REQUEST]
 
 
 @dataclass(eq=False)
@@ -226,9 +225,7 @@ class RerunExporter:
         scalar_ids: list[int] = []
         scalar_values: list[float] = []
         states: list[tuple[int, str]] = []
-        for param in params:
-            if param.raw is None or not param.available:
-                continue  # no reading: a read request's register, a marker
+        for param in plotted(params):
             series = self._param_series(slave, param)
             if not series:
                 continue
