@@ -47,6 +47,12 @@ class ParamValue:
     #: or protected parameter"): ``value`` then says what it means, and no plot takes it.
     available: bool = True
 
+    @property
+    def reading(self) -> bool:
+        """Whether it carries a reading: a raw value that is not a marker (what plots and
+        parameter channels take)."""
+        return self.raw is not None and self.available
+
 
 @dataclass(frozen=True, slots=True)
 class DeviceIdentity:

@@ -85,7 +85,7 @@ def member_json(param: ParamValue) -> bytes:
     """``param`` as a member of a ``/slave/N/params`` message after a comma (the MCAP export's
     members: by code, or by address where none names it; a state word's raw value);
     ``b""`` where it carries no reading (no raw value, or a marker)."""
-    if param.raw is None or not param.available:
+    if not param.reading:
         return b""
     key = param.code if param.code is not None else str(param.address)
     value = param.value if isinstance(param.value, int | float) else param.raw

@@ -38,7 +38,7 @@ Written = TypeVar("Written")
 
 def plotted(params: Sequence[ParamValue]) -> list[ParamValue]:
     """The params that carry a reading: a raw value that is not a marker."""
-    return [param for param in params if param.raw is not None and param.available]
+    return [param for param in params if param.reading]
 
 
 class PublishedValues(Generic[Written]):
