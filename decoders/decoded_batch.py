@@ -38,7 +38,6 @@ from decoders.modbus.pdu import ReadRequest
 #: What the outputs read (see the module's docstring).
 __all__ = ["AnnotatedBatch", "ColumnarNames", "ColumnarParams", "DecodedColumns", "columnar_decodings",
            "mostly_distinct", "remarked"]
-Text = TypeVar("Text", str, bytes)
 Item = TypeVar("Item")
 
 
@@ -64,6 +63,8 @@ class AnnotatedBatch:
     _built: list[list[Decoding]] = field(default_factory=list, compare=False, repr=False)
     #: :meth:`columns` once made: every writer of the batch reads the same.
     _columns: list[list[DecodedColumns]] = field(default_factory=list, compare=False, repr=False)
+    #: :meth:`remarked_summaries` once made: the tables read them a block of rows at a time.
+    _remarked: list[list[str]] = field(default_factory=list, compare=False, repr=False)
 
     def __len__(self) -> int:
         return len(self.decoded) if self.rows is None else len(self.rows)
@@ -103,10 +104,19 @@ class AnnotatedBatch:
         return self.each_message(lambda part: part.summaries())
 
     def remarked_summaries(self) -> list[str]:
-        """Every kept message's summary line with the profile's remarks after it (:func:`remarked`)."""
-        return self.each_message(lambda part: part.remarked_summaries())
+        """Every kept message's summary line with the profile's remarks after it (:func:`remarked`),
+        made once per batch."""
+        if not self._remarked:
+            self._remarked.append(self.each_message(lambda part: part.remarked_summaries()))
+        return self._remarked[0]
 
-    def each_message(self, read: Callable[[DecodedColumns], Sequence[Text]]) -> list[Text]:
+    def kept_at(self, values: list[Item], positions: npt.NDArray[np.int64]) -> list[Item]:
+        """Of ``values`` (one per kept message, as :meth:`each_message` gives them), those of the
+        kept messages at ``positions`` (in any order)."""
+        rows = positions if self.rows is None else np.searchsorted(self.rows, positions)
+        return list(map(values.__getitem__, rows.tolist()))
+
+    def each_message(self, read: Callable[[DecodedColumns], Sequence[Item]]) -> list[Item]:
         """What ``read`` gives for each part of :meth:`columns`, one per kept message, in order."""
         parts = self.columns()
         if len(parts) == 1:  # its positions are the kept ones, in order
@@ -118,7 +128,7 @@ class AnnotatedBatch:
             found = np.empty(len(part.positions), object)
             found[:] = read(part)
             placed[part.positions] = found
-        each: list[Text] = (placed if self.rows is None else placed[self.rows]).tolist()
+        each: list[Item] = (placed if self.rows is None else placed[self.rows]).tolist()
         return each
 
     def decoding_at(self, position: int) -> Decoding:

@@ -18,6 +18,7 @@ import contextlib
 import time
 from dataclasses import dataclass
 from operator import attrgetter, itemgetter
+from typing import cast
 
 import numpy as np
 import numpy.typing as npt
@@ -211,13 +212,10 @@ class RerunExporter:
             if slave != NONE:
                 made[place][row] = self._frame_parts(readers[place].params(row), parts[place].spelt_summaries()[row],
                                                      slave, role, function)
-        placed = np.empty(len(messages), object)
-        for part, rows in zip(parts, made, strict=True):
-            each = np.empty(len(part.positions), object)
-            each[:] = part.each(rows)
-            placed[part.positions] = each
-        found: list[_Parts] = placed[positions].tolist()
-        return found
+        by_part = {id(part): rows for part, rows in zip(parts, made, strict=True)}
+        every = batch.each_message(lambda part: part.each(by_part[id(part)]))
+        # None of ``positions`` is noise: each one's parts were made.
+        return cast("list[_Parts]", batch.kept_at(every, positions))
 
     def _frame_parts(self, params: list[ParamValue], summary: str, slave: int, role: int, function: int) -> _Parts:
         """What a frame of ``slave`` that names ``params`` puts on the timeline."""

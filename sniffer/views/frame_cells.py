@@ -131,9 +131,7 @@ def summary_cells(batch: AnnotatedBatch, rows: npt.NDArray[np.int64], summary_of
                   notes: dict[int, str]) -> Cells:
     """The summary of the messages at ``rows`` with ``notes`` (:func:`frame_notes`) after them."""
     if summary_of is decoding_summary:  # the decoded form's lines, not an object per frame
-        kept = np.asarray(batch.positions(), np.int64)
-        lines = batch.remarked_summaries()
-        texts = [lines[row] for row in np.searchsorted(kept, rows).tolist()]
+        texts = batch.kept_at(batch.remarked_summaries(), rows)
     else:
         texts = list(map(summary_of, batch.decodings_at(rows.tolist())))
     if notes:
