@@ -121,16 +121,16 @@ def lines(fields: Sequence[Field | str], count: int) -> list[str]:
     """The ``count`` lines of ``fields`` side by side (a text: the same in every line)."""
     if not count:
         return []
-    laid = _laid(fields, count, ending=b"\n")
+    laid = _laid(fields, count)
     spelt = laid.tobytes().replace(b"\0", b"").decode("utf-8").split("\n")
     spelt.pop()  # after the last line
     return spelt
 
 
-def _laid(fields: Sequence[Field | str], count: int, ending: bytes) -> Field:
-    """The fields side by side, a row per line, ``ending`` after each."""
+def _laid(fields: Sequence[Field | str], count: int) -> Field:
+    """The fields side by side, a row per line, a newline after each."""
     parts = [np.frombuffer(field.encode(), np.uint8)[None, :] if isinstance(field, str) else field for field in fields]
-    parts.append(np.frombuffer(ending, np.uint8)[None, :])
+    parts.append(np.frombuffer(b"\n", np.uint8)[None, :])
     laid: Field = np.empty((count, sum(part.shape[1] for part in parts)), np.uint8)
     column = 0
     for part in parts:

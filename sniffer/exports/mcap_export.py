@@ -170,7 +170,7 @@ class DecodedChannels:
         kept = np.array(positions, np.int64)
         messages, frames = batch.messages, batch.messages.frames
         t_ns, slaves = frames.t_start_ns[kept], messages.slave[kept]
-        heads, values = self._decoding_parts(batch, messages.role)
+        heads, values = self._heads_and_values(batch, messages.role)
         values = self._published_values(batch, kept, values)
         indexes = number_texts(kept + frames.first_index)
         self._write(self._frame_records.block_rows(batch, HEADER_SIZE, fields=fields), self._frames, t_ns)
@@ -223,7 +223,7 @@ class DecodedChannels:
         self._write(join_rows(columns, len(picked), HEADER_SIZE), self._param_channels[slaves[rows]], t_ns[rows])
 
     @staticmethod
-    def _decoding_parts(batch: AnnotatedBatch, roles: Integers) -> tuple[list[bytes], list[bytes]]:
+    def _heads_and_values(batch: AnnotatedBatch, roles: Integers) -> tuple[list[bytes], list[bytes]]:
         """Per message written: the log text after the frame index, and its numeric params as
         JSON members (``b""``: it carried no values)."""
         return (each_message(batch, lambda parts: parts.log_heads(roles)),
