@@ -27,18 +27,20 @@ from typing import TypeVar
 import numpy as np
 import numpy.typing as npt
 
-from decoders.message import IN_COLUMNS, ROLE_ORDER, Decoding, Message, MessageBatch, ParamValue, slice_messages
+from decoders.message import ROLE_ORDER, Decoding, Message, MessageBatch, ParamValue, slice_messages
 from decoders.modbus.alike import alike, mostly_distinct
 from decoders.modbus.codecs import parse_as
-from decoders.modbus.columnar import ColumnarFrames, ColumnarNames, ColumnarParams
+from decoders.modbus.columnar import NO_VALUE, ColumnarFrames, ColumnarNames, ColumnarParams
 from decoders.modbus.columnar_text import READ_ANSWER, summaries
 from decoders.modbus.param_runs import named_registers
 from decoders.modbus.pdu import ReadRequest
 
 #: What the outputs read (see the module's docstring).
-__all__ = ["AnnotatedBatch", "ColumnarNames", "ColumnarParams", "DecodedColumns", "columnar_decodings",
+__all__ = ["AnnotatedBatch", "ColumnarNames", "ColumnarParams", "DecodedColumns", "Params", "columnar_decodings",
            "mostly_distinct", "remarked"]
 Item = TypeVar("Item")
+#: The params a frame names, as its decoding holds them.
+Params = tuple[ParamValue, ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -65,6 +67,8 @@ class AnnotatedBatch:
     _columns: list[list[DecodedColumns]] = field(default_factory=list, compare=False, repr=False)
     #: :meth:`remarked_summaries` once made: the tables read them a block of rows at a time.
     _remarked: list[list[str]] = field(default_factory=list, compare=False, repr=False)
+    #: :meth:`message_params` once made: the value readers share them.
+    _params: list[list[Params]] = field(default_factory=list, compare=False, repr=False)
 
     def __len__(self) -> int:
         return len(self.decoded) if self.rows is None else len(self.rows)
@@ -110,6 +114,25 @@ class AnnotatedBatch:
             self._remarked.append(self.each_message(lambda part: part.remarked_summaries()))
         return self._remarked[0]
 
+    def message_params(self) -> list[Params]:
+        """The params each message names, by position (of every message: a write's answer reads
+        its request's, kept or not; a frame in columns that is not kept names none), made once per
+        batch from the decoded form. Frames that read alike share one tuple."""
+        if not self._params:
+            placed = np.empty(len(self.decoded), object)
+            placed[:] = self.decoded_params()
+            for part in self.columns()[1:]:  # those in columns (the first: read from ``decoded``)
+                found = np.empty(len(part.positions), object)
+                found[:] = part.param_values()
+                placed[part.positions] = found
+            self._params.append(placed.tolist())
+        return self._params[0]
+
+    def decoded_params(self) -> list[Params]:
+        """The params of the messages decoded one by one, by position (frames in columns: none):
+        for readers that take those in columns from the columns."""
+        return [decoding.params for decoding in self.decoded]
+
     def kept_at(self, values: list[Item], positions: npt.NDArray[np.int64]) -> list[Item]:
         """Of ``values`` (one per kept message, as :meth:`each_message` gives them), those of the
         kept messages at ``positions`` (in any order)."""
@@ -130,12 +153,6 @@ class AnnotatedBatch:
             placed[part.positions] = found
         each: list[Item] = (placed if self.rows is None else placed[self.rows]).tolist()
         return each
-
-    def decoding_at(self, position: int) -> Decoding:
-        """The decoding at ``position``; of a frame in columns, the batch's decodings are built
-        (for readers that want a few frames' objects among those decoded one by one)."""
-        decoding = self.decoded[position]
-        return self.decodings[position] if decoding is IN_COLUMNS else decoding
 
     def positions(self) -> list[int]:
         """The kept positions, in order."""
@@ -228,6 +245,11 @@ class DecodedColumns(ABC):
             self._named.append(self._made_named())
         return self._named[0]
 
+    def param_values(self) -> list[Params]:
+        """Each frame's params as objects (frames alike share a tuple): for readers that take
+        a param's code, name, value and unit together."""
+        return self.each(self._made_param_values())
+
     def protocols_and_remarks(self) -> list[tuple[int, tuple[str, ...]]] | None:
         """Each frame given's protocol and remarks (``None``: Modbus without remarks, every one)."""
         return None
@@ -250,6 +272,19 @@ class DecodedColumns(ABC):
 
     @abstractmethod
     def _made_named(self) -> list[ParamValue] | None: ...
+
+    def _made_param_values(self) -> list[Params]:
+        """The params of each frame given: a named param's entry of :meth:`named`, else its
+        address and raw value (the address alone where the frame carries none)."""
+        params = self.params()
+        named = self.named() or []
+        entries = [-1] * len(params.address) if params.name is None else params.name.tolist()
+        made = [named[entry] if entry >= 0 else ParamValue(address) if value == NO_VALUE
+                else ParamValue(address, None, None, value, value)
+                for address, value, entry in zip(params.address.tolist(), params.value.tolist(), entries,
+                                                 strict=True)]
+        ends = np.cumsum(params.sizes).tolist()
+        return [tuple(made[begin:end]) for begin, end in zip([0, *ends[:-1]], ends, strict=True)]
 
 
 class InColumns(DecodedColumns):
@@ -310,6 +345,9 @@ class OneByOne(DecodedColumns):
 
     def _made_named(self) -> list[ParamValue]:
         return [param for decoding in self._decodings for param in decoding.params]
+
+    def param_values(self) -> list[Params]:
+        return [decoding.params for decoding in self._all]
 
     def protocols_and_remarks(self) -> list[tuple[int, tuple[str, ...]]]:
         return [(protocol, decoding.remarks) for decoding, protocol in zip(self._decodings, self._protocols,

@@ -177,15 +177,15 @@ class Symptoms:
         answers = np.flatnonzero((messages.role == _RESPONSE) & messages.frames.crc_ok)
         if not len(answers):
             return
-        decodings, first = batch.decodings, messages.frames.first_index
+        params, first = batch.message_params(), messages.frames.first_index
         for position in answers.tolist():
             function, slave = int(messages.function[position]), int(messages.slave[position])
             request = int(messages.request_index[position]) - first
             if function in _WRITTEN and request >= 0:
-                self._wrote(slave, decodings[request].params, first + request)
+                self._wrote(slave, params[request], first + request)
             elif function in _READ:
-                self._read(slave, decodings[position].params, first + position)
-            for param in decodings[position].params:
+                self._read(slave, params[position], first + position)
+            for param in params[position]:
                 if param.code is None or not isinstance(param.value, str) or param.raw is None:
                     continue
                 state = param.value.split(", ")[0]

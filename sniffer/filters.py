@@ -93,8 +93,8 @@ class MessageFilter:
         touching = np.zeros(len(messages), np.bool_)
         first = messages.frames.first_index
         roles, requests = messages.role.tolist(), messages.request_index.tolist()
-        for position, decoding in enumerate(batch.decodings):
-            hit = any(self._wanted(p.address, p.code) for p in decoding.params)
+        for position, params in enumerate(batch.message_params()):
+            hit = any(self._wanted(p.address, p.code) for p in params)
             if not hit and requests[position] != NONE:
                 hit = requests[position] in self._requests
             elif hit and roles[position] in _REQUEST_ROLES:

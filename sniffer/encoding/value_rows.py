@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from decoders.decoded_batch import AnnotatedBatch
+from decoders.decoded_batch import AnnotatedBatch, Params
 from decoders.frame import FrameFlag
-from decoders.message import NONE, ROLE_CODE, Decoding, ParamValue, Role
+from decoders.message import NONE, ROLE_CODE, ParamValue, Role
 from decoders.stats import Statistics
 from sniffer.sinks import Sink
 
@@ -62,8 +62,9 @@ class ValueRow:
     kind: str
     params: tuple[ParamValue, ...]
     request_index: int | None
-    #: The decoding whose params these are: what a subclass may cache by.
-    decoding: Decoding
+    #: The frame's params, all of them, as the decoded form shares them between frames alike:
+    #: what a subclass may cache by (:attr:`params` are those chosen).
+    found: Params
     valid: list[bool] = field(default_factory=list)
 
 
@@ -89,10 +90,11 @@ class ValueRows(Sink):
         raise NotImplementedError
 
     def messages(self, batch: AnnotatedBatch) -> None:
-        self.rows_at(batch, batch.positions())
+        self.rows_at(batch, batch.positions(), batch.message_params())
 
-    def rows_at(self, batch: AnnotatedBatch, positions: list[int]) -> None:
-        """The rows of the messages at ``positions`` (of the batch's kept positions, in order)."""
+    def rows_at(self, batch: AnnotatedBatch, positions: list[int], each_params: list[Params]) -> None:
+        """The rows of the messages at ``positions`` (of the batch's kept positions, in order;
+        ``each_params``: the params of each message, by position)."""
         messages, frames = batch.messages, batch.messages.frames
         first = frames.first_index
         self._first_frame(frames.t_start_ns)
@@ -104,14 +106,14 @@ class ValueRows(Sink):
             frames.t_start_ns))
         for place, position in enumerate(positions):
             self.emitting = first + position
-            decoding = batch.decoding_at(position)
+            params = each_params[position]
             kind = role[place]
             if kind in (_RESPONSE, _EXCEPTION) and request[place] != NONE:
                 self._answered(request[place], valid=kind == _RESPONSE and bool(crc[place]))
-            if slave[place] == NONE or not decoding.params:
+            if slave[place] == NONE or not params:
                 continue
-            row = ValueRow(t_start[place], first + position, slave[place], "", decoding.params,
-                           None if request[place] == NONE else request[place], decoding=decoding)
+            row = ValueRow(t_start[place], first + position, slave[place], "", params,
+                           None if request[place] == NONE else request[place], found=params)
             if kind == _RESPONSE:
                 row.kind = "reported"
                 self._emit(row, crc_ok=bool(crc[place]))

@@ -1,8 +1,8 @@
 """The Parquet ``values`` table: a row per value a slave reported or was written, in the order
 found (the rule of :mod:`sniffer.encoding.value_rows`).
 
-Two sources make its rows: the frames decoded one by one (:class:`ValueCollector`: each
-decoding's params taken apart once, a tuple each, names and units as text), and the frames the
+Two sources make its rows: the frames decoded one by one (:class:`ValueCollector`: the params
+frames share taken apart once, a tuple each, names and units as text), and the frames the
 annotator left in columns (:func:`columnar_values`: laid out by numpy from the frames' bytes, no
 object per frame; where a profile names them, each distinct named value of a batch is read once
 and the rows take their code, name, value, text, unit and validity from it). Each row carries
@@ -19,9 +19,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from decoders.decoded_batch import AnnotatedBatch, ColumnarNames
+from decoders.decoded_batch import AnnotatedBatch, ColumnarNames, Params
 from decoders.memo import KEPT_DECODINGS, Memo
-from decoders.message import NONE, Decoding, ParamValue
+from decoders.message import NONE, ParamValue
 from sniffer.encoding.value_rows import REPORTED, VALUE_KINDS, WRITTEN, ValueRow, ValueRows
 
 #: The params of one decoding as the ``values`` table holds them, a tuple per param: address,
@@ -90,14 +90,16 @@ class NumericValues:
 class ValueCollector(ValueRows):
     """The value rows of each batch's frames decoded one by one, taken by :meth:`take` (the
     ``values`` table, with the rows of frames in columns: :func:`columnar_values`); each row
-    refers to its decoding's :data:`NamedBlock`, made once per decoding (a bus repeats its
-    exceptions and identifications)."""
+    refers to its params' :data:`NamedBlock`, made once for the frames that share them (a bus
+    repeats its exceptions and identifications)."""
 
     def __init__(self) -> None:
         super().__init__()
         self._found = CollectedValues()
         self._rows_found = 0
-        self._blocks: Memo[tuple[Decoding, str, bool], NamedBlock] = Memo(KEPT_DECODINGS)
+        #: By the identity of a frame's params (shared by the frames of one decoding; a tuple of
+        #: params does not hash), kept with them so that their id is not reused while kept.
+        self._blocks: Memo[tuple[int, str, bool], tuple[Params, NamedBlock]] = Memo(KEPT_DECODINGS)
         #: Blocks found in the memo and made, since :meth:`take`; whether to keep every block
         #: made (values that repeat) or one in :data:`PROBE_EVERY` (values that do not: keeping
         #: them costs more than making them, yet a few tell when they start to repeat).
@@ -107,25 +109,25 @@ class ValueCollector(ValueRows):
     def messages(self, batch: AnnotatedBatch) -> None:
         """:meth:`ValueRows.messages` of the frames decoded one by one (those in columns:
         :func:`columnar_values`)."""
-        self.rows_at(batch, batch.decoded_positions())
+        self.rows_at(batch, batch.decoded_positions(), batch.decoded_params())
 
-    def _block(self, decoding: Decoding, kind: str, crc_ok: bool) -> NamedBlock:
-        """The params of ``decoding`` as the table holds them, from the memo where kept."""
-        key = (decoding, kind, crc_ok)
-        block = self._blocks.get(key)
-        if block is None:
-            block = _named_block(decoding.params, written=kind == "written", crc_ok=crc_ok)
+    def _block(self, params: Params, kind: str, crc_ok: bool) -> NamedBlock:
+        """``params`` as the table holds them, from the memo where kept."""
+        key = (id(params), kind, crc_ok)
+        kept = self._blocks.get(key)
+        if kept is None:
+            block = _named_block(params, written=kind == "written", crc_ok=crc_ok)
             self._made += 1
             if self._keeping or self._made % PROBE_EVERY == 0:
-                self._blocks.put(key, block)
-        else:
-            self._hits += 1
-        return block
+                self._blocks.put(key, (params, block))
+            return block
+        self._hits += 1
+        return kept[1]
 
     def _emit(self, row: ValueRow, *, crc_ok: bool) -> None:
         """:meth:`ValueRows._emit` of every value (this collector chooses none), a decoding's
         params taken apart once (``tests/test_parquet.py`` holds the table to ``values``)."""
-        block = self._block(row.decoding, row.kind, crc_ok)
+        block = self._block(row.found, row.kind, crc_ok)
         if not block:
             return
         self.shown += len(block)

@@ -20,8 +20,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from decoders.decoded_batch import AnnotatedBatch
-from decoders.message import ROLE_CODE, Decoding, Role
+from decoders.decoded_batch import AnnotatedBatch, Params
+from decoders.message import ROLE_CODE, Role
 from decoders.timeline import Merge, Timeline
 from sniffer.encoding.value_rows import WRITES
 
@@ -30,7 +30,7 @@ MAX_SERIES = 48
 #: captures, which may be any of a capture's own (a capture's 60th may be the plant's 3rd).
 PART_SERIES = 1024
 MAX_CHANGES = 500
-#: Decodings remembered with what they hold (the annotator hands the same one to equal frames).
+#: Frames' params remembered with what they hold (equal frames share them).
 CACHED = 4096
 _RESPONSE = ROLE_CODE[Role.RESPONSE]
 _SENT = (ROLE_CODE[Role.REQUEST], ROLE_CODE[Role.BROADCAST])
@@ -82,7 +82,9 @@ class DriveValues:
         self._states: dict[tuple[int, str], str] = {}
         #: The first state seen of each slave's code (what a capture before this one is compared with).
         self._firsts: dict[tuple[int, str], str] = {}
-        self._cache: dict[Decoding, tuple[_Numbers, _Texts]] = {}
+        #: By the identity of a frame's params (shared by equal frames; a tuple of params does not
+        #: hash), kept with them so that their id is not reused while cached.
+        self._cache: dict[int, tuple[Params, _Numbers, _Texts]] = {}
 
     @property
     def series_left_out(self) -> int:
@@ -101,11 +103,12 @@ class DriveValues:
         sent = writes.tolist()
         times: dict[tuple[int, str, str], list[int]] = {}
         values: dict[tuple[int, str, str], list[float]] = {}
+        each_params = batch.message_params()
         for position in positions:
-            decoding = batch.decodings[position]
-            if not decoding.params:
+            params = each_params[position]
+            if not params:
                 continue
-            numbers, texts = self._named(decoding)
+            numbers, texts = self._named(params)
             slave, kind = slaves[position], "sent" if sent[position] else "reported"
             for code, name, unit, number in numbers:
                 key = (slave, code, kind)
@@ -120,13 +123,13 @@ class DriveValues:
             for merge in _MERGES:
                 self._timeline.add(f"{name}:{merge}", merge, t_ns, readings)
 
-    def _named(self, decoding: Decoding) -> tuple[_Numbers, _Texts]:
-        """The profile-named numbers and texts of ``decoding``, cached by identity."""
-        found = self._cache.get(decoding)
+    def _named(self, params: Params) -> tuple[_Numbers, _Texts]:
+        """The profile-named numbers and texts of ``params``, cached by identity."""
+        found = self._cache.get(id(params))
         if found is None:
             numbers: _Numbers = []
             texts: _Texts = []
-            for param in decoding.params:
+            for param in params:
                 if param.code is None or not param.available or param.value is None:
                     continue
                 if isinstance(param.value, str):
@@ -135,8 +138,8 @@ class DriveValues:
                     numbers.append((param.code, param.name or param.code, param.unit or "", float(param.value)))
             if len(self._cache) >= CACHED:
                 self._cache.clear()
-            found = self._cache[decoding] = (numbers, texts)
-        return found
+            found = self._cache[id(params)] = (params, numbers, texts)
+        return found[1], found[2]
 
     def _series(self, key: tuple[int, str, str], name: str, unit: str) -> bool:
         if key in self.series:

@@ -94,7 +94,9 @@ class LiveView(Sink):
         rows = np.arange(len(batch.decoded), dtype=np.int64) if batch.rows is None else batch.rows
         latencies = self._read_latencies(batch.messages)
         rows = rows[-KEPT_FRAMES:]
-        self._recent.append((AnnotatedBatch(batch.messages, batch.decodings, rows),
+        kept = np.zeros(len(batch.messages), np.bool_)
+        kept[rows] = True
+        self._recent.append((batch.select(kept),
                              [latencies[row] for row in rows.tolist()]))
         self._kept += len(rows)
         while self._kept - len(self._recent[0][0]) >= KEPT_FRAMES:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import struct
+from dataclasses import astuple
 from itertools import pairwise
 
 import numpy as np
@@ -140,6 +141,9 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
         assert said(got.decoded[position]) == said(expected[position])
     # Frames in columns too: their decodings, built when read, are the plain path's.
     assert [said(decoding) for decoding in got.decodings] == [said(decoding) for decoding in expected]
+    # The decoded form's params of every message are the plain path's, without a decoding built.
+    assert [list(map(astuple, params)) for params in got.message_params()] == [
+        list(map(astuple, decoding.params)) for decoding in expected]
     if reads is not None:
         data = batch.frames.data
         assert all(got.decoded[position] is IN_COLUMNS for position in kept)
