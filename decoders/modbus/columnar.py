@@ -31,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.distinct import distinct
+from decoders.modbus.codecs import BIT_VALUES, BULK_SHAPES, BULK_SINGLE
 from decoders.modbus.codes import MAX_QUANTITY
 from decoders.modbus.columnar_text import READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, formatted, summaries, words_at
 from decoders.modbus.pdu import COIL_ON
@@ -46,7 +47,7 @@ _TEXT = itemgetter(1)
 #: The most members :func:`one_of` compares values with one by one.
 _FEW_MEMBERS = 8
 #: The most a request may ask for, by function (0: not a function kept in columns).
-MOST = np.zeros(17, np.int64)
+MOST = np.zeros(257, np.int64)
 for _function, _most in MAX_QUANTITY.items():
     MOST[_function] = _most
 
@@ -289,7 +290,8 @@ class ColumnarFrames:
         """Which frames carry values (indexes of these columns)."""
         kind = self.kind
         valued: npt.NDArray[np.int64] = np.flatnonzero((kind == READ_ANSWER) | (kind == WRITE) | (kind == READ_WRITE)
-                                                       | ((kind == WRITE_ANSWER) & (self.function <= 6)))
+                                                       | ((kind == WRITE_ANSWER)
+                                                          & (BULK_SHAPES[self.function] == BULK_SINGLE)))
         return valued
 
     def _carried(self, data: bytes, valued: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64],
@@ -300,7 +302,8 @@ class ColumnarFrames:
         values a frame, and reading every value both ways would triple the work."""
         counts = self.count[valued]
         function, starts = self.function[valued], self.data[valued]
-        bit_frames = (function <= 2) | (function == 15)
+        # Bits packed in bytes; a single coil's is a word (0xFF00: on), read with the registers.
+        bit_frames = BIT_VALUES[function] & (BULK_SHAPES[function] != BULK_SINGLE)
         raw = np.frombuffer(data, np.uint8)
         if bit_frames.all():
             return counts, _bits(raw, starts, counts).astype(np.int32)
@@ -310,7 +313,7 @@ class ColumnarFrames:
             values[bit_rows] = _bits(raw, starts[bit_frames], counts[bit_frames])
         word_frames, word_rows = ~bit_frames, ~bit_rows
         words = words_at(raw, spread(starts[word_frames], counts[word_frames], 2))
-        single_coil = np.repeat(function[word_frames] == 5, counts[word_frames])
+        single_coil = np.repeat(BIT_VALUES[function[word_frames]], counts[word_frames])
         values[word_rows] = np.where(single_coil, words == COIL_ON, words)
         return counts, values
 

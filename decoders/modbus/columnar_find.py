@@ -1,20 +1,22 @@
 """Which frames of a batch stay in columns (:mod:`decoders.modbus.columnar`), found with numpy.
 
-The rules; every frame also is ``eligible`` (the annotator's to say: Modbus, of a slave whose
-profile adds nothing or names plainly, :mod:`decoders.profiles.columns`), has a good CRC and the
-shape its function has in :func:`~decoders.modbus.codecs.parse_pdu`, with counts Modbus
-allows:
+Which functions, and in which shape, is the codec registry's to say
+(:data:`~decoders.modbus.codecs.BULK_SHAPES`: FC 1 to 4 read, 5 and 6 write one value, 15 and 16
+write many, 23 reads and writes). The rules; every frame also is ``eligible`` (the annotator's to
+say: Modbus, of a slave whose profile adds nothing or names plainly,
+:mod:`decoders.profiles.columns`), has a good CRC and the shape its function has in
+:func:`~decoders.modbus.codecs.parse_pdu`, with counts Modbus allows:
 
-* a read request (FC 1 to 4, role request, 8 bytes);
+* a read request (a read's function, role request, 8 bytes);
 * a read's answer (role response): a byte count that counts the rest of the frame, even for
   registers; the first message of the capture to name its request (the one the annotator reads
   against it), within :data:`~decoders.modbus.columnar.KEPT_REQUESTS` frames of it; the request
   a read of the same function kept in columns, or kept by the annotator from before the batch;
-* a write (FC 5, 6, 15, 16; role request; not timed out), kept only together with its answer in
+* a write (a single or multiple write's function; role request; not timed out), kept only together with its answer in
   the same batch (the matcher delivers a request with its outcome), which is kept when it is
-  the write's echo (FC 5, 6) or its confirmation (FC 15, 16: 8 bytes), the first message to
+  the write's echo (a single write) or its confirmation (a multiple one: 8 bytes), the first message to
   name the write;
-* an FC 23 request (role request; not timed out; a byte count for the registers it writes,
+* a read/write request (FC 23; role request; not timed out; a byte count for the registers it writes,
   counts Modbus allows), kept only together with its answer in the same batch, the first message
   to name it: a register answer (its byte count even and counting the rest of the frame), which
   reports registers from the request's first read one.
@@ -29,6 +31,7 @@ import numpy.typing as npt
 
 from decoders.frame import FrameFlag
 from decoders.message import NONE, ROLE_CODE, MessageBatch, Role
+from decoders.modbus.codecs import BIT_VALUES, BULK_MULTIPLE, BULK_READ, BULK_READ_WRITE, BULK_SHAPES, BULK_SINGLE
 from decoders.modbus.codes import MAX_READ_WRITE_QUANTITY
 from decoders.modbus.columnar import KEPT_REQUESTS, MOST, ColumnarFrames
 from decoders.modbus.columnar_text import READ, READ_ANSWER, READ_WRITE, WRITE, WRITE_ANSWER, words_at
@@ -40,9 +43,8 @@ _MULTIPLE_HEAD = 9  # bytes of a multiple write but its values
 _SHORTEST_ANSWER = 6  # a read's answer with one byte of data
 _READ_WRITE_HEAD = 13  # bytes of an FC 23 request but its values
 
-#: Where a frame's data (values or bits) starts, by its kind and whether its function is FC 5 or
-#: FC 6 (a single write's value, or its echo's): -1, none (a read request, a multiple write's
-#: answer).
+#: Where a frame's data (values or bits) starts, by its kind and whether its function is a single
+#: write (its value, or its echo's): -1, none (a read request, a multiple write's answer).
 _DATA_AT = np.full((5, 2), -1, np.int64)
 _DATA_AT[READ_ANSWER] = 3
 _DATA_AT[WRITE] = (7, 4)
@@ -63,6 +65,8 @@ class _Columns:
         self.starts, self.lengths = frames.offsets[:-1], np.diff(frames.offsets)
         self.raw = np.frombuffer(frames.data, np.uint8)  # widened where read (:meth:`byte`, :meth:`word`)
         self.function = batch.function.astype(np.int64)
+        #: Each frame's function's shape in bulk (:data:`~decoders.modbus.codecs.BULK_SHAPES`).
+        self.shape = BULK_SHAPES[self.function]
         self.good = eligible & frames.crc_ok
         self._of_role = {role: self.good & (batch.role == role) for role in (_REQUEST, _RESPONSE)}
         self.request = batch.request_index
@@ -83,12 +87,17 @@ class _Columns:
         """The big-endian word at ``offset`` of each frame at ``positions``."""
         return words_at(self.raw, self.starts[positions] + offset)
 
-    def of(self, role: int, functions: tuple[int, ...]) -> npt.NDArray[np.bool_]:
-        """Good frames of ``role`` (a request or an answer) and one of ``functions``."""
-        table = np.zeros(257, np.bool_)  # by function; NONE (-1) reads the last, never one of them
-        table[list(functions)] = True
-        found: npt.NDArray[np.bool_] = self._of_role[role] & table[self.function]
+    def of(self, role: int, *shapes: int) -> npt.NDArray[np.bool_]:
+        """Good frames of ``role`` (a request or an answer) whose function has one of ``shapes``."""
+        table = np.zeros(BULK_SHAPES.max() + 1, np.bool_)
+        table[list(shapes)] = True
+        found: npt.NDArray[np.bool_] = self._of_role[role] & table[self.shape]
         return found
+
+    def single(self, positions: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+        """Whether the function of each frame at ``positions`` is a single write."""
+        single: npt.NDArray[np.bool_] = self.shape[positions] == BULK_SINGLE
+        return single
 
 
 def find_columnar(batch: MessageBatch, eligible: npt.NDArray[np.bool_], earlier: EarlierRead) -> ColumnarFrames:
@@ -97,19 +106,19 @@ def find_columnar(batch: MessageBatch, eligible: npt.NDArray[np.bool_], earlier:
     columns = _Columns(batch, eligible)
     size, first, function = columns.size, columns.first, columns.function
     kind, address, count = columns.kind, columns.address, columns.count
-    reads = np.flatnonzero(columns.of(_REQUEST, (1, 2, 3, 4)) & (columns.lengths == _SHORT))
+    reads = np.flatnonzero(columns.of(_REQUEST, BULK_READ) & (columns.lengths == _SHORT))
     asked = columns.word(reads, 4)
     reads = reads[(asked >= 1) & (asked <= MOST[function[reads]])]
     kind[reads], address[reads], count[reads] = READ, columns.word(reads, 2), columns.word(reads, 4)
     writes = _shaped_writes(columns)
     kind[writes], address[writes] = WRITE, columns.word(writes, 2)
-    count[writes] = np.where(function[writes] <= 6, 1, columns.word(writes, 4))
+    count[writes] = np.where(columns.single(writes), 1, columns.word(writes, 4))
     _read_writes(columns)
 
     answers = _first_answers(columns)
     earlier_requests = _read_answers(columns, answers, earlier)
     answered = _write_answers(columns, answers)
-    read_writes = answers[(kind[answers] == READ_ANSWER) & (function[answers] == 23)]
+    read_writes = answers[(kind[answers] == READ_ANSWER) & (columns.shape[answers] == BULK_READ_WRITE)]
     answered[columns.request[read_writes] - first] = True
     kind[((kind == WRITE) | (kind == READ_WRITE)) & ~answered] = -1
     answers = answers[kind[answers] >= 0]
@@ -123,7 +132,7 @@ def find_columnar(batch: MessageBatch, eligible: npt.NDArray[np.bool_], earlier:
     starts = columns.starts[positions]
     kinds, functions = kind[positions], function[positions]
     byte_count = np.where(kinds == READ_ANSWER, columns.raw[starts + 2], 0).astype(np.int64)
-    data_at = _DATA_AT[kinds, (functions <= 6).astype(np.intp)]
+    data_at = _DATA_AT[kinds, columns.single(positions).astype(np.intp)]
     data = np.where(data_at >= 0, starts + data_at, -1)
     return ColumnarFrames(
         positions=positions, function=functions, kind=kinds, address=address[positions], count=count[positions],
@@ -136,14 +145,14 @@ def find_columnar(batch: MessageBatch, eligible: npt.NDArray[np.bool_], earlier:
 def _shaped_writes(columns: _Columns) -> npt.NDArray[np.int64]:
     """Write requests of the shape ``parse_pdu`` reads, not timed out."""
     function, lengths = columns.function, columns.lengths
-    writes = np.flatnonzero(columns.of(_REQUEST, (5, 6, 15, 16)) & ((columns.batch.flags & _TIMEOUT) == 0))
-    single = function[writes] <= 6
+    writes = np.flatnonzero(columns.of(_REQUEST, BULK_SINGLE, BULK_MULTIPLE) & ((columns.batch.flags & _TIMEOUT) == 0))
+    single = columns.single(writes)
     shaped = single & (lengths[writes] == _SHORT)
     many = np.flatnonzero(~single & (lengths[writes] >= _MULTIPLE_HEAD))  # its count and byte count inside the frame
     frames = writes[many]
     count = columns.word(frames, 4)
     byte_count = columns.byte(frames, 6)
-    needed = np.where(function[frames] == 15, (count + 7) // 8, 2 * count)
+    needed = np.where(BIT_VALUES[function[frames]], (count + 7) // 8, 2 * count)
     shaped[many] = (lengths[frames] == _MULTIPLE_HEAD + byte_count) & (byte_count == needed) & (count >= 1) & (
         count <= MOST[function[frames]])
     kept: npt.NDArray[np.int64] = writes[shaped]  # in order, as ``writes`` (not union1d, which sorts them)
@@ -155,7 +164,7 @@ def _read_writes(columns: _Columns) -> None:
     Modbus allows and a byte count for the registers written (the written span first: its
     values lie in the frame, and its params come first)."""
     lengths = columns.lengths
-    asks = np.flatnonzero(columns.of(_REQUEST, (23,)) & ((columns.batch.flags & _TIMEOUT) == 0)
+    asks = np.flatnonzero(columns.of(_REQUEST, BULK_READ_WRITE) & ((columns.batch.flags & _TIMEOUT) == 0)
                           & (lengths >= _READ_WRITE_HEAD))
     read_count, write_count = columns.word(asks, 4), columns.word(asks, 8)
     byte_count = columns.byte(asks, 10)
@@ -170,7 +179,8 @@ def _read_writes(columns: _Columns) -> None:
 def _first_answers(columns: _Columns) -> npt.NDArray[np.int64]:
     """Good answers to reads and writes, each the first message to name its request, within
     :data:`KEPT_REQUESTS` frames of it."""
-    answers = np.flatnonzero(columns.of(_RESPONSE, (1, 2, 3, 4, 5, 6, 15, 16, 23)) & (columns.request != NONE))
+    answers = np.flatnonzero(columns.of(_RESPONSE, BULK_READ, BULK_SINGLE, BULK_MULTIPLE, BULK_READ_WRITE)
+                             & (columns.request != NONE))
     naming = np.flatnonzero(columns.request != NONE)
     named = columns.request[naming]
     if len(named) and (named[1:] >= named[:-1]).all():  # in order, as a bus answers: each run's first
@@ -193,20 +203,21 @@ def _read_answers(columns: _Columns, answers: npt.NDArray[np.int64], earlier: Ea
     reads from before the batch."""
     function, first = columns.function, columns.first
     kind, address, count = columns.kind, columns.address, columns.count
-    reads = answers[((function[answers] <= 4) | (function[answers] == 23))
+    shape = columns.shape
+    reads = answers[((shape[answers] == BULK_READ) | (shape[answers] == BULK_READ_WRITE))
                     & (columns.lengths[answers] >= _SHORTEST_ANSWER)]
     byte_count = columns.byte(reads, 2)
     fits = (byte_count == columns.lengths[reads] - 5) & (byte_count > 0) & ~(
-        (function[reads] >= 3) & (byte_count % 2 == 1))
+        ~BIT_VALUES[function[reads]] & (byte_count % 2 == 1))
     reads = reads[fits]
     request = columns.request[reads]
     inside = request >= first
     here, local = reads[inside], request[inside] - first
-    read_write = function[here] == 23
+    read_write = shape[here] == BULK_READ_WRITE
     fits = (kind[local] == np.where(read_write, READ_WRITE, READ)) & (function[local] == function[here])
     here, local, read_write = here[fits], local[fits], read_write[fits]
     kind[here], address[here] = READ_ANSWER, np.where(read_write, columns.read_address[local], address[local])
-    registers = function[here] >= 3
+    registers = ~BIT_VALUES[function[here]]
     answer_bytes = columns.byte(here, 2)
     count[here] = np.where(registers, answer_bytes // 2, np.minimum(count[local], 8 * answer_bytes))
     earlier_requests = []
@@ -215,7 +226,7 @@ def _read_answers(columns: _Columns, answers: npt.NDArray[np.int64], earlier: Ea
         if read is not None and read[0] == function[position] and 1 <= read[2] <= MOST[read[0]]:
             words = int(columns.raw[columns.starts[position] + 2])
             kind[position], address[position] = READ_ANSWER, read[1]
-            count[position] = words // 2 if read[0] >= 3 else min(read[2], 8 * words)
+            count[position] = min(read[2], 8 * words) if BIT_VALUES[read[0]] else words // 2
             earlier_requests.append(index)
     return earlier_requests
 
@@ -224,12 +235,13 @@ def _write_answers(columns: _Columns, answers: npt.NDArray[np.int64]) -> npt.NDA
     """Marks the answers to writes kept in columns (the echo or the confirmation, 8 bytes, of
     the batch's write of their function); which writes were so answered."""
     function, first, kind = columns.function, columns.first, columns.kind
-    echoes = answers[(function[answers] >= 5) & (columns.lengths[answers] == _SHORT)]
+    shape = columns.shape[answers]
+    echoes = answers[((shape == BULK_SINGLE) | (shape == BULK_MULTIPLE)) & (columns.lengths[answers] == _SHORT)]
     local = columns.request[echoes] - first
     inside = local >= 0
     echoes, local = echoes[inside], local[inside]
     confirmed = columns.word(echoes, 4)
-    single = function[echoes] <= 6
+    single = columns.single(echoes)
     fits = (kind[local] == WRITE) & (function[local] == function[echoes]) & (
         single | ((confirmed >= 1) & (confirmed <= MOST[function[echoes]])))
     echoes, local, single = echoes[fits], local[fits], single[fits]

@@ -26,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.distinct import distinct
+from decoders.modbus.codecs import BIT_VALUES, BULK_SHAPES, BULK_SINGLE
 from decoders.modbus.codes import TABLE_NAMES
 from decoders.modbus.pdu import COIL_STATES
 from decoders.modbus.pdu_text import HEX_WORDS_SHOWN, hex_payload, registers
@@ -88,11 +89,12 @@ def _pieces(frames: SummaryColumns, data: bytes) -> Iterator[tuple[npt.NDArray[n
     for key in distinct(group).tolist():
         rows = np.flatnonzero(group == key)
         kind_of, function_of = key >> 8, key & 0xFF
-        if kind_of == READ_ANSWER and function_of >= 3:
+        bits, single = bool(BIT_VALUES[function_of]), BULK_SHAPES[function_of] == BULK_SINGLE
+        if kind_of == READ_ANSWER and not bits:
             yield from _answer_texts(rows, function_of, data, frames)
-        elif kind_of in (WRITE, READ_WRITE) and function_of in (16, 23):
+        elif kind_of in (WRITE, READ_WRITE) and not (bits or single):
             yield from _register_write_texts(rows, kind_of, data, frames)
-        elif function_of in (5, 6) or kind_of in (READ, WRITE_ANSWER) or function_of in (1, 2, 15):
+        elif single or kind_of in (READ, WRITE_ANSWER) or bits:
             yield rows, lines(_fields(frames, data, rows, kind_of, function_of), len(rows))
         else:
             yield rows, _group(frames, data, rows, kind_of, function_of)
@@ -161,9 +163,9 @@ def _fields(frames: SummaryColumns, data: bytes, rows: npt.NDArray[np.int64], ki
     writes), for :func:`~decoders.modbus.text_layout.lines`; ``_group`` spells the same."""
     table = TABLE_NAMES.get(function, "")
     address = frames.address[rows]
-    if function in (5, 6):  # a request and its echo say the same
+    if BULK_SHAPES[function] == BULK_SINGLE:  # a request and its echo say the same
         values = words_at(np.frombuffer(data, np.uint8), frames.data[rows])
-        if function == 6:
+        if not BIT_VALUES[function]:
             return ["write HR ", decimal(address), " = ", decimal(values), " (0x", upper_hex(values, 4), ")"]
         states = list(COIL_STATES.values())
         state = np.full(len(rows), len(states))  # past the table: nothing, the value is invalid
@@ -216,15 +218,15 @@ def _group(frames: SummaryColumns, data: bytes, rows: npt.NDArray[np.int64], kin
     if kind == READ:
         return [f"read {table} {a} ({c})" if c == 1 else f"read {table} {a}..{a + c - 1} ({c})"
                 for a, c in zip(address, count, strict=True)]
-    if kind == READ_ANSWER and function >= 3:
+    if kind == READ_ANSWER and not BIT_VALUES[function]:
         return [f"{table} = {hex_payload(data[s : s + n])} ({registers(n // 2)})"
                 for s, n in zip(start, size, strict=True)]
     if kind == READ_ANSWER:
         bits = _bit_texts(data, frames.data[rows], 8 * frames.byte_count[rows])
         return [f"{table} = {b} ({n} bytes)" for b, n in zip(bits, size, strict=True)]
-    if function in (5, 6):  # a request and its echo say the same
+    if BULK_SHAPES[function] == BULK_SINGLE:  # a request and its echo say the same
         values = words_at(np.frombuffer(data, np.uint8), frames.data[rows]).tolist()
-        if function == 5:
+        if BIT_VALUES[function]:
             return [f"write coil {a} = {COIL_STATES.get(v) or f'invalid 0x{v:04X}'}"
                     for a, v in zip(address, values, strict=True)]
         return [f"write HR {a} = {v} (0x{v:04X})" for a, v in zip(address, values, strict=True)]
@@ -236,7 +238,7 @@ def _group(frames: SummaryColumns, data: bytes, rows: npt.NDArray[np.int64], kin
                                                                                      strict=True)]
     if kind == WRITE_ANSWER:
         return [f"wrote {table} {span} ({c})" for span, c in zip(spans, count, strict=True)]
-    if function == 15:
+    if BIT_VALUES[function]:
         bits = _bit_texts(data, frames.data[rows], frames.count[rows])
         return [f"write coils {span} = {b}" for span, b in zip(spans, bits, strict=True)]
     return [f"write HR {span} = {hex_payload(data[s : s + 2 * c])}" for span, s, c in zip(spans, start, count,
