@@ -20,16 +20,12 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.decoded_batch import AnnotatedBatch, ColumnarNames, Params
-from decoders.memo import KEPT_DECODINGS, Memo
 from decoders.message import NONE, ParamValue
 from sniffer.encoding.value_rows import REPORTED, VALUE_KINDS, WRITTEN, ValueRow, ValueRows
 
 #: The params of one decoding as the ``values`` table holds them, a tuple per param: address,
 #: code, name, raw, value (numbers), text (what a value says in words), unit, valid.
 NamedBlock = tuple[tuple[object, ...], ...]
-#: While decodings do not repeat, one block in this many is kept in the memo, to find out when
-#: they start to (see :class:`ValueCollector`).
-PROBE_EVERY = 16
 #: A named row's own columns: time, index, slave, kind (its code), request index (``NONE``).
 NamedRow = tuple[int, int, int, int, int]
 _KIND_CODES = {kind: code for code, kind in enumerate(VALUE_KINDS)}
@@ -90,38 +86,29 @@ class NumericValues:
 class ValueCollector(ValueRows):
     """The value rows of each batch's frames decoded one by one, taken by :meth:`take` (the
     ``values`` table, with the rows of frames in columns: :func:`columnar_values`); each row
-    refers to its params' :data:`NamedBlock`, made once for the frames that share them (a bus
-    repeats its exceptions and identifications)."""
+    refers to its params' :data:`NamedBlock`, made once per batch for the frames that share them
+    (the batch's frames of one decoding: a bus repeats its exceptions and identifications)."""
 
     def __init__(self) -> None:
         super().__init__()
         self._found = CollectedValues()
         self._rows_found = 0
-        #: By the identity of a frame's params (shared by the frames of one decoding; a tuple of
-        #: params does not hash), kept with them so that their id is not reused while kept.
-        self._blocks: Memo[tuple[int, str, bool], tuple[Params, NamedBlock]] = Memo(KEPT_DECODINGS)
-        #: Blocks found in the memo and made, since :meth:`take`; whether to keep every block
-        #: made (values that repeat) or one in :data:`PROBE_EVERY` (values that do not: keeping
-        #: them costs more than making them, yet a few tell when they start to repeat).
-        self._hits = self._made = 0
-        self._keeping = True
+        #: This batch's blocks, by the identity of the params (a tuple of params does not hash),
+        #: kept with them so that their id is not reused while kept.
+        self._blocks: dict[tuple[int, str, bool], tuple[Params, NamedBlock]] = {}
 
     def messages(self, batch: AnnotatedBatch) -> None:
         """:meth:`ValueRows.messages` of the frames decoded one by one (those in columns:
         :func:`columnar_values`)."""
+        self._blocks.clear()
         self.rows_at(batch, batch.decoded_positions(), batch.decoded_params())
 
     def _block(self, params: Params, kind: str, crc_ok: bool) -> NamedBlock:
-        """``params`` as the table holds them, from the memo where kept."""
+        """``params`` as the table holds them, made once per batch."""
         key = (id(params), kind, crc_ok)
         kept = self._blocks.get(key)
         if kept is None:
-            block = _named_block(params, written=kind == "written", crc_ok=crc_ok)
-            self._made += 1
-            if self._keeping or self._made % PROBE_EVERY == 0:
-                self._blocks.put(key, (params, block))
-            return block
-        self._hits += 1
+            kept = self._blocks[key] = (params, _named_block(params, written=kind == "written", crc_ok=crc_ok))
         return kept[1]
 
     def _emit(self, row: ValueRow, *, crc_ok: bool) -> None:
@@ -140,10 +127,6 @@ class ValueCollector(ValueRows):
 
     def take(self) -> CollectedValues:
         found, self._found = self._found, CollectedValues()
-        if self._hits + self._made >= PROBE_EVERY:
-            # Kept, a block must be asked for again to pay: when probes are, keep them all.
-            self._keeping = self._hits * (1 if self._keeping else PROBE_EVERY) >= self._made
-            self._hits = self._made = 0
         return found
 
 
