@@ -8,7 +8,7 @@ status answer) stay; the rest go, with no per-entry bookkeeping on the hot path.
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable
-from typing import Generic, TypeVar, cast
+from typing import Generic, TypeVar
 
 #: Decodings the annotator keeps for repeats, per generation: what a bus repeats stays while
 #: one-off frames pass through. Sinks that derive something per decoding keep as many, so that
@@ -46,31 +46,6 @@ class Memo(Generic[Key, Value]):
         """The young generation's lookup, to ``map`` over a batch in C: what it misses (``None``),
         ``get`` answers. Valid until the next ``put``."""
         return self._young.get
-
-    def get_all(self, keys: list[Key], build: Callable[[int], Value]) -> list[Value]:
-        """The value of every key, for a batch: repeats looked up in C (``map`` over the young
-        generation), the rest as :meth:`get` finds them, and what neither holds built by
-        ``build(row)`` and kept as :meth:`put` keeps it (so a key that comes again later in the
-        batch finds it). Both are written out here rather than called: a batch of new frames
-        misses on every row, and ``tests/unit/test_memo.py`` holds this to the calls."""
-        young = self._young
-        values = list(map(young.get, keys))
-        if None in values:
-            old, size = self._old, self.size
-            for row, value in enumerate(values):
-                if value is None:
-                    key = keys[row]
-                    found = young.get(key)  # built for an earlier row of this batch
-                    if found is None:
-                        found = old.get(key)
-                        if found is None:
-                            found = build(row)
-                        if len(young) >= size:
-                            self._old, old, young = young, young, {}
-                            self._young = young
-                        young[key] = found
-                    values[row] = found
-        return cast(list[Value], values)
 
     def put(self, key: Key, value: Value) -> None:
         if len(self._young) >= self.size:

@@ -139,11 +139,6 @@ class Message:
     def uss(self) -> UssTelegram | None:
         return self.decoding.uss
 
-    def with_decoding(self, decoding: Decoding) -> Message:
-        """This message with ``decoding`` in place of its own."""
-        return Message(self.frame, self.role, self.slave, self.function, self.exception_code, self.flags,
-                       self.request_index, self.latency_ns, decoding)
-
 
 #: Roles by their code in :class:`MessageBatch`.
 ROLE_ORDER = [Role.REQUEST, Role.RESPONSE, Role.EXCEPTION, Role.BROADCAST, Role.NOISE, Role.UNKNOWN]

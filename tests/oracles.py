@@ -6,6 +6,7 @@ Each is the rule written the obvious way; the product keeps one implementation o
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -113,7 +114,7 @@ class PlainAnnotator(Annotator):
                 request = kept[1]
         frame = message.frame
         facts = FrameFacts(message.slave, message.role, message.function, frame.crc_ok)
-        annotated = message.with_decoding(self._decoding(frame.data, frame.protocol, facts, request))
+        annotated = replace(message, decoding=self._decoding(frame.data, frame.protocol, facts, request))
         if annotated.role is Role.REQUEST and annotated.pdu is not None:
             self._requests[frame.index] = (answer_context(annotated.pdu), annotated.pdu)
             self._forget(frame.index + 1)

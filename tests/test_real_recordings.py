@@ -120,6 +120,6 @@ def test_decodings_shortcuts_say_what_the_plain_path_says(recording: Recording, 
     book = None if profiles is None else profile_book(profiles, [])
     cached = Annotator(None if book is None else ProfileApplier(book))
     plain = PlainAnnotator(None if profiles is None else AnewApplier(profile_book(profiles, [])))
-    got = [said(m.decoding) for batch in batches for m in cached.annotate_all(batch)]
+    got = [said(m.decoding) for batch in batches for m in cached.annotate_batch(batch)]
     assert got == [said(plain.annotate(m).decoding) for batch in batches for m in batch]
     assert len(got) > 10

@@ -34,7 +34,6 @@ from decoders.message import (
     ROLE_CODE,
     ROLE_ORDER,
     Decoding,
-    Message,
     MessageBatch,
     Role,
     slice_messages,
@@ -222,10 +221,6 @@ class Annotator:
 
     def _version(self) -> int:
         return 0 if self._profiles is None else self._profiles.version
-
-    def annotate_all(self, batch: MessageBatch) -> list[Message]:
-        """:meth:`annotate_batch` as message objects."""
-        return list(self.annotate_batch(batch))
 
     def _decoding(self, data: bytes, protocol: int, facts: FrameFacts, request: Pdu | None) -> Decoding:
         """What a frame says (``facts``: what the profiles read of it besides its bytes)."""

@@ -146,11 +146,6 @@ class FrameRecordEncoder:
         frames = batch.messages.frames
         return [*channel_column(frames, kept, self.channels), *uart_error_column(frames, kept)]
 
-    def encode_batch(self, batch: AnnotatedBatch) -> list[str]:
-        """The records as text, one per kept message."""
-        rows = self.rows(batch)
-        return [rows.row(index).decode() for index in range(len(rows))]
-
 
 def _joined_parts(messages: MessageBatch, parts: FrameTexts) -> list[bytes]:
     """The records of ``parts``' frames from ``hex`` to the end of ``remarks``: spelt once per

@@ -150,7 +150,8 @@ def decode_frames(provider: atheris.FuzzedDataProvider) -> None:
     for batch in (matcher.feed(frames_to_batch(frames)), matcher.flush()):
         expected = [plain.annotate(message) for message in batch]
         annotated = cached.annotate_batch(batch)
-        records = encoder.encode_batch(annotated)
+        rows = encoder.rows(annotated)
+        records = [rows.row(index).decode() for index in range(len(rows))]
         for message, record, reference in zip(annotated, records, expected, strict=True):
             if message.summary != reference.summary or message.params != reference.params:
                 raise AssertionError(f"cached decoding differs at frame {message.frame.index}")
