@@ -8,9 +8,10 @@ by one depends on the frames alone (their function, shape and profile), never on
 every output gets the same batch, and reads it one way: :meth:`AnnotatedBatch.columns` gives what
 the kept messages say as :class:`DecodedColumns` (a summary per frame, a long table of params,
 each frame's protocol and remarks), whichever way they were decoded, frames alike given once;
-:meth:`AnnotatedBatch.summaries` their summary lines. Readers that want objects for a few frames
-take each frame's :class:`~decoders.message.Decoding`, which for a frame in columns is built
-when first asked for (:func:`columnar_decodings`).
+:meth:`AnnotatedBatch.summaries` their summary lines, :meth:`AnnotatedBatch.message_params`
+each message's params as objects (made from the same form). Only what reformats a PDU
+(``--registers``) or iterates the batch takes each frame's :class:`~decoders.message.Decoding`,
+which for a frame in columns is built when first asked for (:func:`columnar_decodings`).
 
 This module is the outputs' one way into the decoded form: ``sniffer/`` imports nothing else of
 :mod:`decoders.modbus` but the codec registry (:mod:`decoders.modbus.codecs`; an import-linter
