@@ -7,12 +7,16 @@ from __future__ import annotations
 import csv
 import io
 import os
+import random
+import time
 from collections.abc import Callable
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
 
-from sniffer.views.values import LONG_COLUMNS
+from sniffer.encoding.value_rows import ValueChoice
+from sniffer.views.values import LONG_COLUMNS, ValuesView
 from tests.conftest import ROOT, CliResult
 
 Cli = Callable[..., CliResult]
@@ -102,3 +106,29 @@ def test_bad_options_are_one_line(cli: Cli, tmp_path: Path) -> None:
     assert kept.code != 0 and target.read_text() == "keep"
     written = cli("values", str(ROOT / "captures" / "atv71-plc-poll.log"), "-o", str(target), "--force")
     assert written.code == 0 and f"wrote {target}: csv," in written.err
+
+
+@pytest.mark.parametrize("zone", ["UTC", "Europe/Paris", "America/St_Johns", "Asia/Kathmandu"])
+@pytest.mark.parametrize("mode", ["utc", "local"])
+def test_times_are_what_datetime_writes(monkeypatch: pytest.MonkeyPatch, zone: str, mode: str) -> None:
+    """A row's time, its second's text made once for the frames of that second, is what
+    ``datetime`` writes of each time alone: across seconds, midnights and changes of summer time."""
+    if not hasattr(time, "tzset"):
+        pytest.skip("time zones are set through tzset (POSIX)")
+    monkeypatch.setenv("TZ", zone)
+    time.tzset()
+    try:
+        view = ValuesView(io.StringIO(), ValueChoice(), as_json=False, wide=False, time_mode=mode)
+        generator = random.Random(7)
+        start = 1_711_846_800 * 10**9  # 2024-03-31 01:00 UTC: Europe's clocks go forward
+        times = sorted(start + generator.randrange(-10**13, 10**13) for _ in range(2000))
+        times += [start - 1, start, start + 999_999_999, 1_700_006_399_999_999_000, 1_700_006_400_000_000_000]
+        for t_ns in times:
+            seconds, nanos = divmod(t_ns, 10**9)
+            moment = datetime.fromtimestamp(seconds, UTC).replace(microsecond=nanos // 1000)
+            expected = (moment.astimezone().isoformat(timespec="microseconds") if mode == "local"
+                        else moment.strftime("%Y-%m-%dT%H:%M:%S.%fZ"))
+            assert view._time(t_ns) == expected
+    finally:
+        monkeypatch.delenv("TZ")
+        time.tzset()

@@ -29,6 +29,8 @@ from sniffer.errors import ErrorKind, RtuSniffError
 LONG_COLUMNS = ("time", "t_ns", "index", "slave", "kind", "address", "code", "name", "raw", "value", "unit",
                 "request_index", "valid")
 WIDE_FIXED = ("time", "t_ns", "index", "slave", "kind")
+#: The columns of :data:`LONG_COLUMNS` a param fills.
+_PARAM_COLUMNS = ("address", "code", "name", "raw", "value", "unit")
 #: ``--wide`` holds every value until the end, and its CSV has a cell for every row and column:
 #: beyond these it is refused with the figures (a 3.5 MB capture once made 4.4 GB of CSV).
 MAX_WIDE_VALUES = 20_000_000
@@ -46,12 +48,19 @@ class ValuesView(ValueRows):
         self._csv = csv.writer(out, lineterminator="\n")
         self._held: list[tuple[ValueRow, int]] = []
         self._held_values = 0
+        #: The CSV cells of each param (address to unit) of this batch, by its identity (frames
+        #: alike share their params), kept with it so that its id is not reused while kept.
+        self._param_cells: dict[int, tuple[ParamValue, list[object]]] = {}
+        #: The second :meth:`_time` last wrote, and its text before and after the microseconds.
+        self._second: int | None = None
+        self._second_texts = ("", "")
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         if not self._json and not self._wide:
             self._csv.writerow(LONG_COLUMNS)
 
     def _first_frame(self, t_start_ns: object) -> None:
+        self._param_cells.clear()
         if self._origin_ns is None and isinstance(t_start_ns, np.ndarray) and len(t_start_ns):
             self._origin_ns = int(t_start_ns[0])
 
@@ -66,7 +75,20 @@ class ValuesView(ValueRows):
         elif self._json:
             self._out.write("".join(json.dumps(record, ensure_ascii=False) + "\n" for record in self._records(row)))
         else:
-            self._csv.writerows([[_cell(record[name]) for name in LONG_COLUMNS] for record in self._records(row)])
+            self._csv.writerows(self._csv_rows(row))
+
+    def _csv_rows(self, row: ValueRow) -> list[list[object]]:
+        """The rows' CSV cells (what :meth:`_records` holds, each as :func:`_cell` writes it), a
+        param's cells made once per batch."""
+        fixed = [self._time(row.t_ns), row.t_ns, row.index, row.slave, row.kind]
+        request, cells = _cell(row.request_index), self._param_cells
+        rows = []
+        for param, valid in zip(row.params, row.valid, strict=True):
+            kept = cells.get(id(param))
+            if kept is None:
+                kept = cells[id(param)] = (param, [_cell(getattr(param, name)) for name in _PARAM_COLUMNS])
+            rows.append([*fixed, *kept[1], request, "true" if valid else "false"])
+        return rows
 
     def _records(self, row: ValueRow) -> list[dict[str, Any]]:
         time = self._time(row.t_ns)
@@ -114,10 +136,16 @@ class ValuesView(ValueRows):
         if self._mode == "relative":
             return f"{(t_ns - (self._origin_ns or t_ns)) // 1000 / 1e6:.6f}"
         seconds, nanos = divmod(t_ns, 1_000_000_000)
-        moment = datetime.fromtimestamp(seconds, UTC).replace(microsecond=nanos // 1000)
-        if self._mode == "local":
-            return moment.astimezone().isoformat(timespec="microseconds")
-        return moment.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+        if seconds != self._second:  # the date and time of a second, made once for its frames
+            moment = datetime.fromtimestamp(seconds, UTC)
+            if self._mode == "local":
+                head, _, offset = moment.astimezone().isoformat(timespec="microseconds").partition(".")
+                self._second_texts = (head + ".", offset[6:])
+            else:
+                self._second_texts = (moment.strftime("%Y-%m-%dT%H:%M:%S."), "Z")
+            self._second = seconds
+        head, tail = self._second_texts
+        return f"{head}{nanos // 1000:06d}{tail}"
 
 
 def _column(slave: int, param: ParamValue) -> str:
