@@ -12,12 +12,11 @@ tests compare both).
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
-from operator import itemgetter
-from typing import Any, Generic, TypeVar
+from typing import Any
 
 import orjson
 
+from decoders.memo import KeptByIdentity
 from decoders.message import ParamValue
 
 #: The end of a param record without a value (a read request names registers without).
@@ -92,44 +91,6 @@ def member_json(param: ParamValue) -> bytes:
     return b"," + encode_json({key: value})[1:-1]
 
 
-#: Profiled params kept by each :class:`KeptByParam` at most; all are let go past it.
-KEPT_PARAMS = 65536
-Made = TypeVar("Made")
-
-
-_SECOND = itemgetter(1)
-
-
-class KeptByParam(Generic[Made]):
-    """What a writer makes of profiled params (``make``), made once per param and kept by the
-    param's identity: a profile's namer hands the same param to every frame with that value, and
-    the param stays alive here, so its id is not reused. All are let go at :data:`KEPT_PARAMS`."""
-
-    def __init__(self, make: Callable[[ParamValue], Made]) -> None:
-        self._make = make
-        #: By the param's identity: the param and what was made of it (writers look it up in C,
-        #: in a comprehension, and call :meth:`entry` for what is missing).
-        self.kept: dict[int, tuple[ParamValue, Made]] = {}
-
-    def entry(self, param: ParamValue) -> tuple[ParamValue, Made]:
-        """``param`` and what was made of it (made and kept now where new)."""
-        kept = self.kept.get(id(param))
-        if kept is None:
-            if len(self.kept) >= KEPT_PARAMS:
-                self.kept.clear()
-            kept = self.kept[id(param)] = (param, self._make(param))
-        return kept
-
-    def made(self, params: list[ParamValue]) -> list[Made]:
-        """What was made of each of ``params`` (made and kept now where new): the kept ones looked
-        up in C (a batch's table of named values is thousands, mostly kept already)."""
-        found: list[Any] = list(map(self.kept.get, map(id, params)))
-        for place in [place for place, entry in enumerate(found) if entry is None]:
-            found[place] = self.entry(params[place])
-        made: list[Made] = list(map(_SECOND, found))  # none is None now
-        return made
-
-
 #: Each profiled param's JSON in a frame record, and its ``/slave/N/params`` member.
-PARAM_JSON = KeptByParam(param_json)
-PARAM_MEMBERS = KeptByParam(member_json)
+PARAM_JSON: KeptByIdentity[ParamValue, bytes] = KeptByIdentity(param_json)
+PARAM_MEMBERS: KeptByIdentity[ParamValue, bytes] = KeptByIdentity(member_json)

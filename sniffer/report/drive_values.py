@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from decoders.decoded_batch import AnnotatedBatch, Params
+from decoders.memo import KeptByIdentity
 from decoders.message import ROLE_CODE, Role
 from decoders.timeline import Merge, Timeline
 from sniffer.encoding.value_rows import WRITES
@@ -82,9 +83,8 @@ class DriveValues:
         self._states: dict[tuple[int, str], str] = {}
         #: The first state seen of each slave's code (what a capture before this one is compared with).
         self._firsts: dict[tuple[int, str], str] = {}
-        #: By the identity of a frame's params (shared by equal frames; a tuple of params does not
-        #: hash), kept with them so that their id is not reused while cached.
-        self._cache: dict[int, tuple[Params, _Numbers, _Texts]] = {}
+        #: What each frame's params name, by the tuple's identity (equal frames share it).
+        self._named: KeptByIdentity[Params, tuple[_Numbers, _Texts]] = KeptByIdentity(_named, CACHED)
 
     @property
     def series_left_out(self) -> int:
@@ -108,7 +108,7 @@ class DriveValues:
             params = each_params[position]
             if not params:
                 continue
-            numbers, texts = self._named(params)
+            numbers, texts = self._named.of(params)
             slave, kind = slaves[position], "sent" if sent[position] else "reported"
             for code, name, unit, number in numbers:
                 key = (slave, code, kind)
@@ -123,23 +123,6 @@ class DriveValues:
             for merge in _MERGES:
                 self._timeline.add(f"{name}:{merge}", merge, t_ns, readings)
 
-    def _named(self, params: Params) -> tuple[_Numbers, _Texts]:
-        """The profile-named numbers and texts of ``params``, cached by identity."""
-        found = self._cache.get(id(params))
-        if found is None:
-            numbers: _Numbers = []
-            texts: _Texts = []
-            for param in params:
-                if param.code is None or not param.available or param.value is None:
-                    continue
-                if isinstance(param.value, str):
-                    texts.append((param.code, param.name or param.code, param.value))
-                elif not isinstance(param.value, bool):
-                    numbers.append((param.code, param.name or param.code, param.unit or "", float(param.value)))
-            if len(self._cache) >= CACHED:
-                self._cache.clear()
-            found = self._cache[id(params)] = (params, numbers, texts)
-        return found[1], found[2]
 
     def _series(self, key: tuple[int, str, str], name: str, unit: str) -> bool:
         if key in self.series:
@@ -165,7 +148,7 @@ class DriveValues:
 
     def portable(self) -> DriveValues:
         """These values without the cache of decodings: what another process sends back."""
-        self._cache = {}
+        self._named.kept = {}
         return self
 
     def merge(self, other: DriveValues, capture: str) -> None:
@@ -191,3 +174,17 @@ class DriveValues:
         for state_key, text in other._firsts.items():
             self._firsts.setdefault(state_key, text)
         self._states.update(other._states)
+
+
+def _named(params: Params) -> tuple[_Numbers, _Texts]:
+    """The profile-named numbers and texts of ``params``."""
+    numbers: _Numbers = []
+    texts: _Texts = []
+    for param in params:
+        if param.code is None or not param.available or param.value is None:
+            continue
+        if isinstance(param.value, str):
+            texts.append((param.code, param.name or param.code, param.value))
+        elif not isinstance(param.value, bool):
+            numbers.append((param.code, param.name or param.code, param.unit or "", float(param.value)))
+    return numbers, texts

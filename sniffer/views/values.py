@@ -21,6 +21,7 @@ import numpy as np
 
 from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
+from decoders.memo import KeptByIdentity
 from decoders.message import ParamValue
 from decoders.stats import Statistics
 from sniffer.encoding.value_rows import ValueChoice, ValueRow, ValueRows
@@ -48,9 +49,9 @@ class ValuesView(ValueRows):
         self._csv = csv.writer(out, lineterminator="\n")
         self._held: list[tuple[ValueRow, int]] = []
         self._held_values = 0
-        #: The CSV cells of each param (address to unit) of this batch, by its identity (frames
-        #: alike share their params), kept with it so that its id is not reused while kept.
-        self._param_cells: dict[int, tuple[ParamValue, list[object]]] = {}
+        #: The CSV cells of each param (address to unit), by its identity (frames alike share
+        #: their params, a namer its values).
+        self._param_cells: KeptByIdentity[ParamValue, list[object]] = KeptByIdentity(_param_cells)
         #: The second :meth:`_time` last wrote, and its text before and after the microseconds.
         self._second: int | None = None
         self._second_texts = ("", "")
@@ -60,7 +61,6 @@ class ValuesView(ValueRows):
             self._csv.writerow(LONG_COLUMNS)
 
     def _first_frame(self, t_start_ns: object) -> None:
-        self._param_cells.clear()
         if self._origin_ns is None and isinstance(t_start_ns, np.ndarray) and len(t_start_ns):
             self._origin_ns = int(t_start_ns[0])
 
@@ -79,16 +79,11 @@ class ValuesView(ValueRows):
 
     def _csv_rows(self, row: ValueRow) -> list[list[object]]:
         """The rows' CSV cells (what :meth:`_records` holds, each as :func:`_cell` writes it), a
-        param's cells made once per batch."""
+        param's cells made once."""
         fixed = [self._time(row.t_ns), row.t_ns, row.index, row.slave, row.kind]
-        request, cells = _cell(row.request_index), self._param_cells
-        rows = []
-        for param, valid in zip(row.params, row.valid, strict=True):
-            kept = cells.get(id(param))
-            if kept is None:
-                kept = cells[id(param)] = (param, [_cell(getattr(param, name)) for name in _PARAM_COLUMNS])
-            rows.append([*fixed, *kept[1], request, "true" if valid else "false"])
-        return rows
+        request = _cell(row.request_index)
+        return [[*fixed, *cells, request, "true" if valid else "false"]
+                for cells, valid in zip(self._param_cells.made(list(row.params)), row.valid, strict=True)]
 
     def _records(self, row: ValueRow) -> list[dict[str, Any]]:
         time = self._time(row.t_ns)
@@ -146,6 +141,11 @@ class ValuesView(ValueRows):
             self._second = seconds
         head, tail = self._second_texts
         return f"{head}{nanos // 1000:06d}{tail}"
+
+
+def _param_cells(param: ParamValue) -> list[object]:
+    """A param's CSV cells, address to unit."""
+    return [_cell(getattr(param, name)) for name in _PARAM_COLUMNS]
 
 
 def _column(slave: int, param: ParamValue) -> str:

@@ -244,7 +244,7 @@ def test_fast_frame_records_say_what_the_exact_ones_say(batch: AnnotatedBatch, r
 def test_profiled_param_texts_kept_stay_bounded_and_right(monkeypatch: pytest.MonkeyPatch) -> None:
     """A param's JSON is kept by the param object (a namer hands one to every frame with that
     value), up to a bound; past it, what is written stays what ``json.dumps`` writes."""
-    monkeypatch.setattr(param_text, "KEPT_PARAMS", 3)
+    monkeypatch.setattr(param_text.PARAM_JSON, "most", 3)
     monkeypatch.setattr(param_text.PARAM_JSON, "kept", {})
     shared = ParamValue(3201, "ETA", "Status word", 0x8637, "ready", None)
     decodings = [Decoding(f"read {n}", (shared, ParamValue(8604, "RFRD", "Speed", n, n * 1e-5, "rpm")))
