@@ -61,8 +61,8 @@ class AnnotatedBatch:
     decoded: list[Decoding]
     rows: npt.NDArray[np.int64] | None = None
     columnar: ColumnarFrames | None = None
-    #: :attr:`decodings` once built: a one-entry cache in a frozen batch, so that the sinks that
-    #: read objects (values, the report, filters) build them once between them.
+    #: :attr:`decodings` once built: a one-entry cache in a frozen batch, so that the readers of
+    #: objects (``--registers``, iterating the batch) build them once between them.
     _built: list[list[Decoding]] = field(default_factory=list, compare=False, repr=False)
     #: :meth:`columns` once made: every writer of the batch reads the same.
     _columns: list[list[DecodedColumns]] = field(default_factory=list, compare=False, repr=False)
@@ -122,10 +122,8 @@ class AnnotatedBatch:
         if not self._params:
             placed = np.empty(len(self.decoded), object)
             placed[:] = self.decoded_params()
-            for part in self.columns()[1:]:  # those in columns (the first: read from ``decoded``)
-                found = np.empty(len(part.positions), object)
-                found[:] = part.param_values()
-                placed[part.positions] = found
+            # Those in columns (the first part's are read from ``decoded``, kept or not).
+            _place(placed, self.columns()[1:], lambda part: part.param_values())
             self._params.append(placed.tolist())
         return self._params[0]
 
@@ -146,12 +144,8 @@ class AnnotatedBatch:
         if len(parts) == 1:  # its positions are the kept ones, in order
             alone = read(parts[0])
             return alone if isinstance(alone, list) else list(alone)
-        # Placed by numpy: an object array takes a list's items as they are.
         placed = np.empty(len(self.messages), object)
-        for part in parts:
-            found = np.empty(len(part.positions), object)
-            found[:] = read(part)
-            placed[part.positions] = found
+        _place(placed, parts, read)
         each: list[Item] = (placed if self.rows is None else placed[self.rows]).tolist()
         return each
 
@@ -219,6 +213,7 @@ class DecodedColumns(ABC):
         self._summaries: list[str] | None = None
         self._params: ColumnarParams | None = None
         self._named: list[list[ParamValue] | None] = []
+        self._param_values: list[Params] | None = None
 
     def summaries(self) -> list[str]:
         """Each frame's summary line."""
@@ -249,7 +244,13 @@ class DecodedColumns(ABC):
     def param_values(self) -> list[Params]:
         """Each frame's params as objects (frames alike share a tuple): for readers that take
         a param's code, name, value and unit together."""
-        return self.each(self._made_param_values())
+        return self.each(self.spelt_param_values())
+
+    def spelt_param_values(self) -> list[Params]:
+        """The params of each frame given, as objects."""
+        if self._param_values is None:
+            self._param_values = self._made_param_values()
+        return self._param_values
 
     def protocols_and_remarks(self) -> list[tuple[int, tuple[str, ...]]] | None:
         """Each frame given's protocol and remarks (``None``: Modbus without remarks, every one)."""
@@ -350,6 +351,9 @@ class OneByOne(DecodedColumns):
     def param_values(self) -> list[Params]:
         return [decoding.params for decoding in self._all]
 
+    def _made_param_values(self) -> list[Params]:
+        return [decoding.params for decoding in self._decodings]
+
     def protocols_and_remarks(self) -> list[tuple[int, tuple[str, ...]]]:
         return [(protocol, decoding.remarks) for decoding, protocol in zip(self._decodings, self._protocols,
                                                                             strict=True)]
@@ -358,6 +362,16 @@ class OneByOne(DecodedColumns):
 def remarked(summary: str, remarks: tuple[str, ...]) -> str:
     """A summary line with a profile's remarks after it, each after a ``⚠``, as the tables show it."""
     return " ⚠ ".join([summary, *remarks]) if remarks else summary
+
+
+def _place(placed: npt.NDArray[np.object_], parts: list[DecodedColumns],
+           read: Callable[[DecodedColumns], Sequence[object]]) -> None:
+    """What ``read`` gives for each of ``parts``, put in ``placed`` (by position) at the part's
+    positions: by numpy, where an object array takes a list's items as they are."""
+    for part in parts:
+        found = np.empty(len(part.positions), object)
+        found[:] = read(part)
+        placed[part.positions] = found
 
 
 def _mask(rows: npt.NDArray[np.int64], size: int) -> npt.NDArray[np.bool_]:

@@ -23,7 +23,7 @@ from typing import cast
 import numpy as np
 import numpy.typing as npt
 
-from decoders.decoded_batch import AnnotatedBatch, DecodedColumns
+from decoders.decoded_batch import AnnotatedBatch, Params
 from decoders.distinct import distinct
 from decoders.memo import Memo
 from decoders.message import NONE, ROLE_CODE, ROLE_NAMES, ParamValue, Role
@@ -203,21 +203,20 @@ class RerunExporter:
         (so that series are made in the order of the capture)."""
         messages, parts = batch.messages, batch.columns()
         made: list[list[_Parts | None]] = [[None] * len(part.spelt_positions) for part in parts]
-        readers = [_ParamReader(part) for part in parts]
+        params, summaries = [part.spelt_param_values() for part in parts], [part.spelt_summaries() for part in parts]
         given = sorted((first, place, row) for place, part in enumerate(parts)
                        for row, first in enumerate(part.spelt_positions.tolist()))
         for first, place, row in given:
             slave, role, function = (int(column[first]) for column in (messages.slave, messages.role,
                                                                         messages.function))
             if slave != NONE:
-                made[place][row] = self._frame_parts(readers[place].params(row), parts[place].spelt_summaries()[row],
-                                                     slave, role, function)
+                made[place][row] = self._frame_parts(params[place][row], summaries[place][row], slave, role, function)
         by_part = {id(part): rows for part, rows in zip(parts, made, strict=True)}
         every = batch.each_message(lambda part: part.each(by_part[id(part)]))
         # None of ``positions`` is noise: each one's parts were made.
         return cast("list[_Parts]", batch.kept_at(every, positions))
 
-    def _frame_parts(self, params: list[ParamValue], summary: str, slave: int, role: int, function: int) -> _Parts:
+    def _frame_parts(self, params: Params, summary: str, slave: int, role: int, function: int) -> _Parts:
         """What a frame of ``slave`` that names ``params`` puts on the timeline."""
         self._known_slave(slave)
         scalar_ids: list[int] = []
@@ -335,30 +334,3 @@ def _path(code: str) -> str:
     """An entity path part from a parameter code (``NM1→ETA`` → ``NM1_ETA``)."""
     return "".join(c if c.isalnum() or c in "_-" else "_" for c in code)
 
-
-class _ParamReader:
-    """The params of each frame a part of the decoded form gives, each as a :class:`ParamValue`
-    (a register no profile names: its raw word as its value)."""
-
-    def __init__(self, part: DecodedColumns) -> None:
-        self._part = part
-        self._lists: tuple[list[int], list[int], list[int], list[int] | None] | None = None
-
-    def params(self, row: int) -> list[ParamValue]:
-        if self._lists is None:
-            columns = self._part.params()
-            self._lists = ((np.cumsum(columns.sizes) - columns.sizes).tolist(), columns.address.tolist(),
-                           columns.value.tolist(), None if columns.name is None else columns.name.tolist())
-        starts, address, value, name = self._lists
-        named = self._part.named()
-        stop = starts[row + 1] if row + 1 < len(starts) else len(address)
-        params: list[ParamValue] = []
-        for place in range(starts[row], stop):
-            entry = -1 if name is None else name[place]
-            if entry >= 0 and named is not None:
-                params.append(named[entry])
-            else:
-                word = value[place]
-                params.append(ParamValue(address[place], raw=None if word < 0 else word,
-                                         value=None if word < 0 else word))
-        return params
