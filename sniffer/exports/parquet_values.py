@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from decoders.decoded_batch import AnnotatedBatch, ColumnarNames, Params
+from decoders.memo import KeptByIdentity
 from decoders.message import NONE, ParamValue
 from sniffer.encoding.value_rows import REPORTED, VALUE_KINDS, WRITTEN, ValueRow, ValueRows
 
@@ -93,26 +94,25 @@ class ValueCollector(ValueRows):
         super().__init__()
         self._found = CollectedValues()
         self._rows_found = 0
-        #: This batch's blocks, by the identity of the params (a tuple of params does not hash),
-        #: kept with them so that their id is not reused while kept.
-        self._blocks: dict[tuple[int, str, bool], tuple[Params, NamedBlock]] = {}
+        #: This batch's blocks of each frame's params, by kind and CRC verdict.
+        self._blocks: KeptByIdentity[Params, dict[tuple[str, bool], NamedBlock]] = KeptByIdentity(_no_blocks)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         """:meth:`ValueRows.messages` of the frames decoded one by one (those in columns:
         :func:`columnar_values`)."""
-        self._blocks.clear()
+        self._blocks.kept.clear()
         self.rows_at(batch, batch.decoded_positions(), batch.decoded_params())
 
     def _block(self, params: Params, kind: str, crc_ok: bool) -> NamedBlock:
         """``params`` as the table holds them, made once per batch."""
-        key = (id(params), kind, crc_ok)
-        kept = self._blocks.get(key)
-        if kept is None:
-            kept = self._blocks[key] = (params, _named_block(params, written=kind == "written", crc_ok=crc_ok))
-        return kept[1]
+        blocks = self._blocks.of(params)
+        block = blocks.get((kind, crc_ok))
+        if block is None:
+            block = blocks[kind, crc_ok] = _named_block(params, written=kind == "written", crc_ok=crc_ok)
+        return block
 
     def _emit(self, row: ValueRow, *, crc_ok: bool) -> None:
-        """:meth:`ValueRows._emit` of every value (this collector chooses none), a decoding's
+        """:meth:`ValueRows._emit` of every value (this collector chooses none), a frame's
         params taken apart once (``tests/test_parquet.py`` holds the table to ``values``)."""
         block = self._block(row.found, row.kind, crc_ok)
         if not block:
@@ -128,6 +128,11 @@ class ValueCollector(ValueRows):
     def take(self) -> CollectedValues:
         found, self._found = self._found, CollectedValues()
         return found
+
+
+def _no_blocks(params: Params) -> dict[tuple[str, bool], NamedBlock]:
+    """The blocks of ``params`` before any is made."""
+    return {}
 
 
 def _named_block(params: tuple[ParamValue, ...], *, written: bool, crc_ok: bool) -> NamedBlock:

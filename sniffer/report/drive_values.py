@@ -123,7 +123,6 @@ class DriveValues:
             for merge in _MERGES:
                 self._timeline.add(f"{name}:{merge}", merge, t_ns, readings)
 
-
     def _series(self, key: tuple[int, str, str], name: str, unit: str) -> bool:
         if key in self.series:
             return True
@@ -147,7 +146,7 @@ class DriveValues:
             self.changes.append(StateChange(t_ns, index, slave, code, name, before, text))
 
     def portable(self) -> DriveValues:
-        """These values without the cache of decodings: what another process sends back."""
+        """These values without the cache of named params: what another process sends back."""
         self._named.kept = {}
         return self
 

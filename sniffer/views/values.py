@@ -80,8 +80,7 @@ class ValuesView(ValueRows):
     def _csv_rows(self, row: ValueRow) -> list[list[object]]:
         """The rows' CSV cells (what :meth:`_records` holds, each as :func:`_cell` writes it), a
         param's cells made once."""
-        fixed = [self._time(row.t_ns), row.t_ns, row.index, row.slave, row.kind]
-        request = _cell(row.request_index)
+        fixed, request = self._fixed(row), _cell(row.request_index)
         return [[*fixed, *cells, request, "true" if valid else "false"]
                 for cells, valid in zip(self._param_cells.made(list(row.params)), row.valid, strict=True)]
 
