@@ -46,6 +46,9 @@ class ParamValue:
     #: False where the raw word is a marker, not a reading (the Altivar's 16#8000 "non-existent
     #: or protected parameter"): ``value`` then says what it means, and no plot takes it.
     available: bool = True
+    #: The registers of a value over more than one (a profile's ``f32``), in address order:
+    #: ``raw`` is then their bits as one unsigned number in the device's word order.
+    words: tuple[int, ...] | None = None
 
     @property
     def reading(self) -> bool:

@@ -5,13 +5,77 @@ from __future__ import annotations
 from functools import cache
 from importlib.resources import files
 from pathlib import Path
+from typing import NamedTuple
 
 from decoders.profiles.book import ProfileBook
-from decoders.profiles.model import Profile
+from decoders.profiles.model import Parameter, Profile
 from decoders.profiles.parse import ProfileError, parse_profile
+from decoders.register_format import ALIASES, KINDS, WORD_ORDERS
+from decoders.value_types import TYPES
 from sniffer.errors import ErrorKind, RtuSniffError
 
 DEFAULT_PROFILE = "generic"
+#: The profile ``--registers`` makes for the slaves no other profile decodes.
+REGISTERS_PROFILE = "--registers"
+LAST_ADDRESS = 0xFFFF
+
+
+class RegisterSpec(NamedTuple):
+    """``--registers [FIRST[-LAST]=]TYPE[:ORDER]``: the registers ``first`` to ``last`` read as
+    ``kind`` in ``order`` (``None``: ``--word-order``'s, else big)."""
+
+    first: int
+    last: int
+    kind: str
+    order: str | None
+    text: str
+
+
+def register_spec(text: str) -> RegisterSpec:
+    """Parse one ``--registers`` (an ``argparse`` type: a ``ValueError`` is its message)."""
+    span, _, typed = text.rpartition("=")
+    kind, _, order = typed.partition(":")
+    if kind not in KINDS:
+        raise ValueError(f"{kind!r} is not one of {', '.join(KINDS)}")
+    if order and order not in WORD_ORDERS:
+        raise ValueError(f"word order {order!r} is not one of {', '.join(WORD_ORDERS)}")
+    first, last = 0, LAST_ADDRESS
+    if span:
+        low, _, high = span.partition("-")
+        if not (low.isdigit() and (high.isdigit() or not high)):
+            raise ValueError(f"{span!r} is no register range: give FIRST-LAST or one address (wire addresses)")
+        first, last = int(low), int(high or low)
+        if not first <= last <= LAST_ADDRESS:
+            raise ValueError(f"{span!r}: give addresses 0 to 65535, the first no greater than the last")
+    return RegisterSpec(first, last, ALIASES.get(kind, kind), order or None, text)
+
+
+def registers_profile(specs: list[RegisterSpec], word_order: str | None) -> Profile | None:
+    """The profile of ``--registers``: a parameter without a name for each value of its
+    types; ``None`` where none asks for more than the hex words every view shows."""
+    typed = [spec for spec in specs if spec.kind != "hex"]
+    if not typed:
+        return None
+    parameters: dict[int, Parameter] = {}
+    owner: dict[int, RegisterSpec] = {}
+    for spec in typed:
+        size = TYPES[spec.kind].registers
+        count = spec.last - spec.first + 1
+        if count % size:
+            raise RtuSniffError(ErrorKind.USAGE, f"--registers {spec.text}: {count} registers are no whole number of "
+                                f"{spec.kind} ({size} registers each)")
+        for address in range(spec.first, spec.last + 1):
+            other = owner.setdefault(address, spec)
+            if other is not spec:
+                raise RtuSniffError(ErrorKind.USAGE, f"--registers {other.text} and {spec.text} both type "
+                                    f"register {address}")
+        order = spec.order or word_order or "big"
+        signed = spec.kind == "i16"
+        for address in range(spec.first, spec.last + 1, size):
+            parameters[address] = Parameter(address, "", "", REGISTERS_PROFILE, signed=signed, type=spec.kind,
+                                            registers=size, word_order=order)
+    return Profile(REGISTERS_PROFILE, "registers typed on the command line", "slave", (REGISTERS_PROFILE,),
+                   parameters)
 
 
 @cache
@@ -50,13 +114,15 @@ def load_profile_file(path: str) -> Profile:
         raise RtuSniffError(ErrorKind.BAD_PROFILE, str(exc)) from None
 
 
-def profile_book(choices: list[str], files_: list[str]) -> ProfileBook:
-    """``--profile NAME`` / ``--profile SLAVE=NAME`` and ``--profile-file PATH`` → a book."""
+def profile_book(choices: list[str], files_: list[str], typed: Profile | None = None) -> ProfileBook:
+    """``--profile NAME`` / ``--profile SLAVE=NAME`` and ``--profile-file PATH`` → a book;
+    ``typed``: the profile of ``--registers`` (:func:`registers_profile`), for the slaves none
+    of those decodes."""
     known = dict(shipped_profiles())
     for path in files_:
         profile = load_profile_file(path)
         known[profile.id] = profile
-    default = known[DEFAULT_PROFILE]
+    default = known[DEFAULT_PROFILE] if typed is None else typed
     per_slave: dict[int, Profile] = {}
     for choice in choices:
         slave_text, sep, name = choice.rpartition("=")

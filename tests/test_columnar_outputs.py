@@ -17,6 +17,8 @@ from tests.real_recordings import RECORDINGS, TEXT, available
 from tests.test_parquet import SAMPLES, table
 
 CAPTURES = Path(__file__).resolve().parents[1] / "captures"
+FLOWMETER = Path(__file__).resolve().parent / "data" / "flowmeter.toml"
+METER_RECORDINGS = [name for name in RECORDINGS if "flowmeter" in name]
 
 
 def _generated(folder: Path, traffic: str) -> Path:
@@ -46,8 +48,12 @@ CASES = pytest.mark.parametrize(("capture", "setting"), [
     # Real wires read with a profile that names what they carry (wrongly, but every rule applies).
     *[(lambda folder, name=name: _real(folder, name), (["--profile", profile], 0))
       for name in RECORDINGS for profile in ("atv71", "xbt")],
+    # The flow meter's floats, named by a profile of register pairs (and a read of half of one).
+    *[(lambda folder, name=name: _real(folder, name), (["--profile-file", str(FLOWMETER), "--profile", "flowmeter"], 0))
+      for name in METER_RECORDINGS],
 ], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", "mixed-named", *RECORDINGS,
-        *[f"{name}-{profile}" for name in RECORDINGS for profile in ("atv71", "xbt")]])
+        *[f"{name}-{profile}" for name in RECORDINGS for profile in ("atv71", "xbt")],
+        *[f"{name}-flowmeter" for name in METER_RECORDINGS]])
 
 
 @pytest.fixture

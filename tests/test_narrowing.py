@@ -3,8 +3,10 @@ damaged frames explained, register values as manuals write them."""
 
 from __future__ import annotations
 
+import io
 import json
 from collections.abc import Callable
+from contextlib import redirect_stderr
 from pathlib import Path
 
 import pytest
@@ -12,8 +14,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from decoders.damage import byte_diff, crc_note
+from decoders.message import ParamValue
 from decoders.modbus.pdu import ReadRequest, RegistersResponse, WriteSingle
 from decoders.register_format import RegisterFormat
+from sniffer.cli import main
 from tests.conftest import SAMPLE_LOG, SAMPLE_MCAP, CliResult
 
 Cli = Callable[..., CliResult]
@@ -166,23 +170,46 @@ def test_byte_diff_names_exactly_the_differing_bytes(good: bytes, data: st.DataO
 
 
 def test_register_formats() -> None:
-    words = (0x4048, 0xF5C3, 0xFFFF)
-    assert RegisterFormat("u16").values(words) == "16456 62915 65535"
-    assert RegisterFormat("s16").values(words) == "16456 -2621 -1"
-    assert RegisterFormat("hex").values(words) == "0x4048 0xF5C3 0xFFFF"
-    assert RegisterFormat("f32").values(words) == "3.14 +65535"
-    assert RegisterFormat("f32", "little").values((0xF5C3, 0x4048)) == "3.14"
-    assert RegisterFormat("u32").values((0x0001, 0x0002)) == "65538"
-    assert RegisterFormat("s32", "little").values((0xFFFE, 0xFFFF)) == "-2"
+    """The table's register texts: words in hex, or the values the decoding typed (a register
+    left over from a value the frame does not carry whole after ``+``); addresses as sent, from
+    1, or as Modicon references."""
+    words = [ParamValue(0, raw=0x4048, value=0x4048), ParamValue(1, raw=0xF5C3, value=-2621)]
+    assert RegisterFormat().values(words) == "0x4048 0xF5C3"
+    assert RegisterFormat(typed=True).values(words) == "16456 -2621"
+    pair = ParamValue(100, raw=0x4048F5C3, value=3.14, words=(0x4048, 0xF5C3))
+    half = ParamValue(102, raw=0xFFFF, value=None, available=False)
+    assert RegisterFormat(typed=True).values([pair, half]) == "3.14 +65535"
     one, modicon = RegisterFormat(addressing="1"), RegisterFormat(addressing="4x")
-    assert one.summary(ReadRequest(3, 0, 2), None) == "read HR 1..2 (2)"
-    assert modicon.summary(ReadRequest(4, 9, 1), None) == "read IR 30010 (1)"
-    assert modicon.summary(ReadRequest(1, 0, 8), None) == "read coils 00001..00008 (8)"
-    assert modicon.summary(ReadRequest(3, 65535, 1), None) == "read HR 465536 (1)"
-    assert RegisterFormat("f32").summary(RegistersResponse(3, 4, (0x4048, 0xF5C3)), 100) == "HR 100..101 = 3.14"
-    assert RegisterFormat("s16").summary(WriteSingle(6, 7, 0xFFFF), None) == "write HR 7 = -1"
-    with pytest.raises(ValueError, match="register format"):
-        RegisterFormat("f64")
+    assert one.summary(ReadRequest(3, 0, 2), []) == "read HR 1..2 (2)"
+    assert modicon.summary(ReadRequest(4, 9, 1), []) == "read IR 30010 (1)"
+    assert modicon.summary(ReadRequest(1, 0, 8), []) == "read coils 00001..00008 (8)"
+    assert modicon.summary(ReadRequest(3, 65535, 1), []) == "read HR 465536 (1)"
+    answer = RegistersResponse(3, 4, (0x4048, 0xF5C3))
+    assert RegisterFormat(typed=True).summary(answer, [pair]) == "HR 100..101 = 3.14"
+    assert RegisterFormat().summary(answer, []) == "HR = 0x4048 0xF5C3"
+    assert RegisterFormat(typed=True).summary(WriteSingle(6, 7, 0xFFFF), [ParamValue(7, raw=0xFFFF, value=-1)]) == (
+        "write HR 7 = -1")
+    with pytest.raises(ValueError, match="addressing"):
+        RegisterFormat(addressing="5x")
+
+
+def test_registers_typed_on_the_command_line(cli: Cli) -> None:
+    """``--registers`` types the registers of slaves without a profile for every output: pairs
+    as floats in the table, ``values`` and JSONL; a range leaves the others words; a range that
+    is no whole number of its type, two that overlap, a bad type or order: one line, exit 2."""
+    out = cli("analyze", str(SAMPLE_LOG), "--registers", "s16", "--filter", "slave=12", "--format", "jsonl").jsonl()
+    assert [p["value"] for p in out[2]["params"]] == [-32768, 3, 2]
+    result = cli("analyze", str(SAMPLE_LOG), "--registers", "3000-3002=f32")
+    assert result.code == 2 and result.err == (
+        "error: --registers 3000-3002=f32: 3 registers are no whole number of f32 (2 registers each)\n")
+    for bad, said in (("f31", "'f31' is not one of hex, u16"), ("f32:middle", "word order 'middle' is not one of"),
+                      ("9-3=u16", "'9-3': give addresses 0 to 65535"), ("a-b=u16", "'a-b' is no register range")):
+        err = io.StringIO()
+        with pytest.raises(SystemExit) as refused, redirect_stderr(err):
+            main(["analyze", str(SAMPLE_LOG), "--registers", bad])
+        assert refused.value.code == 2 and said in err.getvalue() and len(err.getvalue().splitlines()) == 1
+    both = cli("analyze", str(SAMPLE_LOG), "--registers", "0-9=f32", "--registers", "8=u16")
+    assert both.code == 2 and "--registers 0-9=f32 and 8=u16 both type register 8" in both.err
 
 
 def test_registers_on_the_command_line(cli: Cli) -> None:

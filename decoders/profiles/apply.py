@@ -106,12 +106,13 @@ class ProfileApplier:
         bits = facts.function in BIT_FUNCTIONS  # a profile names registers: bits keep their addresses
         params: Sequence[ParamValue] = decoding.params
         shown: list[str] = []
+        remarks = list(decoding.remarks)
         if not bits:
             values = addressed_values(decoding)
-            params, shown, learns = self._named(profile, slave, facts.role is Role.RESPONSE, values)
+            params, shown, parts, learns = self._named(profile, slave, facts.role is Role.RESPONSE, values)
+            remarks += parts
             if learns:
                 self._learn(profile, slave, values)
-        remarks = list(decoding.remarks)
         if facts.role in (Role.REQUEST, Role.BROADCAST) and pdu is not None:
             remarks += limit_remarks(profile, facts, pdu)
         if isinstance(pdu, ExceptionPdu):
@@ -124,12 +125,17 @@ class ProfileApplier:
                         decoding.device if device is None else device, decoding.uss)
 
     def _named(self, profile: Profile, slave: int | None, reported: bool,
-               values: list[tuple[int, int | None]]) -> tuple[list[ParamValue], list[str], bool]:
-        """The params of ``values``, the summary's texts of the named ones, and whether any is
-        a scanner address register (``reported``: the values come from the device)."""
+               values: list[tuple[int, int | None]]) -> tuple[list[ParamValue], list[str], list[str], bool]:
+        """The params of ``values``, the summary's texts of the named ones, the remarks on
+        parameters named in part, and whether any is a scanner address register (``reported``:
+        the values come from the device)."""
         found = self._address_namers(profile, slave, reported, [address for address, _ in values])
-        params, shown = self._name_values(found, [raw for _, raw in values])
-        return params, shown, any(namer.learns for namer in found)
+        raws = [raw for _, raw in values]
+        if profile.words_of:
+            params, shown, parts = self._name_wide_values(found, raws)
+        else:
+            (params, shown), parts = self._name_values(found, raws), []
+        return params, shown, parts, any(namer.learns for namer in found)
 
     def named_values(self, profile: Profile, slave: int, reported: bool, address: int,
                      raws: list[int | None]) -> list[NamedValue]:
@@ -165,6 +171,46 @@ class ProfileApplier:
             if named[1] is not None:
                 shown.append(named[1])
         return params, shown
+
+    def _name_wide_values(self, namers: list[AddressNamer],
+                          raws: list[int | None]) -> tuple[list[ParamValue], list[str], list[str]]:
+        """:meth:`_name_values` where parameters take several registers: those a frame carries
+        whole are one value, the others' registers named alone with a remark each."""
+        params: list[ParamValue] = []
+        shown: list[str] = []
+        parts: list[str] = []
+        at = 0
+        while at < len(namers):
+            namer, size = namers[at], namers[at].registers
+            if size == 1:
+                named = self._name_one(namer, raws[at])
+            else:
+                words = tuple(raws[at : at + size])
+                whole = (namer.word == 0 and len(words) == size and all(
+                    later.parameter is namer.parameter and later.word == word
+                    for word, later in enumerate(namers[at : at + size]))
+                    and (None not in words or words.count(None) == size))
+                if whole:
+                    named = namer.known.get(words) or self._kept_one(namer.make_words(words))
+                else:
+                    named = namer.known.get(raws[at]) or self._kept_one(namer.make_part(raws[at]))
+                    remark = namer.part_remark()
+                    if remark is not None:
+                        parts.append(remark)
+                    size = 1
+            params.append(named[0])
+            if named[1] is not None:
+                shown.append(named[1])
+            at += size
+        return params, shown, parts
+
+    def _name_one(self, namer: AddressNamer, raw: int | None) -> NamedValue:
+        named = namer.known.get(raw)
+        return named if named is not None else self._kept_one(namer.make(raw))
+
+    def _kept_one(self, named: NamedValue) -> NamedValue:
+        self._kept += 1
+        return named
 
     def _kept_namers(self, profile: Profile, reported: bool) -> dict[int | tuple[int | None, int], AddressNamer]:
         """The namers kept for ``profile``'s values (``reported``: from the device), all let go
@@ -209,21 +255,25 @@ class ProfileApplier:
         """How ``profile`` names the register at ``address`` of ``slave`` now (the rules:
         :mod:`decoders.profiles.naming`)."""
         learns = any(0 <= address - table.address_registers < table.count for table in profile.indirections)
-        parameter = profile.parameters.get(address)
-        label: tuple[str | None, str | None] = (parameter.code, parameter.name) if parameter is not None else (
-            (f"%MW{address}", f"4{address + 1:05d}") if profile.address_style == "xbt" else (None, None))
+        parameter, word = profile.words_of.get(address) or (profile.parameters.get(address), 0)
+        # A parameter without a code (``--registers``: a type, no name) names nothing.
+        label: tuple[str | None, str | None] = (
+            (parameter.code or None, parameter.name or None) if parameter is not None
+            else (f"%MW{address}", f"4{address + 1:05d}") if profile.address_style == "xbt" else (None, None))
         table = _value_table(profile, address)
         if slave is not None and table is not None:
             slot = address - table.value_registers
             target = self._indirections.mapping(slave, table)[slot]
             code = f"{table.prefix}{slot + 1}"
-            parameter = profile.parameters.get(target) if target else None
+            parameter, word = profile.parameters.get(target) if target else None, 0
+            if parameter is not None and parameter.registers > 1:  # a copy of one register: no wider value
+                parameter = None
             if parameter is None:
                 what = "unassigned" if not target else f"copy of register {target}"
                 label = (code, f"{code} ({what})")
             else:
                 label = (f"{code}→{parameter.code}", f"{code} → {parameter.name}")
-        return AddressNamer(profile, address, label, parameter, reported=reported, learns=learns)
+        return AddressNamer(profile, address, label, parameter, reported=reported, learns=learns, word=word)
 
     def _identify(self, pdu: DeviceIdResponse, facts: FrameFacts) -> DeviceIdentity | None:
         slave = facts.slave

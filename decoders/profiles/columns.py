@@ -14,6 +14,8 @@ a named slave's frame stays in columns only where naming it is that lookup alone
 
 * none of its registers is a scanner table's address register (:func:`unnameable`: one may teach
   the table, and the plain path learns from it);
+* none of its registers belongs to a parameter over several registers (:func:`unnameable`: its
+  value is read from them together, or the frame remarks that it carries part of one);
 * a request the profile remarks nothing of (:func:`unnameable`: a function it supports, counts
   within its limits; answers in columns are never exceptions, which may get remarks);
 * its profile names no two registers alike and names none by a number (:func:`plain_codes`):
@@ -34,6 +36,7 @@ import numpy.typing as npt
 
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
 from decoders.modbus.codecs import parse_as, parse_pdu
+from decoders.modbus.codes import BIT_FUNCTIONS
 from decoders.modbus.columnar import ColumnarFrames, one_of
 from decoders.modbus.columnar_text import READ, READ_WRITE, WRITE, words_at
 from decoders.modbus.param_runs import named_registers
@@ -64,7 +67,8 @@ IDENTIFICATION = 43
 def plain_codes(profile: Profile) -> bool:
     """Whether ``profile`` names each register by a code of its own that is not a number (a
     frame's values, keyed by code or else by address, then never share a key)."""
-    codes = [parameter.code for parameter in profile.parameters.values()]
+    # A parameter without a code (``--registers``'s) is keyed by its address, as unnamed ones are.
+    codes = [parameter.code for parameter in profile.parameters.values() if parameter.code]
     return len(set(codes)) == len(codes) and not any(code.isdigit() for code in codes)
 
 
@@ -219,7 +223,8 @@ def _asked_spans(batch: MessageBatch, frame_kind: npt.NDArray[np.int64]) -> list
 def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames,
                framed: FrameProfiles) -> npt.NDArray[np.int64]:
     """The positions of the frames of ``columnar`` (found in ``batch``) whose naming is more
-    than a lookup: a scanner table's address register, or a request the profile remarks on."""
+    than a lookup: a scanner table's address register, a register of a parameter over several,
+    or a request the profile remarks on."""
     slaves = ColumnProfiles(framed, columnar.positions)
     bad = np.zeros(len(columnar), np.bool_)
     if not slaves.named.any():
@@ -227,11 +232,15 @@ def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarF
     # The registers each frame names: its span, and an FC 23 request's read span (none elsewhere).
     spans = [(columnar.address, columnar.address + np.maximum(columnar.count, 0)),
              (columnar.read_address, columnar.read_address + columnar.read_count)]
+    registers = ~one_of(columnar.function, BIT_FUNCTIONS)
     for place, profile in enumerate(slaves.profiles):
         of = slaves.named & (slaves.profile == place)
         for table in profile.indirections:
             for low, high in spans:
                 bad |= of & overlap(low, high, table.address_registers, table.count)
+        for start, count in profile.wide_spans():
+            for low, high in spans:
+                bad |= of & registers & overlap(low, high, start, count)
     requests = np.flatnonzero(slaves.named & one_of(columnar.kind, (READ, WRITE, READ_WRITE)) & ~bad)
     if len(requests):
         # A request's remarks depend on its profile, function and counts alone: one of each asked.

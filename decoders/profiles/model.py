@@ -69,6 +69,11 @@ class Parameter:
     enum: dict[int, str] = field(default_factory=dict)
     bitfield: str | None = None
     note: str | None = None
+    #: How its registers read (:mod:`decoders.value_types`): ``u16`` (``i16`` where ``signed``),
+    #: or a type over ``registers`` registers in ``word_order``.
+    type: str = "u16"
+    registers: int = 1
+    word_order: str = "big"
 
 
 @dataclass(frozen=True, slots=True)
@@ -139,6 +144,22 @@ class Profile:
     path: str = ""
     #: :attr:`specials` by raw word (the first of each): looked up for every value a drive reports.
     special_meanings: dict[int, str] = field(init=False, repr=False, compare=False)
+    #: Every register of a parameter over more than one: its parameter and place in it.
+    words_of: dict[int, tuple[Parameter, int]] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "special_meanings", {s.raw: s.meaning for s in reversed(self.specials)})
+        object.__setattr__(self, "words_of", {
+            parameter.address + word: (parameter, word) for parameter in self.parameters.values()
+            if parameter.registers > 1 for word in range(parameter.registers)})
+
+    def wide_spans(self) -> list[tuple[int, int]]:
+        """The registers of its parameters over more than one, as spans (first, count) of
+        consecutive registers."""
+        spans: list[tuple[int, int]] = []
+        for address in sorted(self.words_of):
+            if spans and sum(spans[-1]) == address:
+                spans[-1] = (spans[-1][0], spans[-1][1] + 1)
+            else:
+                spans.append((address, 1))
+        return spans

@@ -10,7 +10,15 @@ applies them one call at a time):
   the address their way: ``%MW12``, ``40013``);
 - a value a device reports that the profile lists as special (16#8000) is that meaning, not a
   reading (``available`` false, no unit); otherwise a parameter's value is its state or bit
-  conditions, its enum text, or the raw word (signed where the parameter is) times its scale.
+  conditions, its enum text, or the raw word (signed where the parameter is) times its scale;
+- a parameter over several registers (``f32``, ``string``: :mod:`decoders.value_types`) is one
+  value where a frame carries all its registers, read in its word order and scaled (a float
+  that is NaN or infinite is no reading: ``available`` false); a register of it without the
+  others is that register alone, no value (``available`` false), and the frame says so in a
+  remark (:meth:`AddressNamer.part_remark`);
+- a parameter without a code (``--registers``: a type over registers, no name) types the
+  value alone: the param has no code or name, the summary shows nothing of it, and no remark
+  is made of a register left over (the user's guess covers every register).
 
 What depends on the address alone (code, name, parameter, whether specials apply) is resolved
 once per address by :class:`AddressNamer`; what depends on the raw word is made per value and
@@ -21,8 +29,11 @@ registers, whose meaning is each slave's own mapping.
 
 from __future__ import annotations
 
+import math
+
 from decoders.message import ParamValue
 from decoders.profiles.model import Parameter, Profile
+from decoders.value_types import FLOAT_DIGITS, TYPES, read_value
 
 #: A named value: its param, and its part of the frame's summary (``None``: the summary leaves
 #: it out, as it does values that are neither named nor a text).
@@ -35,20 +46,72 @@ class AddressNamer:
     """Names the values of one register (its scanner slot and target resolved), keeping each
     raw word's :data:`NamedValue` in :attr:`known` (its owner bounds their number)."""
 
-    __slots__ = ("address", "code", "known", "learns", "name", "parameter", "profile", "specials")
+    __slots__ = ("address", "code", "known", "learns", "name", "parameter", "profile", "specials", "word")
 
     def __init__(self, profile: Profile, address: int, label: tuple[str | None, str | None],
-                 parameter: Parameter | None, *, reported: bool, learns: bool) -> None:
+                 parameter: Parameter | None, *, reported: bool, learns: bool, word: int = 0) -> None:
         """``label``: the code and name (``None`` where nothing names the register);
         ``reported``: values from a device (specials apply); ``learns``: the register is a
-        scanner table's address register (reading or writing it changes the table)."""
+        scanner table's address register (reading or writing it changes the table); ``word``:
+        the register's place in its parameter (one over several registers)."""
         self.address = address
         self.code, self.name = label
         self.profile = profile
         self.parameter = parameter
         self.specials = profile.special_meanings if reported else {}
-        self.known: dict[int | None, NamedValue] = {}
+        #: By raw word; a parameter over several registers' values by their words (a tuple).
+        self.known: dict[int | tuple[int | None, ...] | None, NamedValue] = {}
         self.learns = learns
+        self.word = word
+
+    @property
+    def registers(self) -> int:
+        """How many registers its parameter's value takes (1 where none names it)."""
+        return 1 if self.parameter is None else self.parameter.registers
+
+    def make_words(self, words: tuple[int | None, ...]) -> NamedValue:
+        """The value of all the registers of a parameter over several (``words``: their raw
+        values, in address order; ``None`` each, where a request names them), kept."""
+        parameter = self.parameter
+        assert parameter is not None
+        carried = tuple(word for word in words if word is not None)  # all or none: the caller's rule
+        if not carried:
+            param = ParamValue(self.address, self.code, self.name, None, None, parameter.unit)
+        else:
+            kind = TYPES[parameter.type]
+            raw, value = read_value(kind, carried, parameter.word_order)
+            finite = not isinstance(value, float) or math.isfinite(value)
+            if parameter.scale != 1.0 and finite and not isinstance(value, str):
+                value = (float(f"{value * parameter.scale:.{FLOAT_DIGITS[kind.code]}g}") if kind.floating
+                         else round(value * parameter.scale, 6))
+            param = ParamValue(self.address, self.code, self.name, raw, value, parameter.unit, available=finite,
+                               words=carried)
+        named = self.known[words] = (param, None if param.code is None else show(param))
+        return named
+
+    def make_part(self, raw: int | None) -> NamedValue:
+        """One register of a parameter over several, without the others: the register alone,
+        no value (kept)."""
+        parameter = self.parameter
+        assert parameter is not None
+        param = ParamValue(self.address, self.code, self.name, raw, None, None, available=False)
+        part = f"word {self.word + 1} of {parameter.registers}"
+        shown = (None if self.code is None else f"{self.code} ({part})" if raw is None
+                 else f"{self.code} = 16#{raw:04X} ({part})")
+        named = self.known[raw] = (param, shown)
+        return named
+
+    def part_remark(self) -> str | None:
+        """What a frame that names this register of a parameter over several, without the
+        others, says of it (nothing of a parameter without a name: ``--registers``, a guess
+        over every register, leaves a frame's last register over where it will)."""
+        parameter = self.parameter
+        assert parameter is not None
+        if self.code is None:
+            return None
+        last = parameter.address + parameter.registers - 1
+        return (f"register {self.address} is word {self.word + 1} of {parameter.registers} of {parameter.code} "
+                f"({parameter.type} at {parameter.address}-{last}): one word alone is no value")
 
     def make(self, raw: int | None) -> NamedValue:
         """The value ``raw`` named (and kept in :attr:`known`)."""
@@ -83,10 +146,11 @@ def parameter_value(profile: Profile, parameter: Parameter,
 
 
 def show(param: ParamValue) -> str:
-    """A named value as the summary says it: ``LFR = 50.0 Hz``, ``ETA = 16#0637 ready``."""
+    """A named value as the summary says it: ``LFR = 50.0 Hz``, ``ETA = 16#0637 ready``,
+    ``SERIAL = "A1234"``."""
     label = param.code if param.code is not None else str(param.address)
     if param.raw is None:
-        return label
+        return f'{label} = "{param.value}"' if isinstance(param.value, str) else label
     if isinstance(param.value, str):
         return f"{label} = 16#{param.raw:04X} {param.value}"
     unit = f" {param.unit}" if param.unit else ""

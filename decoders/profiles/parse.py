@@ -23,6 +23,7 @@ from decoders.profiles.model import (
     Special,
     State,
 )
+from decoders.value_types import MOST_STRING_REGISTERS, ORDERS, TYPES
 
 ROLES = ("slave", "master")
 ACCESS = ("r", "rw", "w")
@@ -182,7 +183,8 @@ def parse_profile(text: str, origin: str) -> Profile:
         raise reader.fail("profile.address_style", f"{style!r} is not one of {', '.join(ADDRESS_STYLES)}")
     bitfields = _bitfields(reader, reader.get(document, "bitfield", dict, "file", {}))
     formula = reader.get(document, "address_formula", dict, "file", {})
-    parameters = _parameters(reader, reader.tables(document, "parameter", "file"), bitfields, formula)
+    order = _word_order(reader, head, "profile", "big")
+    parameters = _parameters(reader, reader.tables(document, "parameter", "file"), bitfields, formula, order)
     return Profile(
         id=reader.get(head, "id", str, "profile"),
         name=reader.get(head, "name", str, "profile"),
@@ -218,7 +220,7 @@ def _uss_words(reader: _Reader, table: dict[str, Any], bitfields: dict[str, BitF
 
 
 def _parameters(
-    reader: _Reader, entries: list[Any], bitfields: dict[str, BitField], formula: dict[str, Any]
+    reader: _Reader, entries: list[Any], bitfields: dict[str, BitField], formula: dict[str, Any], order: str
 ) -> dict[int, Parameter]:
     parameters: dict[int, Parameter] = {}
     codes: set[str] = set()
@@ -243,6 +245,13 @@ def _parameters(
         if access not in ACCESS:
             raise reader.fail(f"{where}.access", f"{access!r} is not one of {', '.join(ACCESS)}")
         codes.add(code)
+        kind, registers = _value_type(reader, entry, where)
+        if registers > 1 or kind == "string":
+            for key in ("enum", "bitfield", "signed"):
+                if key in entry:
+                    raise reader.fail(f"{where}.{key}", f"applies to a one-register type, not {kind}")
+        if kind == "string" and "scale" in entry:
+            raise reader.fail(f"{where}.scale", "a string has no scale")
         parameters[address] = Parameter(
             address=address,
             code=code,
@@ -250,13 +259,55 @@ def _parameters(
             source=_source(reader, entry, where),
             unit=reader.get(entry, "unit", str, where, None),
             scale=scale,
-            signed=reader.get(entry, "signed", bool, where, False),
+            signed=kind in ("i16", "i32", "i64"),
             access=access,
             enum=_enum(reader, reader.get(entry, "enum", dict, where, {}), f"{where}.enum"),
             bitfield=bitfield,
             note=reader.get(entry, "note", str, where, None),
+            type=kind,
+            registers=registers,
+            word_order=_word_order(reader, entry, where, order),
         )
+    _no_overlap(reader, parameters)
     return parameters
+
+
+def _value_type(reader: _Reader, entry: dict[str, Any], where: str) -> tuple[str, int]:
+    """A parameter's type and how many registers it takes (``signed = true``: ``i16``)."""
+    signed = reader.get(entry, "signed", bool, where, False)
+    kind: str = reader.get(entry, "type", str, where, "i16" if signed else "u16")
+    if kind not in TYPES:
+        raise reader.fail(f"{where}.type", f"{kind!r} is not one of {', '.join(TYPES)}")
+    if signed and kind != "i16":
+        raise reader.fail(f"{where}.signed", f"says i16 where type says {kind}")
+    if kind != "string":
+        if "registers" in entry:
+            raise reader.fail(f"{where}.registers", f"{kind} takes {TYPES[kind].registers}; only a string sets its own")
+        return kind, TYPES[kind].registers
+    registers: int = reader.get(entry, "registers", int, where)
+    if not 1 <= registers <= MOST_STRING_REGISTERS:
+        raise reader.fail(f"{where}.registers", f"{registers} is outside 1..{MOST_STRING_REGISTERS}")
+    return kind, registers
+
+
+def _word_order(reader: _Reader, table: dict[str, Any], where: str, default: str) -> str:
+    order: str = reader.get(table, "word_order", str, where, default)
+    if order not in ORDERS:
+        raise reader.fail(f"{where}.word_order", f"{order!r} is not one of {', '.join(ORDERS)}")
+    return order
+
+
+def _no_overlap(reader: _Reader, parameters: dict[int, Parameter]) -> None:
+    """No register belongs to two parameters (a parameter over several registers covers them)."""
+    owner: dict[int, Parameter] = {}
+    for parameter in sorted(parameters.values(), key=lambda p: (p.registers == 1, p.address)):
+        for address in range(parameter.address, parameter.address + parameter.registers):
+            if address > MAX_ADDRESS:
+                raise reader.fail(f"parameter {parameter.code}", f"its {parameter.registers} registers end past 65535")
+            if address in owner:
+                raise reader.fail(f"parameter {parameter.code}",
+                                  f"register {address} is already part of {owner[address].code}")
+            owner[address] = parameter
 
 
 def _parameter_address(reader: _Reader, entry: dict[str, Any], formula: dict[str, Any], where: str) -> int:

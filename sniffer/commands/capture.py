@@ -15,6 +15,7 @@ from sniffer.commands.common import (
     add_response_timeout_option,
     check_outputs,
     response_timeout_ns,
+    typed_registers,
 )
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.outputs import PcapSink
@@ -76,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     check_streams(args)
     if args.pcap not in (None, "-"):
         check_outputs([args.pcap, args.output], [args.port], force=False)
-    book = profile_book(args.profile, args.profile_file)
+    book = profile_book(args.profile, args.profile_file, typed_registers(args))
     line, guessed = line_settings(args.line, args.port, args.char_timing, args.probe_seconds, err)
     options = CaptureOptions(
         port=args.port,

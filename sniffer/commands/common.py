@@ -12,6 +12,8 @@ from typing import TextIO
 
 from decoders.capture import CaptureInfo, TimingQuality
 from decoders.line import LineSettings
+from decoders.profiles.model import Profile
+from decoders.register_format import WORD_ORDERS
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.filters import parse_filters
 from sniffer.io.base import CaptureReader, ReaderOptions
@@ -23,7 +25,7 @@ from sniffer.io.registry import format_help, formats_for
 from sniffer.io.rotation import same_rotation
 from sniffer.many_captures import captures_in
 from sniffer.pipeline import Analysis, effective_line
-from sniffer.profiles_io import profile_book
+from sniffer.profiles_io import RegisterSpec, profile_book, register_spec, registers_profile
 from sniffer.selection import add_selection_options, selection_from
 from sniffer.views.clock import MODES
 
@@ -124,6 +126,30 @@ def add_profile_options(parser: argparse.ArgumentParser) -> None:
         help="load a profile of your own (TOML, as the shipped ones; 'rtusniff profiles check FILE' says what is "
         "wrong with one); then name it with --profile",
     )
+    parser.add_argument(
+        "--registers",
+        action="append",
+        default=[],
+        type=_register_spec,
+        metavar="[FIRST-LAST=]TYPE[:ORDER]",
+        help="registers of slaves without a profile read as TYPE: u16, i16, u32, i32, f32 (two registers), u64, i64, "
+        f"f64 (four), or hex words; ORDER {', '.join(WORD_ORDERS)} (default big: high word first); over the wire "
+        "addresses FIRST-LAST (or all, from 0), repeatable: --registers 3000-3019=f32:little",
+    )
+    parser.add_argument("--word-order", choices=WORD_ORDERS, default=None,
+                        help="the word order of every --registers that names none")
+
+
+def _register_spec(text: str) -> RegisterSpec:
+    try:
+        return register_spec(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def typed_registers(args: argparse.Namespace) -> Profile | None:
+    """The profile ``--registers`` makes (``None``: none asked for)."""
+    return registers_profile(getattr(args, "registers", []), getattr(args, "word_order", None))
 
 
 def add_filter_option(parser: argparse.ArgumentParser) -> None:
@@ -183,7 +209,7 @@ def add_follow_option(parser: argparse.ArgumentParser) -> None:
 def open_analysis(args: argparse.Namespace, stack: ExitStack) -> tuple[CaptureReader, Analysis]:
     """Open ``args.capture`` and settle how to decode it; ``--follow`` and ``--speed`` shape
     how its chunks come (:mod:`sniffer.io.following`, :mod:`sniffer.io.pacing`)."""
-    book = profile_book(args.profile, args.profile_file)
+    book = profile_book(args.profile, args.profile_file, typed_registers(args))
     override = line_override(args)
     paths = capture_paths(args)
     follow = getattr(args, "follow", False)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from decoders.profiles.model import Profile
+from decoders.profiles.model import Parameter, Profile
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.profiles_io import load_profile_file, shipped_profiles
 from sniffer.views.layout import Cells, Column, Layout
@@ -20,10 +20,10 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "profiles",
         help="list the device profiles, show one, or check a profile file of your own",
         description="Device profiles name and scale the registers of drives rtusniff knows. "
-        "'profiles' lists them, 'profiles show NAME' prints one, 'profiles check FILE' validates yours.",
+        "'profiles' lists them, 'profiles show NAME|FILE' prints one, 'profiles check FILE' validates yours.",
     )
     parser.add_argument("action", nargs="?", choices=["list", "show", "check"], default="list")
-    parser.add_argument("target", nargs="?", help="profile name (show) or TOML file (check)")
+    parser.add_argument("target", nargs="?", help="profile name or TOML file (show), TOML file (check)")
     parser.set_defaults(run=run)
 
 
@@ -46,8 +46,12 @@ def run(args: argparse.Namespace) -> int:
                       f"{len(profile.bitfields)} bit fields, {len(profile.exceptions)} exception notes", soft_wrap=True)
         return 0
     known = shipped_profiles()
+    if args.target.endswith(".toml") and args.target not in known:  # a file of one's own
+        _show(console, load_profile_file(args.target))
+        return 0
     if args.target not in known:
-        raise RtuSniffError(ErrorKind.USAGE, f"unknown profile {args.target!r}; known: {', '.join(sorted(known))}")
+        raise RtuSniffError(ErrorKind.USAGE, f"unknown profile {args.target!r}; known: {', '.join(sorted(known))} "
+                            "(or a .toml file)")
     _show(console, known[args.target])
     return 0
 
@@ -105,10 +109,18 @@ PARAMETER_COLUMNS = [
     Column("address", "address", right=True), Column("hex", "hex"), Column("code", "code"),
     # The name's longest word is a bit field's ("[drivecom_status]"): as wide, so that none is split.
     Column("name", "name", flexible=True, min_width=18, max_width=30), Column("unit", "unit"),
-    Column("scale", "scale", keep=40), Column("access", "access", keep=30),
+    Column("scale", "scale", keep=40), Column("type", "type", keep=35), Column("access", "access", keep=30),
     Column("source", "source", flexible=True, min_width=12, keep=20),
     Column("note", "note", flexible=True, min_width=16, keep=10),
 ]
+
+
+def _type(parameter: Parameter) -> str:
+    """A parameter's type as the table shows it: ``i16``, ``f32 little``, ``string ×8``."""
+    if parameter.registers == 1:
+        return parameter.type
+    size = f" ×{parameter.registers}" if parameter.type == "string" else ""
+    return f"{parameter.type}{size} {parameter.word_order}"
 
 
 def _parameter_lines(profile: Profile, width: int | None) -> str:
@@ -120,7 +132,7 @@ def _parameter_lines(profile: Profile, width: int | None) -> str:
         kind = f" [{parameter.bitfield}]" if parameter.bitfield else ""
         for key, text in (("address", str(address)), ("hex", f"16#{address:04X}"), ("code", parameter.code),
                           ("name", parameter.name + kind), ("unit", parameter.unit or ""),
-                          ("scale", scale + (" signed" if parameter.signed else "")), ("access", parameter.access),
+                          ("scale", scale), ("type", _type(parameter)), ("access", parameter.access),
                           # "manual:1097,1421" wraps between its pages, not inside a number
                           ("source", parameter.source.replace(",", ", ")), ("note", parameter.note or "")):
             rows[key].append(text)

@@ -12,6 +12,7 @@ tests compare both).
 from __future__ import annotations
 
 import json
+import math
 from typing import Any
 
 import orjson
@@ -63,15 +64,26 @@ def _spelt_alike(param: ParamValue) -> bool:
     return type(value) is not float or value == 0 or 1e-4 <= abs(value) < 1e16
 
 
+def json_value(value: object) -> object:
+    """A param's value as JSON holds it: a NaN or infinite float is ``null`` (JSON has no such
+    number; the raw bits say what it was)."""
+    return None if type(value) is float and not math.isfinite(value) else value
+
+
 def param_record(param: ParamValue) -> dict[str, Any]:
-    return {
+    """A param's JSON record: a value over several registers adds their ``words``; a float that
+    is NaN or infinite is ``null`` (JSON has no such number; ``raw`` and ``words`` keep it)."""
+    record = {
         "address": param.address,
         "code": param.code,
         "name": param.name,
         "raw": param.raw,
-        "value": param.value,
+        "value": json_value(param.value),
         "unit": param.unit,
     }
+    if param.words is not None:
+        record["words"] = list(param.words)
+    return record
 
 
 def param_json(param: ParamValue) -> bytes:

@@ -86,7 +86,9 @@ FRAME_SCHEMA: dict[str, Any] = {
         "protocol": {"type": "string"}, "remarks": {"type": "array", "items": {"type": "string"}},
         "params": {"type": "array", "items": {"type": "object", "properties": {
             "address": {"type": "integer"}, "code": _TEXT_OR_NULL, "name": _TEXT_OR_NULL, "raw": _INT_OR_NULL,
-            "value": {"type": ["number", "string", "null"]}, "unit": _TEXT_OR_NULL}}},
+            "value": {"type": ["number", "string", "null"]}, "unit": _TEXT_OR_NULL,
+            # Only on a value over several registers (optional: not required).
+            "words": {"type": "array", "items": {"type": "integer"}}}}},
     },
 }  # fmt: skip
 FRAME_SCHEMA["required"] = list(FRAME_SCHEMA["properties"])

@@ -141,7 +141,10 @@ def _named_block(params: tuple[ParamValue, ...], *, written: bool, crc_ok: bool)
     if not carried:
         return ()
     _, _, number, text, _, _ = param_columns(carried)
-    return tuple((param.address, param.code, param.name, param.raw, each_number, each_text, param.unit,
+    # ``raw`` is the word at ``address``: a value over several registers gives its first (the
+    # number is ``value``; JSONL's ``words`` has them all).
+    return tuple((param.address, param.code, param.name, param.raw if param.words is None else param.words[0],
+                  each_number, each_text, param.unit,
                   crc_ok and (param.available or written))
                  for param, each_number, each_text in zip(carried, number, text, strict=True))
 

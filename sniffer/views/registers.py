@@ -1,6 +1,7 @@
-"""``--registers``, ``--word-order``, ``--addressing``: register values and addresses in the
-tables as a device's manual writes them, for slaves without a profile
-(:mod:`decoders.register_format`). Frames a profile decodes keep its names and units."""
+"""``--registers``, ``--addressing``: register values and addresses in the table as a device's
+manual writes them, for slaves without a profile (:mod:`decoders.register_format`; the values
+are the decoding's, typed by ``--registers``'s profile). Frames a profile decodes keep its
+names and units."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import argparse
 
 from decoders.decoded_batch import remarked
 from decoders.message import Decoding
-from decoders.register_format import ADDRESSINGS, KINDS, WORD_ORDERS, RegisterFormat
+from decoders.register_format import ADDRESSINGS, RegisterFormat
 from sniffer.views.frame_cells import SummaryOf, decoding_summary
 
 CRC_ERROR = "CRC error: "
@@ -17,11 +18,6 @@ KEPT_SUMMARIES = 65536
 
 
 def add_register_options(parser: argparse._ArgumentGroup) -> None:
-    parser.add_argument("--registers", choices=KINDS, metavar="KIND",
-                        help="register values of slaves without a profile as u16, s16, hex (the default view "
-                        "writes hex words), or two registers at a time as u32, s32, f32")
-    parser.add_argument("--word-order", choices=WORD_ORDERS, default="big",
-                        help="for u32/s32/f32: big = high word first (ABCD, default), little = low word first (CDAB)")
     parser.add_argument("--addressing", choices=ADDRESSINGS, default="wire",
                         help="register addresses as sent (wire, from 0; default), from 1, or as Modicon 4x "
                         "references (40001 for holding register 0, 30001 input registers, 00001 coils)")
@@ -29,9 +25,9 @@ def add_register_options(parser: argparse._ArgumentGroup) -> None:
 
 def summary_reader(args: argparse.Namespace) -> SummaryOf:
     """What the table writes for a decoding under these options."""
-    if args.registers is None and args.addressing == "wire":
+    if not args.registers and args.addressing == "wire":
         return decoding_summary
-    registers = RegisterFormat(args.registers or "hex", args.word_order, args.addressing)
+    registers = RegisterFormat(any(spec.kind != "hex" for spec in args.registers), args.addressing)
     known: dict[Decoding, str] = {}
 
     def summary(decoding: Decoding) -> str:
@@ -49,8 +45,7 @@ def summary_reader(args: argparse.Namespace) -> SummaryOf:
 def _summary(registers: RegisterFormat, decoding: Decoding) -> str:
     if any(param.code is not None for param in decoding.params):
         return decoding_summary(decoding)
-    start = decoding.params[0].address if decoding.params else None
-    text = registers.summary(decoding.pdu, start)
+    text = registers.summary(decoding.pdu, decoding.params)
     if text is None:
         return decoding_summary(decoding)
     if decoding.summary.startswith(CRC_ERROR):

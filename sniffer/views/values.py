@@ -24,6 +24,7 @@ from decoders.line import LineSettings
 from decoders.memo import KeptByIdentity
 from decoders.message import ParamValue
 from decoders.stats import Statistics
+from sniffer.encoding.param_text import json_value
 from sniffer.encoding.value_rows import ValueChoice, ValueRow, ValueRows
 from sniffer.errors import ErrorKind, RtuSniffError
 
@@ -87,7 +88,7 @@ class ValuesView(ValueRows):
     def _records(self, row: ValueRow) -> list[dict[str, Any]]:
         time = self._time(row.t_ns)
         return [{"time": time, "t_ns": row.t_ns, "index": row.index, "slave": row.slave, "kind": row.kind,
-                 "address": p.address, "code": p.code, "name": p.name, "raw": p.raw, "value": p.value,
+                 "address": p.address, "code": p.code, "name": p.name, "raw": p.raw, "value": json_value(p.value),
                  "unit": p.unit, "request_index": row.request_index, "valid": valid}
                 for p, valid in zip(row.params, row.valid, strict=True)]
 
@@ -108,7 +109,7 @@ class ValuesView(ValueRows):
         if self._json:
             for row, _ in held:
                 record = {**{name: value for name, value in zip(WIDE_FIXED, self._fixed(row), strict=True)},
-                          **{_column(row.slave, p): p.value for p in row.params}}
+                          **{_column(row.slave, p): json_value(p.value) for p in row.params}}
                 self._out.write(json.dumps(record, ensure_ascii=False) + "\n")
             return
         cells = len(held) * (len(WIDE_FIXED) + len(order))

@@ -9,6 +9,7 @@ import os
 import struct
 from dataclasses import astuple
 from itertools import pairwise
+from pathlib import Path
 
 import numpy as np
 from hypothesis import given, settings
@@ -26,6 +27,8 @@ from tests.property.test_annotation_cache import PRODUCT, adu, matched, said
 
 #: RTUSNIFF_EXAMPLES raises the number of examples for a long run.
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
+#: A profile of register pairs (floats): frames naming them are decoded one by one.
+FLOWMETER = Path(__file__).resolve().parents[1] / "data" / "flowmeter.toml"
 
 SLAVES = st.sampled_from([1, 2, 7])
 #: The ATV71's factory scanner mapping (NMA1-8, then NCA1-8) and more words: read back from
@@ -43,7 +46,8 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
     answers damaged, repeated or missing now and then, counts and byte counts off now and then."""
     s, function = bytes([draw(SLAVES)]), draw(st.sampled_from([1, 2, 3, 4, 3, 5, 6, 15, 16, 23]))
     # 3101 and 8400: registers scaled by a tenth, and enumerated (values with texts among plain numbers).
-    address = draw(st.sampled_from([0, 3201, 8604, 12741, 12701, 65535, 100, 3101, 8400]))
+    # 2 and 13: a float of the flow meter's profile, and half of one.
+    address = draw(st.sampled_from([0, 3201, 8604, 12741, 12701, 65535, 100, 3101, 8400, 2, 13]))
     count = draw(st.one_of(st.integers(1, 20), st.sampled_from([0, 123, 124, 125, 126, 1968, 1969, 2000, 2001])))
     off = draw(st.sampled_from([0, 0, 0, -1, 1]))
     if function <= 4:
@@ -90,7 +94,7 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
 
 
 def annotator(profiles: list[str] | None) -> Annotator:
-    return Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [])))
+    return Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [str(FLOWMETER)])))
 
 
 def expected_values(batch: MessageBatch, decodings: list[Decoding],
@@ -170,7 +174,8 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
 
 @settings(max_examples=max(200, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
-       st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=atv71", "7=atv312"], ["2=xbt"]]))
+       st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=atv71", "7=atv312"], ["2=xbt"],
+                        ["1=flowmeter", "2=atv71"]]))
 def test_reads_in_columns_say_what_the_plain_path_says(traffic: list[list[bytes]], cuts: list[int],
                                                        profiles: list[str] | None) -> None:
     """The matcher's batches, cut again anywhere (between a request and its answer too)."""
@@ -491,3 +496,17 @@ def test_a_profile_names_no_coil() -> None:
     atv71 = annotator(["atv71"]).annotate_batch(batch).decodings
     assert atv71[7].summary == "HR = 05DC (1 register): NM1→ETA = 16#05DC warning, reference reached, forward"
 
+
+
+def test_frames_naming_a_register_of_a_wider_value_are_decoded_one_by_one() -> None:
+    """A float over two registers is read from both together (or remarked on, read in part): the
+    frames naming one go the plain path; the slave's other frames stay in columns."""
+    traffic = [*_read(1, 2, (0x41B7, 0x7DC0)), *_read(1, 14, (5,)), *_read(1, 13, (0,)), *_read(1, 14, (6,))]
+    columns, plain = annotator(["1=flowmeter"]), annotator(["1=flowmeter"])
+    (batch,) = [batch for batch in matched(traffic) if len(batch)]
+    assert check_batch(columns, plain, batch) == 4
+    reads = annotator(["1=flowmeter"]).annotate_columnar(batch).columnar
+    assert reads is not None and reads.positions.tolist() == [2, 3, 6, 7]
+    said = [decoding.summary for decoding in annotator(["1=flowmeter"]).annotate_batch(batch).decodings]
+    assert said[1] == "HR = 41B7 7DC0 (2 registers): FLOW = 22.9364 l/min"
+    assert said[5] == "HR = 0000 (1 register): F12 = 16#0000 (word 2 of 2)"
