@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import random
+import struct
 import tempfile
 import time
 from collections.abc import Callable
@@ -91,6 +92,25 @@ def wide_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
         size = 2 * count if function in (3, 4) else 1
         response = bytes([slave, function, size]) + rng.randbytes(size)
         transmissions += exchange(rng, request, response)
+    return transmissions
+
+
+def meter_transmissions(frames: int, seed: int = 1) -> list[Transmission]:
+    """Meters answering floats: FC 3 reads of 2-16 registers at even addresses 0-30 of 32 slaves
+    whose registers hold IEEE 754 floats, high word first, each moving a little from one read
+    to the next (flows, currents, energies)."""
+    rng = random.Random(seed)
+    readings = [[rng.uniform(0, 500) for _ in range(16)] for _ in range(32)]
+    transmissions = []
+    for _ in range(frames // 2):
+        slave, first = rng.randint(1, 32), rng.randrange(0, 16)
+        floats = rng.randint(1, 16 - first)
+        values = readings[slave - 1]
+        for place in range(first, first + floats):
+            values[place] += rng.gauss(0, 0.5)
+        request = bytes([slave, 3]) + (2 * first).to_bytes(2, "big") + (2 * floats).to_bytes(2, "big")
+        words = struct.pack(f">{floats}f", *values[first : first + floats])
+        transmissions += exchange(rng, request, bytes([slave, 3, len(words)]) + words)
     return transmissions
 
 

@@ -18,7 +18,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 from benchmarks import generate_capture
-from benchmarks.bench_framing import LINE, coil_transmissions, polling_transmissions, wide_transmissions
+from benchmarks.bench_framing import (
+    LINE,
+    coil_transmissions,
+    meter_transmissions,
+    polling_transmissions,
+    wide_transmissions,
+)
 from benchmarks.wire_synthesis import Transmission, exact_chunks
 from decoders.capture import CaptureInfo, ChunkBatch, TimingQuality
 from sniffer.io.registry import open_reader, open_writer
@@ -43,7 +49,7 @@ def compile_sources() -> None:
 
 
 #: The benchmark traffics :func:`benchmark_capture` writes.
-TRAFFICS = ["polling", "mixed", "steady", "coils", "wide"]
+TRAFFICS = ["polling", "mixed", "steady", "coils", "wide", "meters"]
 
 
 def add_capture_options(parser: argparse.ArgumentParser) -> None:
@@ -53,13 +59,14 @@ def add_capture_options(parser: argparse.ArgumentParser) -> None:
                         help="FC 3 polling of random registers and values; mixed ATV traffic with faults and random "
                              "values; the same with steady drives (benchmarks/generate_capture.py); coil reads and "
                              "writes of random states; wide: reads of 247 slaves by FC 1 to 4 (1 000 pairs of slave "
-                             "and function)")
+                             "and function); meters: reads of IEEE 754 floats in register pairs")
 
 
 def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Path:
     """The benchmark capture of ``frames`` frames in ``folder``, written unless it is there:
     ``polling`` (FC 3 only), ``mixed`` or ``steady`` (benchmarks/generate_capture.py, seed 1), ``coils``,
-    ``wide`` (:func:`benchmarks.bench_framing.wide_transmissions`)."""
+    ``wide`` (:func:`benchmarks.bench_framing.wide_transmissions`), ``meters``
+    (:func:`benchmarks.bench_framing.meter_transmissions`)."""
     folder.mkdir(parents=True, exist_ok=True)
     capture = folder / f"{traffic}-{frames}.mcap"
     if not capture.exists():
@@ -67,7 +74,7 @@ def benchmark_capture(folder: Path, frames: int, traffic: str = "polling") -> Pa
             values = "steady" if traffic == "steady" else "random"
             generate_capture.write(capture, frames, 1, LINE, "exact", values=values)
         else:
-            traffics = {"coils": coil_transmissions, "wide": wide_transmissions}
+            traffics = {"coils": coil_transmissions, "wide": wide_transmissions, "meters": meter_transmissions}
             write_capture(capture, frames, traffics.get(traffic, polling_transmissions))
     return capture
 

@@ -396,9 +396,10 @@ def columnar_decodings(columnar: ColumnarFrames, messages: MessageBatch) -> list
     names = spelt.names
     named_params: list[tuple[ParamValue, ...] | None] = [None] * len(spelt)
     if names is not None:
-        sizes = (np.maximum(spelt.count, 0) + spelt.read_count).tolist()
-        entries, table, begin = names.row.tolist(), names.table, 0
-        for place, size in enumerate(sizes):
+        laid = spelt.params(data)  # a value over several registers: one param
+        assert laid.name is not None
+        entries, table, begin = laid.name.tolist(), names.table, 0
+        for place, size in enumerate(laid.sizes.tolist()):
             frame_entries = entries[begin : begin + size]
             begin += size
             if frame_entries and frame_entries[0] >= 0:

@@ -2,8 +2,8 @@
 
 A Modbus register is one 16-bit word. Devices put wider quantities in consecutive registers
 and say in their register maps how: the type (``u32``, ``f32``, ...) and which word comes
-first. One function reads them all (:func:`read_value`), for the profiles' parameters
-(:mod:`decoders.profiles.naming`) and for ``--registers`` (:mod:`decoders.register_format`).
+first. One function reads them all (:func:`read_values`), for the profiles' parameters and
+for ``--registers`` alike (:mod:`decoders.profiles.naming`).
 
 Types: ``u16`` ``i16`` (one register), ``u32`` ``i32`` ``f32`` (two), ``u64`` ``i64`` ``f64``
 (four), integers unsigned or two's complement and floats IEEE 754; ``string``: text over any
@@ -24,10 +24,12 @@ under ``big-swap``.
 
 from __future__ import annotations
 
-import math
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,17 +76,68 @@ def value_bytes(words: Sequence[int], order: str) -> bytes:
     return data
 
 
-def read_value(kind: ValueType, words: Sequence[int], order: str) -> tuple[int | None, int | float | str]:
-    """The value of ``words`` (the registers of one quantity, in address order) as ``kind`` in
-    ``order``, and its raw bits as one unsigned number (``None`` for a string: text has no
-    number)."""
-    data = value_bytes(words, order)
+def read_values(kind: ValueType, order: str, words: npt.NDArray[np.int64]) -> tuple[
+        list[int | None], list[int | float | str]]:
+    """The values of ``words`` (a row per value: its registers' words in address order) as
+    ``kind`` in ``order``, and their raw bits as one unsigned number each (``None`` for a
+    string: text has no number). All at once: a bus of meters reports new floats by the hundred
+    thousand."""
     if not kind.code:
-        return None, data.rstrip(b"\x00").decode("latin-1")
-    raw = int.from_bytes(data, "big")
-    if kind.floating:
-        value: float = struct.unpack(f">{kind.code}", data)[0]
-        return raw, float(f"{value:.{FLOAT_DIGITS[kind.code]}g}") if math.isfinite(value) else value
-    number: int = struct.unpack(f">{kind.code}", data)[0]
-    return raw, number
+        texts: list[int | float | str] = [value_bytes(row, order).rstrip(b"\x00").decode("latin-1")
+                                          for row in words.tolist()]
+        return [None] * len(texts), texts
+    size = 2 * kind.registers
+    laid = words.astype(">u2")
+    if order in ("little", "little-swap"):
+        laid = np.ascontiguousarray(laid[:, ::-1])
+    if order.endswith("-swap"):
+        laid = laid.byteswap()
+    raws: list[int | None] = laid.view(f">u{size}").ravel().tolist()
+    numbers = laid.view(f">{'f' if kind.floating else _INTEGERS[kind.code]}{size}").ravel()
+    digits = FLOAT_DIGITS.get(kind.code)
+    if digits is None:
+        return raws, numbers.tolist()
+    with np.errstate(invalid="ignore"):  # a signalling NaN is a NaN here
+        floats = numbers.astype(np.float64)
+    return raws, significant(floats, digits).tolist()
 
+
+#: A float64 holds 17 significant digits: rounded to as many, it is itself.
+_EXACT_DIGITS = 17
+
+
+def significant(numbers: npt.NDArray[np.float64], digits: int) -> npt.NDArray[np.float64]:
+    """``numbers`` rounded to ``digits`` significant digits (NaN, infinities and 0 as they are),
+    exactly as ``float(f"{number:.7g}")`` rounds one. An ``f32``'s value (24 bits of mantissa)
+    whose decimal exponent is -6 to 21 is rounded by numpy, the numbers of each exponent at
+    once: times 10**k (k <= 12) its product is exact, and 10**k (k <= 22) is a double, so that
+    ``np.round`` meets the decimal rounding; any other number is formatted."""
+    if digits >= _EXACT_DIGITS:
+        return numbers
+    finite = np.isfinite(numbers) & (numbers != 0)
+    size = np.abs(np.where(finite, numbers, 1.0))
+    exponent = np.floor(np.log10(size)).astype(np.int64)
+    with np.errstate(over="ignore"):  # 10**309 is inf, and so is a double past an f32's range
+        exponent += size >= 10.0 ** (exponent + 1)  # log10 a hair off at a power of ten
+        exponent -= size < 10.0 ** exponent
+        single = numbers.astype(np.float32).astype(np.float64) == numbers
+    exact = finite & single & (exponent >= -_MOST_DECIMALS + digits - 1) & (exponent <= _MOST_POWER) & (
+        digits == _SINGLE_DIGITS)
+    rounded = numbers.copy()
+    for place in np.unique(exponent[exact]).tolist():
+        chosen = exact & (exponent == place)
+        rounded[chosen] = np.round(numbers[chosen], digits - 1 - place)
+    others = np.flatnonzero(finite & ~exact)
+    if len(others):
+        rounded[others] = [float(f"{number:.{digits}g}") for number in numbers[others].tolist()]
+    return rounded
+
+
+#: The significant digits of an ``f32``; the most decimals by which numpy's rounding of one is
+#: exact (its 24-bit mantissa times 5**12 fits a double's 53 bits); the largest power of ten a
+#: double holds exactly.
+_SINGLE_DIGITS, _MOST_DECIMALS, _MOST_POWER = 7, 12, 22
+#: A float64 holds 17 significant digits: rounded to as many, it is itself.
+_EXACT_DIGITS = 17
+#: numpy's kind letter of each integer :mod:`struct` code.
+_INTEGERS = {"H": "u", "h": "i", "I": "u", "i": "i", "Q": "u", "q": "i"}

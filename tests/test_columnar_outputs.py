@@ -44,6 +44,8 @@ CASES = pytest.mark.parametrize(("capture", "setting"), [
     (lambda folder: _generated(folder, "coils"), ([], 5000)),
     (lambda folder: _generated(folder, "mixed"), ([], 0)),
     (lambda folder: _generated(folder, "mixed"), (["--profile", "atv71"], 4000)),
+    # Floats in register pairs, every value new, named in columns by the words of both.
+    (lambda folder: _generated(folder, "meters"), (["--registers", "f32"], 5000)),
     *[(lambda folder, name=name: _real(folder, name), ([], 0)) for name in RECORDINGS],
     # Real wires read with a profile that names what they carry (wrongly, but every rule applies).
     *[(lambda folder, name=name: _real(folder, name), (["--profile", profile], 0))
@@ -51,7 +53,7 @@ CASES = pytest.mark.parametrize(("capture", "setting"), [
     # The flow meter's floats, named by a profile of register pairs (and a read of half of one).
     *[(lambda folder, name=name: _real(folder, name), (["--profile-file", str(FLOWMETER), "--profile", "flowmeter"], 0))
       for name in METER_RECORDINGS],
-], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", "mixed-named", *RECORDINGS,
+], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", "mixed-named", "meters", *RECORDINGS,
         *[f"{name}-{profile}" for name in RECORDINGS for profile in ("atv71", "xbt")],
         *[f"{name}-flowmeter" for name in METER_RECORDINGS]])
 
@@ -127,7 +129,8 @@ def test_table(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[
     analyze = ["analyze", str(source), *options, "-o"]
     assert both_ways([*analyze, str(tmp_path / "columns.txt")], [*analyze, str(tmp_path / "plain.txt")]) >= least
     assert (tmp_path / "columns.txt").read_bytes() == (tmp_path / "plain.txt").read_bytes()
-    registers = ["analyze", str(source), *options, "--registers", "s16", "-o"]
+    typed = [] if "--registers" in options else ["--registers", "s16"]  # one typing of the registers
+    registers = ["analyze", str(source), *options, *typed, "--addressing", "4x", "-o"]
     assert both_ways([*registers, str(tmp_path / "r-columns.txt")],
                      [*registers, str(tmp_path / "r-plain.txt")]) >= least
     assert (tmp_path / "r-columns.txt").read_bytes() == (tmp_path / "r-plain.txt").read_bytes()

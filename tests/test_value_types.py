@@ -10,6 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -17,7 +18,7 @@ from pymodbus.client.mixin import ModbusClientMixin
 
 from decoders.crc import crc_bytes
 from decoders.profiles.parse import ProfileError, parse_profile
-from decoders.value_types import TYPES, read_value
+from decoders.value_types import TYPES, ValueType, read_values, significant
 from tests.conftest import CliResult
 from tests.real_recordings import TEXT, available
 
@@ -37,6 +38,12 @@ def _numbers(kind: str) -> st.SearchStrategy[Any]:
 
 def _swapped(words: list[int]) -> list[int]:
     return [((word & 0xFF) << 8) | (word >> 8) for word in words]
+
+
+def read_value(kind: ValueType, words: list[int], order: str) -> tuple[int | None, int | float | str]:
+    """One value read as the decoders read a batch of them."""
+    raws, values = read_values(kind, order, np.array([words], np.int64))
+    return raws[0], values[0]
 
 
 @pytest.mark.parametrize("kind", list(TO_PYMODBUS))
@@ -111,7 +118,8 @@ def test_the_profile_s_word_order_is_each_parameter_s_default() -> None:
     profile = parse_profile(text, "x.toml")
     assert [(p.code, p.word_order, p.registers) for p in profile.parameters.values()] == [
         ("A", "little", 2), ("B", "big", 2)]
-    assert profile.wide_spans() == [(10, 4)]
+    assert {address: (p.code, word) for address, (p, word) in profile.words_of.items()} == {
+        10: ("A", 0), 11: ("A", 1), 12: ("B", 0), 13: ("B", 1)}
 
 
 def _capture(path: Path, frames: list[bytes]) -> Path:
@@ -215,3 +223,15 @@ def test_the_real_flow_meter_s_floats_in_values_parquet_mcap_and_rerun(
     (path,) = [path for path in plotted if path.endswith("/FLOW")]
     assert plotted[path] == pytest.approx(flows)
     assert not any(path.endswith("/F12") and len(series) != len(flows) for path, series in plotted.items())
+
+
+@given(st.lists(st.one_of(st.floats(width=32), st.floats()), min_size=1, max_size=50))
+def test_floats_are_rounded_as_python_formats_them(numbers: list[float]) -> None:
+    """The 7 significant digits of an f32 (or a scaled value), many at once, are exactly what
+    ``float(f"{number:.7g}")`` makes of each; NaN and infinities stay."""
+    rounded = significant(np.array(numbers, np.float64), 7).tolist()
+    for number, made in zip(numbers, rounded, strict=True):
+        if math.isnan(number):
+            assert math.isnan(made)
+        else:
+            assert made == float(f"{number:.7g}")

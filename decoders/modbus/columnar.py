@@ -40,6 +40,9 @@ from decoders.runs import spread, within_runs
 
 #: A param's value where its frame names the address alone.
 NO_VALUE = -1
+#: A register's entry in :attr:`ColumnarNames.row` where it is a later register of a value over
+#: several (a profile's ``f32``): the value's entry is at its first; the params leave it out.
+PART_OF_VALUE = -2
 #: Requests are read against by answers that come within this many frames of them.
 KEPT_REQUESTS = 1024
 #: A named value's text in the summary (``None``: it shows none).
@@ -119,7 +122,7 @@ class ColumnarNames(NamedTuple):
         # comparison of every param's object with None.
         showing = np.concatenate([np.fromiter((text is not None for _, text in self.table), np.bool_, len(self.table)),
                                   [False]])
-        shown = np.flatnonzero(showing[self.row])
+        shown = np.flatnonzero(showing[np.maximum(self.row, -1)])  # PART_OF_VALUE shows nothing
         counts = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[shown], minlength=len(sizes))
         return named_texts, self.row[shown], counts
 
@@ -242,6 +245,10 @@ class ColumnarFrames:
         request = np.where(written, -1, self.request[valued])
         name = None if self.names is None else self.names.row[self._param_rows(valued, counts)]
         address = spread(self.address[valued], counts, dtype=np.int32)
+        if name is not None and (name == PART_OF_VALUE).any():  # a value over several registers: one
+            whole = name != PART_OF_VALUE
+            counts = np.bincount(np.repeat(np.arange(len(valued)), counts)[whole], minlength=len(valued))
+            address, value, name = address[whole], value[whole], name[whole]
         return ColumnarValues(self.positions[valued], counts, found, written, request, address, value, name)
 
     def params(self, data: bytes) -> ColumnarParams:
@@ -258,7 +265,14 @@ class ColumnarFrames:
             first_span = np.repeat(np.maximum(self.count, 0), sizes)
             read = np.flatnonzero(place >= first_span)
             address[read] = np.repeat(self.read_address, sizes)[read] + (place - first_span)[read]
-        return ColumnarParams(sizes, address, values, None if self.names is None else self.names.row)
+        if self.names is None:
+            return ColumnarParams(sizes, address, values)
+        name = self.names.row
+        if (name == PART_OF_VALUE).any():  # a value over several registers is one param
+            whole = name != PART_OF_VALUE
+            sizes = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[whole], minlength=len(sizes))
+            address, values, name = address[whole], values[whole], name[whole]
+        return ColumnarParams(sizes, address, values, name)
 
     def grouped_params(self, groups: Alike) -> npt.NDArray[np.int64]:
         """For each param of these frames (:meth:`params` order), where the same param of its
@@ -348,7 +362,7 @@ def joined(parts: list[tuple[int, int, ColumnarFrames | None]]) -> ColumnarFrame
             if columns.names is None:
                 rows.append(np.full(size, -1, np.int64))
             else:
-                rows.append(np.where(columns.names.row >= 0, columns.names.row + len(table), -1))
+                rows.append(np.where(columns.names.row >= 0, columns.names.row + len(table), columns.names.row))
                 table += columns.names.table
         names = ColumnarNames(np.concatenate(rows), table)
         firsts, inverse, rows_before, firsts_before = [], [], 0, 0

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 from decoders.message import Decoding, DeviceIdentity, ParamValue, Role
 from decoders.modbus.codes import BIT_FUNCTIONS
@@ -152,6 +152,21 @@ class ProfileApplier:
             named.append(value)
         return named
 
+    def named_words(self, profile: Profile, slave: int, reported: bool, address: int,
+                    values: list[tuple[int | None, ...]]) -> list[NamedValue]:
+        """Each of ``values`` of the parameter over several registers at ``address`` (all its
+        registers' raw words, or ``None`` each) as :meth:`apply_decoding` names it, kept as
+        there: for frames named in columns."""
+        namer = self._namer_of(profile, slave, reported, address)
+        known = namer.known
+        found: list[NamedValue | None] = list(map(known.get, values))
+        new = [place for place, named in enumerate(found) if named is None]
+        if new:
+            for place, named in zip(new, namer.make_values([values[place] for place in new]), strict=True):
+                found[place] = named
+            self._kept += len(new)
+        return cast(list[NamedValue], found)
+
     def _namer_of(self, profile: Profile, slave: int, reported: bool, address: int) -> AddressNamer:
         namers = self._kept_namers(profile, reported)
         return namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
@@ -191,7 +206,7 @@ class ProfileApplier:
                     for word, later in enumerate(namers[at : at + size]))
                     and (None not in words or words.count(None) == size))
                 if whole:
-                    named = namer.known.get(words) or self._kept_one(namer.make_words(words))
+                    named = namer.known.get(words) or self._kept_one(namer.make_values([words])[0])
                 else:
                     named = namer.known.get(raws[at]) or self._kept_one(namer.make_part(raws[at]))
                     remark = namer.part_remark()

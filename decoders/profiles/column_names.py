@@ -9,7 +9,9 @@ frames may stay there: :mod:`decoders.profiles.columns`) get theirs at once here
 reported it, its address, its raw word, and at a scanner table's value register its slave,
 whose own mapping names it), each distinct key of the batch is named once through the applier,
 which keeps what its namers made as for any frame, and each param takes its entry
-(:class:`~decoders.modbus.columnar.ColumnarNames`). A batch of drives polled for values that
+(:class:`~decoders.modbus.columnar.ColumnarNames`). A parameter over several registers (a
+float) is keyed by its register and all its words, its distinct values read at once; its later
+registers are :data:`~decoders.modbus.columnar.PART_OF_VALUE`. A batch of drives polled for values that
 change names a few thousand distinct values for tens of thousands of frames.
 
 Frames that read alike (:func:`~decoders.modbus.alike.alike`: the same bytes, role, kind and
@@ -29,10 +31,10 @@ import numpy.typing as npt
 from decoders.message import MessageBatch
 from decoders.modbus.alike import alike
 from decoders.modbus.codes import BIT_FUNCTIONS
-from decoders.modbus.columnar import ColumnarFrames, ColumnarNames, one_of
+from decoders.modbus.columnar import PART_OF_VALUE, ColumnarFrames, ColumnarNames, one_of
 from decoders.modbus.columnar_text import READ_ANSWER, WRITE_ANSWER
 from decoders.profiles.apply import ProfileApplier
-from decoders.profiles.columns import ColumnProfiles, FrameProfiles, overlap
+from decoders.profiles.columns import WIDE_LAYOUTS, ColumnProfiles, FrameProfiles, overlap
 from decoders.profiles.naming import NamedValue
 
 #: Bits of a param's key (:func:`named`) for its raw word plus one (0: no value), its address (a
@@ -66,7 +68,10 @@ def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames
 def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames,
                   slaves: ColumnProfiles) -> tuple[npt.NDArray[np.int64], list[NamedValue]]:
     """Each param's entry (``ColumnarNames.row``) and the named values of the frames of
-    ``columnar`` (``slaves``: theirs)."""
+    ``columnar`` (``slaves``: theirs). A parameter over several registers (every frame here
+    carries all of its registers or none: :func:`~decoders.profiles.columns.unnameable`) is
+    an entry at its first register, keyed by all its words; its other registers are
+    :data:`~decoders.modbus.columnar.PART_OF_VALUE`."""
     params = columnar.params(batch.frames.data)
     frame = np.repeat(np.arange(len(columnar)), params.sizes)
     rows = np.flatnonzero(_named_frames(columnar, slaves)[frame])
@@ -75,10 +80,94 @@ def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: Column
     address = params.address[rows]
     owner = _value_register_owners(slaves, of, address, batch.slave[columnar.positions].astype(np.int64))
     register = ((((slaves.profile[of] * 2 + reported) << _SLAVE_BITS) | owner) << _ADDRESS_BITS) | address
-    distinct, inverse = np.unique((register << _RAW_BITS) | (params.value[rows] + 1), return_inverse=True)
+    value = params.value[rows]
     row = np.full(len(params.address), -1, np.int64)
-    row[rows] = inverse.reshape(-1)  # each distinct value is an entry of the table, in order
-    return row, _named_table(applier, slaves, distinct)
+    word, size = _wide_places(slaves, of, address)
+    if word is None or size is None:
+        distinct, inverse = np.unique((register << _RAW_BITS) | (value + 1), return_inverse=True)
+        row[rows] = inverse.reshape(-1)  # each distinct value is an entry of the table, in order
+        return row, _named_table(applier, slaves, distinct)
+    first, single = (word == 0) & (size > 1), word < 0
+    distinct, inverse = np.unique((register[single] << _RAW_BITS) | (value[single] + 1), return_inverse=True)
+    row[rows[single]] = inverse.reshape(-1)
+    table = _named_table(applier, slaves, distinct)
+    starts = np.flatnonzero(first)
+    registers, words, inverse = _distinct_values(register[starts], value, starts, size[starts])
+    row[rows[starts]] = len(table) + inverse
+    row[rows[word > 0]] = PART_OF_VALUE
+    return row, table + _named_words(applier, slaves, registers, words)
+
+
+def _distinct_values(register: npt.NDArray[np.int64], value: npt.NDArray[np.int64], starts: npt.NDArray[np.int64],
+                     size: npt.NDArray[np.int16]) -> tuple[npt.NDArray[np.int64], list[tuple[int | None, ...]],
+                                                            npt.NDArray[np.int64]]:
+    """The distinct values over several registers among those whose first register is at
+    ``starts`` of ``value`` (``register``: its key; ``size``: its registers, the next of
+    ``value`` in turn): each one's register key (ascending) and words (``None`` each where a
+    request names them), and each value's place among them. By a sort of the register and the
+    words as one number (64 bits hold an ``f64``'s four), not a sort of rows."""
+    combined = np.zeros(len(starts), np.uint64)
+    for place in range(int(size.max(initial=0))):
+        inside = np.flatnonzero(place < size)
+        combined[inside] = (combined[inside] << np.uint64(16)) | (value[starts[inside] + place] & 0xFFFF).astype(
+            np.uint64)
+    asked = value[starts] < 0  # a request: no words
+    order = np.lexsort((combined, asked, register))
+    new = np.ones(len(order), np.bool_)
+    for column in (register, asked, combined):
+        ordered = column[order]
+        new[1:] &= ordered[1:] == ordered[:-1]
+    new = ~new
+    new[:1] = True
+    inverse = np.empty(len(order), np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    firsts = order[new]
+    counts = np.unique(size[firsts]).tolist()
+    words: list[tuple[int | None, ...]] = [()] * len(firsts)
+    for count in counts:
+        pick = np.flatnonzero(size[firsts] == count)
+        at = starts[firsts[pick]]
+        found: list[tuple[int | None, ...]] = list(zip(*[value[at + place].tolist() for place in range(count)],
+                                                       strict=True))
+        if len(counts) == 1:  # one size (a bus of floats): the words in order as they are
+            words = found
+        else:
+            for place, carried in zip(pick.tolist(), found, strict=True):
+                words[place] = carried
+    for place in np.flatnonzero(asked[firsts]).tolist():  # a request's value: no words
+        words[place] = (None,) * len(words[place])
+    return register[firsts], words, inverse
+
+
+def _wide_places(slaves: ColumnProfiles, of: npt.NDArray[np.int64], address: npt.NDArray[np.int64]) -> tuple[
+        npt.NDArray[np.int16] | None, npt.NDArray[np.int16] | None]:
+    """Each param's place in its parameter over several registers (-1: none) and that
+    parameter's size; ``None`` where no profile has one."""
+    word = size = None
+    for place, profile in enumerate(slaves.profiles):
+        if profile.words_of:
+            if word is None or size is None:
+                word, size = np.full(len(of), -1, np.int16), np.zeros(len(of), np.int16)
+            inside = np.flatnonzero(slaves.profile[of] == place)
+            word[inside], size[inside] = WIDE_LAYOUTS.of(profile).at(address[inside])
+    return word, size
+
+
+def _named_words(applier: ProfileApplier, slaves: ColumnProfiles, registers: npt.NDArray[np.int64],
+                 words: list[tuple[int | None, ...]]) -> list[NamedValue]:
+    """Each distinct value over several registers named (``registers``: its register's key as
+    :func:`_named_params` makes it, ascending; ``words``: its words), in their order: register
+    after register, a register's values by the applier at once."""
+    if not len(registers):
+        return []
+    starts = np.flatnonzero(np.diff(registers, prepend=-1))
+    stops = np.append(starts[1:], len(registers))
+    named: list[NamedValue] = []
+    for key, first, last in zip(registers[starts].tolist(), starts.tolist(), stops.tolist(), strict=True):
+        group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
+        register = (slaves.profiles[group >> 1], slave, bool(group & 1), key & _ADDRESS_MASK)
+        named += applier.named_words(*register, words[first:last])
+    return named
 
 
 def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArray[np.bool_]:
@@ -91,6 +180,8 @@ def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArr
 def _named_table(applier: ProfileApplier, slaves: ColumnProfiles, distinct: npt.NDArray[np.int64]) -> list[NamedValue]:
     """Each distinct value named (``distinct``: keys of :func:`named`, ascending), in their order:
     register after register, a register's raw words by the applier at once."""
+    if not len(distinct):
+        return []
     registers, words = distinct >> _RAW_BITS, (distinct & _RAW_MASK) - 1
     starts = np.flatnonzero(np.diff(registers, prepend=-1))
     stops = np.append(starts[1:], len(distinct))

@@ -14,8 +14,9 @@ a named slave's frame stays in columns only where naming it is that lookup alone
 
 * none of its registers is a scanner table's address register (:func:`unnameable`: one may teach
   the table, and the plain path learns from it);
-* none of its registers belongs to a parameter over several registers (:func:`unnameable`: its
-  value is read from them together, or the frame remarks that it carries part of one);
+* it carries every register of each parameter over several registers it names, or none
+  (:func:`unnameable`: a frame carrying part of one gets a remark), and names no string (its
+  value is text of any length: named one by one);
 * a request the profile remarks nothing of (:func:`unnameable`: a function it supports, counts
   within its limits; answers in columns are never exceptions, which may get remarks);
 * its profile names no two registers alike and names none by a number (:func:`plain_codes`):
@@ -30,10 +31,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
+from decoders.memo import KeptByIdentity
 from decoders.message import NONE, ROLE_CODE, ROLE_ORDER, MessageBatch, Role
 from decoders.modbus.codecs import parse_as, parse_pdu
 from decoders.modbus.codes import BIT_FUNCTIONS
@@ -238,9 +241,10 @@ def unnameable(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarF
         for table in profile.indirections:
             for low, high in spans:
                 bad |= of & overlap(low, high, table.address_registers, table.count)
-        for start, count in profile.wide_spans():
+        if profile.words_of:
+            layout = WIDE_LAYOUTS.of(profile)
             for low, high in spans:
-                bad |= of & registers & overlap(low, high, start, count)
+                bad |= of & registers & layout.unnameable(low, high)
     requests = np.flatnonzero(slaves.named & one_of(columnar.kind, (READ, WRITE, READ_WRITE)) & ~bad)
     if len(requests):
         # A request's remarks depend on its profile, function and counts alone: one of each asked.
@@ -261,6 +265,48 @@ def _remarked(applier: ProfileApplier, batch: MessageBatch, profile: Profile, po
     data = frames.data[int(frames.offsets[position]) : int(frames.offsets[position + 1])]
     facts = FrameFacts(int(batch.slave[position]), Role.REQUEST, int(batch.function[position]), True)
     return bool(limit_remarks(profile, facts, parse_pdu(data, is_request=True)))
+
+
+class WideLayout(NamedTuple):
+    """Where a profile's parameters over several registers lie, by register (a read may name up
+    to 125 registers past 65 535): ``word``, its place in its parameter (-1: none); ``size``,
+    the parameter's registers (0: none); ``texts``, how many registers of strings lie before
+    it."""
+
+    word: npt.NDArray[np.int16]
+    size: npt.NDArray[np.int16]
+    texts: npt.NDArray[np.int64]
+
+    def at(self, address: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int16], npt.NDArray[np.int16]]:
+        """The place and size of each register at ``address``."""
+        return self.word[address], self.size[address]
+
+    def unnameable(self, low: npt.NDArray[np.int64], high: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+        """Whether each span of registers ``low`` up to ``high`` (excluded; none where equal)
+        carries part of a parameter over several registers, or a string."""
+        top = LAYOUT_REGISTERS - 1  # a coil read names up to 2 000 (those frames' answer is not used)
+        some = high > low
+        low, high = np.clip(low, 0, top), np.clip(high, 0, top)
+        last = np.maximum(high - 1, low)
+        part: npt.NDArray[np.bool_] = some & (
+            (self.word[low] > 0) | ((self.size[last] > 0) & (self.word[last] != self.size[last] - 1))
+            | (self.texts[np.maximum(high, low)] > self.texts[low]))
+        return part
+
+
+def _wide_layout(profile: Profile) -> WideLayout:
+    word, size = np.full(LAYOUT_REGISTERS, -1, np.int16), np.zeros(LAYOUT_REGISTERS, np.int16)
+    text = np.zeros(LAYOUT_REGISTERS, np.int64)
+    for address, (parameter, place) in profile.words_of.items():
+        word[address], size[address] = place, parameter.registers
+        text[address] = parameter.type == "string"
+    return WideLayout(word, size, np.concatenate([[0], np.cumsum(text)]))
+
+
+#: Registers a layout covers: every address, and those a read near the end names past it.
+LAYOUT_REGISTERS = 0x10000 + 256
+#: The layout of each profile with parameters over several registers, made once.
+WIDE_LAYOUTS: KeptByIdentity[Profile, WideLayout] = KeptByIdentity(_wide_layout, most=64)
 
 
 def overlap(low: npt.NDArray[np.int64], high: npt.NDArray[np.int64], first: int,

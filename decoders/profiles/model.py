@@ -153,13 +153,3 @@ class Profile:
             parameter.address + word: (parameter, word) for parameter in self.parameters.values()
             if parameter.registers > 1 for word in range(parameter.registers)})
 
-    def wide_spans(self) -> list[tuple[int, int]]:
-        """The registers of its parameters over more than one, as spans (first, count) of
-        consecutive registers."""
-        spans: list[tuple[int, int]] = []
-        for address in sorted(self.words_of):
-            if spans and sum(spans[-1]) == address:
-                spans[-1] = (spans[-1][0], spans[-1][1] + 1)
-            else:
-                spans.append((address, 1))
-        return spans

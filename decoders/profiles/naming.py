@@ -30,10 +30,13 @@ registers, whose meaning is each slave's own mapping.
 from __future__ import annotations
 
 import math
+from typing import cast
+
+import numpy as np
 
 from decoders.message import ParamValue
 from decoders.profiles.model import Parameter, Profile
-from decoders.value_types import FLOAT_DIGITS, TYPES, read_value
+from decoders.value_types import FLOAT_DIGITS, TYPES, ValueType, read_values, significant
 
 #: A named value: its param, and its part of the frame's summary (``None``: the summary leaves
 #: it out, as it does values that are neither named nor a text).
@@ -69,24 +72,31 @@ class AddressNamer:
         """How many registers its parameter's value takes (1 where none names it)."""
         return 1 if self.parameter is None else self.parameter.registers
 
-    def make_words(self, words: tuple[int | None, ...]) -> NamedValue:
-        """The value of all the registers of a parameter over several (``words``: their raw
-        values, in address order; ``None`` each, where a request names them), kept."""
+    def make_values(self, values: list[tuple[int | None, ...]]) -> list[NamedValue]:
+        """The values of a parameter over several registers (each: all its registers' raw words
+        in address order, or ``None`` each where a request names them), named and kept: read
+        all at once (:func:`~decoders.value_types.read_values`)."""
         parameter = self.parameter
         assert parameter is not None
-        carried = tuple(word for word in words if word is not None)  # all or none: the caller's rule
-        if not carried:
-            param = ParamValue(self.address, self.code, self.name, None, None, parameter.unit)
-        else:
-            kind = TYPES[parameter.type]
-            raw, value = read_value(kind, carried, parameter.word_order)
-            finite = not isinstance(value, float) or math.isfinite(value)
-            if parameter.scale != 1.0 and finite and not isinstance(value, str):
-                value = (float(f"{value * parameter.scale:.{FLOAT_DIGITS[kind.code]}g}") if kind.floating
-                         else round(value * parameter.scale, 6))
-            param = ParamValue(self.address, self.code, self.name, raw, value, parameter.unit, available=finite,
-                               words=carried)
-        named = self.known[words] = (param, None if param.code is None else show(param))
+        code, name, address, unit = self.code, self.name, self.address, parameter.unit
+        kind = TYPES[parameter.type]
+        carried = [words for words in values if words[0] is not None]  # all or none: the caller's rule
+        raws, read = read_values(kind, parameter.word_order, np.array(carried, np.int64).reshape(
+            len(carried), parameter.registers)) if carried else ([], [])
+        if parameter.scale != 1.0 and kind.number:
+            read = _scaled(read, parameter.scale, kind)
+        # A float that is NaN or infinite is no reading.
+        finite = [type(value) is not float or math.isfinite(value) for value in read] if kind.floating else None
+        params = [ParamValue(address, code, name, raw, value, unit, True if finite is None else finite[place],
+                             cast(tuple[int, ...], words))
+                  for place, (raw, value, words) in enumerate(zip(raws, read, carried, strict=True))]
+        if len(carried) < len(values):  # a request's: no words
+            found = iter(params)
+            params = [ParamValue(address, code, name, None, None, unit) if words[0] is None else next(found)
+                      for words in values]
+        named: list[NamedValue] = [(param, None) for param in params] if code is None else [
+            (param, show(param)) for param in params]
+        self.known.update(zip(values, named, strict=True))
         return named
 
     def make_part(self, raw: int | None) -> NamedValue:
@@ -128,6 +138,15 @@ class AddressNamer:
             param = ParamValue(self.address, self.code, self.name, raw, value, unit)
         named = self.known[raw] = (param, show(param) if param.code is not None or type(param.value) is str else None)
         return named
+
+
+def _scaled(values: list[int | float | str], scale: float, kind: ValueType) -> list[int | float | str]:
+    """Numbers times their parameter's scale (floats in the digits their type holds)."""
+    if not kind.floating:
+        return [value if isinstance(value, str) else round(value * scale, 6) for value in values]
+    scaled: list[int | float | str] = significant(np.array(values, np.float64) * scale,
+                                                  FLOAT_DIGITS[kind.code]).tolist()
+    return scaled
 
 
 def parameter_value(profile: Profile, parameter: Parameter,

@@ -107,7 +107,9 @@ def expected_values(batch: MessageBatch, decodings: list[Decoding],
         written = kind in (WRITE, READ_WRITE)
         found = request.index(first + position) if written else position
         if written or request[position] != NONE:
-            for address, raw in addressed_values(decodings[position]):
+            # A value over several registers is a row of its first register's word.
+            for address, raw in ((p.address, p.raw if p.words is None else p.words[0])
+                                 for p in decodings[position].params):
                 if raw is not None:
                     rows.append((found, not written, position, written, address, raw,
                                  -1 if written else request[position]))
@@ -123,14 +125,15 @@ def check_names(reads: ColumnarFrames, data: bytes, expected: list[Decoding]) ->
     for frame, position in enumerate(reads.positions.tolist()):
         rows = range(ends[frame] - int(params.sizes[frame]), ends[frame])
         decoding = expected[position]
-        if names is None or all(names.row[row] < 0 for row in rows):  # each param its address and raw word
+        if names is None or all(params.name[row] < 0 for row in rows):  # each param its address and raw word
             assert [(param.address, param.raw, param.value, param.code) for param in decoding.params] == [
                 (int(params.address[row]), *[None if params.value[row] == NO_VALUE else int(params.value[row])] * 2,
                  None) for row in rows]
         else:
             assert names is not None
             entries = names.table
-            assert [entries[names.row[row]][0] for row in rows] == list(decoding.params)
+            assert params.name is not None
+            assert [entries[params.name[row]][0] for row in rows] == list(decoding.params)
 
 
 def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> int:
@@ -165,7 +168,8 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
             for name, address, raw in zip(*(column.tolist() for column in (values.name, values.address, values.raw)),
                                           strict=True):
                 if name >= 0:
-                    assert (table[name][0].address, table[name][0].raw) == (address, raw)
+                    param = table[name][0]
+                    assert (param.address, param.raw if param.words is None else param.words[0]) == (address, raw)
         for position in kept:  # what a plain frame's decoding says besides: nothing
             assert expected[position].remarks == () and expected[position].device is None
     assert columns._requests == plain._requests
@@ -498,15 +502,19 @@ def test_a_profile_names_no_coil() -> None:
 
 
 
-def test_frames_naming_a_register_of_a_wider_value_are_decoded_one_by_one() -> None:
-    """A float over two registers is read from both together (or remarked on, read in part): the
-    frames naming one go the plain path; the slave's other frames stay in columns."""
+def test_a_value_over_two_registers_is_named_in_columns_unless_a_frame_carries_half_of_it() -> None:
+    """A float over two registers carried whole stays in columns, one param named by both words
+    (its other register no param of its own); a frame carrying half of it goes the plain path,
+    which remarks on it; the slave's other frames stay in columns."""
     traffic = [*_read(1, 2, (0x41B7, 0x7DC0)), *_read(1, 14, (5,)), *_read(1, 13, (0,)), *_read(1, 14, (6,))]
     columns, plain = annotator(["1=flowmeter"]), annotator(["1=flowmeter"])
     (batch,) = [batch for batch in matched(traffic) if len(batch)]
-    assert check_batch(columns, plain, batch) == 4
+    assert check_batch(columns, plain, batch) == 6
     reads = annotator(["1=flowmeter"]).annotate_columnar(batch).columnar
-    assert reads is not None and reads.positions.tolist() == [2, 3, 6, 7]
+    assert reads is not None and reads.positions.tolist() == [0, 1, 2, 3, 6, 7]
+    assert reads.summaries(batch.frames.data)[:2] == ["read HR 2..3 (2): FLOW",
+                                                      "HR = 41B7 7DC0 (2 registers): FLOW = 22.9364 l/min"]
+    params = reads.params(batch.frames.data)
+    assert params.sizes.tolist() == [1, 1, 1, 1, 1, 1]
     said = [decoding.summary for decoding in annotator(["1=flowmeter"]).annotate_batch(batch).decodings]
-    assert said[1] == "HR = 41B7 7DC0 (2 registers): FLOW = 22.9364 l/min"
     assert said[5] == "HR = 0000 (1 register): F12 = 16#0000 (word 2 of 2)"
