@@ -18,6 +18,7 @@ from tests.test_parquet import SAMPLES, table
 
 CAPTURES = Path(__file__).resolve().parents[1] / "captures"
 FLOWMETER = Path(__file__).resolve().parent / "data" / "flowmeter.toml"
+PUMP = FLOWMETER.with_name("pump.toml")
 METER_RECORDINGS = [name for name in RECORDINGS if "flowmeter" in name]
 
 
@@ -44,6 +45,8 @@ CASES = pytest.mark.parametrize(("capture", "setting"), [
     (lambda folder: _generated(folder, "coils"), ([], 5000)),
     (lambda folder: _generated(folder, "mixed"), ([], 0)),
     (lambda folder: _generated(folder, "mixed"), (["--profile", "atv71"], 4000)),
+    # Coils and discrete inputs a profile names, in columns.
+    (lambda folder: _generated(folder, "coils"), (["--profile-file", str(PUMP), "--profile", "pump"], 5000)),
     # Floats in register pairs, every value new, named in columns by the words of both.
     (lambda folder: _generated(folder, "meters"), (["--registers", "f32"], 5000)),
     *[(lambda folder, name=name: _real(folder, name), ([], 0)) for name in RECORDINGS],
@@ -53,7 +56,7 @@ CASES = pytest.mark.parametrize(("capture", "setting"), [
     # The flow meter's floats, named by a profile of register pairs (and a read of half of one).
     *[(lambda folder, name=name: _real(folder, name), (["--profile-file", str(FLOWMETER), "--profile", "flowmeter"], 0))
       for name in METER_RECORDINGS],
-], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", "mixed-named", "meters", *RECORDINGS,
+], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", "mixed-named", "coils-named", "meters", *RECORDINGS,
         *[f"{name}-{profile}" for name in RECORDINGS for profile in ("atv71", "xbt")],
         *[f"{name}-flowmeter" for name in METER_RECORDINGS]])
 

@@ -18,6 +18,10 @@ REFERENCE_BASE: dict[int, int] = {1: 1, 2: 10001, 3: 40001, 4: 30001, 5: 1, 6: 4
 #: Functions that read or write coils and discrete inputs: bits, a table of their own beside the
 #: registers (a coil at 3201 is not register 3201).
 BIT_FUNCTIONS = frozenset({1, 2, 5, 15})
+#: The data table a function names: 0 registers (holding and input registers, as profiles name
+#: them), 1 coils (FC 1, 5, 15), 2 discrete inputs (FC 2).
+REGISTERS, COILS, INPUTS = 0, 1, 2
+DATA_TABLE: dict[int, int] = {1: COILS, 5: COILS, 15: COILS, 2: INPUTS}
 
 FUNCTION_NAMES: dict[int, str] = {
     1: "Read Coils",

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple, cast
 
 from decoders.message import Decoding, DeviceIdentity, ParamValue, Role
-from decoders.modbus.codes import BIT_FUNCTIONS
+from decoders.modbus.codes import DATA_TABLE, REGISTERS
 from decoders.modbus.param_runs import addressed_values
 from decoders.modbus.pdu import (
     ExceptionPdu,
@@ -73,7 +73,7 @@ class ProfileApplier:
         #: Namers by (profile, reported) and address (a scanner value register: (target, address)),
         #: for what they were at ``_named_version``; ``_kept``: how many namers and named values
         #: they hold.
-        self._namers: dict[tuple[str, bool], dict[int | tuple[int | None, int], AddressNamer]] = {}
+        self._namers: dict[tuple[str, bool, int], dict[int | tuple[int | None, int], AddressNamer]] = {}
         self._named_version = 0
         self._kept = 0
         #: :func:`knows_nothing` of each slave's profile, while the version stays.
@@ -103,13 +103,15 @@ class ProfileApplier:
         if device is None and self.adds_nothing(NO_SLAVE if slave is None else slave):
             return decoding
         profile = self.book.profile_for(slave)
-        bits = facts.function in BIT_FUNCTIONS  # a profile names registers: bits keep their addresses
+        table = DATA_TABLE.get(facts.function or 0, REGISTERS)
+        # Coils and inputs a profile names none of keep their addresses (and the decoding).
+        bits = table != REGISTERS and not profile.tables[table]
         params: Sequence[ParamValue] = decoding.params
         shown: list[str] = []
         remarks = list(decoding.remarks)
         if not bits:
             values = addressed_values(decoding)
-            params, shown, parts, learns = self._named(profile, slave, facts.role is Role.RESPONSE, values)
+            params, shown, parts, learns = self._named(profile, slave, facts.role is Role.RESPONSE, values, table)
             remarks += parts
             if learns:
                 self._learn(profile, slave, values)
@@ -124,12 +126,12 @@ class ProfileApplier:
         return Decoding(summary_with(decoding.summary, shown), tuple(params), pdu, tuple(remarks),
                         decoding.device if device is None else device, decoding.uss)
 
-    def _named(self, profile: Profile, slave: int | None, reported: bool,
-               values: list[tuple[int, int | None]]) -> tuple[list[ParamValue], list[str], list[str], bool]:
-        """The params of ``values``, the summary's texts of the named ones, the remarks on
-        parameters named in part, and whether any is a scanner address register (``reported``:
-        the values come from the device)."""
-        found = self._address_namers(profile, slave, reported, [address for address, _ in values])
+    def _named(self, profile: Profile, slave: int | None, reported: bool, values: list[tuple[int, int | None]],
+               table: int = REGISTERS) -> tuple[list[ParamValue], list[str], list[str], bool]:
+        """The params of ``values`` (of the data ``table``), the summary's texts of the named
+        ones, the remarks on parameters named in part, and whether any is a scanner address
+        register (``reported``: the values come from the device)."""
+        found = self._address_namers(profile, slave, reported, [address for address, _ in values], table)
         raws = [raw for _, raw in values]
         if profile.words_of:
             params, shown, parts = self._name_wide_values(found, raws)
@@ -138,11 +140,11 @@ class ProfileApplier:
         return params, shown, parts, any(namer.learns for namer in found)
 
     def named_values(self, profile: Profile, slave: int, reported: bool, address: int,
-                     raws: list[int | None]) -> list[NamedValue]:
-        """Each of ``raws`` at ``address`` as :meth:`apply_decoding` names it for ``slave`` of
-        ``profile`` (``reported``: the device's values) now, kept as there: for frames named in
-        columns (:mod:`decoders.profiles.column_names`)."""
-        namer = self._namer_of(profile, slave, reported, address)
+                     raws: list[int | None], *, table: int = REGISTERS) -> list[NamedValue]:
+        """Each of ``raws`` at ``address`` (of the data ``table``) as :meth:`apply_decoding`
+        names it for ``slave`` of ``profile`` (``reported``: the device's values) now, kept as
+        there: for frames named in columns (:mod:`decoders.profiles.column_names`)."""
+        namer = self._namer_of(profile, slave, reported, address, table)
         known, named = namer.known, []
         for raw in raws:
             value = known.get(raw)
@@ -167,9 +169,10 @@ class ProfileApplier:
             self._kept += len(new)
         return cast(list[NamedValue], found)
 
-    def _namer_of(self, profile: Profile, slave: int, reported: bool, address: int) -> AddressNamer:
-        namers = self._kept_namers(profile, reported)
-        return namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
+    def _namer_of(self, profile: Profile, slave: int, reported: bool, address: int,
+                  table: int = REGISTERS) -> AddressNamer:
+        namers = self._kept_namers(profile, reported, table)
+        return namers.get(address) or self._namer_at(namers, profile, slave, address, reported, table=table)
 
     def _name_values(self, namers: list[AddressNamer],
                      raws: Sequence[int | None]) -> tuple[list[ParamValue], list[str]]:
@@ -227,7 +230,8 @@ class ProfileApplier:
         self._kept += 1
         return named
 
-    def _kept_namers(self, profile: Profile, reported: bool) -> dict[int | tuple[int | None, int], AddressNamer]:
+    def _kept_namers(self, profile: Profile, reported: bool,
+                     table: int = REGISTERS) -> dict[int | tuple[int | None, int], AddressNamer]:
         """The namers kept for ``profile``'s values (``reported``: from the device), all let go
         first when the profiles learnt something or the kept values reached their bound."""
         if self._named_version != self.version or self._kept >= KEPT_NAMED_PARAMS:
@@ -236,35 +240,39 @@ class ProfileApplier:
         # Slaves share a profile's namers (a value's name says nothing of its slave), and at a
         # scanner table's value registers, whose meaning is each slave's own mapping's, those
         # mapped alike (kept by target and address there: _namer_at).
-        key = (profile.id, reported)
+        key = (profile.id, reported, table)
         namers = self._namers.get(key)
         if namers is None:
             namers = self._namers[key] = {}
         return namers
 
     def _address_namers(self, profile: Profile, slave: int | None, reported: bool,
-                        addresses: list[int]) -> list[AddressNamer]:
+                        addresses: list[int], table: int = REGISTERS) -> list[AddressNamer]:
         """The kept namer of each of ``addresses`` (made and kept where new)."""
-        namers = self._kept_namers(profile, reported)
-        return [namers.get(address) or self._namer_at(namers, profile, slave, address, reported)
+        namers = self._kept_namers(profile, reported, table)
+        return [namers.get(address) or self._namer_at(namers, profile, slave, address, reported, table=table)
                 for address in addresses]
 
     def _namer_at(self, namers: dict[int | tuple[int | None, int], AddressNamer], profile: Profile,
-                  slave: int | None, address: int, reported: bool) -> AddressNamer:
+                  slave: int | None, address: int, reported: bool, *, table: int = REGISTERS) -> AddressNamer:
         """The namer of ``address`` among ``namers`` (made and kept there if new). A scanner
         table's value register holds what its slave's mapping points it at: kept by that target
         (``None``: no slave), so that slaves mapped alike share its namer and the values it made
         (16 drives polled by one PLC: their scanners are mapped alike, factory-set)."""
-        table = _value_table(profile, address)
-        key: int | tuple[int | None, int] = address
-        if table is not None:
-            slot = address - table.value_registers
-            key = (None if slave is None else self._indirections.mapping(slave, table)[slot], address)
-        namer = namers.get(key)
-        if namer is None:
-            namer = namers[key] = self._namer(profile, slave, address, reported)
+        if table != REGISTERS:  # a coil or input: no scanner maps them
+            bit = namers[address] = AddressNamer.of_bit(profile, address, profile.tables[table].get(address))
             self._kept += 1
-        return namer
+            return bit
+        scanner = _value_table(profile, address)
+        key: int | tuple[int | None, int] = address
+        if scanner is not None:
+            slot = address - scanner.value_registers
+            key = (None if slave is None else self._indirections.mapping(slave, scanner)[slot], address)
+        found = namers.get(key)
+        if found is None:
+            found = namers[key] = self._namer(profile, slave, address, reported)
+            self._kept += 1
+        return found
 
     def _namer(self, profile: Profile, slave: int | None, address: int, reported: bool) -> AddressNamer:
         """How ``profile`` names the register at ``address`` of ``slave`` now (the rules:
@@ -372,7 +380,8 @@ def _value_table(profile: Profile, address: int) -> Indirection | None:
 
 def knows_nothing(profile: Profile) -> bool:
     """A profile with nothing to add (generic): messages pass unchanged."""
-    return not (profile.parameters or profile.specials or profile.indirections or profile.exceptions
+    return not (profile.parameters or profile.coils or profile.inputs or profile.specials or profile.indirections
+                or profile.exceptions
                 or profile.limits.functions or profile.address_style != "plain" or profile.uss_control_word)
 
 

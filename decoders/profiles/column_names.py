@@ -30,7 +30,7 @@ import numpy.typing as npt
 
 from decoders.message import MessageBatch
 from decoders.modbus.alike import alike
-from decoders.modbus.codes import BIT_FUNCTIONS
+from decoders.modbus.codes import DATA_TABLE
 from decoders.modbus.columnar import PART_OF_VALUE, ColumnarFrames, ColumnarNames, one_of
 from decoders.modbus.columnar_text import READ_ANSWER, WRITE_ANSWER
 from decoders.profiles.apply import ProfileApplier
@@ -42,6 +42,11 @@ from decoders.profiles.naming import NamedValue
 #: no slave's mapping changes).
 _RAW_BITS, _ADDRESS_BITS, _SLAVE_BITS = 17, 20, 9
 _RAW_MASK, _ADDRESS_MASK, _SLAVE_MASK = (1 << _RAW_BITS) - 1, (1 << _ADDRESS_BITS) - 1, (1 << _SLAVE_BITS) - 1
+#: The data tables a profile names (registers, coils, inputs), and each function's.
+_TABLES = 3
+DATA_TABLES = np.zeros(257, np.int64)
+for _function, _table in DATA_TABLE.items():
+    DATA_TABLES[_function] = _table
 
 
 def named(applier: ProfileApplier, batch: MessageBatch, columnar: ColumnarFrames,
@@ -79,7 +84,9 @@ def _named_params(applier: ProfileApplier, batch: MessageBatch, columnar: Column
     reported = one_of(columnar.kind, (READ_ANSWER, WRITE_ANSWER))[of].astype(np.int64)
     address = params.address[rows]
     owner = _value_register_owners(slaves, of, address, batch.slave[columnar.positions].astype(np.int64))
-    register = ((((slaves.profile[of] * 2 + reported) << _SLAVE_BITS) | owner) << _ADDRESS_BITS) | address
+    data_table = DATA_TABLES[columnar.function[of]]  # registers, coils or inputs
+    group = (slaves.profile[of] * _TABLES + data_table) * 2 + reported
+    register = (((group << _SLAVE_BITS) | owner) << _ADDRESS_BITS) | address
     value = params.value[rows]
     row = np.full(len(params.address), -1, np.int64)
     word, size = _wide_places(slaves, of, address)
@@ -165,15 +172,18 @@ def _named_words(applier: ProfileApplier, slaves: ColumnProfiles, registers: npt
     named: list[NamedValue] = []
     for key, first, last in zip(registers[starts].tolist(), starts.tolist(), stops.tolist(), strict=True):
         group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
-        register = (slaves.profiles[group >> 1], slave, bool(group & 1), key & _ADDRESS_MASK)
+        register = (slaves.profiles[group // (2 * _TABLES)], slave, bool(group & 1), key & _ADDRESS_MASK)
         named += applier.named_words(*register, words[first:last])
     return named
 
 
 def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArray[np.bool_]:
-    """Which frames of ``columnar`` (``slaves``: theirs) their profile names values of: a
-    profile names registers, never coils."""
-    named: npt.NDArray[np.bool_] = slaves.named & ~one_of(columnar.function, BIT_FUNCTIONS)
+    """Which frames of ``columnar`` (``slaves``: theirs) their profile names values of: its
+    registers, and its coils or inputs where it names any of that table."""
+    # A profile that adds anything names registers (by its parameters, its address style).
+    names_table = np.array([[True, bool(profile.coils), bool(profile.inputs)] for profile in slaves.profiles],
+                           np.bool_).reshape(len(slaves.profiles), _TABLES)
+    named: npt.NDArray[np.bool_] = slaves.named & names_table[slaves.profile, DATA_TABLES[columnar.function]]
     return named
 
 
@@ -188,8 +198,9 @@ def _named_table(applier: ProfileApplier, slaves: ColumnProfiles, distinct: npt.
     table: list[NamedValue] = []
     for key, first, last in zip(registers[starts].tolist(), starts.tolist(), stops.tolist(), strict=True):
         group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
-        register = (slaves.profiles[group >> 1], slave, bool(group & 1), key & _ADDRESS_MASK)
-        table += applier.named_values(*register, [None if raw < 0 else raw for raw in words[first:last].tolist()])
+        register = (slaves.profiles[group // (2 * _TABLES)], slave, bool(group & 1), key & _ADDRESS_MASK)
+        table += applier.named_values(*register, [None if raw < 0 else raw for raw in words[first:last].tolist()],
+                                      table=(group >> 1) % _TABLES)
     return table
 
 

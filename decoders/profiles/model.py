@@ -142,13 +142,19 @@ class Profile:
     uss_control_word: str | None = None
     uss_status_word: str | None = None
     path: str = ""
+    #: Coils (FC 1, 5, 15) and discrete inputs (FC 2) it names, by address: ``type`` ``bool``.
+    coils: dict[int, Parameter] = field(default_factory=dict)
+    inputs: dict[int, Parameter] = field(default_factory=dict)
     #: :attr:`specials` by raw word (the first of each): looked up for every value a drive reports.
     special_meanings: dict[int, str] = field(init=False, repr=False, compare=False)
+    #: Its parameters, coils and inputs, by the data table's number (:data:`~decoders.modbus.codes.DATA_TABLE`).
+    tables: tuple[dict[int, Parameter], ...] = field(init=False, repr=False, compare=False)
     #: Every register of a parameter over more than one: its parameter and place in it.
     words_of: dict[int, tuple[Parameter, int]] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "special_meanings", {s.raw: s.meaning for s in reversed(self.specials)})
+        object.__setattr__(self, "tables", (self.parameters, self.coils, self.inputs))
         object.__setattr__(self, "words_of", {
             parameter.address + word: (parameter, word) for parameter in self.parameters.values()
             if parameter.registers > 1 for word in range(parameter.registers)})

@@ -7,7 +7,8 @@ applies them one call at a time):
   its slot (``NM2``) and the parameter its address register points at (``NM2→RFRD``), or
   marked unassigned, or a copy of a register the profile does not know;
 - otherwise the parameter at its address names it, or nothing does (XBT profiles still spell
-  the address their way: ``%MW12``, ``40013``);
+  the address their way: ``%MW12``, ``40013``); a coil's or discrete input's (FC 1, 2, 5, 15)
+  from the profile's coils or inputs, its value on (``True``) or off;
 - a value a device reports that the profile lists as special (16#8000) is that meaning, not a
   reading (``available`` false, no unit); otherwise a parameter's value is its state or bit
   conditions, its enum text, or the raw word (signed where the parameter is) times its scale;
@@ -66,6 +67,12 @@ class AddressNamer:
         self.known: dict[int | tuple[int | None, ...] | None, NamedValue] = {}
         self.learns = learns
         self.word = word
+
+    @classmethod
+    def of_bit(cls, profile: Profile, address: int, parameter: Parameter | None) -> AddressNamer:
+        """The namer of a coil or discrete input (``parameter``: the profile's, if it names it)."""
+        label = (None, None) if parameter is None else (parameter.code, parameter.name)
+        return cls(profile, address, label, parameter, reported=False, learns=False)
 
     @property
     def registers(self) -> int:
@@ -154,6 +161,8 @@ def parameter_value(profile: Profile, parameter: Parameter,
     """The value as the device means it, and its unit (for a raw word that is no marker)."""
     if raw is None:
         return None, parameter.unit
+    if parameter.type == "bool":  # a coil or discrete input
+        return raw == 1, None
     if parameter.bitfield is not None:
         return profile.bitfields[parameter.bitfield].describe(raw) or f"16#{raw:04X}", None
     if raw in parameter.enum:
@@ -172,6 +181,8 @@ def show(param: ParamValue) -> str:
         return f'{label} = "{param.value}"' if isinstance(param.value, str) else label
     if isinstance(param.value, str):
         return f"{label} = 16#{param.raw:04X} {param.value}"
+    if isinstance(param.value, bool):
+        return f"{label} = {'ON' if param.value else 'OFF'}"
     unit = f" {param.unit}" if param.unit else ""
     return f"{label} = {param.value}{unit}"
 

@@ -185,12 +185,16 @@ def parse_profile(text: str, origin: str) -> Profile:
     formula = reader.get(document, "address_formula", dict, "file", {})
     order = _word_order(reader, head, "profile", "big")
     parameters = _parameters(reader, reader.tables(document, "parameter", "file"), bitfields, formula, order)
+    coils, inputs = (_bits(reader, reader.tables(document, key, "file"), key) for key in ("coil", "input"))
+    _codes_once(reader, [*parameters.values(), *coils.values(), *inputs.values()])
     return Profile(
         id=reader.get(head, "id", str, "profile"),
         name=reader.get(head, "name", str, "profile"),
         role=role,
         sources=sources,
         parameters=parameters,
+        coils=coils,
+        inputs=inputs,
         bitfields=bitfields,
         specials=tuple(_special(reader, s, f"special[{i}]") for i, s in enumerate(reader.tables(document, "special",
                                                                                                  "file"))),
@@ -270,6 +274,36 @@ def _parameters(
         )
     _no_overlap(reader, parameters)
     return parameters
+
+
+def _bits(reader: _Reader, entries: list[dict[str, Any]], key: str) -> dict[int, Parameter]:
+    """``[[coil]]`` or ``[[input]]``: a coil or discrete input each, named; its value on or off."""
+    found: dict[int, Parameter] = {}
+    for i, entry in enumerate(entries):
+        code = reader.get(entry, "code", str, f"{key}[{i}]")
+        where = f"{key} {code}"
+        address = reader.address(entry, "address", where)
+        if address in found:
+            raise reader.fail(where, f"address {address} is already {found[address].code}")
+        unknown = sorted(set(entry) - {"address", "code", "name", "source", "note", "access"})
+        if unknown:
+            raise reader.fail(f"{where}.{unknown[0]}", f"a {key} has no '{unknown[0]}' (it is on or off)")
+        access = reader.get(entry, "access", str, where, "rw" if key == "coil" else "r")
+        if access not in ACCESS:
+            raise reader.fail(f"{where}.access", f"{access!r} is not one of {', '.join(ACCESS)}")
+        found[address] = Parameter(address, code, reader.get(entry, "name", str, where), _source(reader, entry, where),
+                                   access=access, note=reader.get(entry, "note", str, where, None), type="bool")
+    return found
+
+
+def _codes_once(reader: _Reader, named: list[Parameter]) -> None:
+    """No code names two things: the MCAP params message holds a frame's values by code."""
+    seen: set[str] = set()
+    for parameter in named:
+        if parameter.code in seen:
+            raise reader.fail(f"{'coil or input' if parameter.type == 'bool' else 'parameter'} {parameter.code}",
+                              "code appears twice")
+        seen.add(parameter.code)
 
 
 def _value_type(reader: _Reader, entry: dict[str, Any], where: str) -> tuple[str, int]:

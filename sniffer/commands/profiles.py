@@ -42,7 +42,9 @@ def run(args: argparse.Namespace) -> int:
         raise RtuSniffError(ErrorKind.USAGE, f"profiles {args.action}: give a {wanted}")
     if args.action == "check":
         profile = load_profile_file(args.target)
-        console.print(f"{args.target}: profile {profile.id!r} is valid: {len(profile.parameters)} parameters, "
+        named_bits = profile.coils or profile.inputs
+        bits = f"{len(profile.coils)} coils, {len(profile.inputs)} discrete inputs, " if named_bits else ""
+        console.print(f"{args.target}: profile {profile.id!r} is valid: {len(profile.parameters)} parameters, {bits}"
                       f"{len(profile.bitfields)} bit fields, {len(profile.exceptions)} exception notes", soft_wrap=True)
         return 0
     known = shipped_profiles()
@@ -87,9 +89,11 @@ def _show(console: Console, profile: Profile) -> None:
             console.print(f"  at most (registers): {shown}")
     for special in profile.specials:
         console.print(f"  16#{special.raw:04X} in a read: {special.meaning}")
-    if profile.parameters:
-        console.print("parameters")
-        console.out(_parameter_lines(profile, console.width if console.is_terminal else None), end="")
+    for title, named in (("parameters", profile.parameters), ("coils (FC 1, 5, 15)", profile.coils),
+                         ("discrete inputs (FC 2)", profile.inputs)):
+        if named:
+            console.print(title)
+            console.out(_parameter_lines(named, console.width if console.is_terminal else None), end="")
     for table in profile.indirections:
         console.print(f"  {table.prefix}1-{table.count}: registers {table.value_registers}.. carry the parameters "
                       f"whose addresses registers {table.address_registers}.. hold; defaults {list(table.defaults)}")
@@ -123,11 +127,11 @@ def _type(parameter: Parameter) -> str:
     return f"{parameter.type}{size} {parameter.word_order}"
 
 
-def _parameter_lines(profile: Profile, width: int | None) -> str:
+def _parameter_lines(parameters: dict[int, Parameter], width: int | None) -> str:
     """The parameters laid out as the other tables are (:mod:`sniffer.views.layout`): at the
     terminal's width, words never split, columns that do not fit said; a row a line in a pipe."""
     rows: dict[str, list[str]] = {column.key: [] for column in PARAMETER_COLUMNS}
-    for address, parameter in sorted(profile.parameters.items()):
+    for address, parameter in sorted(parameters.items()):
         scale = "" if parameter.scale == 1.0 else f"{parameter.scale:g}"
         kind = f" [{parameter.bitfield}]" if parameter.bitfield else ""
         for key, text in (("address", str(address)), ("hex", f"16#{address:04X}"), ("code", parameter.code),
@@ -139,7 +143,7 @@ def _parameter_lines(profile: Profile, width: int | None) -> str:
     layout = Layout(PARAMETER_COLUMNS, width, None)
     cells = {key: Cells(texts) for key, texts in rows.items()}
     layout.measure(cells)
-    lines = layout.header() + layout.lines(cells, len(profile.parameters))
+    lines = layout.header() + layout.lines(cells, len(parameters))
     if layout.hidden():
         lines += f"(no room at {width} columns for: {', '.join(layout.hidden())}; a pipe has all)\n"
     return lines

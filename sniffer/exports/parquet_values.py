@@ -171,12 +171,12 @@ def columnar_values(batch: AnnotatedBatch) -> NumericValues | None:
 
 def param_columns(params: list[ParamValue]) -> tuple[list[str | None], list[str | None], list[float | None],
                                                      list[str | None], list[str | None], list[bool]]:
-    """The code, name, number (not a bool), text, unit and availability of each of ``params``
+    """The code, name, number (a coil's on or off: 1 or 0), text, unit and availability of each of ``params``
     (at least one), each column one pass in C or one comprehension: the one rule of what the
     ``value`` and ``text`` columns hold. Read from the params themselves: rows kept by each
     param's identity, looked up among the other work of a batch, cost more."""
     code, name, value, unit, available = map(list, zip(*map(_PARAM_FIELDS, params), strict=True))
-    number = [float(each) if isinstance(each, int | float) and not isinstance(each, bool) else None for each in value]
+    number = [float(each) if isinstance(each, int | float) else None for each in value]
     text = [each if isinstance(each, str) else None for each in value]
     return code, name, number, text, unit, available
 

@@ -29,6 +29,8 @@ from tests.property.test_annotation_cache import PRODUCT, adu, matched, said
 EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "0"))
 #: A profile of register pairs (floats): frames naming them are decoded one by one.
 FLOWMETER = Path(__file__).resolve().parents[1] / "data" / "flowmeter.toml"
+#: A profile that names coils and discrete inputs (at 0, 3, 100 and 0, 101) besides a register.
+PUMP = FLOWMETER.with_name("pump.toml")
 
 SLAVES = st.sampled_from([1, 2, 7])
 #: The ATV71's factory scanner mapping (NMA1-8, then NCA1-8) and more words: read back from
@@ -94,7 +96,7 @@ def exchanges(draw: st.DrawFn) -> list[bytes]:
 
 
 def annotator(profiles: list[str] | None) -> Annotator:
-    return Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [str(FLOWMETER)])))
+    return Annotator(None if profiles is None else ProfileApplier(profile_book(profiles, [str(FLOWMETER), str(PUMP)])))
 
 
 def expected_values(batch: MessageBatch, decodings: list[Decoding],
@@ -179,7 +181,7 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
 @settings(max_examples=max(200, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
        st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=atv71", "7=atv312"], ["2=xbt"],
-                        ["1=flowmeter", "2=atv71"]]))
+                        ["1=flowmeter", "2=atv71"], ["1=pump", "7=flowmeter"]]))
 def test_reads_in_columns_say_what_the_plain_path_says(traffic: list[list[bytes]], cuts: list[int],
                                                        profiles: list[str] | None) -> None:
     """The matcher's batches, cut again anywhere (between a request and its answer too)."""
