@@ -66,6 +66,8 @@ class ValueRow:
     #: what a subclass may cache by (:attr:`params` are those chosen).
     found: Params
     valid: list[bool] = field(default_factory=list)
+    #: The frame's function (its data table: registers, coils or inputs).
+    function: int = 0
 
 
 class ValueRows(Sink):
@@ -113,7 +115,7 @@ class ValueRows(Sink):
             if slave[place] == NONE or not params:
                 continue
             row = ValueRow(t_start[place], first + position, slave[place], "", params,
-                           None if request[place] == NONE else request[place], found=params)
+                           None if request[place] == NONE else request[place], found=params, function=function[place])
             if kind == _RESPONSE:
                 row.kind = "reported"
                 self._emit(row, crc_ok=bool(crc[place]))
