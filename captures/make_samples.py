@@ -186,6 +186,38 @@ def xbt_hmi() -> list[Transmission]:
     return out
 
 
+def xbt_floats() -> list[Transmission]:
+    """A Magelis XBT polls the 32-bit variables of its project on slave 54: %MF30 (a tank level)
+    and %MF32 (a flow), IEEE 754 floats, and %MD34 (pump starts), each low word first at %MWi and
+    high word at %MWi+1 (XBT:1097-1102); it reads %MF30 once alone by its high word, %MW31 (half
+    of a float), and writes the level's setpoint %MF36. 19200 8N1."""
+    rng = random.Random(SEED + 1097)
+    out: list[Transmission] = []
+    level, flow, starts = 62.5, 12.0, 1407
+    for cycle in range(6):
+        level += rng.uniform(-0.4, 0.4)
+        flow += rng.uniform(-0.2, 0.2)
+        starts += cycle == 3
+        words = [*_low_first(struct.pack(">f", level)), *_low_first(struct.pack(">f", flow)),
+                 *_low_first(struct.pack(">I", starts))]
+        out.append(Transmission(with_crc(struct.pack(">BBHH", 54, 3, 30, 6)), int(rng.uniform(90, 110) * MS)))
+        out.append(Transmission(with_crc(struct.pack(">BBB6H", 54, 3, 12, *words)), int(rng.uniform(2, 5) * MS)))
+        if cycle == 2:
+            out.append(Transmission(with_crc(struct.pack(">BBHH", 54, 3, 31, 1)), int(10 * MS)))
+            out.append(Transmission(with_crc(struct.pack(">BBBH", 54, 3, 2, words[1])), int(3 * MS)))
+        if cycle == 4:
+            setpoint = _low_first(struct.pack(">f", 70.0))
+            out.append(Transmission(with_crc(struct.pack(">BBHHB2H", 54, 16, 36, 2, 4, *setpoint)), int(10 * MS)))
+            out.append(Transmission(with_crc(struct.pack(">BBHH", 54, 16, 36, 2)), int(3 * MS)))
+    return out
+
+
+def _low_first(value: bytes) -> list[int]:
+    """A 32-bit value's two registers as the XBT lays them: low word first."""
+    high, low = struct.unpack(">HH", value)
+    return [low, high]
+
+
 def exact(transmissions: list[Transmission], line: LineSettings = LINE) -> list[Chunk]:
     return list(exact_chunks(transmissions, line, T0_NS))
 
@@ -215,6 +247,10 @@ SAMPLES: dict[str, tuple[Callable[[], list[Chunk]], TimingQuality, LineSettings,
     "xbt-hmi": (
         lambda: exact(xbt_hmi(), XBT_LINE), TimingQuality.EXACT, XBT_LINE,
         "Sample: a Magelis XBT polls %MW20-24 on slave 54 and retries an absent slave 7, 19200 8N1, synthetic",
+    ),
+    "xbt-floats": (
+        lambda: exact(xbt_floats(), XBT_LINE), TimingQuality.EXACT, XBT_LINE,
+        "Sample: a Magelis XBT polls %MF30, %MF32 and %MD34 (low word first) on slave 54, 19200 8N1, synthetic",
     ),
 }
 

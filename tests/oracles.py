@@ -17,6 +17,7 @@ from decoders.crc import CRC_TABLE, MIN_CHECKED
 from decoders.frame import PROTOCOL_NAMES
 from decoders.message import ROLE_NAMES, Decoding, Message, Role
 from decoders.modbus.annotate import Annotator, answer_context
+from decoders.modbus.codes import REGISTERS
 from decoders.modbus.columnar import KEPT_REQUESTS
 from decoders.profiles.apply import FrameFacts, ProfileApplier
 from decoders.profiles.model import Profile
@@ -47,7 +48,8 @@ class AnewApplier(ProfileApplier):
     """:class:`ProfileApplier` naming every value anew: no namer, and so no named value, kept
     between frames."""
 
-    def _kept_namers(self, profile: Profile, reported: bool) -> dict[int | tuple[int | None, int], AddressNamer]:
+    def _kept_namers(self, profile: Profile, reported: bool,
+                     table: int = REGISTERS) -> dict[int | tuple[int | None, int], AddressNamer]:
         return {}
 
 

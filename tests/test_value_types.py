@@ -235,3 +235,22 @@ def test_floats_are_rounded_as_python_formats_them(numbers: list[float]) -> None
             assert math.isnan(made)
         else:
             assert made == float(f"{number:.7g}")
+
+
+def test_the_xbt_sample_s_floats_and_double_word_low_word_first(cli: Callable[..., CliResult]) -> None:
+    """captures/xbt-floats: the XBT's %MF30/%MF32 floats and %MD34 double word, low word first
+    (XBT:1097-1102), named by the sample project's profile; a read of %MW31 alone remarked on;
+    the written setpoint %MF36 a value."""
+    captures = Path(__file__).resolve().parents[1] / "captures"
+    project = ("--profile-file", str(captures / "xbt-project.toml"), "--profile", "54=xbt-project")
+    rows = cli("values", str(captures / "xbt-floats.log"), *project, "--format", "jsonl").jsonl()
+    levels = [row["value"] for row in rows if row["code"] == "%MF30" and row["valid"]]
+    assert len(levels) == 6 and all(62 < level < 63.5 for level in levels)
+    assert [row["value"] for row in rows if row["code"] == "%MD34"] == [1407, 1407, 1407, 1408, 1408, 1408]
+    assert [(row["kind"], row["value"], row["unit"]) for row in rows if row["code"] == "%MF36"] == [
+        ("written", 70.0, "%")]
+    half = [row for row in rows if row["address"] == 31]
+    assert [(row["code"], row["value"], row["valid"]) for row in half] == [("%MF30", None, False)]
+    table = cli("analyze", str(captures / "xbt-floats.log"), *project).out
+    assert "%MF30 = 62.58646 %, %MF32 = 12.04665 m3/h, %MD34 = 1407" in table
+    assert "register 31 is word 2 of 2 of %MF30 (f32 at 30-31)" in table
