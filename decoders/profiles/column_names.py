@@ -24,6 +24,7 @@ every frame repeats one polled before, few frames are named.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator
 
 import numpy as np
 import numpy.typing as npt
@@ -35,6 +36,7 @@ from decoders.modbus.columnar import PART_OF_VALUE, ColumnarFrames, ColumnarName
 from decoders.modbus.columnar_text import READ_ANSWER, WRITE_ANSWER
 from decoders.profiles.apply import ProfileApplier
 from decoders.profiles.columns import WIDE_LAYOUTS, ColumnProfiles, FrameProfiles, overlap
+from decoders.profiles.model import Profile
 from decoders.profiles.naming import NamedValue
 
 #: Bits of a param's key (:func:`named`) for its raw word plus one (0: no value), its address (a
@@ -165,16 +167,25 @@ def _named_words(applier: ProfileApplier, slaves: ColumnProfiles, registers: npt
     """Each distinct value over several registers named (``registers``: its register's key as
     :func:`_named_params` makes it, ascending; ``words``: its words), in their order: register
     after register, a register's values by the applier at once."""
+    named: list[NamedValue] = []
+    for register, _, first, last in _by_register(slaves, registers):
+        named += applier.named_words(*register, words[first:last])
+    return named
+
+
+def _by_register(slaves: ColumnProfiles, registers: npt.NDArray[np.int64]) -> Iterator[tuple[
+        tuple[Profile, int, bool, int], int, int, int]]:
+    """Each register among ``registers`` (keys as :func:`_named_params` makes them, ascending):
+    its profile, slave, whether reported and address, its data table, and where its run of
+    keys begins and ends."""
     if not len(registers):
-        return []
+        return
     starts = np.flatnonzero(np.diff(registers, prepend=-1))
     stops = np.append(starts[1:], len(registers))
-    named: list[NamedValue] = []
     for key, first, last in zip(registers[starts].tolist(), starts.tolist(), stops.tolist(), strict=True):
         group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
         register = (slaves.profiles[group // (2 * _TABLES)], slave, bool(group & 1), key & _ADDRESS_MASK)
-        named += applier.named_words(*register, words[first:last])
-    return named
+        yield register, (group >> 1) % _TABLES, first, last
 
 
 def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArray[np.bool_]:
@@ -190,17 +201,11 @@ def _named_frames(columnar: ColumnarFrames, slaves: ColumnProfiles) -> npt.NDArr
 def _named_table(applier: ProfileApplier, slaves: ColumnProfiles, distinct: npt.NDArray[np.int64]) -> list[NamedValue]:
     """Each distinct value named (``distinct``: keys of :func:`named`, ascending), in their order:
     register after register, a register's raw words by the applier at once."""
-    if not len(distinct):
-        return []
-    registers, words = distinct >> _RAW_BITS, (distinct & _RAW_MASK) - 1
-    starts = np.flatnonzero(np.diff(registers, prepend=-1))
-    stops = np.append(starts[1:], len(distinct))
+    raws = ((distinct & _RAW_MASK) - 1).tolist()
     table: list[NamedValue] = []
-    for key, first, last in zip(registers[starts].tolist(), starts.tolist(), stops.tolist(), strict=True):
-        group, slave = key >> (_ADDRESS_BITS + _SLAVE_BITS), ((key >> _ADDRESS_BITS) & _SLAVE_MASK) - 1
-        register = (slaves.profiles[group // (2 * _TABLES)], slave, bool(group & 1), key & _ADDRESS_MASK)
-        table += applier.named_values(*register, [None if raw < 0 else raw for raw in words[first:last].tolist()],
-                                      table=(group >> 1) % _TABLES)
+    for register, data_table, first, last in _by_register(slaves, distinct >> _RAW_BITS):
+        table += applier.named_values(*register, [None if raw < 0 else raw for raw in raws[first:last]],
+                                      table=data_table)
     return table
 
 
