@@ -10,7 +10,7 @@ bin="$venv/bin"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 cd "$work"
-cp "$samples"/atv71-plc-poll.log "$samples"/atv71-plc-poll.mcap "$samples"/xbt-hmi.log .
+cp "$samples"/atv71-plc-poll.log "$samples"/atv71-plc-poll.mcap "$samples"/xbt-hmi.log "$samples"/xbt-floats.log .
 
 ran=0
 failed=0
@@ -48,6 +48,12 @@ check "export" "$bin/rtusniff" export atv71-plc-poll.log --mcap out.mcap --rrd o
   --parquet dataset -q
 check "profiles list" "$bin/rtusniff" profiles list
 check "profiles show" "$bin/rtusniff" profiles show atv71
+check "profiles draft" "$bin/rtusniff" profiles draft xbt-floats.log --slave 54 -o draft.toml
+check "profiles check" "$bin/rtusniff" profiles check draft.toml
+printf 'Address,Name,Type,Word order\n40031,Tank level,REAL,CDAB\n' >map.csv
+check "profiles import" "$bin/rtusniff" profiles import map.csv -o map.toml
+check "typed registers" "$bin/rtusniff" values xbt-floats.log --profile-file map.toml --profile 54=map \
+  --registers f32:little -o floats.csv
 check "ports" "$bin/rtusniff" ports
 check "capture --help" "$bin/rtusniff" capture --help
 check "wireshark setup" "$bin/rtusniff" wireshark setup --config-dir ws-config --extcap-dir ws-extcap
