@@ -22,10 +22,10 @@ PUMP = FLOWMETER.with_name("pump.toml")
 METER_RECORDINGS = [name for name in RECORDINGS if "flowmeter" in name]
 
 
-def _generated(folder: Path, traffic: str) -> Path:
+def _generated(folder: Path, traffic: str, frames: int = 6000) -> Path:
     from benchmarks.bench_memory import benchmark_capture
 
-    return benchmark_capture(folder, 6000, traffic)
+    return benchmark_capture(folder, frames, traffic)
 
 
 def _real(folder: Path, name: str) -> Path:
@@ -46,9 +46,9 @@ CASES = pytest.mark.parametrize(("capture", "setting"), [
     (lambda folder: _generated(folder, "mixed"), ([], 0)),
     (lambda folder: _generated(folder, "mixed"), (["--profile", "atv71"], 4000)),
     # Coils and discrete inputs a profile names, in columns.
-    (lambda folder: _generated(folder, "coils"), (["--profile-file", str(PUMP), "--profile", "pump"], 5000)),
+    (lambda folder: _generated(folder, "coils", 2000), (["--profile-file", str(PUMP), "--profile", "pump"], 1500)),
     # Floats in register pairs, every value new, named in columns by the words of both.
-    (lambda folder: _generated(folder, "meters"), (["--registers", "f32"], 5000)),
+    (lambda folder: _generated(folder, "meters", 2000), (["--registers", "f32"], 1500)),
     *[(lambda folder, name=name: _real(folder, name), ([], 0)) for name in RECORDINGS],
     # Real wires read with a profile that names what they carry (wrongly, but every rule applies).
     *[(lambda folder, name=name: _real(folder, name), (["--profile", profile], 0))
