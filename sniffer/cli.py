@@ -14,7 +14,7 @@ import re
 import sys
 from collections.abc import Sequence
 from types import ModuleType
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from sniffer.allocator import keep_freed_memory
 from sniffer.errors import ErrorKind, RtuSniffError
@@ -73,11 +73,19 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(title="commands", metavar="COMMAND")
     for name in COMMAND_NAMES if command is None else (command,):
         command_module(name).add_parser(subparsers)
+    _debug_after(subparsers)
+    return parser
+
+
+def _debug_after(subparsers: argparse._SubParsersAction[Any]) -> None:
+    """``--debug`` also after a command and an action (`rtusniff profiles draft --debug X`);
+    SUPPRESS keeps the top level's value."""
     for subparser in subparsers.choices.values():
-        # Also after the command (`rtusniff analyze --debug X`); SUPPRESS keeps the top level's value.
         subparser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                                help="show the traceback of errors")
-    return parser
+        for action in subparser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                _debug_after(action)
 
 
 #: ``--line 19200 8E1``: a baud rate and a character format, written as two words.

@@ -12,7 +12,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from decoders.profiles.draft import Guess, Observations, draft
+from decoders.profiles.parse import MAX_PROFILE_BYTES
 from sniffer.encoding.value_rows import ValueChoice, ValueRow, ValueRows
+from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.profile_text import Entry, checked_profile_text, profile_text
 
 
@@ -41,7 +43,17 @@ def draft_text(collector: DraftCollector, *, capture: str, slave: int, profile_i
                 "Every type below is a guess from the values seen, with its evidence: check each against "
                 "the device, and give the registers their names."]
     head = {"id": profile_id, "name": name, "sources": [source]}
-    return checked_profile_text(profile_text(head, entries, comments), capture), len(entries)
+    text = profile_text(head, entries, comments)
+    if len(text) > MAX_PROFILE_BYTES:  # thousands of registers: their evidence goes first
+        for entry in entries:
+            entry.comments = entry.comments[:1]
+        text = profile_text(head, entries, [*comments, "Too many registers for every guess's evidence: each entry "
+                                            "says what was seen of it."])
+    if len(text) > MAX_PROFILE_BYTES:
+        raise RtuSniffError(ErrorKind.BAD_PROFILE, f"slave {slave} has {len(entries):,} registers, coils and inputs: "
+                            f"a profile of them ({len(text):,} characters) would pass the {MAX_PROFILE_BYTES:,} a "
+                            "profile may hold; draft a capture of fewer of them", path=capture)
+    return checked_profile_text(text, capture), len(entries)
 
 
 def _entry(guess: Guess, source: str) -> Entry:

@@ -10,7 +10,7 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-from decoders.profiles.parse import ProfileError, parse_profile
+from decoders.profiles.parse import MAX_PROFILE_BYTES, ProfileError, parse_profile
 from sniffer.errors import ErrorKind, RtuSniffError
 
 Value = str | int | float | bool
@@ -50,7 +50,11 @@ def profile_text(head: Mapping[str, Value | Sequence[str]], entries: list[Entry]
 
 
 def checked_profile_text(text: str, origin: str) -> str:
-    """``text`` once the profile parser reads it without fault (a fault here is rtusniff's)."""
+    """``text`` once the profile parser reads it without fault (a fault here is rtusniff's, but
+    for a profile past the size a profile may hold: too many rows)."""
+    if len(text) > MAX_PROFILE_BYTES:
+        raise RtuSniffError(ErrorKind.BAD_PROFILE, f"its profile would be {len(text):,} characters, past the "
+                            f"{MAX_PROFILE_BYTES:,} a profile may hold: split it", path=origin)
     try:
         parse_profile(text, origin)
     except ProfileError as exc:

@@ -70,3 +70,26 @@ def test_draft_says_what_it_cannot_do(tmp_path: Path, cli: Callable[..., CliResu
         f"error: {capture}: slave 9 reports and is written no value in this capture\n")
     wrong = cli("profiles", "draft", str(capture), "--slave", "300")
     assert wrong.code == 2 and wrong.err == "error: --slave: give a slave address, 1 to 247\n"
+
+
+def test_a_draft_past_a_profile_s_size_is_one_line(tmp_path: Path, cli: Callable[..., CliResult]) -> None:
+    """A slave read at 12 000 registers: their draft would pass the 1 MiB a profile may hold
+    even without the evidence; one line and exit 12, nothing written. (``--debug`` is taken
+    after an action too.)"""
+    import random
+    import struct
+
+    from benchmarks.bench_framing import exchange
+    from benchmarks.bench_memory import write_capture
+
+    rng = random.Random(1)
+    traffic = [transmission for first in range(0, 12_000, 120) for transmission in exchange(
+        rng, struct.pack(">BBHH", 1, 3, first, 120), struct.pack(">BBB120H", 1, 3, 240, *range(first, first + 120)))]
+    capture = tmp_path / "wide.mcap"
+    write_capture(capture, len(traffic), lambda frames, piece: traffic[piece : piece + frames])
+    out = tmp_path / "draft.toml"
+    result = cli("profiles", "draft", str(capture), "--slave", "1", "-o", str(out))
+    assert result.code == 12 and result.err.startswith(f"error: {capture}: slave 1 has 12,000 registers, coils and "
+                                                       "inputs: a profile of them (")
+    assert result.err.endswith("draft a capture of fewer of them\n") and not out.exists()
+    assert cli("profiles", "show", "atv71", "--debug").code == 0

@@ -121,3 +121,12 @@ def test_an_imported_map_names_the_real_flow_meter_s_floats(tmp_path: Path, cli:
                   "--profile", "flowmeter", "--format", "jsonl").jsonl()
     assert [(p["code"], p["value"]) for p in records[4]["params"] if p["code"]] == [("FLOW", 22.9364),
                                                                                     ("F4", 0.210566)]
+
+
+def test_a_map_past_a_profile_s_size_is_one_line(tmp_path: Path, cli: Callable[..., CliResult]) -> None:
+    rows = ["Address,Name,Type", *(f"{address},A long descriptive name of register {address},float"
+                                   for address in range(0, 40_000, 2))]
+    result = _import(tmp_path, cli, "\n".join(rows), "-o", str(tmp_path / "big.toml"), "-q")
+    assert result.code == 12 and result.err.startswith(f"error: {tmp_path / 'meter.csv'}: its profile would be ")
+    assert result.err.endswith(" characters, past the 1,048,576 a profile may hold: split it\n")
+    assert not (tmp_path / "big.toml").exists()
