@@ -24,8 +24,6 @@ under ``big-swap``.
 
 from __future__ import annotations
 
-import struct
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,34 +62,17 @@ MOST_STRING_REGISTERS = 125
 FLOAT_DIGITS = {"f": 7, "d": 17}
 
 
-def value_bytes(words: Sequence[int], order: str) -> bytes:
-    """The value's bytes, most significant first, from its registers as they came (``order``:
-    one of :data:`ORDERS`)."""
-    ordered = words if order in ("big", "big-swap") else words[::-1]
-    data = struct.pack(f">{len(ordered)}H", *ordered)
-    if order.endswith("-swap"):
-        swapped = bytearray(data)
-        swapped[0::2], swapped[1::2] = data[1::2], data[0::2]
-        return bytes(swapped)
-    return data
-
-
 def read_values(kind: ValueType, order: str, words: npt.NDArray[np.int64]) -> tuple[
         list[int | None], list[int | float | str]]:
     """The values of ``words`` (a row per value: its registers' words in address order) as
     ``kind`` in ``order``, and their raw bits as one unsigned number each (``None`` for a
     string: text has no number). All at once: a bus of meters reports new floats by the hundred
     thousand."""
+    laid = laid_out(words, order)
     if not kind.code:
-        texts: list[int | float | str] = [value_bytes(row, order).rstrip(b"\x00").decode("latin-1")
-                                          for row in words.tolist()]
+        texts: list[int | float | str] = [row.tobytes().rstrip(b"\x00").decode("latin-1") for row in laid]
         return [None] * len(texts), texts
     size = 2 * kind.registers
-    laid = words.astype(">u2")
-    if order in ("little", "little-swap"):
-        laid = np.ascontiguousarray(laid[:, ::-1])
-    if order.endswith("-swap"):
-        laid = laid.byteswap()
     raws: list[int | None] = laid.view(f">u{size}").ravel().tolist()
     numbers = laid.view(f">{'f' if kind.floating else _INTEGERS[kind.code]}{size}").ravel()
     digits = FLOAT_DIGITS.get(kind.code)
@@ -100,6 +81,17 @@ def read_values(kind: ValueType, order: str, words: npt.NDArray[np.int64]) -> tu
     with np.errstate(invalid="ignore"):  # a signalling NaN is a NaN here
         floats = numbers.astype(np.float64)
     return raws, significant(floats, digits).tolist()
+
+
+def laid_out(words: npt.NDArray[np.int64], order: str) -> npt.NDArray[np.uint16]:
+    """Each row of ``words`` (registers in address order) as its value's bytes lie, the most
+    significant first (``order``: one of :data:`ORDERS`), as big-endian 16-bit words."""
+    laid: npt.NDArray[np.uint16] = words.astype(">u2")
+    if order in ("little", "little-swap"):
+        laid = np.ascontiguousarray(laid[:, ::-1])
+    if order.endswith("-swap"):
+        laid = laid.byteswap()
+    return laid
 
 
 #: A float64 holds 17 significant digits: rounded to as many, it is itself.
@@ -137,7 +129,6 @@ def significant(numbers: npt.NDArray[np.float64], digits: int) -> npt.NDArray[np
 #: exact (its 24-bit mantissa times 5**12 fits a double's 53 bits); the largest power of ten a
 #: double holds exactly.
 _SINGLE_DIGITS, _MOST_DECIMALS, _MOST_POWER = 7, 12, 22
-#: A float64 holds 17 significant digits: rounded to as many, it is itself.
-_EXACT_DIGITS = 17
+
 #: numpy's kind letter of each integer :mod:`struct` code.
 _INTEGERS = {"H": "u", "h": "i", "I": "u", "i": "i", "Q": "u", "q": "i"}
