@@ -77,7 +77,7 @@ ACCESS_WORDS: dict[str, str] = {
 }
 TABLE_WORDS: dict[str, str] = {
     **{word: "parameter" for word in ("holding", "holdingregister", "holdingregisters", "hr", "4x", "3", "6", "16",
-                                      "input register", "inputregister", "inputregisters", "ir", "3x", "4")},
+                                      "inputregister", "inputregisters", "ir", "3x", "4")},
     **{word: "coil" for word in ("coil", "coils", "0x", "1", "5", "15", "do", "digitaloutput")},
     **{word: "input" for word in ("discreteinput", "discreteinputs", "di", "1x", "2", "input", "digitalinput")},
 }
@@ -260,7 +260,7 @@ def _entry(table: _Rows, number: int, row: list[str], address_text: str, *, base
         return None
     named = table.cell(row, "table")
     if named:
-        found = TABLE_WORDS.get(_word(named)) or TABLE_WORDS.get(named.strip().lower())
+        found = TABLE_WORDS.get(_word(named))
         if found is None:
             table.fault(number, "table", f"{named!r} is not a holding or input register, a coil or a discrete input")
             return None
