@@ -123,8 +123,7 @@ class ColumnarNames(NamedTuple):
         showing = np.concatenate([np.fromiter((text is not None for _, text in self.table), np.bool_, len(self.table)),
                                   [False]])
         shown = np.flatnonzero(showing[np.maximum(self.row, -1)])  # PART_OF_VALUE shows nothing
-        counts = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[shown], minlength=len(sizes))
-        return named_texts, self.row[shown], counts
+        return named_texts, self.row[shown], _counted(sizes, shown)
 
     def suffixed(self, texts: list[str], sizes: npt.NDArray[np.int64]) -> list[str]:
         """``texts`` (the frames' PDU summaries; ``sizes``: how many params each names) followed
@@ -247,7 +246,7 @@ class ColumnarFrames:
         address = spread(self.address[valued], counts, dtype=np.int32)
         if name is not None and (name == PART_OF_VALUE).any():  # a value over several registers: one
             whole = name != PART_OF_VALUE
-            counts = np.bincount(np.repeat(np.arange(len(valued)), counts)[whole], minlength=len(valued))
+            counts = _counted(counts, whole)
             address, value, name = address[whole], value[whole], name[whole]
         return ColumnarValues(self.positions[valued], counts, found, written, request, address, value, name)
 
@@ -270,7 +269,7 @@ class ColumnarFrames:
         name = self.names.row
         if (name == PART_OF_VALUE).any():  # a value over several registers is one param
             whole = name != PART_OF_VALUE
-            sizes = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[whole], minlength=len(sizes))
+            sizes = _counted(sizes, whole)
             address, values, name = address[whole], values[whole], name[whole]
         return ColumnarParams(sizes, address, values, name)
 
@@ -376,6 +375,13 @@ def joined(parts: list[tuple[int, int, ColumnarFrames | None]]) -> ColumnarFrame
                           stacked("count"), stacked("read_address"), stacked("read_count"), shifted("data", True),
                           stacked("byte_count"), stacked("request"), shifted("answer"), shifted("kept_requests"),
                           earlier, names, groups)
+
+
+def _counted(sizes: npt.NDArray[np.int64], kept: npt.NDArray[Any]) -> npt.NDArray[np.int64]:
+    """How many of each group's rows ``kept`` keeps (a mask, or the rows' indexes; ``sizes``: how
+    many rows each group has, one group after another)."""
+    counts: npt.NDArray[np.int64] = np.bincount(np.repeat(np.arange(len(sizes)), sizes)[kept], minlength=len(sizes))
+    return counts
 
 
 def _bits(raw: npt.NDArray[np.uint8], starts: npt.NDArray[np.int64],
