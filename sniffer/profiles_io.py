@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from functools import cache
 from importlib.resources import files
+from itertools import pairwise
 from pathlib import Path
 from typing import NamedTuple
 
@@ -56,19 +57,18 @@ def registers_profile(specs: list[RegisterSpec], word_order: str | None) -> Prof
     typed = [spec for spec in specs if spec.kind != "hex"]
     if not typed:
         return None
+    by_first = sorted(typed, key=lambda spec: spec.first)
+    for before, spec in pairwise(by_first):  # spans in order: each after the last
+        if spec.first <= before.last:
+            raise RtuSniffError(ErrorKind.USAGE, f"--registers {before.text} and {spec.text} both type "
+                                f"register {spec.first}")
     parameters: dict[int, Parameter] = {}
-    owner: dict[int, RegisterSpec] = {}
     for spec in typed:
         size = TYPES[spec.kind].registers
         count = spec.last - spec.first + 1
         if count % size:
             raise RtuSniffError(ErrorKind.USAGE, f"--registers {spec.text}: {count} registers are no whole number of "
                                 f"{spec.kind} ({size} registers each)")
-        for address in range(spec.first, spec.last + 1):
-            other = owner.setdefault(address, spec)
-            if other is not spec:
-                raise RtuSniffError(ErrorKind.USAGE, f"--registers {other.text} and {spec.text} both type "
-                                    f"register {address}")
         order = spec.order or word_order or "big"
         signed = spec.kind == "i16"
         for address in range(spec.first, spec.last + 1, size):
