@@ -17,6 +17,8 @@ from hypothesis import strategies as st
 from pymodbus.client.mixin import ModbusClientMixin
 
 from decoders.crc import crc_bytes
+from decoders.profiles.model import Parameter, Profile
+from decoders.profiles.naming import AddressNamer, show
 from decoders.profiles.parse import ProfileError, parse_profile
 from decoders.value_types import TYPES, ValueType, read_values, significant
 from tests.conftest import CliResult
@@ -235,6 +237,30 @@ def test_floats_are_rounded_as_python_formats_them(numbers: list[float]) -> None
             assert math.isnan(made)
         else:
             assert made == float(f"{number:.7g}")
+
+
+@pytest.mark.parametrize("kind", ["u32", "i32", "f32", "f64", "string"])
+@given(words=st.lists(st.integers(0, 0xFFFF), min_size=4, max_size=4), scale=st.sampled_from([1.0, 0.1]),
+       unit=st.sampled_from([None, "", "l/min"]), asked=st.booleans())
+def test_values_named_at_once_are_what_show_says_of_each(kind: str, words: list[int], scale: float,
+                                                         unit: str | None, asked: bool) -> None:
+    """A namer names a batch of values at once (params built by ``map``, texts formatted at
+    once); each is the param of that value alone and the text :func:`show` makes of it, NaN and
+    infinities, scales, units and requests' values (no words) included."""
+    size = TYPES[kind].registers or 2
+    parameter = Parameter(40, "F", "flow", "test", type=kind, registers=size, word_order="little",
+                          scale=1.0 if kind == "string" else scale, unit=unit)
+    profile = Profile("test", "test", "slave", ("test",), {40: parameter})
+    values: list[tuple[int | None, ...]] = [tuple(words[:size]), tuple(reversed(words[:size]))]
+    if asked:
+        values.append((None,) * size)
+
+    def namer() -> AddressNamer:
+        return AddressNamer(profile, 40, ("F", "flow"), parameter, reported=True, learns=False)
+
+    for (param, text), each in zip(namer().make_values(values), values, strict=True):
+        ((alone, _),) = namer().make_values([each])
+        assert repr(param) == repr(alone) and text == show(param)
 
 
 def test_the_xbt_sample_s_floats_and_double_word_low_word_first(cli: Callable[..., CliResult]) -> None:

@@ -31,6 +31,8 @@ registers, whose meaning is each slave's own mapping.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
+from itertools import chain, repeat
 from typing import cast
 
 import numpy as np
@@ -88,21 +90,28 @@ class AddressNamer:
         code, name, address, unit = self.code, self.name, self.address, parameter.unit
         kind = TYPES[parameter.type]
         carried = [words for words in values if words[0] is not None]  # all or none: the caller's rule
-        raws, read = read_values(kind, parameter.word_order, np.array(carried, np.int64).reshape(
-            len(carried), parameter.registers)) if carried else ([], [])
+        size = parameter.registers
+        raws, read = read_values(kind, parameter.word_order, np.fromiter(
+            chain.from_iterable(carried), np.int64, size * len(carried)).reshape(len(carried), size)) if carried else (
+            [], [])
         if parameter.scale != 1.0 and kind.number:
             read = _scaled(read, parameter.scale, kind)
-        # A float that is NaN or infinite is no reading.
-        finite = [type(value) is not float or math.isfinite(value) for value in read] if kind.floating else None
-        params = [ParamValue(address, code, name, raw, value, unit, True if finite is None else finite[place],
-                             cast(tuple[int, ...], words))
-                  for place, (raw, value, words) in enumerate(zip(raws, read, carried, strict=True))]
+        # A float that is NaN or infinite is no reading (a floating type reads floats only).
+        valid: Iterable[bool] = list(map(math.isfinite, cast(list[float], read))) if kind.floating else repeat(True)
+        # Built by map, not one call a value in Python: a bus of meters reports new floats by the thousand.
+        params = list(map(ParamValue, repeat(address), repeat(code), repeat(name), raws, read, repeat(unit), valid,
+                          carried))
         if len(carried) < len(values):  # a request's: no words
             found = iter(params)
             params = [ParamValue(address, code, name, None, None, unit) if words[0] is None else next(found)
                       for words in values]
-        named: list[NamedValue] = [(param, None) for param in params] if code is None else [
-            (param, show(param)) for param in params]
+        if code is None:
+            named: list[NamedValue] = [(param, None) for param in params]
+        elif kind.number and len(carried) == len(values):  # numbers as show() says them, formatted at once
+            suffix = f" {unit}" if unit else ""
+            named = list(zip(params, [f"{code} = {value}{suffix}" for value in read], strict=True))
+        else:
+            named = [(param, show(param)) for param in params]
         self.known.update(zip(values, named, strict=True))
         return named
 
