@@ -51,7 +51,7 @@ def expected(batches: list[tuple[MessageBatch, list[int]]]) -> list[tuple[int, i
     return found
 
 
-@settings(max_examples=max(600, EXAMPLES), deadline=None)
+@settings(max_examples=max(300, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), min_size=1, max_size=30), st.lists(st.integers(1, 60), max_size=3), st.data())
 def test_transactions_follow_the_rule(traffic: list[list[bytes]], cuts: list[int], data: st.DataObject) -> None:
     batches, requests = [], [0]

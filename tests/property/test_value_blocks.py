@@ -41,7 +41,7 @@ class Recorder(ValueRows):
                               param.raw, number, text, param.unit, row.request_index, valid))
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(st.lists(exchanges(), max_size=40), st.integers(1, 4), st.lists(st.integers(0, 300), max_size=4),
        st.sampled_from([KEPT_WRITES, 1, 3]))
 def test_value_blocks_hold_the_rows_param_by_param(traffic: list[list[bytes]], repeats: int, cuts: list[int],
