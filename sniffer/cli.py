@@ -10,6 +10,7 @@ import argparse
 import errno
 import gc
 import importlib
+import importlib.abc
 import re
 import sys
 from collections.abc import Sequence
@@ -61,9 +62,10 @@ def command_module(name: str) -> ModuleType:
     return importlib.import_module(f"sniffer.commands.{name}")
 
 
-def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """The command line's parser: of every command, or of ``command`` alone (the one run)."""
-    parser = OneLineParser(
+def build_parser(command: str | None = None, kind: type[OneLineParser] | None = None) -> argparse.ArgumentParser:
+    """The command line's parser: of every command, or of ``command`` alone (the one run);
+    ``kind``: its class and its commands' (the library's raises its errors)."""
+    parser = (kind or OneLineParser)(
         prog="rtusniff",
         description="Modbus RTU protocol analyzer and passive RS485 bus sniffer.",
         epilog="'rtusniff COMMAND --help' tells a command's options; exit codes are listed in the README.",
@@ -178,9 +180,28 @@ def _command_in(argv: list[str]) -> str | None:
 
 
 def entry_point() -> None:
+    _without_pandas()
     code = main()
     # The interpreter's last collections, as it exits, walk every object left (the modules of
     # numpy and pyarrow, profiles, caches), a noticeable wait once everything is written and
     # closed. Frozen, they are left to the process's end.
     gc.freeze()
     sys.exit(code)
+
+
+def _without_pandas() -> None:
+    """pyarrow imports pandas, where it is installed, at the first array it makes from a Python
+    list (to ask whether the list is a pandas one): half a second of every command's start, for
+    nothing the command line uses. The program refuses that import in its own process;
+    rtusniff imported as a library (:mod:`sniffer.library`) leaves it be."""
+    if "pandas" not in sys.modules:
+        sys.meta_path.insert(0, _NoPandas())
+
+
+class _NoPandas(importlib.abc.MetaPathFinder):
+    """Finds no pandas: ``import pandas`` raises ``ModuleNotFoundError`` (which pyarrow, asking,
+    takes for pandas not installed)."""
+
+    def find_spec(self, name: str, path: Sequence[str] | None, target: ModuleType | None = None) -> None:
+        if name == "pandas":
+            raise ModuleNotFoundError("the command line does without pandas", name=name)
