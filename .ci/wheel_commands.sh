@@ -54,6 +54,10 @@ printf 'Address,Name,Type,Word order\n40031,Tank level,REAL,CDAB\n' >map.csv
 check "profiles import" "$bin/rtusniff" profiles import map.csv -o map.toml
 check "typed registers" "$bin/rtusniff" values xbt-floats.log --profile-file map.toml --profile 54=map \
   --registers f32:little -o floats.csv
+# The library from the wheel: a table made as the export made it, py.typed shipped.
+check "library" "$bin/python" -c "import sniffer, importlib.resources as r; \
+t = sniffer.open_capture('atv71-plc-poll.log', profile='atv71').table('frames'); assert t.num_rows == 52, t.num_rows; \
+assert r.files('sniffer').joinpath('py.typed').is_file()"
 check "ports" "$bin/rtusniff" ports
 check "capture --help" "$bin/rtusniff" capture --help
 check "wireshark setup" "$bin/rtusniff" wireshark setup --config-dir ws-config --extcap-dir ws-extcap

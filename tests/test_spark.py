@@ -1,6 +1,8 @@
 """The Parquet dataset in Spark, as the README shows it: read as written (no settings), and the
 documented queries giving DuckDB's answers to the last digit, which are ``stats``' percentiles
-(the nearest rank).
+(the nearest rank). Captures decoded in Spark's executors (``sniffer.spark``): written by Spark's
+own writer, the dataset ``export --each --parquet`` writes, row for row; a damaged capture a row
+of the errors table.
 
 A local Spark session (Java 17 or later), bound to the loopback interface only. Marked ``spark``:
 CI runs them; ``-m 'not spark'`` leaves them out where there is no Java."""
@@ -10,12 +12,19 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+import sniffer
+import sniffer.spark
+from benchmarks import generate_capture
+from decoders.line import LineSettings
+from tests.conftest import ROOT
 from tests.test_parquet import DOCUMENTS, P95_HISTOGRAM_QUERY, P95_QUERY, dataset, duckdb  # noqa: F401 - a fixture
 
 pytestmark = [pytest.mark.spark,
@@ -34,7 +43,8 @@ def spark() -> Iterator[Any]:
     os.environ["SPARK_LOCAL_IP"] = "127.0.0.1"  # the driver listens on loopback only
     from pyspark.sql import SparkSession
 
-    session = (SparkSession.builder.master("local[1]").appName("rtusniff-tests")
+    os.environ["PYSPARK_PYTHON"] = sys.executable  # the executors' Python: this one, with rtusniff
+    session = (SparkSession.builder.master("local[2]").appName("rtusniff-tests")
                .config("spark.driver.bindAddress", "127.0.0.1").config("spark.driver.host", "127.0.0.1")
                .config("spark.ui.enabled", "false").config("spark.sql.shuffle.partitions", "2")
                .config("spark.sql.session.timeZone", "UTC").getOrCreate())
@@ -53,12 +63,72 @@ def duck(query: str) -> list[tuple[Any, ...]]:
             for row in result.fetchall()]
 
 
-def test_the_dataset_in_spark(spark: Any, dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: F811
+def test_the_dataset_in_spark(spark: Any, dataset: Path, capsys: pytest.CaptureFixture[str],  # noqa: F811
+                              tmp_path: Path) -> None:
     """One test, so that one Spark session starts (the workers of ``-n 2`` would start one each)."""
     the_readme_spark_query_gives_duckdb_s_answers(spark, dataset, capsys)
     the_histogram_query_runs_on_spark_as_it_is(spark, dataset)
     for table in ("frames", "transactions", "values", "anomalies"):
         times_read_as_written(spark, dataset, table)
+    captures_decoded_in_spark_are_the_export_s_dataset(spark, tmp_path)
+    the_documented_cluster_job_runs(spark, tmp_path / "documented", capsys)
+
+
+def captures_decoded_in_spark_are_the_export_s_dataset(spark: Any, folder: Path) -> None:
+    """20 generated captures (two buses' worth of drives, exact and host timing) and a damaged one."""
+    captures = folder / "captures"
+    captures.mkdir()
+    for seed in range(20):
+        generate_capture.write(captures / f"line-{seed:02d}.log", 300, seed, LineSettings.parse("19200 8E1"),
+                               "exact" if seed % 2 else "host", values="steady")
+    (captures / "damaged.log").write_text("# rtu-capture v1\n# line: 19200 8E1\n1.0 0103\n2.0 zz\n")
+    export = subprocess.run([sys.executable, "-m", "sniffer", "export", "--each", str(captures), "--parquet",
+                             str(folder / "exported"), "--profile", "atv71", "--jobs", "1", "-q"],
+                            capture_output=True, text=True, check=False)
+    assert export.returncode == 15, export.stderr  # the damaged capture failed, the others were done
+    (said,) = [line for line in export.stderr.splitlines() if "damaged.log" in line]
+
+    tables = sniffer.spark.decode(spark, str(captures), profile="atv71")
+    for name in sniffer.TABLES:
+        tables[name].write.partitionBy("bus", "date").parquet(str(folder / "spark" / name))
+    for name in sniffer.TABLES:
+        ours, theirs = dataset_rows(folder / "spark", name), dataset_rows(folder / "exported", name)
+        assert len(ours) == len(theirs) > 20 and ours == theirs, name
+    ((path, code, line),) = [tuple(row) for row in tables["errors"].collect()]
+    assert path.endswith("/damaged.log") and code == 7
+    assert line.split("damaged.log")[1] == said.split("damaged.log")[1]  # ":line 4: bad hex digit 'z'"
+
+
+def dataset_rows(folder: Path, table: str) -> list[str]:
+    """A dataset's rows of ``table``, each as text, sorted: partitions as text, times without
+    their zone (pyarrow reads Spark's as local times of UTC), dictionaries as their values,
+    ``capture`` the file's name (Spark names it by its URI)."""
+    import pyarrow.dataset as ds
+
+    rows = []
+    for read in ds.dataset(str(folder / table), format="parquet", partitioning="hive").to_table().to_pylist():
+        row = {key: (str(value) if key in ("bus", "date") else value) for key, value in read.items()}
+        if "capture" in row:
+            row["capture"] = Path(row["capture"]).name
+        for key in ("t", "t_end"):
+            if key in row:
+                row[key] = row[key].replace(tzinfo=None).isoformat()
+        rows.append(repr(sorted(row.items())))
+    return sorted(rows)
+
+
+def the_documented_cluster_job_runs(spark: Any, folder: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """docs/api.md's Spark example, on the shipped samples, from the checkout's root."""
+    text = (ROOT / "docs" / "api.md").read_text(encoding="utf-8")
+    (block,) = [block for block in re.findall(r"```python\n(.*?)```", text, re.DOTALL) if "sniffer.spark" in block]
+    cwd = os.getcwd()
+    os.chdir(ROOT)
+    try:
+        exec(compile(block, "docs/api.md (Spark)", "exec"), {"dataset": str(folder)})
+    finally:
+        os.chdir(cwd)
+    assert "|path|exit_code|error|" in capsys.readouterr().out.replace(" ", "")  # no capture failed: none listed
+    assert {path.name for path in folder.iterdir()} == set(sniffer.TABLES)
 
 
 def the_readme_spark_query_gives_duckdb_s_answers(spark: Any, dataset: Path,  # noqa: F811 - the fixture

@@ -33,11 +33,15 @@ from sniffer.sinks import FileSink
 from sniffer.tool_version import tool_version
 
 if TYPE_CHECKING:
+
     from sniffer.exports.mcap_export import (
         McapExporter,  # noqa: F401 - named in a string (imported when used)
         Prepared,
     )
-    from sniffer.exports.parquet_export import ParquetDataset  # noqa: F401 - named in a string (imported when used)
+    from sniffer.exports.parquet_export import (  # noqa: F401 - named in a string (imported when used)
+        ArrowTables,
+        ParquetDataset,
+    )
     from sniffer.exports.parquet_values import NumericValues
     from sniffer.exports.rerun_export import RerunExporter  # noqa: F401 - named in a string (imported when used)
 
@@ -106,22 +110,25 @@ class RerunSink(FileSink["RerunExporter"]):
                 self.exporter.messages(batch)
 
 
-class ParquetSink(FileSink["ParquetDataset"]):
-    """Decoded tables added to a Parquet dataset (:mod:`sniffer.exports.parquet_export`)."""
+class ParquetSink(FileSink["ParquetDataset | ArrowTables"]):
+    """Decoded tables added to a Parquet dataset (:mod:`sniffer.exports.parquet_export`), or
+    held in memory as Arrow tables (``folder`` ``None``: :attr:`tables`, for the library)."""
 
     wants_messages = True
     joins_batches = True
 
-    def __init__(self, folder: str, args: argparse.Namespace, analysis: Analysis) -> None:
+    def __init__(self, folder: str | None, args: argparse.Namespace, analysis: Analysis) -> None:
         super().__init__(folder)
         self._args, self._analysis = args, analysis
+        #: The tables, when held in memory (once closed).
+        self.tables: ArrowTables | None = None
         self._finished = False
         self.files: list[str] = []
         encoder = TransactionEncoder()
         self.prepare = lambda batch: _with_latency_bins(encoder.columns(batch, np.arange(len(batch))))
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
-        from sniffer.exports.parquet_export import ParquetDataset  # noqa: PLC0415 - pyarrow
+        from sniffer.exports.parquet_export import ArrowTables, ParquetDataset  # noqa: PLC0415 - pyarrow
         from sniffer.exports.parquet_latencies import LatencyHistograms  # noqa: PLC0415 - pyarrow
         from sniffer.exports.parquet_values import ValueCollector  # noqa: PLC0415 - pyarrow
 
@@ -131,9 +138,10 @@ class ParquetSink(FileSink["ParquetDataset"]):
         bus = self._args.bus or Path(self._args.capture[0]).stem
         self._values = ValueCollector()
         self._latencies = LatencyHistograms()
+        kept = {f"rtusniff.{k}": v for k, v in metadata.items()}
         with self.writing():
-            self.exporter = ParquetDataset(self.path or "", bus, capture_id, {f"rtusniff.{k}": v for k, v in
-                                                                                 metadata.items()})
+            self.exporter = ArrowTables(bus, kept) if self.path is None else ParquetDataset(self.path, bus, capture_id,
+                                                                                       kept)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         from sniffer.exports.parquet_export import anomaly_columns, frame_columns  # noqa: PLC0415
@@ -193,6 +201,10 @@ class ParquetSink(FileSink["ParquetDataset"]):
         with self.writing():
             exporter.close()
         self.files = [str(path) for path in exporter.files]
+        from sniffer.exports.parquet_export import ArrowTables  # noqa: PLC0415 - loaded already
+
+        if isinstance(exporter, ArrowTables):
+            self.tables = exporter
 
 
 class PcapSink(FileSink[PcapExporter]):

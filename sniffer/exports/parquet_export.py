@@ -269,6 +269,43 @@ class ParquetDataset:
                 part.partial.unlink()
 
 
+class ArrowTables:
+    """The dataset's tables of one capture held in memory as Arrow tables, for the library
+    (:mod:`sniffer.library`): what :class:`ParquetDataset` writes into files, row for row, with
+    the files' schema and key-value metadata, and each row's day (its ``date`` partition);
+    nothing on disk."""
+
+    def __init__(self, bus: str, metadata: dict[str, str]) -> None:
+        self.bus = bus
+        self._metadata = {key.encode(): value.encode() for key, value in metadata.items()}
+        self._batches: dict[str, list[pa.RecordBatch]] = {}
+        self._days: dict[str, list[npt.NDArray[np.int64]]] = {}
+        self._schemas: dict[str, pa.Schema] = {}
+        self.files: list[Path] = []  # none: a dataset's interface
+        #: Each table, once closed, and each of its rows' day (days since 1970, UTC).
+        self.tables: dict[str, pa.Table] = {}
+        self.days: dict[str, npt.NDArray[np.int64]] = {}
+
+    def add(self, table: str, t_ns: npt.NDArray[np.int64], columns: dict[str, pa.Array]) -> None:
+        """Rows of ``table``, as :meth:`ParquetDataset.add` takes them."""
+        schema = self._schemas.get(table)
+        if schema is None:
+            schema = self._schemas[table] = _schema(table, columns)
+        rows = pa.RecordBatch.from_arrays(list(columns.values()), schema=schema)
+        if rows.num_rows:
+            self._batches.setdefault(table, []).append(rows)
+            self._days.setdefault(table, []).append(t_ns // DAY_NS)
+
+    def close(self) -> None:
+        self.tables = {table: pa.Table.from_batches(self._batches.get(table, []), schema).replace_schema_metadata(
+            self._metadata) for table, schema in self._schemas.items()}
+        self.days = {table: np.concatenate(self._days.get(table) or [np.zeros(0, np.int64)])
+                     for table in self._schemas}
+
+    def abandon(self) -> None:
+        self._batches.clear()
+
+
 def _schema(table: str, columns: dict[str, pa.Array]) -> pa.Schema:
     """The table's schema from its first columns: those of :data:`REQUIRED_COLUMNS` not null."""
     required = REQUIRED_COLUMNS[table]

@@ -63,24 +63,19 @@ def _latency_cells(histogram: Histogram, measured: bool = True) -> list[str]:
             _ms(histogram.percentile(99)), _ms(histogram.maximum)]
 
 
-class StatsView(Sink):
-    """Keeps nothing per message but the findings' evidence; prints the statistics and the
-    findings at the end."""
+class Diagnosis(Sink):
+    """The findings of a capture (:func:`decoders.findings.diagnose`): keeps nothing per message
+    but their evidence, and weighs it with the statistics at the end (:attr:`findings`)."""
 
     wants_statistics = True
     wants_frames = True
 
-    def __init__(self, out: TextIO, *, width: int | None, color_system: ColorSystem | None = None,
-                 as_json: bool = False) -> None:
-        self._out = out
-        self._width = width
-        self._colors = color_system
-        self._as_json = as_json
+    def __init__(self) -> None:
         self._header: dict[str, object] = {}
         self._latency_measured = True
-        #: ``--each``: each capture's source, line and timing (provenance per capture).
-        self._captures: list[dict[str, str]] = []
         self._evidence: Symptoms | None = None
+        #: What is wrong on the bus, most severe first, once finished.
+        self.findings: list[Finding] = []
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
         self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
@@ -90,6 +85,24 @@ class StatsView(Sink):
     def frames(self, batch: MessageBatch) -> None:
         if self._evidence is not None:
             self._evidence.add(batch)
+
+    def finish(self, statistics: Statistics) -> None:
+        if self._evidence is not None:
+            self.findings = diagnose(statistics, self._evidence)
+
+
+class StatsView(Diagnosis):
+    """Prints the statistics and the findings at the end."""
+
+    def __init__(self, out: TextIO, *, width: int | None, color_system: ColorSystem | None = None,
+                 as_json: bool = False) -> None:
+        super().__init__()
+        self._out = out
+        self._width = width
+        self._colors = color_system
+        self._as_json = as_json
+        #: ``--each``: each capture's source, line and timing (provenance per capture).
+        self._captures: list[dict[str, str]] = []
 
     def each_capture(self, captures: list[dict[str, str]]) -> None:
         """``--each``: the captures counted (``source``, ``line``, ``timing`` each), in order. The
@@ -103,7 +116,9 @@ class StatsView(Sink):
 
     def finish(self, statistics: Statistics) -> None:
         # Over several captures (--each) the frames were counted elsewhere: no evidence to weigh.
-        findings = [] if self._captures or self._evidence is None else diagnose(statistics, self._evidence)
+        if not self._captures:
+            super().finish(statistics)
+        findings = [] if self._captures else self.findings
         if self._as_json:
             measured = {"latency_measured": self._latency_measured}
             each = {"captures": self._captures} if self._captures else {}
