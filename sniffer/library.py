@@ -28,11 +28,10 @@ from typing import TYPE_CHECKING, Any, NamedTuple, NoReturn
 from decoders.decoded_batch import AnnotatedBatch
 from decoders.message import Message
 from sniffer.cli import OneLineParser, build_parser
-from sniffer.commands.common import add_decoding_options, open_analysis, source_name
+from sniffer.commands.common import add_decoding_options, capture_paths, open_analysis, source_name
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.pipeline import analyze
+from sniffer.pipeline import Analysis, analyze
 from sniffer.sinks import Sink
-from sniffer.views.stats_view import Diagnosis
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -126,19 +125,61 @@ class Transaction(NamedTuple):
 
 
 class Capture:
-    """A capture and how to decode it (:func:`open_capture`)."""
+    """A capture opened, and how to decode it (:func:`open_capture`): what every command of the
+    command line decodes too, each into its own outputs (:meth:`decode`)."""
 
-    def __init__(self, args: argparse.Namespace) -> None:
+    def __init__(self, args: argparse.Namespace, stack: ExitStack | None = None) -> None:
+        """``args``: the command line's; ``stack``: a command's, which closes the capture with its
+        other files (else the capture closes itself after its first decoding, or at
+        :meth:`close`). The capture is opened and its line settings settled here: a bad file or
+        option is said at once."""
         self._args = args
-        with ExitStack() as stack:  # opened now: a bad file or option is said here
-            reader, analysis = open_analysis(args, stack)
-            #: What the file says of itself (format, line, timing, notes).
-            self.info = reader.info
-            #: The line settings it is decoded with.
-            self.line = analysis.line
+        self._own: ExitStack | None = None
+        if stack is None:
+            stack = self._own = ExitStack()
+        try:
+            #: The capture's reader, opened; and how it is decoded (line, timing, profiles, window).
+            self.reader, self.analysis = open_analysis(args, stack)
+        except BaseException:
+            self.close()
+            raise
+        #: What the file says of itself (format, line, timing, notes).
+        self.info = self.reader.info
+        #: The line settings it is decoded with.
+        self.line = self.analysis.line
+        self._read = False
         self._tables: ArrowTables | None = None
         self._statistics: Statistics | None = None
         self._findings: list[Finding] = []
+
+    def decode(self, sinks: Sequence[Sink], *, jobs: int = 1, analysis: Analysis | None = None) -> Statistics:
+        """Decodes the capture into ``sinks`` (:mod:`sniffer.sinks`; ``jobs=2``: in two
+        processes; ``analysis``: decoded otherwise than :attr:`analysis`), and its statistics
+        (counted where a sink wants them).
+        The first time from the reader opened; again by opening the capture again (not
+        standard input, which is read once)."""
+        if not self._read:
+            self._read = True
+            try:
+                return analyze(self.reader, self.source, analysis or self.analysis, sinks, jobs=jobs)
+            finally:
+                self.close()
+        if "-" in capture_paths(self._args):
+            raise RtuSniffError(ErrorKind.USAGE, "a capture read from standard input is decoded once")
+        with ExitStack() as stack:
+            reader, opened = open_analysis(self._args, stack)
+            return analyze(reader, self.source, analysis or opened, sinks, jobs=jobs)
+
+    def close(self) -> None:
+        """Closes the capture's file, where the capture opened it itself."""
+        if self._own is not None:
+            self._own.close()
+
+    def __enter__(self) -> Capture:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     @property
     def source(self) -> str:
@@ -199,7 +240,7 @@ class Capture:
         objects (role, pairing, flags, summary, params); decoded again, every frame held until
         the end (a capture of millions of frames is better read as :meth:`table`)."""
         collector = _Messages()
-        self._run([collector])
+        self.decode([collector])
         return iter(collector.found)
 
     def transactions(self) -> Iterator[Transaction]:
@@ -210,19 +251,15 @@ class Capture:
 
     def _decode(self) -> None:
         from sniffer.exports.outputs import ParquetSink  # noqa: PLC0415 - pyarrow, when a table is asked for
+        from sniffer.views.stats_view import Diagnosis  # noqa: PLC0415 - a view's imports, for the library alone
 
-        with ExitStack() as stack:
-            reader, analysis = open_analysis(self._args, stack)
-            tables, diagnosis = ParquetSink(None, self._args, analysis), Diagnosis()
-            stack.callback(tables.close)
-            self._statistics = analyze(reader, self.source, analysis, [tables, diagnosis])
+        tables, diagnosis = ParquetSink(None, self._args, self.analysis), Diagnosis()
+        try:
+            self._statistics = self.decode([tables, diagnosis])
+        finally:
+            tables.close()
         assert tables.tables is not None  # closed: a table for each name
         self._tables, self._findings = tables.tables, diagnosis.findings
-
-    def _run(self, sinks: list[Sink]) -> None:
-        with ExitStack() as stack:
-            reader, analysis = open_analysis(self._args, stack)
-            analyze(reader, self.source, analysis, sinks)
 
     def __repr__(self) -> str:
         return f"<Capture {self.source!r} line {self.line.format()} timing {self.info.timing.value}>"

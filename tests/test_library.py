@@ -18,7 +18,7 @@ import sniffer
 from tests.conftest import ROOT, CliResult
 from tests.real_recordings import TEXT, available
 
-SAMPLES = sorted(path.name for path in (ROOT / "captures").glob("*.log")) + ["atv71-plc-poll.mcap"]
+SAMPLES = [*sorted(path.name for path in (ROOT / "captures").glob("*.log")), "atv71-plc-poll.mcap"]
 REAL = sorted(path.name for path in TEXT.glob("*.log")) if available() else []
 
 
@@ -157,3 +157,16 @@ def test_the_documented_examples_run(monkeypatch: pytest.MonkeyPatch, capsys: py
         printed = capsys.readouterr().out
         expected = [line.removeprefix("# prints: ") for line in block.splitlines() if line.startswith("# prints: ")]
         assert printed.splitlines()[:len(expected)] == expected, block
+
+
+def test_a_capture_decodes_again_but_standard_input_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The commands decode through ``Capture.decode``: the first time from the file opened, again
+    by opening it again; standard input is read once."""
+    monkeypatch.chdir(ROOT)
+    capture = sniffer.open_capture("captures/atv71-plc-poll.log")
+    assert len(list(capture.frames())) == len(list(capture.frames())) == capture.statistics().frames == 52
+    monkeypatch.setattr("sys.stdin", open(ROOT / "captures" / "atv71-plc-poll.log", encoding="utf-8"))  # noqa: SIM115
+    piped = sniffer.open_capture("-")
+    assert piped.table("frames").num_rows == 52
+    with pytest.raises(sniffer.RtuSniffError, match="a capture read from standard input is decoded once"):
+        list(piped.frames())

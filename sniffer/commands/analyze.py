@@ -21,15 +21,13 @@ from sniffer.commands.common import (
     add_width_option,
     capture_paths,
     check_outputs,
-    open_analysis,
     open_output,
     replay_speed,
-    source_name,
     tell_written,
 )
 from sniffer.decoding_process import decoding_jobs
 from sniffer.exports.streams import add_stream_options, check_streams, stream_sinks
-from sniffer.pipeline import analyze
+from sniffer.library import Capture
 from sniffer.progress import progress_for
 from sniffer.sinks import Sink
 from sniffer.views.clock import Clock
@@ -89,16 +87,15 @@ def run(args: argparse.Namespace) -> int:
     jobs = decoding_jobs(args.jobs, follow=args.follow, paced=replay_speed(args) is not None)
     with ExitStack() as stack:
         out = open_output(args.output, stack, as_it_goes=args.follow)
-        reader, analysis = open_analysis(args, stack)
+        capture = Capture(args, stack)
         sink = FORMATS[args.format](out, args)
         streams = stream_sinks(args, replay=True)
         for stream in streams:
             stack.callback(stream.close)
         # Following: each batch reaches a pipe (| jq, | grep) as it is decoded.
         flushing = [FlushEachBatch(out)] if args.follow else []
-        progress = stack.enter_context(progress_for(args, reader, streaming=args.output in (None, "-")))
-        statistics = analyze(reader, source_name(args), analysis, [progress.sink, sink, *flushing, *streams],
-                             jobs=jobs)
+        progress = stack.enter_context(progress_for(args, capture.reader, streaming=args.output in (None, "-")))
+        statistics = capture.decode([progress.sink, sink, *flushing, *streams], jobs=jobs)
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format}, {counted(shown_frames(sink, statistics.frames), 'frame')}")])
     return 0

@@ -9,8 +9,7 @@ from contextlib import ExitStack
 from decoders.capture import CaptureInfo
 from decoders.line import LineSettings
 from decoders.stats import Statistics
-from sniffer.commands.common import open_analysis
-from sniffer.pipeline import analyze
+from sniffer.library import Capture
 from sniffer.progress import progress_for
 from sniffer.sinks import Sink
 from sniffer.views.compare_view import Side
@@ -32,8 +31,8 @@ def counted_capture(args: argparse.Namespace, path: str) -> Side:
     """``path`` read with the decoding options of ``args`` (its window too), counted."""
     one = argparse.Namespace(**{**vars(args), "capture": [path]})
     with ExitStack() as stack:
-        reader, analysis = open_analysis(one, stack)
+        capture = Capture(one, stack)
         counted = _Counted()
-        progress = stack.enter_context(progress_for(one, reader, streaming=False))
-        statistics: Statistics = analyze(reader, path, analysis, [progress.sink, counted])
+        progress = stack.enter_context(progress_for(one, capture.reader, streaming=False))
+        statistics: Statistics = capture.decode([progress.sink, counted])
     return Side(path, counted.line, counted.timing, statistics)

@@ -21,7 +21,6 @@ from sniffer.commands.common import (
     capture_paths,
     check_outputs,
     close_reader,
-    open_analysis,
     reader_options,
     source_name,
     tell_written,
@@ -41,7 +40,8 @@ from sniffer.exports.outputs import sha256_of
 from sniffer.io.chain import open_capture
 from sniffer.io.output_files import published_whole
 from sniffer.io.registry import format_help, formats_for, open_writer
-from sniffer.pipeline import Analysis, analyze
+from sniffer.library import Capture
+from sniffer.pipeline import Analysis
 from sniffer.selection import EVERYTHING, add_selection_options
 from sniffer.views.clock import Clock
 
@@ -74,12 +74,13 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
 def run(args: argparse.Namespace) -> int:
     check_outputs([args.output], capture_paths(args), force=args.force)
     with ExitStack() as stack:
-        reader, analysis = open_analysis(args, stack)
+        capture = Capture(args, stack)
+        reader, analysis = capture.reader, capture.analysis
         if not analysis.selection.windowed and analysis.selection.limit is None:
             raise RtuSniffError(ErrorKind.USAGE, "cut needs a window: --from/--to, --around INDEX or --limit N")
         finder = WindowFinder(analysis.selection)
         with suppress(PastWindow):  # the window is complete: the rest need not be read
-            analyze(reader, source_name(args), replace(analysis, selection=EVERYTHING), [finder])
+            capture.decode([finder], analysis=replace(analysis, selection=EVERYTHING))
         info, line, timing = reader.info, analysis.line, analysis.timing
     place = finder.place
     if place.first_index is None:

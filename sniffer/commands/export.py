@@ -19,17 +19,16 @@ from sniffer.commands.common import (
     capture_paths,
     check_outputs,
     human_size,
-    open_analysis,
     replay_speed,
-    source_name,
 )
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.exports.outputs import McapSink, ParquetSink, PcapSink, RerunSink
 from sniffer.exports.streams import RerunStreamSink, add_stream_options, check_streams, stream_sinks
 from sniffer.io.output_files import published_whole
+from sniffer.library import Capture
 from sniffer.many_captures import Tally, add_each_options, capture_files, each_result, jobs_for_each
-from sniffer.pipeline import Analysis, analyze
+from sniffer.pipeline import Analysis
 from sniffer.progress import progress_for, shown
 from sniffer.sinks import FileSink
 from sniffer.wording import counted
@@ -95,12 +94,11 @@ def run(args: argparse.Namespace) -> int:
             parts = {option: stack.enter_context(published_whole(getattr(args, option),
                                                                  kept_when_interrupted=kept[option]))
                      for option, _, _ in OUTPUTS if getattr(args, option) and option != "parquet"}
-            reader, analysis = open_analysis(args, stack)
-            sinks = output_sinks(argparse.Namespace(**{**vars(args), **parts}), analysis, stack)
-            progress = stack.enter_context(progress_for(args, reader, streaming=args.pcap == "-"))
+            capture = Capture(args, stack)
+            sinks = output_sinks(argparse.Namespace(**{**vars(args), **parts}), capture.analysis, stack)
+            progress = stack.enter_context(progress_for(args, capture.reader, streaming=args.pcap == "-"))
             try:
-                analyze(reader, source_name(args), analysis, [progress.sink, *(sink for _, sink in sinks)],
-                        jobs=jobs)
+                capture.decode([progress.sink, *(sink for _, sink in sinks)], jobs=jobs)
             except KeyboardInterrupt:
                 for _, sink in sinks:
                     sink.interrupted()
@@ -217,8 +215,8 @@ def _run_each(args: argparse.Namespace) -> int:
 def _export_one(args: argparse.Namespace) -> tuple[int, list[str]]:
     """One capture of ``--each`` into the dataset (in a process of the pool): frames, files added."""
     with ExitStack() as stack:
-        reader, analysis = open_analysis(args, stack)
-        sink = ParquetSink(args.parquet, args, analysis)
+        capture = Capture(args, stack)
+        sink = ParquetSink(args.parquet, args, capture.analysis)
         stack.callback(sink.close)
-        analyze(reader, source_name(args), analysis, [sink], jobs=1)
+        capture.decode([sink])
     return sink.frames_written, sink.files

@@ -20,13 +20,12 @@ from sniffer.commands.common import (
     add_quiet_option,
     capture_paths,
     check_outputs,
-    open_analysis,
     open_output,
     source_name,
     tell_written,
 )
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.pipeline import analyze
+from sniffer.library import Capture
 from sniffer.profile_draft import DraftCollector, draft_text
 from sniffer.profiles_io import DEFAULT_PROFILE, load_profile_file, shipped_profiles
 from sniffer.register_map import MAP_ADDRESSINGS, import_map
@@ -152,8 +151,7 @@ def _run_draft(args: argparse.Namespace) -> int:
     args.profile, args.profile_file, args.registers = [DEFAULT_PROFILE], [], []  # plain words
     collector = DraftCollector(args.slave)
     with ExitStack() as stack:
-        reader, analysis = open_analysis(args, stack)
-        analyze(reader, source_name(args), analysis, [collector], jobs=1)
+        Capture(args, stack).decode([collector])
     if not collector.observations.frames:
         raise RtuSniffError(ErrorKind.NO_DATA, f"slave {args.slave} reports and is written no value in this capture",
                             path=source_name(args))

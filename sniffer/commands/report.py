@@ -17,7 +17,6 @@ from sniffer.commands.common import (
     add_quiet_option,
     capture_paths,
     check_outputs,
-    open_analysis,
     open_output,
     source_name,
     tell_written,
@@ -26,8 +25,8 @@ from sniffer.commands.counting import counted_capture
 from sniffer.decoding_process import decoding_jobs
 from sniffer.errors import ErrorKind, RtuSniffError
 from sniffer.io.output_files import published_whole
+from sniffer.library import Capture
 from sniffer.many_captures import Tally, add_each_options, capture_files, each_result, jobs_for_each
-from sniffer.pipeline import analyze
 from sniffer.progress import progress_for, shown
 from sniffer.report.collect import Comparison, Provenance, ReportCollector, source_file
 from sniffer.report.html import write_html
@@ -104,9 +103,9 @@ def _gathered(args: argparse.Namespace, paths: list[str], jobs: int, *, part: bo
     """What the report shows of ``paths``, read as one capture (``part``: of ``--each``)."""
     collector = ReportCollector(_provenance(args, paths), part=part)
     with ExitStack() as stack:
-        reader, analysis = open_analysis(args, stack)
-        progress = stack.enter_context(progress_for(args, reader, streaming=False))
-        analyze(reader, source_name(args), analysis, [progress.sink, collector], jobs=jobs)
+        capture = Capture(args, stack)
+        progress = stack.enter_context(progress_for(args, capture.reader, streaming=False))
+        capture.decode([progress.sink, collector], jobs=jobs)
     return collector
 
 

@@ -20,15 +20,13 @@ from sniffer.commands.common import (
     add_width_option,
     capture_paths,
     check_outputs,
-    open_analysis,
     open_output,
-    source_name,
     tell_written,
 )
 from sniffer.commands.counting import counted_capture
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.library import Capture
 from sniffer.many_captures import Tally, add_each_options, capture_files, each_result, jobs_for_each
-from sniffer.pipeline import analyze
 from sniffer.progress import progress_for, shown
 from sniffer.views.compare_view import Side
 from sniffer.views.layout import terminal_layout
@@ -63,10 +61,10 @@ def run(args: argparse.Namespace) -> int:
         return _run_each(args)
     with ExitStack() as stack:
         out = open_output(args.output, stack, as_it_goes=args.follow)
-        reader, analysis = open_analysis(args, stack)
+        capture = Capture(args, stack)
         view = _view(out, args)
-        progress = stack.enter_context(progress_for(args, reader, streaming=False))
-        statistics = analyze(reader, source_name(args), analysis, [progress.sink, view])
+        progress = stack.enter_context(progress_for(args, capture.reader, streaming=False))
+        statistics = capture.decode([progress.sink, view])
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format} statistics of {counted(statistics.frames, 'frame')}")])
     return 0

@@ -15,14 +15,12 @@ from sniffer.commands.common import (
     add_quiet_option,
     capture_paths,
     check_outputs,
-    open_analysis,
     open_output,
-    source_name,
     tell_written,
 )
 from sniffer.decoding_process import decoding_jobs
 from sniffer.encoding.value_rows import ValueChoice
-from sniffer.pipeline import analyze
+from sniffer.library import Capture
 from sniffer.progress import progress_for
 from sniffer.views.values import ValuesView
 
@@ -59,10 +57,10 @@ def run(args: argparse.Namespace) -> int:
     choice = ValueChoice(frozenset(args.slave or ()), frozenset(args.param or ()), args.changes)
     with ExitStack() as stack:
         out = open_output(args.output, stack)
-        reader, analysis = open_analysis(args, stack)
+        capture = Capture(args, stack)
         view = ValuesView(out, choice, as_json=args.format == "jsonl", wide=args.wide, time_mode=args.time)
-        progress = stack.enter_context(progress_for(args, reader, streaming=args.output in (None, "-")))
-        analyze(reader, source_name(args), analysis, [progress.sink, view], jobs=decoding_jobs(args.jobs))
+        progress = stack.enter_context(progress_for(args, capture.reader, streaming=args.output in (None, "-")))
+        capture.decode([progress.sink, view], jobs=decoding_jobs(args.jobs))
     if args.output not in (None, "-"):
         tell_written(args, [(args.output, f"{args.format}, {view.shown:,} values")])
     return 0

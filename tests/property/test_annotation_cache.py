@@ -110,7 +110,7 @@ def said(decoding: Decoding) -> tuple[object, ...]:
             decoding.pdu, decoding.uss)
 
 
-@settings(max_examples=max(150, EXAMPLES), deadline=None)
+@settings(max_examples=max(80, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=60), st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=xbt", "7=atv71"]]),
        st.frozensets(st.integers(0, 120), max_size=12))
 def test_cached_decodings_equal_decoding_each_frame(traffic: list[list[bytes]], profiles: list[str] | None,
@@ -211,7 +211,7 @@ def annotated_batches(draw: st.DrawFn) -> AnnotatedBatch:
     return annotated.select(np.array(draw(st.lists(st.booleans(), min_size=len(batch), max_size=len(batch)))))
 
 
-@settings(max_examples=max(150, EXAMPLES), deadline=None)
+@settings(max_examples=max(80, EXAMPLES), deadline=None)
 @given(annotated_batches(), st.booleans())
 def test_frame_records_are_what_json_dumps_writes(batch: AnnotatedBatch, distinct: bool) -> None:
     """Both ways of writing who a frame is: from the batch's columns (``distinct``: a batch of
@@ -223,7 +223,7 @@ def test_frame_records_are_what_json_dumps_writes(batch: AnnotatedBatch, distinc
         assert encoded(encoder, batch) == expected  # again, from the encoder's cache
 
 
-@settings(max_examples=max(150, EXAMPLES), deadline=None)
+@settings(max_examples=max(80, EXAMPLES), deadline=None)
 @given(annotated_batches(), st.integers(0, 40))
 def test_fast_frame_records_say_what_the_exact_ones_say(batch: AnnotatedBatch, reserved: int) -> None:
     """The MCAP spelling: times as the exact decimals of their nanoseconds, a frame's own

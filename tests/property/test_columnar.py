@@ -178,7 +178,7 @@ def check_batch(columns: Annotator, plain: Annotator, batch: MessageBatch) -> in
     return len(kept)
 
 
-@settings(max_examples=max(120, EXAMPLES), deadline=None)
+@settings(max_examples=max(60, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
        st.sampled_from([None, [], ["atv71"], ["2=atv312"], ["1=atv71", "7=atv312"], ["2=xbt"],
                         ["1=flowmeter", "2=atv71"], ["1=pump", "7=flowmeter"]]))

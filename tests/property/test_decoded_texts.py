@@ -63,7 +63,7 @@ def check_texts(parts: FrameTexts, expected: list[Decoding], batch: MessageBatch
     assert parts.decoded.summaries() == [expected[p].summary for p in positions]
 
 
-@settings(max_examples=max(150, EXAMPLES), deadline=None)
+@settings(max_examples=max(80, EXAMPLES), deadline=None)
 @given(st.lists(exchanges(), max_size=50), st.lists(st.integers(0, 120), max_size=4),
        st.sampled_from([decoded_texts.SLICE_PARAMS, 1, 7, 64]),
        st.sampled_from([None, [], ["atv71"], ["2=atv312", "7=xbt"]]))

@@ -78,7 +78,7 @@ _ECHO_READ_LONGER = [Chunk(T0 + 13_177_086, _ECHO), Chunk(T0 + 22_343_753, _ECHO
                      Chunk(T0 + 25_781_253, bytes.fromhex("368016"))]
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(tight_exchanges())
 @example((LineSettings.parse("9600 8E1"), _ECHO_READ_LONGER))
 def test_pairs_cut_in_bulk_as_the_parser_cuts_them(capture: tuple[LineSettings, list[Chunk]]) -> None:
@@ -119,7 +119,7 @@ def _longer_reading(frame: bytes, extra: int) -> bytes:
     return bytes([extra]) + crc_bytes(body)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.lists(st.sampled_from(["echo", "longer", "stray", "read"]), min_size=1, max_size=40),
        st.binary(min_size=1, max_size=6), st.integers(0, 255), LINES, st.sampled_from([1, 2, 50]))
 def test_an_echo_read_at_two_lengths_is_left_to_the_programme(
@@ -146,7 +146,7 @@ def test_a_reading_crossing_an_anchor_s_end_is_weighed_as_the_reference_weighs_i
     assert frames(chunks, line, fast=True) == frames(chunks, line, fast=False)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.lists(st.sampled_from(["echo", "longer", "noise"]), min_size=1, max_size=60), st.binary(min_size=1),
        st.integers(0, 255))
 def test_clean_frames_found_in_bulk_as_one_by_one(pieces: list[str], data: bytes, extra: int) -> None:
@@ -157,7 +157,7 @@ def test_clean_frames_found_in_bulk_as_one_by_one(pieces: list[str], data: bytes
     assert clean_frame_ends(stream).tolist() == [clean_frame_end(stream, k, len(stream)) for k in range(len(stream))]
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(st.lists(st.tuples(st.integers(0, 255), st.sampled_from(sorted(LAYOUTS)) | st.integers(0, 255),
                           st.binary(max_size=12), st.integers(0, 3)), min_size=1, max_size=30))
 @example([(1, 8, bytes.fromhex("00001234"), 0), (1, 8, bytes.fromhex("00001234"), 2)])  # echoes

@@ -75,7 +75,7 @@ def frames_of(chunks: list[Chunk], line: LineSettings, batch_sizes: list[int]) -
     return [(f.data, f.t_start_ns, f.t_end_ns, f.flags, f.crc_ok, f.idle_before_ns) for f in out]
 
 
-@settings(max_examples=120, deadline=None)
+@settings(max_examples=80, deadline=None)
 @given(captures(), st.data())
 def test_rechunking_does_not_change_frames(capture: tuple[LineSettings, list[Chunk]], data: st.DataObject) -> None:
     line, chunks = capture

@@ -30,7 +30,7 @@ from sniffer.io.registry import open_reader
 from tests import real_recordings
 from tests.conftest import ROOT
 
-EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "40"))
+EXAMPLES = int(os.environ.get("RTUSNIFF_EXAMPLES", "25"))
 #: The read loops a live reader meets: rtusniff's own (in-waiting) behind USB adapters, and reads
 #: of any size (a read timeout of its own, of 500 ms, splits frames across reads no live
 #: reader leaves open that long).
