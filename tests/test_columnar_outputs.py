@@ -21,6 +21,7 @@ FLOWMETER = Path(__file__).resolve().parent / "data" / "flowmeter.toml"
 PUMP = FLOWMETER.with_name("pump.toml")
 #: Two of the meter's recordings: one read of HR 13 alone (half a float) in each; the others alike.
 METER_RECORDINGS = ["sr_flowmeter_target_20liter_per_min.log", "sr_flowmeter_graph_tool.log"]
+PROFILED_RECORDINGS = ["sr_brainchild-io-16do.log", *METER_RECORDINGS]
 
 
 def _generated(folder: Path, traffic: str, frames: int = 6000) -> Path:
@@ -51,14 +52,15 @@ CASES = pytest.mark.parametrize(("capture", "setting"), [
     # Floats in register pairs, every value new, named in columns by the words of both.
     (lambda folder: _generated(folder, "meters", 2000), (["--registers", "f32"], 1500)),
     *[(lambda folder, name=name: _real(folder, name), ([], 0)) for name in RECORDINGS],
-    # Real wires read with a profile that names what they carry (wrongly, but every rule applies).
+    # Real wires read with a profile that names what they carry (wrongly, but every rule applies):
+    # the I/O module and two of the flow meter's five recordings, which are much alike.
     *[(lambda folder, name=name: _real(folder, name), (["--profile", profile], 0))
-      for name in RECORDINGS for profile in ("atv71", "xbt")],
+      for name in PROFILED_RECORDINGS for profile in ("atv71", "xbt")],
     # The flow meter's floats, named by a profile of register pairs (and a read of half of one).
     *[(lambda folder, name=name: _real(folder, name), (["--profile-file", str(FLOWMETER), "--profile", "flowmeter"], 0))
       for name in METER_RECORDINGS],
 ], ids=[*SAMPLES, "usb", "xbt", "polling", "coils", "mixed", "mixed-named", "coils-named", "meters", *RECORDINGS,
-        *[f"{name}-{profile}" for name in RECORDINGS for profile in ("atv71", "xbt")],
+        *[f"{name}-{profile}" for name in PROFILED_RECORDINGS for profile in ("atv71", "xbt")],
         *[f"{name}-flowmeter" for name in METER_RECORDINGS]])
 
 
@@ -91,13 +93,17 @@ def both_ways(monkeypatch: pytest.MonkeyPatch, cli: Callable[..., Any]) -> Calla
 
 
 @CASES
-def test_parquet(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[Path], Path],
-                 setting: tuple[list[str], int]) -> None:
+def test_parquet_and_mcap(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[Path], Path],
+                          setting: tuple[list[str], int]) -> None:
+    """One export writes both (one decoding a way): the Parquet dataset row for row, the MCAP
+    message for message."""
     source, (options, least) = capture(tmp_path), setting
-    export = ["export", str(source), "--jobs", "1", "-q", *options, "--parquet"]
-    assert both_ways([*export, str(tmp_path / "columns")], [*export, str(tmp_path / "plain")]) >= least
+    export = ["export", str(source), "--jobs", "1", "-q", *options]
+    assert both_ways([*export, "--parquet", str(tmp_path / "columns"), "--mcap", str(tmp_path / "columns.mcap")],
+                     [*export, "--parquet", str(tmp_path / "plain"), "--mcap", str(tmp_path / "plain.mcap")]) >= least
     for name in ("frames", "transactions", "values", "anomalies", "latencies"):
         assert table(tmp_path / "columns", name) == table(tmp_path / "plain", name), name
+    assert _messages(tmp_path / "columns.mcap") == _messages(tmp_path / "plain.mcap")
 
 
 @CASES
@@ -113,15 +119,6 @@ def _messages(path: Path) -> list[tuple[str, int, bytes]]:
     with path.open("rb") as stream:
         return [(channel.topic, message.log_time, message.data)
                 for _, channel, message in make_reader(stream).iter_messages(log_time_order=False)]
-
-
-@CASES
-def test_mcap(tmp_path: Path, both_ways: Callable[..., int], capture: Callable[[Path], Path],
-              setting: tuple[list[str], int]) -> None:
-    source, (options, least) = capture(tmp_path), setting
-    export = ["export", str(source), "--jobs", "1", "-q", *options, "--mcap"]
-    assert both_ways([*export, str(tmp_path / "columns.mcap")], [*export, str(tmp_path / "plain.mcap")]) >= least
-    assert _messages(tmp_path / "columns.mcap") == _messages(tmp_path / "plain.mcap")
 
 
 @CASES

@@ -144,7 +144,7 @@ def test_polars_missing_is_said() -> None:
 
 def test_the_documented_examples_run(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     """Every Python block of docs/api.md, in order, in one namespace, as a notebook runs them;
-    a block's ``# prints:`` lines are what it prints."""
+    a block's ``# prints:`` lines are what it prints. The README's three lines too."""
     monkeypatch.chdir(ROOT)
     text = (ROOT / "docs" / "api.md").read_text(encoding="utf-8")
     blocks = re.findall(r"```python\n(.*?)```", text, re.DOTALL)
@@ -157,6 +157,12 @@ def test_the_documented_examples_run(monkeypatch: pytest.MonkeyPatch, capsys: py
         printed = capsys.readouterr().out
         expected = [line.removeprefix("# prints: ") for line in block.splitlines() if line.startswith("# prints: ")]
         assert printed.splitlines()[:len(expected)] == expected, block
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```python\n(.*?)```", readme, re.DOTALL)
+    (three_lines,) = [block for block in blocks if "open_capture" in block]
+    namespace = {}
+    exec(compile(three_lines, "README.md (library)", "exec"), namespace)
+    assert namespace["capture"].table("transactions").num_rows == 27
 
 
 def test_a_capture_decodes_again_but_standard_input_once(monkeypatch: pytest.MonkeyPatch) -> None:
