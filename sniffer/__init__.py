@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from sniffer.errors import ErrorKind, RtuSniffError
-    from sniffer.library import TABLES, Capture, open_capture
+    from sniffer.exports import TABLES
+    from sniffer.library import Capture, open_capture
 
 __all__ = ["TABLES", "Capture", "ErrorKind", "RtuSniffError", "open_capture"]
 
@@ -19,7 +20,11 @@ def __getattr__(name: str) -> Any:
         from sniffer import errors  # noqa: PLC0415
 
         return getattr(errors, name)
-    if name in ("TABLES", "Capture", "open_capture"):
+    if name == "TABLES":
+        from sniffer import exports  # noqa: PLC0415
+
+        return exports.TABLES
+    if name in ("Capture", "open_capture"):
         from sniffer import library  # noqa: PLC0415
 
         return getattr(library, name)

@@ -30,6 +30,7 @@ from decoders.message import Message
 from sniffer.cli import OneLineParser, build_parser
 from sniffer.commands.common import add_decoding_options, capture_paths, open_analysis, source_name
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports import TABLES
 from sniffer.pipeline import Analysis, analyze
 from sniffer.sinks import Sink
 
@@ -40,8 +41,6 @@ if TYPE_CHECKING:
     from decoders.stats import Statistics
     from sniffer.exports.parquet_export import ArrowTables
 
-#: The tables of a capture, as ``export --parquet`` names them.
-TABLES = ("frames", "transactions", "values", "anomalies", "latencies")
 
 
 def open_capture(path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], **options: Any) -> Capture:

@@ -100,14 +100,19 @@ def shipped_profiles() -> dict[str, Profile]:
     return found
 
 
-def load_profile_file(path: str) -> Profile:
-    """A user's profile file; errors name the file and the field."""
+def profile_file_text(path: str) -> str:
+    """A user's profile file's text; errors name the file."""
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        return Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
         raise RtuSniffError(ErrorKind.FILE_NOT_FOUND, "no such profile file", path=path) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise RtuSniffError(ErrorKind.FILE_UNREADABLE, f"cannot read: {exc}", path=path) from None
+
+
+def load_profile_file(path: str) -> Profile:
+    """A user's profile file; errors name the file and the field."""
+    text = profile_file_text(path)
     try:
         return parse_profile(text, path)
     except ProfileError as exc:

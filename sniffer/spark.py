@@ -33,7 +33,9 @@ import pyarrow as pa
 
 from decoders.crc import crc_bytes
 from sniffer.errors import ErrorKind, RtuSniffError
-from sniffer.library import TABLES, open_capture
+from sniffer.exports import TABLES
+from sniffer.library import open_capture
+from sniffer.profiles_io import profile_file_text
 
 if TYPE_CHECKING:
     from pyspark.sql import DataFrame, SparkSession
@@ -48,7 +50,7 @@ ERRORS = "errors"
 def decode(spark: SparkSession, paths: str | Sequence[str], **options: Any) -> dict[str, DataFrame]:
     """The tables of the captures at ``paths`` (files, folders, globs Spark reads), decoded in
     the executors with ``options`` (those of :func:`~sniffer.library.open_capture`), by name:
-    each of :data:`~sniffer.library.TABLES` and :data:`ERRORS`. The decoded captures stay in
+    each of :data:`~sniffer.exports.TABLES` and :data:`ERRORS`. The decoded captures stay in
     Spark's cache while the tables are read (``spark.catalog.clearCache()`` lets them go)."""
     from pyspark.sql.pandas.types import from_arrow_schema  # noqa: PLC0415 - pyspark, only here
 
@@ -68,13 +70,7 @@ def decode(spark: SparkSession, paths: str | Sequence[str], **options: Any) -> d
 def _shipped(options: dict[str, Any]) -> dict[str, Any]:
     """``options`` as the executors get them: each profile file's name and text instead of its path."""
     files = options.get("profile_file") or []
-    named = []
-    for path in [files] if isinstance(files, str) else files:
-        try:
-            named.append((Path(path).name, Path(path).read_bytes()))
-        except OSError as exc:
-            raise RtuSniffError(ErrorKind.FILE_NOT_FOUND if isinstance(exc, FileNotFoundError)
-                                else ErrorKind.FILE_UNREADABLE, exc.strerror or str(exc), path=str(path)) from None
+    named = [(Path(path).name, profile_file_text(str(path))) for path in ([files] if isinstance(files, str) else files)]
     return {**options, "profile_file": named}
 
 
@@ -96,16 +92,16 @@ def decoded_capture(uri: str, content: bytes, shipped: dict[str, Any]) -> pa.Rec
         for count, (profile_name, text) in enumerate(shipped["profile_file"]):
             profile = Path(folder) / f"profile-{count}" / profile_name
             profile.parent.mkdir()
-            profile.write_bytes(text)
+            profile.write_text(text, encoding="utf-8")
             profiles.append(str(profile))
         options = {"bus": Path(name).stem, **shipped, "profile_file": profiles}
         try:
             capture = open_capture(local, **options)
             tables = {table: _plain(capture.table(table, partitions=True), uri) for table in TABLES}
-        except RtuSniffError as error:
-            where = ":".join(part for part in (uri if error.path == str(local) else error.path, error.location) if part)
-            return _error_row(uri, error.kind.exit_code, f"error: {where}: {error.message}" if where else
-                              f"error: {error.message}")
+        except RtuSniffError as error:  # said as the command line says it, of the file Spark names
+            said = RtuSniffError(error.kind, error.message, path=uri if error.path == str(local) else error.path,
+                                 location=error.location)
+            return _error_row(uri, error.kind.exit_code, f"error: {said}")
         except Exception as error:  # any other failure is this capture's, not the job's
             return _error_row(uri, ErrorKind.RUNTIME.exit_code, f"error: {uri}: {type(error).__name__}: {error}")
     streams = [_ipc(table) for table in tables.values()]

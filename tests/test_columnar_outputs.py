@@ -13,6 +13,7 @@ from typing import Any
 import pytest
 from mcap.reader import make_reader
 
+from sniffer.exports import TABLES
 from tests.real_recordings import RECORDINGS, TEXT, available
 from tests.test_parquet import SAMPLES, table
 
@@ -101,7 +102,7 @@ def test_parquet_and_mcap(tmp_path: Path, both_ways: Callable[..., int], capture
     export = ["export", str(source), "--jobs", "1", "-q", *options]
     assert both_ways([*export, "--parquet", str(tmp_path / "columns"), "--mcap", str(tmp_path / "columns.mcap")],
                      [*export, "--parquet", str(tmp_path / "plain"), "--mcap", str(tmp_path / "plain.mcap")]) >= least
-    for name in ("frames", "transactions", "values", "anomalies", "latencies"):
+    for name in TABLES:
         assert table(tmp_path / "columns", name) == table(tmp_path / "plain", name), name
     assert _messages(tmp_path / "columns.mcap") == _messages(tmp_path / "plain.mcap")
 

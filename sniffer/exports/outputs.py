@@ -33,7 +33,6 @@ from sniffer.sinks import FileSink
 from sniffer.tool_version import tool_version
 
 if TYPE_CHECKING:
-
     from sniffer.exports.mcap_export import (
         McapExporter,  # noqa: F401 - named in a string (imported when used)
         Prepared,
@@ -120,7 +119,7 @@ class ParquetSink(FileSink["ParquetDataset | ArrowTables"]):
     def __init__(self, folder: str | None, args: argparse.Namespace, analysis: Analysis) -> None:
         super().__init__(folder)
         self._args, self._analysis = args, analysis
-        #: The tables, when held in memory (once closed).
+        #: The tables, when held in memory (filled once closed).
         self.tables: ArrowTables | None = None
         self._finished = False
         self.files: list[str] = []
@@ -139,9 +138,11 @@ class ParquetSink(FileSink["ParquetDataset | ArrowTables"]):
         self._values = ValueCollector()
         self._latencies = LatencyHistograms()
         kept = {f"rtusniff.{k}": v for k, v in metadata.items()}
+        if self.path is None:
+            self.exporter = self.tables = ArrowTables(bus, kept)
+            return
         with self.writing():
-            self.exporter = ArrowTables(bus, kept) if self.path is None else ParquetDataset(self.path, bus, capture_id,
-                                                                                       kept)
+            self.exporter = ParquetDataset(self.path, bus, capture_id, kept)
 
     def messages(self, batch: AnnotatedBatch) -> None:
         from sniffer.exports.parquet_export import anomaly_columns, frame_columns  # noqa: PLC0415
@@ -201,10 +202,6 @@ class ParquetSink(FileSink["ParquetDataset | ArrowTables"]):
         with self.writing():
             exporter.close()
         self.files = [str(path) for path in exporter.files]
-        from sniffer.exports.parquet_export import ArrowTables  # noqa: PLC0415 - loaded already
-
-        if isinstance(exporter, ArrowTables):
-            self.tables = exporter
 
 
 class PcapSink(FileSink[PcapExporter]):

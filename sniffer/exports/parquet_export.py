@@ -52,12 +52,12 @@ from decoders.frame import flag_names_of
 from decoders.message import NONE, ROLE_ORDER
 from decoders.runs import spread
 from sniffer.errors import ErrorKind, RtuSniffError
+from sniffer.exports import TABLES
 from sniffer.exports.latency_bins import DAY_NS
 from sniffer.exports.parquet_summaries import Summaries
 from sniffer.exports.parquet_writing import RowGroupWriter
 from sniffer.exports.transactions import OUTCOMES
 
-TABLES = ("frames", "transactions", "values", "anomalies", "latencies")  # each but the last has times
 #: What a bus name may hold: it names a folder (``bus=NAME``) that every engine reads back as is.
 _BUS_NAME = re.compile(r"[^\x00-\x1f\x7f/\\=:*?\"<>|]{1,100}")
 
@@ -171,10 +171,7 @@ class ParquetDataset:
 
     def add(self, table: str, t_ns: npt.NDArray[np.int64], columns: dict[str, pa.Array]) -> None:
         """Rows of ``table`` (``t_ns``: each row's time, which chooses its date's file)."""
-        schema = self._schemas.get(table)
-        if schema is None:
-            schema = self._schemas[table] = _schema(table, columns)
-        batch = pa.RecordBatch.from_arrays(list(columns.values()), schema=schema)
+        batch = _rows(self._schemas, table, columns)
         if not len(t_ns):
             return
         # The first and last day from the least and greatest time: a day for every row is made
@@ -288,10 +285,7 @@ class ArrowTables:
 
     def add(self, table: str, t_ns: npt.NDArray[np.int64], columns: dict[str, pa.Array]) -> None:
         """Rows of ``table``, as :meth:`ParquetDataset.add` takes them."""
-        schema = self._schemas.get(table)
-        if schema is None:
-            schema = self._schemas[table] = _schema(table, columns)
-        rows = pa.RecordBatch.from_arrays(list(columns.values()), schema=schema)
+        rows = _rows(self._schemas, table, columns)
         if rows.num_rows:
             self._batches.setdefault(table, []).append(rows)
             self._days.setdefault(table, []).append(t_ns // DAY_NS)
@@ -304,6 +298,14 @@ class ArrowTables:
 
     def abandon(self) -> None:
         self._batches.clear()
+
+
+def _rows(schemas: dict[str, pa.Schema], table: str, columns: dict[str, pa.Array]) -> pa.RecordBatch:
+    """``columns`` as rows of ``table``, whose schema its first rows set (kept in ``schemas``)."""
+    schema = schemas.get(table)
+    if schema is None:
+        schema = schemas[table] = _schema(table, columns)
+    return pa.RecordBatch.from_arrays(list(columns.values()), schema=schema)
 
 
 def _schema(table: str, columns: dict[str, pa.Array]) -> pa.Schema:

@@ -71,15 +71,11 @@ class Diagnosis(Sink):
     wants_frames = True
 
     def __init__(self) -> None:
-        self._header: dict[str, object] = {}
-        self._latency_measured = True
         self._evidence: Symptoms | None = None
         #: What is wrong on the bus, most severe first, once finished.
         self.findings: list[Finding] = []
 
     def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
-        self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
-        self._latency_measured = info.timing is TimingQuality.EXACT
         self._evidence = Symptoms(int(line.t3_5_ns), info.timing is TimingQuality.EXACT)
 
     def frames(self, batch: MessageBatch) -> None:
@@ -101,8 +97,15 @@ class StatsView(Diagnosis):
         self._width = width
         self._colors = color_system
         self._as_json = as_json
+        self._header: dict[str, object] = {}
+        self._latency_measured = True
         #: ``--each``: each capture's source, line and timing (provenance per capture).
         self._captures: list[dict[str, str]] = []
+
+    def start(self, source: str, info: CaptureInfo, line: LineSettings) -> None:
+        super().start(source, info, line)
+        self._header = {"source": source, "line": line.format(), "timing": info.timing.value}
+        self._latency_measured = info.timing is TimingQuality.EXACT
 
     def each_capture(self, captures: list[dict[str, str]]) -> None:
         """``--each``: the captures counted (``source``, ``line``, ``timing`` each), in order. The
