@@ -108,8 +108,8 @@ class RegistersResponse:
     values: tuple[int, ...]
 
     def summary(self) -> str:
-        table = "IR" if self.function == 4 else "HR"
-        return f"{table} = {hex_words(self.values)} ({registers(len(self.values))})"
+        # A device's own read-shaped function names its table, or reads registers.
+        return f"{TABLE_NAMES.get(self.function, 'HR')} = {hex_words(self.values)} ({registers(len(self.values))})"
 
 
 @dataclass(slots=True, unsafe_hash=True)
@@ -160,9 +160,8 @@ class WriteMultipleResponse:
     count: int
 
     def summary(self) -> str:
-        table = "coils" if self.function == 15 else "HR"
         count = _quantity(self.count, MAX_QUANTITY[self.function])
-        return f"wrote {table} {_range(self.address, self.count)} ({count})"
+        return f"wrote {TABLE_NAMES[self.function]} {_range(self.address, self.count)} ({count})"
 
 
 @dataclass(slots=True, unsafe_hash=True)

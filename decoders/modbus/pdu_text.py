@@ -14,14 +14,6 @@ def hex_words(values: tuple[int, ...], limit: int = HEX_WORDS_SHOWN) -> str:
     return shown + (f" … (+{len(values) - limit})" if len(values) > limit else "")
 
 
-def hex_payload(payload: bytes, limit: int = HEX_WORDS_SHOWN) -> str:
-    """:func:`hex_words` of the big-endian registers ``payload`` holds, written from its bytes
-    (no tuple of values to build first)."""
-    words = len(payload) // 2
-    shown = payload[: 2 * limit].hex(" ", 2).upper()
-    return shown + (f" … (+{words - limit})" if words > limit else "")
-
-
 def registers(count: int) -> str:
     """``1 register``, ``8 registers``: how a summary counts an answer's words."""
     return f"{count} register" if count == 1 else f"{count} registers"

@@ -111,6 +111,8 @@ def hex_words(data: bytes, starts: npt.NDArray[np.int64], counts: npt.NDArray[np
     digits = 2 * np.arange(2 * most) + np.arange(2 * most) // 2  # a byte's first digit: 4 digits and a space a word
     field[:, digits] = UPPER_HEX[values >> 4]
     field[:, digits + 1] = UPPER_HEX[values & 0x0F]
+    if not len(counts) or int(counts.min()) == most:  # every row as wide (a polled bus's answers)
+        return field
     # A word past a row's count is nothing, and so is the space before it.
     ends = np.maximum(5 * counts - 1, 0)
     shown: Field = np.where(np.arange(field.shape[1]) < ends[:, None], field, np.uint8(0))
@@ -121,8 +123,8 @@ def lines(fields: Sequence[Field | str], count: int) -> list[str]:
     """The ``count`` lines of ``fields`` side by side (a text: the same in every line)."""
     if not count:
         return []
-    laid = _laid(fields, count)
-    spelt = laid.tobytes().replace(b"\0", b"").decode("utf-8").split("\n")
+    laid = _laid(fields, count).tobytes()
+    spelt = (laid.replace(b"\0", b"") if b"\0" in laid else laid).decode("utf-8").split("\n")
     spelt.pop()  # after the last line
     return spelt
 
