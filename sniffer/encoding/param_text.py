@@ -5,8 +5,7 @@ value. Each address's start (``,{"address":…,"raw":``) and each value's end (`
 is formatted once, in two tables of 65 536 (built at first use, 5 MB each), from which
 the frames in columns are spelt (:mod:`sniffer.encoding.decoded_texts`). Raw values are 16-bit
 words or coil bits, so a value is its own index. A named param's JSON is made once per param
-(:data:`PARAM_JSON`). Exactly the JSON of :func:`sniffer.encoding.records.param_record` (the
-tests compare both).
+(:data:`PARAM_JSON`). Exactly the JSON of :func:`param_record` (the tests compare both).
 """
 
 from __future__ import annotations
