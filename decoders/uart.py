@@ -225,15 +225,18 @@ BAUD_TOLERANCE = 0.12
 
 
 def pulse_baud(level: Samples, samplerate: float) -> float | None:
-    """The baud rate the line's one-bit pulses measure, or ``None`` with too few edges. A bit is
-    the shortest time the line holds a level; its pulses, sampled, last a whole number of samples
-    either side of it, so those near the shortest are averaged rather than the shortest taken."""
+    """The baud rate the line's one-bit pulses measure, or ``None`` with too few edges to tell. A
+    bit is the shortest time the line holds a level; its pulses, sampled, last a whole number of
+    samples either side of it, so those near the shortest are averaged rather than the shortest
+    taken."""
     edges = np.flatnonzero(level[1:] != level[:-1])
     if len(edges) < 20:
         return None
     runs = np.diff(edges)
     shortest = float(np.percentile(runs, 2))
     one_bit = runs[(runs >= shortest) & (runs < 1.5 * shortest)]
+    if not len(one_bit):  # a few edges, the shortest pulses glitches far from any bit: no measure
+        return None
     return samplerate / max(float(one_bit.mean()), 1.0)
 
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from decoders.line import LineSettings
-from decoders.uart import CharacterFormat, UartDecoder
+from decoders.uart import CharacterFormat, UartDecoder, pulse_baud
 from sniffer.io.base import ReaderOptions
 from sniffer.io.sigrok_session import SigrokSessionReader
 from tests.conftest import ROOT, CliResult
@@ -326,6 +326,27 @@ def test_framing_errors_reach_frames_stats_and_captures(cli: Cli, tmp_path: Path
 
 
 GLITCHES = sorted((SIGROK / "uart" / "errors").glob("glitch_*.sr"))
+
+
+@pytest.mark.parametrize("session", GLITCHES, ids=[g.stem for g in GLITCHES])
+def test_a_glitch_recording_told_no_line_says_so_in_one_line(cli: Cli, session: Path) -> None:
+    """Told no --line, these recordings of a few characters have too few pulses to measure a bit
+    by: one error line (exit 10), never a numpy warning. glitch_0x4f_0x4b_0x0a's 21 pulses once
+    put its shortest between a 1-sample spike and a 9-sample one, averaged no pulse and said
+    "measure nan Bd" after two RuntimeWarnings."""
+    said = cli("stats", str(session))
+    assert said.code == 10, said.err
+    assert said.err.startswith(f"error: {session}:session: ") and len(said.err.strip().splitlines()) == 1, said.err
+    assert "give --line" in said.err and "nan" not in said.err
+
+
+def test_pulses_that_agree_on_no_bit_measure_nothing() -> None:
+    """The shortest pulses (the 2nd percentile) fall between a spike and a half bit, with no
+    pulse near them: no rate, rather than the mean of none."""
+    runs = [1, 9, *[17] * 13, 24, 34, 34, 34, 68, 68]
+    level = np.repeat(np.arange(len(runs) + 1) % 2 == 0, [5, *runs])
+    assert pulse_baud(level, 2_000_000.0) is None
+    assert pulse_baud(np.repeat(np.arange(30) % 2 == 0, 17), 2_000_000.0) == pytest.approx(2_000_000 / 17)
 
 
 @pytest.mark.parametrize("session", GLITCHES, ids=[g.stem for g in GLITCHES])
