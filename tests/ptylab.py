@@ -26,6 +26,8 @@ from pathlib import Path
 
 import serial
 
+from decoders.crc import crc_ok
+
 SOCAT = shutil.which("socat")
 
 SLAVE_SCRIPT = """
@@ -85,8 +87,11 @@ def pty_pair(directory: Path, name: str) -> Iterator[PtyPair]:
 class Relay:
     """Copies bytes between two ports and keeps a copy of each read with its time.
 
-    Reads from the master side that start with an address in ``absent`` are recorded
-    but not passed on: a drive missing from the bus.
+    Requests from the master side whose address is in ``absent`` are recorded but not passed
+    on: a drive missing from the bus. A request may come in several reads (a loaded machine
+    splits them), so the address is its first read's first byte, and a request lasts until its
+    bytes end in their CRC (or 0.1 s of quiet): ``01 03 00 00 00 04 44`` then ``09`` once lost
+    its last byte to ``absent={9}``, and its slave never answered.
     """
 
     master_side: Path
@@ -97,6 +102,11 @@ class Relay:
     tap: list[tuple[int, bytes]] = field(default_factory=list)
     _stop: threading.Event = field(default_factory=threading.Event)
     _thread: threading.Thread | None = None
+    #: The master's request being relayed (its bytes so far), when its last read came, and whether
+    #: it is for an absent slave.
+    _request: bytearray = field(default_factory=bytearray)
+    _request_ns: int = 0
+    _dropping: bool = False
 
     def __enter__(self) -> Relay:
         self._ports = [serial.Serial(str(p), 19200, timeout=0) for p in (self.master_side, self.slave_side)]
@@ -130,8 +140,20 @@ class Relay:
                     self.tap.append((time.time_ns(), data))
                     if self._copy is not None:
                         self._copy.write(data)
-                    if not (port is self._ports[0] and data[0] in self.absent):
+                    if not (port is self._ports[0] and self._absent(data)):
                         other.write(data)
+
+    def _absent(self, data: bytes) -> bool:
+        """Whether ``data``, read from the master's side, belongs to a request for an absent slave."""
+        now = time.monotonic_ns()
+        if not self._request or now - self._request_ns > 100_000_000:  # a request starts
+            self._request.clear()
+            self._dropping = data[0] in self.absent
+        self._request += data
+        self._request_ns = now
+        if len(self._request) >= 4 and crc_ok(bytes(self._request)):
+            self._request.clear()
+        return self._dropping
 
 
 @contextmanager
