@@ -42,9 +42,9 @@ def run_master(port: Path) -> list[dict[str, Any]]:
     from pymodbus import FramerType
     from pymodbus.client import ModbusSerialClient
 
-    # The master waits 1 s for an answer: the pymodbus slave, a Python process on a loaded machine
-    # (CI runs a Spark session beside it), answered slave 1 after 0.3 s once, which the session
-    # then took for a slave that is not there. Only slave 9's one request waits it out.
+    # The master waits 1 s for an answer: the pymodbus slave is a Python process on a loaded machine
+    # (CI runs a Spark session beside it). Only slave 9's one request waits it out. (A slave 1 that
+    # "never answered" in CI was the relay losing a request's last byte: see ptylab.Relay.)
     client = ModbusSerialClient(str(port), framer=FramerType.RTU, baudrate=19200, parity="N", timeout=1.0,
                                 retries=0)
     assert client.connect()
