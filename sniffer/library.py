@@ -42,7 +42,6 @@ if TYPE_CHECKING:
     from sniffer.exports.parquet_export import ArrowTables
 
 
-
 def open_capture(path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], **options: Any) -> Capture:
     """The capture at ``path`` (several paths: rotated files read as one), to be decoded with
     ``options``: the command line's decoding options by their names there (``--profile-file``:
